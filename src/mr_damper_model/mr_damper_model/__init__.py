@@ -1,0 +1,1 @@
+"""mr_damper_model: see README.md."""

@@ -1,0 +1,1 @@
+"""mr_damper_rig: see README.md."""

@@ -1,0 +1,31 @@
+"""Setup for the mr_damper_rig ament_python package."""
+import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'mr_damper_rig'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob.glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='MR damper suite developers',
+    maintainer_email='mr-damper-suite@example.org',
+    description='Virtual MR damper test rig and DAQ CSV / rosbag2 replay publishing damper measurements.',
+    license='Apache-2.0',
+    extras_require={'test': ['pytest']},
+    entry_points={
+        'console_scripts': [
+            'rig_node = mr_damper_rig.rig_node:main',
+            'mr-damper-record = mr_damper_rig.record:main',
+            'mr-damper-rig-test = mr_damper_rig.rig_test_cli:main',
+        ],
+    },
+)

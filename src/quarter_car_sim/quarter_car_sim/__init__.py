@@ -1,0 +1,1 @@
+"""quarter_car_sim: see README.md."""

@@ -1,0 +1,30 @@
+"""Setup for the quarter_car_sim ament_python package."""
+import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'quarter_car_sim'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob.glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='MR damper suite developers',
+    maintainer_email='mr-damper-suite@example.org',
+    description='Quarter-car simulation with semi-active MR damper control (skyhook, groundhook, hybrid, LQR reference).',
+    license='Apache-2.0',
+    extras_require={'test': ['pytest']},
+    entry_points={
+        'console_scripts': [
+            'quarter_car_node = quarter_car_sim.quarter_car_node:main',
+            'quarter-car-sim = quarter_car_sim.cli:main',
+        ],
+    },
+)
