@@ -1,0 +1,331 @@
+"""
+Damper measurement records: the ``t,x,v,f,i`` DAQ format, reading, writing and validation.
+
+A record holds one damper test as equal-length arrays in SI units:
+
+====  ==========================  =====
+name  quantity                    unit
+====  ==========================  =====
+t     sample time                 s
+x     piston displacement         m
+v     piston velocity             m/s
+f     damper force                N
+i     coil current                A
+====  ==========================  =====
+
+CSV files have the header ``t,x,v,f,i`` (any column order; extra columns are ignored). The ``v``
+column may be left empty: it is then derived from ``x`` (see :func:`derive_velocity`).
+Every problem found in a file raises :class:`DataError` with one line naming the file and the
+problem, so command-line tools can print it and exit with status 2.
+"""
+import csv
+from dataclasses import dataclass
+import math
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = ('t', 'x', 'v', 'f', 'i')
+COLUMN_UNITS = {'t': 's', 'x': 'm', 'v': 'm/s', 'f': 'N', 'i': 'A'}
+
+
+class DataError(ValueError):
+    """A measurement record or file is unusable; the message is one line naming the problem."""
+
+
+def _label(name):
+    return f'{name}: ' if name else ''
+
+
+@dataclass(frozen=True)
+class DamperData:
+    """
+    One damper test record: equal-length 1-D float arrays ``t, x, v, f, i`` (SI units).
+
+    Parameters
+    ----------
+    t : array_like with shape (n,)
+        Sample time [s].
+    x : array_like with shape (n,)
+        Piston displacement [m].
+    v : array_like with shape (n,)
+        Piston velocity [m/s].
+    f : array_like with shape (n,)
+        Damper force [N].
+    i : array_like with shape (n,)
+        Coil current [A].
+    source : str, optional
+        Where the record came from (file name), used in error messages.
+
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    i: np.ndarray
+    source: str = ''
+
+    def __post_init__(self):
+        arrays = {}
+        for name in COLUMNS:
+            a = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
+            if a.ndim != 1:
+                raise DataError(f'{_label(self.source)}column `{name}` must be 1-D, '
+                                f'got shape {a.shape}')
+            arrays[name] = a
+        n = {len(a) for a in arrays.values()}
+        if len(n) != 1:
+            lengths = ', '.join(f'{k}={len(a)}' for k, a in arrays.items())
+            raise DataError(f'{_label(self.source)}columns have different lengths ({lengths})')
+        for name, a in arrays.items():
+            object.__setattr__(self, name, a)
+
+    @property
+    def n(self):
+        """Number of samples."""
+        return len(self.t)
+
+    @property
+    def duration(self):
+        """Time spanned by the record [s] (0 for fewer than two samples)."""
+        return float(self.t[-1] - self.t[0]) if self.n > 1 else 0.0
+
+    @property
+    def sample_rate_hz(self):
+        """Sample rate from the median sample interval [Hz] (nan for fewer than two samples)."""
+        if self.n < 2:
+            return math.nan
+        dt = float(np.median(np.diff(self.t)))
+        return 1.0 / dt if dt > 0 else math.nan
+
+    def select(self, index):
+        """Return the samples picked by a boolean mask, an index array or a slice."""
+        return DamperData(self.t[index], self.x[index], self.v[index], self.f[index],
+                          self.i[index], source=self.source)
+
+    def current_levels(self, tol_a=0.05):
+        """
+        Return the distinct coil-current levels of the record [A].
+
+        Currents are sorted and split wherever two neighbouring values differ by more than
+        ``tol_a``; each cluster's median is its level.
+        """
+        return [level for level, _ in self._clusters(tol_a)]
+
+    def split_by_current(self, tol_a=0.05):
+        """
+        Split the record into one record per coil-current level.
+
+        Parameters
+        ----------
+        tol_a : float
+            Currents closer than this [A] belong to the same level.
+
+        Returns
+        -------
+        list of (float, DamperData)
+            ``(level_a, record)`` sorted by level; each record keeps its samples in time order.
+
+        """
+        return [(level, self.select(mask)) for level, mask in self._clusters(tol_a)]
+
+    def _clusters(self, tol_a):
+        if self.n == 0:
+            return []
+        order = np.argsort(self.i, kind='stable')
+        sorted_i = self.i[order]
+        breaks = np.flatnonzero(np.diff(sorted_i) > tol_a) + 1
+        out = []
+        for members in np.split(order, breaks):
+            mask = np.zeros(self.n, dtype=bool)
+            mask[members] = True
+            out.append((float(np.median(self.i[members])), mask))
+        return out
+
+    @classmethod
+    def concatenate(cls, parts, *, restamp=False):
+        """
+        Join records end to end.
+
+        Parameters
+        ----------
+        parts : sequence of DamperData
+            Records to join, in order.
+        restamp : bool
+            If True, rewrite the time stamps so the result has a continuous, increasing time
+            base (each part keeps its own sample intervals). Algebraic models (Kwok, Bingham)
+            do not use time, so joined segments from different moments are a valid data set
+            for them; models with internal state (Bouc-Wen, Spencer) are not.
+
+        """
+        parts = list(parts)
+        if not parts:
+            raise DataError('nothing to concatenate')
+        t_parts = []
+        offset = None
+        for p in parts:
+            t = p.t
+            if restamp and p.n:
+                dt = float(np.median(np.diff(t))) if p.n > 1 else 1e-3
+                start = 0.0 if offset is None else offset + dt
+                t = t - t[0] + start
+                offset = float(t[-1])
+            t_parts.append(t)
+        return cls(np.concatenate(t_parts),
+                   *(np.concatenate([getattr(p, c) for p in parts]) for c in COLUMNS[1:]),
+                   source=parts[0].source)
+
+
+def derive_velocity(t, x):
+    """
+    Derive piston velocity [m/s] from displacement samples.
+
+    Uniformly sampled records (sample intervals within 1 % of their median) use a cubic
+    Savitzky-Golay derivative over about 20 ms (at least 5 samples), which suppresses the
+    displacement sensor's quantisation noise the way the shared Quiroz files were prepared;
+    otherwise a second-order central difference on the sample times (``numpy.gradient``).
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if len(t) < 3:
+        raise DataError('too few samples to derive velocity from displacement')
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    if med > 0 and np.all(np.abs(dt - med) <= 0.01 * med):
+        from scipy.signal import savgol_filter
+        window = max(5, int(round(0.02 / med)) | 1)
+        if window > len(x):
+            window = len(x) if len(x) % 2 else len(x) - 1
+        if window >= 5:
+            return savgol_filter(x, window, 3, deriv=1, delta=med, mode='interp')
+    return np.gradient(x, t)
+
+
+def read_csv(path):
+    """
+    Read a DAQ CSV file with header ``t,x,v,f,i`` into a :class:`DamperData`.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV file; columns in any order, extra columns ignored, ``v`` may be empty.
+
+    Returns
+    -------
+    DamperData
+
+    Raises
+    ------
+    DataError
+        Unreadable file, missing column, truncated or non-numeric row, NaN/inf values.
+        Use :func:`validate` for the checks that need the whole record (time order, motion).
+
+    """
+    path = Path(path)
+    name = str(path)
+    try:
+        with open(path, newline='') as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise DataError(f'{name}: cannot read file ({exc.strerror or exc})') from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise DataError(f'{name}: not a text CSV file ({exc})') from None
+    while rows and not any(cell.strip() for cell in rows[-1]):
+        rows.pop()
+    if not rows:
+        raise DataError(f'{name}: file is empty (expected header t,x,v,f,i)')
+    header = [h.strip().lower() for h in rows[0]]
+    missing = [c for c in COLUMNS if c not in header]
+    if missing:
+        raise DataError(f"{name}: missing column(s) {', '.join(missing)} "
+                        f"(header is '{','.join(rows[0])}', expected t,x,v,f,i)")
+    col = {c: header.index(c) for c in COLUMNS}
+    body = rows[1:]
+    if not body:
+        raise DataError(f'{name}: no data rows after the header')
+    values = np.empty((len(body), len(COLUMNS)), dtype=float)
+    v_empty = np.zeros(len(body), dtype=bool)
+    for r, row in enumerate(body):
+        line = r + 2
+        if len(row) < len(header):
+            raise DataError(f'{name}: line {line} has {len(row)} fields, expected '
+                            f'{len(header)} (truncated file?)')
+        for k, c in enumerate(COLUMNS):
+            cell = row[col[c]].strip()
+            if cell == '' and c == 'v':
+                v_empty[r] = True
+                values[r, k] = math.nan
+                continue
+            try:
+                values[r, k] = float(cell)
+            except ValueError:
+                raise DataError(f"{name}: line {line} column {c}: '{cell}' is not a number") \
+                    from None
+    for k, c in enumerate(COLUMNS):
+        bad = ~np.isfinite(values[:, k])
+        if c == 'v':
+            bad &= ~v_empty
+        if bad.any():
+            line = int(np.flatnonzero(bad)[0]) + 2
+            raise DataError(f'{name}: column {c} has {int(bad.sum())} NaN/inf value(s), '
+                            f'first at line {line}')
+    t, x, v, f, i = values.T
+    if v_empty.all():
+        if np.any(np.diff(t) <= 0):
+            raise DataError(f'{name}: time is not strictly increasing, cannot derive v from x')
+        v = derive_velocity(t, x)
+    elif v_empty.any():
+        line = int(np.flatnonzero(v_empty)[0]) + 2
+        raise DataError(f'{name}: column v is empty on some rows only (first at line {line}); '
+                        'leave it empty everywhere to derive it from x')
+    return DamperData(t, x, v, f, i, source=name)
+
+
+def write_csv(path, data):
+    """Write a :class:`DamperData` as a ``t,x,v,f,i`` CSV file (SI units)."""
+    arr = np.column_stack([getattr(data, c) for c in COLUMNS])
+    np.savetxt(path, arr, delimiter=',', header=','.join(COLUMNS), comments='', fmt='%.10g')
+
+
+def validate(data, *, min_samples=50, min_stroke_m=1e-4, name=''):
+    """
+    Check that a record can be identified; return it unchanged.
+
+    Parameters
+    ----------
+    data : DamperData
+    min_samples : int
+        Fewer samples than this is an error.
+    min_stroke_m : float
+        Peak-to-peak displacement below this [m] counts as "no motion".
+    name : str
+        Label for messages (defaults to ``data.source``).
+
+    Raises
+    ------
+    DataError
+        NaN/inf values, non-increasing time, too few samples, no motion, constant force.
+
+    """
+    label = _label(name or data.source)
+    if data.n < min_samples:
+        raise DataError(f'{label}too few samples ({data.n}, need at least {min_samples})')
+    for c in COLUMNS:
+        a = getattr(data, c)
+        bad = ~np.isfinite(a)
+        if bad.any():
+            raise DataError(f'{label}column {c} has {int(bad.sum())} NaN/inf value(s), '
+                            f'first at sample {int(np.flatnonzero(bad)[0])}')
+    dt = np.diff(data.t)
+    if np.any(dt <= 0):
+        k = int(np.flatnonzero(dt <= 0)[0]) + 1
+        raise DataError(f'{label}time is not strictly increasing at sample {k} '
+                        f'(t={data.t[k]:.6g} s after {data.t[k - 1]:.6g} s)')
+    stroke = float(np.ptp(data.x))
+    if stroke < min_stroke_m or not np.any(data.v != 0):
+        raise DataError(f'{label}no motion: displacement spans {stroke * 1e3:.3g} mm '
+                        f'(need at least {min_stroke_m * 1e3:.3g} mm)')
+    if float(np.ptp(data.f)) == 0.0:
+        raise DataError(f'{label}force is constant ({data.f[0]:.6g} N): no damper response')
+    return data

@@ -1,0 +1,117 @@
+"""Tests for mr_damper_model.data: CSV reading, validation, current splitting."""
+import numpy as np
+import pytest
+
+from mr_damper_model.data import DamperData, DataError, derive_velocity, read_csv, validate, \
+    write_csv
+
+
+def _record(n=2000, fs=1000.0, freq=1.1, amp=0.03, currents=(0.0,)):
+    t = np.arange(n) / fs
+    x = amp * np.sin(2 * np.pi * freq * t)
+    v = amp * 2 * np.pi * freq * np.cos(2 * np.pi * freq * t)
+    i = np.repeat(np.asarray(currents, float), int(np.ceil(n / len(currents))))[:n]
+    f = 500.0 * v + 100.0 * np.tanh(20 * v)
+    return DamperData(t, x, v, f, i, source='synthetic')
+
+
+def test_csv_round_trip(tmp_path):
+    d = _record()
+    path = tmp_path / 'rec.csv'
+    write_csv(path, d)
+    back = read_csv(path)
+    for c in 'txvfi':
+        np.testing.assert_allclose(getattr(back, c), getattr(d, c), rtol=1e-9, atol=1e-12)
+    assert back.source == str(path)
+
+
+def test_column_order_and_extra_columns(tmp_path):
+    path = tmp_path / 'shuffled.csv'
+    path.write_text('f,i,extra,t,x,v\n1,0,9,0,0.001,0.1\n2,0,9,0.001,0.002,0.1\n')
+    d = read_csv(path)
+    np.testing.assert_allclose(d.f, [1, 2])
+    np.testing.assert_allclose(d.x, [0.001, 0.002])
+
+
+def test_empty_velocity_is_derived_from_displacement(tmp_path):
+    d = _record()
+    path = tmp_path / 'nov.csv'
+    lines = ['t,x,v,f,i'] + [f'{t:.12g},{x:.12g},,{f:.12g},{i:.12g}' for t, x, f, i in
+                             zip(d.t, d.x, d.f, d.i)]
+    path.write_text('\n'.join(lines) + '\n')
+    back = read_csv(path)
+    # away from the ends the Savitzky-Golay derivative of a clean sine is nearly exact
+    np.testing.assert_allclose(back.v[50:-50], d.v[50:-50], atol=1e-4 * np.abs(d.v).max())
+
+
+def test_derive_velocity_nonuniform_uses_gradient():
+    t = np.cumsum(np.r_[0.0, np.linspace(1e-3, 3e-3, 199)])
+    x = 0.5 * t ** 2
+    np.testing.assert_allclose(derive_velocity(t, x)[1:-1], t[1:-1], rtol=1e-2)
+
+
+@pytest.mark.parametrize('text, match', [
+    ('', 'file is empty'),
+    ('t,x,f,i\n0,0,0,0\n', 'missing column'),
+    ('t,x,v,f,i\n', 'no data rows'),
+    ('t,x,v,f,i\n0,0,0,0,0\n0.001,0.1,0\n', 'truncated'),
+    ('t,x,v,f,i\n0,0,0,abc,0\n', "'abc' is not a number"),
+    ('t,x,v,f,i\n0,0,0,nan,0\n', 'NaN'),
+    ('t,x,v,f,i\n0,0,,1,0\n0.001,0,0.1,1,0\n', 'empty on some rows'),
+])
+def test_bad_files_raise_one_line_error_naming_the_file(tmp_path, text, match):
+    path = tmp_path / 'bad.csv'
+    path.write_text(text)
+    with pytest.raises(DataError, match=match) as info:
+        read_csv(path)
+    msg = str(info.value)
+    assert str(path) in msg and '\n' not in msg
+
+
+def test_missing_file():
+    with pytest.raises(DataError, match='cannot read file'):
+        read_csv('/nonexistent/file.csv')
+
+
+def test_validate_accepts_good_and_rejects_bad():
+    d = _record()
+    assert validate(d) is d
+    with pytest.raises(DataError, match='too few samples'):
+        validate(d.select(slice(0, 10)))
+    t = d.t.copy()
+    t[100] = t[99]
+    with pytest.raises(DataError, match='not strictly increasing at sample 100'):
+        validate(DamperData(t, d.x, d.v, d.f, d.i))
+    with pytest.raises(DataError, match='no motion'):
+        validate(DamperData(d.t, np.zeros(d.n), np.zeros(d.n), d.f, d.i))
+    with pytest.raises(DataError, match='force is constant'):
+        validate(DamperData(d.t, d.x, d.v, np.full(d.n, 3.0), d.i))
+    f = d.f.copy()
+    f[5] = np.inf
+    with pytest.raises(DataError, match='NaN/inf'):
+        validate(DamperData(d.t, d.x, d.v, f, d.i))
+
+
+def test_mismatched_lengths_rejected():
+    with pytest.raises(DataError, match='different lengths'):
+        DamperData([0, 1], [0, 1], [0, 1], [0, 1], [0])
+
+
+def test_split_by_current_groups_levels_with_tolerance():
+    d = _record(n=5000, currents=(0.0, 0.5, 1.0, 1.5, 2.0))
+    noisy = DamperData(d.t, d.x, d.v, d.f, d.i + 0.01 * np.sin(np.arange(d.n)))
+    groups = noisy.split_by_current(tol_a=0.05)
+    assert [round(level, 2) for level, _ in groups] == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert sum(g.n for _, g in groups) == d.n
+    for level, g in groups:
+        assert np.all(np.abs(g.i - level) < 0.05)
+        assert np.all(np.diff(g.t) > 0)
+
+
+def test_concatenate_restamps_continuously():
+    d = _record(n=100)
+    joined = DamperData.concatenate([d, d], restamp=True)
+    assert joined.n == 200
+    assert np.all(np.diff(joined.t) > 0)
+    np.testing.assert_allclose(np.diff(joined.t), 1e-3)
+    assert DamperData.concatenate([d, d]).t[100] == 0.0
