@@ -1,0 +1,335 @@
+"""
+Model supervisor of the quarter-car controller: accept identified damper models or fail safe.
+
+The controller turns a demanded damper force into a coil current through the inverse of the
+current-dependent Kwok model identified live. This module decides, message by message and tick
+by tick, whether such a model may be used. A parameter set is accepted only if
+
+- the identifier marked it valid (``valid == 1``),
+- every element needed by the inverse model is present and finite,
+- every Kwok-current parameter lies inside the physical box bounds of the model
+  (``get_model('kwok-current').default_bounds()`` of ``mr_damper_model``),
+- ``i_ref_a`` is positive and the identified current range ``[current_min_a, current_max_a]``
+  is ordered and inside the coil's range (small tolerance),
+
+and it stays usable only while it is younger than ``timeout_s`` (age measured on the caller's
+clock from its receipt). Otherwise the supervisor is in fail-safe mode and the caller commands
+``safe_current_a``: never a guess from a stale or rejected model. An invalid or out-of-range
+message drops the model in use at once (the identifier has just said the damper no longer
+matches it), unless ``hold_on_reject`` is set, in which case the previous model stays in use
+until it goes stale.
+
+The module is pure Python/numpy (no ROS): the node feeds it decoded dictionaries and times.
+"""
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+#: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.
+KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
+                      'f0')
+
+#: Reasons the supervisor reports (``mode == 'failsafe'``) or counts (rejections).
+REASONS = (
+    'ok',                 # normal mode: a valid, fresh model is in use
+    'no_parameters_yet',  # nothing accepted since start
+    'stale',              # the model in use is older than the timeout
+    'invalid_flag',       # the identifier published valid != 1
+    'missing',            # an element the inverse model needs is absent
+    'non_finite',         # NaN or inf in a needed element
+    'out_of_bounds',      # a parameter outside the physical box bounds
+    'bad_current_range',  # i_ref_a <= 0, or current_min_a/current_max_a disordered / off-range
+)
+
+
+class SupervisorError(ValueError):
+    """Invalid configuration of a :class:`ModelSupervisor`."""
+
+
+def kwok_current_bounds():
+    """
+    Physical box bounds of the current-dependent Kwok model, by parameter name.
+
+    Returns
+    -------
+    dict
+        ``{name: (low, high)}`` from ``mr_damper_model``'s ``KwokCurrent.default_bounds()``.
+
+    """
+    from mr_damper_model.models import get_model  # lazy: keeps this module light to import
+    model = get_model('kwok-current')
+    lo, hi = model.default_bounds()
+    return {n: (float(a), float(b)) for n, a, b in zip(model.param_names, lo, hi)}
+
+
+@dataclass
+class Verdict:
+    """
+    Outcome of offering one parameter message to the supervisor.
+
+    Attributes
+    ----------
+    accepted : bool
+        True when the set passed every check and is now the model in use.
+    reason : str
+        ``'ok'`` or the first failed check (one of :data:`REASONS`).
+    detail : str
+        Human-readable detail (parameter name and value for bound violations).
+
+    """
+
+    accepted: bool
+    reason: str
+    detail: str = ''
+
+
+@dataclass
+class ModelSupervisor:
+    """
+    Accept identified Kwok-current parameter sets, or fall back to a safe constant current.
+
+    Parameters
+    ----------
+    timeout_s : float
+        Maximum age [s] of the model in use, counted from its receipt; older means fail-safe.
+    safe_current_a : float
+        Coil current [A] commanded in fail-safe mode (a passive damper setting).
+    i_min_a, i_max_a : float
+        Coil current range [A] of the damper driver.
+    bounds : dict, optional
+        ``{name: (low, high)}`` physical bounds; default :func:`kwok_current_bounds`.
+    current_tol_a : float
+        Tolerance [A] on the identified current range against ``[i_min_a, i_max_a]``.
+    hold_on_reject : bool
+        Keep the model in use when a later message is rejected (until it goes stale).
+
+    Raises
+    ------
+    SupervisorError
+        On a non-positive timeout, a disordered current range, or a safe current outside it.
+
+    """
+
+    timeout_s: float = 1.0
+    safe_current_a: float = 0.0
+    i_min_a: float = 0.0
+    i_max_a: float = 2.0
+    bounds: dict = None
+    current_tol_a: float = 0.05
+    hold_on_reject: bool = False
+    # state (not constructor arguments in practice)
+    params: dict = field(default=None, init=False)
+    accepted_at: float = field(default=None, init=False)
+    first_valid_at: float = field(default=None, init=False)
+    mode: str = field(default='failsafe', init=False)
+    reason: str = field(default='no_parameters_yet', init=False)
+    failsafe_s: float = field(default=0.0, init=False)
+    n_accepted: int = field(default=0, init=False)
+    n_failsafe_entries: int = field(default=0, init=False)
+    rejected: dict = field(default_factory=dict, init=False)
+    last_detail: str = field(default='', init=False)
+    _last_t: float = field(default=None, init=False)
+
+    def __post_init__(self):
+        for name in ('timeout_s', 'safe_current_a', 'i_min_a', 'i_max_a', 'current_tol_a'):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise SupervisorError(f'`{name}` must be a finite number, got {value!r}.')
+        if self.timeout_s <= 0:
+            raise SupervisorError(f'`timeout_s` must be > 0 s, got {self.timeout_s}.')
+        if not self.i_min_a < self.i_max_a:
+            raise SupervisorError(
+                f'`i_min_a` ({self.i_min_a}) must be below `i_max_a` ({self.i_max_a}).')
+        if not self.i_min_a <= self.safe_current_a <= self.i_max_a:
+            raise SupervisorError(
+                f'`safe_current_a` ({self.safe_current_a} A) must lie in '
+                f'[{self.i_min_a}, {self.i_max_a}] A.')
+        if self.bounds is None:
+            self.bounds = kwok_current_bounds()
+        missing = [n for n in KWOK_CURRENT_NAMES if n not in self.bounds]
+        if missing:
+            raise SupervisorError(f'`bounds` lacks {", ".join(missing)}.')
+        self.rejected = {r: 0 for r in REASONS[3:]}
+
+    # ------------------------------------------------------------------ checks
+    def check(self, msg):
+        """
+        Check one decoded parameter message without changing the supervisor.
+
+        Parameters
+        ----------
+        msg : dict
+            Element name -> value, as decoded from ``/mr_damper/kwok_parameters`` (by label):
+            the ten Kwok-current parameters, ``i_ref_a``, ``current_min_a``, ``current_max_a``
+            and ``valid``; other elements are ignored.
+
+        Returns
+        -------
+        Verdict
+
+        """
+        if not isinstance(msg, dict):
+            return Verdict(False, 'missing', 'message is not a name -> value mapping')
+        needed = KWOK_CURRENT_NAMES + ('i_ref_a', 'current_min_a', 'current_max_a', 'valid')
+        missing = [n for n in needed if n not in msg]
+        if 'valid' in msg:
+            try:
+                valid = float(msg['valid'])
+            except (TypeError, ValueError):
+                valid = math.nan
+            if valid != 1.0:
+                return Verdict(False, 'invalid_flag', f'valid = {msg["valid"]!r}')
+        if missing:
+            return Verdict(False, 'missing', 'missing ' + ', '.join(missing))
+        values = {}
+        for n in needed:
+            try:
+                values[n] = float(msg[n])
+            except (TypeError, ValueError):
+                return Verdict(False, 'non_finite', f'{n} = {msg[n]!r}')
+            if not math.isfinite(values[n]):
+                return Verdict(False, 'non_finite', f'{n} = {values[n]}')
+        for n in KWOK_CURRENT_NAMES:
+            lo, hi = self.bounds[n]
+            if not lo <= values[n] <= hi:
+                return Verdict(False, 'out_of_bounds', f'{n} = {values[n]:g} not in [{lo:g}, {hi:g}]')
+        lo_a, hi_a = values['current_min_a'], values['current_max_a']
+        tol = self.current_tol_a
+        if values['i_ref_a'] <= 0:
+            return Verdict(False, 'bad_current_range', f'i_ref_a = {values["i_ref_a"]:g} <= 0')
+        if not (self.i_min_a - tol <= lo_a <= hi_a <= self.i_max_a + tol):
+            return Verdict(False, 'bad_current_range',
+                           f'identified current range [{lo_a:g}, {hi_a:g}] A not ordered inside '
+                           f'[{self.i_min_a:g}, {self.i_max_a:g}] A')
+        return Verdict(True, 'ok')
+
+    # ------------------------------------------------------------------ events
+    def offer(self, msg, t_now):
+        """
+        Offer a received parameter message; accept it or count the reason it is refused.
+
+        Parameters
+        ----------
+        msg : dict
+            Decoded message, see :meth:`check`.
+        t_now : float
+            Receipt time [s] on the caller's clock (the clock later passed to :meth:`update`).
+
+        Returns
+        -------
+        Verdict
+
+        """
+        verdict = self.check(msg)
+        if verdict.accepted:
+            self.params = {n: float(msg[n]) for n in KWOK_CURRENT_NAMES}
+            self.params['i_ref_a'] = float(msg['i_ref_a'])
+            self.accepted_at = float(t_now)
+            self.n_accepted += 1
+            if self.first_valid_at is None:
+                self.first_valid_at = float(t_now)
+        else:
+            self.rejected[verdict.reason] += 1
+            self.last_detail = verdict.detail
+            if not self.hold_on_reject:
+                self.params = None
+                self.accepted_at = None
+                self._set_mode('failsafe', verdict.reason)
+        self.update(t_now)
+        return verdict
+
+    def update(self, t_now):
+        """
+        Advance the supervisor to time ``t_now`` and return the mode.
+
+        Accumulates the time spent in fail-safe (the interval since the previous call counts
+        towards the mode that held during it) and drops a model older than ``timeout_s``.
+
+        Parameters
+        ----------
+        t_now : float
+            Time [s] on the caller's clock; non-decreasing between calls.
+
+        Returns
+        -------
+        str
+            ``'normal'`` or ``'failsafe'``.
+
+        """
+        t_now = float(t_now)
+        if self._last_t is not None and t_now > self._last_t and self.mode == 'failsafe':
+            self.failsafe_s += t_now - self._last_t
+        if self._last_t is None or t_now > self._last_t:
+            self._last_t = t_now
+        if self.params is not None and t_now - self.accepted_at > self.timeout_s:
+            self.params = None
+            self.accepted_at = None
+            self._set_mode('failsafe', 'stale')
+        elif self.params is not None:
+            self._set_mode('normal', 'ok')
+        return self.mode
+
+    def _set_mode(self, mode, reason):
+        if mode == 'failsafe' and self.mode != 'failsafe':
+            self.n_failsafe_entries += 1
+        self.mode = mode
+        if mode == 'normal' or reason != 'ok':
+            self.reason = reason
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def active(self):
+        """Return the parameter dict in use (with ``i_ref_a``), or None in fail-safe mode."""
+        return self.params if self.mode == 'normal' else None
+
+    def age(self, t_now):
+        """Return the age [s] of the model in use at ``t_now``, or NaN if none."""
+        return float(t_now) - self.accepted_at if self.accepted_at is not None else math.nan
+
+    def status(self):
+        """
+        Summarise the supervisor as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            ``mode``, ``reason``, ``failsafe_s`` [s], ``failsafe_entries``, ``params_accepted``,
+            ``params_rejected`` (reason -> count), ``last_reject_detail``, ``safe_current_a``.
+
+        """
+        return {
+            'mode': self.mode,
+            'reason': self.reason,
+            'failsafe_s': self.failsafe_s,
+            'failsafe_entries': self.n_failsafe_entries,
+            'params_accepted': self.n_accepted,
+            'params_rejected': dict(self.rejected),
+            'last_reject_detail': self.last_detail,
+            'safe_current_a': self.safe_current_a,
+        }
+
+
+def clip_current(i_cmd, i_min_a, i_max_a, fallback_a):
+    """
+    Clip a current command to the coil range; a non-finite command becomes ``fallback_a``.
+
+    Parameters
+    ----------
+    i_cmd : float or array_like
+        Requested coil current [A].
+    i_min_a, i_max_a : float
+        Coil current range [A].
+    fallback_a : float
+        Current [A] used where ``i_cmd`` is NaN or infinite.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Command [A] within ``[i_min_a, i_max_a]``.
+
+    """
+    arr = np.asarray(i_cmd, dtype=float)
+    out = np.where(np.isfinite(arr), arr, fallback_a)
+    out = np.clip(out, i_min_a, i_max_a)
+    return float(out) if out.ndim == 0 else out

@@ -1,0 +1,166 @@
+"""Tests of quarter_car_sim.failsafe: the model supervisor of the quarter-car controller."""
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from quarter_car_sim.failsafe import (
+    clip_current, KWOK_CURRENT_NAMES, ModelSupervisor, SupervisorError)
+
+BOUNDS = {
+    'c0': (0.0, 1e4), 'c1': (0.0, 1e4), 'k': (-1e4, 1e4), 'alpha0': (0.0, 2e3),
+    'alpha1': (0.0, 2e3), 'alpha2': (0.0, 2e3), 'beta0': (0.1, 1e3), 'beta1': (-3.0, 3.0),
+    'delta': (-3.0, 3.0), 'f0': (-200.0, 200.0),
+}
+GOOD = {
+    'c0': 800.0, 'c1': 2000.0, 'k': 500.0, 'alpha0': 60.0, 'alpha1': 400.0, 'alpha2': 300.0,
+    'beta0': 40.0, 'beta1': 0.2, 'delta': 0.3, 'f0': 5.0, 'i_ref_a': 2.0, 'window_end_s': 3.0,
+    'current_min_a': 0.0, 'current_max_a': 2.0, 'rmse_n': 10.0, 'nrmse_percent': 2.0,
+    'valid': 1.0,
+}
+
+
+def make(**kw):
+    kw.setdefault('bounds', BOUNDS)
+    kw.setdefault('timeout_s', 1.0)
+    kw.setdefault('safe_current_a', 0.5)
+    return ModelSupervisor(**kw)
+
+
+def with_(**changes):
+    msg = dict(GOOD)
+    msg.update(changes)
+    return msg
+
+
+def test_starts_in_failsafe_and_leaves_on_first_valid():
+    sup = make()
+    assert sup.update(0.0) == 'failsafe'
+    assert sup.reason == 'no_parameters_yet'
+    assert sup.active is None
+    verdict = sup.offer(GOOD, 0.25)
+    assert verdict.accepted and verdict.reason == 'ok'
+    assert sup.mode == 'normal' and sup.reason == 'ok'
+    assert sup.active['c1'] == 2000.0 and sup.active['i_ref_a'] == 2.0
+    assert sup.first_valid_at == 0.25
+    # 0.25 s spent in fail-safe before the first model
+    assert sup.failsafe_s == pytest.approx(0.25)
+
+
+def test_goes_stale_after_timeout_and_recovers():
+    sup = make(timeout_s=0.5)
+    sup.offer(GOOD, 1.0)
+    assert sup.update(1.5) == 'normal'          # exactly the timeout: still fresh
+    assert sup.update(1.6) == 'failsafe'
+    assert sup.reason == 'stale'
+    assert sup.active is None
+    sup.update(2.6)
+    # the clock starts at the first call (1.0): only 1.6..2.6 counts, the interval 1.5..1.6
+    # in which the model expired is counted as normal (the mode held during it)
+    assert sup.failsafe_s == pytest.approx(1.0)
+    sup.offer(GOOD, 3.0)
+    assert sup.mode == 'normal'
+    assert sup.failsafe_s == pytest.approx(1.4)
+    assert sup.n_failsafe_entries == 1           # started in fail-safe: only the stale entry
+
+
+@pytest.mark.parametrize('changes, reason', [
+    ({'valid': 0.0}, 'invalid_flag'),
+    ({'valid': math.nan}, 'invalid_flag'),
+    ({'beta0': math.nan}, 'non_finite'),
+    ({'f0': math.inf}, 'non_finite'),
+    ({'c1': -1.0}, 'out_of_bounds'),
+    ({'beta0': 5e3}, 'out_of_bounds'),
+    ({'i_ref_a': 0.0}, 'bad_current_range'),
+    ({'current_min_a': 1.5, 'current_max_a': 0.5}, 'bad_current_range'),
+    ({'current_max_a': 5.0}, 'bad_current_range'),
+])
+def test_refuses_bad_sets_and_counts_reason(changes, reason):
+    sup = make()
+    sup.offer(GOOD, 0.0)
+    verdict = sup.offer(with_(**changes), 0.1)
+    assert not verdict.accepted
+    assert verdict.reason == reason
+    assert sup.rejected[reason] == 1
+    assert sum(sup.rejected.values()) == 1
+    # a refused set drops the model in use at once: no guess from a model just contradicted
+    assert sup.mode == 'failsafe' and sup.reason == reason and sup.active is None
+    assert sup.status()['params_rejected'][reason] == 1
+
+
+def test_missing_element_refused():
+    msg = dict(GOOD)
+    del msg['delta']
+    sup = make()
+    verdict = sup.offer(msg, 0.0)
+    assert verdict.reason == 'missing' and 'delta' in verdict.detail
+
+
+def test_hold_on_reject_keeps_previous_model_until_stale():
+    sup = make(hold_on_reject=True, timeout_s=1.0)
+    sup.offer(GOOD, 0.0)
+    sup.offer(with_(valid=0.0), 0.5)
+    assert sup.mode == 'normal' and sup.active['c0'] == 800.0
+    assert sup.update(1.2) == 'failsafe' and sup.reason == 'stale'
+
+
+def test_failsafe_time_is_integrated_across_modes():
+    sup = make(timeout_s=1.0)
+    for t in np.arange(0.0, 2.0, 0.01):        # 2 s in fail-safe
+        sup.update(t)
+    sup.offer(GOOD, 2.0)
+    for k in range(1, 301):                    # fresh messages every 10 ms for 3 s
+        sup.offer(GOOD, 2.0 + 0.01 * k)
+    for t in np.arange(5.0, 7.0, 0.01):        # no messages: stale from 6.0 on
+        sup.update(t)
+    expected = 2.0 + (6.99 - 6.0)
+    assert sup.failsafe_s == pytest.approx(expected, abs=0.011)
+    assert sup.n_accepted == 301
+
+
+def test_time_going_backwards_is_not_counted():
+    sup = make()
+    sup.update(5.0)
+    sup.update(4.0)
+    sup.update(5.0)
+    assert sup.failsafe_s == 0.0
+
+
+@pytest.mark.parametrize('kw, match', [
+    ({'timeout_s': 0.0}, 'timeout_s'),
+    ({'safe_current_a': 3.0}, 'safe_current_a'),
+    ({'i_min_a': 2.0, 'i_max_a': 1.0}, 'i_min_a'),
+    ({'timeout_s': math.nan}, 'timeout_s'),
+])
+def test_bad_configuration_raises(kw, match):
+    with pytest.raises(SupervisorError, match=match):
+        make(**kw)
+
+
+def test_clip_current():
+    assert clip_current(3.0, 0.0, 2.0, 0.5) == 2.0
+    assert clip_current(-1.0, 0.0, 2.0, 0.5) == 0.0
+    assert clip_current(math.nan, 0.0, 2.0, 0.5) == 0.5
+    np.testing.assert_array_equal(clip_current([1.0, math.inf], 0.0, 2.0, 0.5), [1.0, 0.5])
+
+
+def test_default_bounds_are_the_kwok_current_model_bounds():
+    models = pytest.importorskip('mr_damper_model.models')
+    model = models.get_model('kwok-current')
+    lo, hi = model.default_bounds()
+    sup = ModelSupervisor(timeout_s=1.0, safe_current_a=0.0)
+    assert tuple(model.param_names) == KWOK_CURRENT_NAMES
+    for name, a, b in zip(model.param_names, lo, hi):
+        assert sup.bounds[name] == (a, b)
+    # just outside a finite bound is refused
+    name = next(n for n, b in zip(model.param_names, hi) if np.isfinite(b))
+    assert sup.check(with_(**{name: float(sup.bounds[name][1]) * 1.01 + 1.0})).reason \
+        == 'out_of_bounds'
+
+
+def test_module_does_not_import_rclpy():
+    code = 'import sys, quarter_car_sim.failsafe; print("rclpy" in sys.modules)'
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == 'False'
