@@ -164,3 +164,12 @@ def test_module_does_not_import_rclpy():
     code = 'import sys, quarter_car_sim.failsafe; print("rclpy" in sys.modules)'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
+
+
+def test_refuse_counts_undecodable_and_fails_safe():
+    sup = make()
+    sup.offer(GOOD, 0.0)
+    verdict = sup.refuse('undecodable', 'no label', 0.1)
+    assert not verdict.accepted and sup.rejected['undecodable'] == 1 and sup.mode == 'failsafe'
+    with pytest.raises(SupervisorError, match='reason'):
+        sup.refuse('whatever', '', 0.2)

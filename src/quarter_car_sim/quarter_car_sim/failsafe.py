@@ -40,6 +40,7 @@ REASONS = (
     'non_finite',         # NaN or inf in a needed element
     'out_of_bounds',      # a parameter outside the physical box bounds
     'bad_current_range',  # i_ref_a <= 0, or current_min_a/current_max_a disordered / off-range
+    'undecodable',        # the message could not be decoded (bad layout); see :meth:`refuse`
 )
 
 
@@ -221,7 +222,31 @@ class ModelSupervisor:
         Verdict
 
         """
-        verdict = self.check(msg)
+        return self._apply(self.check(msg), msg, t_now)
+
+    def refuse(self, reason, detail, t_now):
+        """
+        Count a message the caller could not even decode, as a rejection with ``reason``.
+
+        Parameters
+        ----------
+        reason : str
+            One of the rejection :data:`REASONS` (usually ``'undecodable'``).
+        detail : str
+            Human-readable detail.
+        t_now : float
+            Receipt time [s].
+
+        Returns
+        -------
+        Verdict
+
+        """
+        if reason not in self.rejected:
+            raise SupervisorError(f'`reason` must be one of {sorted(self.rejected)}, got {reason!r}.')
+        return self._apply(Verdict(False, reason, detail), None, t_now)
+
+    def _apply(self, verdict, msg, t_now):
         if verdict.accepted:
             self.params = {n: float(msg[n]) for n in KWOK_CURRENT_NAMES}
             self.params['i_ref_a'] = float(msg['i_ref_a'])
