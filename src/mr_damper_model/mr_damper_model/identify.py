@@ -1,0 +1,526 @@
+"""
+Identification of damper model parameters from measured motion, force and coil current.
+
+Two methods, both minimising the RMSE of the force (thesis eq. 4.3):
+
+``separable`` (default)
+    The particle swarm (:func:`~mr_damper_model.pso.pso`) searches only the parameters that enter
+    the force nonlinearly (Kwok: beta, delta; kwok-current: beta0, beta1, delta; Bouc-Wen:
+    delta, beta, gamma, n); for every particle the parameters that enter linearly are the exact
+    box-bounded least-squares solution (:mod:`~mr_damper_model.lsq`). The regressor columns that
+    do not depend on the nonlinear parameters (v, x, 1, ...) are detected once per record and
+    their Gram products precomputed; columns of the form h(nonlinear) * w (the current weights
+    of kwok-current) are reduced to two matrix products per swarm. Models with no nonlinear
+    parameter (Bingham) are solved directly; models with no linear parameter (Spencer) use the
+    full PSO.
+``full``
+    The swarm searches all parameters, as in the thesis.
+
+Rest periods at the start and end of a record (x, v and F near zero, as in the shared Quiroz
+files) are fitted as they are: every model gives F = f0 + (for Kwok) alpha*tanh(delta*sign(x))
+there, close to the small measured force, so they cost little and need no trimming.
+"""
+from dataclasses import dataclass, field
+import math
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .data import DamperData
+from .lsq import box_qp, sum_squares
+from .metrics import fit_metrics
+from .models import get_model
+from .pso import as_bounds, pso
+
+__all__ = ['IdentificationResult', 'identify', 'identify_per_current', 'compare_models',
+           'METHODS', 'DEFAULT_BUDGETS']
+
+METHODS = ('separable', 'full')
+
+#: Default swarm budgets per method: maxiter, stagnation tolerance and patience.
+DEFAULT_BUDGETS = {
+    'separable': {'maxiter': 15, 'tol': 1e-6, 'patience': 15},
+    'full': {'maxiter': 400, 'tol': 1e-7, 'patience': 60},
+}
+#: Separable swarm works on at most this many samples (every k-th) before the polish on all.
+SWARM_SAMPLES = 500
+#: Units of the tanh slope parameters, searched on a log scale.
+_LOG_UNITS = ('s/m',)
+
+
+class _Space:
+    """Search coordinates of the swarm: log scale for positive parameters spanning decades."""
+
+    def __init__(self, lo, hi, units):
+        lo = np.asarray(lo, dtype=float)
+        hi = np.asarray(hi, dtype=float)
+        wide = np.isfinite(hi) & (
+            ((lo > 0) & (hi >= 100.0 * np.where(lo > 0, lo, 1.0)))
+            | ((lo == 0) & ((np.isin(units, _LOG_UNITS) & (hi > 0)) | (hi >= 1e5))))
+        self.log = np.flatnonzero(wide)
+        self.offset = np.where(lo > 0, 0.0, 1e-4 * np.where(np.isfinite(hi), hi, 1.0))
+        self.lo, self.hi = lo, hi
+
+    def to_u(self, p):
+        u = np.array(p, dtype=float, copy=True)
+        k = self.log
+        u[..., k] = np.log(u[..., k] + self.offset[k])
+        return u
+
+    def to_p(self, u):
+        p = np.array(u, dtype=float, copy=True)
+        k = self.log
+        p[..., k] = np.exp(p[..., k]) - self.offset[k]
+        return np.clip(p, self.lo, self.hi)
+
+    def bounds(self):
+        return self.to_u(self.lo), self.to_u(self.hi)
+
+
+@dataclass
+class IdentificationResult:
+    """
+    Outcome of one identification.
+
+    Attributes
+    ----------
+    model : str
+        Model name (``get_model`` key).
+    parameters : dict
+        Parameter name -> value, SI units (see the model's ``param_units``).
+    x : ndarray
+        Parameter vector in the model's ``param_names`` order.
+    metrics : dict
+        :func:`~mr_damper_model.metrics.fit_metrics` of the identified model on the data.
+    seconds : float
+        Identification wall time [s].
+    seed : int or None
+        Seed of the swarm (drawn and recorded when none was given).
+    method : str
+        ``'separable'``, ``'full'`` or ``'linear'`` (direct least squares).
+    success, message, nit, nfev
+        Termination of the swarm (see :func:`~mr_damper_model.pso.pso`).
+    current_min_a, current_max_a : float
+        Coil-current range of the data [A].
+    model_options : dict
+        Model constants (e.g. ``{'i_ref_a': 2.0}``).
+    source : str
+        Data source (file name) if known.
+    current_a : float
+        Current level [A] of a per-current fit (NaN otherwise).
+
+    """
+
+    model: str
+    parameters: dict
+    x: np.ndarray
+    metrics: dict
+    seconds: float
+    seed: object
+    method: str
+    success: bool
+    message: str
+    nit: int
+    nfev: int
+    current_min_a: float
+    current_max_a: float
+    model_options: dict = field(default_factory=dict)
+    source: str = ''
+    current_a: float = math.nan
+
+    def to_json_dict(self):
+        """Return a JSON-ready dictionary (the parameter-file fields plus run details)."""
+        return {
+            'model': self.model,
+            'parameters': {k: float(v) for k, v in self.parameters.items()},
+            'model_options': dict(self.model_options),
+            'current_min_a': float(self.current_min_a),
+            'current_max_a': float(self.current_max_a),
+            'metrics': {k: float(v) for k, v in self.metrics.items()},
+            'seconds': float(self.seconds),
+            'seed': self.seed,
+            'method': self.method,
+            'success': bool(self.success),
+            'message': self.message,
+            'nit': int(self.nit),
+            'nfev': int(self.nfev),
+            'source': self.source,
+        }
+
+
+def _as_data(data):
+    if not isinstance(data, DamperData):
+        raise TypeError('`data` must be a DamperData (see data.read_csv).')
+    if data.n < 2:
+        raise ValueError('`data` has fewer than 2 samples.')
+    return data
+
+
+def _param_vector(model, x0, name='x0'):
+    if x0 is None:
+        return None
+    if isinstance(x0, dict):
+        return np.asarray(model.from_dict(x0), dtype=float)
+    x0 = np.atleast_1d(np.asarray(x0, dtype=float))
+    if x0.shape != (len(model.param_names),) or not np.all(np.isfinite(x0)):
+        raise ValueError(f'`{name}` must be a finite vector of {len(model.param_names)} '
+                         f'parameters {model.param_names} or a dict.')
+    return x0
+
+
+class SeparableCost:
+    """
+    RMSE of the force as a function of the nonlinear parameters only (batched).
+
+    The linear parameters of each particle are the box-bounded least-squares solution. Build
+    once per record; call with an array of nonlinear parameter sets.
+
+    Parameters
+    ----------
+    model : HysteresisModel
+    data : DamperData
+    lin_lo, lin_hi : ndarray with shape (n_linear,)
+        Bounds of the linear parameters (may be infinite).
+    probe : ndarray with shape (2, n_nonlinear)
+        Two different nonlinear parameter sets used to detect the columns that do not depend
+        on the nonlinear parameters.
+
+    """
+
+    def __init__(self, model, data, lin_lo, lin_hi, probe):
+        self.model = model
+        self.args = tuple(np.ascontiguousarray(a, dtype=float)
+                          for a in (data.x, data.v, data.i, data.t))
+        self.y = np.ascontiguousarray(data.f, dtype=float)
+        self.n = self.y.size
+        self.yy = float(self.y @ self.y)
+        self.lin_lo = lin_lo
+        self.lin_hi = lin_hi
+        x, v, i, t = self.args
+        phi = np.asarray(model.regressors(np.asarray(probe, dtype=float), x, v, i=i, t=t),
+                         dtype=float)
+        m = phi.shape[2]
+        scale = np.max(np.abs(phi), axis=(0, 1)) + 1e-300
+        same = np.all(np.abs(phi[0] - phi[1]) <= 1e-12 * scale, axis=0)
+        self.static = np.flatnonzero(same)
+        self.dyn = np.flatnonzero(~same)
+        self.m = m
+        S = phi[0][:, self.static]
+        self.SS = S.T @ S
+        self.Sy = S.T @ self.y
+        self.factor = None
+        if self.dyn.size:
+            D = phi[:, :, self.dyn]
+            h = D[:, :, 0]
+            big = np.abs(h[0]) > 1e-9 * (np.max(np.abs(h[0])) + 1e-300)
+            W = np.zeros((self.n, self.dyn.size))
+            W[big] = D[0][big] / h[0][big, None]
+            dscale = np.max(np.abs(D), axis=(0, 1)) + 1e-300
+            if np.all(np.abs(D - h[:, :, None] * W[None]) <= 1e-9 * dscale):
+                kd, ms = self.dyn.size, self.static.size
+                WW = (W[:, :, None] * W[:, None, :]).reshape(self.n, kd * kd)
+                WS = (W[:, :, None] * S[:, None, :]).reshape(self.n, kd * ms)
+                Wy = W * self.y[:, None]
+                self.factor = (np.ascontiguousarray(WW),
+                               np.ascontiguousarray(np.hstack([WS, Wy])))
+        self.S = S
+
+    def gram(self, nonlinear):
+        """
+        Gram matrices and right-hand sides for a batch of nonlinear parameter sets.
+
+        Returns
+        -------
+        G : ndarray with shape (p, m, m)
+        b : ndarray with shape (p, m)
+        finite : ndarray of bool with shape (p,)
+
+        """
+        nonlinear = np.atleast_2d(np.asarray(nonlinear, dtype=float))
+        p = nonlinear.shape[0]
+        x, v, i, t = self.args
+        st, dy = self.static, self.dyn
+        kd, ms = dy.size, st.size
+        G = np.empty((p, self.m, self.m))
+        b = np.empty((p, self.m))
+        G[:, st[:, None], st[None, :]] = self.SS
+        b[:, st] = self.Sy
+        if kd:
+            phi = self.model.regressors(nonlinear, x, v, i=i, t=t)
+            if self.factor is not None:
+                h = np.ascontiguousarray(phi[:, :, dy[0]])
+                WW, WSy = self.factor
+                Gdd = ((h * h) @ WW).reshape(p, kd, kd)
+                prod = h @ WSy
+                Gds = prod[:, :kd * ms].reshape(p, kd, ms)
+                bd = prod[:, kd * ms:]
+            else:
+                D = phi[:, :, dy]
+                Dt = np.swapaxes(D, 1, 2)
+                Gdd = Dt @ D
+                Gds = Dt @ self.S
+                bd = Dt @ self.y
+            G[:, dy[:, None], dy[None, :]] = Gdd
+            G[:, dy[:, None], st[None, :]] = Gds
+            G[:, st[:, None], dy[None, :]] = np.swapaxes(Gds, 1, 2)
+            b[:, dy] = bd
+        finite = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+        if not finite.all():
+            G[~finite] = np.eye(self.m)
+            b[~finite] = 0.0
+        return G, b, finite
+
+    def solve(self, nonlinear):
+        """
+        Linear parameters and RMSE [N] for a batch of nonlinear parameter sets.
+
+        Returns
+        -------
+        theta : ndarray with shape (p, n_linear)
+        rmse : ndarray with shape (p,)  (inf where the model is not finite)
+
+        """
+        G, b, finite = self.gram(nonlinear)
+        theta = box_qp(G, b, self.lin_lo, self.lin_hi)
+        rss = sum_squares(G, b, self.yy, theta)
+        rmse = np.sqrt(rss / self.n)
+        return theta, np.where(finite, rmse, np.inf)
+
+    def __call__(self, nonlinear):
+        """RMSE [N] for a batch of nonlinear parameter sets, shape (p,)."""
+        with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+            return self.solve(nonlinear)[1]
+
+
+def _polish(model, data, x, lo, hi, max_nfev=50):
+    """Bounded least-squares refinement of all parameters; returns (x, model evaluations)."""
+    y = np.asarray(data.f, dtype=float)
+    args = (data.x, data.v)
+    kw = dict(i=data.i, t=data.t)
+    d = x.size
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+
+    def resid(p):
+        with np.errstate(over='ignore', invalid='ignore'):
+            return model.force(p, *args, **kw) - y
+
+    def jac(p):
+        h = 1e-7 * np.maximum(np.abs(p), 1e-3 * span)
+        h = np.where(p + h > hi, -h, h)
+        P = p + np.diag(h)
+        with np.errstate(over='ignore', invalid='ignore'):
+            F = model.force(np.vstack([p[None], P]), *args, **kw)
+        return ((F[1:] - F[0]) / h[:, None]).T
+
+    start = np.clip(x, lo, hi)
+    r0 = resid(start)
+    if not np.all(np.isfinite(r0)):
+        return x, 1
+    try:
+        res = least_squares(resid, start, jac=jac, bounds=(lo, hi), method='trf',
+                            x_scale='jac', max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
+    except (ValueError, np.linalg.LinAlgError):
+        return x, 1
+    evals = 1 + res.nfev + res.njev * (d + 1)
+    if np.all(np.isfinite(res.fun)) and res.fun @ res.fun < r0 @ r0:
+        return res.x, evals
+    return x, evals
+
+
+def _full_cost(model, data):
+    y = np.asarray(data.f, dtype=float)
+
+    def cost(params):
+        with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+            f = model.force(params, data.x, data.v, i=data.i, t=data.t)
+            r = np.sqrt(np.mean((f - y) ** 2, axis=1))
+        return np.where(np.isfinite(r), r, np.inf)
+    return cost
+
+
+def identify(data, model='kwok-current', *, method='separable', unbounded=False, bounds=None,
+             seed=None, x0=None, swarm_size=25, maxiter=None, tol=None, budget_s=None,
+             callback=None, model_options=None, patience=None, polish=None):
+    """
+    Identify the parameters of a damper model from a record.
+
+    Parameters
+    ----------
+    data : DamperData
+        Measured t [s], x [m], v [m/s], f [N], i [A] (validate it first: ``data.validate``).
+    model : str or HysteresisModel
+        Model name (``'kwok'``, ``'kwok-current'``, ``'bingham'``, ``'bouc-wen'``,
+        ``'spencer'``) or model object.
+    method : {'separable', 'full'}
+        See the module docstring.
+    unbounded : bool
+        Use the model's wide thesis-comparison bounds (c, k, alpha, f0 of either sign).
+    bounds : tuple (lo, hi) of array_like with shape (n_params,), optional
+        Overrides the model's default bounds (``param_names`` order).
+    seed : int, optional
+        Swarm seed; drawn at random and recorded in the result if None.
+    x0 : dict or array_like with shape (n_params,), optional
+        Warm start (e.g. the previous window's solution).
+    swarm_size : int
+        Particles.
+    maxiter, tol, patience : optional
+        Swarm iteration limit, stagnation tolerance and patience; defaults in
+        :data:`DEFAULT_BUDGETS` per method.
+    budget_s : float, optional
+        Wall-time budget [s] of the swarm.
+    callback : callable, optional
+        ``callback(intermediate_result)`` after each swarm iteration; True stops.
+    model_options : dict, optional
+        Passed to ``get_model`` (e.g. ``{'i_ref_a': 2.0}``).
+    polish : bool, optional
+        Refine the swarm's best with a bounded Gauss-Newton (trust-region reflective)
+        least-squares run on all parameters and all samples. Default: on for ``separable`` with
+        an algebraic model (the swarm then works on at most :data:`SWARM_SAMPLES` samples, every
+        k-th), off for ``full`` (the thesis method) and the stateful models.
+
+    Returns
+    -------
+    IdentificationResult
+
+    Raises
+    ------
+    ValueError
+        Unknown model or method, malformed bounds or x0.
+
+    """
+    t_start = time.perf_counter()
+    data = _as_data(data)
+    if method not in METHODS:
+        raise ValueError(f'`method` must be one of {METHODS}, got {method!r}.')
+    mdl = get_model(model, **(model_options or {})) if isinstance(model, str) else model
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy % (2 ** 31))
+    names = tuple(mdl.param_names)
+    if bounds is None:
+        lo, hi = mdl.default_bounds(unbounded=unbounded)
+    else:
+        lo, hi = bounds
+    lo, hi = as_bounds((lo, hi), name='bounds', require_finite=False)
+    if lo.size != len(names):
+        raise ValueError(f'`bounds` must have {len(names)} entries {names}.')
+    x0v = _param_vector(mdl, x0)
+    budget = dict(DEFAULT_BUDGETS[method])
+    if maxiter is not None:
+        budget['maxiter'] = int(maxiter)
+    if tol is not None:
+        budget['tol'] = float(tol)
+    if patience is not None:
+        budget['patience'] = int(patience)
+    lin_idx = np.array([names.index(n) for n in mdl.linear_names], dtype=int)
+    nl_idx = np.array([names.index(n) for n in mdl.nonlinear_names], dtype=int)
+    used = method
+    units = np.array([mdl.param_units.get(n, '') for n in names])
+    if polish is None:
+        polish = method == 'separable' and not mdl.stateful
+    if nl_idx.size == 0 and lin_idx.size:
+        cost = SeparableCost(mdl, data, lo[lin_idx], hi[lin_idx], np.zeros((2, 0)))
+        with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+            theta, _ = cost.solve(np.zeros((1, 0)))
+        x = np.empty(len(names))
+        x[lin_idx] = theta[0]
+        res_info = dict(success=True, nit=0, nfev=1,
+                        message='All parameters linear: solved by bounded least squares.')
+        used = 'linear'
+        polish = False
+    else:
+        if method == 'separable' and lin_idx.size == 0:
+            used = 'full'
+        common = dict(swarm_size=swarm_size, rng=seed, callback=callback, budget_s=budget_s,
+                      **budget)
+        swarm_data = data
+        if polish and data.n > 2 * SWARM_SAMPLES:
+            swarm_data = data.select(slice(None, None, int(math.ceil(data.n / SWARM_SAMPLES))))
+        idx = nl_idx if used == 'separable' else np.arange(len(names))
+        space = _Space(lo[idx], hi[idx], units[idx])
+        u0 = None if x0v is None else space.to_u(np.clip(x0v[idx], lo[idx], hi[idx]))
+        if used == 'separable':
+            nlo, nhi = lo[nl_idx], hi[nl_idx]
+            probe = np.stack([nlo + 0.37 * (nhi - nlo), nlo + 0.71 * (nhi - nlo)])
+            cost = SeparableCost(mdl, swarm_data, lo[lin_idx], hi[lin_idx], probe)
+            res = pso(lambda u: cost(space.to_p(u)), space.bounds(), x0=u0, **common)
+            nl = space.to_p(res.x)
+            if swarm_data is not data:
+                cost = SeparableCost(mdl, data, lo[lin_idx], hi[lin_idx], probe)
+            with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+                theta, _ = cost.solve(nl[None])
+            x = np.empty(len(names))
+            x[nl_idx] = nl
+            x[lin_idx] = theta[0]
+        else:
+            full = _full_cost(mdl, swarm_data)
+            res = pso(lambda u: full(space.to_p(u)), space.bounds(), x0=u0, **common)
+            x = space.to_p(res.x)
+        res_info = dict(success=bool(res.success), nit=int(res.nit), nfev=int(res.nfev),
+                        message=res.message)
+    if polish:
+        x, extra = _polish(mdl, data, x, lo, hi)
+        res_info['nfev'] += extra
+    f_sim = np.asarray(mdl.force(x, data.x, data.v, i=data.i, t=data.t), dtype=float)
+    if np.all(np.isfinite(f_sim)):
+        metrics = fit_metrics(data.f, f_sim)
+    else:
+        metrics = {k: math.nan for k in ('mean_abs_error_n', 'rmse_n', 'mean_percent_error',
+                                          'max_percent_error', 'nrmse_percent')}
+    return IdentificationResult(
+        model=mdl.name, parameters={n: float(v) for n, v in zip(names, x)}, x=x,
+        metrics=metrics, seconds=time.perf_counter() - t_start, seed=seed, method=used,
+        current_min_a=float(np.min(data.i)), current_max_a=float(np.max(data.i)),
+        model_options=dict(getattr(mdl, 'options', {}) or {}), source=data.source, **res_info)
+
+
+def identify_per_current(data, model='kwok', *, tol_a=0.05, **kw):
+    """
+    Fit one parameter set per coil-current level (the thesis Table 4.3 layout).
+
+    Parameters
+    ----------
+    data : DamperData
+    model : str
+        Model name (default Kwok, as in the thesis).
+    tol_a : float
+        Currents closer than this [A] form one level.
+    **kw
+        Passed to :func:`identify`. A ``callback`` is shared by the groups.
+
+    Returns
+    -------
+    list of IdentificationResult
+        Sorted by current level; ``current_a`` holds the level [A].
+
+    """
+    data = _as_data(data)
+    out = []
+    for level, part in data.split_by_current(tol_a=tol_a):
+        r = identify(part, model, **kw)
+        r.current_a = float(level)
+        out.append(r)
+    return out
+
+
+def compare_models(data, models=('bingham', 'bouc-wen', 'kwok'), **kw):
+    """
+    Identify several models on the same data (thesis Table 4.1 / Figure 4.14).
+
+    Parameters
+    ----------
+    data : DamperData
+    models : sequence of str
+    **kw
+        Passed to :func:`identify` (same seed for every model).
+
+    Returns
+    -------
+    dict
+        Model name -> IdentificationResult, in the order given.
+
+    """
+    data = _as_data(data)
+    if kw.get('seed') is None:
+        kw['seed'] = int(np.random.SeedSequence().entropy % (2 ** 31))
+    return {name: identify(data, name, **kw) for name in models}
