@@ -1,0 +1,133 @@
+"""
+Classic Bouc-Wen damper model, thesis eq. 2.30-2.31 as written.
+
+::
+
+    F    = c*v + k*x + alpha*z + f0
+    zdot = delta*v - beta*v*|z|**n - gamma*z*|v|*|z|**(n - 1),     z(t[0]) = 0
+
+Note the thesis form swaps the roles of beta and gamma against the usual notation: here
+``gamma`` multiplies ``|v|`` (the dissipative term) and ``beta`` multiplies ``v``.
+
+Integration on the sample grid: between samples the velocity is linear in time; each interval is
+split into ``m`` equal sub-steps (``m`` from the stiffness of the batch, see ``_substeps``) and
+z is advanced in the displacement increment ``du = v*h`` by a semi-implicit step, implicit in the
+dissipative gamma term::
+
+    z1 = (z0 + du*(delta - beta*|z0|**n)) / (1 + gamma*|du|*|z0|**(n - 1))
+
+which has the exact saturation value ``|z| = (delta/(beta + gamma))**(1/n)`` as its fixed point
+and never diverges for gamma >= 0. z is clipped to that saturation value (the exact solution from
+z = 0 never exceeds it when beta + gamma > 0 and gamma >= 0), or to +-1e6 otherwise (unstable
+parameter sets in the unbounded mode), so no overflow occurs.
+"""
+import numpy as np
+
+from mr_damper_model.models import HysteresisModel, ModelError
+
+_Z_CAP = 1e6
+_MAX_SUBSTEPS = 200
+
+
+def _saturation(delta, beta, gamma, n):
+    """Saturation |z| = (|delta| / (beta + gamma))**(1/n), or the cap when not bounded."""
+    b = beta + gamma
+    ok = (b > 0) & (gamma >= 0)
+    ratio = np.abs(delta) / np.where(ok, b, 1.0)
+    zs = np.where(ok, ratio ** (1.0 / n), _Z_CAP)
+    return np.minimum(zs, _Z_CAP)
+
+
+def bouc_wen_z(delta, beta, gamma, n, v, t, *, max_du_rate=0.2):
+    """
+    Integrate the hysteretic variable z for a batch of parameter sets.
+
+    Parameters
+    ----------
+    delta, beta, gamma, n : numpy.ndarray with shape (p,)
+        delta [1/m], beta and gamma [1/m] (for z dimensionless), n [-] (>= 1).
+    v : numpy.ndarray with shape (N,)
+        Velocity [m/s].
+    t : numpy.ndarray with shape (N,)
+        Time [s], increasing.
+    max_du_rate : float
+        Sub-steps are chosen so that (linearised stiffness in z) * |du| <= max_du_rate.
+
+    Returns
+    -------
+    numpy.ndarray with shape (p, N)
+
+    """
+    p = delta.shape[0]
+    N = v.size
+    z = np.zeros(p)
+    out = np.zeros((p, N))
+    if N < 2:
+        return out
+    zs = _saturation(delta, beta, gamma, n)
+    nm1 = n - 1.0
+    dt = np.diff(t)
+    rate = n * np.abs(np.abs(beta) + np.abs(gamma)) * np.minimum(zs, 1e3) ** nm1
+    du_max = float(np.max(np.abs(v)) * np.max(dt))
+    m = int(np.clip(np.ceil(np.max(rate) * du_max / max_du_rate), 1, _MAX_SUBSTEPS))
+    fr = (np.arange(m) + 0.5) / m
+    for k in range(1, N):
+        h = dt[k - 1] / m
+        v0 = v[k - 1]
+        dv = v[k] - v0
+        for j in range(m):
+            du = h * (v0 + fr[j] * dv)
+            az = np.abs(z)
+            num = z + du * (delta - beta * az ** n)
+            den = 1.0 + gamma * abs(du) * az ** nm1
+            z = np.clip(num / den, -zs, zs)
+        out[:, k] = z
+    return out
+
+
+class BoucWen(HysteresisModel):
+    """
+    Classic Bouc-Wen model (thesis eq. 2.30-2.31), stateful: needs ``t``.
+
+    Parameters and units (z dimensionless): c [N s/m], k [N/m], alpha [N], f0 [N] (linear);
+    delta [1/m], beta [1/m], gamma [1/m], n [-] (nonlinear). Strictly beta, gamma are in
+    m**-1 with |z|**n dimensionless.
+
+    Default bounds: c in [0, 5000], k in [0, 2000], alpha in [0, 3000], f0 in [-200, 200];
+    delta in [0, 2000] 1/m (a yield displacement of 0.5 mm or more), beta and gamma in
+    [0, 2000] 1/m (gamma >= 0 and beta + gamma > 0 keep z bounded), n in [1, 3].
+    Unbounded: c, k, alpha in [-1e4, 1e4], f0 in [-1000, 1000], delta and beta in [-1e4, 1e4],
+    gamma in [0, 1e4], n in [1, 4].
+    """
+
+    name = 'bouc-wen'
+    param_names = ('c', 'k', 'alpha', 'f0', 'delta', 'beta', 'gamma', 'n')
+    param_units = {'c': 'N s/m', 'k': 'N/m', 'alpha': 'N', 'f0': 'N', 'delta': '1/m',
+                   'beta': '1/m', 'gamma': '1/m', 'n': '-'}
+    linear_names = ('c', 'k', 'alpha', 'f0')
+    stateful = True
+    _bounds = {'c': (0.0, 5000.0), 'k': (0.0, 2000.0), 'alpha': (0.0, 3000.0),
+               'f0': (-200.0, 200.0), 'delta': (0.0, 2000.0), 'beta': (0.0, 2000.0),
+               'gamma': (0.0, 2000.0), 'n': (1.0, 3.0)}
+    _bounds_unbounded = {'c': (-1e4, 1e4), 'k': (-1e4, 1e4), 'alpha': (-1e4, 1e4),
+                         'f0': (-1000.0, 1000.0), 'delta': (-1e4, 1e4), 'beta': (-1e4, 1e4),
+                         'gamma': (0.0, 1e4), 'n': (1.0, 4.0)}
+
+    def _z(self, N, v, t):
+        if np.any(N[:, 2] < 0) or np.any(N[:, 3] < 1):
+            raise ModelError('bouc-wen needs `gamma` >= 0 and `n` >= 1 (bounded z)')
+        return bouc_wen_z(N[:, 0], N[:, 1], N[:, 2], N[:, 3], v, t)
+
+    def _force(self, P, x, v, i, t):
+        z = self._z(P[:, 4:8], v, t)
+        q = self._split(P)
+        return q['c'] * v + q['k'] * x + q['alpha'] * z + q['f0']
+
+    def _regressors(self, N, x, v, i, t):
+        z = self._z(N, v, t)
+        phi = np.empty((N.shape[0], x.size, 4))
+        phi[:, :, 0] = v
+        phi[:, :, 1] = x
+        phi[:, :, 2] = z
+        phi[:, :, 3] = 1.0
+        return phi

@@ -1,0 +1,334 @@
+"""
+Inverse current-dependent Kwok model: desired force -> coil current.
+
+At fixed (x, v) the force F(i) of ``KwokCurrent`` is a smooth function of the current. Method
+(vectorised over samples):
+
+1. Pre-scan: F on a grid of ``n_grid`` (33) currents over [i_min, i_max].
+2. If the desired force lies between two neighbouring grid forces (the first such interval from
+   i_min), the sample is reachable: the root is solved in that bracket, in closed form when
+   beta1 == 0 (F is then a quadratic in s = i/i_ref_a) and otherwise by the Illinois
+   (modified regula falsi) method, all samples at once, to |F - f_des| <= 1e-9*(1 + |f_des|)
+   N or a bracket narrower than ``tol_a``.
+3. Otherwise it is not reachable and the grid current whose force is nearest f_des is returned:
+   for the usual monotone F(i) that is i_min (``saturated_low``: less force than the minimum
+   current makes, including a force of the wrong sign for the motion, which a semi-active damper
+   cannot make) or i_max (``saturated_high``: more than the maximum current makes). If F(i) is
+   not monotone, a dense local grid (65 points over the two grid cells around the nearest grid
+   point) is scanned as well, so a narrow extremum that the coarse grid stepped over is found
+   (then the sample is reachable after all, or its nearest force is taken from the dense grid);
+   a nearest force at an interior current sets neither flag.
+"""
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.models import ModelError
+
+_N_GRID = 33
+_MAX_ITER = 100
+
+
+@dataclass
+class InverseResult:
+    """
+    Result of ``inverse_current``.
+
+    Attributes
+    ----------
+    current : numpy.ndarray
+        Coil current [A], within [i_min, i_max].
+    force : numpy.ndarray
+        Model force at that current [N] (what the damper will make).
+    reachable : numpy.ndarray of bool
+        The desired force is achievable within the current range.
+    saturated_low : numpy.ndarray of bool
+        Wanted less than the i_min force (incl. wrong sign); current = i_min.
+    saturated_high : numpy.ndarray of bool
+        Wanted more than the i_max force; current = i_max.
+
+    """
+
+    current: np.ndarray
+    force: np.ndarray
+    reachable: np.ndarray
+    saturated_low: np.ndarray
+    saturated_high: np.ndarray
+
+
+def _param_vector(params):
+    model = KwokCurrent()
+    if isinstance(params, dict):
+        return model.from_dict(params)
+    arr = np.asarray(params, dtype=float).ravel()
+    if arr.size != model.n_params:
+        raise ModelError(f'`params` must have {model.n_params} values '
+                         f'({", ".join(model.param_names)}), got {arr.size}')
+    if not np.all(np.isfinite(arr)):
+        raise ModelError('`params` contains NaN or inf')
+    return arr
+
+
+def _force(p, s, x, v, sx):
+    """Kwok-current force at normalised current s (elementwise, broadcasting)."""
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    beta = b0 * np.exp(np.clip(b1 * s, -50.0, 50.0))
+    alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
+    return (c0 + c1 * s) * v + k * x + alpha * np.tanh(beta * v + delta * sx) + f0
+
+
+def inverse_current(f_des, x, v, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-6):
+    """
+    Coil current that makes the current-dependent Kwok damper produce a desired force.
+
+    Parameters
+    ----------
+    f_des : array_like with shape (n,) or scalar
+        Desired damper force [N].
+    x : array_like with shape (n,) or scalar
+        Piston displacement [m].
+    v : array_like with shape (n,) or scalar
+        Piston velocity [m/s].
+    params : dict or array_like with shape (10,)
+        KwokCurrent parameters (``KwokCurrent.param_names``).
+    i_ref_a : float
+        Reference current of the model [A].
+    i_min, i_max : float
+        Current range [A], i_min < i_max.
+    tol_a : float
+        Bracket tolerance of the root finder [A] (the force residual is usually far smaller).
+
+    Returns
+    -------
+    InverseResult
+        Arrays of the broadcast shape of the inputs (1-D).
+
+    Raises
+    ------
+    ModelError
+        NaN/inf inputs, bad current range or tolerance.
+
+    """
+    p = _param_vector(params)
+    for name, val in (('i_ref_a', i_ref_a), ('i_min', i_min), ('i_max', i_max),
+                      ('tol_a', tol_a)):
+        if not math.isfinite(float(val)):
+            raise ModelError(f'`{name}` must be finite, got {val}')
+    if not i_ref_a > 0:
+        raise ModelError(f'`i_ref_a` must be positive, got {i_ref_a}')
+    if not i_max > i_min:
+        raise ModelError(f'`i_max` ({i_max}) must be larger than `i_min` ({i_min})')
+    if not tol_a > 0:
+        raise ModelError(f'`tol_a` must be positive, got {tol_a}')
+    arrs = []
+    for name, a in (('f_des', f_des), ('x', x), ('v', v)):
+        a = np.atleast_1d(np.asarray(a, dtype=float))
+        if not np.all(np.isfinite(a)):
+            raise ModelError(f'`{name}` contains NaN or inf')
+        arrs.append(a)
+    try:
+        f, x, v = (a.ravel() for a in np.broadcast_arrays(*arrs))
+    except ValueError as exc:
+        raise ModelError(f'`f_des`, `x`, `v` shapes do not broadcast: {exc}') from None
+    n = f.size
+    sx = np.sign(x)
+    s_lo, s_hi = i_min / i_ref_a, i_max / i_ref_a
+    sg = np.linspace(s_lo, s_hi, _N_GRID)
+    fg = _force(p, sg[None, :], x[:, None], v[:, None], sx[:, None])
+    d = fg - f[:, None]
+    cross = (d[:, :-1] * d[:, 1:]) <= 0.0
+    reachable = cross.any(axis=1)
+    j = np.argmax(cross, axis=1)
+    rows = np.arange(n)
+    s_out = np.empty(n)
+    # unreachable: nearest grid force
+    jn = np.argmin(np.abs(d), axis=1)
+    s_out[:] = sg[jn]
+    sat_low = ~reachable & (jn == 0)
+    sat_high = ~reachable & (jn == _N_GRID - 1)
+    a_all = sg[j]
+    b_all = sg[np.minimum(j + 1, _N_GRID - 1)]
+    fa_all = d[rows, j]
+    fb_all = d[rows, np.minimum(j + 1, _N_GRID - 1)]
+    # second pass for the unreachable: a dense local grid around the nearest grid point finds
+    # a narrow bump of a non-monotone F(i) that the coarse grid stepped over
+    far = np.flatnonzero(~reachable)
+    if far.size:
+        lo_ = sg[np.maximum(jn[far] - 1, 0)]
+        hi_ = sg[np.minimum(jn[far] + 1, _N_GRID - 1)]
+        sl = lo_[:, None] + (hi_ - lo_)[:, None] * np.linspace(0.0, 1.0, 65)[None, :]
+        dl = _force(p, sl, x[far, None], v[far, None], sx[far, None]) - f[far, None]
+        cl = (dl[:, :-1] * dl[:, 1:]) <= 0.0
+        hit = cl.any(axis=1)
+        jl = np.argmax(cl, axis=1)
+        rl = np.arange(far.size)
+        kn = np.argmin(np.abs(dl), axis=1)
+        better = np.abs(dl[rl, kn]) < np.abs(d[far, jn[far]])
+        s_out[far] = np.where(better, sl[rl, kn], s_out[far])
+        sat_low[far] &= ~hit & ~(better & (sl[rl, kn] > s_lo))
+        sat_high[far] &= ~hit & ~(better & (sl[rl, kn] < s_hi))
+        reachable[far] = hit
+        h = far[hit]
+        a_all[h] = sl[hit, jl[hit]]
+        b_all[h] = sl[hit, jl[hit] + 1]
+        fa_all[h] = dl[hit, jl[hit]]
+        fb_all[h] = dl[hit, jl[hit] + 1]
+    idx = np.flatnonzero(reachable)
+    if idx.size:
+        a, b, fa, fb = a_all[idx], b_all[idx], fa_all[idx], fb_all[idx]
+        s_out[idx] = _solve(p, a, b, fa, fb, f[idx], x[idx], v[idx], sx[idx],
+                            tol_a / i_ref_a)
+    force = _force(p, s_out, x, v, sx)
+    return InverseResult(current=np.clip(s_out * i_ref_a, i_min, i_max), force=force,
+                         reachable=reachable, saturated_low=sat_low, saturated_high=sat_high)
+
+
+def _solve(p, a, b, fa, fb, f, x, v, sx, tol_s):
+    """Root of F(s) = f in the brackets [a, b] (fa, fb: residuals at the ends)."""
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    if b1 == 0.0:
+        T = np.tanh(b0 * v + delta * sx)
+        q2 = (a2 - a1) * T
+        q1 = c1 * v + 2.0 * a1 * T
+        q0 = c0 * v + a0 * T + k * x + f0 - f
+        s = _quadratic_root_in(q2, q1, q0, a, b)
+        ok = np.isfinite(s)
+        if np.all(ok):
+            return s
+        out = np.where(ok, s, 0.0)
+        bad = ~ok
+        out[bad] = _illinois(p, a[bad], b[bad], fa[bad], fb[bad], f[bad], x[bad], v[bad],
+                             sx[bad], tol_s)
+        return out
+    return _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s)
+
+
+def _quadratic_root_in(q2, q1, q0, a, b):
+    """Root of q2 s^2 + q1 s + q0 inside [a, b] (NaN where none is found)."""
+    span = b - a
+    lo, hi = a - 1e-9 * span, b + 1e-9 * span
+    out = np.full(a.shape, np.nan)
+    scale = np.abs(q1) + np.abs(q0) + 1e-300
+    lin = np.abs(q2) * np.maximum(np.abs(a), np.abs(b)) ** 2 <= 1e-13 * scale
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r_lin = np.where(q1 != 0.0, -q0 / np.where(q1 != 0.0, q1, 1.0), np.nan)
+    disc = q1 * q1 - 4.0 * q2 * q0
+    sq = np.sqrt(np.maximum(disc, 0.0))
+    qq = -0.5 * (q1 + np.where(q1 >= 0.0, sq, -sq))
+    safe_q2 = np.where(q2 != 0.0, q2, 1.0)
+    safe_qq = np.where(qq != 0.0, qq, 1.0)
+    r1 = np.where(q2 != 0.0, qq / safe_q2, np.nan)
+    r2 = np.where(qq != 0.0, q0 / safe_qq, np.nan)
+    for r in (r2, r1):
+        good = ~lin & (disc >= 0.0) & np.isfinite(r) & (r >= lo) & (r <= hi)
+        out = np.where(good & np.isnan(out), r, out)
+    good = lin & np.isfinite(r_lin) & (r_lin >= lo) & (r_lin <= hi)
+    out = np.where(good, r_lin, out)
+    return np.clip(out, a, b)
+
+
+def _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s):
+    """Vectorised Illinois iteration; returns the last iterate."""
+    ftol = 1e-9 * (1.0 + np.abs(f))
+    at_a = fa == 0.0
+    b = np.where(at_a, a, b)
+    fb = np.where(at_a, 0.0, fb)
+    for _ in range(_MAX_ITER):
+        done = (np.abs(fb) <= ftol) | (np.abs(b - a) <= tol_s * 1e-6)
+        if np.all(done):
+            break
+        denom = fb - fa
+        c = np.where(denom != 0.0, b - fb * (b - a) / np.where(denom != 0.0, denom, 1.0),
+                     0.5 * (a + b))
+        lo_, hi_ = np.minimum(a, b), np.maximum(a, b)
+        c = np.where((c > lo_) & (c < hi_), c, 0.5 * (a + b))
+        fc = _force(p, c, x, v, sx) - f
+        swap = fc * fb < 0.0
+        a = np.where(done, a, np.where(swap, b, a))
+        fa = np.where(done, fa, np.where(swap, fb, 0.5 * fa))
+        b = np.where(done, b, c)
+        fb = np.where(done, fb, fc)
+    return b
+
+
+class KwokCurrentInverse:
+    """
+    Scalar, plain-Python inverse for 1 kHz control loops (same method as ``inverse_current``).
+
+    Parameters
+    ----------
+    params : dict or array_like with shape (10,)
+        KwokCurrent parameters.
+    i_ref_a, i_min, i_max : float
+        As in ``inverse_current`` [A].
+    n_grid : int
+        Pre-scan grid size (default 9; F(i) is monotone for physical parameter sets).
+
+    """
+
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9):
+        p = _param_vector(params)
+        if not (i_ref_a > 0 and i_max > i_min):
+            raise ModelError('need `i_ref_a` > 0 and `i_max` > `i_min`')
+        self._p = tuple(float(q) for q in p)
+        self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
+        self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
+                      for j in range(n_grid)]
+
+    def force(self, i, x, v):
+        """Model force [N] at current i [A], displacement x [m], velocity v [m/s]."""
+        return self._f(i / self.i_ref_a, x, v)
+
+    def _f(self, s, x, v):
+        c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = self._p
+        sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+        beta = b0 * math.exp(max(-50.0, min(50.0, b1 * s)))
+        alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
+        return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
+
+    def current(self, f_des, x, v):
+        """
+        Return ``(current [A], flag)`` with flag 0 reachable, -1 saturated low, +1 high.
+
+        Parameters
+        ----------
+        f_des : float
+            Desired force [N].
+        x : float
+            Displacement [m].
+        v : float
+            Velocity [m/s].
+
+        Returns
+        -------
+        tuple of (float, int)
+
+        """
+        if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
+            raise ModelError('`f_des`, `x`, `v` must be finite')
+        g = self._grid
+        d = [self._f(s, x, v) - f_des for s in g]
+        for j in range(len(g) - 1):
+            if d[j] * d[j + 1] <= 0.0:
+                a, b, fa, fb = g[j], g[j + 1], d[j], d[j + 1]
+                if fa == 0.0:
+                    b, fb = a, 0.0
+                ftol = 1e-9 * (1.0 + abs(f_des))
+                for _ in range(_MAX_ITER):
+                    if abs(fb) <= ftol or abs(b - a) <= 1e-12:
+                        break
+                    c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+                    if not min(a, b) < c < max(a, b):
+                        c = 0.5 * (a + b)
+                    fc = self._f(c, x, v) - f_des
+                    if fc * fb < 0.0:
+                        a, fa = b, fb
+                    else:
+                        fa *= 0.5
+                    b, fb = c, fc
+                return min(max(b * self.i_ref_a, self.i_min), self.i_max), 0
+        jn = min(range(len(g)), key=lambda q: abs(d[q]))
+        flag = -1 if jn == 0 else (1 if jn == len(g) - 1 else 0)
+        return g[jn] * self.i_ref_a, flag

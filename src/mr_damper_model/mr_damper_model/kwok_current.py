@@ -1,0 +1,101 @@
+"""
+Current-dependent Kwok model ("kwok-current"), one parameter set for the whole current range.
+
+With ``s = i / i_ref_a``::
+
+    c(i)     = c0 + c1*s
+    alpha(i) = alpha0 + alpha1*s*(2 - s) + alpha2*s**2
+    beta(i)  = beta0*exp(beta1*s)
+    F = c(i)*v + k*x + alpha(i)*tanh(beta(i)*v + delta*sign(x)) + f0
+
+Why this form: with non-negative c0, c1, alpha0, alpha1, alpha2 (the default box bounds) c(i)
+and alpha(i) are non-decreasing on [0, i_ref_a]: s*(2 - s) and s**2 are the Bernstein basis of
+the quadratics that are monotone on [0, 1], so the box spans exactly the monotone quadratics;
+alpha1 > alpha2 gives saturating growth (magnetic saturation of the MR fluid), alpha2 > alpha1
+convex growth. beta(i) stays positive for every beta1. All of c0..alpha2, k and f0 enter the
+force linearly, so the separable PSO searches only beta0, beta1 and delta.
+"""
+import numpy as np
+
+from mr_damper_model.models import HysteresisModel, ModelError
+
+
+def kwok_current_coefficients(P, s):
+    """
+    Evaluate c(i), alpha(i), beta(i) for parameter rows P and normalised currents s.
+
+    Parameters
+    ----------
+    P : numpy.ndarray with shape (p, 10)
+        Parameter rows in ``KwokCurrent.param_names`` order.
+    s : numpy.ndarray with shape (n,)
+        Normalised current i / i_ref_a [-].
+
+    Returns
+    -------
+    tuple of numpy.ndarray, each (p, n)
+        c [N s/m], alpha [N], beta [s/m].
+
+    """
+    c = P[:, [0]] + P[:, [1]] * s
+    alpha = P[:, [3]] + P[:, [4]] * s * (2.0 - s) + P[:, [5]] * s * s
+    beta = P[:, [6]] * np.exp(np.clip(P[:, [7]] * s, -50.0, 50.0))
+    return c, alpha, beta
+
+
+class KwokCurrent(HysteresisModel):
+    """
+    Current-dependent Kwok model.
+
+    Parameters and units: c0, c1 [N s/m]; k [N/m]; alpha0, alpha1, alpha2 [N]; beta0 [s/m];
+    beta1 [-] (log-slope of beta over 0..i_ref_a); delta [-]; f0 [N]. Option ``i_ref_a``
+    (reference current [A], default 2.0, the top of the thesis range).
+
+    Default bounds: c0, c1 in [0, 5000] N s/m; k in [0, 2000] N/m; alpha0..2 in [0, 3000] N;
+    beta0 in [0.1, 300] s/m; beta1 in [-3, 3] (beta changes at most by e**3 over the range);
+    delta in [0, 3]; f0 in [-200, 200] N. Unbounded: c0, c1, k, alpha0..2 in [-1e4, 1e4];
+    beta0 in [0, 1000] s/m; beta1 in [-5, 5]; delta in [-5, 5]; f0 in [-1000, 1000] N.
+    """
+
+    name = 'kwok-current'
+    param_names = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
+                   'f0')
+    param_units = {'c0': 'N s/m', 'c1': 'N s/m', 'k': 'N/m', 'alpha0': 'N', 'alpha1': 'N',
+                   'alpha2': 'N', 'beta0': 's/m', 'beta1': '-', 'delta': '-', 'f0': 'N'}
+    linear_names = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'f0')
+    needs_current = True
+    _bounds = {'c0': (0.0, 5000.0), 'c1': (0.0, 5000.0), 'k': (0.0, 2000.0),
+               'alpha0': (0.0, 3000.0), 'alpha1': (0.0, 3000.0), 'alpha2': (0.0, 3000.0),
+               'beta0': (0.1, 300.0), 'beta1': (-3.0, 3.0), 'delta': (0.0, 3.0),
+               'f0': (-200.0, 200.0)}
+    _bounds_unbounded = {'c0': (-1e4, 1e4), 'c1': (-1e4, 1e4), 'k': (-1e4, 1e4),
+                         'alpha0': (-1e4, 1e4), 'alpha1': (-1e4, 1e4), 'alpha2': (-1e4, 1e4),
+                         'beta0': (0.0, 1000.0), 'beta1': (-5.0, 5.0), 'delta': (-5.0, 5.0),
+                         'f0': (-1000.0, 1000.0)}
+
+    def __init__(self, i_ref_a=2.0):
+        i_ref_a = float(i_ref_a)
+        if not np.isfinite(i_ref_a) or i_ref_a <= 0:
+            raise ModelError(f'`i_ref_a` must be a positive current [A], got {i_ref_a}')
+        self.options = {'i_ref_a': i_ref_a}
+
+    def _force(self, P, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        c, alpha, beta = kwok_current_coefficients(P, s)
+        z = np.tanh(beta * v + P[:, [8]] * np.sign(x))
+        return c * v + P[:, [2]] * x + alpha * z + P[:, [9]]
+
+    def _regressors(self, N, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        beta = N[:, [0]] * np.exp(np.clip(N[:, [1]] * s, -50.0, 50.0))
+        z = np.tanh(beta * v + N[:, [2]] * np.sign(x))
+        p = N.shape[0]
+        phi = np.empty((p, x.size, 7))
+        phi[:, :, 0] = v
+        phi[:, :, 1] = s * v
+        phi[:, :, 2] = x
+        phi[:, :, 3] = z
+        phi[:, :, 4] = s * (2.0 - s) * z
+        phi[:, :, 5] = s * s * z
+        phi[:, :, 6] = 1.0
+        return phi

@@ -1,0 +1,322 @@
+"""
+Hysteresis model base class and registry.
+
+Every model maps a batch of parameter sets (one row per PSO particle) and a measured motion
+(displacement ``x`` [m], velocity ``v`` [m/s], coil current ``i`` [A], time ``t`` [s]) to the
+damper force [N]. A single parameter set of shape ``(n_params,)`` gives a force of shape
+``(n,)``; a batch of shape ``(p, n_params)`` gives ``(p, n)``. No model loops over particles in
+Python; the stateful ones (Bouc-Wen, Spencer) loop over time only.
+"""
+import importlib
+
+import numpy as np
+
+MODEL_NAMES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer')
+
+_REGISTRY = {
+    'kwok': ('mr_damper_model.kwok', 'Kwok'),
+    'kwok-current': ('mr_damper_model.kwok_current', 'KwokCurrent'),
+    'bingham': ('mr_damper_model.bingham', 'Bingham'),
+    'bouc-wen': ('mr_damper_model.bouc_wen', 'BoucWen'),
+    'spencer': ('mr_damper_model.spencer', 'Spencer'),
+}
+
+
+class ModelError(ValueError):
+    """Invalid model name, parameters or signals."""
+
+
+def get_model(name, **options):
+    """
+    Return a model instance by name.
+
+    Parameters
+    ----------
+    name : str
+        One of ``MODEL_NAMES``.
+    **options
+        Model constants, e.g. ``i_ref_a=2.0`` for ``'kwok-current'``.
+
+    Returns
+    -------
+    HysteresisModel
+
+    Raises
+    ------
+    ModelError
+        Unknown name.
+
+    """
+    if name not in _REGISTRY:
+        raise ModelError(f'unknown model {name!r}; expected one of {", ".join(MODEL_NAMES)}')
+    module, cls = _REGISTRY[name]
+    return getattr(importlib.import_module(module), cls)(**options)
+
+
+def _signal(a, name, n=None):
+    """
+    Coerce a signal to a finite 1-D float array.
+
+    Parameters
+    ----------
+    a : array_like
+        Signal (scalar or 1-D).
+    name : str
+        Argument name used in error messages.
+    n : int or None
+        Required length (scalars are broadcast to it).
+
+    Returns
+    -------
+    numpy.ndarray with shape (n,)
+
+    """
+    arr = np.atleast_1d(np.asarray(a, dtype=float))
+    if arr.ndim != 1:
+        raise ModelError(f'`{name}` must be 1-D, got shape {arr.shape}')
+    if n is not None and arr.size == 1 and n != 1:
+        arr = np.full(n, arr[0])
+    if n is not None and arr.size != n:
+        raise ModelError(f'`{name}` has {arr.size} samples, expected {n}')
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f'`{name}` contains NaN or inf')
+    return arr
+
+
+class HysteresisModel:
+    """
+    Base class of the damper force models.
+
+    Attributes
+    ----------
+    name : str
+        Registry name.
+    param_names : tuple of str
+        Parameter order of a parameter vector.
+    param_units : dict
+        Unit of each parameter.
+    linear_names : tuple of str
+        Parameters entering the force linearly (``regressors`` columns, in this order).
+    nonlinear_names : tuple of str
+        The other parameters, in ``param_names`` order.
+    stateful : bool
+        True if the model integrates an internal state (needs ``t``).
+    needs_current : bool
+        True if ``force`` needs the coil current ``i``.
+    options : dict
+        Model constants.
+
+    """
+
+    name = ''
+    param_names = ()
+    param_units = {}
+    linear_names = ()
+    stateful = False
+    needs_current = False
+
+    def __init__(self, **options):
+        if options:
+            raise ModelError(f'model {self.name!r} takes no options, got {sorted(options)}')
+        self.options = {}
+
+    # -- helpers -------------------------------------------------------------------------
+    @property
+    def nonlinear_names(self):
+        """Parameters that enter the force nonlinearly, in ``param_names`` order."""
+        return tuple(p for p in self.param_names if p not in self.linear_names)
+
+    @property
+    def n_params(self):
+        """Number of parameters."""
+        return len(self.param_names)
+
+    def _index(self, names):
+        return [self.param_names.index(p) for p in names]
+
+    def _params(self, params):
+        """Coerce ``params`` to (p, n_params); return it and whether the input was 1-D."""
+        arr = np.asarray(params, dtype=float)
+        single = arr.ndim == 1
+        arr = np.atleast_2d(arr)
+        if arr.ndim != 2 or arr.shape[1] != self.n_params:
+            raise ModelError(
+                f'`params` must have shape (n_params,) or (p, n_params) with n_params='
+                f'{self.n_params} ({", ".join(self.param_names)}), got {np.shape(params)}')
+        if not np.all(np.isfinite(arr)):
+            raise ModelError('`params` contains NaN or inf')
+        return arr, single
+
+    def _nonlinear(self, nonlinear):
+        arr = np.asarray(nonlinear, dtype=float)
+        single = arr.ndim == 1
+        arr = np.atleast_2d(arr)
+        k = len(self.nonlinear_names)
+        if k == 0 and arr.size == 0:
+            arr = np.zeros((max(1, arr.shape[0]) if arr.ndim == 2 else 1, 0))
+        if arr.ndim != 2 or arr.shape[1] != k:
+            raise ModelError(f'`nonlinear` must have shape (p, {k}) '
+                             f'({", ".join(self.nonlinear_names)}), got {np.shape(nonlinear)}')
+        if not np.all(np.isfinite(arr)):
+            raise ModelError('`nonlinear` contains NaN or inf')
+        return arr, single
+
+    def _signals(self, x, v, i=None, t=None):
+        x = _signal(x, 'x')
+        n = x.size
+        v = _signal(v, 'v', n)
+        if self.needs_current:
+            if i is None:
+                raise ModelError(f'model {self.name!r} needs the coil current `i`')
+            i = _signal(i, 'i', n)
+        elif i is not None:
+            i = _signal(i, 'i', n)
+        if self.stateful:
+            if t is None:
+                raise ModelError(f'model {self.name!r} is stateful and needs the time `t`')
+            t = _signal(t, 't', n)
+            if n > 1 and not np.all(np.diff(t) > 0):
+                raise ModelError('`t` must be strictly increasing')
+        elif t is not None:
+            t = _signal(t, 't', n)
+        return x, v, i, t
+
+    # -- public API ----------------------------------------------------------------------
+    def default_bounds(self, *, unbounded=False):
+        """
+        Return box bounds ``(lower, upper)``, each of shape (n_params,).
+
+        Parameters
+        ----------
+        unbounded : bool
+            False: physically meaningful ranges; True: the wide thesis-comparison ranges.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+
+        """
+        table = self._bounds_unbounded if unbounded else self._bounds
+        lo = np.array([table[p][0] for p in self.param_names], dtype=float)
+        hi = np.array([table[p][1] for p in self.param_names], dtype=float)
+        return lo, hi
+
+    def force(self, params, x, v, i=None, t=None):
+        """
+        Damper force [N].
+
+        Parameters
+        ----------
+        params : array_like with shape (n_params,) or (p, n_params)
+            Parameter set(s), order ``param_names``.
+        x : array_like with shape (n,)
+            Piston displacement [m].
+        v : array_like with shape (n,)
+            Piston velocity [m/s].
+        i : array_like with shape (n,), optional
+            Coil current [A] (current-dependent models).
+        t : array_like with shape (n,), optional
+            Time [s], strictly increasing (stateful models).
+
+        Returns
+        -------
+        numpy.ndarray with shape (n,) or (p, n)
+
+        """
+        P, single = self._params(params)
+        x, v, i, t = self._signals(x, v, i, t)
+        f = self._force(P, x, v, i, t)
+        return f[0] if single else f
+
+    def regressors(self, nonlinear, x, v, i=None, t=None):
+        """
+        Linear regressors at given nonlinear parameters.
+
+        Parameters
+        ----------
+        nonlinear : array_like with shape (p, n_nonlinear) or (n_nonlinear,)
+            Values of ``nonlinear_names``.
+        x, v, i, t : array_like with shape (n,)
+            As in ``force``.
+
+        Returns
+        -------
+        numpy.ndarray with shape (p, n, n_linear) (or (n, n_linear) for 1-D input)
+            ``force(full) == Phi @ theta_linear`` with columns in ``linear_names`` order.
+
+        """
+        if not self.linear_names:
+            raise ModelError(f'model {self.name!r} has no linear parameters')
+        N, single = self._nonlinear(nonlinear)
+        x, v, i, t = self._signals(x, v, i, t)
+        phi = self._regressors(N, x, v, i, t)
+        return phi[0] if single else phi
+
+    def to_dict(self, params):
+        """
+        Map a parameter vector to ``{name: value}``.
+
+        Parameters
+        ----------
+        params : array_like with shape (n_params,)
+
+        Returns
+        -------
+        dict of str to float
+
+        """
+        P, single = self._params(params)
+        if not single and P.shape[0] != 1:
+            raise ModelError('`params` must be a single parameter set for to_dict')
+        return {p: float(val) for p, val in zip(self.param_names, P[0])}
+
+    def from_dict(self, d):
+        """
+        Build a parameter vector from a mapping.
+
+        Parameters
+        ----------
+        d : mapping of str to float
+            Must contain every name of ``param_names`` (extra keys are ignored).
+
+        Returns
+        -------
+        numpy.ndarray with shape (n_params,)
+
+        Raises
+        ------
+        ModelError
+            Missing or non-finite values (the names are given).
+
+        """
+        missing = [p for p in self.param_names if p not in d]
+        if missing:
+            raise ModelError(f'{self.name} parameters missing: {", ".join(missing)}')
+        vals = []
+        bad = []
+        for p in self.param_names:
+            try:
+                val = float(d[p])
+            except (TypeError, ValueError):
+                val = float('nan')
+            if not np.isfinite(val):
+                bad.append(p)
+            vals.append(val)
+        if bad:
+            raise ModelError(f'{self.name} parameters not finite: {", ".join(bad)}')
+        return np.array(vals)
+
+    # subclasses implement
+    def _force(self, P, x, v, i, t):
+        raise NotImplementedError
+
+    def _regressors(self, N, x, v, i, t):
+        raise NotImplementedError
+
+    def _split(self, P):
+        """Columns of P as (p, 1) arrays keyed by name."""
+        return {name: P[:, [j]] for j, name in enumerate(self.param_names)}
+
+    def __repr__(self):
+        opts = ', '.join(f'{k}={v!r}' for k, v in self.options.items())
+        return f'{type(self).__name__}({opts})'

@@ -1,0 +1,43 @@
+"""Tests of the current-dependent Kwok model."""
+import numpy as np
+import pytest
+
+from mr_damper_model.kwok import Kwok
+from mr_damper_model.kwok_current import KwokCurrent
+
+
+def _p():
+    return {'c0': 150.0, 'c1': 850.0, 'k': 100.0, 'alpha0': 120.0, 'alpha1': 380.0,
+            'alpha2': 200.0, 'beta0': 7.0, 'beta1': -0.3, 'delta': 0.5, 'f0': 5.0}
+
+
+@pytest.mark.parametrize('current', [0.0, 0.7, 2.0, 2.5])
+def test_equals_kwok_at_fixed_current(current):
+    q = _p()
+    s = current / 2.0
+    kw = {'c': q['c0'] + q['c1'] * s, 'k': q['k'],
+          'alpha': q['alpha0'] + q['alpha1'] * s * (2 - s) + q['alpha2'] * s * s,
+          'beta': q['beta0'] * np.exp(q['beta1'] * s), 'delta': q['delta'], 'f0': q['f0']}
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-0.03, 0.03, 50)
+    v = rng.uniform(-0.3, 0.3, 50)
+    m = KwokCurrent(i_ref_a=2.0)
+    np.testing.assert_allclose(m.force(m.from_dict(q), x, v, np.full(50, current)),
+                               Kwok().force(Kwok().from_dict(kw), x, v), rtol=1e-12)
+
+
+def test_monotone_in_current_within_default_bounds():
+    m = KwokCurrent()
+    lo, hi = m.default_bounds()
+    rng = np.random.default_rng(1)
+    P = lo + (hi - lo) * rng.uniform(size=(200, lo.size))
+    s = np.linspace(0, 1, 41)
+    c = P[:, [0]] + P[:, [1]] * s
+    alpha = P[:, [3]] + P[:, [4]] * s * (2 - s) + P[:, [5]] * s * s
+    assert np.all(np.diff(c, axis=1) >= 0)
+    assert np.all(np.diff(alpha, axis=1) >= -1e-9)
+
+
+def test_i_ref_validation():
+    with pytest.raises(ValueError, match='i_ref_a'):
+        KwokCurrent(i_ref_a=0.0)
