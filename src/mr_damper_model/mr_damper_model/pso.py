@@ -87,7 +87,8 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
         Maximum number of iterations (velocity updates) after the initial swarm.
     inertia : tuple (w_start, w_end)
         Inertia weight decreasing linearly from ``w_start`` at the first iteration to ``w_end``
-        at iteration ``maxiter``.
+        at iteration ``maxiter``. With a warm start (``x0``) the schedule starts half-way,
+        at ``(w_start + w_end) / 2``.
     c1, c2 : float
         Cognitive (personal best) and social (global best) acceleration constants.
     vmax_fraction : float
@@ -100,7 +101,8 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
     x0 : array_like with shape (d,), optional
         Warm start. One particle is placed at ``x0`` (clipped to the box), and
         ``warm_fraction`` of the swarm in total around it with a Gaussian spread of
-        ``warm_spread`` times the range; the rest is uniform in the box.
+        ``warm_spread`` times the range, with initial velocities of that size; the rest is
+        uniform in the box.
     warm_fraction : float
         Fraction of the swarm seeded around ``x0`` (0..1).
     warm_spread : float
@@ -145,6 +147,10 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
     if tol < 0:
         raise ValueError('`tol` must be >= 0.')
     w_start, w_end = (float(w) for w in inertia)
+    if x0 is not None:
+        # a warm-started swarm is already near a solution: skip the exploring half of the
+        # inertia schedule (the cold part of the swarm still covers the box)
+        w_start = 0.5 * (w_start + w_end)
     gen = np.random.default_rng(rng)
     span = hi - lo
     vmax = vmax_fraction * span
@@ -170,6 +176,10 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
     # eq. 2.37 with dt = 1, read as a displacement to another random point of the box (the
     # literal formula is a position, not a velocity); then the velocity clamp
     vel = np.clip(lo + gen.random((swarm_size, d)) * span - pos, -vmax, vmax)
+    if x0 is not None:
+        # warm particles start slow: a step of the size of their spread, not across the box
+        vel[:n_warm] = np.clip(gen.standard_normal((n_warm, d)) * (warm_spread * span),
+                               -vmax, vmax)
 
     cost = evaluate(pos)
     nfev = swarm_size
