@@ -1,0 +1,78 @@
+"""Tests of the inverse current-dependent Kwok model."""
+import numpy as np
+import pytest
+
+from mr_damper_model.inverse import inverse_current, KwokCurrentInverse
+from mr_damper_model.presets import thesis_kwok_current
+
+
+def _samples(n, seed):
+    rng = np.random.default_rng(seed)
+    return (rng.uniform(-0.03, 0.03, n), rng.uniform(-0.25, 0.25, n),
+            rng.uniform(0.0, 2.0, n))
+
+
+@pytest.mark.parametrize('beta1', [-0.3, 0.0])
+def test_round_trip(beta1):
+    model, p = thesis_kwok_current()
+    p = dict(p, beta1=beta1)
+    x, v, i = _samples(5000, 1)
+    f_des = model.force(model.from_dict(p), x, v, i)
+    r = inverse_current(f_des, x, v, p)
+    assert r.reachable.mean() > 0.999
+    f_back = model.force(model.from_dict(p), x, v, r.current)
+    np.testing.assert_allclose(f_back[r.reachable], f_des[r.reachable], atol=1e-5)
+    np.testing.assert_allclose(r.force, f_back, atol=1e-9)
+    # where F(i) is monotone and clearly sensitive to i (moving away from the centre, where
+    # the delta shift adds to the velocity term) the current itself comes back
+    sens = (np.abs(v) > 0.05) & (np.sign(x) == np.sign(v))
+    np.testing.assert_allclose(r.current[sens], i[sens], atol=1e-6)
+
+
+def test_saturation_flags():
+    model, p = thesis_kwok_current()
+    x = np.array([0.01, -0.01, 0.0, -0.02])
+    v = np.array([0.2, -0.2, 0.15, -0.1])
+    wrong = -np.sign(v) * 100.0
+    r = inverse_current(wrong, x, v, p)
+    assert np.all(r.current == 0.0) and np.all(r.saturated_low) and not r.reachable.any()
+    f_max = model.force(model.from_dict(p), x, v, np.full(4, 2.0))
+    r = inverse_current(f_max * 1.5, x, v, p)
+    assert np.all(r.current == 2.0) and np.all(r.saturated_high)
+    np.testing.assert_allclose(r.force, f_max)
+    assert not (r.saturated_low | r.reachable).any()
+
+
+def test_non_monotone_gives_nearest_force():
+    model, p = thesis_kwok_current()
+    # x > 0 while moving down: |F(i)| peaks inside the current range (delta shift, beta1 < 0)
+    grid = np.linspace(0.0, 2.0, 4001)
+    f_grid = model.force(model.from_dict(p), np.full(grid.size, 0.02),
+                         np.full(grid.size, -0.1), grid)
+    assert 0 < np.argmin(f_grid) < grid.size - 1
+    r = inverse_current([1.5 * f_grid.min()], [0.02], [-0.1], p)
+    assert not (r.reachable[0] or r.saturated_low[0] or r.saturated_high[0])
+    assert r.force[0] == pytest.approx(f_grid.min(), abs=0.05)
+
+
+def test_scalar_inverse_matches():
+    model, p = thesis_kwok_current()
+    inv = KwokCurrentInverse(p)
+    x, v, i = _samples(200, 2)
+    f_des = model.force(model.from_dict(p), x, v, i)
+    for k in range(200):
+        cur, flag = inv.current(f_des[k], x[k], v[k])
+        if flag == 0:
+            assert inv.force(cur, x[k], v[k]) == pytest.approx(f_des[k], abs=1e-5)
+    assert inv.current(-500.0, 0.0, 0.2) == (0.0, -1)
+    assert inv.current(5000.0, 0.0, 0.2) == (2.0, 1)
+
+
+def test_bad_input():
+    _, p = thesis_kwok_current()
+    with pytest.raises(ValueError, match='f_des'):
+        inverse_current([np.nan], [0.0], [0.1], p)
+    with pytest.raises(ValueError, match='i_max'):
+        inverse_current([1.0], [0.0], [0.1], p, i_min=2.0, i_max=1.0)
+    with pytest.raises(ValueError, match='missing'):
+        inverse_current([1.0], [0.0], [0.1], {'c0': 1.0})
