@@ -1,0 +1,166 @@
+"""
+``quarter-car-sim``: offline quarter-car ride study with an MR damper.
+
+Examples::
+
+    quarter-car-sim --compare                       # identify the plant, all controllers
+    quarter-car-sim --controller skyhook --road bump --speed 10 --json
+    quarter-car-sim --compare --damper-params fit.json --plant kwok --plot ride.png
+
+Without ``--damper-params`` the tool first runs a simulated rig test of the plant and identifies
+kwok-current parameters with ``mr_damper_model.identify``; the controllers only ever see those.
+Bad input exits with status 2 and one line on stderr.
+"""
+import argparse
+import json
+import math
+import sys
+
+PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
+COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
+COMPARE_NAMES = ('skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add', 'skyhook-ideal',
+                 'lqr-active')
+TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'acc', '{:7.3f}'),
+              ('rms_suspension_travel', 'travel mm', '{:9.1f}'),
+              ('rms_tyre_load_ratio', 'tyre', '{:6.3f}'),
+              ('mean_current_a', 'I mean', '{:6.2f}'),
+              ('saturated_fraction', 'sat', '{:5.2f}'))
+
+
+class UsageError(ValueError):
+    """Bad command-line input."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """Argument parser whose errors are one line on stderr and exit status 2."""
+
+    def error(self, message):
+        """Print one line and exit 2."""
+        self.exit(2, f'{self.prog}: error: {message}\n')
+
+
+def _positive(name):
+    def conv(text):
+        try:
+            val = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{name} must be a number, got {text!r}') from None
+        if not (math.isfinite(val) and val > 0):
+            raise argparse.ArgumentTypeError(f'{name} must be > 0, got {text}')
+        return val
+    return conv
+
+
+def build_parser():
+    """Return the argument parser."""
+    p = _Parser(
+        prog='quarter-car-sim',
+        description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
+    p.add_argument('--controller', default='skyhook',
+                   help='passive@<I>A, skyhook, skyhook-onoff, groundhook, hybrid, add, '
+                        'skyhook-ideal, lqr-active (default skyhook)')
+    p.add_argument('--compare', action='store_true', help='run every controller on the same road')
+    p.add_argument('--road', default='iso8608-C',
+                   help='iso8608-A..H, bump, sine, step or FILE.csv (default iso8608-C)')
+    p.add_argument('--speed', type=_positive('--speed'), default=20.0, metavar='M_PER_S',
+                   help='vehicle speed [m/s] (default 20)')
+    p.add_argument('--duration', type=_positive('--duration'), default=30.0, metavar='S',
+                   help='simulated time [s] (default 30)')
+    p.add_argument('--damper-params', metavar='PARAMS.json',
+                   help='identified kwok-current parameter file (default: identify the plant '
+                        'from a simulated rig test first)')
+    p.add_argument('--plant', choices=('kwok', 'spencer'), default='spencer',
+                   help='true damper: thesis-like kwok-current or Spencer (default spencer)')
+    p.add_argument('--seed', type=int, default=1, help='road (and identification) seed')
+    p.add_argument('--dt', type=_positive('--dt'), default=1e-3, help='control period [s]')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.add_argument('--plot', metavar='OUT.png', help='write time traces, PSD, '
+                   'transmissibility and current plots')
+    return p
+
+
+def _finite_or_none(d):
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in d.items()}
+
+
+def run(args):
+    """Run the study for parsed ``args``; return the JSON-ready dict and the results."""
+    from mr_damper_model.plant import make_plant
+
+    from quarter_car_sim.controllers import make_controller, Passive
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.road import make_road
+    from quarter_car_sim.simulate import compare, identify_damper, make_inverse
+
+    params = QuarterCarParams()
+    road = make_road(args.road, speed_m_s=args.speed, duration_s=args.duration, dt=args.dt,
+                     rng=args.seed)
+    if args.compare:
+        controllers = [Passive(i) for i in COMPARE_CURRENTS_A]
+        controllers += [make_controller(n, params=params) for n in COMPARE_NAMES]
+    else:
+        controllers = [make_controller(args.controller, params=params)]
+    plant = make_plant(PLANTS[args.plant])
+    if args.damper_params:
+        inverse = make_inverse(args.damper_params, i_min=params.i_min, i_max=params.i_max)
+        ident = {'source': str(args.damper_params)}
+    else:
+        if not args.json:
+            print(f'identifying the {args.plant} damper from a simulated rig test ...',
+                  file=sys.stderr)
+        d = identify_damper(plant, seed=args.seed)
+        inverse = make_inverse(d, i_min=params.i_min, i_max=params.i_max)
+        ident = {'source': 'identified from simulated rig test', 'metrics': d['metrics']}
+    ident['parameters'] = inverse.params
+    results = compare(params, road, controllers, plant, dt=args.dt, damper_params=inverse)
+    out = {
+        'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
+        'seed': args.seed, 'plant': PLANTS[args.plant], 'dt_s': args.dt,
+        'damper_params': _finite_or_none(ident) if isinstance(ident, dict) else ident,
+        'controllers': {n: _finite_or_none(r.metrics()) for n, r in results.items()},
+    }
+    return out, results
+
+
+def _table(out):
+    head = f'{"controller":16s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}'
+                                           for _, h, fmt in TABLE_KEYS)
+    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, plant {out["plant"]}', head]
+    for name, m in out['controllers'].items():
+        cells = []
+        for key, _, fmt in TABLE_KEYS:
+            v = m.get(key)
+            if v is None:
+                cells.append(' ' + ' ' * (len(fmt.format(0.0)) - 1) + '-')
+            else:
+                cells.append(' ' + fmt.format(v * 1000 if key == 'rms_suspension_travel' else v))
+        lines.append(f'{name:16s}' + ''.join(cells))
+    lines.append('Wk acc, acc: RMS body acceleration [m/s^2] (ISO 2631-1 Wk, raw); travel: RMS '
+                 'suspension travel [mm]; tyre: RMS dynamic tyre load / static load; I mean: '
+                 'mean current command [A]; sat: fraction of time saturated')
+    return '\n'.join(lines)
+
+
+def main(argv=None):
+    """Console entry point; returns the exit status (2 on bad input)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        out, results = run(args)
+        if args.plot:
+            from quarter_car_sim.plots import plot_results
+            plot_results(results, args.plot)
+    except (ValueError, OSError, KeyError) as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f'quarter-car-sim: error: {msg}', file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(out, allow_nan=False))
+    else:
+        print(_table(out))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,185 @@
+"""
+Linear quarter-car analysis with python-control: state space, frequency responses, LQR.
+
+Road-velocity formulation (used for the frequency responses and the LQR): state
+``x = [z_s - z_u, v_s, z_u - z_r, v_u]`` (suspension travel [m], body velocity [m/s], tyre
+deflection [m], wheel velocity [m/s]), inputs ``[zdot_r, F]`` (road velocity [m/s], force on the
+body [N], positive up), outputs ``[a_s, travel, tyre_deflection, dynamic_tyre_load]``
+([m/s^2], [m], [m], [N], tyre deflection positive when compressed is ``-(z_u - z_r)``, so the
+dynamic tyre load is ``-k_t (z_u - z_r) - c_t (v_u - zdot_r)``). A linear damper ``c`` [N s/m]
+can be included; the tyre is always in contact.
+
+Responses to road *displacement* follow from road velocity by multiplying by ``j w``.
+"""
+import dataclasses
+import math
+
+import control
+import numpy as np
+
+OUTPUT_NAMES = ('a_s', 'travel', 'tyre_deflection', 'dynamic_tyre_load')
+
+
+def linear_model(params, c=0.0):
+    """
+    Linear quarter car as a ``control.StateSpace``.
+
+    Parameters
+    ----------
+    params : QuarterCarParams
+        Car parameters (``c_s`` is added to ``c``).
+    c : float
+        Linear suspension damping [N s/m].
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs ``[zdot_r, F]``, outputs :data:`OUTPUT_NAMES`, states
+        ``[travel, v_s, z_u - z_r, v_u]``.
+
+    """
+    p = params
+    cs = float(c) + p.c_s
+    ms, mu, ks, kt, ct = p.m_s, p.m_u, p.k_s, p.k_t, p.c_t
+    A = np.array([
+        [0.0, 1.0, 0.0, -1.0],
+        [-ks / ms, -cs / ms, 0.0, cs / ms],
+        [0.0, 0.0, 0.0, 1.0],
+        [ks / mu, cs / mu, -kt / mu, -(cs + ct) / mu],
+    ])
+    B = np.array([
+        [0.0, 0.0],
+        [0.0, 1.0 / ms],
+        [-1.0, 0.0],
+        [ct / mu, -1.0 / mu],
+    ])
+    C = np.array([
+        A[1],
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, -1.0, 0.0],
+        [0.0, 0.0, -kt, -ct],
+    ])
+    D = np.array([
+        B[1],
+        [0.0, 0.0],
+        [0.0, 0.0],
+        [ct, 0.0],
+    ])
+    return control.ss(A, B, C, D, inputs=['zdot_r', 'F'], outputs=list(OUTPUT_NAMES),
+                      states=['travel', 'v_s', 'tyre_def', 'v_u'])
+
+
+def natural_frequencies(params, c=0.0):
+    """
+    Natural frequencies of the linear model [Hz], sorted: (body bounce, wheel hop).
+
+    With ``c`` > 0 these are the undamped natural frequencies ``|lambda| / (2 pi)`` of the
+    damped modes.
+    """
+    ev = np.linalg.eigvals(linear_model(params, c).A)
+    w = np.sort(np.abs(ev[np.abs(ev) > 1e-9]))
+    # complex pairs: take one of each pair
+    w = w[::2] if w.size == 4 else w
+    return tuple(float(x) / (2.0 * math.pi) for x in w[:2])
+
+
+def analytic_frequencies(params):
+    """
+    Undamped 2-DOF natural frequencies from the characteristic equation [Hz].
+
+    ``m_s m_u w^4 - (m_s (k_s + k_t) + m_u k_s) w^2 + k_s k_t = 0``.
+    """
+    p = params
+    a = p.m_s * p.m_u
+    b = -(p.m_s * (p.k_s + p.k_t) + p.m_u * p.k_s)
+    c = p.k_s * p.k_t
+    disc = math.sqrt(b * b - 4 * a * c)
+    w1 = math.sqrt((-b - disc) / (2 * a))
+    w2 = math.sqrt((-b + disc) / (2 * a))
+    return w1 / (2 * math.pi), w2 / (2 * math.pi)
+
+
+def transmissibility(params, c_values, f_hz):
+    """
+    Road-displacement frequency responses for linear dampers.
+
+    Parameters
+    ----------
+    params : QuarterCarParams
+        Car parameters.
+    c_values : sequence of float
+        Damping values [N s/m].
+    f_hz : array_like
+        Frequencies [Hz].
+
+    Returns
+    -------
+    dict
+        ``c -> {'a_s': |a_s / z_r| [1/s^2], 'travel': |travel / z_r| [-],
+        'tyre_deflection': |tyre def / z_r| [-]}`` (magnitudes, arrays like ``f_hz``).
+
+    """
+    f = np.asarray(f_hz, dtype=float)
+    w = 2.0 * np.pi * f
+    out = {}
+    for c in c_values:
+        sys = linear_model(params, c)
+        resp = control.frequency_response(sys[:3, 0], w)
+        mag = np.abs(resp.complex) * w          # velocity -> displacement input: times j w
+        mag = mag.reshape(3, -1)
+        out[float(c)] = {'a_s': np.asarray(mag[0]), 'travel': np.asarray(mag[1]),
+                         'tyre_deflection': np.asarray(mag[2])}
+    return out
+
+
+@dataclasses.dataclass
+class LqrDesign:
+    """
+    Result of :func:`lqr_design`.
+
+    Attributes
+    ----------
+    gain : ndarray (4,)
+        Feedback ``F = -gain @ [travel, v_s, z_u - z_r, v_u]`` [N per state unit].
+    Q, R, N : ndarray
+        Weights of ``integral x'Qx + u'Ru + 2x'Nu`` (from the output weights).
+    poles : ndarray
+        Closed-loop poles [rad/s].
+    weights : dict
+        Output weights used.
+
+    """
+
+    gain: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    N: np.ndarray
+    poles: np.ndarray
+    weights: dict
+
+
+def lqr_design(params, *, q_accel=1.0, q_travel=2.0e4, q_tyre=2.0e5, r_force=1.0e-6):
+    """
+    Fully active LQR on the linear model (``control.lqr``), for the active reference.
+
+    Minimises ``integral( q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2 + r_force F^2 )``
+    with ``a_s = (-k_s travel + F)/m_s`` (so the cost has a cross term); the actuator replaces
+    the damper (spring kept). Defaults trade comfort against travel and tyre load roughly like a
+    well-damped passive car (see README).
+
+    Returns
+    -------
+    LqrDesign
+
+    """
+    sys = linear_model(params, 0.0)
+    A, B = sys.A, sys.B[:, [1]]
+    ca, da = sys.C[0], sys.D[0, 1]
+    Q = (q_accel * np.outer(ca, ca) + q_travel * np.diag([1.0, 0, 0, 0])
+         + q_tyre * np.diag([0, 0, 1.0, 0]))
+    R = np.array([[q_accel * da * da + r_force]])
+    N = (q_accel * ca * da).reshape(4, 1)
+    K, _, E = control.lqr(A, B, Q, R, N)
+    return LqrDesign(gain=np.asarray(K).ravel(), Q=Q, R=R, N=N, poles=np.asarray(E),
+                     weights={'q_accel': q_accel, 'q_travel': q_travel, 'q_tyre': q_tyre,
+                              'r_force': r_force})
