@@ -39,6 +39,7 @@ __all__ = ['IdentificationResult', 'identify', 'identify_per_current', 'compare_
 METHODS = ('separable', 'full')
 
 #: Default swarm budgets per method: maxiter, stagnation tolerance and patience.
+#: (separable without the polish, i.e. stateful models: maxiter 60, patience 20)
 DEFAULT_BUDGETS = {
     'separable': {'maxiter': 15, 'tol': 1e-6, 'patience': 15},
     'full': {'maxiter': 400, 'tol': 1e-7, 'patience': 60},
@@ -294,7 +295,7 @@ class SeparableCost:
 
 
 def _polish(model, data, x, lo, hi, max_nfev=50):
-    """Bounded least-squares refinement of all parameters; returns (x, model evaluations)."""
+    """Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS)."""
     y = np.asarray(data.f, dtype=float)
     args = (data.x, data.v)
     kw = dict(i=data.i, t=data.t)
@@ -316,16 +317,30 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
     start = np.clip(x, lo, hi)
     r0 = resid(start)
     if not np.all(np.isfinite(r0)):
-        return x, 1
+        return x, 1, math.inf
+    rss0 = float(r0 @ r0)
     try:
         res = least_squares(resid, start, jac=jac, bounds=(lo, hi), method='trf',
                             x_scale='jac', max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
     except (ValueError, np.linalg.LinAlgError):
-        return x, 1
+        return x, 1, rss0
     evals = 1 + res.nfev + res.njev * (d + 1)
-    if np.all(np.isfinite(res.fun)) and res.fun @ res.fun < r0 @ r0:
-        return res.x, evals
-    return x, evals
+    if np.all(np.isfinite(res.fun)) and res.fun @ res.fun < rss0:
+        return res.x, evals, float(res.fun @ res.fun)
+    return x, evals, rss0
+
+
+def _starts(res, n):
+    """Swarm best plus up to n - 1 other personal bests from distinct places, best first."""
+    pop, cost = res.population, res.population_fun
+    span = np.ptp(pop, axis=0) + 1e-300
+    out = [np.asarray(res.x, dtype=float)]
+    for k in np.argsort(cost):
+        if len(out) >= n or not np.isfinite(cost[k]):
+            break
+        if all(np.max(np.abs(pop[k] - o) / span) > 0.2 for o in out):
+            out.append(pop[k])
+    return np.array(out)
 
 
 def _full_cost(model, data):
@@ -341,7 +356,7 @@ def _full_cost(model, data):
 
 def identify(data, model='kwok-current', *, method='separable', unbounded=False, bounds=None,
              seed=None, x0=None, swarm_size=25, maxiter=None, tol=None, budget_s=None,
-             callback=None, model_options=None, patience=None, polish=None):
+             callback=None, model_options=None, patience=None, polish=None, n_starts=None):
     """
     Identify the parameters of a damper model from a record.
 
@@ -373,6 +388,10 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         ``callback(intermediate_result)`` after each swarm iteration; True stops.
     model_options : dict, optional
         Passed to ``get_model`` (e.g. ``{'i_ref_a': 2.0}``).
+    n_starts : int, optional
+        Polish the swarm best and up to ``n_starts - 1`` personal bests from other places of
+        the search box, keep the best (default 1; 5 with ``unbounded``, whose sign-free box has
+        mirror-image local minima, e.g. negative alpha and delta).
     polish : bool, optional
         Refine the swarm's best with a bounded Gauss-Newton (trust-region reflective)
         least-squares run on all parameters and all samples. Default: on for ``separable`` with
@@ -406,6 +425,10 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         raise ValueError(f'`bounds` must have {len(names)} entries {names}.')
     x0v = _param_vector(mdl, x0)
     budget = dict(DEFAULT_BUDGETS[method])
+    if polish is None:
+        polish = method == 'separable' and not mdl.stateful
+    if method == 'separable' and not polish:
+        budget.update(maxiter=60, patience=20)      # no local polish: the swarm must converge
     if maxiter is not None:
         budget['maxiter'] = int(maxiter)
     if tol is not None:
@@ -416,8 +439,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
     nl_idx = np.array([names.index(n) for n in mdl.nonlinear_names], dtype=int)
     used = method
     units = np.array([mdl.param_units.get(n, '') for n in names])
-    if polish is None:
-        polish = method == 'separable' and not mdl.stateful
+    if n_starts is None:
+        n_starts = 5 if unbounded else 1
     if nl_idx.size == 0 and lin_idx.size:
         cost = SeparableCost(mdl, data, lo[lin_idx], hi[lin_idx], np.zeros((2, 0)))
         with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
@@ -444,23 +467,29 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
             probe = np.stack([nlo + 0.37 * (nhi - nlo), nlo + 0.71 * (nhi - nlo)])
             cost = SeparableCost(mdl, swarm_data, lo[lin_idx], hi[lin_idx], probe)
             res = pso(lambda u: cost(space.to_p(u)), space.bounds(), x0=u0, **common)
-            nl = space.to_p(res.x)
             if swarm_data is not data:
                 cost = SeparableCost(mdl, data, lo[lin_idx], hi[lin_idx], probe)
+            starts = _starts(res, n_starts if polish else 1)
+            nl = space.to_p(starts)
             with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-                theta, _ = cost.solve(nl[None])
-            x = np.empty(len(names))
-            x[nl_idx] = nl
-            x[lin_idx] = theta[0]
+                theta, _ = cost.solve(nl)
+            cands = np.empty((len(nl), len(names)))
+            cands[:, nl_idx] = nl
+            cands[:, lin_idx] = theta
         else:
             full = _full_cost(mdl, swarm_data)
             res = pso(lambda u: full(space.to_p(u)), space.bounds(), x0=u0, **common)
-            x = space.to_p(res.x)
+            cands = space.to_p(_starts(res, n_starts if polish else 1))
+        x = cands[0]
         res_info = dict(success=bool(res.success), nit=int(res.nit), nfev=int(res.nfev),
                         message=res.message)
     if polish:
-        x, extra = _polish(mdl, data, x, lo, hi)
-        res_info['nfev'] += extra
+        best = math.inf
+        for cand in cands:
+            xc, extra, rss = _polish(mdl, data, cand, lo, hi)
+            res_info['nfev'] += extra
+            if rss < best:
+                x, best = xc, rss
     f_sim = np.asarray(mdl.force(x, data.x, data.v, i=data.i, t=data.t), dtype=float)
     if np.all(np.isfinite(f_sim)):
         metrics = fit_metrics(data.f, f_sim)

@@ -120,8 +120,9 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
     -------
     scipy.optimize.OptimizeResult
         ``x`` (d,), ``fun``, ``nit``, ``nfev``, ``status`` (1 stagnation, 0 maxiter, -1 callback,
-        -2 time budget), ``success`` (``status > 0``), ``message`` and ``history`` (best cost
-        after the initial swarm and after each iteration, shape (nit + 1,)).
+        -2 time budget), ``success`` (``status > 0``), ``message``, ``history`` (best cost
+        after the initial swarm and after each iteration, shape (nit + 1,)), ``population``
+        (personal bests, (p, d)) and ``population_fun`` (their costs).
 
     Raises
     ------
@@ -230,4 +231,5 @@ def pso(fun, bounds, *, swarm_size=25, maxiter=100, inertia=(0.9, 0.4), c1=2.0, 
             break
     return OptimizeResult(x=gbest, fun=float(gbest_cost), nit=nit, nfev=nfev, status=status,
                           success=status > 0, message=TERMINATION_MESSAGES[status],
-                          history=np.asarray(history))
+                          history=np.asarray(history), population=pbest,
+                          population_fun=pbest_cost)

@@ -1,0 +1,171 @@
+"""
+Tests of the identification (mr_damper_model.identify): recover known parameters.
+
+Data: thesis cam excitation (1.1 Hz, 30 mm) at 1 kHz, force from the model with Gaussian noise
+of 1 % of the peak force. Tolerances: a least-squares fit of n = 2000 samples with p parameters
+matches the noise-free force to about sigma * sqrt(p / n) (~0.07 sigma), so the fitted force must
+be within 0.25 sigma RMS of the truth; the parameters that carry the force (viscous c, hysteretic
+alpha, slope beta) within 5-10 %, the ones that carry little (k x, f0) within 1 % of the peak
+force, delta within 0.05.
+"""
+import numpy as np
+import pytest
+
+from mr_damper_model.data import DamperData
+from mr_damper_model.identify import compare_models, identify, identify_per_current
+from mr_damper_model.models import get_model
+from mr_damper_model.presets import THESIS_TABLE_4_3, thesis_kwok_current
+
+FREQ, AMP = 1.1, 0.03
+
+
+def cam(duration=2.0, rate=1000.0, i=0.0):
+    t = np.arange(int(round(duration * rate))) / rate
+    w = 2 * np.pi * FREQ
+    x = AMP * np.sin(w * t)
+    v = AMP * w * np.cos(w * t)
+    i = np.broadcast_to(np.asarray(i, dtype=float), t.shape).copy()
+    return t, x, v, i
+
+
+def synth(model, params, t, x, v, i, *, noise=0.01, seed=0):
+    f = model.force(model.from_dict(params), x, v, i=i, t=t)
+    sigma = noise * np.max(np.abs(f))
+    rng = np.random.default_rng(seed)
+    return DamperData(t, x, v, f + sigma * rng.standard_normal(f.size), i), f, sigma
+
+
+def check_force(res, model, data, f_true, sigma):
+    f_fit = model.force(res.x, data.x, data.v, i=data.i, t=data.t)
+    assert np.sqrt(np.mean((f_fit - f_true) ** 2)) < 0.25 * sigma
+    assert res.metrics['rmse_n'] == pytest.approx(sigma, rel=0.1)
+
+
+def test_recover_kwok():
+    m = get_model('kwok')
+    truth = {'c': 800.0, 'k': 150.0, 'alpha': 400.0, 'beta': 25.0, 'delta': 0.4, 'f0': 6.0}
+    data, f_true, sigma = synth(m, truth, *cam())
+    res = identify(data, 'kwok', seed=1)
+    p = res.parameters
+    peak = np.max(np.abs(f_true))
+    for name, rel in (('c', 0.05), ('alpha', 0.05), ('beta', 0.1)):
+        assert p[name] == pytest.approx(truth[name], rel=rel)
+    assert abs(p['delta'] - truth['delta']) < 0.05
+    assert abs(p['k'] - truth['k']) * AMP < 0.01 * peak
+    assert abs(p['f0'] - truth['f0']) < 0.01 * peak
+    check_force(res, m, data, f_true, sigma)
+    assert res.method == 'separable' and res.model == 'kwok' and res.seed == 1
+
+
+def test_recover_kwok_current_2s_window():
+    m, truth = thesis_kwok_current()
+    t, x, v, _ = cam()
+    i = np.repeat([0.0, 0.5, 1.0, 1.5, 2.0], t.size // 5)
+    data, f_true, sigma = synth(m, truth, t, x, v, i)
+    res = identify(data, 'kwok-current', seed=2)
+    check_force(res, m, data, f_true, sigma)
+    # the current-dependent coefficients at each level, not the collinear raw parameters
+    from mr_damper_model.kwok_current import kwok_current_coefficients
+    s = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+    got = kwok_current_coefficients(res.x[None], s)
+    want = kwok_current_coefficients(m.from_dict(truth)[None], s)
+    for g, w_, rel in zip(got, want, (0.1, 0.05, 0.1)):     # c(i), alpha(i), beta(i)
+        np.testing.assert_allclose(np.ravel(g), np.ravel(w_), rtol=rel)
+    assert res.current_min_a == 0.0 and res.current_max_a == 2.0
+    assert res.model_options == {'i_ref_a': 2.0}
+
+
+def test_same_seed_same_answer_full_method():
+    m = get_model('kwok')
+    truth = {'c': 800.0, 'k': 150.0, 'alpha': 400.0, 'beta': 25.0, 'delta': 0.4, 'f0': 6.0}
+    data, _, _ = synth(m, truth, *cam(duration=1.0))
+    a = identify(data, 'kwok', method='full', seed=5, maxiter=40)
+    b = identify(data, 'kwok', method='full', seed=5, maxiter=40)
+    c = identify(data, 'kwok', method='full', seed=6, maxiter=40)
+    assert np.array_equal(a.x, b.x)
+    assert not np.array_equal(a.x, c.x)
+    assert a.nit == 40 and not a.success and 'maxiter' in a.message
+
+
+def test_recover_bingham_direct_lsq():
+    m = get_model('bingham')
+    truth = {'fc': 300.0, 'c0': 900.0, 'f0': -4.0}
+    data, f_true, sigma = synth(m, truth, *cam())
+    res = identify(data, 'bingham', seed=0)
+    assert res.method == 'linear' and res.nit == 0
+    for k, val in truth.items():
+        assert abs(res.parameters[k] - val) < 0.02 * max(abs(val), 0.1 * np.max(np.abs(f_true)))
+
+
+def test_recover_bouc_wen():
+    m = get_model('bouc-wen')
+    truth = {'c': 600.0, 'k': 100.0, 'alpha': 300.0, 'f0': 5.0, 'delta': 300.0, 'beta': 150.0,
+             'gamma': 150.0, 'n': 1.0}
+    data, f_true, sigma = synth(m, truth, *cam(duration=1.0))
+    res = identify(data, 'bouc-wen', seed=3)
+    # the Bouc-Wen shape parameters trade off against each other; the force must come back
+    f_fit = m.force(res.x, data.x, data.v, t=data.t)
+    assert np.sqrt(np.mean((f_fit - f_true) ** 2)) < 0.5 * sigma
+    assert res.parameters['c'] == pytest.approx(truth['c'], rel=0.1)
+
+
+@pytest.mark.slow
+def test_spencer_short_record_small_budget():
+    from mr_damper_model.presets import spencer_thesis_like
+    m = get_model('spencer')
+    truth = spencer_thesis_like()
+    t, x, v, _ = cam(duration=0.25)
+    data, f_true, sigma = synth(m, truth, t, x, v, np.full(t.size, 1.0))
+    res = identify(data, 'spencer', seed=0, swarm_size=12, maxiter=12)
+    assert res.method == 'full'             # no linear parameters: full PSO
+    lo, hi = m.default_bounds()
+    assert np.all(res.x >= lo) and np.all(res.x <= hi)
+    # a 12-iteration swarm over 13 parameters only has to find the right force scale
+    assert res.metrics['nrmse_percent'] < 15.0
+
+
+@pytest.mark.parametrize('current', sorted(THESIS_TABLE_4_3))
+def test_thesis_table_4_3_sets_recovered_unbounded(current):
+    m = get_model('kwok')
+    truth = THESIS_TABLE_4_3[current]
+    data, f_true, sigma = synth(m, truth, *cam(i=current), seed=int(current * 10))
+    res = identify(data, 'kwok', unbounded=True, seed=4)
+    check_force(res, m, data, f_true, sigma)
+    p = res.parameters
+    peak = np.max(np.abs(f_true))
+    # c v and alpha carry the force: within 2 % of the peak force at the peak velocity
+    assert abs(p['c'] - truth['c']) * AMP * 2 * np.pi * FREQ < 0.03 * peak
+    assert abs(p['alpha'] - truth['alpha']) < 0.03 * peak
+    assert p['beta'] == pytest.approx(truth['beta'], rel=0.1)
+    assert abs(p['delta'] - truth['delta']) < 0.05
+    assert abs(p['k'] - truth['k']) * AMP < 0.02 * peak
+    # the default (physical) bounds cannot reach the negative c or k of the thesis
+    if truth['c'] < 0 or truth['k'] < 0:
+        bounded = identify(data, 'kwok', seed=4)
+        assert bounded.parameters['c'] >= 0 and bounded.parameters['k'] >= 0
+
+
+def test_warm_start_dict_and_per_current_and_compare():
+    m = get_model('kwok')
+    truth = {'c': 800.0, 'k': 150.0, 'alpha': 400.0, 'beta': 25.0, 'delta': 0.4, 'f0': 6.0}
+    t, x, v, _ = cam()
+    i = np.repeat([0.0, 1.0], t.size // 2)
+    data, _, sigma = synth(m, truth, t, x, v, i)
+    warm = identify(data, 'kwok', seed=1, x0=truth)
+    assert warm.metrics['rmse_n'] == pytest.approx(sigma, rel=0.1)
+    groups = identify_per_current(data, 'kwok', seed=1)
+    assert [g.current_a for g in groups] == [0.0, 1.0]
+    cmp = compare_models(data, models=('bingham', 'kwok'), seed=1)
+    assert list(cmp) == ['bingham', 'kwok']
+    assert cmp['kwok'].metrics['rmse_n'] < cmp['bingham'].metrics['rmse_n']
+
+
+def test_bad_arguments():
+    t, x, v, i = cam(duration=0.2)
+    data = DamperData(t, x, v, np.sin(t), i)
+    with pytest.raises(ValueError, match='method'):
+        identify(data, 'kwok', method='newton')
+    with pytest.raises(ValueError, match='x0'):
+        identify(data, 'kwok', x0=[1.0, 2.0])
+    with pytest.raises(ValueError, match='unknown model'):
+        identify(data, 'nope')
