@@ -56,3 +56,12 @@ def test_schedules():
         make_excitation('square')
     with pytest.raises(ValueError, match='amplitude_m'):
         CamSine(amplitude_m=-1)
+
+
+def test_make_excitation_common_options():
+    cam = make_excitation('cam', amplitude_m=0.02, frequency_hz=2.0)
+    assert cam.amplitude_m == 0.02 and cam.freq_hz == 2.0
+    a = make_excitation('random', amplitude_m=0.005, seed=3)
+    b = make_excitation('random', amplitude_m=0.005, rng=3)
+    np.testing.assert_array_equal(a(np.arange(10.0))[0], b(np.arange(10.0))[0])
+    assert make_excitation('chirp', frequency_hz=4.0).f1_hz == 4.0

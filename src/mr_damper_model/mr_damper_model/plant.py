@@ -241,7 +241,10 @@ def make_plant(name='spencer', params=None, **options):
     params : dict or None
         Parameters; None: ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``.
     **options
-        Keyword options of ``SpencerPlant`` / ``KwokCurrentPlant``.
+        Keyword options of ``SpencerPlant`` / ``KwokCurrentPlant``. For 'spencer' ``y0_m``
+        defaults to 0.0: x is measured from mid-stroke and the internal displacement starts
+        there, which is the periodic steady state of a motion centred on 0 (no slow start-up
+        force offset, see ``mr_damper_model.spencer``).
 
     Returns
     -------
@@ -250,6 +253,7 @@ def make_plant(name='spencer', params=None, **options):
     """
     from mr_damper_model import presets
     if name == 'spencer':
+        options.setdefault('y0_m', 0.0)
         return SpencerPlant(presets.spencer_thesis_like() if params is None else params,
                             **options)
     if name == 'kwok-current':

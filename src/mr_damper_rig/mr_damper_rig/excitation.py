@@ -201,7 +201,8 @@ class Chirp(Excitation):
         return A * np.sin(phase), A * 2 * np.pi * freq * np.cos(phase)
 
 
-def make_excitation(name='cam', rng=None, **options):
+def make_excitation(name='cam', rng=None, *, amplitude_m=None, frequency_hz=None, seed=None,
+                    **options):
     """
     Build an excitation by name ('cam', 'multisine', 'chirp', 'random').
 
@@ -210,25 +211,54 @@ def make_excitation(name='cam', rng=None, **options):
     name : str
         Excitation name.
     rng : None, int or numpy.random.Generator
-        Seed (used by 'random').
+        Seed (used by 'random'); ``seed`` is an alias.
+    amplitude_m : float or None
+        Size of the motion [m]: cam and chirp amplitude, random RMS; multisine: the amplitude of
+        every component.
+    frequency_hz : float or None
+        cam frequency; chirp end frequency; random upper band edge [Hz] (multisine: ignored).
+    seed : None or int
+        Alias of ``rng``.
     **options
-        Keyword options of the class.
+        Other keyword options of the class.
 
     Returns
     -------
     Excitation
 
     """
+    if rng is None:
+        rng = seed
     if name == 'cam':
+        if amplitude_m is not None:
+            options['amplitude_m'] = amplitude_m
+        if frequency_hz is not None:
+            options['freq_hz'] = frequency_hz
         return CamSine(**options)
     if name == 'multisine':
-        return Multisine(**options)
+        exc = Multisine(**options)
+        if amplitude_m is not None:
+            exc = Multisine(exc.freqs_hz, np.full(exc.freqs_hz.size, float(amplitude_m)))
+        return exc
     if name == 'chirp':
+        if amplitude_m is not None:
+            options['amplitude_m'] = amplitude_m
+        if frequency_hz is not None:
+            options['f1_hz'] = frequency_hz
         return Chirp(**options)
     if name == 'random':
+        if amplitude_m is not None:
+            options['rms_m'] = amplitude_m
+        if frequency_hz is not None:
+            options['f_hi_hz'] = frequency_hz
         return BandLimitedRandom(rng=rng, **options)
     raise ExcitationError(f'unknown excitation {name!r}; expected one of '
                           f'{", ".join(EXCITATION_NAMES)}')
+
+
+def step_schedule(levels_a=(0.0, 0.5, 1.0, 1.5, 2.0), hold_s=4 / 1.1):
+    """Return ``StepSchedule(levels_a, hold_s)`` (levels [A], time per level [s])."""
+    return StepSchedule(levels_a, hold_s)
 
 
 class CurrentSchedule:
