@@ -235,6 +235,28 @@ class QuarterCar:
         """Current :class:`CarState`."""
         return self._state
 
+    def set_state(self, z_s=0.0, v_s=0.0, z_u=0.0, v_u=0.0, damper_force=0.0):
+        """
+        Set the mechanical state (e.g. an initial condition for free vibration).
+
+        Parameters
+        ----------
+        z_s, v_s, z_u, v_u : float
+            Body and wheel displacements [m] and velocities [m/s].
+        damper_force : float
+            Damper force on the body [N] held over the next step.
+
+        Returns
+        -------
+        CarState
+
+        """
+        self._x = [float(z_s), float(v_s), float(z_u), float(v_u)]
+        self._f = float(damper_force)
+        zr, zd = self._road_at(self.t)
+        self._state = self._make_state(self._x, self._f, zr, zd)
+        return self._state
+
     def _road_at(self, t):
         u = (t - self._rt0) / self._rdt
         if u <= 0.0:

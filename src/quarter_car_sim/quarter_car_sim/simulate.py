@@ -8,6 +8,7 @@ sample ``k`` holds the state at ``t_k`` with the demand and command computed fro
 """
 import dataclasses
 import math
+from operator import attrgetter
 import time
 
 import numpy as np
@@ -56,8 +57,9 @@ class ClosedLoop:
     controller : Controller
         See :mod:`quarter_car_sim.controllers`.
     inverse : KwokCurrentInverse or None
-        Force -> current inverse (identified parameters); needed for semi-active controllers.
-        May be replaced at any time (``loop.inverse = ...``), e.g. on new identified parameters.
+        Scalar force -> current inverse (:class:`quarter_car_sim.controllers.KwokCurrentInverse`
+        built from identified parameters); needed for semi-active controllers. May be replaced
+        at any time (``loop.inverse = ...``), e.g. on new identified parameters.
     i_min, i_max : float
         Coil current range [A] (passive currents are clipped to it too).
 
@@ -184,7 +186,7 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
 
     Parameters
     ----------
-    damper_params : dict, ParamsFile, KwokCurrentInverse or path
+    damper_params : dict, ParamsFile, inverse object or path
         kwok-current parameters: a ``{name: value}`` dict, a dict/ParamsFile with
         ``parameters`` and ``model_options``, or a JSON parameter file path
         (``mr_damper_model.params_file.load_params``).
@@ -235,7 +237,7 @@ def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=Non
     settle_s : float
         Time [s] run before t = 0 on the road's initial height (controller active) so the car
         settles on the damper's static force; not recorded.
-    inverse : KwokCurrentInverse, optional
+    inverse : inverse object, optional
         Ready-made inverse (instead of ``damper_params``).
 
     Returns
@@ -257,26 +259,24 @@ def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=Non
     for _ in range(n_settle):
         loop.step(dt)
     n = int(round(road.duration / dt)) + 1
-    cols = {f: [0.0] * n for f in _STATE_FIELDS}
+    states = [None] * n
     demand = [0.0] * n
     cmd = [0.0] * n
     sat = [False] * n
-    tt = [0.0] * n
     command = loop.command
     step_i = car.step
     step_f = car.step_force
-    lists = [cols[f] for f in _STATE_FIELDS]
     t_start = time.perf_counter()
     s = car.state
     for k in range(n):
         d, i, sa = command(s)
-        tt[k] = s.t
-        for lst, f in zip(lists, _STATE_FIELDS):
-            lst[k] = getattr(s, f)
+        states[k] = s
         demand[k], cmd[k], sat[k] = d, i, sa
         s = step_i(dt, i) if i == i else step_f(dt, d)
     wall = time.perf_counter() - t_start
-    arrays = {f: np.asarray(cols[f], dtype=float) for f in _STATE_FIELDS}
+    arrays = {f: np.fromiter(map(attrgetter(f), states), dtype=float, count=n)
+              for f in _STATE_FIELDS}
+    tt = np.fromiter(map(attrgetter('t'), states), dtype=float, count=n)
     return SimResult(t=np.asarray(tt), demand=np.asarray(demand), current_cmd=np.asarray(cmd),
                      saturated=np.asarray(sat, dtype=bool), controller=controller.name,
                      static_tyre_load=params.static_tyre_load, wall_time_s=wall, **arrays)

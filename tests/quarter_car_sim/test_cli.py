@@ -1,0 +1,73 @@
+"""Tests of the quarter-car-sim command line."""
+import json
+import subprocess
+
+import pytest
+
+from conftest import VENV_BIN
+from mr_damper_model import presets
+from mr_damper_model.params_file import save_params
+from quarter_car_sim import cli
+
+
+@pytest.fixture
+def params_file(tmp_path):
+    _, truth = presets.thesis_kwok_current()
+    p = tmp_path / 'fit.json'
+    save_params(p, {'model': 'kwok-current', 'parameters': truth,
+                    'model_options': {'i_ref_a': 2.0}})
+    return p
+
+
+def test_compare_json(params_file, capsys):
+    rc = cli.main(['--compare', '--json', '--duration', '3', '--plant', 'kwok',
+                   '--damper-params', str(params_file)])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    names = set(out['controllers'])
+    assert {'passive@0.0A', 'passive@2.0A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid',
+            'skyhook-ideal', 'lqr-active'} <= names
+    for m in out['controllers'].values():
+        for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
+                    'rms_tyre_load_ratio'):
+            assert m[key] > 0
+    assert out['controllers']['lqr-active']['mean_current_a'] is None
+
+
+def test_single_controller_table(params_file, capsys):
+    rc = cli.main(['--controller', 'skyhook', '--road', 'bump', '--speed', '10',
+                   '--duration', '2', '--plant', 'kwok', '--damper-params', str(params_file)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert 'skyhook' in out and 'Wk' in out
+
+
+@pytest.mark.parametrize('args, match', [
+    (['--road', 'iso8608-Z'], 'road class'),
+    (['--road', 'missing.csv'], 'not found'),
+    (['--controller', 'magic'], 'unknown controller'),
+])
+def test_bad_input_exit_2_one_line(args, match, capsys):
+    assert cli.main(args + ['--duration', '1']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0] and 'Traceback' not in err[0]
+
+
+def test_bad_params_file_nan(tmp_path, capsys):
+    p = tmp_path / 'nan.json'
+    _, truth = presets.thesis_kwok_current()
+    text = json.dumps({'model': 'kwok-current', 'parameters': dict(truth, c0='NaN')})
+    p.write_text(text.replace('"NaN"', 'NaN'))
+    assert cli.main(['--damper-params', str(p), '--duration', '1']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'c0' in err[0]
+
+
+def test_console_script_negative_speed_and_missing_params(tmp_path):
+    exe = str(VENV_BIN / 'quarter-car-sim')
+    for args, match in ((['--speed', '-5'], 'speed'),
+                        (['--damper-params', str(tmp_path / 'none.json')], 'none.json')):
+        r = subprocess.run([exe] + args, capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and match in lines[0], r.stderr
