@@ -304,7 +304,7 @@ def compare(params, road, controllers, plant, *, dt=1e-3, damper_params=None, su
 
 
 RIG_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
-"""Coil currents of the simulated identification test [A]."""
+"""Coil current steps of the simulated identification test [A]."""
 
 RIG_EXCITATIONS = ((1.1, 0.03), (3.0, 0.015))
 """(frequency [Hz], amplitude [m]) of the simulated identification test: the thesis cam
@@ -312,25 +312,22 @@ RIG_EXCITATIONS = ((1.1, 0.03), (3.0, 0.015))
 piston velocities of a class C road at 20 m/s better."""
 
 
-def simulated_rig_data(plant, *, seed=0, fs=1000.0, cycles=3, noise_n=2.0):
+def simulated_rig_data(plant, *, seed=0, periods=4):
     """
-    Simulated rig test of a damper plant: sine excitations at several constant currents.
+    Simulated rig test of a damper plant on H1's virtual rig (``mr_damper_rig.virtual_rig``).
 
-    Each (excitation, current) block runs one settling cycle (discarded) and ``cycles``
-    recorded cycles; load-cell noise is Gaussian with ``noise_n`` [N] standard deviation.
+    For each excitation of :data:`RIG_EXCITATIONS` the rig steps the current through
+    :data:`RIG_CURRENTS_A`, ``periods`` cam periods per level, with the rig's load-cell noise
+    and 16-bit DAQ; the records are joined (time restamped).
 
     Parameters
     ----------
     plant : DamperPlant
-        The "true" damper (reset before each block).
+        The "true" damper (reset by the rig).
     seed : int
         Noise seed.
-    fs : float
-        Sample rate [Hz].
-    cycles : int
-        Recorded cycles per block.
-    noise_n : float
-        Force noise [N].
+    periods : int
+        Cam periods per current level.
 
     Returns
     -------
@@ -338,30 +335,15 @@ def simulated_rig_data(plant, *, seed=0, fs=1000.0, cycles=3, noise_n=2.0):
 
     """
     from mr_damper_model.data import DamperData
+    from mr_damper_rig.excitation import CamSine, StepSchedule
+    from mr_damper_rig.virtual_rig import VirtualRig
     gen = np.random.default_rng(seed)
-    ts, xs, vs, fs_, is_ = [], [], [], [], []
-    t_off = 0.0
-    dt = 1.0 / fs
+    parts = []
     for f_hz, amp in RIG_EXCITATIONS:
-        w = 2.0 * math.pi * f_hz
-        n_set = int(round(fs / f_hz))
-        n_rec = int(round(cycles * fs / f_hz))
-        tt = np.arange(n_set + n_rec) * dt
-        x = amp * np.sin(w * tt)
-        v = amp * w * np.cos(w * tt)
-        for cur in RIG_CURRENTS_A:
-            plant.reset()
-            plant.step(0.0, float(x[0]), float(v[0]), cur)
-            f = np.array([plant.step(dt, float(a), float(b), cur) for a, b in zip(x, v)])
-            sl = slice(n_set, None)
-            ts.append(t_off + tt[sl] - tt[n_set])
-            t_off = ts[-1][-1] + dt
-            xs.append(x[sl])
-            vs.append(v[sl])
-            fs_.append(f[sl] + noise_n * gen.standard_normal(n_rec))
-            is_.append(np.full(n_rec, float(plant.current)))
-    return DamperData(np.concatenate(ts), np.concatenate(xs), np.concatenate(vs),
-                      np.concatenate(fs_), np.concatenate(is_), source='simulated rig test')
+        rig = VirtualRig(plant, CamSine(f_hz, amp), StepSchedule(RIG_CURRENTS_A, periods / f_hz),
+                         rng=gen)
+        parts.append(rig.run())
+    return DamperData.concatenate(parts, restamp=True)
 
 
 def identify_damper(plant, *, seed=0, budget_s=None):
