@@ -76,6 +76,8 @@ def test_goes_stale_after_timeout_and_recovers():
     ({'i_ref_a': 0.0}, 'bad_current_range'),
     ({'current_min_a': 1.5, 'current_max_a': 0.5}, 'bad_current_range'),
     ({'current_max_a': 5.0}, 'bad_current_range'),
+    ({'current_min_a': 0.0, 'current_max_a': 0.0}, 'narrow_current_range'),
+    ({'current_min_a': 0.5, 'current_max_a': 1.0}, 'narrow_current_range'),
 ])
 def test_refuses_bad_sets_and_counts_reason(changes, reason):
     sup = make()

@@ -10,7 +10,10 @@ by tick, whether such a model may be used. A parameter set is accepted only if
 - every Kwok-current parameter lies inside the physical box bounds of the model
   (``get_model('kwok-current').default_bounds()`` of ``mr_damper_model``),
 - ``i_ref_a`` is positive and the identified current range ``[current_min_a, current_max_a]``
-  is ordered and inside the coil's range (small tolerance),
+  is ordered, inside the coil's range (small tolerance) and at least ``min_current_span_a``
+  wide: a model fitted at one current level (the identifier publishes it as kwok-current with
+  zero current slopes) cannot say which current makes a force, so using it would be a guess;
+  the caller also keeps its inverse inside the identified range (no extrapolation),
 
 and it stays usable only while it is younger than ``timeout_s`` (age measured on the caller's
 clock from its receipt). Otherwise the supervisor is in fail-safe mode and the caller commands
@@ -40,6 +43,7 @@ REASONS = (
     'non_finite',         # NaN or inf in a needed element
     'out_of_bounds',      # a parameter outside the physical box bounds
     'bad_current_range',  # i_ref_a <= 0, or current_min_a/current_max_a disordered / off-range
+    'narrow_current_range',  # identified over less than min_current_span_a
     'undecodable',        # the message could not be decoded (bad layout); see :meth:`refuse`
 )
 
@@ -104,6 +108,8 @@ class ModelSupervisor:
         Tolerance [A] on the identified current range against ``[i_min_a, i_max_a]``.
     hold_on_reject : bool
         Keep the model in use when a later message is rejected (until it goes stale).
+    min_current_span_a : float
+        Minimum width [A] of the identified current range ``current_max_a - current_min_a``.
 
     Raises
     ------
@@ -119,6 +125,7 @@ class ModelSupervisor:
     bounds: dict = None
     current_tol_a: float = 0.05
     hold_on_reject: bool = False
+    min_current_span_a: float = 1.0
     # state (not constructor arguments in practice)
     params: dict = field(default=None, init=False)
     accepted_at: float = field(default=None, init=False)
@@ -133,7 +140,8 @@ class ModelSupervisor:
     _last_t: float = field(default=None, init=False)
 
     def __post_init__(self):
-        for name in ('timeout_s', 'safe_current_a', 'i_min_a', 'i_max_a', 'current_tol_a'):
+        for name in ('timeout_s', 'safe_current_a', 'i_min_a', 'i_max_a', 'current_tol_a',
+                     'min_current_span_a'):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise SupervisorError(f'`{name}` must be a finite number, got {value!r}.')
@@ -203,6 +211,10 @@ class ModelSupervisor:
             return Verdict(False, 'bad_current_range',
                            f'identified current range [{lo_a:g}, {hi_a:g}] A not ordered inside '
                            f'[{self.i_min_a:g}, {self.i_max_a:g}] A')
+        if hi_a - lo_a < self.min_current_span_a - 1e-9:
+            return Verdict(False, 'narrow_current_range',
+                           f'identified over [{lo_a:g}, {hi_a:g}] A only (need a span of '
+                           f'{self.min_current_span_a:g} A)')
         return Verdict(True, 'ok')
 
     # ------------------------------------------------------------------ events
@@ -249,7 +261,8 @@ class ModelSupervisor:
     def _apply(self, verdict, msg, t_now):
         if verdict.accepted:
             self.params = {n: float(msg[n]) for n in KWOK_CURRENT_NAMES}
-            self.params['i_ref_a'] = float(msg['i_ref_a'])
+            for n in ('i_ref_a', 'current_min_a', 'current_max_a'):
+                self.params[n] = float(msg[n])
             self.accepted_at = float(t_now)
             self.n_accepted += 1
             if self.first_valid_at is None:
@@ -305,7 +318,12 @@ class ModelSupervisor:
     # ------------------------------------------------------------------ outputs
     @property
     def active(self):
-        """Return the parameter dict in use (with ``i_ref_a``), or None in fail-safe mode."""
+        """
+        Return the parameters in use, or None in fail-safe mode.
+
+        The dict holds the ten Kwok-current parameters, ``i_ref_a``, ``current_min_a`` and
+        ``current_max_a``.
+        """
         return self.params if self.mode == 'normal' else None
 
     def age(self, t_now):

@@ -1,0 +1,455 @@
+"""
+The quarter-car control loop of the ROS node, without ROS: car + controller + supervised inverse.
+
+One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop`:
+
+1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the caller's
+   clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
+2. with a model: the controller's demanded body force (positive up) is turned into a coil
+   current by the inverse of the identified model (the damper model
+   force resisting extension is the negative of the body force; the plain-float fast path
+   ``quarter_car_sim.controllers.KwokCurrentInverse``), saturated to the coil range;
+   without one: the safe current (fail-safe). A passive controller gives a current directly;
+3. the quarter car (its plant is the "true" damper, never the identified model) advances by
+   ``dt`` with that current held, and the running ride metrics take the new state.
+
+:class:`Pacer` schedules steps against a monotonic clock (real time times a factor, or as fast
+as possible) and :class:`TraceLog` keeps every step for the run's log file.
+"""
+from array import array
+import math
+import time
+
+import numpy as np
+
+from quarter_car_sim.failsafe import clip_current
+
+#: time [s] the car runs before the road starts (t = -SETTLE_S .. 0) so that it settles on the
+#: damper's static force, as ``quarter_car_sim.simulate.simulate(settle_s=0.5)`` does
+SETTLE_S = 0.5
+
+#: columns of the trace log, in order (SI units; ``mode`` 1 = normal, 0 = fail-safe)
+TRACE_COLUMNS = ('t', 'z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'a_u', 'z_r', 'travel', 'v_rel',
+                 'tyre_force', 'damper_force', 'coil_current', 'i_cmd', 'f_demand', 'mode',
+                 'wall', 'compute_s', 'late_s')
+
+
+def make_road(kind='iso8608', *, road_class='C', speed_m_s=20.0, seed=1, duration_s=120.0,
+              dt=1e-3, file=''):
+    """
+    Build the node's road from its parameters.
+
+    Parameters
+    ----------
+    kind : str
+        ``'iso8608'`` (class ``road_class``), ``'bump'``, ``'sine'``, ``'step'`` or ``'file'``.
+    road_class : str
+        ISO 8608 class A..H.
+    speed_m_s : float
+        Vehicle speed [m/s].
+    seed : int
+        Seed of the random road.
+    duration_s : float
+        Road length in time [s]; beyond it the last height is held.
+    dt : float
+        Sample interval [s].
+    file : str
+        CSV road profile (``kind='file'``).
+
+    Returns
+    -------
+    quarter_car_sim.road.RoadProfile
+
+    """
+    from quarter_car_sim import road as road_mod
+    kind = str(kind).strip().lower()
+    if kind == 'iso8608':
+        return road_mod.iso8608(str(road_class).upper(), speed_m_s, duration_s, dt, int(seed))
+    if kind == 'file':
+        if not file:
+            raise road_mod.RoadError('road kind "file" needs the parameter `road_file`')
+        return road_mod.from_csv(file, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
+    return road_mod.make_road(kind, speed_m_s=speed_m_s, duration_s=duration_s, dt=dt,
+                              rng=int(seed))
+
+
+def make_controller(name, car_params=None, options=None):
+    """
+    Build a controller of the core by name, for a damper driven by a coil current.
+
+    Parameters
+    ----------
+    name : str
+        A name of ``quarter_car_sim.controllers.make_controller`` of kind ``'current'``
+        (``passive@<I>A``) or ``'semi-active'`` (skyhook, skyhook-onoff, groundhook, hybrid,
+        add).
+    car_params : QuarterCarParams, optional
+        Car parameters (LQR design only).
+    options : dict, optional
+        Keyword options of ``make_controller`` (e.g. ``{'c_sky': 3000.0}``).
+
+    Returns
+    -------
+    quarter_car_sim.controllers.Controller
+
+    Raises
+    ------
+    ValueError
+        Unknown name, or a fully active controller (``skyhook-ideal``, ``lqr-active``): they
+        apply forces directly and cannot drive an MR damper.
+
+    """
+    from quarter_car_sim import controllers
+    ctrl = controllers.make_controller(name, params=car_params, **(options or {}))
+    if ctrl.kind not in ('current', 'semi-active'):
+        raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
+                         'MR damper (use skyhook, groundhook, hybrid, add or passive@<I>A)')
+    return ctrl
+
+
+class ClosedLoop:
+    """
+    One quarter car driven by a controller through the supervised, identified inverse model.
+
+    Parameters
+    ----------
+    car : quarter_car_sim.dynamics.QuarterCar
+        Car with its "true" damper plant.
+    controller : quarter_car_sim.controllers.Controller
+        Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
+        inverse model of the supervisor's active parameters).
+    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+        Gatekeeper of the identified parameters; holds the safe current and coil range.
+    dt : float
+        Control period [s].
+    metrics : object, optional
+        Running ride metrics with ``update(state, current)``.
+    inverse_tol_a : float
+        Current tolerance [A] of the inverse model.
+
+    Notes
+    -----
+    A passive controller still reports the supervisor's mode, but its current does not depend
+    on the model, so it is commanded in both modes.
+
+    """
+
+    def __init__(self, car, controller, supervisor, dt=1e-3, *, metrics=None,
+                 inverse_tol_a=1e-4):
+        if not dt > 0:
+            raise ValueError(f'`dt` must be > 0 s, got {dt}')
+        self.car = car
+        self.controller = controller
+        self.sup = supervisor
+        self.dt = float(dt)
+        self.metrics = metrics
+        self.inverse_tol_a = float(inverse_tol_a)
+        self.passive = getattr(controller, 'kind', '') == 'current'
+        self.steps = 0
+        self.i_cmd = supervisor.safe_current_a
+        self.f_demand = math.nan
+        self.saturated = 0
+        self.last_saturated = None
+        self._inverse = None
+        self._inverse_of = None
+
+    def _inverse_for(self, params):
+        if params is not self._inverse_of:
+            from quarter_car_sim.controllers import KwokCurrentInverse
+            # the inverse stays inside the current range the model was identified on
+            lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
+            hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
+            if not hi > lo:
+                lo, hi = self.sup.i_min_a, self.sup.i_max_a
+            self._inverse = KwokCurrentInverse(
+                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a)
+            self._inverse_of = params
+        return self._inverse
+
+    def command(self, state, t_clock):
+        """
+        Return the coil current [A] for the next step, given the state and the caller's clock.
+
+        Parameters
+        ----------
+        state : CarState
+            State at the start of the step (the measurement).
+        t_clock : float
+            Caller's clock [s] (used for the parameter timeout).
+
+        Returns
+        -------
+        float
+            Coil current command [A] within the coil range.
+
+        """
+        sup = self.sup
+        sup.update(t_clock)
+        if self.passive:
+            self.f_demand = math.nan
+            self.i_cmd = clip_current(self.controller.demand(state), sup.i_min_a, sup.i_max_a,
+                                      sup.safe_current_a)
+            return self.i_cmd
+        params = sup.active
+        if params is None:
+            self.f_demand = math.nan
+            self.last_saturated = None
+            self.i_cmd = sup.safe_current_a
+            return self.i_cmd
+        f_body = float(self.controller.demand(state))
+        self.f_demand = f_body
+        current, saturated = self._inverse_for(params).current(f_body, state.travel, state.v_rel)
+        self.saturated += bool(saturated)
+        self.last_saturated = bool(saturated)
+        self.i_cmd = clip_current(current, sup.i_min_a, sup.i_max_a, sup.safe_current_a)
+        return self.i_cmd
+
+    def advance(self):
+        """Advance the car by ``dt`` with the last command held; return the new state."""
+        new = self.car.step(self.dt, self.i_cmd)
+        self.steps += 1
+        if self.metrics is not None:
+            self.metrics.update(new, self.i_cmd, self.last_saturated)
+        return new
+
+    def step(self, t_clock):
+        """
+        Run one control step: command from the current state, then advance the car by ``dt``.
+
+        Returns
+        -------
+        CarState
+            State at the end of the step.
+
+        """
+        self.command(self.car.state, t_clock)
+        return self.advance()
+
+
+class Pacer:
+    """
+    Schedule control steps against a monotonic clock.
+
+    Step ``k`` is due at ``t_start + k * dt / factor``; ``factor = 0`` means as fast as
+    possible. After :meth:`wait`, :attr:`lateness` is how late [s] the step started against its
+    deadline (a late step is followed by shorter periods until the schedule is caught up). :meth:`due` says how many steps are due now (bounded by ``max_burst``, the rest are
+    counted as skipped deadlines: the simulation then falls behind wall time, it never skips
+    physics).
+
+    Parameters
+    ----------
+    dt : float
+        Control period [s] of simulated time.
+    factor : float
+        Simulated seconds per wall second (1 = real time, 0 = as fast as possible).
+    clock : callable
+        Monotonic clock [s] (default ``time.monotonic``).
+
+    """
+
+    def __init__(self, dt, factor=1.0, clock=time.monotonic, max_burst=50):
+        if not dt > 0:
+            raise ValueError(f'`dt` must be > 0 s, got {dt}')
+        if not factor >= 0:
+            raise ValueError(f'`factor` must be >= 0, got {factor}')
+        self.dt = float(dt)
+        self.factor = float(factor)
+        self.clock = clock
+        self.max_burst = int(max_burst)
+        self.t_start = clock()
+        self.k = 0
+        self.late = 0
+        self.lateness = 0.0
+
+    def period(self):
+        """Return the wall period [s] of one step (0 when as fast as possible)."""
+        return self.dt / self.factor if self.factor > 0 else 0.0
+
+    def next_deadline(self):
+        """Return the wall time the next step is due."""
+        return self.t_start + self.k * self.period()
+
+    def wait(self):
+        """Sleep until the next step is due; return the wall time at wake-up."""
+        if self.factor > 0:
+            delay = self.next_deadline() - self.clock()
+            if delay > 0:
+                time.sleep(delay)
+        now = self.clock()
+        self.lateness = now - self.next_deadline() if self.factor > 0 else 0.0
+        if self.factor > 0 and now - self.next_deadline() > self.max_burst * self.period():
+            # hopelessly behind (machine overloaded): re-anchor instead of bursting forever
+            self.late += 1
+            self.t_start = now - self.k * self.period()
+        self.k += 1
+        return now
+
+
+class TraceLog:
+    """
+    Append-only per-step log of the loop (compact ``array('d')`` columns).
+
+    Columns are :data:`TRACE_COLUMNS`; :meth:`save` writes them to an ``.npz`` file.
+    """
+
+    def __init__(self):
+        self.cols = {c: array('d') for c in TRACE_COLUMNS}
+
+    def append(self, state, i_cmd, f_demand, normal, wall, compute_s, late_s=0.0):
+        """Append one step."""
+        c = self.cols
+        for name in TRACE_COLUMNS[:13]:
+            c[name].append(getattr(state, name))
+        c['i_cmd'].append(i_cmd)
+        c['f_demand'].append(f_demand)
+        c['mode'].append(1.0 if normal else 0.0)
+        c['wall'].append(wall)
+        c['compute_s'].append(compute_s)
+        c['late_s'].append(late_s)
+
+    def __len__(self):
+        return len(self.cols['t'])
+
+    def arrays(self):
+        """Return the columns as numpy arrays."""
+        return {k: np.frombuffer(v, dtype=float).copy() if len(v) else np.zeros(0)
+                for k, v in self.cols.items()}
+
+    def save(self, path, **extra):
+        """Write the columns (and ``extra`` arrays / scalars) to ``path`` (.npz)."""
+        np.savez_compressed(path, **self.arrays(), **extra)
+
+
+def timing_stats(values, nominal=None):
+    """
+    Summarise loop periods or compute times.
+
+    Parameters
+    ----------
+    values : array_like
+        Samples [s].
+    nominal : float, optional
+        Nominal period [s]; if given, the jitter ``|value - nominal|`` is summarised too.
+
+    Returns
+    -------
+    dict
+        ``n``, ``mean_ms``, ``p50_ms``, ``p99_ms``, ``max_ms`` (and ``jitter_p99_ms``,
+        ``jitter_max_ms`` with ``nominal``); NaN when there are no samples.
+
+    """
+    a = np.asarray(values, dtype=float)
+    out = {'n': int(a.size)}
+    if a.size == 0:
+        keys = ['mean_ms', 'p50_ms', 'p99_ms', 'max_ms']
+        if nominal is not None:
+            keys += ['jitter_p99_ms', 'jitter_max_ms']
+        out.update({k: math.nan for k in keys})
+        return out
+    out.update({'mean_ms': 1e3 * float(a.mean()), 'p50_ms': 1e3 * float(np.percentile(a, 50)),
+                'p99_ms': 1e3 * float(np.percentile(a, 99)), 'max_ms': 1e3 * float(a.max())})
+    if nominal is not None:
+        j = np.abs(a - nominal)
+        out['jitter_p99_ms'] = 1e3 * float(np.percentile(j, 99))
+        out['jitter_max_ms'] = 1e3 * float(j.max())
+    return out
+
+
+def make_plant(name='spencer', params_file=''):
+    """
+    Build the "true" damper plant of the car (the same configuration as the rig's).
+
+    Parameters
+    ----------
+    name : str
+        ``'spencer'`` or ``'kwok-current'`` (``mr_damper_model.plant.make_plant``).
+    params_file : str
+        Optional JSON file with the plant's parameters (a ``{"parameters": {...}}`` parameter
+        file or a plain name -> value object); default: the plant's preset (thesis damper).
+
+    Returns
+    -------
+    mr_damper_model.plant.DamperPlant
+
+    """
+    import json
+    from mr_damper_model.plant import make_plant as _make_plant
+    params = None
+    if params_file:
+        with open(params_file) as fh:
+            d = json.load(fh)
+        params = d.get('parameters', d) if isinstance(d, dict) else None
+        if not isinstance(params, dict):
+            raise ValueError(f'{params_file}: not a parameter object')
+    return _make_plant(name, params)
+
+
+def make_running_metrics(car_params, dt=1e-3):
+    """Return the core's running ride metrics for this car sampled every ``dt`` [s]."""
+    from quarter_car_sim.ride_metrics import RunningRideMetrics
+    return RunningRideMetrics(1.0 / dt, car_params.static_tyre_load)
+
+
+def metrics_dict(metrics):
+    """Return the running metrics as a plain dict."""
+    return dict(metrics.as_dict())
+
+
+class LoopTiming:
+    """
+    Rolling statistics of the control loop for the status message.
+
+    Parameters
+    ----------
+    nominal : float or None
+        Nominal wall period [s] (None when running as fast as possible).
+    keep : int
+        Number of most recent steps summarised.
+
+    """
+
+    def __init__(self, nominal, keep=5000):
+        from collections import deque
+        self.nominal = nominal
+        self.periods = deque(maxlen=keep)
+        self.lateness = deque(maxlen=keep)
+        self.latency = deque(maxlen=keep)
+        self.step = deque(maxlen=keep)
+        self.last = None
+        self.n = 0
+        self.over_2ms = 0
+
+    def add(self, wall, latency_s, step_s, lateness_s=0.0):
+        """
+        Add one step.
+
+        Parameters
+        ----------
+        wall : float
+            Wake-up time [s].
+        latency_s : float
+            Wake-up (state read) -> command published [s].
+        step_s : float
+            Whole step (command, publish, car step, logging) [s].
+        lateness_s : float
+            Wake-up time minus the step's deadline [s].
+
+        """
+        self.lateness.append(lateness_s)
+        if self.last is not None:
+            p = wall - self.last
+            self.periods.append(p)
+            if self.nominal is not None and abs(p - self.nominal) > 2e-3:
+                self.over_2ms += 1
+        self.last = wall
+        self.latency.append(latency_s)
+        self.step.append(step_s)
+        self.n += 1
+
+    def stats(self):
+        """Return ``period`` (with jitter), ``latency`` and ``step`` statistics [ms]."""
+        return {'period': timing_stats(list(self.periods), self.nominal),
+                'lateness': timing_stats(list(self.lateness)),
+                'latency': timing_stats(list(self.latency)),
+                'step': timing_stats(list(self.step)),
+                'jitter_over_2ms': self.over_2ms, 'steps': self.n}

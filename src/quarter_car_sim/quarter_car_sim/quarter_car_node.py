@@ -1,0 +1,269 @@
+"""
+Quarter-car node: a simulated car corner on an MR damper it only knows through the identifier.
+
+``ros2 run quarter_car_sim quarter_car_node --ros-args --params-file suite.yaml``
+
+A control thread runs the ROS-free :class:`quarter_car_sim.live_loop.ClosedLoop` at ``rate_hz``
+(1 kHz), paced against the monotonic clock (real time times ``real_time_factor``; 0 = as fast as
+possible). Each step: the supervisor (:mod:`quarter_car_sim.failsafe`) says whether the latest
+identified parameters may be used; the controller's force goes through their inverse to a coil
+current (or the safe current in fail-safe), published on ``current_command``; then the car and
+its "true" damper plant advance 1 ms. A dedicated thread with its own deadlines keeps the period
+jitter low (an rclpy timer at 1 kHz only delivers 850-990 Hz here); parameter messages, status
+and metrics go through the executor in the main thread.
+
+Topics (defaults)
+-----------------
+- sub ``/mr_damper/kwok_parameters`` (std_msgs/Float64MultiArray, decoded by label;
+  reliable, transient local, depth 1);
+- pub ``/mr_damper/current_command`` (std_msgs/Float64, A, every control step; reliable, 10);
+- pub ``/quarter_car/state`` (sensor_msgs/JointState at ``state_rate_hz``; header.stamp = sim
+  time). Joints and fields (SI, positive up, see quarter_car_sim.params):
+
+  ============  ======================  ======================  ==============================
+  joint         position                velocity                effort
+  ============  ======================  ======================  ==============================
+  body          z_s [m]                 v_s [m/s]               a_s body acceleration [m/s^2]
+  wheel         z_u [m]                 v_u [m/s]               a_u wheel acceleration [m/s^2]
+  suspension    travel z_s - z_u [m]    v_rel [m/s]             damper force on body [N]
+  tyre          road height z_r [m]     coil current [A]        tyre load (total, >= 0) [N]
+  ============  ======================  ======================  ==============================
+
+- pub ``/quarter_car/ride_metrics`` (std_msgs/String JSON, running ride metrics);
+- pub ``/quarter_car/status`` (std_msgs/String JSON: mode normal|failsafe, reason, failsafe_s,
+  params accepted / rejected by reason, loop timing, current, sim time).
+"""
+import json
+import math
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from mr_damper_model import messages
+from quarter_car_sim import live_loop
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.failsafe import ModelSupervisor
+from quarter_car_sim.params import QuarterCarParams
+
+STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
+
+
+def _fmt(state):
+    """Return (position, velocity, effort) lists of the state message."""
+    return ([state.z_s, state.z_u, state.travel, state.z_r],
+            [state.v_s, state.v_u, state.v_rel, state.coil_current],
+            [state.a_s, state.a_u, state.damper_force, state.tyre_force])
+
+
+class QuarterCarNode(Node):
+    """The quarter-car node (see the module docstring)."""
+
+    def __init__(self):
+        super().__init__('quarter_car_node')
+        d = self._declare
+        self.rate_hz = d('rate_hz', 1000.0, 'Control rate [Hz]', (10.0, 10000.0))
+        self.rtf = d('real_time_factor', 1.0,
+                     'Simulated seconds per wall second (0 = as fast as possible)', (0.0, 1000.0))
+        controller = d('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, '
+                       'groundhook, hybrid, add, passive@<I>A)')
+        ctrl_opts = d('controller_options', '{}',
+                      'JSON keyword options of the controller, e.g. {"c_sky": 3000.0}')
+        road_kind = d('road', 'iso8608', 'Road: iso8608, bump, sine, step or file')
+        road_class = d('road_class', 'C', 'ISO 8608 class A..H')
+        speed = d('speed_m_s', 20.0, 'Vehicle speed [m/s]', (0.1, 100.0))
+        seed = d('road_seed', 1, 'Seed of the random road')
+        road_s = d('road_duration_s', 300.0, 'Road length in time [s] (then held flat)',
+                   (1.0, 36000.0))
+        road_file = d('road_file', '', 'CSV road profile (road = file)')
+        settle = d('settle_s', live_loop.SETTLE_S,
+                   'Time [s] run before the road starts (settling)', (0.0, 60.0))
+        plant = d('plant', 'spencer', 'True damper plant (same as the rig): spencer or '
+                  'kwok-current')
+        plant_file = d('truth_file', '',
+                       'JSON parameter file of the true damper, as the rig (default: preset)')
+        safe = d('safe_current_a', 0.0, 'Coil current in fail-safe [A]', (0.0, 10.0))
+        timeout = d('param_timeout_s', 1.0,
+                    'Identified parameters older than this [s, wall clock] are stale',
+                    (0.01, 3600.0))
+        i_min = d('i_min_a', 0.0, 'Coil current minimum [A]', (0.0, 10.0))
+        i_max = d('i_max_a', 2.0, 'Coil current maximum [A]', (0.0, 10.0))
+        span = d('min_current_span_a', 1.0,
+                 'Refuse models identified over a narrower current range [A]', (0.0, 10.0))
+        hold = d('hold_on_reject', False,
+                 'Keep the model in use when a later message is refused (until stale)')
+        self.state_rate_hz = d('state_rate_hz', 100.0, 'State publication rate [Hz]',
+                               (0.0, 10000.0))
+        status_rate = d('status_rate_hz', 5.0, 'Status and metrics rate [Hz]', (0.1, 100.0))
+        self.log_file = d('log_file', '', 'Write every control step to this .npz at shutdown')
+        car = {k: d(k, v, doc) for k, v, doc in (
+            ('m_s', 300.0, 'Sprung mass [kg]'), ('m_u', 60.0, 'Unsprung mass [kg]'),
+            ('k_s', 16000.0, 'Suspension spring [N/m]'), ('k_t', 190000.0, 'Tyre stiffness [N/m]'))}
+        topics = {k: d(k, v, 'Topic name') for k, v in (
+            ('params_topic', '/mr_damper/kwok_parameters'),
+            ('command_topic', '/mr_damper/current_command'),
+            ('state_topic', '/quarter_car/state'),
+            ('status_topic', '/quarter_car/status'),
+            ('metrics_topic', '/quarter_car/ride_metrics'))}
+
+        self.dt = 1.0 / self.rate_hz
+        self.car_params = QuarterCarParams(**car)
+        self.sup = ModelSupervisor(timeout_s=timeout, safe_current_a=safe, i_min_a=i_min,
+                                   i_max_a=i_max, hold_on_reject=hold,
+                                   min_current_span_a=span)
+        road = live_loop.make_road(road_kind, road_class=road_class, speed_m_s=speed, seed=seed,
+                                   duration_s=road_s, dt=self.dt, file=road_file)
+        self.car = QuarterCar(self.car_params, live_loop.make_plant(plant, plant_file), road,
+                              t0=-settle)
+        self.controller = live_loop.make_controller(controller, self.car_params,
+                                                    json.loads(ctrl_opts or '{}'))
+        self.metrics = live_loop.make_running_metrics(self.car_params, self.dt)
+        self.loop = live_loop.ClosedLoop(self.car, self.controller, self.sup, self.dt,
+                                         metrics=self.metrics)
+        self.trace = live_loop.TraceLog() if self.log_file else None
+        self.timing = live_loop.LoopTiming(self.dt / self.rtf if self.rtf > 0 else None)
+        self.lock = threading.Lock()
+        self.first_normal_t = math.nan
+
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.cmd_pub = self.create_publisher(Float64, topics['command_topic'], 10)
+        self.state_pub = self.create_publisher(JointState, topics['state_topic'], 10)
+        self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
+        self.metrics_pub = self.create_publisher(String, topics['metrics_topic'], 10)
+        self.create_subscription(Float64MultiArray, topics['params_topic'], self.on_params,
+                                 latched)
+        self.create_timer(1.0 / status_rate, self.publish_status)
+        self.running = True
+        self.thread = threading.Thread(target=self.control_loop, name='control', daemon=True)
+        self.thread.start()
+        self.get_logger().info(
+            f'{self.controller.name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
+            f'{road.name}, plant {plant}; fail-safe {safe:g} A, timeout {timeout:g} s')
+
+    def _declare(self, name, default, description, fp_range=None):
+        desc = ParameterDescriptor(description=description)
+        if fp_range is not None and isinstance(default, float):
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=fp_range[0], to_value=fp_range[1], step=0.0)]
+        return self.declare_parameter(name, default, desc).value
+
+    # ------------------------------------------------------------------ callbacks
+    def on_params(self, msg):
+        """Offer a parameter message to the supervisor (decoded by label)."""
+        now = time.monotonic()
+        try:
+            values = messages.array_msg_to_dict(msg)
+        except ValueError as exc:
+            with self.lock:
+                self.sup.refuse('undecodable', str(exc), now)
+            self.get_logger().warning(f'undecodable parameters: {exc}',
+                                      throttle_duration_sec=1.0)
+            return
+        with self.lock:
+            verdict = self.sup.offer(values, now)
+        if not verdict.accepted:
+            self.get_logger().warning(f'parameters refused ({verdict.reason}): {verdict.detail}',
+                                      throttle_duration_sec=1.0)
+
+    def control_loop(self):
+        """Run the paced control steps until shutdown (control thread)."""
+        pacer = live_loop.Pacer(self.dt, self.rtf)
+        every = max(1, int(round(self.rate_hz / self.state_rate_hz))) \
+            if self.state_rate_hz > 0 else 0
+        cmd = Float64()
+        state_msg = JointState()
+        state_msg.name = list(STATE_JOINTS)
+        loop = self.loop
+        try:
+            while self.running:
+                wall = pacer.wait()
+                t0 = time.perf_counter()
+                with self.lock:
+                    state = self.car.state
+                    cmd.data = loop.command(state, wall)
+                    normal = self.sup.mode == 'normal'
+                self.cmd_pub.publish(cmd)
+                latency = time.perf_counter() - t0
+                new = loop.advance()
+                if normal and math.isnan(self.first_normal_t):
+                    self.first_normal_t = state.t
+                if every and loop.steps % every == 0:
+                    messages.seconds_to_stamp(max(new.t, 0.0), state_msg.header.stamp)
+                    state_msg.position, state_msg.velocity, state_msg.effort = _fmt(new)
+                    self.state_pub.publish(state_msg)
+                step_s = time.perf_counter() - t0
+                self.timing.add(wall, latency, step_s, pacer.lateness)
+                if self.trace is not None:
+                    self.trace.append(new, cmd.data, loop.f_demand, normal, wall, latency,
+                                      pacer.lateness)
+        except Exception as exc:  # noqa: B902 - a publish after shutdown ends the loop
+            if self.running and rclpy.ok(context=self.context):
+                self.get_logger().error(f'control loop stopped: {type(exc).__name__}: {exc}')
+                raise
+
+    def status(self):
+        """Return the status dict."""
+        with self.lock:
+            st = self.sup.status()
+            st['param_age_s'] = self.sup.age(time.monotonic())
+        st.update({
+            'controller': self.controller.name,
+            'current_a': self.loop.i_cmd,
+            'coil_current_a': self.car.state.coil_current,
+            't_sim': self.car.state.t,
+            'steps': self.loop.steps,
+            'first_normal_t_sim': self.first_normal_t,
+            'saturated_steps': self.loop.saturated,
+            'rate_hz': self.rate_hz,
+            'real_time_factor': self.rtf,
+            'loop': self.timing.stats(),
+        })
+        return st
+
+    def publish_status(self):
+        """Publish status and running ride metrics (executor timer)."""
+        self.status_pub.publish(messages.status_msg(self.status()))
+        if self.metrics is not None:
+            self.metrics_pub.publish(messages.status_msg(live_loop.metrics_dict(self.metrics)))
+
+    def stop(self):
+        """Stop the control thread and write the log file."""
+        self.running = False
+        self.thread.join(2.0)
+        if self.trace is not None and self.log_file:
+            try:
+                self.trace.save(self.log_file, dt=self.dt, status=json.dumps(
+                    messages._jsonable(self.status())))
+                # plain print: after Ctrl-C the context (and /rosout) is already shut down
+                print(f'quarter_car_node: wrote {len(self.trace)} steps to {self.log_file}',
+                      file=sys.stderr)
+            except OSError as exc:
+                print(f'quarter_car_node: cannot write {self.log_file}: {exc}', file=sys.stderr)
+
+
+def main(args=None):
+    """Entry point of ``quarter_car_node``."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = QuarterCarNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.stop()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
