@@ -89,7 +89,7 @@ class QuarterCarNode(Node):
                   'kwok-current')
         plant_file = d('truth_file', '',
                        'JSON parameter file of the true damper, as the rig (default: preset)')
-        safe = d('safe_current_a', 0.0, 'Coil current in fail-safe [A]', (0.0, 10.0))
+        safe = d('safe_current_a', 0.5, 'Coil current in fail-safe [A]', (0.0, 10.0))
         timeout = d('param_timeout_s', 1.0,
                     'Identified parameters older than this [s, wall clock] are stale',
                     (0.01, 3600.0))

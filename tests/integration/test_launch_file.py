@@ -1,0 +1,149 @@
+"""
+The ROS 2 launch file cannot run here (no ``launch`` / ``launch_ros`` on PyPI): check it.
+
+It is executed against small stand-ins of the ``launch`` API that record what it asks for, and the
+result is checked against the installed console scripts, the packages' setup.py entry points and
+the suite's parameter YAMLs (node names are the YAML keys, parameters file path exists).
+"""
+import ast
+import importlib.util
+from pathlib import Path
+import sys
+import types
+
+import pytest
+import yaml
+
+from conftest import REPO, VENV_BIN
+
+LAUNCH_FILE = REPO / 'launch_scripts' / 'suite.launch.py'
+CONFIG_DIR = REPO / 'launch_scripts' / 'config'
+
+
+class _Recorded:
+    def __init__(self, *args, **kwargs):
+        self.args = args
+        self.kwargs = kwargs
+
+
+class _LaunchConfiguration(_Recorded):
+    pass
+
+
+class _PythonExpression(_Recorded):
+    def evaluate(self, values):
+        text = ''
+        for part in self.args[0]:
+            text += values[part.args[0]] if isinstance(part, _LaunchConfiguration) else part
+        return eval(text)  # noqa: S307 - the launch file's own expression, test only
+
+
+@pytest.fixture
+def launch_description(monkeypatch):
+    """Run generate_launch_description() with recording stand-ins of launch / launch_ros."""
+    launch = types.ModuleType('launch')
+    launch.LaunchDescription = _Recorded
+    actions = types.ModuleType('launch.actions')
+    actions.DeclareLaunchArgument = _Recorded
+    subs = types.ModuleType('launch.substitutions')
+    subs.LaunchConfiguration = _LaunchConfiguration
+    subs.PythonExpression = _PythonExpression
+    launch_ros = types.ModuleType('launch_ros')
+    ros_actions = types.ModuleType('launch_ros.actions')
+    ros_actions.Node = _Recorded
+    for name, mod in (('launch', launch), ('launch.actions', actions),
+                      ('launch.substitutions', subs), ('launch_ros', launch_ros),
+                      ('launch_ros.actions', ros_actions)):
+        monkeypatch.setitem(sys.modules, name, mod)
+    spec = importlib.util.spec_from_file_location('suite_launch', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.generate_launch_description()
+
+
+def _entries(action_list, kind):
+    return [a for a in action_list if a.__class__ is _Recorded and kind(a)]
+
+
+def _console_scripts(package):
+    """Console scripts declared in src/<package>/setup.py (parsed, not executed)."""
+    tree = ast.parse((REPO / 'src' / package / 'setup.py').read_text())
+    scripts = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and ' = ' in node.value:
+            name, target = (s.strip() for s in node.value.split('=', 1))
+            scripts[name] = target
+    return scripts
+
+
+def test_three_nodes_with_installed_console_scripts(launch_description):
+    items = launch_description.args[0]
+    nodes = [a.kwargs for a in items if 'executable' in a.kwargs]
+    assert [(n['package'], n['executable']) for n in nodes] == [
+        ('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
+        ('quarter_car_sim', 'quarter_car_node')]
+    for n in nodes:
+        # what `ros2 run PKG EXE` starts: a console script of that package, installed here
+        scripts = _console_scripts(n['package'])
+        assert n['executable'] in scripts
+        module, func = scripts[n['executable']].split(':')
+        assert module.startswith(n['package'] + '.')
+        assert (VENV_BIN / n['executable']).exists()
+        # the entry point exists in the package (module file + main function)
+        path = REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')
+        tree = ast.parse(path.read_text())
+        assert func in {f.name for f in tree.body if isinstance(f, ast.FunctionDef)}
+
+
+@pytest.mark.parametrize('config', ['sim', 'replay'])
+def test_one_parameter_file_whose_keys_are_the_node_names(launch_description, config):
+    items = launch_description.args[0]
+    args = {a.args[0]: a.kwargs for a in items if 'executable' not in a.kwargs}
+    assert set(args) >= {'config', 'params_file'}
+    default = args['params_file']['default_value']
+    path = Path(default.evaluate({'config': config}))
+    assert path == CONFIG_DIR / f'suite_{config}.yaml' and path.exists()
+    cfg = yaml.safe_load(path.read_text())
+    nodes = [a.kwargs for a in items if 'executable' in a.kwargs]
+    for n in nodes:
+        # every node gets the same parameters file first (then at most literal overrides)
+        first = n['parameters'][0]
+        assert isinstance(first, _LaunchConfiguration) and first.args[0] == 'params_file'
+        assert n['name'] in cfg and 'ros__parameters' in cfg[n['name']]
+    assert set(cfg) - {'/**'} == {n['name'] for n in nodes}
+    # the true damper is shared by the rig and the car (honest loop)
+    assert 'plant' in cfg['/**']['ros__parameters']
+
+
+def test_node_names_match_the_nodes_and_the_launcher(launch_description):
+    """The name in the launch file is the name each node gives itself (YAML keys must match)."""
+    nodes = [a.kwargs for a in launch_description.args[0] if 'executable' in a.kwargs]
+    for n in nodes:
+        module = _console_scripts(n['package'])[n['executable']].split(':')[0]
+        text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
+        assert f"super().__init__('{n['name']}')" in text
+    spec = importlib.util.spec_from_file_location('run_suite',
+                                                  REPO / 'launch_scripts' / 'run_suite.py')
+    run_suite = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run_suite)
+    assert run_suite.NODES == {n['name']: n['executable'] for n in nodes}
+
+
+@pytest.mark.parametrize('config', ['sim', 'replay'])
+def test_yaml_parameters_are_declared_by_the_nodes(config):
+    """Every parameter in the YAML is one the node declares (typos would be silently ignored)."""
+    cfg = yaml.safe_load((CONFIG_DIR / f'suite_{config}.yaml').read_text())
+    sources = {
+        'mr_damper_rig': REPO / 'src/mr_damper_rig/mr_damper_rig/rig_node.py',
+        'mr_damper_identifier': REPO / 'src/mr_damper_model/mr_damper_model/identifier_node.py',
+        'quarter_car_node': REPO / 'src/quarter_car_sim/quarter_car_sim/quarter_car_node.py',
+    }
+    live = (REPO / 'src/mr_damper_model/mr_damper_model/live.py').read_text()
+    shared = cfg.get('/**', {}).get('ros__parameters', {})
+    for node, path in sources.items():
+        text = path.read_text() + (live if node == 'mr_damper_identifier' else '')
+        names = set(cfg[node]['ros__parameters'])
+        if node != 'mr_damper_identifier':      # the true damper: the rig's and the car's
+            names |= set(shared)
+        for name in names:
+            assert f"'{name}'" in text or f'    {name}: ' in text, f'{node}: {name} not declared'
