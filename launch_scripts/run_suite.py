@@ -185,6 +185,8 @@ class Suite:
         self.finished = set()
         (self.out / 'logs').mkdir(parents=True, exist_ok=True)
         (self.out / 'ros_log').mkdir(parents=True, exist_ok=True)
+        for name in NODES:            # a new run starts new logs (a restart appends)
+            (self.out / 'logs' / f'{name}.log').write_text('')
 
     def env(self):
         """Return the environment of the children (LOCALHOST discovery, own domain, log dir)."""
@@ -398,6 +400,7 @@ def start_recorder(rec, topics):
             d = mm.array_msg_to_dict(msg)
         except ValueError:
             return
+        d['recv_epoch_s'] = time.time()
         with rec.lock:
             rec.params.append((rec.wall(), d))
 
@@ -499,6 +502,48 @@ def _finite(value):
     return value
 
 
+class ProcessStats:
+    """CPU and memory of the node processes (psutil), sampled about once a second."""
+
+    def __init__(self, suite):
+        import psutil
+        self.psutil = psutil
+        self.suite = suite
+        self.handles = {}
+        self.samples = {}
+
+    def sample(self):
+        """Take one sample of every running node (and of this launcher)."""
+        procs = {name: self.suite.procs[name].pid for name in self.suite.procs
+                 if self.suite.alive(name)}
+        procs['launcher_recorder'] = os.getpid()
+        for name, pid in procs.items():
+            try:
+                h = self.handles.get(name)
+                if h is None or h.pid != pid:
+                    h = self.handles[name] = self.psutil.Process(pid)
+                    h.cpu_percent(None)           # first call primes the counter
+                    continue
+                cpu = h.cpu_percent(None)
+                rss = h.memory_info().rss / 2 ** 20
+            except self.psutil.Error:
+                continue
+            self.samples.setdefault(name, []).append((cpu, rss))
+
+    def summary(self):
+        """Return {name: {cpu_mean_percent, cpu_p95_percent, rss_peak_mb, samples}}."""
+        import numpy as np
+        out = {}
+        for name, values in self.samples.items():
+            a = np.array(values, dtype=float)
+            out[name] = {'cpu_mean_percent': float(a[:, 0].mean()),
+                         'cpu_p95_percent': float(np.percentile(a[:, 0], 95)),
+                         'rss_peak_mb': float(a[:, 1].max()), 'samples': int(a.shape[0])}
+        nodes = [v['cpu_mean_percent'] for k, v in out.items() if k in NODES]
+        out['nodes_total_cpu_cores'] = sum(nodes) / 100.0
+        return out
+
+
 # ---------------------------------------------------------------------------------- main
 def progress_line(rec, elapsed):
     """Return one progress line from the latest statuses."""
@@ -532,7 +577,8 @@ def parse_args(argv):
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--duration', type=float, default=30.0,
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
-    p.add_argument('--out', default='suite_out', help='output folder (default suite_out)')
+    p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
+                   help='output folder (default runs/suite in the repository)')
     p.add_argument('--config', choices=('sim', 'replay'), default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier')
     p.add_argument('--file', action='append',
@@ -551,6 +597,7 @@ def parse_args(argv):
     p.add_argument('--set', action='append', metavar='NODE.PARAM=VALUE',
                    help='override one parameter (NODE is mr_damper_rig, mr_damper_identifier, '
                         'quarter_car_node or /**), YAML-typed: 1.0 is a float, 1 an int')
+    p.add_argument('--bin-dir', help='folder of the node console scripts (default: the venv)')
     p.add_argument('--progress-s', type=float, default=5.0, help='progress line period [s]')
     p.add_argument('--no-plots', action='store_true', help='summary.json only')
     p.add_argument('--quiet', action='store_true', help='no progress lines')
@@ -599,7 +646,7 @@ def main(argv=None):
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
-    suite = Suite(params_file, out, domain_id)
+    suite = Suite(params_file, out, domain_id, args.bin_dir)
     print(f'run_suite: config {args.config}, domain {domain_id}, '
           f'duration {args.duration:g} s, output {out}', flush=True)
 
@@ -626,6 +673,8 @@ def main(argv=None):
             return 2
         t_start = time.monotonic()
         next_progress = args.progress_s
+        stats = ProcessStats(suite)
+        next_stats = 0.0
         while not interrupted.is_set():
             elapsed = time.monotonic() - t_start
             if args.duration and elapsed >= args.duration:
@@ -637,6 +686,9 @@ def main(argv=None):
                           f'{suite.log_tail(name)}', file=sys.stderr)
                 status = 1
                 break
+            if elapsed >= next_stats:
+                stats.sample()
+                next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
                 print(progress_line(rec, elapsed), flush=True)
                 next_progress += args.progress_s
@@ -657,6 +709,10 @@ def main(argv=None):
                   f'{suite.log_tail(name)}', file=sys.stderr)
         status = 1
     save_recording(rec, out)
+    try:
+        (out / 'process_stats.json').write_text(json.dumps(stats.summary(), indent=2))
+    except NameError:                   # the nodes never started
+        pass
     try:
         from quarter_car_sim import suite_report
         summary = suite_report.make_report(out, duration_s=elapsed, config=cfg,

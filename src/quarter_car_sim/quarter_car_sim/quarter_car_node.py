@@ -142,6 +142,7 @@ class QuarterCarNode(Node):
                                  latched)
         self.create_timer(1.0 / status_rate, self.publish_status)
         self.running = True
+        self.failed = None
         self.thread = threading.Thread(target=self.control_loop, name='control', daemon=True)
         self.thread.start()
         self.get_logger().info(
@@ -206,8 +207,10 @@ class QuarterCarNode(Node):
                                       pacer.lateness)
         except Exception as exc:  # noqa: B902 - a publish after shutdown ends the loop
             if self.running and rclpy.ok(context=self.context):
-                self.get_logger().error(f'control loop stopped: {type(exc).__name__}: {exc}')
-                raise
+                # a dead control loop must not leave a node that looks alive: end the process
+                self.failed = f'{type(exc).__name__}: {exc}'
+                self.get_logger().error(f'control loop stopped: {self.failed}')
+                rclpy.try_shutdown(context=self.context)
 
     def status(self):
         """Return the status dict."""
@@ -251,19 +254,27 @@ class QuarterCarNode(Node):
 
 def main(args=None):
     """Entry point of ``quarter_car_node``."""
+    # short GIL switch interval: the control thread waits at most ~0.5 ms for the executor
+    sys.setswitchinterval(0.0005)
     rclpy.init(args=args)
     node = None
+    code = 0
     try:
         node = QuarterCarNode()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except (ValueError, OSError) as exc:       # bad parameter, road or truth file
+        print(f'quarter_car_node: error: {exc}', file=sys.stderr)
+        code = 2
     finally:
         if node is not None:
             node.stop()
+            code = 1 if node.failed else code
             node.destroy_node()
         rclpy.try_shutdown()
+    return code
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -370,6 +370,17 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
     summary['loop'] = qc_status.get('loop')
     if log is not None and len(log['t']) > 10:
         summary['loop_full_run'] = _loop_figures(log)
+    if (out / 'process_stats.json').exists():
+        summary['processes'] = json.loads((out / 'process_stats.json').read_text())
+    lat = [p.get('recv_epoch_s', math.nan) - p.get('window_end_s', math.nan)
+           for _, p in params_log]
+    lat = np.array([v for v in lat if math.isfinite(v)])
+    if lat.size and summary.get('config') == 'sim':
+        # sim rig stamps are wall-clock (ROS time): end of the newest measurement in a window
+        # -> its parameters received by the launcher (the car gets them at the same moment)
+        summary['measurement_to_parameters_s'] = {
+            'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
+            'max': float(lat.max()), 'n': int(lat.size)}
     summary = _finite_or_none(summary)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, allow_nan=False))
     if plots:
