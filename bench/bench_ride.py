@@ -13,7 +13,9 @@ identified parameters through the inverse model. Reported:
 - a skyhook gain sweep (how the default gain was chosen);
 - comfort vs road holding: passive current sweep against the hybrid weight sweep (plot);
 - physics diagnostics: share of the best passive's Wk energy below 2 Hz (what a skyhook can
-  remove), the damper's 0 A force floor, time the inverse saturates.
+  remove), the damper's 0 A force floor, time the inverse saturates, the skyhook force applied
+  by a perfect actuator limited to the damper's 0..2 A force range, and (kwok plant) the
+  skyhook without coil lag.
 
 Usage::
 
@@ -46,6 +48,30 @@ SKY_GAINS = ((1000.0, 0.0), (2000.0, 0.0), (3000.0, 0.0), (2000.0, 150.0), (3000
 KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel', 'rms_tyre_load_ratio',
         'peak_body_accel', 'contact_loss_fraction', 'mean_current_a', 'max_current_a',
         'saturated_fraction')
+
+
+class RangeLimitedSkyhook(ctl.SkyhookIdeal):
+    """
+    Skyhook force applied directly but limited to the identified damper's 0..2 A force range.
+
+    A perfect, lag-free actuator that can make any force the MR damper could make at some
+    current: it isolates the effect of the damper's 0 A force floor (and 2 A ceiling) from the
+    coil lag and the inverse-model error.
+    """
+
+    def __init__(self, inverse, name='skyhook-range-limited'):
+        super().__init__(name=name)
+        self.inverse = inverse
+
+    def demand(self, state):
+        """Skyhook force clipped to [F(0 A), F(2 A)] of the identified model (on the body)."""
+        d = super().demand(state)
+        lo = -self.inverse.model_force(state.travel, state.v_rel, self.inverse.i_min)
+        hi = -self.inverse.model_force(state.travel, state.v_rel, self.inverse.i_max)
+        a, b = min(lo, hi), max(lo, hi)
+        if lo * hi > 0.0 and not a <= d <= b:
+            return lo if abs(d - lo) <= abs(d - hi) else hi
+        return d
 
 
 def _median_metrics(runs):
@@ -118,6 +144,13 @@ def main(argv=None):
         1.0 - np.sqrt(1.0 - diag['best_passive_wk_energy_below_2hz']))
     diag['identified_0A_force_n'] = {f'{v:g} m/s': inverse.model_force(0.005, v, 0.0)
                                      for v in (0.02, 0.05, 0.1, 0.2)}
+    diag['skyhook_range_limited_wk'] = statistics.median(
+        [m['rms_body_accel_wk'] for m, _ in run(RangeLimitedSkyhook(inverse))])
+    if args.plant == 'kwok':
+        no_lag_plant = make_plant('kwok-current', coil_tau_s=0.0)
+        diag['skyhook_without_coil_lag_wk'] = statistics.median(
+            [ride_metrics(simulate(params, roads[s], ctl.Skyhook(), no_lag_plant,
+                                   inverse=inverse))['rms_body_accel_wk'] for s in args.seeds])
     # skyhook gain sweep
     sweep = []
     for c_sky, c_p in SKY_GAINS:
@@ -176,12 +209,12 @@ def main(argv=None):
     print(f'{"controller":15s} {"Wk":>6s} {"dWk%":>6s} {"tyre":>6s} {"dTyre%":>7s} '
           f'{"trav mm":>7s} {"I mean":>6s} {"sat":>5s}')
     for n, m in table.items():
-        cur = m['mean_current_a']
-        sat = m['saturated_fraction']
+        cur = '-' if m['mean_current_a'] != m['mean_current_a'] else f'{m["mean_current_a"]:.2f}'
+        sat = ('-' if m['saturated_fraction'] != m['saturated_fraction']
+               else f'{m["saturated_fraction"]:.2f}')
         print(f'{n:15s} {m["rms_body_accel_wk"]:6.3f} {m["wk_change_vs_best_passive_pct"]:6.1f}'
               f' {m["rms_tyre_load_ratio"]:6.3f} {m["tyre_load_change_vs_best_passive_pct"]:7.1f}'
-              f' {1000 * m["rms_suspension_travel"]:7.1f}'
-              f' {"-" if cur != cur else f"{cur:.2f}":>6s} {"-" if sat != sat else f"{sat:.2f}":>5s}')
+              f' {1000 * m["rms_suspension_travel"]:7.1f} {cur:>6s} {sat:>5s}')
     print('targets:', json.dumps(targets, default=float))
     print('diagnostics:', json.dumps(diag, default=float))
     print('skyhook sweep (c_sky, c_p, skyhook Wk, ideal Wk):')

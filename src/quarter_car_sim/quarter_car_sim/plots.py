@@ -44,7 +44,7 @@ def plot_transmissibility(trans, f_hz, ax=None, *, quantity='a_s'):
 
 
 def plot_results(results, path=None, *, params=None, c_values=(300.0, 1000.0, 3000.0),
-                 window_s=5.0):
+                 window_s=3.0, names=None):
     """
     Four panels: body acceleration traces, body-acceleration PSD, transmissibility, current.
 
@@ -60,6 +60,9 @@ def plot_results(results, path=None, *, params=None, c_values=(300.0, 1000.0, 30
         Linear damping values for the transmissibility panel [N s/m].
     window_s : float
         Length of the time-trace window [s] (the last ``window_s`` seconds).
+    names : sequence of str, optional
+        Results to draw (default: all; with more than five, the softest passive setting,
+        skyhook, skyhook-ideal and lqr-active when present).
 
     Returns
     -------
@@ -72,7 +75,14 @@ def plot_results(results, path=None, *, params=None, c_values=(300.0, 1000.0, 30
     from quarter_car_sim.params import QuarterCarParams
     plt = _plt()
     fig, axs = plt.subplots(2, 2, figsize=(12, 8))
-    for name, r in results.items():
+    if names is None:
+        names = list(results)
+        if len(names) > 5:
+            passive = [n for n in names if n.startswith('passive@')]
+            keep = passive[:1] + ['skyhook', 'skyhook-ideal', 'lqr-active']
+            names = [n for n in names if n in keep] or names
+    for name in names:
+        r = results[name]
         m = r.t >= r.t[-1] - window_s
         axs[0, 0].plot(r.t[m], r.a_s[m], lw=0.7, label=name)
         fs = 1.0 / (r.t[1] - r.t[0])
@@ -83,6 +93,8 @@ def plot_results(results, path=None, *, params=None, c_values=(300.0, 1000.0, 30
     axs[0, 0].set(xlabel='t [s]', ylabel='body acceleration [m/s$^2$]', title='time traces')
     axs[0, 1].set(xlabel='frequency [Hz]', ylabel='PSD [(m/s$^2$)$^2$/Hz]',
                   title='body acceleration PSD', xlim=(0.3, 100))
+    lo, hi = axs[0, 1].get_ylim()
+    axs[0, 1].set_ylim(max(lo, hi * 1e-7), hi)
     axs[1, 1].set(xlabel='t [s]', ylabel='current command [A]', title='coil current command')
     f = np.logspace(-1, 2, 300)
     plot_transmissibility(transmissibility(params or QuarterCarParams(), c_values, f), f,

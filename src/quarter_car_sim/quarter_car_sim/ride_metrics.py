@@ -161,8 +161,9 @@ def ride_metrics(result, *, static_load=None):
 
 class RunningRideMetrics:
     """
-    Incremental ride metrics, one sample at a time (for the ROS node); same keys as
-    :func:`ride_metrics`.
+    Incremental ride metrics, one sample at a time (for the ROS node).
+
+    Same keys as :func:`ride_metrics`.
 
     Parameters
     ----------

@@ -111,8 +111,9 @@ class ClosedLoop:
 @dataclasses.dataclass
 class SimResult:
     """
-    Time series of a closed-loop simulation (SI units; conventions of
-    :mod:`quarter_car_sim.params`).
+    Time series of a closed-loop simulation.
+
+    SI units; sign conventions of :mod:`quarter_car_sim.params`.
 
     Attributes
     ----------
