@@ -267,12 +267,13 @@ class Suite:
                 self.deaths[name] = rc
         return dict(self.deaths)
 
-    def stop(self, order=(RIG, QC, IDENT), drain_s=1.0,
-             timeout_s=10.0):
+    def stop(self, order=(QC, RIG, IDENT), drain_s=1.0, timeout_s=10.0):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).
 
-        The rig stops first and the others get ``drain_s`` to take the rest of the stream.
+        Order: the quarter car first (so the end of the stream does not read as stale parameters
+        and a fail-safe), then the rig; the identifier gets ``drain_s`` to take the rest of the
+        stream before it is stopped.
 
         Returns
         -------
@@ -289,7 +290,7 @@ class Suite:
             proc = self.procs[name]
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
-                if k == 0 and drain_s > 0:
+                if name == RIG and drain_s > 0:
                     time.sleep(drain_s)
         for name in order:
             if name not in self.procs:

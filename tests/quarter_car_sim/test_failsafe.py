@@ -78,6 +78,7 @@ def test_goes_stale_after_timeout_and_recovers():
     ({'current_max_a': 5.0}, 'bad_current_range'),
     ({'current_min_a': 0.0, 'current_max_a': 0.0}, 'narrow_current_range'),
     ({'current_min_a': 0.5, 'current_max_a': 1.0}, 'narrow_current_range'),
+    ({'current_min_a': 0.0, 'current_max_a': 0.9}, 'narrow_current_range'),
 ])
 def test_refuses_bad_sets_and_counts_reason(changes, reason):
     sup = make()
@@ -90,6 +91,12 @@ def test_refuses_bad_sets_and_counts_reason(changes, reason):
     # a refused set drops the model in use at once: no guess from a model just contradicted
     assert sup.mode == 'failsafe' and sup.reason == reason and sup.active is None
     assert sup.status()['params_rejected'][reason] == 1
+
+
+def test_span_within_tolerance_accepted():
+    # a DAQ-quantised 1 A level (0.999985 A) counts as a 1 A span (tolerance current_tol_a)
+    sup = make(min_current_span_a=1.0, current_tol_a=0.05)
+    assert sup.check(with_(current_min_a=0.0, current_max_a=0.999985)).accepted
 
 
 def test_missing_element_refused():

@@ -211,7 +211,7 @@ class ModelSupervisor:
             return Verdict(False, 'bad_current_range',
                            f'identified current range [{lo_a:g}, {hi_a:g}] A not ordered inside '
                            f'[{self.i_min_a:g}, {self.i_max_a:g}] A')
-        if hi_a - lo_a < self.min_current_span_a - 1e-9:
+        if hi_a - lo_a < self.min_current_span_a - tol:
             return Verdict(False, 'narrow_current_range',
                            f'identified over [{lo_a:g}, {hi_a:g}] A only (need a span of '
                            f'{self.min_current_span_a:g} A)')

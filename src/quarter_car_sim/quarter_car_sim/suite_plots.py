@@ -30,7 +30,9 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     if t.size < 10:
         return None
     x, v, f, i = (np.asarray(meas[k], dtype=float) for k in 'xvfi')
-    levels = np.unique(np.round(i / 0.05) * 0.05)
+    rounded = np.round(i / 0.05) * 0.05
+    levels, counts = np.unique(rounded, return_counts=True)
+    levels = levels[counts >= 0.5 * per_level_s * max(1.0, t.size / max(np.ptp(t), 1e-9))]
     if levels.size > max_levels:
         levels = levels[np.linspace(0, levels.size - 1, max_levels).round().astype(int)]
     plt = _plt()
@@ -62,7 +64,7 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     return path
 
 
-def plot_convergence(path, params_log, truth=None):
+def plot_convergence(path, params_log, truth=None, history=None):
     """Parameter and error histories over wall time; return the path or None."""
     if not params_log:
         return None
@@ -70,20 +72,30 @@ def plot_convergence(path, params_log, truth=None):
     t = np.array([p[0] for p in params_log])
     valid = np.array([p[1].get('valid') == 1.0 for p in params_log])
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
-    ref_final = params_log[-1][1]
     for n in KWOK_CURRENT_NAMES:
         vals = np.array([p[1].get(n, np.nan) for p in params_log], dtype=float)
-        ref = truth.get(n) if truth else ref_final.get(n)
-        if ref is None or not np.isfinite(ref) or ref == 0:
+        if truth and truth.get(n):
+            ref = abs(truth[n])
+        else:
+            ref = np.nanmax(np.abs(vals)) if np.any(np.isfinite(vals)) else np.nan
+        if not (np.isfinite(ref) and ref > 0):
             continue
         axes[0].plot(t, vals / ref, '-', lw=1.0, label=n)
-    axes[0].axhline(1.0, color='k', lw=0.8)
-    axes[0].set_ylabel('parameter / ' + ('truth' if truth else 'final value'))
-    axes[0].set_ylim(-1.0, 3.0)
+    if truth:
+        axes[0].axhline(1.0, color='k', lw=0.8)
+        axes[0].set_ylabel('parameter / |truth|')
+    else:
+        axes[0].set_ylabel('parameter / its largest |value|')
+    axes[0].set_ylim(-1.2, 1.2 if not truth else 3.0)
     axes[0].legend(ncol=5, fontsize=7)
     nrmse = np.array([p[1].get('nrmse_percent', np.nan) for p in params_log], dtype=float)
     axes[1].plot(t, nrmse, '.-', lw=0.8, ms=3, label='identifier window NRMSE')
     axes[1].plot(t[~valid], nrmse[~valid], 'rx', ms=4, label='not valid')
+    hist = [h for h in (history or []) if h.get('record_nrmse_percent') is not None]
+    if hist:
+        axes[1].plot([h['t_s'] for h in hist], [h['record_nrmse_percent'] for h in hist], 's-',
+                     ms=3, lw=1.0, label='NRMSE on the whole record (all currents)')
+        axes[1].set_yscale('log')
     axes[1].set_ylabel('NRMSE [%]')
     axes[1].set_xlabel('wall time since start [s]')
     axes[1].legend(fontsize=8)
@@ -131,7 +143,8 @@ def plot_all(out, meas, params_log, summary, log, passive_trace):
     out = Path(out)
     ident = summary.get('identification') or {}
     paths = [plot_hysteresis(out / 'hysteresis.png', meas, ident.get('parameters')),
-             plot_convergence(out / 'convergence.png', params_log, ident.get('truth')),
+             plot_convergence(out / 'convergence.png', params_log, ident.get('truth'),
+                              ident.get('history')),
              plot_ride(out / 'ride.png', log, passive_trace,
                        (summary.get('ride') or {}).get('controller', 'skyhook'))]
     return [p for p in paths if p is not None]

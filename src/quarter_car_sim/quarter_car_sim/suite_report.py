@@ -20,7 +20,8 @@ road, coil current command, fail-safe periods).
 valid model on every recorded measurement), ``updates``, ``valid_updates``, ``first_valid_s``
 (wall seconds from the recorder's start), ``parameters``, ``truth``, ``history``, ...};
 ``ride`` {``skyhook`` (the live controller, whatever its name), ``passive`` (the safe current on
-the same road, seed and plant, simulated offline here), same metric keys, ``window_s``};
+the same road, seed and plant, simulated offline here), ``passive_0a`` (the softest setting,
+best for comfort), same metric keys, ``window_s``};
 ``failsafe_s``; ``messages_lost`` (total) and ``messages`` (breakdown); ``loop`` (timing).
 
 Command line (regenerate from a finished run): ``python -m quarter_car_sim.suite_report OUT``.
@@ -177,7 +178,7 @@ def _windowed_metrics(trace, mask, static_load, dt):
     return m
 
 
-def passive_reference(qc_params, t_end, dt):
+def passive_reference(qc_params, t_end, dt, current=None):
     """
     Simulate the passive damper (safe current) on the node's road, plant and car, offline.
 
@@ -212,7 +213,7 @@ def passive_reference(qc_params, t_end, dt):
     n = min(road.n, int(round(t_end / dt)) + 2)
     road = RoadProfile(road.t[:n], road.z[:n], road.zdot[:n], name=road.name,
                        speed_m_s=road.speed_m_s)
-    current = float(g('safe_current_a', 0.0))
+    current = float(g('safe_current_a', 0.5) if current is None else current)
     plant = live_loop.make_plant(g('plant', 'spencer'), g('truth_file', ''))
     res = simulate(car, road, Passive(current), plant, dt=dt,
                    settle_s=g('settle_s', live_loop.SETTLE_S))
@@ -261,6 +262,11 @@ def ride_summary(log, qc_params):
     rmask = (rt >= out['window_s'][0] - 0.5 * dt) & (rt <= out['window_s'][1] + 0.5 * dt)
     out['passive'] = _windowed_metrics(ref, rmask, static, dt)
     out['passive_trace'] = {'t': rt, 'a_s': np.asarray(ref['a_s'])}
+    if out['passive_current_a'] != 0.0:
+        # the softest passive setting too (best for comfort on this damper): the honest
+        # comfort baseline, while the safe current is the car without identification
+        soft = passive_reference(qc_params, float(t[-1]), dt, current=0.0)
+        out['passive_0a'] = _windowed_metrics(soft, rmask, static, dt)
     a, b = out['skyhook']['rms_body_accel_wk'], out['passive']['rms_body_accel_wk']
     out['wk_improvement_percent'] = 100.0 * (b - a) / b if b > 0 else math.nan
     return out
@@ -449,6 +455,12 @@ def format_summary(s):
             if a is not None and b is not None:
                 lines.append(f'  {key:24s} live {a:8.4f}  passive {b:8.4f} {unit}'
                              f'  ({100 * (a - b) / b:+.1f} %)')
+        soft = ride.get('passive_0a')
+        if soft:
+            lines.append(f'  vs passive@0 A (softest, best comfort): Wk {soft["rms_body_accel_wk"]:.4f}'
+                         f' m/s^2 ({100 * (sk["rms_body_accel_wk"] / soft["rms_body_accel_wk"] - 1):+.1f}'
+                         f' %), tyre load {soft["rms_tyre_load_ratio"]:.4f} '
+                         f'({100 * (sk["rms_tyre_load_ratio"] / soft["rms_tyre_load_ratio"] - 1):+.1f} %)')
         if ride.get('note'):
             lines.append(f'  note: {ride["note"]}')
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
