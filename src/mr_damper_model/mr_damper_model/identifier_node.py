@@ -1,0 +1,241 @@
+"""
+Identifier node: live current-dependent Kwok identification of the measured MR damper.
+
+``ros2 run mr_damper_model identifier_node`` (console script ``identifier_node``).
+
+Subscribes to the measurement topic (``sensor_msgs/JointState``, one message per DAQ sample),
+fits sliding windows with :mod:`mr_damper_model.live` in a worker thread (so the measurement
+callbacks keep up with 1 kHz while a window is fitted) and publishes the kwok-current estimate
+(``std_msgs/Float64MultiArray``, labelled) and a JSON status (``std_msgs/String``).  The last valid
+parameters are saved to ``params_file`` and reloaded at start-up.  Parameters: see the README
+table or ``--ros-args -p name:=value``.
+"""
+import math
+import os
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rcl_interfaces.msg import ParameterDescriptor
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+
+from .data import DataError
+from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
+from .live import LiveConfig, LiveIdentifier
+from .messages import (MessageError, kwok_parameters_msg, measurement_from_msg, status_msg)
+from .params_file import load_params, save_params
+
+#: Measurement stream: reliable; every sample matters (see README "QoS").
+MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+#: Parameters: latched for late subscribers.
+PARAMETERS_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                            reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+_LIVE_DESCRIPTIONS = {
+    'window_s': 'Sliding window length [s]',
+    'hop_s': 'Window hop [s] (one parameter update per hop)',
+    'budget_s': 'Compute budget per window [s] (0: none)',
+    'maxiter': 'PSO iterations per window (0: identify default)',
+    'swarm_size': 'PSO particles',
+    'seed': 'PSO seed of every window',
+    'warm_start': 'Warm-start each window from the previous solution',
+    'unbounded': 'Use the wide thesis-comparison bounds',
+    'i_ref_a': 'Reference current of the kwok-current model [A]',
+    'max_nrmse_percent': 'Validity threshold on the fit NRMSE [%]',
+    'current_bin_a': 'Current bin width [A]',
+    'min_bin_fraction': 'Bin used once it holds this fraction of a window',
+    'bin_max_age_s': 'Drop current bins older than this [s] (0: never)',
+    'max_fit_samples': 'Decimate fit data above this count (0: never)',
+    'max_rate_hz': 'Highest expected sample rate [Hz] (buffer size)',
+    'min_window_samples': 'Minimum samples in a window',
+    'min_velocity_rms_m_s': 'Minimum velocity RMS of a window [m/s]',
+    'min_force_std_n': 'Minimum force standard deviation of a window [N]',
+    'min_direction_fraction': 'Minimum fraction of samples moving in each direction',
+    'restart_samples': 'Consecutive increasing out-of-order samples that restart the stream',
+}
+
+
+class IdentifierNode(Node):
+    """Thin ROS adapter over :class:`mr_damper_model.live.LiveIdentifier`."""
+
+    def __init__(self):
+        super().__init__('mr_damper_identifier')
+        defaults = LiveConfig()
+        for name, description in _LIVE_DESCRIPTIONS.items():
+            self.declare_parameter(name, getattr(defaults, name),
+                                   ParameterDescriptor(description=description))
+        self.declare_parameter('measurement_topic', '/mr_damper/measurement')
+        self.declare_parameter('parameters_topic', '/mr_damper/kwok_parameters')
+        self.declare_parameter('status_topic', '/mr_damper/identifier_status')
+        self.declare_parameter('params_file', '', ParameterDescriptor(
+            description='JSON file of the last valid parameters (read at start, written on '
+                        'updates); empty: none'))
+        self.declare_parameter('save_period_s', 2.0, ParameterDescriptor(
+            description='Minimum wall time between parameter-file writes [s]'))
+        self.declare_parameter('status_period_s', 0.5, ParameterDescriptor(
+            description='Status publication period [s]'))
+        p = self.get_parameter
+        config = LiveConfig(**{name: p(name).value for name in _LIVE_DESCRIPTIONS})
+        self._params_file = p('params_file').value
+        self._save_period = float(p('save_period_s').value)
+        initial = None
+        self._initial_source = 'none'
+        if self._params_file and os.path.exists(self._params_file):
+            try:
+                initial = load_params(self._params_file)
+                self._initial_source = 'file'
+            except DataError as exc:
+                self.get_logger().error(f'ignoring parameter file: {exc}')
+                self._initial_source = 'file_error'
+        try:
+            self.live = LiveIdentifier(config, initial=initial)
+        except (ValueError, KeyError) as exc:
+            self.get_logger().error(f'ignoring parameter file {self._params_file}: {exc}')
+            self._initial_source = 'file_error'
+            self.live = LiveIdentifier(config)
+
+        self._pub_params = self.create_publisher(
+            Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
+        self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
+        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
+                                 MEASUREMENT_QOS)
+        self.create_timer(float(p('status_period_s').value), self._publish_status)
+        self._published = 0
+        self._saved = 0
+        self._last_save = -math.inf
+        self._pending_save = None
+        self._stop = threading.Event()
+        if self.live.estimate is not None:
+            est = self.live.estimate
+            self.get_logger().info(
+                f'initial parameters from {self._params_file} '
+                f'({"valid" if est.valid else "not valid: " + est.reason})')
+            self._publish_estimate(est)
+        self._worker = threading.Thread(target=self._work, name='identifier_fit', daemon=True)
+        self._worker.start()
+        self.get_logger().info(
+            f'identifying {p("measurement_topic").value} -> {p("parameters_topic").value}: '
+            f'window {config.window_s} s every {config.hop_s} s, budget {config.budget_s} s')
+
+    # measurement callback: conversion and checks only (the fit runs in the worker thread)
+    def _on_measurement(self, msg):
+        try:
+            sample = measurement_from_msg(msg)
+        except MessageError as exc:
+            self.live.count_rejected(exc.reason)
+            self.get_logger().warning(f'rejected measurement: {exc}', throttle_duration_sec=1.0)
+            return
+        reason = self.live.add_sample(*sample)
+        if reason:
+            self.get_logger().warning(f'rejected measurement at t={sample[0]:.6f} s: {reason}',
+                                      throttle_duration_sec=1.0)
+
+    def _work(self):
+        while not self._stop.is_set():
+            window = self.live.next_window()
+            if window is None:
+                self._stop.wait(0.005)
+                continue
+            try:
+                est = self.live.process(window)
+            except Exception as exc:  # never let one window kill the node
+                self.live.counters['fit_errors'] += 1
+                self.live.last_error = f'{type(exc).__name__}: {exc}'
+                self.get_logger().error(f'window fit failed: {self.live.last_error}',
+                                        throttle_duration_sec=5.0)
+                continue
+            if est is None:
+                continue
+            self._publish_estimate(est)
+            if est.valid:
+                self._save(est)
+
+    def _publish_estimate(self, est):
+        try:
+            self._pub_params.publish(kwok_parameters_msg(est.message_values()))
+            self._published += 1
+        except Exception as exc:  # publishing after shutdown started
+            self.get_logger().debug(f'publish failed: {exc}')
+
+    def _save(self, est, force=False):
+        if not self._params_file:
+            return
+        now = time.monotonic()
+        if not force and now - self._last_save < self._save_period:
+            self._pending_save = est
+            return
+        try:
+            save_params(self._params_file, est.params_file_dict())
+            self._saved += 1
+            self._last_save = now
+            self._pending_save = None
+        except OSError as exc:
+            self.get_logger().error(f'cannot write {self._params_file}: {exc}',
+                                    throttle_duration_sec=10.0)
+
+    def _publish_status(self):
+        if self._pending_save is not None:
+            self._save(self._pending_save)
+        status = self.live.status()
+        status.update(parameters_published=self._published, params_file_writes=self._saved,
+                      initial_source=self._initial_source, worker_alive=self._worker.is_alive())
+        self._pub_status.publish(status_msg(status))
+
+    def shutdown(self):
+        """Stop the worker and write the last valid parameters."""
+        self._stop.set()
+        self._worker.join(timeout=5.0)
+        if self.live.last_good is not None and self.live.last_good.model_fitted != 'file':
+            self._save(self.live.last_good, force=True)
+
+
+def spin(executor, done=lambda: False):
+    """
+    Spin ``executor`` until shutdown or ``done()``.
+
+    A ``spin_once`` loop: the kilted EventsExecutor's ``spin()`` stalls timers (checked here:
+    one tick of a 5 ms timer per second), its ``spin_once`` runs them on time.
+    """
+    while rclpy.ok() and not done():
+        executor.spin_once(timeout_sec=0.1)
+
+
+def make_executor():
+    """Return the executor used by the suite's nodes (EventsExecutor when available)."""
+    try:
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    except ImportError:  # pragma: no cover - older rclpy
+        return SingleThreadedExecutor()
+
+
+def main(args=None):
+    """Run the identifier node until Ctrl-C."""
+    # short GIL switch interval: measurement callbacks are not held up by a fit for long
+    sys.setswitchinterval(0.001)
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = IdentifierNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.shutdown()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

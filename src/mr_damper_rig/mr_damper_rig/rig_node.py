@@ -1,0 +1,323 @@
+"""
+Rig node: the virtual MR damper rig, or a replay of a recorded DAQ CSV file or rosbag2.
+
+``ros2 run mr_damper_rig rig_node`` (console script ``rig_node``).  Publishes one
+``sensor_msgs/JointState`` per DAQ sample on the measurement topic, paced in real time times
+``rate_factor`` by publishing the samples that are due at every timer tick (so the effective rate
+is exact even though a 1 kHz rclpy timer is not); ``rate_factor`` 0 publishes as fast as the
+subscribers acknowledge, batch by batch.  In ``sim`` mode the true damper parameters are published
+(latched) for comparison.  A JSON status is published on the status topic.
+
+Replay files are read and checked completely before the first sample is published; a bad file
+ends the node with exit status 2 and one error line naming the file and the problem.
+"""
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rcl_interfaces.msg import ParameterDescriptor
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from mr_damper_model.data import DataError
+from mr_damper_model.identifier_node import make_executor, spin
+from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
+                                      measurement_to_msg, status_msg)
+
+from .replay import MEASUREMENT_TOPIC, read_stream
+
+MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+#: Samples per batch when ``rate_factor`` is 0 (acknowledged before the next batch).
+ACK_BATCH = 100
+
+
+class ArraySource:
+    """
+    Recorded samples with their own timing, optionally looped.
+
+    Sample ``k`` of a looped record is sample ``k % n`` stamped ``t + (k // n) * period`` with
+    ``period`` = record duration + one median sample interval, so stamps keep increasing.
+    """
+
+    def __init__(self, data, loop=False, offset_s=0.0):
+        self.t = data.t + offset_s
+        self.cols = np.column_stack([data.x, data.v, data.f, data.i])
+        self.rel = data.t - data.t[0]
+        self.n = data.n
+        dt = float(np.median(np.diff(data.t))) if data.n > 1 else 1e-3
+        self.period = float(self.rel[-1]) + dt
+        self.loop = loop
+
+    def count_due(self, elapsed_s):
+        """Return how many samples are due after ``elapsed_s`` seconds of record time."""
+        if self.loop:
+            laps = math.floor(elapsed_s / self.period)
+            return laps * self.n + int(np.searchsorted(self.rel, elapsed_s - laps * self.period,
+                                                       side='right'))
+        return int(np.searchsorted(self.rel, elapsed_s, side='right'))
+
+    def total(self):
+        """Return the number of samples (None when looping)."""
+        return None if self.loop else self.n
+
+    def sample(self, k):
+        """Return sample ``k`` as ``(t, x, v, f, i)``."""
+        lap, j = divmod(k, self.n)
+        x, v, f, i = self.cols[j]
+        return self.t[j] + lap * self.period, x, v, f, i
+
+
+class SimSource:
+    """Samples of the virtual rig, stamped ``t0 + t_sim``."""
+
+    def __init__(self, rig, rate_hz, t0_s, duration_s):
+        self.rig = rig
+        self.rate_hz = rate_hz
+        self.t0 = t0_s
+        self.duration_s = duration_s
+
+    def count_due(self, elapsed_s):
+        """Return how many samples are due after ``elapsed_s`` seconds of simulated time."""
+        return int(math.floor(elapsed_s * self.rate_hz + 1e-9)) + 1
+
+    def total(self):
+        """Return the number of samples to publish (None: unlimited)."""
+        if self.duration_s > 0:
+            return int(round(self.duration_s * self.rate_hz))
+        return None
+
+    def sample(self, k):
+        """Return the next sample (``k`` must count up by one)."""
+        t, x, v, f, i = self.rig.sample()
+        return self.t0 + t, x, v, f, i
+
+
+def build_virtual_rig(options):
+    """
+    Build the virtual rig from the node's sim options.
+
+    Parameters
+    ----------
+    options : dict
+        ``plant``, ``excitation``, ``amplitude_m``, ``frequency_hz``, ``currents_a``,
+        ``step_s``, ``current_source``, ``noise_n``, ``seed``, ``rate_hz``, ``truth_file``.
+
+    Returns
+    -------
+    VirtualRig
+
+    """
+    from mr_damper_model.plant import make_plant
+    from mr_damper_model.params_file import load_params
+
+    from . import excitation as exc_mod
+    from .virtual_rig import VirtualRig
+    params = None
+    if options['truth_file']:
+        params = load_params(options['truth_file'], model=options['plant']).parameters
+    plant = make_plant(options['plant'], params)
+    excitation = exc_mod.make_excitation(options['excitation'],
+                                         amplitude_m=options['amplitude_m'],
+                                         frequency_hz=options['frequency_hz'],
+                                         seed=options['seed'])
+    if options['current_source'] == 'command':
+        schedule = None
+    else:
+        schedule = exc_mod.step_schedule(options['currents_a'], options['step_s'])
+    return VirtualRig(plant, excitation, schedule, rate_hz=options['rate_hz'],
+                      noise_n=options['noise_n'], seed=options['seed'])
+
+
+class RigNode(Node):
+    """Thin ROS adapter over the virtual rig and the replay readers."""
+
+    def __init__(self):
+        super().__init__('mr_damper_rig')
+        d = self.declare_parameter
+        d('mode', 'sim', ParameterDescriptor(description='sim | csv | bag'))
+        d('file', '', ParameterDescriptor(description='CSV file (csv) or rosbag2 (bag)'))
+        d('bag_topic', MEASUREMENT_TOPIC, ParameterDescriptor(
+            description='Measurement topic inside the bag'))
+        d('rate_factor', 1.0, ParameterDescriptor(
+            description='Speed relative to real time; 0: as fast as subscribers acknowledge'))
+        d('loop', False, ParameterDescriptor(description='Replay the file again and again'))
+        d('time_offset_s', 0.0, ParameterDescriptor(
+            description='Added to CSV time stamps [s]'))
+        d('duration_s', 0.0, ParameterDescriptor(
+            description='sim: simulated time to publish [s] (0: until stopped)'))
+        d('exit_on_end', True, ParameterDescriptor(
+            description='Exit (status 0) when the replay or the sim duration is done'))
+        d('wait_for_subscribers', 0, ParameterDescriptor(
+            description='Wait until this many measurement subscribers matched (max 30 s)'))
+        d('tick_s', 0.005, ParameterDescriptor(description='Publishing timer period [s]'))
+        d('status_period_s', 0.5, ParameterDescriptor(description='Status period [s]'))
+        d('measurement_topic', MEASUREMENT_TOPIC)
+        d('true_parameters_topic', '/mr_damper/true_parameters')
+        d('true_spencer_topic', '/mr_damper/true_spencer_parameters')
+        d('current_command_topic', '/mr_damper/current_command')
+        d('status_topic', '/mr_damper/rig_status')
+        # sim options
+        d('plant', 'spencer', ParameterDescriptor(description='spencer | kwok-current'))
+        d('truth_file', '', ParameterDescriptor(
+            description='Parameter file of the true damper (default: presets)'))
+        d('excitation', 'cam', ParameterDescriptor(
+            description='cam | multisine | chirp | random'))
+        d('amplitude_m', 0.03, ParameterDescriptor(description='Excitation amplitude [m]'))
+        d('frequency_hz', 1.1, ParameterDescriptor(description='Excitation frequency [Hz]'))
+        d('currents_a', [0.0, 0.5, 1.0, 1.5, 2.0], ParameterDescriptor(
+            description='Coil current schedule levels [A]'))
+        d('step_s', 4.0, ParameterDescriptor(description='Dwell per current level [s]'))
+        d('current_source', 'schedule', ParameterDescriptor(
+            description='schedule | command (follow the current command topic)'))
+        d('noise_n', 2.0, ParameterDescriptor(description='Load-cell noise std [N]'))
+        d('seed', 1, ParameterDescriptor(description='Random seed of the sim'))
+        d('rate_hz', 1000.0, ParameterDescriptor(description='sim DAQ rate [Hz]'))
+
+        p = lambda name: self.get_parameter(name).value  # noqa: E731
+        self.mode = p('mode')
+        self.rate_factor = float(p('rate_factor'))
+        if self.rate_factor < 0 or not math.isfinite(self.rate_factor):
+            raise ValueError(f'rate_factor must be >= 0, got {self.rate_factor}')
+        self.exit_on_end = bool(p('exit_on_end'))
+        self.rig = None
+        if self.mode in ('csv', 'bag'):
+            if not p('file'):
+                raise DataError(f'mode {self.mode} needs the `file` parameter')
+            data = read_stream(self.mode, p('file'), p('bag_topic'))   # whole file checked
+            self.source = ArraySource(data, loop=bool(p('loop')),
+                                      offset_s=float(p('time_offset_s'))
+                                      if self.mode == 'csv' else 0.0)
+            self.get_logger().info(f'replaying {p("file")}: {data.n} samples, '
+                                   f'{data.duration:.3f} s, x{self.rate_factor}')
+        elif self.mode == 'sim':
+            options = {k: p(k) for k in ('plant', 'excitation', 'amplitude_m', 'frequency_hz',
+                                         'currents_a', 'step_s', 'current_source', 'noise_n',
+                                         'seed', 'rate_hz', 'truth_file')}
+            options['currents_a'] = [float(c) for c in options['currents_a']]
+            self.rig = build_virtual_rig(options)
+            t0 = self.get_clock().now().nanoseconds * 1e-9
+            self.source = SimSource(self.rig, float(p('rate_hz')), t0, float(p('duration_s')))
+            self.get_logger().info(f'virtual rig: {options["plant"]} damper, '
+                                   f'{options["excitation"]} excitation, x{self.rate_factor}')
+        else:
+            raise ValueError(f"mode must be 'sim', 'csv' or 'bag', got {self.mode!r}")
+
+        self._pub = self.create_publisher(JointState, p('measurement_topic'), MEASUREMENT_QOS)
+        self._pub_status = self.create_publisher(String, p('status_topic'), STATUS_QOS)
+        if self.rig is not None:
+            self._publish_truth(p('true_parameters_topic'), p('true_spencer_topic'))
+            if p('current_source') == 'command':
+                self.create_subscription(Float64, p('current_command_topic'), self._on_command,
+                                         COMMAND_QOS)
+        self._wait_subs = int(p('wait_for_subscribers'))
+        self._msg = None
+        self.published = 0
+        self.behind_max = 0
+        self.commands = 0
+        self.finished = False
+        self._start = None
+        self._created = time.monotonic()
+        self.create_timer(float(p('tick_s')), self._tick)
+        self.create_timer(float(p('status_period_s')), self._publish_status)
+
+    def _publish_truth(self, kwok_topic, spencer_topic):
+        truth = self.rig.true_parameters()
+        model = truth.get('model')
+        params = truth.get('parameters', {})
+        if model == 'kwok-current':
+            pub = self.create_publisher(Float64MultiArray, kwok_topic, LATCHED_QOS)
+            values = dict(params)
+            values.update(i_ref_a=float(truth.get('model_options', {}).get('i_ref_a', 2.0)),
+                          window_end_s=0.0, current_min_a=truth.get('current_min_a', 0.0),
+                          current_max_a=truth.get('current_max_a', 2.0), rmse_n=0.0,
+                          nrmse_percent=0.0, valid=True)
+            pub.publish(kwok_parameters_msg(values))
+        else:
+            pub = self.create_publisher(Float64MultiArray, spencer_topic, LATCHED_QOS)
+            pub.publish(dict_to_array_msg({k: float(v) for k, v in params.items()}))
+        self._truth_pub = pub
+
+    def _on_command(self, msg):
+        if math.isfinite(msg.data):
+            self.rig.command_current(float(msg.data))
+            self.commands += 1
+
+    def _tick(self):
+        if self.finished:
+            return
+        if self._start is None:
+            subs = self._pub.get_subscription_count()
+            if subs < self._wait_subs and time.monotonic() - self._created < 30.0:
+                return
+            self._start = time.monotonic()
+        total = self.source.total()
+        if self.rate_factor > 0:
+            due = self.source.count_due((time.monotonic() - self._start) * self.rate_factor)
+        else:
+            due = self.published + ACK_BATCH
+        if total is not None:
+            due = min(due, total)
+        self.behind_max = max(self.behind_max, due - self.published)
+        n = min(due - self.published, 5000)
+        for _ in range(n):
+            self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
+            self._pub.publish(self._msg)
+            self.published += 1
+        if self.rate_factor == 0 and n:
+            self._pub.wait_for_all_acked(Duration(seconds=5.0))
+        if total is not None and self.published >= total:
+            self._pub.wait_for_all_acked(Duration(seconds=10.0))
+            self.finished = True
+            self._publish_status()
+            self.get_logger().info(f'done: {self.published} samples published')
+
+    def _publish_status(self):
+        elapsed = time.monotonic() - self._start if self._start else 0.0
+        status = {'mode': self.mode, 'samples_published': self.published,
+                  'rate_factor': self.rate_factor, 'elapsed_s': elapsed,
+                  'effective_rate_hz': self.published / elapsed if elapsed > 0 else 0.0,
+                  'behind_max_samples': self.behind_max, 'done': self.finished,
+                  'subscribers': self._pub.get_subscription_count(),
+                  'current_commands': self.commands}
+        if self.rig is not None:
+            status['coil_current_a'] = float(getattr(self.rig, 'current', math.nan))
+        self._pub_status.publish(status_msg(status))
+
+
+def main(args=None):
+    """Run the rig node; exit status 2 on a bad file or parameter."""
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = RigNode()
+        executor = make_executor()
+        executor.add_node(node)
+        spin(executor, lambda: node.finished and node.exit_on_end)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (DataError, ValueError) as exc:
+        print(f'rig_node: error: {exc}', file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
