@@ -92,3 +92,47 @@ def test_registry_and_input_errors():
         get_model('bouc-wen').force(np.ones(8), [0.0], [0.0])
     with pytest.raises(ValueError, match='increasing'):
         get_model('bouc-wen').force(np.ones(8), [0.0, 0.0], [0.0, 0.0], t=[0.0, 0.0])
+
+
+@pytest.mark.parametrize('name', ['kwok', 'kwok-current', 'bingham', 'bouc-wen'])
+def test_separable_parts_rebuild_the_regressors(name):
+    model = get_model(name)
+    x, v, i, t = _signals()
+    lo, hi = model.default_bounds()
+    rng = np.random.default_rng(3)
+    P = lo + rng.random((3, lo.size)) * (hi - lo)
+    N = P[:, [model.param_names.index(n) for n in model.nonlinear_names]]
+    phi = model.regressors(N, x, v, i=i, t=t)
+    parts = model.separable_parts(x, v, i=i, t=t)
+    assert sorted(np.concatenate([parts.fixed_index, parts.factor_index])) == \
+        list(range(len(model.linear_names)))
+    np.testing.assert_allclose(phi[:, :, parts.fixed_index],
+                               np.broadcast_to(parts.fixed, phi[:, :, parts.fixed_index].shape),
+                               rtol=0, atol=1e-12)
+    if parts.factor_index.size:
+        h = model.nonlinear_factor(N, x, v, i=i, t=t)
+        np.testing.assert_allclose(phi[:, :, parts.factor_index],
+                                   h[:, :, None] * parts.weights[None], rtol=1e-12, atol=1e-12)
+
+
+def test_spencer_has_no_separable_structure():
+    model = get_model('spencer')
+    x, v, i, t = _signals()
+    assert model.separable_parts(x, v, i=i, t=t) is None
+
+
+@pytest.mark.parametrize('name', ['kwok', 'kwok-current', 'bingham'])
+def test_analytic_jacobian_matches_central_differences(name):
+    model = get_model(name)
+    x, v, i, t = _signals()
+    lo, hi = model.default_bounds()
+    p = lo + 0.3 * (hi - lo)
+    p[model.param_names.index('f0') if 'f0' in model.param_names else 0] = 7.0
+    J = model.jacobian(p, x, v, i=i, t=t)
+    assert J.shape == (x.size, p.size)
+    for j in range(p.size):
+        h = 1e-6 * max(abs(p[j]), 1.0)
+        dp = np.zeros(p.size)
+        dp[j] = h
+        fd = (model.force(p + dp, x, v, i=i, t=t) - model.force(p - dp, x, v, i=i, t=t)) / (2 * h)
+        np.testing.assert_allclose(J[:, j], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)) + 1e-9)

@@ -23,7 +23,7 @@ parameter sets in the unbounded mode), so no overflow occurs.
 """
 import numpy as np
 
-from mr_damper_model.models import HysteresisModel, ModelError
+from mr_damper_model.models import HysteresisModel, ModelError, SeparableParts
 
 _Z_CAP = 1e6
 _MAX_SUBSTEPS = 200
@@ -93,11 +93,12 @@ class BoucWen(HysteresisModel):
     delta [1/m], beta [1/m], gamma [1/m], n [-] (nonlinear). Strictly beta, gamma are in
     m**-1 with |z|**n dimensionless.
 
-    Default bounds: c in [0, 5000], k in [0, 2000], alpha in [0, 3000], f0 in [-200, 200];
-    delta in [0, 2000] 1/m (a yield displacement of 0.5 mm or more), beta and gamma in
-    [0, 2000] 1/m (gamma >= 0 and beta + gamma > 0 keep z bounded), n in [1, 3].
-    Unbounded: c, k, alpha in [-1e4, 1e4], f0 in [-1000, 1000], delta and beta in [-1e4, 1e4],
-    gamma in [0, 1e4], n in [1, 4].
+    Default bounds: c in [0, 1e5] N s/m, k in [0, 5e5] N/m, alpha in [0, 1e4] N,
+    f0 in [-500, 500] N (as ``Kwok``); delta in [0, 2000] 1/m (a yield displacement of 0.5 mm
+    or more), beta and gamma in [0, 2000] 1/m (gamma >= 0 and beta + gamma > 0 keep z
+    bounded), n in [1, 3]. Unbounded: c in [-1e5, 1e5], k in [-1e6, 1e6], alpha in
+    [-1e4, 1e4], f0 in [-1000, 1000], delta and beta in [-1e4, 1e4], gamma in [0, 1e4],
+    n in [1, 4].
     """
 
     name = 'bouc-wen'
@@ -106,10 +107,10 @@ class BoucWen(HysteresisModel):
                    'beta': '1/m', 'gamma': '1/m', 'n': '-'}
     linear_names = ('c', 'k', 'alpha', 'f0')
     stateful = True
-    _bounds = {'c': (0.0, 5000.0), 'k': (0.0, 2000.0), 'alpha': (0.0, 3000.0),
-               'f0': (-200.0, 200.0), 'delta': (0.0, 2000.0), 'beta': (0.0, 2000.0),
+    _bounds = {'c': (0.0, 1e5), 'k': (0.0, 5e5), 'alpha': (0.0, 1e4),
+               'f0': (-500.0, 500.0), 'delta': (0.0, 2000.0), 'beta': (0.0, 2000.0),
                'gamma': (0.0, 2000.0), 'n': (1.0, 3.0)}
-    _bounds_unbounded = {'c': (-1e4, 1e4), 'k': (-1e4, 1e4), 'alpha': (-1e4, 1e4),
+    _bounds_unbounded = {'c': (-1e5, 1e5), 'k': (-1e6, 1e6), 'alpha': (-1e4, 1e4),
                          'f0': (-1000.0, 1000.0), 'delta': (-1e4, 1e4), 'beta': (-1e4, 1e4),
                          'gamma': (0.0, 1e4), 'n': (1.0, 4.0)}
 
@@ -131,3 +132,12 @@ class BoucWen(HysteresisModel):
         phi[:, :, 2] = z
         phi[:, :, 3] = 1.0
         return phi
+
+    def _separable_parts(self, x, v, i, t):
+        n = x.size
+        return SeparableParts(fixed_index=np.array([0, 1, 3]),
+                              fixed=np.column_stack([v, x, np.ones(n)]),
+                              factor_index=np.array([2]), weights=np.ones((n, 1)))
+
+    def _nonlinear_factor(self, N, x, v, i, t):
+        return self._z(N, v, t)

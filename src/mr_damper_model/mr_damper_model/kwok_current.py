@@ -17,7 +17,7 @@ force linearly, so the separable PSO searches only beta0, beta1 and delta.
 """
 import numpy as np
 
-from mr_damper_model.models import HysteresisModel, ModelError
+from mr_damper_model.models import HysteresisModel, ModelError, SeparableParts
 
 
 def kwok_current_coefficients(P, s):
@@ -51,10 +51,12 @@ class KwokCurrent(HysteresisModel):
     beta1 [-] (log-slope of beta over 0..i_ref_a); delta [-]; f0 [N]. Option ``i_ref_a``
     (reference current [A], default 2.0, the top of the thesis range).
 
-    Default bounds: c0, c1 in [0, 5000] N s/m; k in [0, 2000] N/m; alpha0..2 in [0, 3000] N;
-    beta0 in [0.1, 300] s/m; beta1 in [-3, 3] (beta changes at most by e**3 over the range);
-    delta in [0, 3]; f0 in [-200, 200] N. Unbounded: c0, c1, k, alpha0..2 in [-1e4, 1e4];
-    beta0 in [0, 1000] s/m; beta1 in [-5, 5]; delta in [-5, 5]; f0 in [-1000, 1000] N.
+    Default bounds (physical, wide enough for dampers of a few kN; see ``Kwok``): c0, c1 in
+    [0, 1e5] N s/m; k in [0, 5e5] N/m; alpha0..2 in [0, 1e4] N; beta0 in [0.1, 1000] s/m;
+    beta1 in [-3, 3] (beta changes at most by e**3 over the range); delta in [0, 3];
+    f0 in [-500, 500] N. Unbounded: c0, c1 in [-1e5, 1e5]; k in [-1e6, 1e6];
+    alpha0..2 in [-1e4, 1e4]; beta0 in [0, 1000] s/m; beta1 in [-5, 5]; delta in [-5, 5];
+    f0 in [-1000, 1000] N.
     """
 
     name = 'kwok-current'
@@ -64,11 +66,11 @@ class KwokCurrent(HysteresisModel):
                    'alpha2': 'N', 'beta0': 's/m', 'beta1': '-', 'delta': '-', 'f0': 'N'}
     linear_names = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'f0')
     needs_current = True
-    _bounds = {'c0': (0.0, 5000.0), 'c1': (0.0, 5000.0), 'k': (0.0, 2000.0),
-               'alpha0': (0.0, 3000.0), 'alpha1': (0.0, 3000.0), 'alpha2': (0.0, 3000.0),
-               'beta0': (0.1, 300.0), 'beta1': (-3.0, 3.0), 'delta': (0.0, 3.0),
-               'f0': (-200.0, 200.0)}
-    _bounds_unbounded = {'c0': (-1e4, 1e4), 'c1': (-1e4, 1e4), 'k': (-1e4, 1e4),
+    _bounds = {'c0': (0.0, 1e5), 'c1': (0.0, 1e5), 'k': (0.0, 5e5),
+               'alpha0': (0.0, 1e4), 'alpha1': (0.0, 1e4), 'alpha2': (0.0, 1e4),
+               'beta0': (0.1, 1000.0), 'beta1': (-3.0, 3.0), 'delta': (0.0, 3.0),
+               'f0': (-500.0, 500.0)}
+    _bounds_unbounded = {'c0': (-1e5, 1e5), 'c1': (-1e5, 1e5), 'k': (-1e6, 1e6),
                          'alpha0': (-1e4, 1e4), 'alpha1': (-1e4, 1e4), 'alpha2': (-1e4, 1e4),
                          'beta0': (0.0, 1000.0), 'beta1': (-5.0, 5.0), 'delta': (-5.0, 5.0),
                          'f0': (-1000.0, 1000.0)}
@@ -99,3 +101,34 @@ class KwokCurrent(HysteresisModel):
         phi[:, :, 5] = s * s * z
         phi[:, :, 6] = 1.0
         return phi
+
+    def _separable_parts(self, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        n = x.size
+        return SeparableParts(fixed_index=np.array([0, 1, 2, 6]),
+                              fixed=np.column_stack([v, s * v, x, np.ones(n)]),
+                              factor_index=np.array([3, 4, 5]),
+                              weights=np.column_stack([np.ones(n), s * (2.0 - s), s * s]))
+
+    def _nonlinear_factor(self, N, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        a = N[:, [1]] * s                   # in place from here: one (p, n) buffer
+        np.clip(a, -50.0, 50.0, out=a)
+        np.exp(a, out=a)
+        a *= N[:, [0]]
+        a *= v
+        a += N[:, [2]] * np.sign(x)
+        return np.tanh(a, out=a)
+
+    def _jacobian(self, p, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        sx = np.sign(x)
+        ebs = np.exp(np.clip(p[7] * s, -50.0, 50.0))
+        z = np.tanh(p[6] * ebs * v + p[8] * sx)
+        w1, w2 = s * (2.0 - s), s * s
+        alpha = p[3] + p[4] * w1 + p[5] * w2
+        dz = alpha * (1.0 - z * z)
+        inside = np.abs(p[7] * s) < 50.0
+        dbeta1 = np.where(inside, dz * p[6] * ebs * s * v, 0.0)
+        return np.column_stack([v, s * v, x, z, w1 * z, w2 * z, dz * ebs * v, dbeta1,
+                                dz * sx, np.ones(x.size)])

@@ -7,6 +7,7 @@ damper force [N]. A single parameter set of shape ``(n_params,)`` gives a force 
 ``(n,)``; a batch of shape ``(p, n_params)`` gives ``(p, n)``. No model loops over particles in
 Python; the stateful ones (Bouc-Wen, Spencer) loop over time only.
 """
+from dataclasses import dataclass
 import importlib
 
 import numpy as np
@@ -24,6 +25,34 @@ _REGISTRY = {
 
 class ModelError(ValueError):
     """Invalid model name, parameters or signals."""
+
+
+@dataclass(frozen=True)
+class SeparableParts:
+    """
+    Structure of a model's regressors for the separable identification.
+
+    ``regressors(N)[:, :, fixed_index] == fixed`` for every N (columns that do not depend on
+    the nonlinear parameters) and ``regressors(N)[:, :, factor_index] ==
+    h[:, :, None] * weights[None]`` with ``h = nonlinear_factor(N)`` of shape (p, n).
+
+    Attributes
+    ----------
+    fixed_index : numpy.ndarray of int with shape (m_fixed,)
+        Positions (in ``linear_names``) of the fixed columns.
+    fixed : numpy.ndarray with shape (n, m_fixed)
+        The fixed columns.
+    factor_index : numpy.ndarray of int with shape (m_factor,)
+        Positions of the columns that depend on the nonlinear parameters.
+    weights : numpy.ndarray with shape (n, m_factor)
+        Per-sample weights of ``h`` in those columns (e.g. the current polynomials).
+
+    """
+
+    fixed_index: np.ndarray
+    fixed: np.ndarray
+    factor_index: np.ndarray
+    weights: np.ndarray
 
 
 def get_model(name, **options):
@@ -252,6 +281,85 @@ class HysteresisModel:
         phi = self._regressors(N, x, v, i, t)
         return phi[0] if single else phi
 
+    def separable_parts(self, x, v, i=None, t=None):
+        """
+        Split the regressors into fixed columns and columns ``h(nonlinear) * weights``.
+
+        Lets the separable identification precompute, once per record, everything that does not
+        depend on the nonlinear parameters; per particle only :meth:`nonlinear_factor` is
+        evaluated.
+
+        Parameters
+        ----------
+        x, v, i, t : array_like with shape (n,)
+            As in ``force``.
+
+        Returns
+        -------
+        SeparableParts or None
+            None if the model has no such structure (or no linear parameters).
+
+        """
+        if not self.linear_names:
+            return None
+        x, v, i, t = self._signals(x, v, i, t)
+        return self._separable_parts(x, v, i, t)
+
+    def nonlinear_factor(self, nonlinear, x, v, i=None, t=None):
+        """
+        The regressor factor ``h`` that depends on the nonlinear parameters.
+
+        Parameters
+        ----------
+        nonlinear : array_like with shape (p, n_nonlinear) or (n_nonlinear,)
+            Values of ``nonlinear_names``.
+        x, v, i, t : array_like with shape (n,)
+            As in ``force``.
+
+        Returns
+        -------
+        numpy.ndarray with shape (p, n) (or (n,) for 1-D input)
+            Kwok models: ``tanh(beta*v + delta*sign(x))``; Bouc-Wen: ``z``.
+
+        Raises
+        ------
+        ModelError
+            If the model has no :meth:`separable_parts` structure.
+
+        """
+        N, single = self._nonlinear(nonlinear)
+        x, v, i, t = self._signals(x, v, i, t)
+        try:
+            h = self._nonlinear_factor(N, x, v, i, t)
+        except NotImplementedError:
+            raise ModelError(f'model {self.name!r} has no separable structure') from None
+        return h[0] if single else h
+
+    def jacobian(self, params, x, v, i=None, t=None):
+        """
+        Derivatives of the force with respect to the parameters at one parameter set.
+
+        Analytic for the algebraic models (Kwok, kwok-current, Bingham); forward differences
+        otherwise.
+
+        Parameters
+        ----------
+        params : array_like with shape (n_params,)
+        x, v, i, t : array_like with shape (n,)
+            As in ``force``.
+
+        Returns
+        -------
+        numpy.ndarray with shape (n, n_params)
+            dF/dparam [N per parameter unit], columns in ``param_names`` order.
+
+        """
+        P, single = self._params(params)
+        if not single:
+            raise ModelError('`params` must be a single parameter set for jacobian')
+        x, v, i, t = self._signals(x, v, i, t)
+        return self._jacobian(P[0], x, v, i, t)
+
     def to_dict(self, params):
         """
         Map a parameter vector to ``{name: value}``.
@@ -312,6 +420,21 @@ class HysteresisModel:
 
     def _regressors(self, N, x, v, i, t):
         raise NotImplementedError
+
+    def _separable_parts(self, x, v, i, t):
+        return None
+
+    def _nonlinear_factor(self, N, x, v, i, t):
+        raise NotImplementedError
+
+    def _jacobian(self, p, x, v, i, t):
+        """Forward differences (models with an analytic form override this)."""
+        lo, hi = self.default_bounds(unbounded=True)
+        span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        h = 1e-7 * np.maximum(np.abs(p), 1e-3 * span)
+        P = np.vstack([p[None], p + np.diag(h)])
+        F = self._force(P, x, v, i, t)
+        return ((F[1:] - F[0]) / h[:, None]).T
 
     def _split(self, P):
         """Columns of P as (p, 1) arrays keyed by name."""
