@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from mr_damper_model.data import DamperData
-from mr_damper_model.identify import compare_models, identify, identify_per_current
+from mr_damper_model.identify import (_full_cost, compare_models, current_groups, identify,
+                                      identify_per_current)
 from mr_damper_model.models import get_model
 from mr_damper_model.presets import THESIS_TABLE_4_3, thesis_kwok_current
 
@@ -169,3 +170,26 @@ def test_bad_arguments():
         identify(data, 'kwok', x0=[1.0, 2.0])
     with pytest.raises(ValueError, match='unknown model'):
         identify(data, 'nope')
+
+
+def test_per_current_skips_coil_transients():
+    m, truth = thesis_kwok_current()
+    t, x, v, _ = cam(3.0)
+    i = np.where(t < 1.5, 0.5, 1.5)
+    i[1500:1503] = [0.9, 1.0, 1.1]              # coil transient between the levels
+    data, _, _ = synth(m, truth, t, x, v, i)
+    assert [round(lv, 2) for lv, _ in current_groups(data)] == [0.5, 1.5]
+    res = identify_per_current(data, 'kwok', seed=1)
+    assert [round(r.current_a, 2) for r in res] == [0.5, 1.5]
+
+
+@pytest.mark.parametrize('name', ['kwok', 'kwok-current', 'bingham'])
+def test_full_cost_gram_form_equals_direct_rmse(name):
+    mt, truth = thesis_kwok_current()
+    t, x, v, _ = cam(2.0)
+    data, _, _ = synth(mt, truth, t, x, v, np.linspace(0.0, 2.0, t.size))
+    m = get_model(name)
+    lo, hi = m.default_bounds()
+    P = lo + np.random.default_rng(2).random((6, lo.size)) * (hi - lo)
+    direct = np.sqrt(np.mean((m.force(P, data.x, data.v, i=data.i) - data.f) ** 2, axis=1))
+    np.testing.assert_allclose(_full_cost(m, data)(P), direct, rtol=1e-9)

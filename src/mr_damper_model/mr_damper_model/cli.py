@@ -120,7 +120,7 @@ def _suffix_path(path, level):
 def run(argv=None):
     """Run the tool; return the exit code."""
     from .data import DataError, read_csv, validate
-    from .identify import compare_models, identify, identify_per_current
+    from .identify import compare_models, current_groups, identify, identify_per_current
     from .models import get_model
     from .params_file import save_params
 
@@ -141,7 +141,7 @@ def run(argv=None):
         return _fail('', msg if name in msg else f'{name}: {msg}')
     except OSError as exc:
         return _fail(name, f'cannot read file ({exc.strerror or exc})')
-    levels = data.current_levels()
+    levels = [lv for lv, _ in current_groups(data)] or list(data.current_levels())
     model = args.model or ('kwok-current' if len(levels) > 1 and not args.per_current
                            else 'kwok')
     kw = dict(method=args.method, unbounded=args.unbounded, seed=args.seed)
@@ -188,7 +188,7 @@ def run(argv=None):
         import numpy as np
         from .metrics import fit_metrics
         from .plots import model_force
-        parts = [part for _, part in data.split_by_current()]
+        parts = [part for _, part in current_groups(data)]
         f_all = np.concatenate([p.f for p in parts])
         fm_all = np.concatenate([model_force(r, p) for r, p in zip(results, parts)])
         out['metrics'] = _metrics_json(fit_metrics(f_all, fm_all))
@@ -228,16 +228,18 @@ def run(argv=None):
 
 
 def _plot(path, data, results, *, compare, title):
+    from .identify import current_groups
     from .plots import compare_figure, fit_figure, model_force, save_figure
     if compare:
         forces = {k: model_force(r, data) for k, r in results.items()}
         fig = compare_figure(data.t, data.f, forces, title=title)
-    elif len(results) > 1 or len(data.current_levels()) > 1:
+    elif len(results) > 1 or len(current_groups(data)) > 1:
         groups = []
+        parts = [part for _, part in current_groups(data)]
         if len(results) > 1:
-            pairs = zip(results, [part for _, part in data.split_by_current()])
+            pairs = zip(results, parts)
         else:
-            pairs = [(results[0], part) for _, part in data.split_by_current()]
+            pairs = [(results[0], part) for part in parts]
         for r, part in pairs:
             lvl = float(part.i.mean())
             groups.append((f'{lvl:.2f} A', part.t, part.x, part.v, part.f,

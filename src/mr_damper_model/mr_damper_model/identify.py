@@ -28,13 +28,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .data import DamperData
-from .lsq import box_qp, sum_squares
+from .lsq import box_qp, gram, sum_squares
 from .metrics import fit_metrics
-from .models import get_model
+from .models import HysteresisModel, get_model
 from .pso import as_bounds, pso
 
 __all__ = ['IdentificationResult', 'identify', 'identify_per_current', 'compare_models',
-           'METHODS', 'DEFAULT_BUDGETS']
+           'current_groups', 'METHODS', 'DEFAULT_BUDGETS', 'MIN_LEVEL_SAMPLES']
 
 METHODS = ('separable', 'full')
 
@@ -46,19 +46,29 @@ DEFAULT_BUDGETS = {
 }
 #: Separable swarm works on at most this many samples (every k-th) before the polish on all.
 SWARM_SAMPLES = 500
+#: A current level needs at least this many samples to be fitted on its own; fewer are the coil
+#: transients between the levels of a step test (a few samples per step), left out of
+#: per-current fits.
+MIN_LEVEL_SAMPLES = 50
 #: Units of the tanh slope parameters, searched on a log scale.
 _LOG_UNITS = ('s/m',)
 
 
 class _Space:
-    """Search coordinates of the swarm: log scale for positive parameters spanning decades."""
+    """
+    Search coordinates of the swarm: log scale for positive parameters spanning decades.
+
+    Log scale where lo > 0 and hi >= 100 lo, or lo == 0 and the parameter is a tanh slope
+    [s/m] or hi >= 1e4 (the wide physical boxes of c, k and alpha), with an offset of
+    1e-4 hi so that 0 stays reachable.
+    """
 
     def __init__(self, lo, hi, units):
         lo = np.asarray(lo, dtype=float)
         hi = np.asarray(hi, dtype=float)
         wide = np.isfinite(hi) & (
             ((lo > 0) & (hi >= 100.0 * np.where(lo > 0, lo, 1.0)))
-            | ((lo == 0) & ((np.isin(units, _LOG_UNITS) & (hi > 0)) | (hi >= 1e5))))
+            | ((lo == 0) & ((np.isin(units, _LOG_UNITS) & (hi > 0)) | (hi >= 1e4))))
         self.log = np.flatnonzero(wide)
         self.offset = np.where(lo > 0, 0.0, 1e-4 * np.where(np.isfinite(hi), hi, 1.0))
         self.lo, self.hi = lo, hi
@@ -177,6 +187,15 @@ class SeparableCost:
     The linear parameters of each particle are the box-bounded least-squares solution. Build
     once per record; call with an array of nonlinear parameter sets.
 
+    Everything that does not depend on the nonlinear parameters is computed here, once: the
+    model's :meth:`~mr_damper_model.models.HysteresisModel.separable_parts` split the
+    regressors into fixed columns S (v, x, 1, ...) and columns ``h(nonlinear) * W`` (W: per-sample
+    weights, e.g. the current polynomials of kwok-current), so that with the products
+    ``S^T S``, ``S^T y`` and the per-sample outer products of W with W, S and y, a batch of
+    particles costs only ``h`` (p, n) and two matrix products, ``(h*h) @ WW`` and
+    ``h @ [WS, Wy]``. Models without that structure fall back to probing ``regressors``
+    at two points to find the fixed columns.
+
     Parameters
     ----------
     model : HysteresisModel
@@ -185,47 +204,103 @@ class SeparableCost:
         Bounds of the linear parameters (may be infinite).
     probe : ndarray with shape (2, n_nonlinear)
         Two different nonlinear parameter sets used to detect the columns that do not depend
-        on the nonlinear parameters.
+        on the nonlinear parameters (only for models without ``separable_parts``).
 
     """
 
     def __init__(self, model, data, lin_lo, lin_hi, probe):
         self.model = model
-        self.args = tuple(np.ascontiguousarray(a, dtype=float)
-                          for a in (data.x, data.v, data.i, data.t))
+        self.args = model._signals(data.x, data.v, data.i, data.t)   # validated once
         self.y = np.ascontiguousarray(data.f, dtype=float)
         self.n = self.y.size
         self.yy = float(self.y @ self.y)
-        self.lin_lo = lin_lo
-        self.lin_hi = lin_hi
-        x, v, i, t = self.args
-        phi = np.asarray(model.regressors(np.asarray(probe, dtype=float), x, v, i=i, t=t),
-                         dtype=float)
-        m = phi.shape[2]
-        scale = np.max(np.abs(phi), axis=(0, 1)) + 1e-300
-        same = np.all(np.abs(phi[0] - phi[1]) <= 1e-12 * scale, axis=0)
-        self.static = np.flatnonzero(same)
-        self.dyn = np.flatnonzero(~same)
-        self.m = m
-        S = phi[0][:, self.static]
+        self.m = m = len(model.linear_names)
+        parts = model._separable_parts(*self.args) if m else None
+        self.general = None
+        if parts is not None:
+            static = np.asarray(parts.fixed_index, dtype=int)
+            dyn = np.asarray(parts.factor_index, dtype=int)
+            S = np.asarray(parts.fixed, dtype=float)
+            W = np.asarray(parts.weights, dtype=float)
+            self._h = self._model_factor
+        else:
+            static, dyn, S, W = self._probe(probe)
+        self.static, self.dyn, self.S = static, dyn, S
+        ms, kd = static.size, dyn.size
+        self.ms, self.kd = ms, kd
+        # internal order: fixed columns first, then the factor columns
+        self.order = np.concatenate([static, dyn])
+        self.lo_p = np.asarray(lin_lo, dtype=float)[self.order]
+        self.hi_p = np.asarray(lin_hi, dtype=float)[self.order]
+        self.lin_lo, self.lin_hi = lin_lo, lin_hi
         self.SS = S.T @ S
         self.Sy = S.T @ self.y
-        self.factor = None
-        if self.dyn.size:
-            D = phi[:, :, self.dyn]
+        if kd and self.general is None:
+            WW = (W[:, :, None] * W[:, None, :]).reshape(self.n, kd * kd)
+            WS = (W[:, :, None] * S[:, None, :]).reshape(self.n, kd * ms)
+            self.WW = np.ascontiguousarray(WW)
+            self.WSy = np.ascontiguousarray(np.hstack([WS, W * self.y[:, None]]))
+
+    def _model_factor(self, nonlinear):
+        return self.model._nonlinear_factor(nonlinear, *self.args)
+
+    def _probe(self, probe):
+        """Fixed / nonlinear-dependent columns found by evaluating the regressors twice."""
+        x, v, i, t = self.args
+        phi = np.asarray(self.model.regressors(np.asarray(probe, dtype=float), x, v, i=i, t=t),
+                         dtype=float)
+        scale = np.max(np.abs(phi), axis=(0, 1)) + 1e-300
+        same = np.all(np.abs(phi[0] - phi[1]) <= 1e-12 * scale, axis=0)
+        static, dyn = np.flatnonzero(same), np.flatnonzero(~same)
+        S = phi[0][:, static]
+        W = np.zeros((self.n, dyn.size))
+        if dyn.size:
+            D = phi[:, :, dyn]
             h = D[:, :, 0]
             big = np.abs(h[0]) > 1e-9 * (np.max(np.abs(h[0])) + 1e-300)
-            W = np.zeros((self.n, self.dyn.size))
             W[big] = D[0][big] / h[0][big, None]
             dscale = np.max(np.abs(D), axis=(0, 1)) + 1e-300
             if np.all(np.abs(D - h[:, :, None] * W[None]) <= 1e-9 * dscale):
-                kd, ms = self.dyn.size, self.static.size
-                WW = (W[:, :, None] * W[:, None, :]).reshape(self.n, kd * kd)
-                WS = (W[:, :, None] * S[:, None, :]).reshape(self.n, kd * ms)
-                Wy = W * self.y[:, None]
-                self.factor = (np.ascontiguousarray(WW),
-                               np.ascontiguousarray(np.hstack([WS, Wy])))
-        self.S = S
+                col = dyn[0]
+                self._h = lambda nl: self.model.regressors(nl, x, v, i=i, t=t)[:, :, col]
+            else:
+                self.general = True
+        return static, dyn, S, W
+
+    def _gram_internal(self, nonlinear):
+        """G, b in the internal column order (fixed first), and the finite mask."""
+        nonlinear = np.atleast_2d(np.asarray(nonlinear, dtype=float))
+        p = nonlinear.shape[0]
+        m, ms, kd = self.m, self.ms, self.kd
+        G = np.empty((p, m, m))
+        b = np.empty((p, m))
+        G[:, :ms, :ms] = self.SS
+        b[:, :ms] = self.Sy
+        if kd:
+            if self.general:
+                x, v, i, t = self.args
+                D = self.model.regressors(nonlinear, x, v, i=i, t=t)[:, :, self.dyn]
+                Dt = np.swapaxes(D, 1, 2)
+                Gdd = Dt @ D
+                Gds = Dt @ self.S
+                bd = Dt @ self.y
+            else:
+                h = self._h(nonlinear)
+                Gdd = ((h * h) @ self.WW).reshape(p, kd, kd)
+                prod = h @ self.WSy
+                Gds = prod[:, :kd * ms].reshape(p, kd, ms)
+                bd = prod[:, kd * ms:]
+            G[:, ms:, ms:] = Gdd
+            G[:, ms:, :ms] = Gds
+            G[:, :ms, ms:] = np.swapaxes(Gds, 1, 2)
+            b[:, ms:] = bd
+            finite = np.isfinite(G.reshape(p, -1).sum(axis=1) + b.sum(axis=1))
+            if not finite.all():
+                G[~finite] = np.eye(m)
+                b[~finite] = 0.0
+        else:
+            finite = np.ones(p, dtype=bool)
+        return G, b, finite
 
     def gram(self, nonlinear):
         """
@@ -235,42 +310,13 @@ class SeparableCost:
         -------
         G : ndarray with shape (p, m, m)
         b : ndarray with shape (p, m)
+            Columns in ``linear_names`` order.
         finite : ndarray of bool with shape (p,)
 
         """
-        nonlinear = np.atleast_2d(np.asarray(nonlinear, dtype=float))
-        p = nonlinear.shape[0]
-        x, v, i, t = self.args
-        st, dy = self.static, self.dyn
-        kd, ms = dy.size, st.size
-        G = np.empty((p, self.m, self.m))
-        b = np.empty((p, self.m))
-        G[:, st[:, None], st[None, :]] = self.SS
-        b[:, st] = self.Sy
-        if kd:
-            phi = self.model.regressors(nonlinear, x, v, i=i, t=t)
-            if self.factor is not None:
-                h = np.ascontiguousarray(phi[:, :, dy[0]])
-                WW, WSy = self.factor
-                Gdd = ((h * h) @ WW).reshape(p, kd, kd)
-                prod = h @ WSy
-                Gds = prod[:, :kd * ms].reshape(p, kd, ms)
-                bd = prod[:, kd * ms:]
-            else:
-                D = phi[:, :, dy]
-                Dt = np.swapaxes(D, 1, 2)
-                Gdd = Dt @ D
-                Gds = Dt @ self.S
-                bd = Dt @ self.y
-            G[:, dy[:, None], dy[None, :]] = Gdd
-            G[:, dy[:, None], st[None, :]] = Gds
-            G[:, st[:, None], dy[None, :]] = np.swapaxes(Gds, 1, 2)
-            b[:, dy] = bd
-        finite = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
-        if not finite.all():
-            G[~finite] = np.eye(self.m)
-            b[~finite] = 0.0
-        return G, b, finite
+        G, b, finite = self._gram_internal(nonlinear)
+        inv = np.argsort(self.order)
+        return G[:, inv[:, None], inv[None, :]], b[:, inv], finite
 
     def solve(self, nonlinear):
         """
@@ -282,10 +328,12 @@ class SeparableCost:
         rmse : ndarray with shape (p,)  (inf where the model is not finite)
 
         """
-        G, b, finite = self.gram(nonlinear)
-        theta = box_qp(G, b, self.lin_lo, self.lin_hi)
-        rss = sum_squares(G, b, self.yy, theta)
+        G, b, finite = self._gram_internal(nonlinear)
+        theta_p = box_qp(G, b, self.lo_p, self.hi_p)
+        rss = sum_squares(G, b, self.yy, theta_p)
         rmse = np.sqrt(rss / self.n)
+        theta = np.empty_like(theta_p)
+        theta[:, self.order] = theta_p
         return theta, np.where(finite, rmse, np.inf)
 
     def __call__(self, nonlinear):
@@ -295,24 +343,25 @@ class SeparableCost:
 
 
 def _polish(model, data, x, lo, hi, max_nfev=50):
-    """Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS)."""
+    """
+    Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS).
+
+    Trust-region reflective Gauss-Newton on all samples, with the model's Jacobian (analytic
+    for the algebraic models: one evaluation per Jacobian instead of n_params + 1); the signals
+    are validated once, not per evaluation.
+    """
     y = np.asarray(data.f, dtype=float)
-    args = (data.x, data.v)
-    kw = dict(i=data.i, t=data.t)
+    sig = model._signals(data.x, data.v, data.i, data.t)
+    analytic = type(model)._jacobian is not HysteresisModel._jacobian
     d = x.size
-    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
 
     def resid(p):
         with np.errstate(over='ignore', invalid='ignore'):
-            return model.force(p, *args, **kw) - y
+            return model._force(p[None], *sig)[0] - y
 
     def jac(p):
-        h = 1e-7 * np.maximum(np.abs(p), 1e-3 * span)
-        h = np.where(p + h > hi, -h, h)
-        P = p + np.diag(h)
         with np.errstate(over='ignore', invalid='ignore'):
-            F = model.force(np.vstack([p[None], P]), *args, **kw)
-        return ((F[1:] - F[0]) / h[:, None]).T
+            return model._jacobian(p, *sig)
 
     start = np.clip(x, lo, hi)
     r0 = resid(start)
@@ -324,7 +373,7 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
                             x_scale='jac', max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
     except (ValueError, np.linalg.LinAlgError):
         return x, 1, rss0
-    evals = 1 + res.nfev + res.njev * (d + 1)
+    evals = 1 + res.nfev + res.njev * (1 if analytic else d + 1)
     if np.all(np.isfinite(res.fun)) and res.fun @ res.fun < rss0:
         return res.x, evals, float(res.fun @ res.fun)
     return x, evals, rss0
@@ -344,7 +393,33 @@ def _starts(res, n):
 
 
 def _full_cost(model, data):
+    """
+    RMSE [N] of full parameter sets (p, n_params) -> (p,), for the full PSO.
+
+    For models with :meth:`~mr_damper_model.models.HysteresisModel.separable_parts` the
+    residual sum of squares is evaluated in Gram form,
+    ``theta^T G(nl) theta - 2 b(nl)^T theta + y^T y``, from the per-record products of
+    :class:`SeparableCost`: per particle only the nonlinear factor (one tanh per sample) and two
+    small matrix products. Other models evaluate the force.
+    """
     y = np.asarray(data.f, dtype=float)
+    names = tuple(model.param_names)
+    parts = model.separable_parts(data.x, data.v, i=data.i, t=data.t) \
+        if model.linear_names and not model.stateful else None
+    if parts is not None:
+        lin = np.array([names.index(n) for n in model.linear_names], dtype=int)
+        nl = np.array([names.index(n) for n in model.nonlinear_names], dtype=int)
+        m = lin.size
+        sc = SeparableCost(model, data, np.full(m, -np.inf), np.full(m, np.inf), None)
+        lin_ordered = lin[sc.order]
+
+        def cost(params):
+            with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+                G, b, finite = sc._gram_internal(params[:, nl])
+                rss = sum_squares(G, b, sc.yy, params[:, lin_ordered])
+                r = np.sqrt(rss / sc.n)
+            return np.where(finite & np.isfinite(r), r, np.inf)
+        return cost
 
     def cost(params):
         with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
@@ -467,12 +542,14 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
             probe = np.stack([nlo + 0.37 * (nhi - nlo), nlo + 0.71 * (nhi - nlo)])
             cost = SeparableCost(mdl, swarm_data, lo[lin_idx], hi[lin_idx], probe)
             res = pso(lambda u: cost(space.to_p(u)), space.bounds(), x0=u0, **common)
-            if swarm_data is not data:
-                cost = SeparableCost(mdl, data, lo[lin_idx], hi[lin_idx], probe)
             starts = _starts(res, n_starts if polish else 1)
             nl = space.to_p(starts)
             with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-                theta, _ = cost.solve(nl)
+                if swarm_data is data:
+                    theta, _ = cost.solve(nl)
+                else:       # a few candidates on all samples: direct regressors
+                    G, b = gram(mdl.regressors(nl, data.x, data.v, i=data.i, t=data.t), data.f)
+                    theta = box_qp(G, b, lo[lin_idx], hi[lin_idx])
             cands = np.empty((len(nl), len(names)))
             cands[:, nl_idx] = nl
             cands[:, lin_idx] = theta
@@ -503,7 +580,31 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         model_options=dict(getattr(mdl, 'options', {}) or {}), source=data.source, **res_info)
 
 
-def identify_per_current(data, model='kwok', *, tol_a=0.05, **kw):
+def current_groups(data, *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES):
+    """
+    Split a record into its coil-current levels, without the transients between them.
+
+    Parameters
+    ----------
+    data : DamperData
+    tol_a : float
+        Currents closer than this [A] form one level.
+    min_samples : int
+        Levels with fewer samples (coil transients of a current step) are left out.
+
+    Returns
+    -------
+    list of (float, DamperData)
+        ``(level_a, record)`` sorted by level.
+
+    """
+    data = _as_data(data)
+    return [(lv, part) for lv, part in data.split_by_current(tol_a=tol_a)
+            if part.n >= min_samples]
+
+
+def identify_per_current(data, model='kwok', *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES,
+                         **kw):
     """
     Fit one parameter set per coil-current level (the thesis Table 4.3 layout).
 
@@ -514,6 +615,9 @@ def identify_per_current(data, model='kwok', *, tol_a=0.05, **kw):
         Model name (default Kwok, as in the thesis).
     tol_a : float
         Currents closer than this [A] form one level.
+    min_samples : int
+        Levels with fewer samples are coil transients and are not fitted
+        (see :func:`current_groups`).
     **kw
         Passed to :func:`identify`. A ``callback`` is shared by the groups.
 
@@ -522,10 +626,17 @@ def identify_per_current(data, model='kwok', *, tol_a=0.05, **kw):
     list of IdentificationResult
         Sorted by current level; ``current_a`` holds the level [A].
 
+    Raises
+    ------
+    ValueError
+        No current level with at least ``min_samples`` samples.
+
     """
-    data = _as_data(data)
+    groups = current_groups(data, tol_a=tol_a, min_samples=min_samples)
+    if not groups:
+        raise ValueError(f'no current level with at least {min_samples} samples')
     out = []
-    for level, part in data.split_by_current(tol_a=tol_a):
+    for level, part in groups:
         r = identify(part, model, **kw)
         r.current_a = float(level)
         out.append(r)
