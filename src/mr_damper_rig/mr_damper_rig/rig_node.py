@@ -105,6 +105,19 @@ class SimSource:
         return self.t0 + t, x, v, f, i
 
 
+class _Repeating:
+    """A current schedule started again at the end of each pass (``duration_s`` None)."""
+
+    duration_s = None
+
+    def __init__(self, schedule):
+        self._schedule = schedule
+        self._period = float(schedule.duration_s)
+
+    def __call__(self, t):
+        return self._schedule(t % self._period)
+
+
 def build_virtual_rig(options):
     """
     Build the virtual rig from the node's sim options.
@@ -134,11 +147,14 @@ def build_virtual_rig(options):
                                          frequency_hz=options['frequency_hz'],
                                          seed=options['seed'])
     if options['current_source'] == 'command':
-        schedule = None
+        schedule = exc_mod.ConstantSchedule(0.0)   # until the first command arrives
+    elif options['current_source'] == 'schedule':
+        schedule = _Repeating(exc_mod.step_schedule(options['currents_a'], options['step_s']))
     else:
-        schedule = exc_mod.step_schedule(options['currents_a'], options['step_s'])
-    return VirtualRig(plant, excitation, schedule, rate_hz=options['rate_hz'],
-                      noise_n=options['noise_n'], seed=options['seed'])
+        raise ValueError("current_source must be 'schedule' or 'command', "
+                         f"got {options['current_source']!r}")
+    return VirtualRig(plant, excitation, schedule, sample_rate_hz=options['rate_hz'],
+                      force_noise_n=options['noise_n'], rng=options['seed'])
 
 
 class RigNode(Node):
@@ -240,9 +256,10 @@ class RigNode(Node):
         if model == 'kwok-current':
             pub = self.create_publisher(Float64MultiArray, kwok_topic, LATCHED_QOS)
             values = dict(params)
+            currents = [float(c) for c in self.get_parameter('currents_a').value] or [0.0]
             values.update(i_ref_a=float(truth.get('model_options', {}).get('i_ref_a', 2.0)),
-                          window_end_s=0.0, current_min_a=truth.get('current_min_a', 0.0),
-                          current_max_a=truth.get('current_max_a', 2.0), rmse_n=0.0,
+                          window_end_s=0.0, current_min_a=min(currents),
+                          current_max_a=max(currents), rmse_n=0.0,
                           nrmse_percent=0.0, valid=True)
             pub.publish(kwok_parameters_msg(values))
         else:
@@ -293,7 +310,7 @@ class RigNode(Node):
                   'subscribers': self._pub.get_subscription_count(),
                   'current_commands': self.commands}
         if self.rig is not None:
-            status['coil_current_a'] = float(getattr(self.rig, 'current', math.nan))
+            status['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
         self._pub_status.publish(status_msg(status))
 
 
