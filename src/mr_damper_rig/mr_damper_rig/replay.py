@@ -12,6 +12,7 @@ carries ``sensor_msgs/msg/JointState`` in the suite's measurement layout (see
 
 This module does not import rclpy.
 """
+import math
 from pathlib import Path
 
 import numpy as np
@@ -312,3 +313,64 @@ class BagWriter:
         """Write one already serialised (CDR) JointState with the bag time ``log_time_ns``."""
         self._writer.write(self._conn, int(log_time_ns), bytes(raw))
         self.count += 1
+
+
+class ArraySource:
+    """
+    Recorded samples with their own timing, optionally looped.
+
+    Sample ``k`` of a looped record is sample ``k % n`` stamped ``t + (k // n) * period`` with
+    ``period`` = record duration + one median sample interval, so stamps keep increasing.
+    """
+
+    def __init__(self, data, loop=False, offset_s=0.0):
+        self.t = data.t + offset_s
+        self.cols = np.column_stack([data.x, data.v, data.f, data.i])
+        self.rel = data.t - data.t[0]
+        self.n = data.n
+        dt = float(np.median(np.diff(data.t))) if data.n > 1 else 1e-3
+        self.period = float(self.rel[-1]) + dt
+        self.loop = loop
+
+    def count_due(self, elapsed_s):
+        """Return how many samples are due after ``elapsed_s`` seconds of record time."""
+        if self.loop:
+            laps = math.floor(elapsed_s / self.period)
+            return laps * self.n + int(np.searchsorted(self.rel, elapsed_s - laps * self.period,
+                                                       side='right'))
+        return int(np.searchsorted(self.rel, elapsed_s, side='right'))
+
+    def total(self):
+        """Return the number of samples (None when looping)."""
+        return None if self.loop else self.n
+
+    def sample(self, k):
+        """Return sample ``k`` as ``(t, x, v, f, i)``."""
+        lap, j = divmod(k, self.n)
+        x, v, f, i = self.cols[j]
+        return self.t[j] + lap * self.period, x, v, f, i
+
+
+class SimSource:
+    """Samples of the virtual rig, stamped ``t0 + t_sim``."""
+
+    def __init__(self, rig, rate_hz, t0_s, duration_s):
+        self.rig = rig
+        self.rate_hz = rate_hz
+        self.t0 = t0_s
+        self.duration_s = duration_s
+
+    def count_due(self, elapsed_s):
+        """Return how many samples are due after ``elapsed_s`` seconds of simulated time."""
+        return int(math.floor(elapsed_s * self.rate_hz + 1e-9)) + 1
+
+    def total(self):
+        """Return the number of samples to publish (None: unlimited)."""
+        if self.duration_s > 0:
+            return int(round(self.duration_s * self.rate_hz))
+        return None
+
+    def sample(self, k):
+        """Return the next sample (``k`` must count up by one)."""
+        t, x, v, f, i = self.rig.sample()
+        return self.t0 + t, x, v, f, i

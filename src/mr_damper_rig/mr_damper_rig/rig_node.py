@@ -15,7 +15,6 @@ import math
 import sys
 import time
 
-import numpy as np
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
@@ -30,7 +29,7 @@ from mr_damper_model.identifier_node import make_executor, spin
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_msg)
 
-from .replay import MEASUREMENT_TOPIC, read_stream
+from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
 MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                              reliability=ReliabilityPolicy.RELIABLE)
@@ -42,67 +41,6 @@ STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 #: Samples per batch when ``rate_factor`` is 0 (acknowledged before the next batch).
 ACK_BATCH = 100
-
-
-class ArraySource:
-    """
-    Recorded samples with their own timing, optionally looped.
-
-    Sample ``k`` of a looped record is sample ``k % n`` stamped ``t + (k // n) * period`` with
-    ``period`` = record duration + one median sample interval, so stamps keep increasing.
-    """
-
-    def __init__(self, data, loop=False, offset_s=0.0):
-        self.t = data.t + offset_s
-        self.cols = np.column_stack([data.x, data.v, data.f, data.i])
-        self.rel = data.t - data.t[0]
-        self.n = data.n
-        dt = float(np.median(np.diff(data.t))) if data.n > 1 else 1e-3
-        self.period = float(self.rel[-1]) + dt
-        self.loop = loop
-
-    def count_due(self, elapsed_s):
-        """Return how many samples are due after ``elapsed_s`` seconds of record time."""
-        if self.loop:
-            laps = math.floor(elapsed_s / self.period)
-            return laps * self.n + int(np.searchsorted(self.rel, elapsed_s - laps * self.period,
-                                                       side='right'))
-        return int(np.searchsorted(self.rel, elapsed_s, side='right'))
-
-    def total(self):
-        """Return the number of samples (None when looping)."""
-        return None if self.loop else self.n
-
-    def sample(self, k):
-        """Return sample ``k`` as ``(t, x, v, f, i)``."""
-        lap, j = divmod(k, self.n)
-        x, v, f, i = self.cols[j]
-        return self.t[j] + lap * self.period, x, v, f, i
-
-
-class SimSource:
-    """Samples of the virtual rig, stamped ``t0 + t_sim``."""
-
-    def __init__(self, rig, rate_hz, t0_s, duration_s):
-        self.rig = rig
-        self.rate_hz = rate_hz
-        self.t0 = t0_s
-        self.duration_s = duration_s
-
-    def count_due(self, elapsed_s):
-        """Return how many samples are due after ``elapsed_s`` seconds of simulated time."""
-        return int(math.floor(elapsed_s * self.rate_hz + 1e-9)) + 1
-
-    def total(self):
-        """Return the number of samples to publish (None: unlimited)."""
-        if self.duration_s > 0:
-            return int(round(self.duration_s * self.rate_hz))
-        return None
-
-    def sample(self, k):
-        """Return the next sample (``k`` must count up by one)."""
-        t, x, v, f, i = self.rig.sample()
-        return self.t0 + t, x, v, f, i
 
 
 class _Repeating:
