@@ -193,3 +193,27 @@ def test_full_cost_gram_form_equals_direct_rmse(name):
     P = lo + np.random.default_rng(2).random((6, lo.size)) * (hi - lo)
     direct = np.sqrt(np.mean((m.force(P, data.x, data.v, i=data.i) - data.f) ** 2, axis=1))
     np.testing.assert_allclose(_full_cost(m, data)(P), direct, rtol=1e-9)
+
+
+def test_projected_lm_matches_trf_with_an_active_bound():
+    from scipy.optimize import least_squares
+    from mr_damper_model.identify import _projected_lm
+    m, truth = thesis_kwok_current()
+    t, x, v, _ = cam(2.0)
+    i = np.linspace(0.0, 2.0, t.size)
+    data, _, _ = synth(m, truth, t, x, v, i)
+    lo, hi = m.default_bounds()
+    lo, hi = lo.copy(), hi.copy()
+    hi[m.param_names.index('c1')] = 500.0       # truth 850: the optimum sits on this bound
+    start = np.clip(m.from_dict(truth) * 1.3, lo, hi)
+
+    def resid(p):
+        return m.force(p, data.x, data.v, i=data.i) - data.f
+
+    def jac(p):
+        return m.jacobian(p, data.x, data.v, i=data.i)
+    x_lm, r_lm, _ = _projected_lm(resid, jac, start, resid(start), lo, hi)
+    ref = least_squares(resid, start, jac=jac, bounds=(lo, hi), method='trf', x_scale='jac',
+                        ftol=1e-12, xtol=1e-12)
+    assert x_lm[m.param_names.index('c1')] == pytest.approx(500.0)
+    assert r_lm @ r_lm <= (ref.fun @ ref.fun) * (1 + 1e-6)
