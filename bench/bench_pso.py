@@ -245,7 +245,7 @@ def bench(name, d, model, seeds, budget):
         print(f'| {k} | {t * 1e3:.1f} | {cpu[k] * 1e3:.1f} | {r:.4f} | {t / best_t:.2f} | '
               f'{r / best_r:.4f} |')
     share = np.median(np.array(polish_s) / np.array([rows['separable (default)'][0]]))
-    print(f'separable: final polish (trust-region Gauss-Newton on all samples) median '
+    print(f'separable: final polish (bounded Levenberg-Marquardt on all samples) median '
           f'{np.median(polish_s) * 1e3:.1f} ms, about {100 * share:.0f} % of the median wall time')
     return rows
 
