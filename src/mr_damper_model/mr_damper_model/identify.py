@@ -530,8 +530,9 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         the search box, keep the best (default 1; 5 with ``unbounded``, whose sign-free box has
         mirror-image local minima, e.g. negative alpha and delta).
     polish : bool, optional
-        Refine the swarm's best with a bounded Gauss-Newton (trust-region reflective)
-        least-squares run on all parameters and all samples. Default: on for ``separable`` with
+        Refine the swarm's best with a bounded least-squares run (Levenberg-Marquardt with the
+        analytic Jacobian; trust-region reflective for models without one) on all parameters
+        and all samples. Default: on for ``separable`` with
         an algebraic model (the swarm then works on at most :data:`SWARM_SAMPLES` samples, every
         k-th), off for ``full`` (the thesis method) and the stateful models.
 
