@@ -98,12 +98,8 @@ def set_param(cfg, node, name, value):
 
 def concatenate_csv(files, out_path):
     """Concatenate DAQ CSV files (header t,x,v,f,i) into one with continuous time."""
-    from mr_damper_model.data import concatenate, read_csv, write_csv  # noqa: I100
-    parts = [read_csv(f) for f in files]
-    try:
-        data = concatenate(parts)
-    except TypeError:
-        data = type(parts[0]).concatenate(parts)
+    from mr_damper_model.data import DamperData, read_csv, write_csv
+    data = DamperData.concatenate([read_csv(f) for f in files], restamp=True)
     write_csv(out_path, data)
     return out_path
 
