@@ -1,0 +1,215 @@
+"""
+The closed loop over ROS 2: quarter-car node, rig, identifier and the suite launcher.
+
+Real nodes in separate processes (console scripts of the venv), LOCALHOST discovery and the
+private domain of tests/conftest.py. Three runs, about 1.5 min together:
+
+- the quarter-car node alone, fed by a test publisher: no model -> fail-safe at the safe current;
+  a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and undecodable sets are
+  refused and counted by reason, each dropping to fail-safe; commands stay in the coil range;
+- the whole suite through ``run_suite.py`` (twice real time): the car leaves fail-safe after the
+  first valid parameters, its currents stay in the coil range, the live skyhook beats the passive
+  damper on Wk-weighted RMS body acceleration on the same road and seed, exit status 0;
+- the suite's processes with the identifier killed mid-run: the car goes fail-safe (stale) after
+  the timeout and keeps running; the identifier restarted, the loop recovers.
+"""
+import importlib.util
+import json
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from conftest import REPO
+from integration.ros_helpers import Listener, NodeProcess
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+SAFE_A = 0.5
+
+
+def _run_suite_module():
+    spec = importlib.util.spec_from_file_location('run_suite',
+                                                  REPO / 'launch_scripts' / 'run_suite.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _good_params():
+    from mr_damper_model import presets
+    model, params = presets.thesis_kwok_current()
+    values = {k: float(v) for k, v in params.items()}
+    values.update(i_ref_a=float(model.options.get('i_ref_a', 2.0)), window_end_s=1.0,
+                  current_min_a=0.0, current_max_a=2.0, rmse_n=5.0, nrmse_percent=1.0,
+                  valid=1.0)
+    return values
+
+
+def _params_msg(values):
+    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
+    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+
+
+@pytest.fixture(scope='module')
+def listener():
+    lis = Listener('h5_suite_test')
+    yield lis
+    lis.close()
+
+
+def _status_qos():
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _latest_status(statuses):
+    return json.loads(statuses[-1][1].data) if statuses else {}
+
+
+def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64, Float64MultiArray, String
+    topic = '/h5test/kwok_parameters'
+    params = {'params_topic': topic, 'command_topic': '/h5test/current_command',
+              'status_topic': '/h5test/status', 'metrics_topic': '/h5test/metrics',
+              'state_topic': '/h5test/state', 'safe_current_a': SAFE_A,
+              'param_timeout_s': 30.0, 'status_rate_hz': 20.0, 'road_duration_s': 60.0}
+    statuses = listener.subscribe('/h5test/status', String, _status_qos())
+    commands = listener.subscribe('/h5test/current_command', Float64, QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    pub = listener.publisher(topic, Float64MultiArray, QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    with NodeProcess('quarter_car_node', params=params) as qc:
+        assert listener.wait_for(lambda: statuses and pub.get_subscription_count() > 0, 20,
+                                 procs=[qc]), qc.output()
+        st = _latest_status(statuses)
+        assert st['mode'] == 'failsafe' and st['reason'] == 'no_parameters_yet'
+        assert st['current_a'] == SAFE_A
+
+        def send(values, expect_mode, counter=None, count=None):
+            n = len(statuses)
+            pub.publish(values if isinstance(values, Float64MultiArray) else _params_msg(values))
+
+            def seen():
+                if len(statuses) <= n + 1:
+                    return False
+                s = _latest_status(statuses)
+                ok = s['mode'] == expect_mode
+                if counter:
+                    ok = ok and s['params_rejected'][counter] == count
+                return ok
+            assert listener.wait_for(seen, 10, procs=[qc]), (values, _latest_status(statuses))
+            return _latest_status(statuses)
+
+        good = _good_params()
+        st = send(good, 'normal')
+        assert st['params_accepted'] == 1 and st['reason'] == 'ok'
+        bad_sets = [
+            ('invalid_flag', dict(good, valid=0.0)),
+            ('non_finite', dict(good, beta0=math.nan)),
+            ('out_of_bounds', dict(good, c1=-100.0)),
+            ('narrow_current_range', dict(good, current_min_a=0.0, current_max_a=0.0)),
+            ('bad_current_range', dict(good, current_max_a=7.0)),
+        ]
+        for reason, values in bad_sets:
+            st = send(values, 'failsafe', reason, 1)
+            assert st['reason'] == reason
+            send(good, 'normal')
+        undecodable = Float64MultiArray(data=[1.0, 2.0])          # no label: decode refuses
+        st = send(undecodable, 'failsafe', 'undecodable', 1)
+        st = send(good, 'normal')
+        assert st['params_accepted'] == 2 + len(bad_sets)
+        assert sum(st['params_rejected'].values()) == len(bad_sets) + 1
+        assert st['failsafe_entries'] == len(bad_sets) + 1
+        assert qc.alive()
+    cmds = np.array([m.data for _, m in commands])
+    assert cmds.size > 1000
+    assert np.all((cmds >= 0.0) & (cmds <= 2.0))
+    assert np.any(cmds == SAFE_A) and np.any(cmds != SAFE_A)
+
+
+def test_full_suite_short_run(tmp_path):
+    """run_suite.py end to end, twice real time: fail-safe left, limits kept, skyhook wins."""
+    out = tmp_path / 'suite'
+    env = dict(os.environ)
+    cmd = [sys.executable, str(REPO / 'launch_scripts' / 'run_suite.py'), '--duration', '22',
+           '--rate-factor', '2.0', '--out', str(out), '--progress-s', '5',
+           '--domain-id', env['ROS_DOMAIN_ID']]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=150, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert 'MR damper suite summary' in proc.stdout
+    summary = json.loads((out / 'summary.json').read_text())
+    for key in ('duration_s', 'identification', 'ride', 'failsafe_s', 'messages_lost'):
+        assert key in summary
+    ident = summary['identification']
+    assert ident['updates'] > 10 and ident['valid_updates'] > 0
+    assert ident['first_valid_s'] is not None and ident['first_valid_s'] < 15.0
+    assert ident['nrmse_percent'] < 10.0
+    log = np.load(out / 'quarter_car_log.npz')
+    mode = log['mode']
+    # starts in fail-safe at the safe current, then normal once a model is accepted
+    assert mode[0] == 0.0 and log['i_cmd'][0] == SAFE_A
+    first = int(np.argmax(mode > 0.5))
+    assert first > 0 and mode[first:].mean() > 0.9
+    assert np.all((log['i_cmd'] >= 0.0) & (log['i_cmd'] <= 2.0))
+    assert np.all(log['i_cmd'][:first] == SAFE_A)
+    ride = summary['ride']
+    assert ride['window_s'][1] - ride['window_s'][0] > 15.0      # sim seconds with a model
+    assert ride['skyhook']['rms_body_accel_wk'] < ride['passive']['rms_body_accel_wk']
+    assert summary['messages_lost'] == 0
+    assert summary['failsafe_s'] == pytest.approx(log['wall'][first] - log['wall'][0], abs=1.0)
+    for png in ('hysteresis.png', 'convergence.png', 'ride.png'):
+        assert (out / png).stat().st_size > 10000
+
+
+def test_identifier_killed_then_restarted(listener, tmp_path):
+    from std_msgs.msg import String
+    rs = _run_suite_module()
+    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '60'])
+    cfg = rs.resolve_config(args, tmp_path)
+    rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
+    rs.set_param(cfg, rs.QC, 'status_rate_hz', 10.0)
+    rs.set_param(cfg, rs.RIG, 'wait_for_subscribers', 1)
+    rs.set_param(cfg, rs.IDENT, 'save_period_s', 0.5)
+    params_file = tmp_path / 'suite_params.yaml'
+    import yaml
+    params_file.write_text(yaml.safe_dump(cfg))
+    suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    statuses = listener.subscribe('/quarter_car/status', String, _status_qos())
+    try:
+        suite.start_all()
+
+        def mode(expected):
+            def check():
+                return statuses and _latest_status(statuses)['mode'] == expected
+            return check
+        assert listener.wait_for(mode('normal'), 40), \
+            (_latest_status(statuses), suite.log_tail(rs.IDENT), suite.log_tail(rs.RIG))
+        time.sleep(1.0)
+        suite.kill(rs.IDENT, signal.SIGKILL)
+        t_kill = time.monotonic()
+        assert listener.wait_for(mode('failsafe'), 10), _latest_status(statuses)
+        t_fs = time.monotonic() - t_kill
+        st = _latest_status(statuses)
+        assert st['reason'] == 'stale'
+        assert 0.8 < t_fs < 1.0 + 1.5            # timeout 1 s (+ status period, delivery)
+        steps = st['steps']
+        time.sleep(1.0)
+        st = _latest_status(statuses)
+        assert suite.alive(rs.QC) and st['steps'] > steps + 500 and st['mode'] == 'failsafe'
+        assert st['current_a'] == SAFE_A
+        suite.start(rs.IDENT)                      # restarts from its saved parameter file
+        assert listener.wait_for(mode('normal'), 30), \
+            (_latest_status(statuses), suite.log_tail(rs.IDENT))
+        assert suite.poll() == {}
+    finally:
+        codes = suite.stop()
+    assert codes[rs.QC] in rs.CLEAN_EXIT, suite.log_tail(rs.QC)
