@@ -80,7 +80,7 @@ class IdentifierNode(Node):
                         'updates); empty: none'))
         self.declare_parameter('save_period_s', 2.0, ParameterDescriptor(
             description='Minimum wall time between parameter-file writes [s]'))
-        self.declare_parameter('status_period_s', 0.5, ParameterDescriptor(
+        self.declare_parameter('status_period_s', 0.2, ParameterDescriptor(
             description='Status publication period [s]'))
         p = self.get_parameter
         config = LiveConfig(**{name: p(name).value for name in _LIVE_DESCRIPTIONS})

@@ -653,7 +653,8 @@ class LiveIdentifier:
         Keys: ``samples_received``, ``samples_accepted``, ``rejected`` {reason: count},
         ``stream_restarts``, ``windows_due``, ``windows_superseded``, ``windows_fitted``,
         ``windows_valid``, ``windows_skipped`` {reason: count}, ``fit_errors``,
-        ``last_window_end_s``, ``last_valid``, ``last_reason``, ``last_model``,
+        ``last_window_start_s``, ``last_window_end_s`` (stamps of the first and last sample
+        of the last fitted window [s]), ``last_valid``, ``last_reason``, ``last_model``,
         ``last_nrmse_percent``, ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``,
         ``bins_a`` (current levels held), ``last_error``.
         """
@@ -662,6 +663,7 @@ class LiveIdentifier:
         est = self.estimate
         fitted = c['windows_fitted']
         c.update(
+            last_window_start_s=est.window_start_s if est else math.nan,
             last_window_end_s=est.window_end_s if est else math.nan,
             last_valid=bool(est.valid) if est else False,
             last_reason=est.reason if est else 'no_estimate',

@@ -5,7 +5,9 @@ Rig node: the virtual MR damper rig, or a replay of a recorded DAQ CSV file or r
 ``sensor_msgs/JointState`` per DAQ sample on the measurement topic, paced in real time times
 ``rate_factor`` by publishing the samples that are due at every timer tick (so the effective rate
 is exact even though a 1 kHz rclpy timer is not); ``rate_factor`` 0 publishes as fast as the
-subscribers acknowledge, batch by batch.  In ``sim`` mode the true damper parameters are published
+consumer takes the samples: it keeps at most ``flow_window`` samples ahead of the
+``samples_received`` count the consumer reports on ``flow_topic`` (the identifier's status; DDS
+acknowledgements are no use for this: they arrive with the writer's heartbeat, every ~3 s).  In ``sim`` mode the true damper parameters are published
 (latched) for comparison.  A JSON status is published on the status topic.
 
 Replay files are read and checked completely before the first sample is published; a bad file
@@ -27,7 +29,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from mr_damper_model.data import DataError
 from mr_damper_model.identifier_node import make_executor, spin
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
-                                      measurement_to_msg, status_msg)
+                                      measurement_to_msg, status_from_msg, status_msg)
 
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
@@ -39,8 +41,6 @@ LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
-#: Samples per batch when ``rate_factor`` is 0 (acknowledged before the next batch).
-ACK_BATCH = 100
 
 
 class _Repeating:
@@ -116,6 +116,10 @@ class RigNode(Node):
             description='Exit (status 0) when the replay or the sim duration is done'))
         d('wait_for_subscribers', 0, ParameterDescriptor(
             description='Wait until this many measurement subscribers matched (max 30 s)'))
+        d('flow_topic', '/mr_damper/identifier_status', ParameterDescriptor(
+            description='rate_factor 0: JSON status whose samples_received paces the replay'))
+        d('flow_window', 1000, ParameterDescriptor(
+            description='rate_factor 0: samples allowed ahead of the consumer'))
         d('tick_s', 0.005, ParameterDescriptor(description='Publishing timer period [s]'))
         d('status_period_s', 0.5, ParameterDescriptor(description='Status period [s]'))
         d('measurement_topic', MEASUREMENT_TOPIC)
@@ -176,6 +180,11 @@ class RigNode(Node):
             if p('current_source') == 'command':
                 self.create_subscription(Float64, p('current_command_topic'), self._on_command,
                                          COMMAND_QOS)
+        self._flow_window = int(p('flow_window'))
+        self._flow_received = None   # consumer's samples_received (latest, first seen)
+        self._flow_base = None
+        if self.rate_factor == 0:
+            self.create_subscription(String, p('flow_topic'), self._on_flow, STATUS_QOS)
         self._wait_subs = int(p('wait_for_subscribers'))
         self._msg = None
         self.published = 0
@@ -210,29 +219,42 @@ class RigNode(Node):
             self.rig.command_current(float(msg.data))
             self.commands += 1
 
+    def _on_flow(self, msg):
+        try:
+            received = int(status_from_msg(msg)['samples_received'])
+        except (ValueError, KeyError, TypeError):
+            return
+        self._flow_received = received
+        if self._flow_base is None and self._start is None:
+            self._flow_base = received
+
     def _tick(self):
         if self.finished:
             return
         if self._start is None:
             subs = self._pub.get_subscription_count()
-            if subs < self._wait_subs and time.monotonic() - self._created < 30.0:
+            waiting = time.monotonic() - self._created < 30.0
+            if subs < self._wait_subs and waiting:
                 return
+            if self.rate_factor == 0 and self._flow_base is None and waiting:
+                return   # the consumer's first status gives the base count
             self._start = time.monotonic()
         total = self.source.total()
         if self.rate_factor > 0:
             due = self.source.count_due((time.monotonic() - self._start) * self.rate_factor)
+        elif self._flow_base is not None:
+            due = self._flow_received - self._flow_base + self._flow_window
         else:
-            due = self.published + ACK_BATCH
+            due = self.published + 1   # no flow status: one sample per tick
         if total is not None:
             due = min(due, total)
-        self.behind_max = max(self.behind_max, due - self.published)
-        n = min(due - self.published, 5000)
+        if self.rate_factor > 0:
+            self.behind_max = max(self.behind_max, due - self.published)
+        n = max(0, min(due - self.published, 5000))
         for _ in range(n):
             self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
             self._pub.publish(self._msg)
             self.published += 1
-        if self.rate_factor == 0 and n:
-            self._pub.wait_for_all_acked(Duration(seconds=5.0))
         if total is not None and self.published >= total:
             self._pub.wait_for_all_acked(Duration(seconds=10.0))
             self.finished = True
