@@ -1,0 +1,101 @@
+"""
+``colcon build`` of the workspace (colcon from the venv, pip only) gives what ``ros2 run`` runs.
+
+``ros2 run PKG EXE`` executes ``install/PKG/lib/PKG/EXE``: the build must produce that file for
+every node, and each must start from the install (sourcing ``install/setup.bash``, so the
+packages come from the install tree, not from the editable checkout).
+"""
+import os
+from pathlib import Path
+import shlex
+import signal
+import subprocess
+import time
+
+import pytest
+
+from conftest import REPO, VENV_BIN
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
+         ('quarter_car_sim', 'quarter_car_node')]
+
+
+@pytest.fixture(scope='module')
+def install(tmp_path_factory):
+    ws = tmp_path_factory.mktemp('colcon_ws')
+    env = dict(os.environ, PATH=f'{VENV_BIN}{os.pathsep}{os.environ["PATH"]}')
+    out = subprocess.run([str(VENV_BIN / 'colcon'), '--log-base', str(ws / 'log'), 'build',
+                          '--base-paths', str(REPO / 'src'), '--build-base', str(ws / 'build'),
+                          '--install-base', str(ws / 'install')],
+                         cwd=ws, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    return ws / 'install'
+
+
+def in_install(install, command):
+    """Run ``command`` in bash after sourcing the install's setup.bash (no ``set -u``)."""
+    return ['bash', '-c', f'source {shlex.quote(str(install / "setup.bash"))} && {command}']
+
+
+@pytest.mark.parametrize('pkg, exe', NODES)
+def test_executable_is_where_ros2_run_looks(install, pkg, exe):
+    path = install / pkg / 'lib' / pkg / exe
+    assert path.is_file() and os.access(path, os.X_OK)
+    assert (install / pkg / 'share' / pkg / 'package.xml').is_file()
+    assert (install / pkg / 'share' / 'ament_index' / 'resource_index' / 'packages'
+            / pkg).is_file()
+
+
+def test_packages_come_from_the_install(install):
+    out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} -c "import mr_damper_rig, '
+                                    'mr_damper_model, quarter_car_sim as q; '
+                                    'print(mr_damper_rig.__file__, mr_damper_model.__file__, '
+                                    'q.__file__)"'),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    for path in out.stdout.split():
+        assert Path(path).is_relative_to(install), path
+
+
+def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):
+    exe = install / 'mr_damper_rig' / 'lib' / 'mr_damper_rig' / 'rig_node'
+    missing = tmp_path / 'missing.csv'
+    out = subprocess.run(in_install(install, f'{exe} --ros-args -p mode:=csv '
+                                    f'-p file:={missing}'),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert f'{missing}: cannot read file' in out.stderr
+
+
+@pytest.mark.parametrize('pkg, exe, ready', [
+    ('mr_damper_model', 'identifier_node', 'identifying'),
+    ('quarter_car_sim', 'quarter_car_node', None),
+])
+def test_long_running_nodes_start_from_install(install, tmp_path, pkg, exe, ready):
+    log = tmp_path / f'{exe}.log'
+    with open(log, 'w') as fh:
+        proc = subprocess.Popen(in_install(install, f'exec {install / pkg / "lib" / pkg / exe}'),
+                                stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        end = time.monotonic() + 30.0
+        while time.monotonic() < end and proc.poll() is None:
+            if ready is not None and ready in log.read_text():
+                break
+            if ready is None and time.monotonic() > end - 25.0:   # 5 s up and running
+                break
+            time.sleep(0.2)
+        assert proc.poll() is None, log.read_text()
+        if ready is not None:
+            assert ready in log.read_text()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert 'Traceback' not in log.read_text(), log.read_text()
+    assert proc.returncode == 0, log.read_text()
