@@ -7,7 +7,8 @@ with ONE parameter YAML (``--ros-args --params-file FILE``), on loopback-only di
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and a domain ID of its own, records the topics the
 summary needs in its own process, forwards Ctrl-C (SIGINT) to the children, shuts everything down
 in order (rig first, so the identifier drains the stream) and exits non-zero if a node died.
-At the end it writes ``summary.json`` and plots into ``--out`` (see ``quarter_car_sim.suite_report``).
+At the end it writes ``summary.json`` and plots into ``--out``
+(see ``quarter_car_sim.suite_report``).
 
 Usage (venv python)::
 
@@ -320,7 +321,7 @@ class Recording:
     def __init__(self):
         self.lock = threading.Lock()
         self.t0 = time.monotonic()
-        self.meas = []            # (t, x, v, f, i)
+        self.meas = []            # (t, x, v, f, i, receipt time [s, epoch])
         self.meas_gaps = 0        # samples missing between consecutive stamps
         self.meas_out_of_order = 0
         self.params = []          # (wall_s since start, dict)
@@ -390,7 +391,7 @@ def start_recorder(rec, topics):
                 elif step > 1.5 * rec.dt_meas:
                     rec.meas_gaps += int(round(step / rec.dt_meas)) - 1
             last['t'] = t
-            rec.meas.append(sample)
+            rec.meas.append(sample + (time.time(),))
 
     def on_params(msg):
         try:
@@ -480,10 +481,10 @@ def save_recording(rec, out):
     """Write ``measurement.npz`` and ``recording.json`` into ``out``; return their paths."""
     import numpy as np
     with rec.lock:
-        meas = np.array(rec.meas, dtype=float).reshape(-1, 5)
+        meas = np.array(rec.meas, dtype=float).reshape(-1, 6)
     mpath = Path(out) / 'measurement.npz'
     np.savez_compressed(mpath, t=meas[:, 0], x=meas[:, 1], v=meas[:, 2], f=meas[:, 3],
-                        i=meas[:, 4])
+                        i=meas[:, 4], recv_epoch_s=meas[:, 5])
     rpath = Path(out) / 'recording.json'
     rpath.write_text(json.dumps(_finite(rec.to_dict())))
     return mpath, rpath
@@ -581,7 +582,8 @@ def parse_args(argv):
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
-    p.add_argument('--params', help='your own parameter YAML instead of config/suite_<config>.yaml')
+    p.add_argument('--params',
+                   help='your own parameter YAML instead of config/suite_<config>.yaml')
     speed = p.add_mutually_exclusive_group()
     speed.add_argument('--real-time', dest='rate_factor', action='store_const', const=1.0,
                        help='rig and quarter car in real time (default of the YAML)')

@@ -202,7 +202,8 @@ class ModelSupervisor:
         for n in KWOK_CURRENT_NAMES:
             lo, hi = self.bounds[n]
             if not lo <= values[n] <= hi:
-                return Verdict(False, 'out_of_bounds', f'{n} = {values[n]:g} not in [{lo:g}, {hi:g}]')
+                return Verdict(False, 'out_of_bounds',
+                               f'{n} = {values[n]:g} not in [{lo:g}, {hi:g}]')
         lo_a, hi_a = values['current_min_a'], values['current_max_a']
         tol = self.current_tol_a
         if values['i_ref_a'] <= 0:
@@ -255,7 +256,8 @@ class ModelSupervisor:
 
         """
         if reason not in self.rejected:
-            raise SupervisorError(f'`reason` must be one of {sorted(self.rejected)}, got {reason!r}.')
+            raise SupervisorError(
+                f'`reason` must be one of {sorted(self.rejected)}, got {reason!r}.')
         return self._apply(Verdict(False, reason, detail), None, t_now)
 
     def _apply(self, verdict, msg, t_now):

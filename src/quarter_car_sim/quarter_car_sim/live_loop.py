@@ -232,9 +232,9 @@ class Pacer:
 
     Step ``k`` is due at ``t_start + k * dt / factor``; ``factor = 0`` means as fast as
     possible. After :meth:`wait`, :attr:`lateness` is how late [s] the step started against its
-    deadline (a late step is followed by shorter periods until the schedule is caught up). :meth:`due` says how many steps are due now (bounded by ``max_burst``, the rest are
-    counted as skipped deadlines: the simulation then falls behind wall time, it never skips
-    physics).
+    deadline (a late step is followed by shorter periods until the schedule is caught up).
+    More than ``max_burst`` periods behind (machine overloaded), the schedule is re-anchored and
+    counted in :attr:`late`: the simulation then falls behind wall time, it never skips physics.
 
     Parameters
     ----------

@@ -109,7 +109,8 @@ class QuarterCarNode(Node):
         self.log_file = d('log_file', '', 'Write every control step to this .npz at shutdown')
         car = {k: d(k, v, doc) for k, v, doc in (
             ('m_s', 300.0, 'Sprung mass [kg]'), ('m_u', 60.0, 'Unsprung mass [kg]'),
-            ('k_s', 16000.0, 'Suspension spring [N/m]'), ('k_t', 190000.0, 'Tyre stiffness [N/m]'))}
+            ('k_s', 16000.0, 'Suspension spring [N/m]'),
+            ('k_t', 190000.0, 'Tyre stiffness [N/m]'))}
         topics = {k: d(k, v, 'Topic name') for k, v in (
             ('params_topic', '/mr_damper/kwok_parameters'),
             ('command_topic', '/mr_damper/current_command'),

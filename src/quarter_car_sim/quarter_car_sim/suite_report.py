@@ -272,6 +272,33 @@ def ride_summary(log, qc_params):
     return out
 
 
+def measurement_to_parameters(meas, params_log):
+    """
+    Delays [s] from the newest measurement of each identified window to its parameters.
+
+    The newest sample's arrival (the launcher's recorder receives the measurement stream as the
+    identifier does) is found from its stamp ``window_end_s``; the delay runs to the arrival of
+    the parameter message at the recorder (the quarter car subscribes to it the same way and
+    uses it from its next 1 ms step on). Windows older than the record are ignored.
+
+    Returns
+    -------
+    numpy.ndarray
+        One delay per parameter message [s].
+
+    """
+    t = np.asarray(meas.get('t', []), dtype=float)
+    recv = np.asarray(meas.get('recv_epoch_s', []), dtype=float)
+    if t.size < 2 or recv.size != t.size:
+        return np.zeros(0)
+    out = []
+    for _, p in params_log:
+        end, got = p.get('window_end_s', math.nan), p.get('recv_epoch_s', math.nan)
+        if math.isfinite(end) and math.isfinite(got) and t[0] <= end <= t[-1]:
+            out.append(got - float(np.interp(end, t, recv)))
+    return np.asarray(out)
+
+
 def messages_summary(rec, qc_status):
     """
     Messages lost, from the recorder's stamp gaps and the nodes' counters.
@@ -378,12 +405,8 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         summary['loop_full_run'] = _loop_figures(log)
     if (out / 'process_stats.json').exists():
         summary['processes'] = json.loads((out / 'process_stats.json').read_text())
-    lat = [p.get('recv_epoch_s', math.nan) - p.get('window_end_s', math.nan)
-           for _, p in params_log]
-    lat = np.array([v for v in lat if math.isfinite(v)])
-    if lat.size and summary.get('config') == 'sim':
-        # sim rig stamps are wall-clock (ROS time): end of the newest measurement in a window
-        # -> its parameters received by the launcher (the car gets them at the same moment)
+    lat = measurement_to_parameters(meas, params_log)
+    if lat.size:
         summary['measurement_to_parameters_s'] = {
             'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
             'max': float(lat.max()), 'n': int(lat.size)}
@@ -422,10 +445,10 @@ def format_summary(s):
                  f'{ident.get("valid_updates", 0)} valid, first valid after '
                  f'{"never" if fv is None else f"{fv:.1f} s"}')
     if ident.get('parameters'):
-        lines.append(f'  final model on all recorded samples: RMSE {ident.get("rmse_n") or 0:.1f} N,'
-                     f' NRMSE {ident.get("nrmse_percent") or 0:.2f} %'
-                     f' (identifier reported {ident.get("reported_nrmse_percent") or 0:.2f} % on '
-                     'its window)')
+        lines.append(f'  final model on all recorded samples: RMSE '
+                     f'{ident.get("rmse_n") or 0:.1f} N, '
+                     f'NRMSE {ident.get("nrmse_percent") or 0:.2f} % (identifier reported '
+                     f'{ident.get("reported_nrmse_percent") or 0:.2f} % on its window)')
         truth = ident.get('truth') or {}
         lines.append('  ' + ' '.join(f'{n:>9s}' for n in ('param',) + KWOK_CURRENT_NAMES))
         lines.append('  ' + f'{"ident.":>9s} ' + ' '.join(
@@ -433,6 +456,12 @@ def format_summary(s):
         if truth:
             lines.append('  ' + f'{"truth":>9s} ' + ' '.join(
                 f'{truth[n]:9.4g}' for n in KWOK_CURRENT_NAMES))
+            errs = {k: v for k, v in (ident.get('parameter_error_percent') or {}).items()
+                    if v is not None}
+            if errs:
+                worst = max(errs, key=lambda k: abs(errs[k]))
+                lines.append(f'  parameter errors: largest {errs[worst]:+.2f} % ({worst}); '
+                             + ', '.join(f'{k} {v:+.1f} %' for k, v in errs.items()))
             if ident.get('truth_nrmse_percent') is not None:
                 lines.append(f'  true parameters on the same samples: NRMSE '
                              f'{ident["truth_nrmse_percent"]:.2f} % (noise floor)')
@@ -447,8 +476,9 @@ def format_summary(s):
     if ride.get('skyhook') and ride.get('passive'):
         sk, pa = ride['skyhook'], ride['passive']
         w = ride.get('window_s', [0, 0])
-        lines.append(f'ride ({ride.get("controller")} vs passive@{ride.get("passive_current_a")} A,'
-                     f' same road/seed, sim time {w[0]:.1f}..{w[1]:.1f} s):')
+        lines.append(f'ride ({ride.get("controller")} vs passive@'
+                     f'{ride.get("passive_current_a")} A, same road/seed, '
+                     f'sim time {w[0]:.1f}..{w[1]:.1f} s):')
         for key, unit in (('rms_body_accel_wk', 'm/s^2'), ('rms_body_accel', 'm/s^2'),
                           ('rms_tyre_load_ratio', '-'), ('rms_suspension_travel', 'm')):
             a, b = sk.get(key), pa.get(key)
@@ -457,16 +487,20 @@ def format_summary(s):
                              f'  ({100 * (a - b) / b:+.1f} %)')
         soft = ride.get('passive_0a')
         if soft:
-            lines.append(f'  vs passive@0 A (softest, best comfort): Wk {soft["rms_body_accel_wk"]:.4f}'
-                         f' m/s^2 ({100 * (sk["rms_body_accel_wk"] / soft["rms_body_accel_wk"] - 1):+.1f}'
-                         f' %), tyre load {soft["rms_tyre_load_ratio"]:.4f} '
-                         f'({100 * (sk["rms_tyre_load_ratio"] / soft["rms_tyre_load_ratio"] - 1):+.1f} %)')
+            wk0, ty0 = soft['rms_body_accel_wk'], soft['rms_tyre_load_ratio']
+            lines.append(f'  vs passive@0 A (softest, best comfort): Wk {wk0:.4f} m/s^2 '
+                         f'({100 * (sk["rms_body_accel_wk"] / wk0 - 1):+.1f} %), tyre load '
+                         f'{ty0:.4f} ({100 * (sk["rms_tyre_load_ratio"] / ty0 - 1):+.1f} %)')
         if ride.get('note'):
             lines.append(f'  note: {ride["note"]}')
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
                  f'refused parameter sets: {(s.get("failsafe") or {}).get("params_rejected")}')
     lines.append(f'messages lost: {s.get("messages_lost")} ({s.get("messages")})')
     loop = s.get('loop_full_run') or {}
+    m2p = s.get('measurement_to_parameters_s')
+    if m2p:
+        lines.append(f'newest sample of a window -> its parameters at the car: p50 '
+                     f'{1e3 * m2p["p50"]:.0f} ms, p99 {1e3 * m2p["p99"]:.0f} ms')
     if loop.get('period'):
         p, lat = loop['period'], loop['latency']
         lines.append(f'control loop: period p50 {p["p50_ms"]:.3f} ms, jitter p99 '
