@@ -16,6 +16,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -38,6 +39,9 @@ PARAMETERS_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                             reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+#: Samples kept for the stamp-age (latency) percentiles of the status.
+_AGES = 10000
 
 _LIVE_DESCRIPTIONS = {
     'window_s': 'Sliding window length [s]',
@@ -108,6 +112,8 @@ class IdentifierNode(Node):
         self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
                                  MEASUREMENT_QOS)
         self.create_timer(float(p('status_period_s').value), self._publish_status)
+        self._ages = np.zeros(_AGES)
+        self._n_ages = 0
         self._published = 0
         self._saved = 0
         self._last_save = -math.inf
@@ -134,6 +140,9 @@ class IdentifierNode(Node):
             self.get_logger().warning(f'rejected measurement: {exc}', throttle_duration_sec=1.0)
             return
         reason = self.live.add_sample(*sample)
+        # stamp age at receipt [s]: the transport latency when stamps are wall-clock time
+        self._ages[self._n_ages % _AGES] = self.get_clock().now().nanoseconds * 1e-9 - sample[0]
+        self._n_ages += 1
         if reason:
             self.get_logger().warning(f'rejected measurement at t={sample[0]:.6f} s: {reason}',
                                       throttle_duration_sec=1.0)
@@ -185,6 +194,11 @@ class IdentifierNode(Node):
         if self._pending_save is not None:
             self._save(self._pending_save)
         status = self.live.status()
+        ages = self._ages[:min(self._n_ages, _AGES)]
+        if ages.size:
+            p50, p99 = np.percentile(ages, [50, 99]) * 1e3
+            status['stamp_age_ms'] = {'p50': p50, 'p99': p99, 'max': float(ages.max()) * 1e3,
+                                      'n': int(ages.size)}
         status.update(parameters_published=self._published, params_file_writes=self._saved,
                       initial_source=self._initial_source, worker_alive=self._worker.is_alive())
         self._pub_status.publish(status_msg(status))

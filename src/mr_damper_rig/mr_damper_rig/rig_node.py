@@ -120,7 +120,8 @@ class RigNode(Node):
             description='rate_factor 0: JSON status whose samples_received paces the replay'))
         d('flow_window', 1000, ParameterDescriptor(
             description='rate_factor 0: samples allowed ahead of the consumer'))
-        d('tick_s', 0.005, ParameterDescriptor(description='Publishing timer period [s]'))
+        d('tick_s', 0.002, ParameterDescriptor(
+            description='Publishing timer period [s] (samples due are published per tick)'))
         d('status_period_s', 0.5, ParameterDescriptor(description='Status period [s]'))
         d('measurement_topic', MEASUREMENT_TOPIC)
         d('true_parameters_topic', '/mr_damper/true_parameters')
@@ -239,6 +240,8 @@ class RigNode(Node):
             if self.rate_factor == 0 and self._flow_base is None and waiting:
                 return   # the consumer's first status gives the base count
             self._start = time.monotonic()
+            if self.rig is not None:   # stamps: wall clock at the first sample + sim time
+                self.source.t0 = self.get_clock().now().nanoseconds * 1e-9
         total = self.source.total()
         if self.rate_factor > 0:
             due = self.source.count_due((time.monotonic() - self._start) * self.rate_factor)
