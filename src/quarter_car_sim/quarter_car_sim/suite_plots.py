@@ -32,7 +32,7 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     x, v, f, i = (np.asarray(meas[k], dtype=float) for k in 'xvfi')
     rounded = np.round(i / 0.05) * 0.05
     levels, counts = np.unique(rounded, return_counts=True)
-    levels = levels[counts >= 0.5 * per_level_s * max(1.0, t.size / max(np.ptp(t), 1e-9))]
+    levels = levels[counts >= 0.4 * per_level_s * max(1.0, t.size / max(np.ptp(t), 1e-9))]
     if levels.size > max_levels:
         levels = levels[np.linspace(0, levels.size - 1, max_levels).round().astype(int)]
     plt = _plt()
@@ -55,7 +55,8 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     axes[1].set_xlabel('displacement [mm]')
     axes[0].set_title('measured (dots) vs identified kwok-current (black)')
     axes[1].set_title('force - displacement')
-    axes[0].legend(fontsize=7, markerscale=5)
+    if axes[0].get_legend_handles_labels()[1]:
+        axes[0].legend(fontsize=7, markerscale=5)
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()

@@ -1,0 +1,145 @@
+"""Tests of quarter_car_sim.live_loop: the node's control loop without ROS."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from quarter_car_sim import live_loop
+from quarter_car_sim.controllers import Passive, Skyhook
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.failsafe import ModelSupervisor
+from quarter_car_sim.params import QuarterCarParams
+
+
+def _truth():
+    from mr_damper_model import presets
+    model, params = presets.thesis_kwok_current()
+    msg = dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
+               valid=1.0)
+    return params, msg
+
+
+def _loop(controller, *, safe=0.5, seconds=3.0):
+    params = QuarterCarParams()
+    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=3,
+                               duration_s=seconds)
+    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=-0.5)
+    sup = ModelSupervisor(timeout_s=1.0, safe_current_a=safe)
+    metrics = live_loop.make_running_metrics(params, 1e-3)
+    return live_loop.ClosedLoop(car, controller, sup, 1e-3, metrics=metrics)
+
+
+def test_failsafe_commands_safe_current_then_model_then_stale():
+    loop = _loop(Skyhook(3000.0))
+    truth, msg = _truth()
+    for k in range(200):                              # no model yet
+        loop.step(0.001 * k)
+        assert loop.i_cmd == 0.5 and loop.sup.mode == 'failsafe'
+    loop.sup.offer(msg, 0.2)
+    currents = []
+    for k in range(200, 1100):                        # model fresh until t = 1.2 s
+        loop.step(0.001 * k)
+        currents.append(loop.i_cmd)
+    currents = np.array(currents)
+    assert np.all((currents >= 0.0) & (currents <= 2.0))
+    assert np.unique(np.round(currents, 3)).size > 50   # a controller, not a constant
+    loop.step(1.25)                                   # stale
+    assert loop.sup.mode == 'failsafe' and loop.sup.reason == 'stale' and loop.i_cmd == 0.5
+    assert loop.steps == 1101
+    assert loop.metrics.n == 1101
+
+
+def test_inverse_delivers_the_demanded_force_with_the_true_model():
+    """With the plant's own parameters the model force at the command equals the demand."""
+    loop = _loop(Skyhook(3000.0))
+    truth, msg = _truth()
+    loop.sup.offer(msg, 0.0)
+    from quarter_car_sim.controllers import KwokCurrentInverse
+    inv = KwokCurrentInverse(truth)
+    checked = 0
+    for k in range(2000):
+        state = loop.car.state
+        i = loop.command(state, 0.0)
+        if not loop.last_saturated:                   # reachable demands
+            f_model = inv.model_force(state.travel, state.v_rel, i)
+            assert -f_model == pytest.approx(loop.f_demand, abs=0.5)
+            checked += 1
+        loop.advance()
+    assert checked > 100
+
+
+def test_inverse_kept_inside_identified_current_range():
+    loop = _loop(Skyhook(3000.0))
+    truth, msg = _truth()
+    loop.sup.offer(dict(msg, current_min_a=0.0, current_max_a=1.25), 0.0)
+    cur = np.array([loop.step(0.0) and loop.i_cmd for _ in range(3000)])
+    assert cur.max() <= 1.25 + 1e-12 and cur.max() > 1.2   # saturates at the range, not 2 A
+
+
+def test_passive_controller_ignores_the_model():
+    loop = _loop(Passive(1.5))
+    for k in range(100):
+        loop.step(0.001 * k)
+    assert loop.i_cmd == 1.5
+
+
+def test_active_controller_refused():
+    with pytest.raises(ValueError, match='force actuator'):
+        live_loop.make_controller('skyhook-ideal')
+
+
+def test_pacer_schedule_and_reanchor():
+    now = [10.0]
+    pacer = live_loop.Pacer(1e-3, 2.0, clock=lambda: now[0], max_burst=5)
+    assert pacer.period() == pytest.approx(5e-4)
+    pacer.wait()                      # step 0 due at once
+    assert pacer.k == 1 and pacer.lateness == pytest.approx(0.0)
+    now[0] += 0.0012                  # 1.2 ms later: steps 1 and 2 are due, step 1 late 0.7 ms
+    pacer.wait()
+    assert pacer.lateness == pytest.approx(0.0007)
+    now[0] += 1.0                     # hopelessly behind: re-anchored, counted
+    pacer.wait()
+    assert pacer.late == 1
+    assert pacer.next_deadline() == pytest.approx(now[0] + 5e-4)
+    fast = live_loop.Pacer(1e-3, 0.0, clock=lambda: now[0])
+    assert fast.period() == 0.0 and fast.wait() == now[0]
+
+
+def test_timing_stats_known_values():
+    st = live_loop.timing_stats([1e-3] * 98 + [3e-3, 5e-3], nominal=1e-3)
+    assert st['n'] == 100 and st['p50_ms'] == pytest.approx(1.0)
+    assert st['max_ms'] == pytest.approx(5.0) and st['jitter_max_ms'] == pytest.approx(4.0)
+    assert st['mean_ms'] == pytest.approx((98 + 3 + 5) / 100)
+    empty = live_loop.timing_stats([], nominal=1e-3)
+    assert empty['n'] == 0 and np.isnan(empty['jitter_p99_ms'])
+
+
+def test_trace_log_round_trip(tmp_path):
+    loop = _loop(Passive(0.5))
+    trace = live_loop.TraceLog()
+    for k in range(50):
+        state = loop.step(0.001 * k)
+        trace.append(state, loop.i_cmd, loop.f_demand, False, 0.001 * k, 1e-5, 0.0)
+    path = tmp_path / 'log.npz'
+    trace.save(path, dt=1e-3)
+    z = np.load(path)
+    assert set(live_loop.TRACE_COLUMNS) <= set(z.files)
+    assert z['t'].size == 50 and float(z['dt']) == 1e-3
+    np.testing.assert_allclose(np.diff(z['t']), 1e-3, atol=1e-12)
+    assert np.all(z['i_cmd'] == 0.5) and np.all(z['mode'] == 0.0)
+
+
+def test_loop_timing_counts_jitter():
+    lt = live_loop.LoopTiming(1e-3)
+    for k, w in enumerate([0.0, 0.001, 0.002, 0.0055, 0.0065]):
+        lt.add(w, 1e-5, 2e-5, 0.0)
+    st = lt.stats()
+    assert st['steps'] == 5 and st['jitter_over_2ms'] == 1
+    assert st['period']['max_ms'] == pytest.approx(3.5)
+
+
+def test_module_does_not_import_rclpy():
+    code = 'import sys, quarter_car_sim.live_loop; print("rclpy" in sys.modules)'
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == 'False'
