@@ -11,6 +11,7 @@ from pathlib import Path
 import sys
 import types
 
+import numpy as np
 import pytest
 import yaml
 
@@ -147,3 +148,53 @@ def test_yaml_parameters_are_declared_by_the_nodes(config):
             names |= set(shared)
         for name in names:
             assert f"'{name}'" in text or f'    {name}: ' in text, f'{node}: {name} not declared'
+
+
+def _run_suite():
+    spec = importlib.util.spec_from_file_location('run_suite_cfg',
+                                                  REPO / 'launch_scripts' / 'run_suite.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_launcher_config_resolution(tmp_path):
+    rs = _run_suite()
+    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '3', '--duration', '40',
+                          '--set', 'quarter_car_node.safe_current_a=1.0',
+                          '--set', '/**.plant=kwok-current'])
+    cfg = rs.resolve_config(args, tmp_path)
+    qc = rs.node_params(cfg, rs.QC)
+    assert qc['safe_current_a'] == 1.0 and isinstance(qc['safe_current_a'], float)
+    assert qc['real_time_factor'] == 3.0 and rs.node_params(cfg, rs.RIG)['rate_factor'] == 3.0
+    assert qc['plant'] == 'kwok-current' == rs.node_params(cfg, rs.RIG)['plant']
+    assert qc.get('road_duration_s', 300.0) >= 40 * 3.0  # the road outlasts the run (default 300)
+    assert qc['log_file'] == str(tmp_path / 'quarter_car_log.npz')
+    assert rs.node_params(cfg, rs.IDENT)['params_file'] == str(tmp_path / 'identifier_params.json')
+
+
+def test_launcher_replay_concatenates_csv_files(tmp_path):
+    from conftest import QUIROZ_DIR
+    from mr_damper_model.data import read_csv
+    rs = _run_suite()
+    files = sorted(QUIROZ_DIR.glob('quiroz_sine_10mm1Hz_*A_preproc.csv'))[:2]
+    args = rs.parse_args(['--out', str(tmp_path), '--config', 'replay']
+                         + [a for f in files for a in ('--file', str(f))])
+    cfg = rs.resolve_config(args, tmp_path)
+    rig = rs.node_params(cfg, rs.RIG)
+    assert rig['mode'] == 'csv' and rig['file'] == str(tmp_path / 'replay_input.csv')
+    joined = read_csv(rig['file'])
+    parts = [read_csv(f) for f in files]
+    assert joined.n == sum(p.n for p in parts)
+    assert np.all(np.diff(joined.t) > 0)
+    np.testing.assert_array_equal(joined.f, np.concatenate([p.f for p in parts]))
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--config', 'replay', '--file', '/nonexistent.csv'], 'no such file'),
+    (['--set', 'no_equals_sign'], 'NODE.PARAM=VALUE'),
+])
+def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
+    rs = _run_suite()
+    assert rs.main(['--out', str(tmp_path), *argv]) == 2
+    assert message in capsys.readouterr().err

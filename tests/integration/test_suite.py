@@ -213,3 +213,17 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
     finally:
         codes = suite.stop()
     assert codes[rs.QC] in rs.CLEAN_EXIT, suite.log_tail(rs.QC)
+
+
+def test_launcher_exits_non_zero_when_a_node_dies(tmp_path):
+    """A node that dies (here: the car on an unknown road class) ends the run with status 1."""
+    out = tmp_path / 'dead'
+    cmd = [sys.executable, str(REPO / 'launch_scripts' / 'run_suite.py'), '--duration', '60',
+           '--out', str(out), '--no-plots', '--set', 'quarter_car_node.road_class=Z',
+           '--domain-id', os.environ['ROS_DOMAIN_ID']]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert 'quarter_car_node died (exit 2)' in proc.stderr
+    assert 'road' in proc.stderr.lower()              # its one-line error is shown
+    assert time.monotonic() - t0 < 45                 # noticed at once, not at the end
