@@ -198,3 +198,13 @@ def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
     rs = _run_suite()
     assert rs.main(['--out', str(tmp_path), *argv]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_node_default_yaml_lists_every_declared_parameter():
+    import re
+    src = (REPO / 'src/quarter_car_sim/quarter_car_sim/quarter_car_node.py').read_text()
+    declared = set(re.findall(r"\bd\('([a-z_]+)',", src))
+    declared |= set(re.findall(r"\('([a-z_]+_topic)', '/", src))
+    declared |= {'m_s', 'm_u', 'k_s', 'k_t'}
+    cfg = yaml.safe_load((REPO / 'src/quarter_car_sim/config/quarter_car.yaml').read_text())
+    assert set(cfg['quarter_car_node']['ros__parameters']) == declared
