@@ -44,6 +44,8 @@ def main(argv=None):
     ap.add_argument('--duration', type=float, default=60.0, help='run time [s] (default 60)')
     ap.add_argument('--domain', type=int, default=None, help='ROS_DOMAIN_ID (default random)')
     ap.add_argument('--plant', default='spencer', help='spencer | kwok-current')
+    ap.add_argument('--realtime-priority', type=int, default=0,
+                    help='SCHED_FIFO priority of both nodes (0: normal; needs root)')
     ap.add_argument('--json', action='store_true', help='print the figures as one JSON object')
     args = ap.parse_args(argv)
 
@@ -81,12 +83,14 @@ def main(argv=None):
     spinner.start()
 
     logs = {name: open(f'/tmp/bench_live_{name}.log', 'w') for name in ('rig', 'ident')}
-    ident = subprocess.Popen([str(bin_dir / 'identifier_node')], stdout=logs['ident'],
+    rt = ['-p', f'realtime_priority:={args.realtime_priority}']
+    ident = subprocess.Popen([str(bin_dir / 'identifier_node'), '--ros-args', *rt],
+                             stdout=logs['ident'],
                              stderr=subprocess.STDOUT)
     rig = subprocess.Popen([str(bin_dir / 'rig_node'), '--ros-args', '-p', 'mode:=sim',
                             '-p', f'plant:={args.plant}', '-p', 'rate_factor:=1.0',
                             '-p', 'wait_for_subscribers:=1',
-                            '-p', f'duration_s:={args.duration + 3.0!r}'],
+                            '-p', f'duration_s:={args.duration + 3.0!r}', *rt],
                            stdout=logs['rig'], stderr=subprocess.STDOUT)
     procs = {'rig_node': psutil.Process(rig.pid), 'identifier_node': psutil.Process(ident.pid)}
     # wait for the stream to start, then measure over the duration
@@ -154,7 +158,9 @@ def main(argv=None):
     def fmt(v, spec='.2f'):
         return 'n/a' if v is None else format(v, spec)
 
-    print(f'rig -> identifier, {wall:.1f} s at 1 kHz real time ({args.plant} truth)')
+    print(f'rig -> identifier, {wall:.1f} s at 1 kHz real time ({args.plant} truth, '
+          f'realtime priority {args.realtime_priority}: rig {r.get("realtime")}, '
+          f'identifier {s.get("realtime")})')
     print(f'  measurements lost       {figures["measurements_lost"]} of '
           f'{figures["samples_published"]} (target 0); rig rate '
           f'{fmt(figures["effective_rate_hz"], ".1f")} Hz')

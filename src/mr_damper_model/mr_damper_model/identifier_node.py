@@ -84,6 +84,8 @@ class IdentifierNode(Node):
                         'updates); empty: none'))
         self.declare_parameter('save_period_s', 2.0, ParameterDescriptor(
             description='Minimum wall time between parameter-file writes [s]'))
+        self.declare_parameter('realtime_priority', 0, ParameterDescriptor(
+            description='SCHED_FIFO priority of the receiving threads (0: normal scheduling)'))
         self.declare_parameter('status_period_s', 0.2, ParameterDescriptor(
             description='Status publication period [s]'))
         p = self.get_parameter
@@ -125,6 +127,8 @@ class IdentifierNode(Node):
                 f'initial parameters from {self._params_file} '
                 f'({"valid" if est.valid else "not valid: " + est.reason})')
             self._publish_estimate(est)
+        self._realtime = set_realtime_priority(int(p('realtime_priority').value),
+                                               self.get_logger())
         self._worker = threading.Thread(target=self._work, name='identifier_fit', daemon=True)
         self._worker.start()
         self.get_logger().info(
@@ -148,6 +152,11 @@ class IdentifierNode(Node):
                                       throttle_duration_sec=1.0)
 
     def _work(self):
+        if self._realtime:   # fits run at normal priority, below the receiving threads
+            try:
+                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+            except OSError:
+                pass
         while not self._stop.is_set():
             window = self.live.next_window()
             if window is None:
@@ -200,7 +209,8 @@ class IdentifierNode(Node):
             status['stamp_age_ms'] = {'p50': p50, 'p99': p99, 'max': float(ages.max()) * 1e3,
                                       'n': int(ages.size)}
         status.update(parameters_published=self._published, params_file_writes=self._saved,
-                      initial_source=self._initial_source, worker_alive=self._worker.is_alive())
+                      initial_source=self._initial_source, worker_alive=self._worker.is_alive(),
+                      realtime=self._realtime)
         self._pub_status.publish(status_msg(status))
 
     def shutdown(self):
@@ -220,6 +230,27 @@ def spin(executor, done=lambda: False):
     """
     while rclpy.ok() and not done():
         executor.spin_once(timeout_sec=0.1)
+
+
+def set_realtime_priority(priority, logger):
+    """
+    Put every thread of this process that exists now under SCHED_FIFO ``priority`` (0: no-op).
+
+    Called after the node is created, so the executor (main) thread and the middleware's
+    receive threads (created with the node) get it; threads started later (the fitting worker)
+    reset themselves to SCHED_OTHER (see ``IdentifierNode._work``).
+    Needs CAP_SYS_NICE (root); otherwise a warning and nothing changes.
+    """
+    if priority <= 0:
+        return False
+    try:
+        param = os.sched_param(int(priority))
+        for tid in os.listdir('/proc/self/task'):
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, param)
+        return True
+    except (OSError, AttributeError) as exc:
+        logger.warning(f'realtime_priority {priority} not applied: {exc}')
+        return False
 
 
 def make_executor():

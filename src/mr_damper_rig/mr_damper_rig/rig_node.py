@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model.data import DataError
-from mr_damper_model.identifier_node import make_executor, spin
+from mr_damper_model.identifier_node import make_executor, set_realtime_priority, spin
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
 
@@ -123,6 +123,8 @@ class RigNode(Node):
         d('tick_s', 0.002, ParameterDescriptor(
             description='Publishing timer period [s] (samples due are published per tick)'))
         d('status_period_s', 0.5, ParameterDescriptor(description='Status period [s]'))
+        d('realtime_priority', 0, ParameterDescriptor(
+            description='SCHED_FIFO priority of the publishing threads (0: normal scheduling)'))
         d('measurement_topic', MEASUREMENT_TOPIC)
         d('true_parameters_topic', '/mr_damper/true_parameters')
         d('true_spencer_topic', '/mr_damper/true_spencer_parameters')
@@ -193,7 +195,9 @@ class RigNode(Node):
         self.commands = 0
         self.finished = False
         self._start = None
+        self._end = None
         self._created = time.monotonic()
+        self.realtime = set_realtime_priority(int(p('realtime_priority')), self.get_logger())
         self.create_timer(float(p('tick_s')), self._tick)
         self.create_timer(float(p('status_period_s')), self._publish_status)
 
@@ -259,19 +263,22 @@ class RigNode(Node):
             self._pub.publish(self._msg)
             self.published += 1
         if total is not None and self.published >= total:
+            self._end = time.monotonic()
             self._pub.wait_for_all_acked(Duration(seconds=10.0))
             self.finished = True
             self._publish_status()
+            self._pub_status.wait_for_all_acked(Duration(seconds=2.0))   # final status out
             self.get_logger().info(f'done: {self.published} samples published')
 
     def _publish_status(self):
-        elapsed = time.monotonic() - self._start if self._start else 0.0
+        end = self._end if self._end is not None else time.monotonic()
+        elapsed = end - self._start if self._start else 0.0
         status = {'mode': self.mode, 'samples_published': self.published,
                   'rate_factor': self.rate_factor, 'elapsed_s': elapsed,
                   'effective_rate_hz': self.published / elapsed if elapsed > 0 else 0.0,
                   'behind_max_samples': self.behind_max, 'done': self.finished,
                   'subscribers': self._pub.get_subscription_count(),
-                  'current_commands': self.commands}
+                  'current_commands': self.commands, 'realtime': self.realtime}
         if self.rig is not None:
             status['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
         self._pub_status.publish(status_msg(status))
