@@ -368,7 +368,8 @@ def start_recorder(rec, topics):
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     node = rclpy.create_node('suite_recorder', context=ctx)
-    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    # deeper than the nodes' 1000: this process also runs the launcher and may lag in bursts
+    reliable = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
     status_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)

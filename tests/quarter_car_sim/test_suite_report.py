@@ -153,3 +153,14 @@ def test_module_does_not_import_rclpy():
             'print("rclpy" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
+
+
+def test_messages_lost_counts_the_identifier_not_the_recorder():
+    rec = {'status': {'identifier': {'samples_received': 1040}}, 'measurement_gaps': 40,
+           'measurements_received': 1000}
+    lost, br = suite_report.messages_summary(rec, {})
+    assert lost == 0 and br['measurement_gaps_at_recorder'] == 40
+    rec['status']['identifier']['samples_received'] = 1030
+    assert suite_report.messages_summary(rec, {})[0] == 10
+    lost, br = suite_report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
+    assert lost == 3 and 'note' in br
