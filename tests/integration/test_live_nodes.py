@@ -129,6 +129,10 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     assert final['current_min_a'] == pytest.approx(0.0, abs=0.01)
     assert final['current_max_a'] == pytest.approx(2.0, abs=0.01)
     data = received_data(topics.meas)
+    # converged in time: a valid model over the whole 0..2 A range from the window ending at
+    # most 1.5 s after the 2 A step started (steps every 2 s from t = 0: 2 A from 8 s)
+    full = [e for e in topics.estimates() if e['valid'] and e['current_max_a'] > 1.99]
+    assert full and full[0]['window_end_s'] - data.t[0] <= 9.5
     f_est = kwok_current_force(final['parameters'], data)
     peak = np.max(np.abs(data.f))
     if plant == 'kwok-current':
