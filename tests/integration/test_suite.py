@@ -17,7 +17,6 @@ import importlib.util
 import json
 import math
 import os
-from pathlib import Path
 import signal
 import subprocess
 import sys

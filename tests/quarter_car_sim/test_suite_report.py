@@ -9,7 +9,6 @@ import pytest
 import yaml
 
 from quarter_car_sim import live_loop, suite_report
-from quarter_car_sim.controllers import Passive
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
