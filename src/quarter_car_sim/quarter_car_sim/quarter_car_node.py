@@ -65,10 +65,14 @@ def _fmt(state):
 
 
 class QuarterCarNode(Node):
-    """The quarter-car node (see the module docstring)."""
+    """
+    The quarter-car node (see the module docstring).
 
-    def __init__(self):
-        super().__init__('quarter_car_node')
+    Keyword arguments (e.g. ``context``, ``parameter_overrides``) go to ``rclpy.node.Node``.
+    """
+
+    def __init__(self, **node_kwargs):
+        super().__init__('quarter_car_node', **node_kwargs)
         d = self._declare
         self.rate_hz = d('rate_hz', 1000.0, 'Control rate [Hz]', (10.0, 10000.0))
         self.rtf = d('real_time_factor', 1.0,
