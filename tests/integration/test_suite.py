@@ -205,7 +205,9 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
         t_fs = time.monotonic() - t_kill
         st = _latest_status(statuses)
         assert st['reason'] == 'stale'
-        assert 0.8 < t_fs < 1.0 + 1.5            # timeout 1 s (+ status period, delivery)
+        # timeout 1 s after the last update (hop 0.2 s before the kill), plus the status period
+        # and delivery; generous on the upper side for a loaded machine
+        assert 0.5 < t_fs < 1.0 + 3.0
         steps = st['steps']
         time.sleep(1.0)
         st = _latest_status(statuses)
