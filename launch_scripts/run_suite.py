@@ -264,13 +264,15 @@ class Suite:
                 self.deaths[name] = rc
         return dict(self.deaths)
 
-    def stop(self, order=(QC, RIG, IDENT), drain_s=1.0, timeout_s=10.0):
+    def stop(self, order=(QC, RIG, IDENT), drain_s=1.0, timeout_s=10.0, drained=None,
+             drain_max_s=6.0):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).
 
         Order: the quarter car first (so the end of the stream does not read as stale parameters
         and a fail-safe), then the rig; the identifier gets ``drain_s`` to take the rest of the
-        stream before it is stopped.
+        stream before it is stopped, or, with ``drained`` (a callable), until ``drained()`` is
+        true (at most ``drain_max_s``).
 
         Returns
         -------
@@ -289,6 +291,9 @@ class Suite:
                 proc.send_signal(signal.SIGINT)
                 if name == RIG and drain_s > 0:
                     time.sleep(drain_s)
+                    end = time.monotonic() + max(0.0, drain_max_s - drain_s)
+                    while drained is not None and not drained() and time.monotonic() < end:
+                        time.sleep(0.1)
         for name in order:
             if name not in self.procs:
                 continue
@@ -476,6 +481,15 @@ def start_recorder(rec, topics):
         rclpy.try_shutdown(context=ctx)
 
     return stop
+
+
+def identifier_drained(rec):
+    """Return True once the identifier's status counts every sample the recorder saw."""
+    with rec.lock:
+        ident = rec.status.get('identifier') or {}
+        seen = len(rec.meas) + rec.meas_gaps
+    got = ident.get('samples_received')
+    return isinstance(got, (int, float)) and got >= seen
 
 
 def save_recording(rec, out):
@@ -697,7 +711,7 @@ def main(argv=None):
             print('run_suite: interrupted, stopping the nodes', flush=True)
         elapsed = time.monotonic() - t_start
     finally:
-        codes = suite.stop()
+        codes = suite.stop(drained=lambda: identifier_drained(rec))
         time.sleep(0.2)
         stop_recorder()
         signal.signal(signal.SIGINT, old_int)
