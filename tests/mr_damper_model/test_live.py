@@ -199,3 +199,19 @@ def test_warm_started_windows_reach_the_offline_optimum_on_measured_data():
     assert est.valid
     # same fit quality within 0.05 percentage points of NRMSE (PSO tolerance)
     assert est.nrmse_percent == pytest.approx(offline.metrics['nrmse_percent'], abs=0.05)
+
+
+def test_fit_process_gives_the_in_process_result_and_raises_its_errors():
+    from mr_damper_model.live import FitProcess, fit_data
+    data, _, _ = cam_record(currents=(1.0,), hold_s=2.0)
+    cfg = LiveConfig(warm_start=False, **DET)
+    proc = FitProcess()
+    try:
+        assert proc.warm_up() is True
+        remote = proc(data, 'kwok', cfg)
+        assert remote.parameters == fit_data(data, 'kwok', cfg).parameters
+        with pytest.raises(ValueError, match='x0'):
+            proc(data, 'kwok', cfg, x0=[1.0, 2.0])
+        assert proc(data, 'kwok', cfg).parameters == remote.parameters   # still serving
+    finally:
+        proc.close()

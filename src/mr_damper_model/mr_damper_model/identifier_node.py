@@ -27,7 +27,7 @@ from std_msgs.msg import Float64MultiArray, String
 
 from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
-from .live import LiveConfig, LiveIdentifier
+from .live import FitProcess, LiveConfig, LiveIdentifier
 from .messages import (MessageError, kwok_parameters_msg, measurement_from_msg, status_msg)
 from .params_file import load_params, save_params
 
@@ -84,6 +84,9 @@ class IdentifierNode(Node):
                         'updates); empty: none'))
         self.declare_parameter('save_period_s', 2.0, ParameterDescriptor(
             description='Minimum wall time between parameter-file writes [s]'))
+        self.declare_parameter('fit_in_process', True, ParameterDescriptor(
+            description='Fit windows in a worker process (the receiving threads never wait '
+                        'for the GIL held by a fit); false: in a thread of this process'))
         self.declare_parameter('realtime_priority', 0, ParameterDescriptor(
             description='SCHED_FIFO priority of the receiving threads (0: normal scheduling)'))
         self.declare_parameter('status_period_s', 0.2, ParameterDescriptor(
@@ -92,6 +95,8 @@ class IdentifierNode(Node):
         config = LiveConfig(**{name: p(name).value for name in _LIVE_DESCRIPTIONS})
         self._params_file = p('params_file').value
         self._save_period = float(p('save_period_s').value)
+        self._fit_process = FitProcess() if p('fit_in_process').value else None
+        fit = self._fit_process
         initial = None
         self._initial_source = 'none'
         if self._params_file and os.path.exists(self._params_file):
@@ -102,11 +107,11 @@ class IdentifierNode(Node):
                 self.get_logger().error(f'ignoring parameter file: {exc}')
                 self._initial_source = 'file_error'
         try:
-            self.live = LiveIdentifier(config, initial=initial)
+            self.live = LiveIdentifier(config, initial=initial, fit=fit)
         except (ValueError, KeyError) as exc:
             self.get_logger().error(f'ignoring parameter file {self._params_file}: {exc}')
             self._initial_source = 'file_error'
-            self.live = LiveIdentifier(config)
+            self.live = LiveIdentifier(config, fit=fit)
 
         self._pub_params = self.create_publisher(
             Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
@@ -157,6 +162,11 @@ class IdentifierNode(Node):
                 os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
             except OSError:
                 pass
+        if self._fit_process is not None:   # start the fit process now, not at window 1
+            try:
+                self._fit_process.warm_up()
+            except Exception as exc:  # the first fit will retry and report
+                self.get_logger().warning(f'fit process did not start: {exc}')
         while not self._stop.is_set():
             window = self.live.next_window()
             if window is None:
@@ -217,6 +227,8 @@ class IdentifierNode(Node):
         """Stop the worker and write the last valid parameters."""
         self._stop.set()
         self._worker.join(timeout=5.0)
+        if self._fit_process is not None:
+            self._fit_process.close()
         if self.live.last_good is not None and self.live.last_good.model_fitted != 'file':
             self._save(self.live.last_good, force=True)
 
@@ -268,6 +280,7 @@ def main(args=None):
     sys.setswitchinterval(0.001)
     rclpy.init(args=args)
     node = None
+    code = 0
     try:
         node = IdentifierNode()
         executor = make_executor()
@@ -275,12 +288,16 @@ def main(args=None):
         spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:   # bad parameter values (LiveConfig names the parameter)
+        print(f'identifier_node: error: {exc}', file=sys.stderr)
+        code = 2
     finally:
         if node is not None:
             node.shutdown()
             node.destroy_node()
         rclpy.try_shutdown()
+    return code
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -30,6 +30,10 @@ belong to the fitting thread.
 """
 from dataclasses import asdict, dataclass, field
 import math
+import os
+import pickle
+import subprocess
+import sys
 import threading
 import time
 
@@ -343,6 +347,79 @@ def fit_data(data, model, config, x0=None):
     return identify(data, model, x0=x0, model_options=options, **fit_kwargs(config))
 
 
+class FitProcess:
+    """
+    :func:`fit_data` in a child interpreter (callable with the same signature and result).
+
+    A fit holds the GIL for most of its time; in a child process it cannot delay the thread that
+    receives the 1 kHz measurements.  The child runs ``python -m mr_damper_model.live`` in its
+    own session, so a Ctrl-C sent to the parent's process group does not reach it: the parent
+    ends it with :meth:`close` (or the child ends when its stdin closes).  Requests and results
+    travel pickled over the child's stdin / stdout; exceptions are re-raised in the parent.
+    """
+
+    def __init__(self):
+        self._proc = None
+
+    def _start(self):
+        self._proc = subprocess.Popen([sys.executable, '-m', 'mr_damper_model.live'],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                      start_new_session=True)
+
+    def _call(self, request):
+        if self._proc is None or self._proc.poll() is not None:
+            self._start()
+        try:
+            pickle.dump(request, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self._proc.stdin.flush()
+            status, value = pickle.load(self._proc.stdout)
+        except (EOFError, OSError, pickle.UnpicklingError) as exc:
+            self.close()
+            raise RuntimeError(f'fit process failed ({type(exc).__name__}: {exc})') from None
+        if status == 'error':
+            raise value
+        return value
+
+    def warm_up(self):
+        """Start the child and import the fitting code in it; return True."""
+        return self._call('ping')
+
+    def __call__(self, data, model, config, x0=None):
+        """Run ``fit_data(data, model, config, x0=x0)`` in the child."""
+        return self._call((data, model, config, x0))
+
+    def close(self):
+        """End the child process."""
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        try:
+            proc.stdin.close()
+            proc.wait(timeout=2.0)
+        except (OSError, subprocess.TimeoutExpired):
+            proc.kill()
+            proc.wait()
+
+
+def _serve():
+    """Child side of :class:`FitProcess`: answer pickled requests until stdin closes."""
+    out = os.fdopen(os.dup(1), 'wb')
+    os.dup2(2, 1)            # anything printed goes to stderr, stdout carries results only
+    from . import identify   # noqa: F401  (load numpy, scipy and the models once)
+    src = sys.stdin.buffer
+    while True:
+        try:
+            request = pickle.load(src)
+        except EOFError:
+            return
+        try:
+            reply = ('ok', True if request == 'ping' else fit_data(*request))
+        except Exception as exc:  # returned to the parent, which raises it
+            reply = ('error', exc)
+        pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
+        out.flush()
+
+
 def _in_bounds(model, params, unbounded, i_ref_a):
     from .models import get_model
     mdl = get_model(model, **({'i_ref_a': i_ref_a} if model == 'kwok-current' else {}))
@@ -379,11 +456,15 @@ class LiveIdentifier:
     initial : dict or ParamsFile, optional
         Initial estimate (e.g. the parameter file of a previous run): a kwok-current or kwok
         parameter set; used as the first published estimate and as the warm start.
+    fit : callable, optional
+        Replacement of :func:`fit_data` with the same signature and result, e.g. one that runs
+        :func:`fit_data` in a worker process.
 
     """
 
-    def __init__(self, config=None, initial=None):
+    def __init__(self, config=None, initial=None, fit=None):
         self.config = config if config is not None else LiveConfig()
+        self._fit = fit_data if fit is None else fit
         cfg = self.config
         self._cap = int(math.ceil((cfg.window_s + 3 * cfg.hop_s) * cfg.max_rate_hz)) + 16
         self._buf = np.empty((self._cap, 5))
@@ -582,7 +663,7 @@ class LiveIdentifier:
         model = 'kwok' if len(usable) == 1 else 'kwok-current'
         x0 = self._warm_start(model, levels) if cfg.warm_start else None
         try:
-            result = fit_data(fit, model, cfg, x0=x0)
+            result = self._fit(fit, model, cfg, x0=x0)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
             c['fit_errors'] += 1
             self.last_error = f'{type(exc).__name__}: {exc}'
@@ -680,3 +761,7 @@ class LiveIdentifier:
 def config_dict(config):
     """Return a :class:`LiveConfig` as a plain dict."""
     return asdict(config)
+
+
+if __name__ == '__main__':
+    _serve()
