@@ -79,7 +79,7 @@ def main(argv=None):
     from mr_damper_model.messages import kwok_parameters_from_msg, status_from_msg
 
     bin_dir = Path(sys.executable).parent
-    rclpy.init()
+    rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments
     node = rclpy.create_node('bench_live')
     latest = {}
     updates = []
