@@ -288,6 +288,40 @@ def write_csv(path, data):
     np.savetxt(path, arr, delimiter=',', header=','.join(COLUMNS), comments='', fmt='%.10g')
 
 
+def check_samples(data, *, min_samples=2, name=''):
+    """
+    Check the samples of a record are usable at all; return it unchanged.
+
+    Parameters
+    ----------
+    data : DamperData
+    min_samples : int
+        Fewer samples than this is an error.
+    name : str
+        Label for messages (defaults to ``data.source``).
+
+    Raises
+    ------
+    DataError
+        Too few samples, NaN/inf values, non-increasing time.
+
+    """
+    label = _label(name or data.source)
+    if data.n < min_samples:
+        raise DataError(f'{label}too few samples ({data.n}, need at least {min_samples})')
+    for c in COLUMNS:
+        bad = ~np.isfinite(getattr(data, c))
+        if bad.any():
+            raise DataError(f'{label}column {c} has {int(bad.sum())} NaN/inf value(s), '
+                            f'first at sample {int(np.flatnonzero(bad)[0])}')
+    dt = np.diff(data.t)
+    if np.any(dt <= 0):
+        k = int(np.flatnonzero(dt <= 0)[0]) + 1
+        raise DataError(f'{label}time is not strictly increasing at sample {k} '
+                        f'(t={data.t[k]:.6f} s after {data.t[k - 1]:.6f} s)')
+    return data
+
+
 def validate(data, *, min_samples=50, min_stroke_m=1e-4, name=''):
     """
     Check that a record can be identified; return it unchanged.
@@ -305,23 +339,11 @@ def validate(data, *, min_samples=50, min_stroke_m=1e-4, name=''):
     Raises
     ------
     DataError
-        NaN/inf values, non-increasing time, too few samples, no motion, constant force.
+        The errors of :func:`check_samples`, and no motion or constant force.
 
     """
+    check_samples(data, min_samples=min_samples, name=name)
     label = _label(name or data.source)
-    if data.n < min_samples:
-        raise DataError(f'{label}too few samples ({data.n}, need at least {min_samples})')
-    for c in COLUMNS:
-        a = getattr(data, c)
-        bad = ~np.isfinite(a)
-        if bad.any():
-            raise DataError(f'{label}column {c} has {int(bad.sum())} NaN/inf value(s), '
-                            f'first at sample {int(np.flatnonzero(bad)[0])}')
-    dt = np.diff(data.t)
-    if np.any(dt <= 0):
-        k = int(np.flatnonzero(dt <= 0)[0]) + 1
-        raise DataError(f'{label}time is not strictly increasing at sample {k} '
-                        f'(t={data.t[k]:.6g} s after {data.t[k - 1]:.6g} s)')
     stroke = float(np.ptp(data.x))
     if stroke < min_stroke_m or not np.any(data.v != 0):
         raise DataError(f'{label}no motion: displacement spans {stroke * 1e3:.3g} mm '

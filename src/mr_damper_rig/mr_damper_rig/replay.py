@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mr_damper_model.data import DamperData, DataError, read_csv
+from mr_damper_model.data import check_samples, DamperData, DataError, read_csv
 
 MEASUREMENT_TOPIC = '/mr_damper/measurement'
 JOINTSTATE_TYPE = 'sensor_msgs/msg/JointState'
@@ -44,20 +44,8 @@ def check_stream(data, *, name='', min_samples=2):
         Too few samples, NaN/inf values, negative or non-increasing time stamps.
 
     """
+    check_samples(data, min_samples=min_samples, name=name)
     label = f'{name or data.source}: ' if (name or data.source) else ''
-    if data.n < min_samples:
-        raise DataError(f'{label}too few samples ({data.n}, need at least {min_samples})')
-    for c in ('t', 'x', 'v', 'f', 'i'):
-        a = getattr(data, c)
-        bad = ~np.isfinite(a)
-        if bad.any():
-            raise DataError(f'{label}column {c} has {int(bad.sum())} NaN/inf value(s), '
-                            f'first at sample {int(np.flatnonzero(bad)[0])}')
-    dt = np.diff(data.t)
-    if np.any(dt <= 0):
-        k = int(np.flatnonzero(dt <= 0)[0]) + 1
-        raise DataError(f'{label}time is not strictly increasing at sample {k} '
-                        f'(t={data.t[k]:.9g} s after {data.t[k - 1]:.9g} s)')
     if data.t[0] < 0:
         raise DataError(f'{label}negative time stamp {data.t[0]:.6g} s (not a valid ROS stamp)')
     return data
