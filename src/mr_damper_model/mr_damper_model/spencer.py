@@ -151,6 +151,68 @@ def substeps(dt, max_substep_s):
     return max(1, int(math.ceil(dt / max_substep_s - 1e-9)))
 
 
+def heun_substeps(z_step, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
+    """
+    Advance (y, z, u) over m Heun sub-steps with the exact z update.
+
+    Works for plain floats and for numpy arrays alike (one value per parameter set); the
+    arithmetic is the same, so the streaming plant and the batch model agree.
+
+    Parameters
+    ----------
+    z_step : callable
+        ``z_step_scalar`` for floats, ``z_step_array`` for arrays.
+    p : sequence
+        Parameters in ``SPENCER_PARAM_NAMES`` order (floats or arrays).
+    y, z, u : float or ndarray
+        Internal displacement [m], hysteretic displacement [m] and coil current [A].
+    x_a, v_a : float
+        Displacement [m] and velocity [m/s] at the start of the interval.
+    dx, dv : float
+        Displacement [m] and velocity [m/s] increments per sub-step.
+    i_drv : float
+        Current driving the coil filter over the interval [A].
+    h : float
+        Sub-step [s].
+    decay : float or ndarray
+        Coil filter factor over one sub-step, ``exp(-eta*h)``.
+    m : int
+        Number of sub-steps.
+
+    Returns
+    -------
+    tuple
+        (y, z, u) at the end of the interval.
+
+    """
+    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = p
+    xs = x_a
+    vs = v_a
+    for _ in range(m):
+        xe = xs + dx
+        ve = vs + dv
+        alpha = aa + ab * u
+        c0 = c0a + c0b * u
+        den = c0 + c1a + c1b * u
+        yd_a = (alpha * z + c0 * vs + k0 * (xs - y)) / den
+        w_a = vs - yd_a
+        z_p = z_step(z, w_a * h, A, beta, gamma)
+        u_e = i_drv + (u - i_drv) * decay
+        alpha_e = aa + ab * u_e
+        c0_e = c0a + c0b * u_e
+        den_e = c0_e + c1a + c1b * u_e
+        y_p = y + h * yd_a
+        yd_p = (alpha_e * z_p + c0_e * ve + k0 * (xe - y_p)) / den_e
+        w_p = ve - yd_p
+        z = z_step(z, 0.5 * (w_a + w_p) * h, A, beta, gamma)
+        yd_e = (alpha_e * z + c0_e * ve + k0 * (xe - y_p)) / den_e
+        y = y + 0.5 * h * (yd_a + yd_e)
+        u = u_e
+        xs = xe
+        vs = ve
+    return y, z, u
+
+
 def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     """
     Advance the Spencer state over one sample interval with plain floats.
@@ -182,30 +244,7 @@ def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     decay = math.exp(-eta * h)
     dx = (x_b - x_a) / m
     dv = (v_b - v_a) / m
-    xs = x_a
-    vs = v_a
-    for _ in range(m):
-        xe = xs + dx
-        ve = vs + dv
-        alpha = aa + ab * u
-        c0 = c0a + c0b * u
-        den = c0 + c1a + c1b * u
-        yd_a = (alpha * z + c0 * vs + k0 * (xs - y)) / den
-        w_a = vs - yd_a
-        z_p = z_step_scalar(z, w_a * h, A, beta, gamma)
-        u_e = i_drv + (u - i_drv) * decay
-        alpha_e = aa + ab * u_e
-        c0_e = c0a + c0b * u_e
-        den_e = c0_e + c1a + c1b * u_e
-        y_p = y + h * yd_a
-        yd_p = (alpha_e * z_p + c0_e * ve + k0 * (xe - y_p)) / den_e
-        w_p = ve - yd_p
-        z = z_step_scalar(z, 0.5 * (w_a + w_p) * h, A, beta, gamma)
-        yd_e = (alpha_e * z + c0_e * ve + k0 * (xe - y_p)) / den_e
-        y = y + 0.5 * h * (yd_a + yd_e)
-        u = u_e
-        xs = xe
-        vs = ve
+    y, z, u = heun_substeps(z_step_scalar, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m)
     state[0] = y
     state[1] = z
     state[2] = u
@@ -281,7 +320,8 @@ class Spencer(HysteresisModel):
 
     def _force(self, P, x, v, i, t):
         self._check(P)
-        (c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta) = P.T
+        pt = tuple(P.T)
+        (c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta) = pt
         p = P.shape[0]
         n = x.size
         out = np.empty((p, n))
@@ -301,30 +341,8 @@ class Spencer(HysteresisModel):
             i_drv = i[kk]
             dx = (x[kk] - x[kk - 1]) / m
             dv = (v[kk] - v[kk - 1]) / m
-            xs = x[kk - 1]
-            vs = v[kk - 1]
-            for _ in range(m):
-                xe = xs + dx
-                ve = vs + dv
-                alpha = aa + ab * u
-                c0 = c0a + c0b * u
-                den = c0 + c1a + c1b * u
-                yd_a = (alpha * z + c0 * vs + k0 * (xs - y)) / den
-                w_a = vs - yd_a
-                z_p = z_step_array(z, w_a * h, A, beta, gamma)
-                u_e = i_drv + (u - i_drv) * decay
-                alpha_e = aa + ab * u_e
-                c0_e = c0a + c0b * u_e
-                den_e = c0_e + c1a + c1b * u_e
-                y_p = y + h * yd_a
-                yd_p = (alpha_e * z_p + c0_e * ve + k0 * (xe - y_p)) / den_e
-                w_p = ve - yd_p
-                z = z_step_array(z, 0.5 * (w_a + w_p) * h, A, beta, gamma)
-                yd_e = (alpha_e * z + c0_e * ve + k0 * (xe - y_p)) / den_e
-                y = y + 0.5 * h * (yd_a + yd_e)
-                u = u_e
-                xs = xe
-                vs = ve
+            y, z, u = heun_substeps(z_step_array, pt, y, z, u, x[kk - 1], v[kk - 1], dx, dv,
+                                    i_drv, h, decay, m)
             c0 = c0a + c0b * u
             c1 = c1a + c1b * u
             yd = ((aa + ab * u) * z + c0 * v[kk] + k0 * (x[kk] - y)) / (c0 + c1)
