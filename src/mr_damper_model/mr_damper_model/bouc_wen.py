@@ -23,7 +23,8 @@ parameter sets in the unbounded mode), so no overflow occurs.
 """
 import numpy as np
 
-from mr_damper_model.models import HysteresisModel, ModelError, SeparableParts
+from mr_damper_model.models import (cvkz_regressors, cvkz_separable_parts, HysteresisModel,
+                                    ModelError)
 
 _Z_CAP = 1e6
 _MAX_SUBSTEPS = 200
@@ -126,18 +127,10 @@ class BoucWen(HysteresisModel):
 
     def _regressors(self, N, x, v, i, t):
         z = self._z(N, v, t)
-        phi = np.empty((N.shape[0], x.size, 4))
-        phi[:, :, 0] = v
-        phi[:, :, 1] = x
-        phi[:, :, 2] = z
-        phi[:, :, 3] = 1.0
-        return phi
+        return cvkz_regressors(N.shape[0], x, v, z)
 
     def _separable_parts(self, x, v, i, t):
-        n = x.size
-        return SeparableParts(fixed_index=np.array([0, 1, 3]),
-                              fixed=np.column_stack([v, x, np.ones(n)]),
-                              factor_index=np.array([2]), weights=np.ones((n, 1)))
+        return cvkz_separable_parts(x, v)
 
     def _nonlinear_factor(self, N, x, v, i, t):
         return self._z(N, v, t)

@@ -5,7 +5,7 @@ Kwok et al. (2006) hysteretic damper model (thesis eq. 2.34-2.35).
 """
 import numpy as np
 
-from mr_damper_model.models import HysteresisModel, SeparableParts
+from mr_damper_model.models import cvkz_regressors, cvkz_separable_parts, HysteresisModel
 
 
 class Kwok(HysteresisModel):
@@ -52,19 +52,10 @@ class Kwok(HysteresisModel):
     def _regressors(self, N, x, v, i, t):
         beta, delta = N[:, [0]], N[:, [1]]
         z = np.tanh(beta * v + delta * np.sign(x))
-        p = N.shape[0]
-        phi = np.empty((p, x.size, 4))
-        phi[:, :, 0] = v
-        phi[:, :, 1] = x
-        phi[:, :, 2] = z
-        phi[:, :, 3] = 1.0
-        return phi
+        return cvkz_regressors(N.shape[0], x, v, z)
 
     def _separable_parts(self, x, v, i, t):
-        n = x.size
-        return SeparableParts(fixed_index=np.array([0, 1, 3]),
-                              fixed=np.column_stack([v, x, np.ones(n)]),
-                              factor_index=np.array([2]), weights=np.ones((n, 1)))
+        return cvkz_separable_parts(x, v)
 
     def _nonlinear_factor(self, N, x, v, i, t):
         a = N[:, [0]] * v

@@ -55,6 +55,54 @@ class SeparableParts:
     weights: np.ndarray
 
 
+def cvkz_regressors(p, x, v, z):
+    """
+    Regressors of ``F = c*v + k*x + alpha*z + f0`` (Kwok, Bouc-Wen).
+
+    Parameters
+    ----------
+    p : int
+        Number of nonlinear parameter sets.
+    x, v : numpy.ndarray with shape (n,)
+        Displacement [m] and velocity [m/s].
+    z : numpy.ndarray with shape (p, n)
+        Hysteretic variable at each parameter set [-].
+
+    Returns
+    -------
+    numpy.ndarray with shape (p, n, 4)
+        Columns for ``c, k, alpha, f0``.
+
+    """
+    phi = np.empty((p, x.size, 4))
+    phi[:, :, 0] = v
+    phi[:, :, 1] = x
+    phi[:, :, 2] = z
+    phi[:, :, 3] = 1.0
+    return phi
+
+
+def cvkz_separable_parts(x, v):
+    """
+    Separable structure of ``F = c*v + k*x + alpha*z + f0``: z is the nonlinear factor.
+
+    Parameters
+    ----------
+    x, v : numpy.ndarray with shape (n,)
+        Displacement [m] and velocity [m/s].
+
+    Returns
+    -------
+    SeparableParts
+        Fixed columns ``c, k, f0``; ``alpha`` multiplies ``nonlinear_factor`` with unit weight.
+
+    """
+    n = x.size
+    return SeparableParts(fixed_index=np.array([0, 1, 3]),
+                          fixed=np.column_stack([v, x, np.ones(n)]),
+                          factor_index=np.array([2]), weights=np.ones((n, 1)))
+
+
 def get_model(name, **options):
     """
     Return a model instance by name.
