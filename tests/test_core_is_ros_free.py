@@ -11,7 +11,7 @@ import pytest
 
 from conftest import REPO
 
-ROS_MODULES = {'messages', 'record'}
+ROS_MODULES = {'messages', 'node_utils', 'record'}
 PACKAGES = ('mr_damper_model', 'mr_damper_rig', 'quarter_car_sim')
 
 

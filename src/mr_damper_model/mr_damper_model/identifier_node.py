@@ -17,10 +17,7 @@ import threading
 import time
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -29,16 +26,12 @@ from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
 from .live import FitProcess, LiveConfig, LiveIdentifier
 from .messages import (MessageError, kwok_parameters_msg, measurement_from_msg, status_msg)
+from .node_utils import (LATCHED_QOS, MEASUREMENT_QOS, run_node, set_realtime_priority,
+                         STATUS_QOS)
 from .params_file import load_params, save_params
 
-#: Measurement stream: reliable; every sample matters (see README "QoS").
-MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
-                             reliability=ReliabilityPolicy.RELIABLE)
 #: Parameters: latched for late subscribers.
-PARAMETERS_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                            reliability=ReliabilityPolicy.RELIABLE,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+PARAMETERS_QOS = LATCHED_QOS
 
 #: Samples kept for the stamp-age (latency) percentiles of the status.
 _AGES = 10000
@@ -233,70 +226,13 @@ class IdentifierNode(Node):
             self._save(self.live.last_good, force=True)
 
 
-def spin(executor, done=lambda: False):
-    """
-    Spin ``executor`` until shutdown or ``done()``.
-
-    A ``spin_once`` loop: the kilted EventsExecutor's ``spin()`` stalls timers (checked here:
-    one tick of a 5 ms timer per second), its ``spin_once`` runs them on time.
-    """
-    while rclpy.ok() and not done():
-        executor.spin_once(timeout_sec=0.1)
-
-
-def set_realtime_priority(priority, logger):
-    """
-    Put every thread of this process that exists now under SCHED_FIFO ``priority`` (0: no-op).
-
-    Called after the node is created, so the executor (main) thread and the middleware's
-    receive threads (created with the node) get it; threads started later (the fitting worker)
-    reset themselves to SCHED_OTHER (see ``IdentifierNode._work``).
-    Needs CAP_SYS_NICE (root); otherwise a warning and nothing changes.
-    """
-    if priority <= 0:
-        return False
-    try:
-        param = os.sched_param(int(priority))
-        for tid in os.listdir('/proc/self/task'):
-            os.sched_setscheduler(int(tid), os.SCHED_FIFO, param)
-        return True
-    except (OSError, AttributeError) as exc:
-        logger.warning(f'realtime_priority {priority} not applied: {exc}')
-        return False
-
-
-def make_executor():
-    """Return the executor used by the suite's nodes (EventsExecutor when available)."""
-    try:
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
-    except ImportError:  # pragma: no cover - older rclpy
-        return SingleThreadedExecutor()
-
-
 def main(args=None):
     """Run the identifier node until Ctrl-C."""
     # short GIL switch interval: measurement callbacks are not held up by a fit for long
     sys.setswitchinterval(0.001)
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = IdentifierNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:   # bad parameter values (LiveConfig names the parameter)
-        print(f'identifier_node: error: {exc}', file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            node.shutdown()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    # ValueError: bad parameter values (LiveConfig names the parameter)
+    return run_node(IdentifierNode, 'identifier_node', (ValueError,),
+                    finish=lambda node: node.shutdown(), args=args)
 
 
 if __name__ == '__main__':

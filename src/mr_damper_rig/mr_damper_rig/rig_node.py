@@ -17,29 +17,22 @@ import math
 import sys
 import time
 
-import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model.data import DataError
-from mr_damper_model.identifier_node import make_executor, set_realtime_priority, spin
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
+from mr_damper_model.node_utils import (LATCHED_QOS, MEASUREMENT_QOS, run_node,
+                                        set_realtime_priority, spin_node, STATUS_QOS)
 
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
-MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
-                             reliability=ReliabilityPolicy.RELIABLE)
-LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 
 
@@ -286,24 +279,9 @@ class RigNode(Node):
 
 def main(args=None):
     """Run the rig node; exit status 2 on a bad file or parameter."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = RigNode()
-        executor = make_executor()
-        executor.add_node(node)
-        spin(executor, lambda: node.finished and node.exit_on_end)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (DataError, ValueError) as exc:
-        print(f'rig_node: error: {exc}', file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node(RigNode, 'rig_node', (DataError, ValueError),
+                    run=lambda node: spin_node(node, lambda: node.finished and node.exit_on_end),
+                    args=args)
 
 
 if __name__ == '__main__':

@@ -41,7 +41,6 @@ import threading
 import time
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
@@ -49,6 +48,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model import messages
+from mr_damper_model.node_utils import run_node
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -272,24 +272,15 @@ def main(args=None):
     """Entry point of ``quarter_car_node``."""
     # short GIL switch interval: the control thread waits at most ~0.5 ms for the executor
     sys.setswitchinterval(0.0005)
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = QuarterCarNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, OSError) as exc:       # bad parameter, road or truth file
-        print(f'quarter_car_node: error: {exc}', file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            node.stop()
-            code = 1 if node.failed else code
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    # ValueError, OSError: bad parameter, road or truth file
+    return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError), run=rclpy.spin,
+                    finish=_finish, args=args)
+
+
+def _finish(node):
+    """Stop the control thread; exit status 1 if the model supervisor failed."""
+    node.stop()
+    return 1 if node.failed else None
 
 
 if __name__ == '__main__':
