@@ -23,6 +23,16 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, axes, path):
+    """Grid every axis, write ``fig`` to ``path`` (110 dpi) and close it; return ``path``."""
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     """Measured vs identified force loops per current level; return the path or None."""
     from quarter_car_sim.suite_report import model_force
@@ -57,12 +67,7 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     axes[1].set_title('force - displacement')
     if axes[0].get_legend_handles_labels()[1]:
         axes[0].legend(fontsize=7, markerscale=5)
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, axes, path)
 
 
 def plot_convergence(path, params_log, truth=None, history=None):
@@ -100,12 +105,7 @@ def plot_convergence(path, params_log, truth=None, history=None):
     axes[1].set_ylabel('NRMSE [%]')
     axes[1].set_xlabel('wall time since start [s]')
     axes[1].legend(fontsize=8)
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, axes, path)
 
 
 def plot_ride(path, log, passive_trace=None, controller='skyhook'):
@@ -131,12 +131,7 @@ def plot_ride(path, log, passive_trace=None, controller='skyhook'):
             ax.fill_between(t, 0, 1, where=fs, transform=ax.get_xaxis_transform(),
                             color='red', alpha=0.08, lw=0, label='fail-safe')
     axes[1].legend(fontsize=8)
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, axes, path)
 
 
 def plot_all(out, meas, params_log, summary, log, passive_trace):
