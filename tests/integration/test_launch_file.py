@@ -123,10 +123,7 @@ def test_node_names_match_the_nodes_and_the_launcher(launch_description):
         module = _console_scripts(n['package'])[n['executable']].split(':')[0]
         text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
         assert f"super().__init__('{n['name']}'" in text
-    spec = importlib.util.spec_from_file_location('run_suite',
-                                                  REPO / 'launch_scripts' / 'run_suite.py')
-    run_suite = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(run_suite)
+    run_suite = _run_suite()
     assert run_suite.NODES == {n['name']: n['executable'] for n in nodes}
 
 
