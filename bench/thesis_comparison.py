@@ -48,6 +48,8 @@ THESIS_TABLE_4_1_MEAN = (110.993, 79.281, 20.082)
 #: Thesis Table 4.2: (maximum %, mean %) per current, Kwok.
 THESIS_TABLE_4_2 = {0.0: (13.6, 5.11), 0.5: (39.0, 8.47), 1.0: (24.1, 6.12), 1.5: (35.6, 6.45),
                     2.0: (35.3, 6.72)}
+
+
 def metrics_on(result, part):
     m = get_model(result.model, **result.model_options)
     f = m.force(result.x, part.x, part.v, i=part.i, t=part.t)

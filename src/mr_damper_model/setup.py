@@ -4,6 +4,10 @@ import glob
 from setuptools import find_packages, setup
 
 package_name = 'mr_damper_model'
+PACKAGE_DESCRIPTION = (
+    'Magneto-rheological damper models (Kwok, current-dependent Kwok, Bingham, Bouc-'
+    'Wen, Spencer), PSO identification, inverse model and the live identifier node.'
+)
 
 setup(
     name=package_name,
@@ -18,7 +22,7 @@ setup(
     zip_safe=True,
     maintainer='MR damper suite developers',
     maintainer_email='mr-damper-suite@example.org',
-    description='Magneto-rheological damper models (Kwok, current-dependent Kwok, Bingham, Bouc-Wen, Spencer), PSO identification, inverse model and the live identifier node.',
+    description=PACKAGE_DESCRIPTION,
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -4,6 +4,10 @@ import glob
 from setuptools import find_packages, setup
 
 package_name = 'mr_damper_rig'
+PACKAGE_DESCRIPTION = (
+    'Virtual MR damper test rig and DAQ CSV / rosbag2 replay publishing damper '
+    'measurements.'
+)
 
 setup(
     name=package_name,
@@ -18,7 +22,7 @@ setup(
     zip_safe=True,
     maintainer='MR damper suite developers',
     maintainer_email='mr-damper-suite@example.org',
-    description='Virtual MR damper test rig and DAQ CSV / rosbag2 replay publishing damper measurements.',
+    description=PACKAGE_DESCRIPTION,
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

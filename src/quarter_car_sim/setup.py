@@ -4,6 +4,10 @@ import glob
 from setuptools import find_packages, setup
 
 package_name = 'quarter_car_sim'
+PACKAGE_DESCRIPTION = (
+    'Quarter-car simulation with semi-active MR damper control (skyhook, groundhook, '
+    'hybrid, LQR reference).'
+)
 
 setup(
     name=package_name,
@@ -18,7 +22,7 @@ setup(
     zip_safe=True,
     maintainer='MR damper suite developers',
     maintainer_email='mr-damper-suite@example.org',
-    description='Quarter-car simulation with semi-active MR damper control (skyhook, groundhook, hybrid, LQR reference).',
+    description=PACKAGE_DESCRIPTION,
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -117,8 +117,8 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
                                        wait_for_subscribers=2, seed=3))
     with ident, rig:
         assert rig.wait(90) == 0, rig.output()
-        assert wait_identified(listener, topics, n, [ident]), (topics.last_status(),
-                                                                ident.output())
+        assert wait_identified(listener, topics, n, [ident]), \
+            (topics.last_status(), ident.output())
         assert ident.alive()
     status = topics.last_status()
     assert status['samples_received'] == status['samples_accepted'] == n   # nothing lost

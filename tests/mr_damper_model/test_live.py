@@ -160,8 +160,8 @@ def test_restarted_stream_is_detected_after_a_run_of_earlier_stamps():
 def test_initial_estimate_from_parameter_file_contents():
     _, _, truth = thesis_kwok_current()[0], None, thesis_kwok_current()[1]
     good = {'model': 'kwok-current', 'parameters': truth, 'model_options': {'i_ref_a': 2.0},
-            'current_min_a': 0.0, 'current_max_a': 2.0, 'metrics': {'nrmse_percent': 1.0,
-                                                                     'rmse_n': 5.0},
+            'current_min_a': 0.0, 'current_max_a': 2.0,
+            'metrics': {'nrmse_percent': 1.0, 'rmse_n': 5.0},
             'valid': True}
     li = LiveIdentifier(LiveConfig(), initial=good)
     assert li.estimate.valid and li.last_good is li.estimate

@@ -74,9 +74,8 @@ def test_bag_wrong_joint_names(tmp_path):
     ts = get_typestore(Stores.ROS2_KILTED)
     T = ts.types
     msg = T['sensor_msgs/msg/JointState'](
-        header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=1,
-                                                                                nanosec=0),
-                                        frame_id=''),
+        header=T['std_msgs/msg/Header'](
+            stamp=T['builtin_interfaces/msg/Time'](sec=1, nanosec=0), frame_id=''),
         name=['a', 'b'], position=np.zeros(2), velocity=np.zeros(2), effort=np.zeros(2))
     with Writer(tmp_path / 'names', version=9, storage_plugin=StoragePlugin.MCAP) as w:
         c = w.add_connection(replay.MEASUREMENT_TOPIC, replay.JOINTSTATE_TYPE, typestore=ts)

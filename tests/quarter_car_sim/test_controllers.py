@@ -95,8 +95,8 @@ def test_fast_inverse_agrees_with_mr_damper_model_inverse():
     # unreachable, non-monotone cases (nearest force inside the range): at most 10 N further
     # from the demand than the vectorised inverse's dense scan
     other = ~ok & ~low & ~high
-    fo = np.array([inv.model_force(b, c, i) for b, c, i in zip(x[other], v[other],
-                                                                 mine[other, 0])])
+    fo = np.array([inv.model_force(b, c, i)
+                   for b, c, i in zip(x[other], v[other], mine[other, 0])])
     assert np.all(np.abs(fo - f[other]) <= np.abs(ref.force[other] - f[other]) + 10.0)
     assert np.all(mine[other, 1] == 1.0)
 

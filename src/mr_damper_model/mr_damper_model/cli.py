@@ -163,7 +163,8 @@ def run(argv=None):
     if args.compare:
         out = {'model': 'compare', 'models': {
             k: {'parameters': r.parameters, 'metrics': _metrics_json(r.metrics),
-                'seconds': r.seconds} for k, r in results.items()},
+                'seconds': r.seconds}
+            for k, r in results.items()},
             'seconds': seconds, 'seed': args.seed, 'source': name}
         res_list = list(results.values())
         labels = list(results)

@@ -634,8 +634,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
     if np.all(np.isfinite(f_sim)):
         metrics = fit_metrics(data.f, f_sim)
     else:
-        metrics = {k: math.nan for k in ('mean_abs_error_n', 'rmse_n', 'mean_percent_error',
-                                          'max_percent_error', 'nrmse_percent')}
+        metrics = dict.fromkeys(('mean_abs_error_n', 'rmse_n', 'mean_percent_error',
+                                 'max_percent_error', 'nrmse_percent'), math.nan)
     return IdentificationResult(
         model=mdl.name, parameters={n: float(v) for n, v in zip(names, x)}, x=x,
         metrics=metrics, seconds=time.perf_counter() - t_start, seed=seed, method=used,

@@ -8,7 +8,8 @@ is exact even though a 1 kHz rclpy timer is not); ``rate_factor`` 0 publishes as
 consumer takes the samples: it keeps at most ``flow_window`` samples ahead of the
 ``samples_received`` count the consumer reports on ``flow_topic`` (the identifier's status; DDS
 acknowledgements are no use for this: they arrive with the writer's heartbeat, every ~3 s).
-In ``sim`` mode the true damper parameters are published (latched) for comparison.  A JSON status is published on the status topic.
+In ``sim`` mode the true damper parameters are published (latched) for comparison. A JSON
+status is published on the status topic.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
@@ -33,7 +34,6 @@ from mr_damper_model.node_utils import (LATCHED_QOS, MEASUREMENT_QOS, run_node,
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-
 
 
 class _Repeating:

@@ -19,7 +19,6 @@ velocity and returns the force for the next (sub)step. Each control step can be 
 ``substeps`` for stiff damper characteristics; per-step work is plain Python floats.
 """
 import dataclasses
-import math
 
 import numpy as np
 from scipy.linalg import expm
