@@ -1,4 +1,5 @@
-"""Test-wide set-up: keep ROS 2 discovery on loopback and on a domain of this run's own.
+"""
+Test-wide set-up: keep ROS 2 discovery on loopback and on a domain of this run's own.
 
 This runs before any test module imports rclpy, so every node a test creates (in this process or
 in a subprocess that inherits the environment) uses LOCALHOST discovery and a private domain.

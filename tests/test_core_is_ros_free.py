@@ -1,4 +1,7 @@
-"""The numerical core of every package imports without ROS (style rule: thin nodes on a pure core).
+"""
+Check the numerical core of every package imports without ROS.
+
+Style rule: thin nodes on a pure core.
 
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``), ``messages.py`` (message conversions) and ``record.py``

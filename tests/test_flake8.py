@@ -1,4 +1,5 @@
-"""Lint as a test (ament_flake8 convention): flake8 over packages, tests, benches and launchers.
+"""
+Lint as a test (ament_flake8 convention): flake8 over packages, tests, benches and launchers.
 
 Line length 99 as in ament's configuration; pyflakes errors (unused imports, undefined names)
 and pycodestyle errors fail the suite.

@@ -134,7 +134,7 @@ class Listener:
         return received
 
     def publisher(self, topic, msg_type, qos=None):
-        """Create a publisher (reliable depth 1000 unless ``qos`` given)."""
+        """Create a publisher: reliable, depth 1000, unless ``qos`` is given."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         if qos is None:
             qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

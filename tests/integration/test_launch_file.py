@@ -41,7 +41,7 @@ class _PythonExpression(_Recorded):
 
 @pytest.fixture
 def launch_description(monkeypatch):
-    """Run generate_launch_description() with recording stand-ins of launch / launch_ros."""
+    """Run ``generate_launch_description`` with recording stand-ins of launch / launch_ros."""
     launch = types.ModuleType('launch')
     launch.LaunchDescription = _Recorded
     actions = types.ModuleType('launch.actions')

@@ -1,8 +1,10 @@
 """
-Fit quality on every shared Quiroz file: Kwok, default (separable) method, seed 1, default
-bounds. NRMSE [%] recorded with the widened physical bounds (c, k up to 1e5 / 5e5: no parameter
-at an upper bound on any file; also in README); a regression beyond 2 % relative + 0.05 points
-fails. Tuple: (nrmse_percent, mean_percent_error) as recorded.
+Check the fit quality on every shared Quiroz file.
+
+Kwok, default (separable) method, seed 1, default bounds. NRMSE [%] recorded with the
+widened physical bounds (c, k up to 1e5 / 5e5: no parameter at an upper bound on any file;
+also in README); a regression beyond 2 % relative + 0.05 points fails. Tuple:
+(nrmse_percent, mean_percent_error) as recorded.
 """
 import pytest
 

@@ -295,6 +295,7 @@ def check_samples(data, *, min_samples=2, name=''):
     Parameters
     ----------
     data : DamperData
+        Record to check.
     min_samples : int
         Fewer samples than this is an error.
     name : str
@@ -329,6 +330,7 @@ def validate(data, *, min_samples=50, min_stroke_m=1e-4, name=''):
     Parameters
     ----------
     data : DamperData
+        Record to check.
     min_samples : int
         Fewer samples than this is an error.
     min_stroke_m : float

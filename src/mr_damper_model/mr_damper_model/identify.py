@@ -245,7 +245,7 @@ class SeparableCost:
         return self.model._nonlinear_factor(nonlinear, *self.args)
 
     def _probe(self, probe):
-        """Fixed / nonlinear-dependent columns found by evaluating the regressors twice."""
+        """Find the fixed / nonlinear-dependent columns by evaluating the regressors twice."""
         x, v, i, t = self.args
         phi = np.asarray(self.model.regressors(np.asarray(probe, dtype=float), x, v, i=i, t=t),
                          dtype=float)
@@ -650,6 +650,7 @@ def current_groups(data, *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES):
     Parameters
     ----------
     data : DamperData
+        Record to split.
     tol_a : float
         Currents closer than this [A] form one level.
     min_samples : int
@@ -674,6 +675,7 @@ def identify_per_current(data, model='kwok', *, tol_a=0.05, min_samples=MIN_LEVE
     Parameters
     ----------
     data : DamperData
+        Record with several current levels.
     model : str
         Model name (default Kwok, as in the thesis).
     tol_a : float
@@ -713,7 +715,9 @@ def compare_models(data, models=('bingham', 'bouc-wen', 'kwok'), **kw):
     Parameters
     ----------
     data : DamperData
+        Record to fit.
     models : sequence of str
+        Model names (default Bingham, Bouc-Wen and Kwok).
     **kw
         Passed to :func:`identify` (same seed for every model).
 

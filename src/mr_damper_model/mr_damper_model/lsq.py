@@ -178,15 +178,18 @@ def bounded_lstsq(phi, y, lo, hi, **kw):
 
 def sum_squares(G, b, yy, theta):
     """
-    Residual sum of squares ``||Phi theta - y||^2`` from the Gram form, clipped at 0.
+    Compute the residual sum of squares ``||Phi theta - y||^2`` from the Gram form, clipped at 0.
 
     Parameters
     ----------
     G : ndarray with shape (p, m, m)
+        Gram matrices ``Phi^T Phi``.
     b : ndarray with shape (p, m)
+        ``Phi^T y``.
     yy : float
         ``y^T y``.
     theta : ndarray with shape (p, m)
+        Linear parameter vectors, one per row.
 
     Returns
     -------

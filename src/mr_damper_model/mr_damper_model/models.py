@@ -355,7 +355,7 @@ class HysteresisModel:
 
     def nonlinear_factor(self, nonlinear, x, v, i=None, t=None):
         """
-        The regressor factor ``h`` that depends on the nonlinear parameters.
+        Evaluate the regressor factor ``h`` that depends on the nonlinear parameters.
 
         Parameters
         ----------
@@ -385,7 +385,7 @@ class HysteresisModel:
 
     def jacobian(self, params, x, v, i=None, t=None):
         """
-        Derivatives of the force with respect to the parameters at one parameter set.
+        Differentiate the force with respect to the parameters at one parameter set.
 
         Analytic for the algebraic models (Kwok, kwok-current, Bingham); forward differences
         otherwise.
@@ -393,6 +393,7 @@ class HysteresisModel:
         Parameters
         ----------
         params : array_like with shape (n_params,)
+            Parameter values in ``param_names`` order.
         x, v, i, t : array_like with shape (n,)
             As in ``force``.
 
@@ -415,6 +416,7 @@ class HysteresisModel:
         Parameters
         ----------
         params : array_like with shape (n_params,)
+            Parameter values in ``param_names`` order.
 
         Returns
         -------

@@ -1,6 +1,8 @@
 """
-Identified-parameter files (JSON): written by ``mr-damper-identify --out`` and the identifier
-node, read by the inverse model, the quarter car and the identifier after a restart.
+Read and write identified-parameter files (JSON).
+
+They are written by ``mr-damper-identify --out`` and the identifier node, and read by the
+inverse model, the quarter car and the identifier after a restart.
 
 Format::
 

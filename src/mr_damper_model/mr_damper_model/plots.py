@@ -20,12 +20,14 @@ __all__ = ['model_force', 'fit_figure', 'compare_figure', 'save_figure']
 
 def model_force(result, data):
     """
-    Force [N] of an identified model on a record.
+    Evaluate the force [N] of an identified model on a record.
 
     Parameters
     ----------
     result : IdentificationResult
+        Model name, options and parameters (``x``) of the fit.
     data : DamperData
+        Record whose displacement, velocity, current and time are used.
 
     Returns
     -------
@@ -100,6 +102,7 @@ def compare_figure(t, f_measured, model_forces, *, title=''):
     model_forces : dict
         Model label -> force [N] with shape (n,).
     title : str
+        Figure title.
 
     Returns
     -------

@@ -147,7 +147,7 @@ def z_step_array(z0, dr, A, beta, gamma):
 
 
 def substeps(dt, max_substep_s):
-    """Number of sub-steps for a sample interval dt [s] (at least one)."""
+    """Return the number of sub-steps for a sample interval dt [s] (at least one)."""
     return max(1, int(math.ceil(dt / max_substep_s - 1e-9)))
 
 

@@ -267,7 +267,7 @@ class CurrentSchedule:
     duration_s = None
 
     def __call__(self, t):
-        """Current command [A] at time t [s] (float for scalar t)."""
+        """Return the current command [A] at time t [s] (float for scalar t)."""
         val = self._eval(np.asarray(t, dtype=float))
         return float(val) if np.ndim(t) == 0 else val
 

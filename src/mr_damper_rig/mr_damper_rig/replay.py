@@ -359,6 +359,6 @@ class SimSource:
         return None
 
     def sample(self, k):
-        """Return the next sample (``k`` must count up by one)."""
+        """Return the next recorded sample; ``k`` must count up by one."""
         t, x, v, f, i = self.rig.sample()
         return self.t0 + t, x, v, f, i

@@ -330,7 +330,7 @@ class KwokCurrentInverse:
 
     def current(self, f_body, travel, v_rel):
         """
-        Current command for a desired damper force on the body.
+        Return the current command for a desired damper force on the body.
 
         Parameters
         ----------
@@ -390,7 +390,7 @@ class KwokCurrentInverse:
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,
                     params=None):
     """
-    Controller by its command-line name.
+    Build a controller from its command-line name.
 
     Parameters
     ----------

@@ -25,6 +25,7 @@ def plot_transmissibility(trans, f_hz, ax=None, *, quantity='a_s'):
     f_hz : array_like
         Frequencies [Hz] used for ``trans``.
     ax : matplotlib Axes, optional
+        Axes to draw on (a new figure when None).
     quantity : str
         'a_s' [1/s^2], 'travel' or 'tyre_deflection' [-].
 

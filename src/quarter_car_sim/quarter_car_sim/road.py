@@ -193,7 +193,7 @@ def iso8608(road_class, speed_m_s, duration_s, dt=1e-3, rng=None, *, n_min=ISO86
 
 def bump(height=0.05, length=1.0, speed_m_s=10.0, duration_s=3.0, dt=1e-3, *, start_s=0.5):
     """
-    Single half-sine bump (speed-bump like) of a height and length, at constant speed.
+    Make a single half-sine bump, speed-bump like, of a height and length at constant speed.
 
     Parameters
     ----------

@@ -176,14 +176,14 @@ class SimResult:
         return np.column_stack([self.current_cmd, self.coil_current])
 
     def metrics(self):
-        """Ride metrics (:func:`quarter_car_sim.ride_metrics.ride_metrics`)."""
+        """Return the ride metrics, see :func:`quarter_car_sim.ride_metrics.ride_metrics`."""
         from quarter_car_sim.ride_metrics import ride_metrics
         return ride_metrics(self)
 
 
 def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     """
-    Inverse model from identified parameters.
+    Build the inverse model from identified parameters.
 
     Parameters
     ----------
@@ -191,6 +191,9 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
         kwok-current parameters: a ``{name: value}`` dict, a dict/ParamsFile with
         ``parameters`` and ``model_options``, or a JSON parameter file path
         (``mr_damper_model.params_file.load_params``).
+    i_min, i_max : float
+        Coil current range [A] the command is saturated to (not applied when
+        ``damper_params`` is already an inverse object, which is returned as is).
 
     Returns
     -------
@@ -315,7 +318,7 @@ piston velocities of a class C road at 20 m/s better."""
 
 def simulated_rig_data(plant, *, seed=0, periods=4):
     """
-    Simulated rig test of a damper plant on H1's virtual rig (``mr_damper_rig.virtual_rig``).
+    Simulate a rig test of a damper plant on H1's virtual rig (``mr_damper_rig.virtual_rig``).
 
     For each excitation of :data:`RIG_EXCITATIONS` the rig steps the current through
     :data:`RIG_CURRENTS_A`, ``periods`` cam periods per level, with the rig's load-cell noise

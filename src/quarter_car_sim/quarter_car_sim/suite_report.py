@@ -102,7 +102,7 @@ def fit_error(f_meas, f_model):
 
 def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
     """
-    The offline kwok-current fit of the whole record (``mr_damper_model.identify``): a yardstick.
+    Fit kwok-current offline to the whole record (``mr_damper_model.identify``): a yardstick.
 
     When the true damper is not a kwok-current model (the Spencer plant), no parameter can be
     compared with a truth; the best kwok-current fit of everything recorded says how close the
@@ -229,6 +229,8 @@ def passive_reference(qc_params, t_end, dt, current=None):
         Last simulated time [s] of the live run.
     dt : float
         Control period [s].
+    current : float, optional
+        Passive coil current [A] (default: the node's ``safe_current_a``, 0.5 A if unset).
 
     Returns
     -------
