@@ -3,7 +3,8 @@
 Simulation speed of the quarter car: real-time factor on ISO 8608 class C, 20 m/s, 60 s, 1 kHz.
 
 Targets (issue 3): kwok-current plant >= 50x faster than real time, Spencer plant >= 5x, with
-the controller and the inverse model in the loop. Timing: median of ``--repeats`` runs of
+the controller and the inverse model in the loop. Also printed: the cost of one plant step alone
+(``DamperPlant.step`` on the thesis cam motion at 1 kHz, the rig's and the car's inner call). Timing: median of ``--repeats`` runs of
 ``quarter_car_sim.simulate.simulate`` (whole call: car, plant, controller, inverse, logging and
 conversion to arrays; road generation excluded). The machine is shared: figures are noisy.
 
@@ -13,6 +14,7 @@ Usage::
 """
 import argparse
 import json
+import math
 import statistics
 import time
 
@@ -52,8 +54,9 @@ def main(argv=None):
                          'real_time_factor': args.duration / wall,
                          'target': TARGETS[plant_name],
                          'met': args.duration / wall >= TARGETS[plant_name]})
+    plant_us = {name: _plant_step_us(name, args.repeats) for name in ('kwok-current', 'spencer')}
     if args.json:
-        print(json.dumps(rows, indent=1))
+        print(json.dumps({'simulate': rows, 'plant_step_us': plant_us}, indent=1))
         return
     print(f'ISO 8608 C, 20 m/s, {args.duration:g} s at 1 kHz ({road.n} steps), '
           f'median of {args.repeats}')
@@ -63,6 +66,23 @@ def main(argv=None):
         print(f'{r["plant"]:13s} {r["controller"]:13s} {r["wall_s"]:7.2f} '
               f'{r["us_per_step"]:8.1f} {r["real_time_factor"]:7.1f} {r["target"]:6.0f}'
               f' {"ok" if r["met"] else "MISSED"}')
+    print('plant step alone (thesis cam, 1 kHz, median of repeats): ' + ', '.join(
+        f'{name} {us:.1f} us' for name, us in plant_us.items()))
+
+
+def _plant_step_us(name, repeats, n=20000, dt=1e-3):
+    """Time ``n`` plant steps on the thesis cam (30 mm, 1.1 Hz) at 1 A; median us per step."""
+    w = 2.0 * math.pi * presets.THESIS_CAM_FREQ_HZ
+    amp = presets.THESIS_CAM_AMPLITUDE_M
+    motion = [(amp * math.sin(w * k * dt), amp * w * math.cos(w * k * dt)) for k in range(n)]
+    costs = []
+    for _ in range(repeats):
+        plant = make_plant(name)
+        t0 = time.perf_counter()
+        for x, v in motion:
+            plant.step(dt, x, v, 1.0)
+        costs.append((time.perf_counter() - t0) / n * 1e6)
+    return statistics.median(costs)
 
 
 if __name__ == '__main__':
