@@ -40,10 +40,10 @@ import time
 import numpy as np
 
 from .data import DamperData
+from .kwok_current import KwokCurrent, kwok_current_coefficients
 
 KWOK_NAMES = ('c', 'k', 'alpha', 'beta', 'delta', 'f0')
-KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
-                      'f0')
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Keys of the sample rejection counters.
 REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'joint_names', 'layout')
@@ -260,10 +260,10 @@ def kwok_current_at(p, current_a, i_ref_a=2.0):
         Kwok parameters c(i), k, alpha(i), beta(i), delta, f0.
 
     """
-    s = current_a / i_ref_a
-    return {'c': p['c0'] + p['c1'] * s, 'k': p['k'],
-            'alpha': p['alpha0'] + p['alpha1'] * s * (2.0 - s) + p['alpha2'] * s * s,
-            'beta': p['beta0'] * math.exp(p['beta1'] * s), 'delta': p['delta'], 'f0': p['f0']}
+    row = np.array([[p[n] for n in KWOK_CURRENT_NAMES]], dtype=float)
+    c, alpha, beta = kwok_current_coefficients(row, np.array([current_a / i_ref_a]))
+    return {'c': float(c[0, 0]), 'k': p['k'], 'alpha': float(alpha[0, 0]),
+            'beta': float(beta[0, 0]), 'delta': p['delta'], 'f0': p['f0']}
 
 
 def check_excitation(data, config):

@@ -20,12 +20,13 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
+from .kwok_current import KwokCurrent
+
 PISTON_JOINT = 'mr_damper_piston'
 COIL_JOINT = 'mr_damper_coil'
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
 
-KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
-                      'f0')
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
 KWOK_PARAMETER_LABELS = KWOK_CURRENT_NAMES + (
     'i_ref_a', 'window_end_s', 'current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent',
     'valid')

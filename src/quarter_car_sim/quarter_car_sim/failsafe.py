@@ -29,9 +29,10 @@ import math
 
 import numpy as np
 
+from mr_damper_model.kwok_current import KwokCurrent
+
 #: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.
-KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
-                      'f0')
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Reasons the supervisor reports (``mode == 'failsafe'``) or counts (rejections).
 REASONS = (

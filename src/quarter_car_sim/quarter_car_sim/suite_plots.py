@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
-                      'f0')
+from mr_damper_model.kwok_current import KwokCurrent
+
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 
 def _plt():

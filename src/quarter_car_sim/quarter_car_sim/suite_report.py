@@ -33,8 +33,9 @@ import sys
 
 import numpy as np
 
-KWOK_CURRENT_NAMES = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta',
-                      'f0')
+from mr_damper_model.models import get_model
+
+KWOK_CURRENT_NAMES = get_model('kwok-current').param_names
 RIDE_KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
              'rms_tyre_load_ratio', 'peak_body_accel', 'mean_current_a', 'max_current_a')
 
@@ -80,13 +81,8 @@ def model_force(params, x, v, i):
     numpy.ndarray with shape (n,)
 
     """
-    x, v, i = (np.asarray(a, dtype=float) for a in (x, v, i))
-    s = i / float(params.get('i_ref_a', 2.0))
-    c = params['c0'] + params['c1'] * s
-    alpha = params['alpha0'] + params['alpha1'] * s * (2.0 - s) + params['alpha2'] * s ** 2
-    beta = params['beta0'] * np.exp(params['beta1'] * s)
-    return c * v + params['k'] * x + alpha * np.tanh(beta * v + params['delta'] * np.sign(x)) \
-        + params['f0']
+    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    return model.force(model.from_dict(params), x, v, i=i)
 
 
 def fit_error(f_meas, f_model):
