@@ -255,7 +255,13 @@ def _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s):
 
 class KwokCurrentInverse:
     """
-    Scalar, plain-Python inverse for 1 kHz control loops (same method as ``inverse_current``).
+    Scalar, plain-Python inverse for 1 kHz control loops (same answers as ``inverse_current``).
+
+    Fast path first: the force at the two ends of the current range brackets the demand
+    (Illinois regula falsi between them), or the demand is beyond both end forces while the
+    mid-range force lies between them (F(i) monotone: saturate at the nearest end). Only when
+    F(i) has an interior extremum is the range pre-scanned on a grid, as ``inverse_current``
+    does.
 
     Parameters
     ----------
@@ -264,16 +270,21 @@ class KwokCurrentInverse:
     i_ref_a, i_min, i_max : float
         As in ``inverse_current`` [A].
     n_grid : int
-        Pre-scan grid size (default 9; F(i) is monotone for physical parameter sets).
+        Pre-scan grid size for non-monotone F(i) (default 9).
+    tol_a : float or None
+        Stop the root search when the bracket is narrower than this [A]; None: only when the
+        force matches to 1e-9 relative.
 
     """
 
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9):
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
         p = _param_vector(params)
         if not (i_ref_a > 0 and i_max > i_min):
             raise ModelError('need `i_ref_a` > 0 and `i_max` > `i_min`')
         self._p = tuple(float(q) for q in p)
         self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
+        self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
+        self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
         self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
                       for j in range(n_grid)]
 
@@ -290,7 +301,11 @@ class KwokCurrentInverse:
 
     def current(self, f_des, x, v):
         """
-        Return ``(current [A], flag)`` with flag 0 reachable, -1 saturated low, +1 high.
+        Return ``(current [A], flag)``: flag 0 reachable, -1 saturated low, +1 saturated high.
+
+        A demand out of reach gets the current of the nearest achievable force; the flag says
+        whether the demand was below (-1, including the wrong sign for the motion) or above
+        (+1) that force.
 
         Parameters
         ----------
@@ -308,27 +323,37 @@ class KwokCurrentInverse:
         """
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
             raise ModelError('`f_des`, `x`, `v` must be finite')
+        s_lo, s_hi = self._s_lo, self._s_hi
+        d_lo = self._f(s_lo, x, v) - f_des
+        d_hi = self._f(s_hi, x, v) - f_des
+        if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
+            return self._solve(s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
+        d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
+        if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
+            return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
         g = self._grid
         d = [self._f(s, x, v) - f_des for s in g]
         for j in range(len(g) - 1):
             if d[j] * d[j + 1] <= 0.0:
-                a, b, fa, fb = g[j], g[j + 1], d[j], d[j + 1]
-                if fa == 0.0:
-                    b, fb = a, 0.0
-                ftol = 1e-9 * (1.0 + abs(f_des))
-                for _ in range(_MAX_ITER):
-                    if abs(fb) <= ftol or abs(b - a) <= 1e-12:
-                        break
-                    c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-                    if not min(a, b) < c < max(a, b):
-                        c = 0.5 * (a + b)
-                    fc = self._f(c, x, v) - f_des
-                    if fc * fb < 0.0:
-                        a, fa = b, fb
-                    else:
-                        fa *= 0.5
-                    b, fb = c, fc
-                return min(max(b * self.i_ref_a, self.i_min), self.i_max), 0
+                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
         jn = min(range(len(g)), key=lambda q: abs(d[q]))
-        flag = -1 if jn == 0 else (1 if jn == len(g) - 1 else 0)
-        return g[jn] * self.i_ref_a, flag
+        return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
+
+    def _solve(self, a, b, fa, fb, f_des, x, v):
+        """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
+        if fa == 0.0:
+            b, fb = a, 0.0
+        ftol = 1e-9 * (1.0 + abs(f_des))
+        for _ in range(_MAX_ITER):
+            if abs(fb) <= ftol or abs(b - a) <= self._tol_s:
+                break
+            c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+            if not min(a, b) < c < max(a, b):
+                c = 0.5 * (a + b)
+            fc = self._f(c, x, v) - f_des
+            if fc * fb < 0.0:
+                a, fa = b, fb
+            else:
+                fa *= 0.5
+            b, fb = c, fc
+        return min(max(b * self.i_ref_a, self.i_min), self.i_max)

@@ -30,6 +30,9 @@ import math
 
 import numpy as np
 
+from mr_damper_model.inverse import KwokCurrentInverse as ModelInverse
+from mr_damper_model.kwok_current import KwokCurrent
+
 DEFAULT_C_SKY = 2000.0
 """Default skyhook gain [N s/m].
 
@@ -255,23 +258,11 @@ class LqrActive(Controller):
 
 class KwokCurrentInverse:
     """
-    Scalar force -> current inverse of the identified kwok-current damper model (fast path).
+    Force on the body -> coil current, through the identified kwok-current damper model.
 
-    A plain-float front end of ``mr_damper_model.inverse`` for the 1 kHz loop. The forward
-    model is the kwok-current contract of ``mr_damper_model`` (spec)::
-
-        s = i / i_ref_a;  c = c0 + c1 s;  alpha = alpha0 + alpha1 s (2 - s) + alpha2 s^2
-        beta = beta0 exp(beta1 s);  F = c v + k x + alpha tanh(beta v + delta sign(x)) + f0
-
-    with ``F`` resisting extension. The model force is evaluated at ``i_min``, ``i_max`` and the
-    middle of the range: when the desired force lies between the two end forces the root is
-    found by Illinois regula falsi (to ``tol_a``); when it does not and F(i) looks monotone
-    (middle force between the end ones) the command saturates at the end whose force is
-    nearest (``i_min`` for a force of the wrong sign or below the ``i_min`` force). Only when
-    F(i) is not monotone (an interior extremum) is the sample handed to H1's
-    ``mr_damper_model.inverse.KwokCurrentInverse``, which scans the whole range. The tests
-    check agreement with ``mr_damper_model.inverse.inverse_current``. About 3-7 us per call,
-    against 15 us for the full scalar scan and ~200 us for a one-sample vectorised call.
+    The car-side view of :class:`mr_damper_model.inverse.KwokCurrentInverse` (which does the
+    solving): the demand is a force on the body, positive up, while the damper model's force
+    resists extension (model force = ``-f_body``); the answer is ``(current, saturated)``.
 
     Parameters
     ----------
@@ -286,47 +277,18 @@ class KwokCurrentInverse:
 
     """
 
-    names = ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'beta0', 'beta1', 'delta', 'f0')
+    names = KwokCurrent.param_names
 
     def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-4):
-        missing = [n for n in self.names if n not in params]
-        if missing:
-            raise ValueError(f'kwok-current parameters missing: {", ".join(missing)}')
-        vals = [float(params[n]) for n in self.names]
-        if not all(math.isfinite(v) for v in vals):
-            raise ValueError('kwok-current parameters must be finite')
-        i_ref_a, i_min, i_max = float(i_ref_a), float(i_min), float(i_max)
-        if not (i_ref_a > 0 and i_max > i_min and math.isfinite(i_max + i_min)):
-            raise ValueError('need `i_ref_a` > 0 and finite `i_max` > `i_min`')
-        (self.c0, self.c1, self.k, self.a0, self.a1, self.a2, self.b0, self.b1, self.delta,
-         self.f0) = vals
-        self.params = dict(zip(self.names, vals))
-        self.i_ref_a, self.i_min, self.i_max = i_ref_a, i_min, i_max
-        self._tol_s = float(tol_a) / i_ref_a
-        self._scan = None
+        self.params = {n: float(params[n]) for n in self.names if n in params}
+        self._inverse = ModelInverse(params, i_ref_a=i_ref_a, i_min=i_min, i_max=i_max,
+                                     tol_a=tol_a)
+        self.i_ref_a, self.i_min, self.i_max = (self._inverse.i_ref_a, self._inverse.i_min,
+                                                self._inverse.i_max)
 
     def model_force(self, x, v, i):
         """Model force [N] (resisting extension positive) at travel x [m], v [m/s], i [A]."""
-        sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-        return self._f(i / self.i_ref_a, v, self.k * x + self.f0, self.delta * sx)
-
-    def _f(self, s, v, off, dsx):
-        e = self.b1 * s
-        b = self.b0 * math.exp(50.0 if e > 50.0 else (-50.0 if e < -50.0 else e))
-        return ((self.c0 + self.c1 * s) * v + off
-                + (self.a0 + self.a1 * s * (2.0 - s) + self.a2 * s * s) * math.tanh(b * v + dsx))
-
-    def _full_scan(self, target, travel, v_rel):
-        if self._scan is None:
-            from mr_damper_model.inverse import KwokCurrentInverse as ScanInverse
-            self._scan = ScanInverse(self.params, i_ref_a=self.i_ref_a, i_min=self.i_min,
-                                     i_max=self.i_max)
-        i, flag = self._scan.current(target, travel, v_rel)
-        if flag != 0:
-            return i, True
-        # flag 0: reachable, or the nearest force at an interior current (not reachable)
-        f = self.model_force(travel, v_rel, i)
-        return i, abs(f - target) > 1e-3 * (1.0 + abs(target))
+        return self._inverse.force(i, x, v)
 
     def current(self, f_body, travel, v_rel):
         """
@@ -349,42 +311,8 @@ class KwokCurrentInverse:
             demand) or ``i_max``.
 
         """
-        target = -f_body
-        off = self.k * travel + self.f0
-        dsx = self.delta if travel > 0.0 else (-self.delta if travel < 0.0 else 0.0)
-        s_lo, s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
-        g_lo = self._f(s_lo, v_rel, off, dsx) - target
-        g_hi = self._f(s_hi, v_rel, off, dsx) - target
-        if g_lo == 0.0:
-            return self.i_min, False
-        if (g_lo > 0.0) == (g_hi > 0.0) and g_hi != 0.0:
-            g_mid = self._f(0.5 * (s_lo + s_hi), v_rel, off, dsx) - target
-            if min(g_lo, g_hi) <= g_mid <= max(g_lo, g_hi):
-                if abs(g_lo) <= abs(g_hi):
-                    return self.i_min, True
-                return self.i_max, True
-            return self._full_scan(target, travel, v_rel)
-        a, b, ga, gb = s_lo, s_hi, g_lo, g_hi
-        s = b
-        side = 0
-        for _ in range(60):
-            if gb == 0.0 or b - a < self._tol_s:
-                break
-            s = (a * gb - b * ga) / (gb - ga)
-            g = self._f(s, v_rel, off, dsx) - target
-            if (g > 0.0) == (gb > 0.0):
-                b, gb = s, g
-                if side == -1:
-                    ga *= 0.5
-                side = -1
-            else:
-                a, ga = s, g
-                if side == 1:
-                    gb *= 0.5
-                side = 1
-            if g == 0.0:
-                break
-        return s * self.i_ref_a, False
+        current, flag = self._inverse.current(-f_body, travel, v_rel)
+        return current, flag != 0
 
 
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,
