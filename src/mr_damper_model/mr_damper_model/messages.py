@@ -20,10 +20,9 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
+from .data import COIL_JOINT, PISTON_JOINT
 from .kwok_current import KwokCurrent
 
-PISTON_JOINT = 'mr_damper_piston'
-COIL_JOINT = 'mr_damper_coil'
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names

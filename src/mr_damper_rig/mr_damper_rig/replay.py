@@ -17,12 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mr_damper_model.data import check_samples, DamperData, DataError, read_csv
+from mr_damper_model.data import check_samples, COIL_JOINT, DamperData, DataError, PISTON_JOINT, \
+    read_csv
 
 MEASUREMENT_TOPIC = '/mr_damper/measurement'
 JOINTSTATE_TYPE = 'sensor_msgs/msg/JointState'
-PISTON_JOINT = 'mr_damper_piston'
-COIL_JOINT = 'mr_damper_coil'
 
 
 def check_stream(data, *, name='', min_samples=2):
