@@ -28,7 +28,7 @@ Threading: ``add_sample`` and ``next_window`` may be called from one thread and 
 (the fit) from another; the sample buffer is protected by a lock, the bins and the warm start
 belong to the fitting thread.
 """
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 import math
 import os
 import pickle
@@ -42,7 +42,6 @@ import numpy as np
 from .data import DamperData
 from .kwok_current import KwokCurrent, kwok_current_coefficients
 
-KWOK_NAMES = ('c', 'k', 'alpha', 'beta', 'delta', 'f0')
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Keys of the sample rejection counters.
@@ -756,11 +755,6 @@ class LiveIdentifier:
             bins_a=sorted(b.level for b in list(self._bins.values())),
             last_error=self.last_error)
         return c
-
-
-def config_dict(config):
-    """Return a :class:`LiveConfig` as a plain dict."""
-    return asdict(config)
 
 
 if __name__ == '__main__':

@@ -208,9 +208,6 @@ class HysteresisModel:
         """Number of parameters."""
         return len(self.param_names)
 
-    def _index(self, names):
-        return [self.param_names.index(p) for p in names]
-
     def _params(self, params):
         """Coerce ``params`` to (p, n_params); return it and whether the input was 1-D."""
         arr = np.asarray(params, dtype=float)

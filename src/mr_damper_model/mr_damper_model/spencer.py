@@ -253,14 +253,6 @@ def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     return c1 * yd + k1 * (x_b - x0)
 
 
-def initial_force_scalar(p, x, v, u, y):
-    """Force [N] at the state (y [m], z = 0, coil current u [A]) and motion x [m], v [m/s]."""
-    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = p
-    c0 = c0a + c0b * u
-    c1 = c1a + c1b * u
-    return c1 * (c0 * v + k0 * (x - y)) / (c0 + c1) + k1 * (x - x0)
-
-
 class Spencer(HysteresisModel):
     """
     Spencer et al. (1997) modified Bouc-Wen model with coil current dependence.

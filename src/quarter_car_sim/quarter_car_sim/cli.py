@@ -27,10 +27,6 @@ TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'ac
               ('saturated_fraction', 'sat', '{:5.2f}'))
 
 
-class UsageError(ValueError):
-    """Bad command-line input."""
-
-
 class _Parser(argparse.ArgumentParser):
     """Argument parser whose errors are one line on stderr and exit status 2."""
 

@@ -36,8 +36,6 @@ import numpy as np
 from mr_damper_model.models import get_model
 
 KWOK_CURRENT_NAMES = get_model('kwok-current').param_names
-RIDE_KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
-             'rms_tyre_load_ratio', 'peak_body_accel', 'mean_current_a', 'max_current_a')
 
 
 def _load_yaml(path):
