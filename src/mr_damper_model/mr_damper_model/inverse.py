@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force_scalar
 from mr_damper_model.models import ModelError
 
 _N_GRID = 33
@@ -293,11 +293,7 @@ class KwokCurrentInverse:
         return self._f(i / self.i_ref_a, x, v)
 
     def _f(self, s, x, v):
-        c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = self._p
-        sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-        beta = b0 * math.exp(max(-50.0, min(50.0, b1 * s)))
-        alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
-        return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
+        return kwok_current_force_scalar(self._p, s, x, v)
 
     def current(self, f_des, x, v):
         """

@@ -15,6 +15,8 @@ alpha1 > alpha2 gives saturating growth (magnetic saturation of the MR fluid), a
 convex growth. beta(i) stays positive for every beta1. All of c0..alpha2, k and f0 enter the
 force linearly, so the separable PSO searches only beta0, beta1 and delta.
 """
+import math
+
 import numpy as np
 
 from mr_damper_model.models import HysteresisModel, ModelError, SeparableParts
@@ -41,6 +43,33 @@ def kwok_current_coefficients(P, s):
     alpha = P[:, [3]] + P[:, [4]] * s * (2.0 - s) + P[:, [5]] * s * s
     beta = P[:, [6]] * np.exp(np.clip(P[:, [7]] * s, -50.0, 50.0))
     return c, alpha, beta
+
+
+def kwok_current_force_scalar(p, s, x, v):
+    """
+    Kwok-current force [N] for one sample, in plain floats (1 kHz loops: plant, inverse).
+
+    Parameters
+    ----------
+    p : sequence of float
+        The ten parameters in ``KwokCurrent.param_names`` order.
+    s : float
+        Normalised current i / i_ref_a [-].
+    x : float
+        Displacement [m].
+    v : float
+        Velocity [m/s].
+
+    Returns
+    -------
+    float
+
+    """
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+    beta = b0 * math.exp(max(-50.0, min(50.0, b1 * s)))
+    alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
+    return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
 
 
 class KwokCurrent(HysteresisModel):

@@ -18,7 +18,7 @@ because it runs in 1 kHz loops.
 """
 import math
 
-from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force_scalar
 from mr_damper_model.models import ModelError
 from mr_damper_model.spencer import advance_scalar, Spencer, substeps
 
@@ -149,8 +149,8 @@ class KwokCurrentPlant(DamperPlant):
         self.model_options = dict(self._model.options)
         self.coil_tau_s = _check_option(coil_tau_s, 'coil_tau_s')
         q = self.params
-        self._p = (q['c0'], q['c1'], q['k'], q['alpha0'], q['alpha1'], q['alpha2'], q['beta0'],
-                   q['beta1'], q['delta'], q['f0'], 1.0 / float(i_ref_a))
+        self._p = tuple(q[n] for n in KwokCurrent.param_names)
+        self._inv_ref = 1.0 / float(i_ref_a)
         super().__init__(slew_a_per_s, initial_current_a)
 
     def _step(self, dt, x, v, i_cmd):
@@ -160,12 +160,7 @@ class KwokCurrentPlant(DamperPlant):
                 self.current = drive + (self.current - drive) * math.exp(-dt / self.coil_tau_s)
             else:
                 self.current = drive
-        c0, c1, k, a0, a1, a2, b0, b1, delta, f0, inv_ref = self._p
-        s = self.current * inv_ref
-        beta = b0 * math.exp(max(-50.0, min(50.0, b1 * s)))
-        sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-        alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
-        return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
+        return kwok_current_force_scalar(self._p, self.current * self._inv_ref, x, v)
 
 
 class SpencerPlant(DamperPlant):
