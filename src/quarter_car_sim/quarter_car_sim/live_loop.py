@@ -364,23 +364,18 @@ def make_plant(name='spencer', params_file=''):
     name : str
         ``'spencer'`` or ``'kwok-current'`` (``mr_damper_model.plant.make_plant``).
     params_file : str
-        Optional JSON file with the plant's parameters (a ``{"parameters": {...}}`` parameter
-        file or a plain name -> value object); default: the plant's preset (thesis damper).
+        Optional parameter file of the plant (``mr_damper_model.params_file`` format, read
+        the same way as the rig node's ``truth_file``); default: the plant's preset (thesis
+        damper).
 
     Returns
     -------
     mr_damper_model.plant.DamperPlant
 
     """
-    import json
+    from mr_damper_model.params_file import load_params
     from mr_damper_model.plant import make_plant as _make_plant
-    params = None
-    if params_file:
-        with open(params_file) as fh:
-            d = json.load(fh)
-        params = d.get('parameters', d) if isinstance(d, dict) else None
-        if not isinstance(params, dict):
-            raise ValueError(f'{params_file}: not a parameter object')
+    params = load_params(params_file, model=name).parameters if params_file else None
     return _make_plant(name, params)
 
 
