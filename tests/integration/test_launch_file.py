@@ -16,6 +16,7 @@ import pytest
 import yaml
 
 from conftest import REPO, VENV_BIN
+from integration.ros_helpers import load_run_suite
 
 LAUNCH_FILE = REPO / 'launch_scripts' / 'suite.launch.py'
 CONFIG_DIR = REPO / 'launch_scripts' / 'config'
@@ -123,7 +124,7 @@ def test_node_names_match_the_nodes_and_the_launcher(launch_description):
         module = _console_scripts(n['package'])[n['executable']].split(':')[0]
         text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
         assert f"super().__init__('{n['name']}'" in text
-    run_suite = _run_suite()
+    run_suite = load_run_suite()
     assert run_suite.NODES == {n['name']: n['executable'] for n in nodes}
 
 
@@ -147,16 +148,8 @@ def test_yaml_parameters_are_declared_by_the_nodes(config):
             assert f"'{name}'" in text or f'    {name}: ' in text, f'{node}: {name} not declared'
 
 
-def _run_suite():
-    spec = importlib.util.spec_from_file_location('run_suite_cfg',
-                                                  REPO / 'launch_scripts' / 'run_suite.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_launcher_config_resolution(tmp_path):
-    rs = _run_suite()
+    rs = load_run_suite()
     args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '3', '--duration', '40',
                           '--set', 'quarter_car_node.safe_current_a=1.0',
                           '--set', '/**.plant=kwok-current'])
@@ -173,7 +166,7 @@ def test_launcher_config_resolution(tmp_path):
 def test_launcher_replay_concatenates_csv_files(tmp_path):
     from conftest import QUIROZ_DIR
     from mr_damper_model.data import read_csv
-    rs = _run_suite()
+    rs = load_run_suite()
     files = sorted(QUIROZ_DIR.glob('quiroz_sine_10mm1Hz_*A_preproc.csv'))[:2]
     args = rs.parse_args(['--out', str(tmp_path), '--config', 'replay']
                          + [a for f in files for a in ('--file', str(f))])
@@ -192,7 +185,7 @@ def test_launcher_replay_concatenates_csv_files(tmp_path):
     (['--set', 'no_equals_sign'], 'NODE.PARAM=VALUE'),
 ])
 def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
-    rs = _run_suite()
+    rs = load_run_suite()
     assert rs.main(['--out', str(tmp_path), *argv]) == 2
     assert message in capsys.readouterr().err
 

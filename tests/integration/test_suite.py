@@ -13,7 +13,6 @@ private domain of tests/conftest.py. Three runs, about 1.5 min together:
 - the suite's processes with the identifier killed mid-run: the car goes fail-safe (stale) after
   the timeout and keeps running; the identifier restarted, the loop recovers.
 """
-import importlib.util
 import json
 import math
 import os
@@ -26,19 +25,11 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import Listener, load_run_suite, NodeProcess
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 SAFE_A = 0.5
-
-
-def _run_suite_module():
-    spec = importlib.util.spec_from_file_location('run_suite',
-                                                  REPO / 'launch_scripts' / 'run_suite.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _good_params():
@@ -177,7 +168,7 @@ def test_full_suite_short_run(tmp_path):
 
 def test_identifier_killed_then_restarted(listener, tmp_path):
     from std_msgs.msg import String
-    rs = _run_suite_module()
+    rs = load_run_suite()
     args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '60'])
     cfg = rs.resolve_config(args, tmp_path)
     rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
