@@ -3,13 +3,16 @@
 
 ``ros2 run PKG EXE`` executes ``install/PKG/lib/PKG/EXE``: the build must produce that file for
 every node, and each must start from the install (sourcing ``install/setup.bash``, so the
-packages come from the install tree, not from the editable checkout).
+packages come from the install tree, not from the editable checkout). The message package
+``mr_damper_interfaces`` (ament_cmake + rosidl) builds the standard way too, with colcon's cmake
+plugin, against the ROS 2 wheels of the venv (the prefix a full install would source).
 """
 import os
 from pathlib import Path
 import shlex
 import signal
 import subprocess
+import sys
 import time
 
 import pytest
@@ -25,11 +28,15 @@ NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
 @pytest.fixture(scope='module')
 def install(tmp_path_factory):
     ws = tmp_path_factory.mktemp('colcon_ws')
-    env = dict(os.environ, PATH=f'{VENV_BIN}{os.pathsep}{os.environ["PATH"]}')
+    prefix = sys.prefix   # the venv: its ROS 2 wheels are this build's underlay
+    env = dict(os.environ, PATH=f'{VENV_BIN}{os.pathsep}{os.environ["PATH"]}',
+               AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix)
     out = subprocess.run([str(VENV_BIN / 'colcon'), '--log-base', str(ws / 'log'), 'build',
                           '--base-paths', str(REPO / 'src'), '--build-base', str(ws / 'build'),
-                          '--install-base', str(ws / 'install')],
-                         cwd=ws, env=env, capture_output=True, text=True, timeout=300)
+                          '--install-base', str(ws / 'install'),
+                          '--cmake-args', f'-DPython3_EXECUTABLE={sys.executable}',
+                          '-DBUILD_TESTING=OFF'],
+                         cwd=ws, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     return ws / 'install'
 
@@ -57,6 +64,25 @@ def test_packages_come_from_the_install(install):
     assert out.returncode == 0, out.stderr
     for path in out.stdout.split():
         assert Path(path).is_relative_to(install), path
+
+
+def test_interfaces_come_from_the_install(install):
+    pkg = 'mr_damper_interfaces'
+    share = install / pkg / 'share' / pkg
+    for name in ('KwokParameters', 'QuarterCarState'):
+        assert (share / 'msg' / f'{name}.msg').read_text() == \
+            (REPO / 'src' / pkg / 'msg' / f'{name}.msg').read_text()
+        assert (share / 'msg' / f'{name}.idl').is_file()
+    assert (install / pkg / 'share' / 'ament_index' / 'resource_index' / 'packages'
+            / pkg).is_file()
+    code = ('import mr_damper_interfaces.msg as m; '
+            'from rclpy.serialization import serialize_message as s, deserialize_message as d; '
+            'k = m.KwokParameters(c0=1.5, reason="ok"); '
+            'assert d(s(k), m.KwokParameters) == k; print(m.__file__)')
+    out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} -c {shlex.quote(code)}'),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert Path(out.stdout.strip()).is_relative_to(install / pkg), out.stdout
 
 
 def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):
