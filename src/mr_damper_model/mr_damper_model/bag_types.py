@@ -134,7 +134,7 @@ def suite_typestore(msg_dir=None):
     Parameters
     ----------
     msg_dir : str or Path, optional
-        Folder of ``*.msg`` files. Default: :func:`interfaces_msg_dir`.
+        As in :func:`register_interface_types`.
 
     Returns
     -------
