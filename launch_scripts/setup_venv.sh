@@ -21,6 +21,17 @@ want="$(cat "$root/requirements.txt" "$root"/src/*/setup.py "${BASH_SOURCE[0]}" 
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -x "$venv/bin/python" ]; then
   exit 0
 fi
+rm -f "$stamp"   # written again only at the end: a failed run is redone next time
+build="$venv/build/mr_damper_interfaces"
+# uninstall the interfaces built last time (files, then the folders they leave empty), so a
+# removed .msg leaves nothing behind and pip never sees a half-removed egg-info
+if [ -f "$build/install_manifest.txt" ]; then
+  while IFS= read -r file; do
+    rm -f -- "$file"
+    rmdir -p --ignore-fail-on-non-empty -- "$(dirname -- "$file")" 2>/dev/null || true
+  done < "$build/install_manifest.txt"
+  rm -f -- "$build/install_manifest.txt"
+fi
 if ! command -v python3 >/dev/null; then
   echo "setup_venv: python3 (3.11) is required" >&2; exit 1
 fi
@@ -70,11 +81,6 @@ for path in sorted(pathlib.Path(sys.prefix, 'share').glob('*/cmake/*Export.cmake
         path.write_text(new)
 EOF
 echo "setup_venv: building $ifaces into $venv (about 20 s)" >&2
-build="$venv/build/mr_damper_interfaces"
-# uninstall the previous build's files first, so a removed .msg leaves nothing behind
-if [ -f "$build/install_manifest.txt" ]; then
-  while IFS= read -r file; do rm -f -- "$file"; done < "$build/install_manifest.txt"
-fi
 rm -rf "$build"; mkdir -p "$build"
 # (&& chains: `set -e` does not apply inside an `if` condition)
 if ! ( export PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" &&
