@@ -7,8 +7,10 @@ files, survive rclpy (CDR) serialisation, travel over a real topic between two D
 with the suite type store carries the typed ``ros2msg`` schema and decodes field by field.
 Also checks that ``diagnostic_msgs/DiagnosticArray`` (pip wheel) publishes and arrives.
 """
+import os
 from pathlib import Path
 import struct
+import subprocess
 import sys
 import time
 
@@ -86,6 +88,20 @@ def test_generated_classes_come_from_the_venv_install():
     assert tuple(QuarterCarState.get_fields_and_field_types()) == (
         ('header',) + STATE_FLOATS + ('fail_safe_mode', 'fail_safe_reason'))
     assert (QuarterCarState.MODE_NORMAL, QuarterCarState.MODE_FAIL_SAFE) == (0, 1)
+
+
+def test_venv_python_needs_no_environment_variable():
+    """A node started by hand (README) gets no LD_LIBRARY_PATH, PYTHONPATH, AMENT_PREFIX_PATH."""
+    code = ('import sys; from mr_damper_interfaces.msg import QuarterCarState as Q; '
+            'from rclpy.serialization import serialize_message as s, deserialize_message as d; '
+            'm = Q(tyre_load_n=3531.6, fail_safe_reason="stale"); '
+            'assert d(s(m), Q) == m; print(sys.prefix)')
+    env = {'PATH': '/usr/bin:/bin', 'HOME': os.environ.get('HOME', '/tmp'),
+           'ROS_LOG_DIR': os.environ['ROS_LOG_DIR']}
+    out = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == sys.prefix
 
 
 def test_kwok_fields_are_the_model_parameter_names():
