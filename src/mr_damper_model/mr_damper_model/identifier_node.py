@@ -57,6 +57,23 @@ _LIVE_DESCRIPTIONS = {
     'min_force_std_n': 'Minimum force standard deviation of a window [N]',
     'min_direction_fraction': 'Minimum fraction of samples moving in each direction',
     'restart_samples': 'Consecutive increasing out-of-order samples that restart the stream',
+    'force_limit_n': 'Reject samples with |force| above this [N]',
+    'velocity_limit_m_s': 'Reject samples with |velocity| above this [m/s]',
+    'displacement_limit_m': 'Reject samples with |displacement| above this [m]',
+    'current_limit_min_a': 'Reject samples with a current below this [A]',
+    'current_limit_max_a': 'Reject samples with a current above this [A]',
+    'max_gap_s': 'Skip windows with a stamp step above this [s]',
+    'outlier_mad_k': 'Outlier threshold in robust standard deviations (1.4826 MAD) of the '
+                     'force from its 5-sample running median',
+    'outlier_floor_fraction': 'Outlier threshold floor as a fraction of the robust force range',
+    'stuck_s': 'A force exactly constant this long [s] is a stuck load cell (dropout at 0)',
+    'max_error_ratio': 'Refuse a set whose RMSE on data covered by the last valid set exceeds '
+                       'this times that set\'s (plus the floor)',
+    'max_shift_ratio': 'Skip new samples the last valid set explains this times worse than '
+                       'its own data in the same state cells (plus the floor)',
+    'error_floor_percent': 'Floor of both comparisons [% of the robust force range]',
+    'pinned_fraction': 'Refuse sets with a parameter this fraction of its bound span from a '
+                       'non-zero bound',
 }
 
 
@@ -109,6 +126,9 @@ class IdentifierNode(Node):
         self._pub_params = self.create_publisher(
             Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
+        # ready to fit before subscribing: the fit process imports numpy, scipy and the models
+        # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
+        self._fit_ready = self._warm_up()
         self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
                                  MEASUREMENT_QOS)
         self.create_timer(float(p('status_period_s').value), self._publish_status)
@@ -133,6 +153,19 @@ class IdentifierNode(Node):
             f'identifying {p("measurement_topic").value} -> {p("parameters_topic").value}: '
             f'window {config.window_s} s every {config.hop_s} s, budget {config.budget_s} s')
 
+    def _warm_up(self):
+        """Start the fit process and import the fitting code in it; return True if ready."""
+        if self._fit_process is None:
+            return True          # in-thread fits: identify was imported with this module
+        start = time.monotonic()
+        try:
+            self._fit_process.warm_up()
+        except Exception as exc:  # the first fit will retry and report
+            self.get_logger().warning(f'fit process did not start: {exc}')
+            return False
+        self.get_logger().info(f'fit process ready in {time.monotonic() - start:.2f} s')
+        return True
+
     # measurement callback: conversion and checks only (the fit runs in the worker thread)
     def _on_measurement(self, msg):
         try:
@@ -155,11 +188,6 @@ class IdentifierNode(Node):
                 os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
             except OSError:
                 pass
-        if self._fit_process is not None:   # start the fit process now, not at window 1
-            try:
-                self._fit_process.warm_up()
-            except Exception as exc:  # the first fit will retry and report
-                self.get_logger().warning(f'fit process did not start: {exc}')
         while not self._stop.is_set():
             window = self.live.next_window()
             if window is None:
@@ -213,7 +241,7 @@ class IdentifierNode(Node):
                                       'n': int(ages.size)}
         status.update(parameters_published=self._published, params_file_writes=self._saved,
                       initial_source=self._initial_source, worker_alive=self._worker.is_alive(),
-                      realtime=self._realtime)
+                      realtime=self._realtime, fit_ready_at_subscribe=self._fit_ready)
         self._pub_status.publish(status_msg(status))
 
     def shutdown(self):

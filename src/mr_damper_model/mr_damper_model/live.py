@@ -740,6 +740,7 @@ class LiveIdentifier:
         self._compute_sum = 0.0
         self.last_error = ''
         self.last_check = {}       # figures of the last consistency comparisons [N]
+        self.processed_up_to_s = math.nan   # end of the last window processed (any outcome)
         if initial is not None:
             self.estimate = self._initial_estimate(initial)
             if self.estimate is not None:
@@ -916,6 +917,12 @@ class LiveIdentifier:
             The estimate (also stored as :attr:`estimate`; :attr:`last_good` if valid).
 
         """
+        try:
+            return self._process(window)
+        finally:
+            self.processed_up_to_s = float(window.end_s)
+
+    def _process(self, window):
         t_start = time.perf_counter()
         cfg = self.config
         c = self.counters
@@ -1149,7 +1156,9 @@ class LiveIdentifier:
         ``samples_lost`` (left the buffer before a window handed them out),
         ``samples_flagged`` {reason: count}, ``fit_errors``, ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
-        [s]), ``last_valid``, ``last_reason``, ``last_model``, ``last_nrmse_percent``,
+        [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
+        sample up to it has been judged [s]), ``last_valid``, ``last_reason``, ``last_model``,
+        ``last_nrmse_percent``,
         ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
         ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
         held), ``last_error``.
@@ -1161,6 +1170,7 @@ class LiveIdentifier:
         c.update(
             last_window_start_s=est.window_start_s if est else math.nan,
             last_window_end_s=est.window_end_s if est else math.nan,
+            processed_up_to_s=self.processed_up_to_s,
             last_valid=bool(est.valid) if est else False,
             last_reason=est.reason if est else 'no_estimate',
             last_model=est.model_fitted if est else '',
