@@ -414,3 +414,14 @@ def test_screen_helpers_on_known_signals():
 def test_fault_settings_are_validated(bad):
     with pytest.raises(ValueError, match='`' + next(iter(bad))):
         LiveConfig(**bad)
+
+
+def test_stamp_checks_come_before_range_checks():
+    li = LiveIdentifier(LiveConfig())
+    assert li.add_sample(1.0, 0.0, 0.1, 10.0, 1.0) == ''
+    assert li.add_sample(0.5, 0.5, 1.0, 999.0, 2.0) == 'out_of_order'    # late and |x| 0.5 m
+    assert li.add_sample(1.0, 0.0, 0.1, 1e30, 1.0) == 'duplicate'
+    assert li.add_sample(1.1, 0.0, 0.1, 1e30, 1.0) == 'force_range'
+    assert li.add_sample(1.1, 0.0, 0.1, 10.0, 1.0) == ''     # the rejected stamp is free
+    assert li.counters['rejected']['out_of_order'] == li.counters['rejected']['duplicate'] == 1
+    assert li.counters['out_of_range']['force'] == 1

@@ -812,14 +812,6 @@ class LiveIdentifier:
                     and math.isfinite(f) and math.isfinite(i)):
                 c['rejected']['nonfinite'] += 1
                 return 'nonfinite'
-            channel = ('force' if abs(f) > cfg.force_limit_n else
-                       'velocity' if abs(v) > cfg.velocity_limit_m_s else
-                       'displacement' if abs(x) > cfg.displacement_limit_m else
-                       'current' if not (cfg.current_limit_min_a <= i
-                                         <= cfg.current_limit_max_a) else '')
-            if channel:
-                c['out_of_range'][channel] += 1
-                return channel + '_range'
             if t <= self._last_t:
                 reason = 'duplicate' if t == self._last_t else 'out_of_order'
                 if reason == 'out_of_order' and t > self._ooo_last:
@@ -833,6 +825,15 @@ class LiveIdentifier:
                 self._restart_stream()
             self._ooo_run = 0
             self._ooo_last = -math.inf
+            # range checks after the stamp checks: a sample is late before it is implausible
+            channel = ('force' if abs(f) > cfg.force_limit_n else
+                       'velocity' if abs(v) > cfg.velocity_limit_m_s else
+                       'displacement' if abs(x) > cfg.displacement_limit_m else
+                       'current' if not (cfg.current_limit_min_a <= i
+                                         <= cfg.current_limit_max_a) else '')
+            if channel:
+                c['out_of_range'][channel] += 1
+                return channel + '_range'
             if self._t_origin is None:
                 self._t_origin = t
             row = self._buf[self._head]
@@ -1154,6 +1155,7 @@ class LiveIdentifier:
         {reason: count}, ``windows_refused`` {reason: count} (fitted, published not valid),
         ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
         ``samples_lost`` (left the buffer before a window handed them out),
+        ``samples_pending`` (accepted, not yet handed out: after the last due window end),
         ``samples_flagged`` {reason: count}, ``fit_errors``, ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
         [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
@@ -1165,6 +1167,7 @@ class LiveIdentifier:
         """
         with self._lock:
             c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
+            c['samples_pending'] = self._seq - self._handed
         est = self.estimate
         fitted = c['windows_fitted']
         c.update(
