@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.identify import IdentificationResult  # noqa: F401  (result type of fits)
+from mr_damper_model.data import DamperData
 from mr_damper_model.live import (constant_runs, fit_data, flag_samples, LiveConfig,
                                   LiveIdentifier, pinned_parameters, robust_range,
                                   running_median)
@@ -50,16 +50,7 @@ def stream(currents=(0.0, 1.0, 2.0, 2.0), hold_s=3.0, seed=0):
 def run(arrays, every=50, **config):
     """Feed the stream sample by sample; return the identifier and its estimates."""
     li = LiveIdentifier(LiveConfig(**dict(CFG, **config)))
-    ests = []
-    for k, row in enumerate(zip(*arrays)):
-        li.add_sample(*row)
-        if k % every == 0:
-            w = li.next_window()
-            if w is not None:
-                est = li.process(w)
-                if est is not None:
-                    ests.append(est)
-    return li, ests
+    return li, li.replay(DamperData(*arrays), every)
 
 
 def force_error(est):
@@ -326,7 +317,7 @@ def test_range_checks_count_by_channel(channel, index, value):
 
 
 def _perturbing_fit(scale_alpha_after):
-    """A fit that returns alpha scaled by 0.85 from call ``scale_alpha_after`` on."""
+    """Return a fit that scales alpha by 0.85 from call ``scale_alpha_after`` on."""
     calls = []
 
     def fit(data, model, config, x0=None):
@@ -349,11 +340,7 @@ def _perturbing_fit(scale_alpha_after):
 def test_set_much_worse_than_last_valid_is_refused():
     arrays = stream(currents=(1.0, 1.0), hold_s=2.5)
     li = LiveIdentifier(LiveConfig(**CFG), fit=_perturbing_fit(2))
-    ests = []
-    for k, row in enumerate(zip(*arrays)):
-        li.add_sample(*row)
-        if k % 50 == 0 and (w := li.next_window()) is not None:
-            ests.append(li.process(w))
+    ests = li.replay(DamperData(*arrays), 50)
     assert [e.valid for e in ests[:2]] == [True, True]
     bad = ests[2:]
     assert bad and all(e.reason == 'worse_than_last_valid' for e in bad)
@@ -371,13 +358,8 @@ def test_pinned_set_is_refused():
         result.parameters = dict(result.parameters, f0=500.0)
         return result
 
-    li, _ = None, None
     li = LiveIdentifier(LiveConfig(**CFG), fit=fit)
-    ests = []
-    for k, row in enumerate(zip(*arrays)):
-        li.add_sample(*row)
-        if k % 50 == 0 and (w := li.next_window()) is not None:
-            ests.append(li.process(w))
+    ests = li.replay(DamperData(*arrays), 50)
     assert ests and all(e.reason == 'pinned:f0' and not e.valid for e in ests)
     assert li.last_good is None
 
@@ -400,7 +382,6 @@ def test_screen_helpers_on_known_signals():
     assert robust_range(spiky) == pytest.approx(robust_range(f), rel=0.01)
     mask = constant_runs(np.r_[f[:300], np.full(250, 7.0), f[550:]], t, 0.2)
     assert np.flatnonzero(mask).tolist() == list(range(300, 550))
-    from mr_damper_model.data import DamperData
     zeros = np.zeros(1000)
     data = DamperData(t, zeros, zeros, np.r_[spiky[:700], np.zeros(300)], zeros)
     flags = flag_samples(data, LiveConfig())

@@ -1144,6 +1144,37 @@ class LiveIdentifier:
                         if b.newest_s < newest_s - cfg.bin_max_age_s]:
                 del self._bins[key]
 
+    def replay(self, data, every=1):
+        """
+        Feed a record sample by sample, processing the due window every ``every`` samples.
+
+        The offline counterpart of the node (which asks for windows between callbacks):
+        deterministic when the configuration has no wall-time budget.
+
+        Parameters
+        ----------
+        data : DamperData
+            Samples in stream order.
+        every : int
+            Samples between window requests.
+
+        Returns
+        -------
+        list of LiveEstimate
+            The estimates in order (skipped windows give none).
+
+        """
+        out = []
+        for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):
+            self.add_sample(*row)
+            if k % every == 0:
+                window = self.next_window()
+                if window is not None:
+                    est = self.process(window)
+                    if est is not None:
+                        out.append(est)
+        return out
+
     # ---------------------------------------------------------------- status
     def status(self):
         """
