@@ -406,3 +406,18 @@ def test_stamp_checks_come_before_range_checks():
     assert li.add_sample(1.1, 0.0, 0.1, 10.0, 1.0) == ''     # the rejected stamp is free
     assert li.counters['rejected']['out_of_order'] == li.counters['rejected']['duplicate'] == 1
     assert li.counters['out_of_range']['force'] == 1
+
+
+def test_persistent_inconsistency_resets_only_when_asked():
+    arrays = stream()
+    arrays[3][K_FAULT:] += 150.0                    # offset that never goes away
+    li, ests = run(arrays)
+    assert li.counters['reference_resets'] == 0
+    assert not [e for e in after_fault(ests) if e.valid]      # never: default
+    li, ests = run(arrays, inconsistent_reset_s=2.0)
+    assert li.counters['reference_resets'] == 1
+    # the documented price: after the reset the offset is identified as the damper's f0
+    late = [e for e in ests if e.valid and e.window_end_s >= T_FAULT + 2.0]
+    assert late and late[-1].parameters['f0'] == pytest.approx(TRUTH['f0'] + 150.0, abs=5.0)
+    # windows ending at 7.0 .. 8.5 s skipped, reset at 9.0 s (2 s after the first)
+    assert li.counters['windows_skipped']['inconsistent'] == 4

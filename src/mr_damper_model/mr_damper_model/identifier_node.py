@@ -74,6 +74,9 @@ _LIVE_DESCRIPTIONS = {
     'error_floor_percent': 'Floor of both comparisons [% of the robust force range]',
     'pinned_fraction': 'Refuse sets with a parameter this fraction of its bound span from a '
                        'non-zero bound',
+    'inconsistent_reset_s': 'Forget the reference and bins after this long of consecutive '
+                            'inconsistent windows [s] (0: never; a persistent sensor fault is '
+                            'then identified as the damper)',
 }
 
 

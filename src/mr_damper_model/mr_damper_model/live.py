@@ -163,6 +163,11 @@ class LiveConfig:
     pinned_fraction : float
         A parameter within this fraction of its bound span from a non-zero bound is pinned
         (zero bounds of non-negative coefficients mean "term absent" and are allowed).
+    inconsistent_reset_s : float
+        After this long [s of sample time] of consecutive inconsistent windows, forget the
+        reference and the bins and identify afresh (``reference_resets``); 0: never.  A real,
+        abrupt damper change then recovers, but so does a persistent sensor fault (an offset
+        step becomes f0): leave it 0 unless an operator watches the resets.
 
     """
 
@@ -199,6 +204,7 @@ class LiveConfig:
     max_shift_ratio: float = 3.0
     error_floor_percent: float = 2.0
     pinned_fraction: float = 1e-3
+    inconsistent_reset_s: float = 0.0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
@@ -211,7 +217,7 @@ class LiveConfig:
                 raise ValueError(f'`{name}` must be a positive finite number, got {value!r}')
         for name in ('budget_s', 'bin_max_age_s', 'min_velocity_rms_m_s', 'min_force_std_n',
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
-                     'error_floor_percent', 'pinned_fraction'):
+                     'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -729,9 +735,10 @@ class LiveIdentifier:
                          'windows_refused': {},
                          'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
                          'samples_flagged': {r: 0 for r in FLAG_REASONS},
-                         'fit_errors': 0}
+                         'reference_resets': 0, 'fit_errors': 0}
         self._bins = {}
         self._ref = None           # last valid set of this stream, as a consistency reference
+        self._inconsistent_since = None   # window end of the first of consecutive rejections
         self._last_solution = {}   # model name -> parameter dict (warm start)
         self.estimate = None
         self.last_good = None
@@ -943,9 +950,18 @@ class LiveIdentifier:
             c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
         clean = new.select(flags == '')
         if self._consistency(clean):
-            c['windows_skipped']['inconsistent'] += 1
-            c['samples_flagged']['inconsistent'] += clean.n
-            return None
+            if self._inconsistent_since is None:
+                self._inconsistent_since = window.end_s
+            if not (0 < cfg.inconsistent_reset_s
+                    <= window.end_s - self._inconsistent_since):
+                c['windows_skipped']['inconsistent'] += 1
+                c['samples_flagged']['inconsistent'] += clean.n
+                return None
+            c['reference_resets'] += 1          # start afresh from these samples
+            self._ref = None
+            self._bins.clear()
+            self._last_solution.clear()
+        self._inconsistent_since = None
         self._update_bins(clean, data.n, window.end_s)
         c['samples_binned'] += clean.n
         usable = [b for b in sorted(self._bins.values(), key=lambda b: b.level)
@@ -1010,9 +1026,8 @@ class LiveIdentifier:
         p = np.array([params[n] for n in KWOK_CURRENT_NAMES], dtype=float)
         return model.force(p, data.x, data.v, i=data.i)
 
-    def _covered(self, data):
-        """Mask of the samples at current levels the reference set was fitted on."""
-        ref = self._ref
+    def _covered(self, ref, data):
+        """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
         tol = 0.5 * self.config.current_bin_a
         return (data.i >= ref['current_min_a'] - tol) & (data.i <= ref['current_max_a'] + tol)
 
@@ -1040,11 +1055,12 @@ class LiveIdentifier:
             return 'pinned:' + ','.join(pinned)
         if not (robust_nrmse <= cfg.max_nrmse_percent):
             return 'nrmse_above_threshold'
-        if self._ref is not None:
-            cov = self._covered(fit)
+        ref = self._ref
+        if ref is not None:
+            cov = self._covered(ref, fit)
             if np.count_nonzero(cov) >= MIN_CHECK_SAMPLES:
                 e_new = float(np.sqrt(np.mean((fit.f[cov] - f_new[cov]) ** 2)))
-                f_prev = self._force(self._ref['parameters'], fit.select(cov))
+                f_prev = self._force(ref['parameters'], fit.select(cov))
                 e_prev = float(np.sqrt(np.mean((fit.f[cov] - f_prev) ** 2)))
                 floor = 0.01 * cfg.error_floor_percent * scale
                 self.last_check['new_vs_last_valid_rmse_n'] = (e_new, e_prev)
@@ -1052,9 +1068,8 @@ class LiveIdentifier:
                     return 'worse_than_last_valid'
         return ''
 
-    def _cells(self, data):
-        """Return the reference cell codes (current, x, v cell) of samples; -1 off the grid."""
-        ref = self._ref
+    def _cells(self, ref, data):
+        """Return the cell codes (current, x, v cell) of samples in ``ref``; -1 off its grid."""
         xe, ve = ref['x_edges'], ref['v_edges']
         ix = np.searchsorted(xe, data.x, side='right') - 1
         iv = np.searchsorted(ve, data.v, side='right') - 1
@@ -1076,16 +1091,17 @@ class LiveIdentifier:
         """
         x_edges = np.linspace(float(fit.x.min()), float(fit.x.max()), STATE_CELLS + 1)
         v_edges = np.linspace(float(fit.v.min()), float(fit.v.max()), STATE_CELLS + 1)
-        self._ref = {'parameters': dict(est.parameters), 'current_min_a': est.current_min_a,
-                     'current_max_a': est.current_max_a, 'x_edges': x_edges,
-                     'v_edges': v_edges, 'scale': scale, 'cell_ms': {}}
-        codes = self._cells(fit)
+        ref = {'parameters': dict(est.parameters), 'current_min_a': est.current_min_a,
+               'current_max_a': est.current_max_a, 'x_edges': x_edges, 'v_edges': v_edges,
+               'scale': scale, 'cell_ms': {}}
+        codes = self._cells(ref, fit)
         sq = (fit.f - f_new) ** 2
         ok = codes >= 0
         uniq, inverse, counts = np.unique(codes[ok], return_inverse=True, return_counts=True)
         sums = np.bincount(inverse, weights=sq[ok], minlength=uniq.size)
-        self._ref['cell_ms'] = {int(u): float(m) for u, m, n in zip(uniq, sums / counts, counts)
-                                if n >= MIN_CELL_SAMPLES}
+        ref['cell_ms'] = {int(u): float(m) for u, m, n in zip(uniq, sums / counts, counts)
+                          if n >= MIN_CELL_SAMPLES}
+        self._ref = ref
 
     def _consistency(self, new):
         """
@@ -1098,11 +1114,11 @@ class LiveIdentifier:
         was not fitted on are not judged; fewer than ``MIN_CHECK_SAMPLES`` judged samples:
         no judgement ('').
         """
-        if self._ref is None or new.n < MIN_CHECK_SAMPLES:
+        ref = self._ref
+        if ref is None or new.n < MIN_CHECK_SAMPLES:
             return ''
         cfg = self.config
-        ref = self._ref
-        codes = self._cells(new)
+        codes = self._cells(ref, new)
         cell_ms = ref['cell_ms']
         known = np.array([int(k) in cell_ms for k in codes], dtype=bool)
         if np.count_nonzero(known) < MIN_CHECK_SAMPLES:
@@ -1187,7 +1203,8 @@ class LiveIdentifier:
         ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
         ``samples_lost`` (left the buffer before a window handed them out),
         ``samples_pending`` (accepted, not yet handed out: after the last due window end),
-        ``samples_flagged`` {reason: count}, ``fit_errors``, ``last_window_start_s``,
+        ``samples_flagged`` {reason: count}, ``reference_resets``, ``fit_errors``,
+        ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
         [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
         sample up to it has been judged [s]), ``last_valid``, ``last_reason``, ``last_model``,
