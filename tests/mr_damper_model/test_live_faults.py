@@ -421,3 +421,20 @@ def test_persistent_inconsistency_resets_only_when_asked():
     assert late and late[-1].parameters['f0'] == pytest.approx(TRUTH['f0'] + 150.0, abs=5.0)
     # windows ending at 7.0 .. 8.5 s skipped, reset at 9.0 s (2 s after the first)
     assert li.counters['windows_skipped']['inconsistent'] == 4
+
+
+def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
+    arrays = stream(currents=(0.0, 1.0), hold_s=2.0)
+    keep = np.ones(arrays[0].size, dtype=bool)
+    keep[100:200] = False                           # gap 0.099 -> 0.2 s: window 2.0 skipped
+    arrays = [a[keep] for a in arrays]
+    li = LiveIdentifier(LiveConfig(budget_s=0.0, hop_s=0.2, maxiter=30))
+    li.replay(DamperData(*arrays), 1)
+    c = li.counters
+    assert c['windows_skipped']['gap'] == 1 and c['windows_skipped']['one_direction'] == 0
+    # the samples up to 0.2 s (0..0.099 and 0.2) are in no later window: unbinned; 0.201 ..
+    # 1.999 s were binned with the window ending at 2.2 s: the 0 A level has its bin
+    assert c['samples_unbinned'] == 101
+    assert li._bins[0].data.n == 1799 and li._bins[0].data.t[0] == pytest.approx(0.201)
+    assert li.estimate.bins_a == pytest.approx([0.0, 1.0]) and li.estimate.valid
+    assert_accounted(li)

@@ -18,7 +18,8 @@ the work, so it can be tested and benchmarked without ROS:
    superseded, so each accepted sample is judged and binned exactly once.
 3. **Window checks**: windows spanning a time gap longer than ``max_gap_s`` (``gap``), with too
    few samples, no motion (velocity RMS), no force variation or motion in one direction only are
-   skipped and counted by reason; their new samples are not binned (``samples_unbinned``).
+   skipped and counted by reason; their new samples that the next window holds are offered
+   again with it, the older ones are not binned (``samples_unbinned``).
 4. **Sensor-fault screening of the new samples** (:func:`flag_samples`): a force sample far from
    the 5-sample running median of its neighbours (beyond ``outlier_mad_k`` robust standard
    deviations, from the median absolute deviation, and ``outlier_floor_fraction`` of the robust
@@ -252,6 +253,7 @@ class Window:
     end_s: float
     span: DamperData = None
     n_new: int = 0
+    first_new_seq: int = 0
 
     @property
     def new(self):
@@ -907,7 +909,12 @@ class LiveIdentifier:
             self._handed = oldest + k_end
         span = DamperData(*rows.T, source='window')
         window = span.select(slice(max(k_win - k_new, 0), None))
-        return Window(window, end, span, n_new)
+        return Window(window, end, span, n_new, oldest + k_new)
+
+    def _give_back(self, window, n):
+        """Offer the last ``n`` new samples of ``window`` again with the next window."""
+        with self._lock:
+            self._handed = min(self._handed, window.first_new_seq + window.n_new - n)
 
     # ---------------------------------------------------------------- fitting
     def process(self, window):
@@ -943,7 +950,15 @@ class LiveIdentifier:
         reason = reason or check_excitation(data, cfg)
         if reason:
             c['windows_skipped'][reason] += 1
-            c['samples_unbinned'] += new.n
+            # the samples the next window holds get another chance with it (as when windows
+            # were binned whole); the older ones stay out of the bins
+            n_next = int(np.count_nonzero(new.t > window.end_s + cfg.hop_s - cfg.window_s
+                                          + 1e-9))
+            if window.span is not None and n_next:
+                self._give_back(window, n_next)
+            else:
+                n_next = 0
+            c['samples_unbinned'] += new.n - n_next
             return None
         flags = flag_samples(span, cfg)[span.n - new.n:]
         for name in ('outlier', 'stuck', 'dropout'):
