@@ -105,6 +105,27 @@ class Stream:
         self.wait(lambda: self.judged_up_to() >= t_judged, f'judged up to {t_judged}')
         return self.last()
 
+    def settle(self, params):
+        """Wait until every due window was judged and every estimate fitted was received."""
+        last_due = 2.0 + 0.2 * np.floor((self.t_last - 2.0) / 0.2 + 1e-9)
+        self.snapshot(last_due - 1e-6)
+
+        def published():
+            s = self.last()
+            return (s.get('parameters_published') == s.get('windows_fitted')
+                    and len(params) >= s['parameters_published'])
+        self.wait(published, 'estimates received')
+
+    def clean_until(self, predicate, params, t0, what):
+        """Publish clean 2 A samples in 0.5 s steps (at most 20) until ``predicate()``."""
+        for step in range(21):
+            self.settle(params)
+            if predicate():
+                return t0
+            assert step < 20, (what, self.last())
+            self.publish(segment(t0, 0.5, 2.0, 100 + step))
+            t0 += 0.5
+
 
 def diff(after, before, key):
     return {k: after[key][k] - before[key].get(k, 0) for k in after[key]}
@@ -140,10 +161,9 @@ def run_faults(lis, stream, params):
     # --- clean: 0 A then 2 A until a valid set over 0..2 A is published
     stream.publish(segment(0.0, 3.0, 0.0, 1))
     stream.publish(segment(3.0, 3.0, 2.0, 2))
-    stream.wait(lambda: valid_full(), 'convergence over 0..2 A')
+    t0 = stream.clean_until(valid_full, params, 6.0, 'convergence over 0..2 A')
     n_converged = len(estimates())
-    snaps = [stream.snapshot(5.0)]
-    t0 = 6.0
+    snaps = [stream.snapshot(t0 - 1.0)]
 
     # --- spikes: 5 samples of 1e30 N (range check), 10 in-range spikes of 3000 N (outliers)
     seg = segment(t0, 2.0, 2.0, 3)
@@ -184,9 +204,10 @@ def run_faults(lis, stream, params):
     t_end = stream.t_last
 
     # --- the identifier recovers: a valid full-range set from a window after the faults
-    stream.wait(lambda: any(e['valid'] and e['window_end_s'] > t0 + 2.5 for e in estimates()),
-                'valid set after the faults')
-    final = stream.snapshot(t_end - 0.5)
+    t_gap_end = t0 + 0.4
+    stream.clean_until(
+        lambda: any(e['valid'] and e['window_end_s'] > t_gap_end + 2.0 for e in valid_full()),
+        params, t_end + 0.001, 'valid set after the faults')
     assert lis.wait_for(lambda: stream.last().get('samples_received', 0) == stream.sent, WAIT_S)
     final = stream.last()
 

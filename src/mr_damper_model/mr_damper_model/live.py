@@ -509,7 +509,7 @@ def constant_runs(f, t, min_s):
         return mask
     starts = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
     ends = np.r_[starts[1:], n] - 1
-    long = (t[ends] - t[starts]) >= min_s
+    long = (t[ends] - t[starts]) >= min_s - 1e-9     # stamps are floats: 0.2 s may be 0.1999..
     for a, b in zip(starts[long], ends[long]):
         mask[a:b + 1] = True
     return mask
