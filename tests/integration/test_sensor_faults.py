@@ -238,3 +238,5 @@ def run_faults(lis, stream, params):
     assert final['samples_received'] == stream.sent
     assert final['samples_accepted'] == stream.sent - 5
     assert final['fit_errors'] == 0
+    # and said so in its log
+    assert 'skipped: inconsistent (sensor fault suspected' in stream.ident.output()

@@ -414,6 +414,7 @@ def test_persistent_inconsistency_resets_only_when_asked():
     li, ests = run(arrays)
     assert li.counters['reference_resets'] == 0
     assert not [e for e in after_fault(ests) if e.valid]      # never: default
+    assert li.status()['last_skip'] == 'inconsistent'
     li, ests = run(arrays, inconsistent_reset_s=2.0)
     assert li.counters['reference_resets'] == 1
     # the documented price: after the reset the offset is identified as the damper's f0

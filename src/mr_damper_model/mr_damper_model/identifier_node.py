@@ -205,7 +205,16 @@ class IdentifierNode(Node):
                                         throttle_duration_sec=5.0)
                 continue
             if est is None:
+                if self.live.last_skip in ('inconsistent', 'gap'):
+                    self.get_logger().warning(
+                        f'window ending at {window.end_s:.3f} s skipped: {self.live.last_skip}'
+                        ' (sensor fault suspected; see the status counters)',
+                        throttle_duration_sec=2.0)
                 continue
+            if not est.valid:
+                self.get_logger().warning(
+                    f'window ending at {est.window_end_s:.3f} s: parameters not valid '
+                    f'({est.reason})', throttle_duration_sec=2.0)
             self._publish_estimate(est)
             if est.valid:
                 self._save(est)

@@ -750,6 +750,7 @@ class LiveIdentifier:
         self.last_error = ''
         self.last_check = {}       # figures of the last consistency comparisons [N]
         self.processed_up_to_s = math.nan   # end of the last window processed (any outcome)
+        self.last_skip = ''        # reason the last skipped window was skipped
         if initial is not None:
             self.estimate = self._initial_estimate(initial)
             if self.estimate is not None:
@@ -932,6 +933,7 @@ class LiveIdentifier:
             The estimate (also stored as :attr:`estimate`; :attr:`last_good` if valid).
 
         """
+        self.last_skip = ''
         try:
             return self._process(window)
         finally:
@@ -950,6 +952,7 @@ class LiveIdentifier:
         reason = reason or check_excitation(data, cfg)
         if reason:
             c['windows_skipped'][reason] += 1
+            self.last_skip = reason
             # the samples the next window holds get another chance with it (as when windows
             # were binned whole); the older ones stay out of the bins
             n_next = int(np.count_nonzero(new.t > window.end_s + cfg.hop_s - cfg.window_s
@@ -970,6 +973,7 @@ class LiveIdentifier:
             if not (0 < cfg.inconsistent_reset_s
                     <= window.end_s - self._inconsistent_since):
                 c['windows_skipped']['inconsistent'] += 1
+                self.last_skip = 'inconsistent'
                 c['samples_flagged']['inconsistent'] += clean.n
                 return None
             c['reference_resets'] += 1          # start afresh from these samples
@@ -983,6 +987,7 @@ class LiveIdentifier:
                   if b.data.n >= max(cfg.min_bin_fraction * data.n, 10)]
         if not usable:
             c['windows_skipped']['no_bins'] += 1
+            self.last_skip = 'no_bins'
             return None
         fit = DamperData.concatenate([b.data for b in usable])
         order = np.argsort(fit.t, kind='stable')
@@ -1222,7 +1227,8 @@ class LiveIdentifier:
         ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
         [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
-        sample up to it has been judged [s]), ``last_valid``, ``last_reason``, ``last_model``,
+        sample up to it has been judged [s]), ``last_skip`` (why the last processed window was
+        skipped, '' if it was not), ``last_valid``, ``last_reason``, ``last_model``,
         ``last_nrmse_percent``,
         ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
         ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
@@ -1236,7 +1242,7 @@ class LiveIdentifier:
         c.update(
             last_window_start_s=est.window_start_s if est else math.nan,
             last_window_end_s=est.window_end_s if est else math.nan,
-            processed_up_to_s=self.processed_up_to_s,
+            processed_up_to_s=self.processed_up_to_s, last_skip=self.last_skip,
             last_valid=bool(est.valid) if est else False,
             last_reason=est.reason if est else 'no_estimate',
             last_model=est.model_fitted if est else '',
