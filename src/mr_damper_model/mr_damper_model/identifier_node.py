@@ -129,12 +129,6 @@ class IdentifierNode(Node):
         self._pub_params = self.create_publisher(
             Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
-        # ready to fit before subscribing: the fit process imports numpy, scipy and the models
-        # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
-        self._fit_ready = self._warm_up()
-        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
-                                 MEASUREMENT_QOS)
-        self.create_timer(float(p('status_period_s').value), self._publish_status)
         self._ages = np.zeros(_AGES)
         self._n_ages = 0
         self._published = 0
@@ -142,12 +136,18 @@ class IdentifierNode(Node):
         self._last_save = -math.inf
         self._pending_save = None
         self._stop = threading.Event()
-        if self.live.estimate is not None:
+        if self.live.estimate is not None:   # latched at once: it needs no fit process
             est = self.live.estimate
             self.get_logger().info(
                 f'initial parameters from {self._params_file} '
                 f'({"valid" if est.valid else "not valid: " + est.reason})')
             self._publish_estimate(est)
+        # ready to fit before subscribing: the fit process imports numpy, scipy and the models
+        # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
+        self._fit_ready = self._warm_up()
+        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
+                                 MEASUREMENT_QOS)
+        self.create_timer(float(p('status_period_s').value), self._publish_status)
         self._realtime = set_realtime_priority(int(p('realtime_priority').value),
                                                self.get_logger())
         self._worker = threading.Thread(target=self._work, name='identifier_fit', daemon=True)
