@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from mr_damper_model.data import DamperData
-from mr_damper_model.live import (constant_runs, fit_data, flag_samples, LiveConfig,
-                                  LiveIdentifier, pinned_parameters, robust_range,
+from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
+                                  LiveConfig, LiveIdentifier, pinned_parameters, robust_range,
                                   running_median)
 from mr_damper_model.metrics import fit_metrics
 from mr_damper_model.presets import thesis_kwok_current
@@ -439,3 +439,37 @@ def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
     assert li._bins[0].data.n == 1799 and li._bins[0].data.t[0] == pytest.approx(0.201)
     assert li.estimate.bins_a == pytest.approx([0.0, 1.0]) and li.estimate.valid
     assert_accounted(li)
+
+
+def test_healthy_spencer_damper_raises_no_fault():
+    """Model mismatch is no fault: a Bouc-Wen damper, current steps 0..2 A, all valid."""
+    from mr_damper_model.plant import SpencerPlant
+    from mr_damper_model.presets import spencer_thesis_like
+    plant = SpencerPlant(spencer_thesis_like())
+    t, x, v = cam(10000)
+    i_cmd = np.repeat([0.0, 0.5, 1.0, 1.5, 2.0], 2000)
+    f = np.empty(t.size)
+    i = np.empty(t.size)
+    for k in range(t.size):
+        f[k] = plant.step(1 / RATE if k else 0.0, x[k], v[k], i_cmd[k])
+        i[k] = plant.current
+    f += 2.0 * np.random.default_rng(3).standard_normal(t.size)
+    li, ests = run([t, x, v, f, i], hop_s=0.2, every=20)
+    c = li.counters
+    assert len(ests) == c['windows_due'] == 40 and all(e.valid for e in ests)   # 2.0..9.8 s
+    assert c['samples_flagged'] == dict.fromkeys(FLAG_REASONS, 0)
+    assert ests[-1].bins_a[0] == 0.0 and ests[-1].bins_a[-1] == pytest.approx(2.0, abs=0.01)
+
+
+def test_measured_record_raises_no_fault():
+    """A real damper record (Quiroz, 0.5 Hz): the model error depends on the stroke, no fault."""
+    from conftest import QUIROZ_DIR
+    from mr_damper_model.data import read_csv
+    data = read_csv(QUIROZ_DIR / 'quiroz_sine_25mm0x5Hz_0A.csv')
+    li = LiveIdentifier(LiveConfig(budget_s=0.0, hop_s=1.0, maxiter=20))
+    ests = li.replay(data, 50)
+    c = li.counters
+    assert len(ests) >= 20 and all(e.valid for e in ests)
+    assert c['windows_skipped']['inconsistent'] == c['samples_flagged']['inconsistent'] == 0
+    assert c['samples_flagged']['stuck'] == c['samples_flagged']['dropout'] == 0
+    assert c['samples_flagged']['outlier'] <= 0.001 * data.n
