@@ -28,16 +28,7 @@ def cam_record(currents=(0.0, 0.5, 1.0, 1.5, 2.0), hold_s=2.0, noise_n=2.0, seed
 
 
 def feed(li, data, every=1):
-    out = []
-    for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):
-        li.add_sample(*row)
-        if k % every == 0:
-            w = li.next_window()
-            if w is not None:
-                est = li.process(w)
-                if est is not None:
-                    out.append(est)
-    return out
+    return li.replay(data, every)
 
 
 # deterministic settings (no wall-time budget) for the numerical checks

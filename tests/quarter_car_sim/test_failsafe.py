@@ -79,6 +79,11 @@ def test_goes_stale_after_timeout_and_recovers():
     ({'current_min_a': 0.0, 'current_max_a': 0.0}, 'narrow_current_range'),
     ({'current_min_a': 0.5, 'current_max_a': 1.0}, 'narrow_current_range'),
     ({'current_min_a': 0.0, 'current_max_a': 0.9}, 'narrow_current_range'),
+    ({'f0': 200.0}, 'pinned_at_bound'),
+    ({'f0': -199.8}, 'pinned_at_bound'),
+    ({'beta0': 0.1}, 'pinned_at_bound'),
+    ({'beta1': 3.0}, 'pinned_at_bound'),
+    ({'c0': 1e4, 'alpha1': 2e3}, 'pinned_at_bound'),
 ])
 def test_refuses_bad_sets_and_counts_reason(changes, reason):
     sup = make()
@@ -91,6 +96,30 @@ def test_refuses_bad_sets_and_counts_reason(changes, reason):
     # a refused set drops the model in use at once: no guess from a model just contradicted
     assert sup.mode == 'failsafe' and sup.reason == reason and sup.active is None
     assert sup.status()['params_rejected'][reason] == 1
+
+
+def test_zero_bounds_are_not_pinned_and_detail_names_the_pinned():
+    # zero lower bounds: a term the damper lacks (no current slope, no loop shift) is physical
+    sup = make()
+    assert sup.check(with_(c1=0.0, alpha1=0.0, alpha2=0.0, delta=0.0)).accepted
+    assert sup.check(with_(f0=199.5)).accepted             # 0.125 % of the span inside
+    verdict = sup.check(with_(f0=199.9, beta1=-3.0))
+    assert verdict.reason == 'pinned_at_bound'
+    assert 'f0 = 199.9' in verdict.detail and 'beta1 = -3' in verdict.detail
+    assert make(pinned_fraction=0.0).check(with_(f0=199.9)).accepted
+
+
+def test_issue_set_pinned_at_bounds_but_marked_valid_is_refused():
+    # the set the identifier published as valid after a 1e30 N sample (issue 8): the linear
+    # parameters at their upper bounds; the supervisor refuses it even though valid == 1
+    models = pytest.importorskip('mr_damper_model.models')
+    lo, hi = models.get_model('kwok-current').default_bounds()
+    sup = ModelSupervisor(timeout_s=1.0, safe_current_a=0.0)
+    msg = dict(GOOD, **{n: float(b) for n, b in zip(KWOK_CURRENT_NAMES, hi)
+                        if n in ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'f0')})
+    verdict = sup.offer(msg, 0.0)
+    assert verdict.reason == 'pinned_at_bound' and not verdict.accepted
+    assert sup.rejected['pinned_at_bound'] == 1 and sup.mode == 'failsafe'
 
 
 def test_span_within_tolerance_accepted():
@@ -142,6 +171,8 @@ def test_time_going_backwards_is_not_counted():
     ({'safe_current_a': 3.0}, 'safe_current_a'),
     ({'i_min_a': 2.0, 'i_max_a': 1.0}, 'i_min_a'),
     ({'timeout_s': math.nan}, 'timeout_s'),
+    ({'pinned_fraction': 0.5}, 'pinned_fraction'),
+    ({'pinned_fraction': -0.1}, 'pinned_fraction'),
 ])
 def test_bad_configuration_raises(kw, match):
     with pytest.raises(SupervisorError, match=match):

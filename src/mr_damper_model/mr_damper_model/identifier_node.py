@@ -57,6 +57,26 @@ _LIVE_DESCRIPTIONS = {
     'min_force_std_n': 'Minimum force standard deviation of a window [N]',
     'min_direction_fraction': 'Minimum fraction of samples moving in each direction',
     'restart_samples': 'Consecutive increasing out-of-order samples that restart the stream',
+    'force_limit_n': 'Reject samples with |force| above this [N]',
+    'velocity_limit_m_s': 'Reject samples with |velocity| above this [m/s]',
+    'displacement_limit_m': 'Reject samples with |displacement| above this [m]',
+    'current_limit_min_a': 'Reject samples with a current below this [A]',
+    'current_limit_max_a': 'Reject samples with a current above this [A]',
+    'max_gap_s': 'Skip windows with a stamp step above this [s]',
+    'outlier_mad_k': 'Outlier threshold in robust standard deviations (1.4826 MAD) of the '
+                     'force from its 5-sample running median',
+    'outlier_floor_fraction': 'Outlier threshold floor as a fraction of the robust force range',
+    'stuck_s': 'A force exactly constant this long [s] is a stuck load cell (dropout at 0)',
+    'max_error_ratio': 'Refuse a set whose RMSE on data covered by the last valid set exceeds '
+                       'this times that set\'s (plus the floor)',
+    'max_shift_ratio': 'Skip new samples the last valid set explains this times worse than '
+                       'its own data in the same state cells (plus the floor)',
+    'error_floor_percent': 'Floor of both comparisons [% of the robust force range]',
+    'pinned_fraction': 'Refuse sets with a parameter this fraction of its bound span from a '
+                       'non-zero bound',
+    'inconsistent_reset_s': 'Forget the reference and bins after this long of consecutive '
+                            'inconsistent windows [s] (0: never; a persistent sensor fault is '
+                            'then identified as the damper)',
 }
 
 
@@ -109,9 +129,6 @@ class IdentifierNode(Node):
         self._pub_params = self.create_publisher(
             Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
-        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
-                                 MEASUREMENT_QOS)
-        self.create_timer(float(p('status_period_s').value), self._publish_status)
         self._ages = np.zeros(_AGES)
         self._n_ages = 0
         self._published = 0
@@ -119,12 +136,18 @@ class IdentifierNode(Node):
         self._last_save = -math.inf
         self._pending_save = None
         self._stop = threading.Event()
-        if self.live.estimate is not None:
+        if self.live.estimate is not None:   # latched at once: it needs no fit process
             est = self.live.estimate
             self.get_logger().info(
                 f'initial parameters from {self._params_file} '
                 f'({"valid" if est.valid else "not valid: " + est.reason})')
             self._publish_estimate(est)
+        # ready to fit before subscribing: the fit process imports numpy, scipy and the models
+        # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
+        self._fit_ready = self._warm_up()
+        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
+                                 MEASUREMENT_QOS)
+        self.create_timer(float(p('status_period_s').value), self._publish_status)
         self._realtime = set_realtime_priority(int(p('realtime_priority').value),
                                                self.get_logger())
         self._worker = threading.Thread(target=self._work, name='identifier_fit', daemon=True)
@@ -132,6 +155,19 @@ class IdentifierNode(Node):
         self.get_logger().info(
             f'identifying {p("measurement_topic").value} -> {p("parameters_topic").value}: '
             f'window {config.window_s} s every {config.hop_s} s, budget {config.budget_s} s')
+
+    def _warm_up(self):
+        """Start the fit process and import the fitting code in it; return True if ready."""
+        if self._fit_process is None:
+            return True          # in-thread fits: identify was imported with this module
+        start = time.monotonic()
+        try:
+            self._fit_process.warm_up()
+        except Exception as exc:  # the first fit will retry and report
+            self.get_logger().warning(f'fit process did not start: {exc}')
+            return False
+        self.get_logger().info(f'fit process ready in {time.monotonic() - start:.2f} s')
+        return True
 
     # measurement callback: conversion and checks only (the fit runs in the worker thread)
     def _on_measurement(self, msg):
@@ -155,11 +191,6 @@ class IdentifierNode(Node):
                 os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
             except OSError:
                 pass
-        if self._fit_process is not None:   # start the fit process now, not at window 1
-            try:
-                self._fit_process.warm_up()
-            except Exception as exc:  # the first fit will retry and report
-                self.get_logger().warning(f'fit process did not start: {exc}')
         while not self._stop.is_set():
             window = self.live.next_window()
             if window is None:
@@ -174,7 +205,16 @@ class IdentifierNode(Node):
                                         throttle_duration_sec=5.0)
                 continue
             if est is None:
+                if self.live.last_skip in ('inconsistent', 'gap'):
+                    self.get_logger().warning(
+                        f'window ending at {window.end_s:.3f} s skipped: {self.live.last_skip}'
+                        ' (sensor fault suspected; see the status counters)',
+                        throttle_duration_sec=2.0)
                 continue
+            if not est.valid:
+                self.get_logger().warning(
+                    f'window ending at {est.window_end_s:.3f} s: parameters not valid '
+                    f'({est.reason})', throttle_duration_sec=2.0)
             self._publish_estimate(est)
             if est.valid:
                 self._save(est)
@@ -213,7 +253,7 @@ class IdentifierNode(Node):
                                       'n': int(ages.size)}
         status.update(parameters_published=self._published, params_file_writes=self._saved,
                       initial_source=self._initial_source, worker_alive=self._worker.is_alive(),
-                      realtime=self._realtime)
+                      realtime=self._realtime, fit_ready_at_subscribe=self._fit_ready)
         self._pub_status.publish(status_msg(status))
 
     def shutdown(self):

@@ -5,24 +5,45 @@ The identifier node feeds samples in as they arrive and asks for windows; this m
 the work, so it can be tested and benchmarked without ROS:
 
 1. **Sample validation** (:meth:`LiveIdentifier.add_sample`): NaN/inf values and out-of-order or
-   duplicate stamps are rejected and counted by reason; bad samples never reach the buffer.
-   A stream that restarts from an earlier time (a replay started again) is detected by a run
-   of ``restart_samples`` consecutive, increasing, out-of-order samples: the buffer restarts.
+   duplicate stamps are rejected and counted by reason (``rejected``); values outside the
+   configured sensor ranges (``force_limit_n``, ``velocity_limit_m_s``, ``displacement_limit_m``,
+   ``current_limit_min_a`` .. ``current_limit_max_a``) are rejected and counted by channel
+   (``out_of_range``); bad samples never reach the buffer.  A stream that restarts from an
+   earlier time (a replay started again) is detected by a run of ``restart_samples``
+   consecutive, increasing, out-of-order samples: the buffer restarts.
 2. **Sliding window** (:meth:`LiveIdentifier.next_window`): a window of ``window_s`` seconds of
    *sample* time becomes due every ``hop_s``; when the fitter is slower than the hop, only the
-   newest due window is fitted and the others are counted as superseded.
-3. **Excitation check**: windows with too few samples, no motion (velocity RMS), no force
-   variation or motion in one direction only are skipped and counted by reason.
-4. **Current bins**: each window's samples are filed by coil current into bins of width
+   newest due window is fitted and the others are counted as superseded.  Every window also
+   carries the samples that arrived since the previous one (``new``), however many windows were
+   superseded, so each accepted sample is judged and binned exactly once.
+3. **Window checks**: windows spanning a time gap longer than ``max_gap_s`` (``gap``), with too
+   few samples, no motion (velocity RMS), no force variation or motion in one direction only are
+   skipped and counted by reason; their new samples that the next window holds are offered
+   again with it, the older ones are not binned (``samples_unbinned``).
+4. **Sensor-fault screening of the new samples** (:func:`flag_samples`): a force sample far from
+   the 5-sample running median of its neighbours (beyond ``outlier_mad_k`` robust standard
+   deviations, from the median absolute deviation, and ``outlier_floor_fraction`` of the robust
+   force range) is an ``outlier``; a force exactly constant for ``stuck_s`` or longer is a
+   ``stuck`` load cell (``dropout`` when the constant is zero).  Flagged samples leave the fit
+   and the bins and are counted by reason (``samples_flagged``).  Then the last valid model of
+   this stream (if any) must explain the new samples of the current levels it covers about as
+   well as it explained the data it was fitted on (:meth:`LiveIdentifier._consistency`):
+   otherwise the data changed abruptly (force offset step, current sensor stuck, load cell sign
+   flip, a dropout) and the window is skipped (``inconsistent``) without binning them.
+5. **Current bins**: the screened new samples are filed by coil current into bins of width
    ``current_bin_a``; each bin keeps its newest samples (as many as one window holds) and bins
    older than ``bin_max_age_s`` are dropped.  The Kwok model is algebraic (no internal state),
    so the union of the bins is a valid data set even though it joins different moments.
-5. **Fit** (:func:`fit_data`, the same :func:`~mr_damper_model.identify.identify` call as the
+6. **Fit** (:func:`fit_data`, the same :func:`~mr_damper_model.identify.identify` call as the
    offline tool): separable PSO warm-started from the last solution, within ``budget_s``.  One
    usable bin: plain Kwok (mapped to kwok-current with zero current slopes, the covered range
    being that single current); two or more bins: kwok-current on their union.
-6. **Validity**: finite parameters within the model bounds and ``nrmse_percent <=
-   max_nrmse_percent``.
+7. **Validity**: finite parameters within the model bounds; no parameter pinned at a bound
+   (:func:`pinned_parameters`); the fit RMSE divided by the robust force range of the fit data
+   (0.5-99.5 percentile range, which single outliers cannot move) at most
+   ``max_nrmse_percent``; and, on the fitted samples of the current levels covered by the last
+   valid set of this stream, an RMSE at most ``max_error_ratio`` times that set's plus
+   ``error_floor_percent`` of the robust force range (``worse_than_last_valid``).
 
 Threading: ``add_sample`` and ``next_window`` may be called from one thread and ``process``
 (the fit) from another; the sample buffer is protected by a lock, the bins and the warm start
@@ -46,8 +67,21 @@ KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Keys of the sample rejection counters.
 REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'joint_names', 'layout')
+#: Keys of the out-of-range sample counters (the channel whose range check failed).
+RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 #: Keys of the skipped-window counters.
-SKIP_REASONS = ('few_samples', 'no_motion', 'no_force', 'one_direction', 'no_bins')
+SKIP_REASONS = ('gap', 'few_samples', 'no_motion', 'no_force', 'one_direction', 'inconsistent',
+                'no_bins')
+#: Keys of the flagged-sample counters (samples kept out of the fit and the bins).
+FLAG_REASONS = ('outlier', 'stuck', 'dropout', 'inconsistent')
+#: Width of the running median of the outlier screen [samples] (isolates bursts of <= 2).
+MEDIAN_WIDTH = 5
+#: Fewest screened samples on which the last valid set's consistency is judged.
+MIN_CHECK_SAMPLES = 20
+#: Cells per axis of the (displacement, velocity) grid of the consistency reference.
+STATE_CELLS = 8
+#: Fewest fitted samples in a reference cell for its error to count as known.
+MIN_CELL_SAMPLES = 10
 
 
 @dataclass
@@ -97,6 +131,44 @@ class LiveConfig:
         Fraction of samples needed in each velocity direction (``one_direction``).
     restart_samples : int
         Consecutive increasing out-of-order samples that restart the stream.
+    force_limit_n : float
+        Samples with ``|f|`` above this [N] are rejected (``out_of_range['force']``); dampers
+        of this class make 1-2 kN (thesis damper about 850 N at 2 A, Quiroz damper 1.7 kN).
+    velocity_limit_m_s : float
+        Samples with ``|v|`` above this [m/s] are rejected (``out_of_range['velocity']``).
+    displacement_limit_m : float
+        Samples with ``|x|`` above this [m] are rejected (``out_of_range['displacement']``).
+    current_limit_min_a, current_limit_max_a : float
+        Samples with a current outside this range [A] are rejected
+        (``out_of_range['current']``); the coil takes 0-2 A.
+    max_gap_s : float
+        Windows with a stamp step above this [s] are skipped (``gap``).
+    outlier_mad_k : float
+        Outlier threshold in robust standard deviations (1.4826 MAD) of the force's distance
+        from its running median.
+    outlier_floor_fraction : float
+        Outlier threshold floor as a fraction of the window's robust force range (so that the
+        curvature of noise-free or coarsely sampled data is no outlier).
+    stuck_s : float
+        A force exactly constant for this long [s] or longer is a stuck load cell (``stuck``,
+        ``dropout`` at zero); real load cells have noise (the Quiroz records repeat a value
+        for at most 0.105 s).
+    max_error_ratio : float
+        A new set is refused (``worse_than_last_valid``) when its RMSE on the fitted samples
+        covered by the last valid set exceeds this times that set's RMSE on them, plus the floor.
+    max_shift_ratio : float
+        New samples are inconsistent with the last valid set when its RMSE on them exceeds this
+        times its RMSE on the data it was fitted on (same current levels), plus the floor.
+    error_floor_percent : float
+        Floor of both comparisons [% of the robust force range].
+    pinned_fraction : float
+        A parameter within this fraction of its bound span from a non-zero bound is pinned
+        (zero bounds of non-negative coefficients mean "term absent" and are allowed).
+    inconsistent_reset_s : float
+        After this long [s of sample time] of consecutive inconsistent windows, forget the
+        reference and the bins and identify afresh (``reference_resets``); 0: never.  A real,
+        abrupt damper change then recovers, but so does a persistent sensor fault (an offset
+        step becomes f0): leave it 0 unless an operator watches the resets.
 
     """
 
@@ -120,16 +192,33 @@ class LiveConfig:
     min_force_std_n: float = 2.0
     min_direction_fraction: float = 0.1
     restart_samples: int = 500
+    force_limit_n: float = 5000.0
+    velocity_limit_m_s: float = 2.0
+    displacement_limit_m: float = 0.15
+    current_limit_min_a: float = -0.1
+    current_limit_max_a: float = 2.5
+    max_gap_s: float = 0.05
+    outlier_mad_k: float = 6.0
+    outlier_floor_fraction: float = 0.05
+    stuck_s: float = 0.2
+    max_error_ratio: float = 1.5
+    max_shift_ratio: float = 3.0
+    error_floor_percent: float = 2.0
+    pinned_fraction: float = 1e-3
+    inconsistent_reset_s: float = 0.0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
-                    'max_rate_hz')
+                    'max_rate_hz', 'force_limit_n', 'velocity_limit_m_s',
+                    'displacement_limit_m', 'max_gap_s', 'outlier_mad_k', 'stuck_s',
+                    'max_error_ratio', 'max_shift_ratio')
         for name in positive:
             value = float(getattr(self, name))
             if not math.isfinite(value) or value <= 0:
                 raise ValueError(f'`{name}` must be a positive finite number, got {value!r}')
         for name in ('budget_s', 'bin_max_age_s', 'min_velocity_rms_m_s', 'min_force_std_n',
-                     'min_bin_fraction', 'min_direction_fraction'):
+                     'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
+                     'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -143,14 +232,34 @@ class LiveConfig:
         if self.hop_s > self.window_s:
             raise ValueError(f'`hop_s` ({self.hop_s}) must not exceed `window_s` '
                              f'({self.window_s})')
+        if not float(self.current_limit_min_a) < float(self.current_limit_max_a):
+            raise ValueError(f'`current_limit_min_a` ({self.current_limit_min_a}) must be below '
+                             f'`current_limit_max_a` ({self.current_limit_max_a})')
+        if self.pinned_fraction >= 0.5:
+            raise ValueError(f'`pinned_fraction` must be below 0.5, got {self.pinned_fraction}')
 
 
 @dataclass
 class Window:
-    """Samples of one due window (copies) and its scheduled end [s]."""
+    """
+    Samples of one due window (copies), its scheduled end [s] and the samples new to it.
+
+    ``span`` holds the samples from the older of the window start and the first new sample up
+    to ``end_s`` (time order); its last ``n_new`` samples are the ones no earlier window handed
+    out (more than a window's worth when windows were superseded).
+    """
 
     data: DamperData
     end_s: float
+    span: DamperData = None
+    n_new: int = 0
+    first_new_seq: int = 0
+
+    @property
+    def new(self):
+        """Samples handed out for the first time (the last ``n_new`` of ``span``)."""
+        span = self.span if self.span is not None else self.data
+        return span.select(slice(span.n - self.n_new, None))
 
 
 @dataclass
@@ -171,7 +280,11 @@ class LiveEstimate:
     i_ref_a, window_start_s, window_end_s, current_min_a, current_max_a : float
         Model constant and data coverage (stamps [s], currents [A]).
     rmse_n, nrmse_percent : float
-        Fit quality on the fitted data.
+        Fit quality on the fitted data (``nrmse_percent`` as the offline tool reports it:
+        RMSE over the full force range).
+    robust_nrmse_percent : float
+        RMSE over the robust (0.5-99.5 percentile) force range of the fitted data [%]: the
+        figure validity is judged on.
     seconds : float
         Compute time of the window [s].
     n_samples : int
@@ -194,6 +307,7 @@ class LiveEstimate:
     current_max_a: float = math.nan
     rmse_n: float = math.nan
     nrmse_percent: float = math.nan
+    robust_nrmse_percent: float = math.nan
     seconds: float = 0.0
     n_samples: int = 0
     bins_a: list = field(default_factory=list)
@@ -296,6 +410,142 @@ def check_excitation(data, config):
     if min(frac_up, frac_down) < config.min_direction_fraction:
         return 'one_direction'
     return ''
+
+
+def robust_range(f):
+    """
+    Return the 0.5-99.5 percentile range of a force record [N] (0 for fewer than 2 samples).
+
+    Single outliers cannot move it: the validity NRMSE is normalised by it.
+    """
+    f = np.asarray(f, dtype=float)
+    if f.size < 2:
+        return 0.0
+    lo, hi = np.percentile(f, [0.5, 99.5])
+    return float(hi - lo)
+
+
+def pinned_parameters(names, values, lo, hi, fraction):
+    """
+    Return the names of parameters pinned at a bound of their box.
+
+    A parameter is pinned when it lies within ``fraction`` of its bound span from a bound that
+    is not zero.  Zero bounds (the lower bound of a non-negative coefficient: no viscous term,
+    no hysteresis, no loop shift) are values a physical damper can take; a fit stopped at the
+    end of the search box (e.g. ``f0`` at 500 N, ``beta0`` at 0.1 or 1000 s/m, ``beta1`` at
+    +-3) is one the data pushed out of the physical range, typically by a sensor fault.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Parameter names.
+    values, lo, hi : array_like with shape (n,)
+        Values and bounds (infinite bounds are never reached).
+    fraction : float
+        Fraction of ``hi - lo``.
+
+    Returns
+    -------
+    list of str
+
+    """
+    x = np.asarray(values, dtype=float)
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    span = np.where(np.isfinite(hi - lo), hi - lo, np.inf)
+    tol = fraction * span
+    at_lo = np.isfinite(lo) & (lo != 0) & (x <= lo + tol)
+    at_hi = np.isfinite(hi) & (hi != 0) & (x >= hi - tol)
+    return [n for n, a, b in zip(names, at_lo, at_hi) if a or b]
+
+
+def running_median(f, width=MEDIAN_WIDTH):
+    """
+    Return the centred running median of ``f`` (edges padded with the end values).
+
+    Parameters
+    ----------
+    f : array_like with shape (n,)
+        Signal.
+    width : int
+        Odd window length [samples].
+
+    Returns
+    -------
+    numpy.ndarray with shape (n,)
+
+    """
+    f = np.asarray(f, dtype=float)
+    h = width // 2
+    if f.size == 0:
+        return f.copy()
+    padded = np.concatenate([np.full(h, f[0]), f, np.full(h, f[-1])])
+    return np.median(np.lib.stride_tricks.sliding_window_view(padded, width), axis=1)
+
+
+def constant_runs(f, t, min_s):
+    """
+    Return a mask of the samples in runs of exactly equal values lasting ``min_s`` or longer.
+
+    Parameters
+    ----------
+    f : array_like with shape (n,)
+        Signal.
+    t : array_like with shape (n,)
+        Stamps [s], increasing.
+    min_s : float
+        Shortest flagged run [s] (first to last stamp of the run).
+
+    Returns
+    -------
+    numpy.ndarray of bool with shape (n,)
+
+    """
+    f = np.asarray(f, dtype=float)
+    t = np.asarray(t, dtype=float)
+    n = f.size
+    mask = np.zeros(n, dtype=bool)
+    if n < 2:
+        return mask
+    starts = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
+    ends = np.r_[starts[1:], n] - 1
+    long = (t[ends] - t[starts]) >= min_s - 1e-9     # stamps are floats: 0.2 s may be 0.1999..
+    for a, b in zip(starts[long], ends[long]):
+        mask[a:b + 1] = True
+    return mask
+
+
+def flag_samples(data, config):
+    """
+    Screen force samples for sensor faults; return a reason code per sample.
+
+    Parameters
+    ----------
+    data : DamperData
+        Consecutive samples (the more context around the samples of interest the better).
+    config : LiveConfig
+        ``outlier_mad_k``, ``outlier_floor_fraction``, ``stuck_s``.
+
+    Returns
+    -------
+    numpy.ndarray of object with shape (n,)
+        '' (clean), ``'outlier'`` (far from the running median of its neighbours),
+        ``'stuck'`` (exactly constant for ``stuck_s`` or longer) or ``'dropout'`` (stuck at 0).
+
+    """
+    f = data.f
+    out = np.full(data.n, '', dtype=object)
+    if data.n == 0:
+        return out
+    resid = f - running_median(f)
+    sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+    threshold = max(config.outlier_mad_k * sigma,
+                    config.outlier_floor_fraction * robust_range(f))
+    out[np.abs(resid) > threshold] = 'outlier'
+    stuck = constant_runs(f, data.t, config.stuck_s)
+    out[stuck] = 'stuck'
+    out[stuck & (f == 0.0)] = 'dropout'
+    return out
 
 
 def fit_kwargs(config):
@@ -465,7 +715,8 @@ class LiveIdentifier:
         self.config = config if config is not None else LiveConfig()
         self._fit = fit_data if fit is None else fit
         cfg = self.config
-        self._cap = int(math.ceil((cfg.window_s + 3 * cfg.hop_s) * cfg.max_rate_hz)) + 16
+        # two windows and three hops: room for the samples of superseded windows
+        self._cap = int(math.ceil((2 * cfg.window_s + 3 * cfg.hop_s) * cfg.max_rate_hz)) + 16
         self._buf = np.empty((self._cap, 5))
         self._lock = threading.Lock()
         self._count = 0            # samples in the buffer (<= cap)
@@ -475,13 +726,21 @@ class LiveIdentifier:
         self._next_index = 0       # index m of the next due window end
         self._ooo_run = 0
         self._ooo_last = -math.inf
+        self._seq = 0              # samples accepted into the buffer so far (all streams)
+        self._handed = 0           # sequence number of the first sample not yet handed out
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
                          'rejected': {r: 0 for r in REJECT_REASONS},
+                         'out_of_range': {r: 0 for r in RANGE_CHANNELS},
                          'stream_restarts': 0, 'windows_due': 0, 'windows_superseded': 0,
                          'windows_fitted': 0, 'windows_valid': 0,
                          'windows_skipped': {r: 0 for r in SKIP_REASONS},
-                         'fit_errors': 0}
+                         'windows_refused': {},
+                         'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
+                         'samples_flagged': {r: 0 for r in FLAG_REASONS},
+                         'reference_resets': 0, 'fit_errors': 0}
         self._bins = {}
+        self._ref = None           # last valid set of this stream, as a consistency reference
+        self._inconsistent_since = None   # window end of the first of consecutive rejections
         self._last_solution = {}   # model name -> parameter dict (warm start)
         self.estimate = None
         self.last_good = None
@@ -489,6 +748,9 @@ class LiveIdentifier:
         self.compute_s_max = 0.0
         self._compute_sum = 0.0
         self.last_error = ''
+        self.last_check = {}       # figures of the last consistency comparisons [N]
+        self.processed_up_to_s = math.nan   # end of the last window processed (any outcome)
+        self.last_skip = ''        # reason the last skipped window was skipped
         if initial is not None:
             self.estimate = self._initial_estimate(initial)
             if self.estimate is not None:
@@ -548,9 +810,11 @@ class LiveIdentifier:
         -------
         str
             '' if accepted, else the rejection reason (``'nonfinite'``, ``'out_of_order'``,
-            ``'duplicate'``).
+            ``'duplicate'``, or ``'<channel>_range'`` with channel ``force``, ``velocity``,
+            ``displacement`` or ``current``: counted in ``out_of_range[channel]``).
 
         """
+        cfg = self.config
         with self._lock:
             c = self.counters
             c['samples_received'] += 1
@@ -571,6 +835,15 @@ class LiveIdentifier:
                 self._restart_stream()
             self._ooo_run = 0
             self._ooo_last = -math.inf
+            # range checks after the stamp checks: a sample is late before it is implausible
+            channel = ('force' if abs(f) > cfg.force_limit_n else
+                       'velocity' if abs(v) > cfg.velocity_limit_m_s else
+                       'displacement' if abs(x) > cfg.displacement_limit_m else
+                       'current' if not (cfg.current_limit_min_a <= i
+                                         <= cfg.current_limit_max_a) else '')
+            if channel:
+                c['out_of_range'][channel] += 1
+                return channel + '_range'
             if self._t_origin is None:
                 self._t_origin = t
             row = self._buf[self._head]
@@ -583,17 +856,21 @@ class LiveIdentifier:
             if self._count < self._cap:
                 self._count += 1
             self._last_t = t
+            self._seq += 1
             c['samples_accepted'] += 1
             return ''
 
     def _restart_stream(self):
         self.counters['stream_restarts'] += 1
+        self.counters['samples_lost'] += self._seq - self._handed
+        self._handed = self._seq
         self._count = 0
         self._head = 0
         self._last_t = -math.inf
         self._t_origin = None
         self._next_index = 0
         self._bins.clear()
+        self._ref = None
 
     # ---------------------------------------------------------------- windows
     def next_window(self):
@@ -601,6 +878,9 @@ class LiveIdentifier:
         Return the newest due window (older due windows are counted as superseded), or None.
 
         Window ends are ``t0 + window_s + m * hop_s`` in sample time, ``t0`` the first stamp.
+        The window also hands out every sample up to its end that no earlier window handed out
+        (:attr:`Window.new`); samples that left the buffer before that are counted in
+        ``samples_lost`` (the buffer holds two windows and three hops).
         """
         cfg = self.config
         with self._lock:
@@ -616,16 +896,31 @@ class LiveIdentifier:
             self._next_index = m + 1
             end = first_end + m * cfg.hop_s
             n = self._count
+            oldest = self._seq - n
+            if self._handed < oldest:
+                self.counters['samples_lost'] += oldest - self._handed
+                self._handed = oldest
             idx = (self._head - n + np.arange(n)) % self._cap
-            rows = self._buf[idx]
-        keep = (rows[:, 0] > end - cfg.window_s + 1e-9) & (rows[:, 0] <= end + 1e-9)
-        rows = rows[keep]
-        return Window(DamperData(*rows.T, source='window'), end)
+            t = self._buf[idx, 0]
+            k_end = int(np.searchsorted(t, end + 1e-9, side='right'))
+            k_win = int(np.searchsorted(t, end - cfg.window_s + 1e-9, side='right'))
+            k_new = min(self._handed - oldest, k_end)
+            rows = self._buf[idx[min(k_win, k_new):k_end]]
+            n_new = k_end - k_new
+            self._handed = oldest + k_end
+        span = DamperData(*rows.T, source='window')
+        window = span.select(slice(max(k_win - k_new, 0), None))
+        return Window(window, end, span, n_new, oldest + k_new)
+
+    def _give_back(self, window, n):
+        """Offer the last ``n`` new samples of ``window`` again with the next window."""
+        with self._lock:
+            self._handed = min(self._handed, window.first_new_seq + window.n_new - n)
 
     # ---------------------------------------------------------------- fitting
     def process(self, window):
         """
-        Check, bin and fit one window; return the new estimate (None if skipped).
+        Check, screen, bin and fit one window; return the new estimate (None if skipped).
 
         Parameters
         ----------
@@ -638,19 +933,61 @@ class LiveIdentifier:
             The estimate (also stored as :attr:`estimate`; :attr:`last_good` if valid).
 
         """
+        self.last_skip = ''
+        try:
+            return self._process(window)
+        finally:
+            self.processed_up_to_s = float(window.end_s)
+
+    def _process(self, window):
         t_start = time.perf_counter()
         cfg = self.config
         c = self.counters
         data = window.data
-        reason = check_excitation(data, cfg)
+        new = window.new if window.span is not None else data
+        span = window.span if window.span is not None else data
+        reason = ''
+        if data.n > 1 and float(np.max(np.diff(data.t))) > cfg.max_gap_s:
+            reason = 'gap'
+        reason = reason or check_excitation(data, cfg)
         if reason:
             c['windows_skipped'][reason] += 1
+            self.last_skip = reason
+            # the samples the next window holds get another chance with it (as when windows
+            # were binned whole); the older ones stay out of the bins
+            n_next = int(np.count_nonzero(new.t > window.end_s + cfg.hop_s - cfg.window_s
+                                          + 1e-9))
+            if window.span is not None and n_next:
+                self._give_back(window, n_next)
+            else:
+                n_next = 0
+            c['samples_unbinned'] += new.n - n_next
             return None
-        self._update_bins(data)
+        flags = flag_samples(span, cfg)[span.n - new.n:]
+        for name in ('outlier', 'stuck', 'dropout'):
+            c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
+        clean = new.select(flags == '')
+        if self._consistency(clean):
+            if self._inconsistent_since is None:
+                self._inconsistent_since = window.end_s
+            if not (0 < cfg.inconsistent_reset_s
+                    <= window.end_s - self._inconsistent_since):
+                c['windows_skipped']['inconsistent'] += 1
+                self.last_skip = 'inconsistent'
+                c['samples_flagged']['inconsistent'] += clean.n
+                return None
+            c['reference_resets'] += 1          # start afresh from these samples
+            self._ref = None
+            self._bins.clear()
+            self._last_solution.clear()
+        self._inconsistent_since = None
+        self._update_bins(clean, data.n, window.end_s)
+        c['samples_binned'] += clean.n
         usable = [b for b in sorted(self._bins.values(), key=lambda b: b.level)
                   if b.data.n >= max(cfg.min_bin_fraction * data.n, 10)]
         if not usable:
             c['windows_skipped']['no_bins'] += 1
+            self.last_skip = 'no_bins'
             return None
         fit = DamperData.concatenate([b.data for b in usable])
         order = np.argsort(fit.t, kind='stable')
@@ -674,17 +1011,20 @@ class LiveIdentifier:
             params = dict(result.parameters)
             self._last_solution['kwok'] = kwok_current_at(params, levels[-1], cfg.i_ref_a)
         nrmse = float(result.metrics.get('nrmse_percent', math.nan))
-        reason = _in_bounds(model, result.parameters, cfg.unbounded, cfg.i_ref_a)
-        if not reason and not (nrmse <= cfg.max_nrmse_percent):
-            reason = 'nrmse_above_threshold'
+        rmse = float(result.metrics.get('rmse_n', math.nan))
+        scale = robust_range(fit.f)
+        robust_nrmse = 100.0 * rmse / scale if scale > 0 else math.nan
+        f_new = self._force(params, fit)
+        reason = self._judge(model, result.parameters, robust_nrmse, fit, f_new, scale,
+                             max(levels) - min(levels))
         seconds = time.perf_counter() - t_start
         est = LiveEstimate(
             parameters=params, valid=not reason, reason=reason, model_fitted=model,
             i_ref_a=float(cfg.i_ref_a), window_start_s=float(data.t[0]),
             window_end_s=float(data.t[-1]), current_min_a=float(min(levels)),
-            current_max_a=float(max(levels)),
-            rmse_n=float(result.metrics.get('rmse_n', math.nan)), nrmse_percent=nrmse,
-            seconds=seconds, n_samples=fit.n, bins_a=levels, result=result)
+            current_max_a=float(max(levels)), rmse_n=rmse, nrmse_percent=nrmse,
+            robust_nrmse_percent=robust_nrmse, seconds=seconds, n_samples=fit.n, bins_a=levels,
+            result=result)
         c['windows_fitted'] += 1
         self.last_compute_s = seconds
         self._compute_sum += seconds
@@ -693,7 +1033,124 @@ class LiveIdentifier:
         if est.valid:
             c['windows_valid'] += 1
             self.last_good = est
+            self._set_reference(est, fit, f_new, scale)
+        else:
+            key = reason.split(':')[0]
+            c['windows_refused'][key] = c['windows_refused'].get(key, 0) + 1
         return est
+
+    # ---------------------------------------------------------------- validity
+    def _force(self, params, data):
+        """Kwok-current force [N] of a parameter dict on ``data``."""
+        model = KwokCurrent(i_ref_a=self.config.i_ref_a)
+        p = np.array([params[n] for n in KWOK_CURRENT_NAMES], dtype=float)
+        return model.force(p, data.x, data.v, i=data.i)
+
+    def _covered(self, ref, data):
+        """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
+        tol = 0.5 * self.config.current_bin_a
+        return (data.i >= ref['current_min_a'] - tol) & (data.i <= ref['current_max_a'] + tol)
+
+    def _judge(self, model, fitted, robust_nrmse, fit, f_new, scale, span_a):
+        """
+        Return why a fitted set is not valid, or ''.
+
+        ``beta1`` (the current slope of beta) may sit at its bound when the fitted current
+        span is below half of ``i_ref_a``: over a narrow span a real damper's beta change
+        extrapolates beyond the +-3 box (seen on the Spencer plant at 0 and 0.5 A); such sets
+        are also too narrow for the quarter car, which refuses any pinned set.
+        """
+        cfg = self.config
+        reason = _in_bounds(model, fitted, cfg.unbounded, cfg.i_ref_a)
+        if reason:
+            return reason
+        from .models import get_model
+        mdl = get_model(model, **({'i_ref_a': cfg.i_ref_a} if model == 'kwok-current' else {}))
+        lo, hi = mdl.default_bounds(unbounded=cfg.unbounded)
+        pinned = pinned_parameters(mdl.param_names, [fitted[n] for n in mdl.param_names],
+                                   lo, hi, cfg.pinned_fraction)
+        if span_a < 0.5 * cfg.i_ref_a:
+            pinned = [n for n in pinned if n != 'beta1']
+        if pinned:
+            return 'pinned:' + ','.join(pinned)
+        if not (robust_nrmse <= cfg.max_nrmse_percent):
+            return 'nrmse_above_threshold'
+        ref = self._ref
+        if ref is not None:
+            cov = self._covered(ref, fit)
+            if np.count_nonzero(cov) >= MIN_CHECK_SAMPLES:
+                e_new = float(np.sqrt(np.mean((fit.f[cov] - f_new[cov]) ** 2)))
+                f_prev = self._force(ref['parameters'], fit.select(cov))
+                e_prev = float(np.sqrt(np.mean((fit.f[cov] - f_prev) ** 2)))
+                floor = 0.01 * cfg.error_floor_percent * scale
+                self.last_check['new_vs_last_valid_rmse_n'] = (e_new, e_prev)
+                if e_new > cfg.max_error_ratio * e_prev + floor:
+                    return 'worse_than_last_valid'
+        return ''
+
+    def _cells(self, ref, data):
+        """Return the cell codes (current, x, v cell) of samples in ``ref``; -1 off its grid."""
+        xe, ve = ref['x_edges'], ref['v_edges']
+        ix = np.searchsorted(xe, data.x, side='right') - 1
+        iv = np.searchsorted(ve, data.v, side='right') - 1
+        ix[data.x == xe[-1]] = STATE_CELLS - 1
+        iv[data.v == ve[-1]] = STATE_CELLS - 1
+        inside = (ix >= 0) & (ix < STATE_CELLS) & (iv >= 0) & (iv < STATE_CELLS)
+        keys = np.round(data.i / self.config.current_bin_a).astype(np.int64)
+        code = (keys * STATE_CELLS + ix) * STATE_CELLS + iv
+        return np.where(inside, code, -1)
+
+    def _set_reference(self, est, fit, f_new, scale):
+        """
+        Keep a valid set with its mean square error on its fit data per state cell.
+
+        Cells: current bin x ``STATE_CELLS`` displacement cells x ``STATE_CELLS`` velocity
+        cells over the fit data's range; the model error of a Kwok fit depends on the phase of
+        the cycle (e.g. larger on one stroke of a real damper), so new samples are compared
+        with the error the set made at the same current and state.
+        """
+        x_edges = np.linspace(float(fit.x.min()), float(fit.x.max()), STATE_CELLS + 1)
+        v_edges = np.linspace(float(fit.v.min()), float(fit.v.max()), STATE_CELLS + 1)
+        ref = {'parameters': dict(est.parameters), 'current_min_a': est.current_min_a,
+               'current_max_a': est.current_max_a, 'x_edges': x_edges, 'v_edges': v_edges,
+               'scale': scale, 'cell_ms': {}}
+        codes = self._cells(ref, fit)
+        sq = (fit.f - f_new) ** 2
+        ok = codes >= 0
+        uniq, inverse, counts = np.unique(codes[ok], return_inverse=True, return_counts=True)
+        sums = np.bincount(inverse, weights=sq[ok], minlength=uniq.size)
+        ref['cell_ms'] = {int(u): float(m) for u, m, n in zip(uniq, sums / counts, counts)
+                          if n >= MIN_CELL_SAMPLES}
+        self._ref = ref
+
+    def _consistency(self, new):
+        """
+        Return 'inconsistent' if the last valid set explains ``new`` much worse than its data.
+
+        Compares the RMSE of the last valid set of this stream on the new screened samples
+        with its RMSE on the samples it was fitted on in the same state cells (current level,
+        displacement and velocity, see :meth:`_set_reference`): ``max_shift_ratio`` times,
+        plus ``error_floor_percent`` of its robust force range.  Samples in cells the set
+        was not fitted on are not judged; fewer than ``MIN_CHECK_SAMPLES`` judged samples:
+        no judgement ('').
+        """
+        ref = self._ref
+        if ref is None or new.n < MIN_CHECK_SAMPLES:
+            return ''
+        cfg = self.config
+        codes = self._cells(ref, new)
+        cell_ms = ref['cell_ms']
+        known = np.array([int(k) in cell_ms for k in codes], dtype=bool)
+        if np.count_nonzero(known) < MIN_CHECK_SAMPLES:
+            return ''
+        part = new.select(known)
+        r = part.f - self._force(ref['parameters'], part)
+        expected = np.array([cell_ms[int(k)] for k in codes[known]])
+        e_new = float(np.sqrt(np.mean(r * r)))
+        limit = (cfg.max_shift_ratio * float(np.sqrt(np.mean(expected)))
+                 + 0.01 * cfg.error_floor_percent * ref['scale'])
+        self.last_check['new_samples_rmse_n'] = (e_new, limit)
+        return 'inconsistent' if e_new > limit else ''
 
     def _warm_start(self, model, levels):
         if model in self._last_solution:
@@ -705,25 +1162,54 @@ class LiveIdentifier:
             return kwok_to_kwok_current(self._last_solution['kwok'])
         return None
 
-    def _update_bins(self, data):
+    def _update_bins(self, new, keep, newest_s):
+        """File ``new`` samples by current; each bin keeps its newest ``keep`` samples."""
         cfg = self.config
-        keys = np.round(data.i / cfg.current_bin_a).astype(int)
-        t_start = float(data.t[0])
-        for key in np.unique(keys):
-            part = data.select(keys == key)
-            old = self._bins.get(int(key))
-            if old is not None:
-                older = old.data.select(old.data.t < t_start)
-                if older.n:
-                    part = DamperData.concatenate([older, part])
-            if part.n > data.n:
-                part = part.select(slice(part.n - data.n, None))
-            self._bins[int(key)] = _Bin(float(np.median(part.i)), part)
+        if new.n:
+            keys = np.round(new.i / cfg.current_bin_a).astype(int)
+            for key in np.unique(keys):
+                part = new.select(keys == key)
+                old = self._bins.get(int(key))
+                if old is not None:
+                    part = DamperData.concatenate([old.data, part])
+                if part.n > keep:
+                    part = part.select(slice(part.n - keep, None))
+                self._bins[int(key)] = _Bin(float(np.median(part.i)), part)
         if cfg.bin_max_age_s > 0:
-            newest = float(data.t[-1])
             for key in [k for k, b in self._bins.items()
-                        if b.newest_s < newest - cfg.bin_max_age_s]:
+                        if b.newest_s < newest_s - cfg.bin_max_age_s]:
                 del self._bins[key]
+
+    def replay(self, data, every=1):
+        """
+        Feed a record sample by sample, processing the due window every ``every`` samples.
+
+        The offline counterpart of the node (which asks for windows between callbacks):
+        deterministic when the configuration has no wall-time budget.
+
+        Parameters
+        ----------
+        data : DamperData
+            Samples in stream order.
+        every : int
+            Samples between window requests.
+
+        Returns
+        -------
+        list of LiveEstimate
+            The estimates in order (skipped windows give none).
+
+        """
+        out = []
+        for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):
+            self.add_sample(*row)
+            if k % every == 0:
+                window = self.next_window()
+                if window is not None:
+                    est = self.process(window)
+                    if est is not None:
+                        out.append(est)
+        return out
 
     # ---------------------------------------------------------------- status
     def status(self):
@@ -731,24 +1217,38 @@ class LiveIdentifier:
         Return the status counters and figures as a JSON-ready dict.
 
         Keys: ``samples_received``, ``samples_accepted``, ``rejected`` {reason: count},
-        ``stream_restarts``, ``windows_due``, ``windows_superseded``, ``windows_fitted``,
-        ``windows_valid``, ``windows_skipped`` {reason: count}, ``fit_errors``,
-        ``last_window_start_s``, ``last_window_end_s`` (stamps of the first and last sample
-        of the last fitted window [s]), ``last_valid``, ``last_reason``, ``last_model``,
-        ``last_nrmse_percent``, ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``,
-        ``bins_a`` (current levels held), ``last_error``.
+        ``out_of_range`` {channel: count}, ``stream_restarts``, ``windows_due``,
+        ``windows_superseded``, ``windows_fitted``, ``windows_valid``, ``windows_skipped``
+        {reason: count}, ``windows_refused`` {reason: count} (fitted, published not valid),
+        ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
+        ``samples_lost`` (left the buffer before a window handed them out),
+        ``samples_pending`` (accepted, not yet handed out: after the last due window end),
+        ``samples_flagged`` {reason: count}, ``reference_resets``, ``fit_errors``,
+        ``last_window_start_s``,
+        ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
+        [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
+        sample up to it has been judged [s]), ``last_skip`` (why the last processed window was
+        skipped, '' if it was not), ``last_valid``, ``last_reason``, ``last_model``,
+        ``last_nrmse_percent``,
+        ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
+        ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
+        held), ``last_error``.
         """
         with self._lock:
             c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
+            c['samples_pending'] = self._seq - self._handed
         est = self.estimate
         fitted = c['windows_fitted']
         c.update(
             last_window_start_s=est.window_start_s if est else math.nan,
             last_window_end_s=est.window_end_s if est else math.nan,
+            processed_up_to_s=self.processed_up_to_s, last_skip=self.last_skip,
             last_valid=bool(est.valid) if est else False,
             last_reason=est.reason if est else 'no_estimate',
             last_model=est.model_fitted if est else '',
             last_nrmse_percent=est.nrmse_percent if est else math.nan,
+            last_robust_nrmse_percent=est.robust_nrmse_percent if est else math.nan,
+            last_check={k: list(v) for k, v in self.last_check.items()},
             compute_s_last=self.last_compute_s,
             compute_s_mean=self._compute_sum / fitted if fitted else math.nan,
             compute_s_max=self.compute_s_max,

@@ -14,6 +14,10 @@ by tick, whether such a model may be used. A parameter set is accepted only if
   wide: a model fitted at one current level (the identifier publishes it as kwok-current with
   zero current slopes) cannot say which current makes a force, so using it would be a guess;
   the caller also keeps its inverse inside the identified range (no extrapolation),
+- no parameter is pinned at a non-zero bound of that box (within ``pinned_fraction`` of the
+  bound span, :func:`mr_damper_model.live.pinned_parameters`): a fit stopped at the edge of the
+  search box is one that data outside the physical range (typically a sensor fault) pushed
+  there, whatever the identifier concluded,
 
 and it stays usable only while it is younger than ``timeout_s`` (age measured on the caller's
 clock from its receipt). Otherwise the supervisor is in fail-safe mode and the caller commands
@@ -30,6 +34,7 @@ import math
 import numpy as np
 
 from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.live import pinned_parameters
 
 #: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
@@ -45,6 +50,7 @@ REASONS = (
     'out_of_bounds',      # a parameter outside the physical box bounds
     'bad_current_range',  # i_ref_a <= 0, or current_min_a/current_max_a disordered / off-range
     'narrow_current_range',  # identified over less than min_current_span_a
+    'pinned_at_bound',    # a parameter at a non-zero bound of the box (fit pushed off range)
     'undecodable',        # the message could not be decoded (bad layout); see :meth:`refuse`
 )
 
@@ -111,6 +117,9 @@ class ModelSupervisor:
         Keep the model in use when a later message is rejected (until it goes stale).
     min_current_span_a : float
         Minimum width [A] of the identified current range ``current_max_a - current_min_a``.
+    pinned_fraction : float
+        A parameter within this fraction of its bound span from a non-zero bound is pinned
+        (refused, ``'pinned_at_bound'``); same rule as the identifier's.
 
     Raises
     ------
@@ -127,6 +136,7 @@ class ModelSupervisor:
     current_tol_a: float = 0.05
     hold_on_reject: bool = False
     min_current_span_a: float = 1.0
+    pinned_fraction: float = 1e-3
     # state (not constructor arguments in practice)
     params: dict = field(default=None, init=False)
     accepted_at: float = field(default=None, init=False)
@@ -142,10 +152,13 @@ class ModelSupervisor:
 
     def __post_init__(self):
         for name in ('timeout_s', 'safe_current_a', 'i_min_a', 'i_max_a', 'current_tol_a',
-                     'min_current_span_a'):
+                     'min_current_span_a', 'pinned_fraction'):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise SupervisorError(f'`{name}` must be a finite number, got {value!r}.')
+        if not 0 <= self.pinned_fraction < 0.5:
+            raise SupervisorError(
+                f'`pinned_fraction` must be in [0, 0.5), got {self.pinned_fraction}.')
         if self.timeout_s <= 0:
             raise SupervisorError(f'`timeout_s` must be > 0 s, got {self.timeout_s}.')
         if not self.i_min_a < self.i_max_a:
@@ -217,6 +230,14 @@ class ModelSupervisor:
             return Verdict(False, 'narrow_current_range',
                            f'identified over [{lo_a:g}, {hi_a:g}] A only (need a span of '
                            f'{self.min_current_span_a:g} A)')
+        lo = [self.bounds[n][0] for n in KWOK_CURRENT_NAMES]
+        hi = [self.bounds[n][1] for n in KWOK_CURRENT_NAMES]
+        pinned = pinned_parameters(KWOK_CURRENT_NAMES, [values[n] for n in KWOK_CURRENT_NAMES],
+                                   lo, hi, self.pinned_fraction)
+        if pinned:
+            return Verdict(False, 'pinned_at_bound',
+                           ', '.join(f'{n} = {values[n]:g} at a bound {self.bounds[n]}'
+                                     for n in pinned))
         return Verdict(True, 'ok')
 
     # ------------------------------------------------------------------ events
