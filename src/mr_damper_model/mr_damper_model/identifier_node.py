@@ -26,8 +26,8 @@ from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
 from .live import FitProcess, LiveConfig, LiveIdentifier
 from .messages import (MessageError, kwok_parameters_msg, measurement_from_msg, status_msg)
-from .node_utils import (LATCHED_QOS, MEASUREMENT_QOS, run_node, set_realtime_priority,
-                         STATUS_QOS)
+from .node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QOS, run_node,
+                         set_realtime_priority, STATUS_QOS)
 from .params_file import load_params, save_params
 
 #: Parameters: latched for late subscribers.
@@ -126,6 +126,7 @@ class IdentifierNode(Node):
             self._initial_source = 'file_error'
             self.live = LiveIdentifier(config, fit=fit)
 
+        self.drops = DropCounter(self.get_logger())
         self._pub_params = self.create_publisher(
             Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
@@ -145,8 +146,10 @@ class IdentifierNode(Node):
         # ready to fit before subscribing: the fit process imports numpy, scipy and the models
         # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
         self._fit_ready = self._warm_up()
-        self.create_subscription(JointState, p('measurement_topic').value, self._on_measurement,
-                                 MEASUREMENT_QOS)
+        # samples the rig's bounded history dropped before this node took them (stalled or
+        # restarted identifier) are reported by the middleware and counted as `message_lost`
+        self.drops.subscribe(self, JointState, p('measurement_topic').value,
+                             self._on_measurement, MEASUREMENT_QOS, 'message_lost')
         self.create_timer(float(p('status_period_s').value), self._publish_status)
         self._realtime = set_realtime_priority(int(p('realtime_priority').value),
                                                self.get_logger())
@@ -220,11 +223,9 @@ class IdentifierNode(Node):
                 self._save(est)
 
     def _publish_estimate(self, est):
-        try:
-            self._pub_params.publish(kwok_parameters_msg(est.message_values()))
+        if self.drops.publish(self._pub_params, kwok_parameters_msg(est.message_values()),
+                              'parameters_publish_failed'):
             self._published += 1
-        except Exception as exc:  # publishing after shutdown started
-            self.get_logger().debug(f'publish failed: {exc}')
 
     def _save(self, est, force=False):
         if not self._params_file:
@@ -253,8 +254,9 @@ class IdentifierNode(Node):
                                       'n': int(ages.size)}
         status.update(parameters_published=self._published, params_file_writes=self._saved,
                       initial_source=self._initial_source, worker_alive=self._worker.is_alive(),
-                      realtime=self._realtime, fit_ready_at_subscribe=self._fit_ready)
-        self._pub_status.publish(status_msg(status))
+                      realtime=self._realtime, fit_ready_at_subscribe=self._fit_ready,
+                      dropped=self.drops.counts())
+        self.drops.publish(self._pub_status, status_msg(status))
 
     def shutdown(self):
         """Stop the worker and write the last valid parameters."""

@@ -5,32 +5,176 @@ Imports rclpy (listed in ``ROS_MODULES`` of ``tests/test_core_is_ros_free.py``);
 core never imports this module.
 """
 import os
+import signal
 import sys
+import threading
 
 import rclpy
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
-#: Measurement stream: reliable; every sample matters (see README "QoS").
+#: Samples a measurement writer keeps for readers that have not acknowledged them (4 s at
+#: 1 kHz, 0.8 s at 5 kHz). Below Fast DDS's default resource limit of 5,000 samples per writer
+#: (``max_samples``), so the writer's history can never reach that limit: a full KEEP_LAST
+#: history drops its oldest sample instead (checked: with KEEP_ALL, or KEEP_LAST deeper than
+#: 5,000, a stalled or killed reader makes ``publish()`` block and then raise
+#: ``cannot publish data``, or the reader receives nothing after it resumes). The reader is told
+#: of every dropped sample (Fast DDS sends a GAP; rclpy's ``message_lost`` event counts them).
+MEASUREMENT_HISTORY = 4000
+#: Measurement writer (rig): reliable, KEEP_LAST ``MEASUREMENT_HISTORY``. A reader that is
+#: dead, stopped or slower than the stream for more than ``MEASUREMENT_HISTORY`` samples loses
+#: the oldest unacknowledged samples; the writer never blocks and never fails.
+MEASUREMENT_PUBLISHER_QOS = QoSProfile(depth=MEASUREMENT_HISTORY,
+                                       history=HistoryPolicy.KEEP_LAST,
+                                       reliability=ReliabilityPolicy.RELIABLE)
+#: Measurement reader (identifier, recorders): reliable, KEEP_ALL. A KEEP_LAST reader would
+#: overwrite samples its callbacks have not taken yet without telling anyone; a KEEP_ALL reader
+#: whose history is full refuses new samples, the writer keeps them (up to its history) and
+#: drops them only as reported losses (``message_lost``). Kept under its old name, used by the
+#: identifier and the recorders.
 MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                              reliability=ReliabilityPolicy.RELIABLE)
-#: Parameters: latched for late subscribers.
+MEASUREMENT_SUBSCRIPTION_QOS = MEASUREMENT_QOS
+#: Parameters: latched for late subscribers (KEEP_LAST 1: only the newest set matters).
 LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: JSON status topics.
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: JSON status topics (KEEP_LAST 10: a stalled reader costs the writer nothing).
+STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+
+#: What ``publish()`` raises when the middleware refuses a sample or the node is shutting down.
+PUBLISH_ERRORS = (_rclpy.RCLError, InvalidHandle)
+
+_STOP = threading.Event()
 
 
-def spin(executor, done=lambda: False):
+def stop_requested():
+    """Return True once SIGINT or SIGTERM asked this process to stop (see :func:`run_node`)."""
+    return _STOP.is_set()
+
+
+def request_stop(signum=None, frame=None):
+    """Ask :func:`spin` to return (the SIGINT / SIGTERM handler of :func:`run_node`)."""
+    _STOP.set()
+
+
+def install_stop_handlers():
     """
-    Spin ``executor`` until shutdown or ``done()``.
+    Make SIGINT and SIGTERM set the stop flag instead of raising or killing.
+
+    rclpy's own handlers (not installed by :func:`run_node`) shut the context down at once and
+    then raise ``KeyboardInterrupt`` wherever the main thread happens to be (a callback, the
+    shutdown code, an executor call converting a message: ``RuntimeError: Unable to convert call
+    argument``) and leave SIGTERM to its default action. With a flag the main thread leaves the
+    spin loop between two ``spin_once`` calls (at most ``timeout_sec`` later), then the node is
+    finished and destroyed in order, and the process exits 0. Returns False when not called
+    from the main thread (signal handlers cannot be set there; nothing changes).
+    """
+    try:
+        signal.signal(signal.SIGINT, request_stop)
+        signal.signal(signal.SIGTERM, request_stop)
+    except ValueError:
+        return False
+    _STOP.clear()
+    return True
+
+
+class DropCounter:
+    """
+    Samples a node dropped or lost, counted by reason, and a publish that never raises.
+
+    Thread-safe (the quarter car publishes from its control thread). Each reason gets one
+    warning per ``warn_period_s`` on the node's logger. ``counts()`` goes into the status.
+
+    Parameters
+    ----------
+    logger : rclpy logger
+        Where the throttled warnings go.
+    warn_period_s : float
+        Throttle period of the warnings [s].
+
+    """
+
+    def __init__(self, logger, warn_period_s=1.0):
+        self._logger = logger
+        self._period = float(warn_period_s)
+        self._lock = threading.Lock()
+        self._counts = {}
+
+    def count(self, reason, n=1, detail=''):
+        """Add ``n`` samples dropped for ``reason`` and log a throttled warning."""
+        if n <= 0:
+            return
+        with self._lock:
+            self._counts[reason] = self._counts.get(reason, 0) + int(n)
+            total = self._counts[reason]
+        self._logger.warning(f'{n} sample(s) dropped ({reason}, {total} in all)'
+                             f'{": " + detail if detail else ""}',
+                             throttle_duration_sec=self._period)
+
+    def counts(self):
+        """Return ``{reason: samples}`` (a copy; reasons never seen are absent)."""
+        with self._lock:
+            return dict(self._counts)
+
+    def publish(self, publisher, msg, reason='publish_failed'):
+        """
+        Publish ``msg``; on a middleware error count it under ``reason`` and return False.
+
+        A node whose readers died or stalled, or that is shutting down, keeps running.
+        """
+        try:
+            publisher.publish(msg)
+            return True
+        except PUBLISH_ERRORS as exc:
+            try:
+                topic = publisher.topic_name
+            except PUBLISH_ERRORS:   # the publisher itself was destroyed
+                topic = '(destroyed publisher)'
+            self.count(reason, 1, f'{topic}: {exc}')
+            return False
+
+    def lost_callbacks(self, reason):
+        """
+        Return subscription event callbacks that count ``message_lost`` under ``reason``.
+
+        Fast DDS reports samples a reliable writer dropped before this reader took them (its
+        history was full) and, for best-effort readers, sequence gaps.
+        """
+        def on_lost(info):
+            self.count(reason, int(info.total_count_change), f'total {info.total_count}')
+        return SubscriptionEventCallbacks(message_lost=on_lost)
+
+    def subscribe(self, node, msg_type, topic, callback, qos, reason='message_lost'):
+        """``node.create_subscription`` whose lost samples are counted under ``reason``."""
+        return node.create_subscription(msg_type, topic, callback, qos,
+                                        event_callbacks=self.lost_callbacks(reason))
+
+
+def spin(executor, done=lambda: False, timeout_sec=0.1):
+    """
+    Spin ``executor`` until shutdown, a stop request (SIGINT / SIGTERM) or ``done()``.
 
     A ``spin_once`` loop: the kilted EventsExecutor's ``spin()`` stalls timers (checked here:
-    one tick of a 5 ms timer per second), its ``spin_once`` runs them on time.
+    one tick of a 5 ms timer per second), its ``spin_once`` runs them on time. An error from
+    ``spin_once`` once shutdown has begun (e.g. ``RuntimeError: Unable to convert call
+    argument`` of a message taken while the context went down) ends the loop quietly; before
+    that it is raised.
     """
-    while rclpy.ok() and not done():
-        executor.spin_once(timeout_sec=0.1)
+    while rclpy.ok() and not _STOP.is_set() and not done():
+        try:
+            executor.spin_once(timeout_sec=timeout_sec)
+        except ExternalShutdownException:
+            return
+        except RuntimeError:
+            if _STOP.is_set() or not rclpy.ok():
+                return
+            raise
 
 
 def set_realtime_priority(priority, logger):
@@ -54,25 +198,31 @@ def set_realtime_priority(priority, logger):
         return False
 
 
-def make_executor():
-    """Return the executor used by the suite's nodes (EventsExecutor when available)."""
-    try:
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
-    except ImportError:  # pragma: no cover - older rclpy
-        return SingleThreadedExecutor()
+def make_executor(events=True):
+    """Return the executor of the suite's nodes: EventsExecutor when available and ``events``."""
+    if events:
+        try:
+            from rclpy.experimental import EventsExecutor
+            return EventsExecutor()
+        except ImportError:  # pragma: no cover - older rclpy
+            pass
+    return SingleThreadedExecutor()
 
 
-def spin_node(node, done=lambda: False):
+def spin_node(node, done=lambda: False, *, events=True):
     """Spin ``node`` on :func:`make_executor` with the :func:`spin` loop."""
-    executor = make_executor()
+    executor = make_executor(events)
     executor.add_node(node)
     spin(executor, done)
 
 
 def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=None, args=None):
     """
-    Run a node until Ctrl-C or shutdown and return the process exit status.
+    Run a node until SIGINT, SIGTERM or shutdown and return the process exit status.
+
+    SIGINT and SIGTERM only set a flag (:func:`install_stop_handlers`): ``run`` returns, then
+    ``finish`` and ``destroy_node`` run undisturbed, and the status is 0 however busy the node
+    was. rclpy's own signal handlers are not installed.
 
     Parameters
     ----------
@@ -83,7 +233,7 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
     errors : tuple of type
         Exceptions that mean bad parameters or input files: one error line, exit status 2.
     run : callable
-        ``run(node)`` spins the node; default :func:`spin_node`.
+        ``run(node)`` spins the node until :func:`stop_requested`; default :func:`spin_node`.
     finish : callable or None
         ``finish(node)`` before ``destroy_node``; a non-None return value replaces the status.
     args : list of str or None
@@ -95,12 +245,14 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
         0, 2 on one of ``errors``, or what ``finish`` returned.
 
     """
-    rclpy.init(args=args)
+    install_stop_handlers()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     code = 0
     try:
         node = make_node()
-        run(node)
+        if not _STOP.is_set():
+            run(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except errors as exc:

@@ -3,7 +3,9 @@
 
 For machines without ``ros2 bag``: subscribes to the measurement topic (reliable, keep-all, like
 the identifier) and writes every message, still serialised, with the `rosbags` writer until
-Ctrl-C, ``--duration`` seconds or ``--count`` messages.  The bag replays with
+Ctrl-C (SIGINT) or SIGTERM, ``--duration`` seconds or ``--count`` messages; the bag is closed
+properly in every case and the exit status is 0. Samples the middleware reports lost before
+the recorder took them are counted and printed at the end.  The bag replays with
 ``rig_node --ros-args -p mode:=bag -p file:=DIR`` and opens in ``ros2 bag`` / rosbags tools.
 
 Example::
@@ -16,8 +18,11 @@ import time
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
+
+from mr_damper_model.node_utils import DropCounter, install_stop_handlers, stop_requested
 
 from .replay import MEASUREMENT_TOPIC, BagWriter
 
@@ -47,17 +52,20 @@ def main(argv=None):
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     qos = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                      reliability=ReliabilityPolicy.RELIABLE)
-    rclpy.init(args=argv)
+    install_stop_handlers()   # SIGINT / SIGTERM: leave the loop, close the bag, exit 0
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('mr_damper_record')
+    drops = DropCounter(node.get_logger())
     start = time.monotonic()
     with writer:
         def on_msg(raw):
             writer.write_raw(raw, node.get_clock().now().nanoseconds)
 
-        node.create_subscription(JointState, args.topic, on_msg, qos, raw=True)
+        node.create_subscription(JointState, args.topic, on_msg, qos, raw=True,
+                                 event_callbacks=drops.lost_callbacks('message_lost'))
         node.get_logger().info(f'recording {args.topic} into {args.out} ({args.storage})')
         try:
-            while rclpy.ok():
+            while rclpy.ok() and not stop_requested():
                 rclpy.spin_once(node, timeout_sec=0.1)
                 if args.duration > 0 and time.monotonic() - start >= args.duration:
                     break
@@ -68,7 +76,9 @@ def main(argv=None):
         finally:
             node.destroy_node()
             rclpy.try_shutdown()
-    print(f'mr-damper-record: {writer.count} messages written to {args.out}', file=sys.stderr)
+    lost = drops.counts().get('message_lost', 0)
+    print(f'mr-damper-record: {writer.count} messages written to {args.out}'
+          f'{f", {lost} lost before they were taken" if lost else ""}', file=sys.stderr)
     return 0
 
 

@@ -11,6 +11,13 @@ acknowledgements are no use for this: they arrive with the writer's heartbeat, e
 In ``sim`` mode the true damper parameters are published (latched) for comparison. A JSON
 status is published on the status topic.
 
+Faults elsewhere never stop the rig: the measurement writer keeps a bounded history
+(``node_utils.MEASUREMENT_PUBLISHER_QOS``), so a dead or stalled reader costs it nothing and the
+reader counts what it lost; a failed ``publish()`` is counted (``dropped.publish_failed``) and
+logged, throttled. With ``current_source:=command`` each current command is checked by
+:class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of ``[current_min_a, current_max_a]``
+clamped, non-finite refused, both counted (``commands``) with a throttled warning.
+
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
 """
@@ -28,11 +35,15 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from mr_damper_model.data import DataError
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
-from mr_damper_model.node_utils import (LATCHED_QOS, MEASUREMENT_QOS, run_node,
-                                        set_realtime_priority, spin_node, STATUS_QOS)
+from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_PUBLISHER_QOS,
+                                        run_node, set_realtime_priority, spin_node, STATUS_QOS,
+                                        stop_requested)
 
+from .commands import CurrentCommandLimiter
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
+#: Current commands: only the newest matters; a command the rig could not take in time is lost
+#: and counted (``dropped.command_lost``), the writer never waits for the rig.
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -136,6 +147,10 @@ class RigNode(Node):
         d('step_s', 4.0, ParameterDescriptor(description='Dwell per current level [s]'))
         d('current_source', 'schedule', ParameterDescriptor(
             description='schedule | command (follow the current command topic)'))
+        d('current_min_a', 0.0, ParameterDescriptor(
+            description='Coil current minimum [A]: lower commands are clamped to it'))
+        d('current_max_a', 2.0, ParameterDescriptor(
+            description='Coil current maximum [A]: higher commands are clamped to it'))
         d('noise_n', 2.0, ParameterDescriptor(description='Load-cell noise std [N]'))
         d('seed', 1, ParameterDescriptor(description='Random seed of the sim'))
         d('rate_hz', 1000.0, ParameterDescriptor(description='sim DAQ rate [Hz]'))
@@ -169,13 +184,16 @@ class RigNode(Node):
         else:
             raise ValueError(f"mode must be 'sim', 'csv' or 'bag', got {self.mode!r}")
 
-        self._pub = self.create_publisher(JointState, p('measurement_topic'), MEASUREMENT_QOS)
+        self.drops = DropCounter(self.get_logger())
+        self.limiter = CurrentCommandLimiter(float(p('current_min_a')), float(p('current_max_a')))
+        self._pub = self.create_publisher(JointState, p('measurement_topic'),
+                                          MEASUREMENT_PUBLISHER_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic'), STATUS_QOS)
         if self.rig is not None:
             self._publish_truth(p('true_parameters_topic'), p('true_spencer_topic'))
             if p('current_source') == 'command':
-                self.create_subscription(Float64, p('current_command_topic'), self._on_command,
-                                         COMMAND_QOS)
+                self.drops.subscribe(self, Float64, p('current_command_topic'), self._on_command,
+                                     COMMAND_QOS, 'command_lost')
         self._flow_window = int(p('flow_window'))
         self._flow_received = None   # consumer's samples_received (latest, first seen)
         self._flow_base = None
@@ -186,6 +204,7 @@ class RigNode(Node):
         self.published = 0
         self.behind_max = 0
         self.commands = 0
+        self.flow_restarts = 0
         self.finished = False
         self._start = None
         self._end = None
@@ -206,22 +225,36 @@ class RigNode(Node):
                           window_end_s=0.0, current_min_a=min(currents),
                           current_max_a=max(currents), rmse_n=0.0,
                           nrmse_percent=0.0, valid=True)
-            pub.publish(kwok_parameters_msg(values))
+            self.drops.publish(pub, kwok_parameters_msg(values))
         else:
             pub = self.create_publisher(Float64MultiArray, spencer_topic, LATCHED_QOS)
-            pub.publish(dict_to_array_msg({k: float(v) for k, v in params.items()}))
+            self.drops.publish(pub, dict_to_array_msg({k: float(v) for k, v in params.items()}))
         self._truth_pub = pub
 
     def _on_command(self, msg):
-        if math.isfinite(msg.data):
-            self.rig.command_current(float(msg.data))
-            self.commands += 1
+        current, outcome = self.limiter.apply(msg.data)
+        if current is None:
+            self.get_logger().warning(
+                f'current command {msg.data} A refused ({outcome}, '
+                f'{self.limiter.counts[outcome]} in all)', throttle_duration_sec=1.0)
+            return
+        if outcome != 'accepted':
+            self.get_logger().warning(
+                f'current command {msg.data} A clamped to {current} A ({outcome}, '
+                f'{self.limiter.counts[outcome]} in all)', throttle_duration_sec=1.0)
+        self.rig.command_current(current)
+        self.commands += 1
 
     def _on_flow(self, msg):
         try:
             received = int(status_from_msg(msg)['samples_received'])
         except (ValueError, KeyError, TypeError):
             return
+        if self._flow_received is not None and received < self._flow_received \
+                and self._flow_base is not None:
+            # the consumer restarted (its count began again): pace against the new count
+            self._flow_base = received - self.published
+            self.flow_restarts += 1
         self._flow_received = received
         if self._flow_base is None and self._start is None:
             self._flow_base = received
@@ -253,15 +286,24 @@ class RigNode(Node):
         n = max(0, min(due - self.published, 5000))
         for _ in range(n):
             self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
-            self._pub.publish(self._msg)
+            self.drops.publish(self._pub, self._msg)
             self.published += 1
         if total is not None and self.published >= total:
             self._end = time.monotonic()
-            self._pub.wait_for_all_acked(Duration(seconds=10.0))
+            self._wait_acked(self._pub, 10.0)
             self.finished = True
             self._publish_status()
-            self._pub_status.wait_for_all_acked(Duration(seconds=2.0))   # final status out
+            self._wait_acked(self._pub_status, 2.0)   # final status out
             self.get_logger().info(f'done: {self.published} samples published')
+
+    @staticmethod
+    def _wait_acked(pub, timeout_s):
+        """Wait for the readers' acknowledgements, at most ``timeout_s``, until a stop request."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and not stop_requested():
+            if pub.wait_for_all_acked(Duration(seconds=0.1)):
+                return True
+        return False
 
     def _publish_status(self):
         end = self._end if self._end is not None else time.monotonic()
@@ -271,10 +313,12 @@ class RigNode(Node):
                   'effective_rate_hz': self.published / elapsed if elapsed > 0 else 0.0,
                   'behind_max_samples': self.behind_max, 'done': self.finished,
                   'subscribers': self._pub.get_subscription_count(),
-                  'current_commands': self.commands, 'realtime': self.realtime}
+                  'current_commands': self.commands, 'commands': dict(self.limiter.counts),
+                  'dropped': self.drops.counts(), 'flow_restarts': self.flow_restarts,
+                  'realtime': self.realtime}
         if self.rig is not None:
             status['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
-        self._pub_status.publish(status_msg(status))
+        self.drops.publish(self._pub_status, status_msg(status))
 
 
 def main(args=None):

@@ -31,7 +31,12 @@ Topics (defaults)
 
 - pub ``/quarter_car/ride_metrics`` (std_msgs/String JSON, running ride metrics);
 - pub ``/quarter_car/status`` (std_msgs/String JSON: mode normal|failsafe, reason, failsafe_s,
-  params accepted / rejected by reason, loop timing, current, sim time).
+  params accepted / rejected by reason, loop timing, current, sim time, ``dropped`` by reason).
+
+Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
+blocks the control loop; a ``publish()`` that fails anyway is counted
+(``dropped.publish_failed``) and logged, throttled, and the loop goes on. Parameter sets the
+middleware reports lost before this node took them count as ``dropped.parameters_lost``.
 """
 import json
 import math
@@ -48,7 +53,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model import messages
-from mr_damper_model.node_utils import run_node
+from mr_damper_model.node_utils import DropCounter, run_node, spin_node
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -143,12 +148,13 @@ class QuarterCarNode(Node):
 
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.drops = DropCounter(self.get_logger())
         self.cmd_pub = self.create_publisher(Float64, topics['command_topic'], 10)
         self.state_pub = self.create_publisher(JointState, topics['state_topic'], 10)
         self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
         self.metrics_pub = self.create_publisher(String, topics['metrics_topic'], 10)
-        self.create_subscription(Float64MultiArray, topics['params_topic'], self.on_params,
-                                 latched)
+        self.drops.subscribe(self, Float64MultiArray, topics['params_topic'], self.on_params,
+                             latched, 'parameters_lost')
         self.create_timer(1.0 / status_rate, self.publish_status)
         self.running = True
         self.failed = None
@@ -207,7 +213,7 @@ class QuarterCarNode(Node):
                     state = self.car.state
                     cmd.data = loop.command(state, wall)
                     normal = self.sup.mode == 'normal'
-                self.cmd_pub.publish(cmd)
+                self.drops.publish(self.cmd_pub, cmd)
                 latency = time.perf_counter() - t0
                 new = loop.advance()
                 if normal and math.isnan(self.first_normal_t):
@@ -215,7 +221,7 @@ class QuarterCarNode(Node):
                 if every and loop.steps % every == 0:
                     messages.seconds_to_stamp(max(new.t, 0.0), state_msg.header.stamp)
                     state_msg.position, state_msg.velocity, state_msg.effort = _fmt(new)
-                    self.state_pub.publish(state_msg)
+                    self.drops.publish(self.state_pub, state_msg)
                 step_s = time.perf_counter() - t0
                 self.timing.add(wall, latency, step_s, pacer.lateness)
                 if self.trace is not None:
@@ -244,14 +250,16 @@ class QuarterCarNode(Node):
             'rate_hz': self.rate_hz,
             'real_time_factor': self.rtf,
             'loop': self.timing.stats(),
+            'dropped': self.drops.counts(),
         })
         return st
 
     def publish_status(self):
         """Publish status and running ride metrics (executor timer)."""
-        self.status_pub.publish(messages.status_msg(self.status()))
+        self.drops.publish(self.status_pub, messages.status_msg(self.status()))
         if self.metrics is not None:
-            self.metrics_pub.publish(messages.status_msg(live_loop.metrics_dict(self.metrics)))
+            self.drops.publish(self.metrics_pub,
+                               messages.status_msg(live_loop.metrics_dict(self.metrics)))
 
     def stop(self):
         """Stop the control thread and write the log file."""
@@ -273,8 +281,10 @@ def main(args=None):
     # short GIL switch interval: the control thread waits at most ~0.5 ms for the executor
     sys.setswitchinterval(0.0005)
     # ValueError, OSError: bad parameter, road or truth file
-    return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError), run=rclpy.spin,
-                    finish=_finish, args=args)
+    # SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
+    # sets and runs the status timer
+    return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError),
+                    run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
 
 
 def _finish(node):

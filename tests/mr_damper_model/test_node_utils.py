@@ -1,0 +1,167 @@
+"""
+Tests of node_utils: QoS choices, drop counter, spin loop, SIGINT / SIGTERM in run_node.
+
+The spin loop's stop and error handling, and run_node's signal handling in a real process
+(exit 0 after finish and destroy, in that order).
+"""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.qos import HistoryPolicy, ReliabilityPolicy
+from std_msgs.msg import String
+
+from mr_damper_model import node_utils
+
+
+class _Logger:
+    def __init__(self):
+        self.lines = []
+
+    def warning(self, text, throttle_duration_sec=None):
+        self.lines.append(text)
+
+
+@pytest.fixture(scope='module')
+def ros():
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+def test_measurement_writer_history_is_bounded_below_the_dds_resource_limit():
+    q = node_utils.MEASUREMENT_PUBLISHER_QOS
+    assert q.history == HistoryPolicy.KEEP_LAST and q.reliability == ReliabilityPolicy.RELIABLE
+    assert 1000 <= q.depth == node_utils.MEASUREMENT_HISTORY < 5000   # Fast DDS max_samples
+    r = node_utils.MEASUREMENT_SUBSCRIPTION_QOS
+    assert r.history == HistoryPolicy.KEEP_ALL and r.reliability == ReliabilityPolicy.RELIABLE
+    for q in (node_utils.LATCHED_QOS, node_utils.STATUS_QOS):
+        assert q.history == HistoryPolicy.KEEP_LAST and q.depth <= 10
+
+
+def test_drop_counter_counts_by_reason_and_warns():
+    log = _Logger()
+    drops = node_utils.DropCounter(log)
+    drops.count('message_lost', 3)
+    drops.count('message_lost', 2)
+    drops.count('publish_failed')
+    drops.count('nothing', 0)
+    assert drops.counts() == {'message_lost': 5, 'publish_failed': 1}
+    assert len(log.lines) == 3 and '5 in all' in log.lines[1]
+
+
+def test_lost_callback_adds_the_reported_change():
+    drops = node_utils.DropCounter(_Logger())
+    on_lost = drops.lost_callbacks('command_lost').message_lost
+
+    class Info:
+        total_count, total_count_change = 7, 7
+    on_lost(Info)
+    Info.total_count, Info.total_count_change = 9, 2
+    on_lost(Info)
+    assert drops.counts() == {'command_lost': 9}
+
+
+def test_publish_failure_is_counted_not_raised(ros):
+    node = rclpy.create_node('node_utils_test')
+    drops = node_utils.DropCounter(_Logger())
+    pub = node.create_publisher(String, '/node_utils_test/status', node_utils.STATUS_QOS)
+    assert drops.publish(pub, String(data='x')) is True
+    pub.destroy()                                       # the handle is gone: publish raises
+
+    class Refusing:
+        topic_name = '/refusing'
+
+        def publish(self, msg):
+            raise _rclpy.RCLError('Failed to publish: cannot publish data')
+    assert drops.publish(pub, String(data='y')) is False
+    assert drops.publish(Refusing(), String(data='z')) is False
+    assert drops.counts() == {'publish_failed': 2}
+    node.destroy_node()
+
+
+class _Executor:
+    """spin_once counts calls, raises ``error`` at call ``fail_at``, stops at ``stop_at``."""
+
+    def __init__(self, stop_at=None, fail_at=None, error=RuntimeError('Unable to convert')):
+        self.calls = 0
+        self.stop_at, self.fail_at, self.error = stop_at, fail_at, error
+
+    def spin_once(self, timeout_sec):
+        self.calls += 1
+        if self.calls == self.stop_at:
+            node_utils.request_stop()
+        if self.calls == self.fail_at:
+            raise self.error
+
+
+@pytest.fixture
+def stop_flag(ros):
+    node_utils._STOP.clear()
+    yield
+    node_utils._STOP.clear()
+
+
+def test_spin_returns_on_stop_request_and_on_done(stop_flag):
+    ex = _Executor(stop_at=3)
+    node_utils.spin(ex)
+    assert ex.calls == 3 and node_utils.stop_requested()
+    node_utils._STOP.clear()
+    ex = _Executor()
+    node_utils.spin(ex, done=lambda: ex.calls >= 5)
+    assert ex.calls == 5
+
+
+def test_spin_error_after_stop_ends_quietly_before_stop_raises(stop_flag):
+    ex = _Executor(stop_at=2, fail_at=2)
+    node_utils.spin(ex)                                  # the shutdown race: no error
+    assert ex.calls == 2
+    node_utils._STOP.clear()
+    with pytest.raises(RuntimeError, match='Unable to convert'):
+        node_utils.spin(_Executor(fail_at=2))
+
+
+_NODE_SCRIPT = textwrap.dedent('''
+    import sys, time
+    from rclpy.node import Node
+    from mr_damper_model.node_utils import run_node
+
+    class Busy(Node):
+        def __init__(self):
+            super().__init__('node_utils_signal_test')
+            self.ticks = 0
+            self.create_timer(0.001, self.tick)
+
+        def tick(self):
+            self.ticks += 1
+            t = time.perf_counter()
+            while time.perf_counter() - t < 0.0008:   # keep the main thread busy
+                pass
+            if self.ticks == 50:
+                print('ready', flush=True)
+
+    def finish(node):
+        print(f'finish after {node.ticks} ticks', flush=True)
+
+    sys.exit(run_node(Busy, 'busy', finish=finish))
+''')
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_run_node_exits_0_on_signal_after_finish(sig):
+    proc = subprocess.Popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    try:
+        assert proc.stdout.readline().strip() == 'ready'
+        proc.send_signal(sig)
+        out, _ = proc.communicate(timeout=30)          # hang guard only
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    assert out.startswith('finish after') and 'Traceback' not in out, out
