@@ -11,10 +11,11 @@ acknowledgements are no use for this: they arrive with the writer's heartbeat, e
 In ``sim`` mode the true damper parameters are published (latched) for comparison. A JSON
 status is published on the status topic.
 
-Faults elsewhere never stop the rig: the measurement writer keeps a bounded history
-(``node_utils.MEASUREMENT_PUBLISHER_QOS``), so a dead or stalled reader costs it nothing and the
-reader counts what it lost; a failed ``publish()`` is counted (``dropped.publish_failed``) and
-logged, throttled. With ``current_source:=command`` each current command is checked by
+Faults elsewhere never stop the rig: when a dead or stopped reader has filled the reliable
+measurement writer's history, the writer is replaced (``node_utils.ResettablePublisher``,
+``writer_resets`` in the status) and the samples due meanwhile are published once the healthy
+readers have matched the new writer; other failed ``publish()`` calls are counted
+(``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each current command is checked by
 :class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of ``[current_min_a, current_max_a]``
 clamped, non-finite refused, both counted (``commands``) with a throttled warning.
 
@@ -35,9 +36,9 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from mr_damper_model.data import DataError
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
-from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_PUBLISHER_QOS,
-                                        run_node, set_realtime_priority, spin_node, STATUS_QOS,
-                                        stop_requested)
+from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QOS,
+                                        ResettablePublisher, run_node, set_realtime_priority,
+                                        spin_node, STATUS_QOS, stop_requested)
 
 from .commands import CurrentCommandLimiter
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
@@ -186,8 +187,8 @@ class RigNode(Node):
 
         self.drops = DropCounter(self.get_logger())
         self.limiter = CurrentCommandLimiter(float(p('current_min_a')), float(p('current_max_a')))
-        self._pub = self.create_publisher(JointState, p('measurement_topic'),
-                                          MEASUREMENT_PUBLISHER_QOS)
+        self._meas = ResettablePublisher(self, JointState, p('measurement_topic'),
+                                         MEASUREMENT_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic'), STATUS_QOS)
         if self.rig is not None:
             self._publish_truth(p('true_parameters_topic'), p('true_spencer_topic'))
@@ -263,7 +264,7 @@ class RigNode(Node):
         if self.finished:
             return
         if self._start is None:
-            subs = self._pub.get_subscription_count()
+            subs = self._meas.get_subscription_count()
             waiting = time.monotonic() - self._created < 30.0
             if subs < self._wait_subs and waiting:
                 return
@@ -286,11 +287,12 @@ class RigNode(Node):
         n = max(0, min(due - self.published, 5000))
         for _ in range(n):
             self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
-            self.drops.publish(self._pub, self._msg)
+            if not self._meas.publish(self._msg):
+                break   # writer replaced: this sample and the rest go out once it is ready
             self.published += 1
         if total is not None and self.published >= total:
             self._end = time.monotonic()
-            self._wait_acked(self._pub, 10.0)
+            self._wait_acked(self._meas.publisher, 10.0)
             self.finished = True
             self._publish_status()
             self._wait_acked(self._pub_status, 2.0)   # final status out
@@ -312,7 +314,8 @@ class RigNode(Node):
                   'rate_factor': self.rate_factor, 'elapsed_s': elapsed,
                   'effective_rate_hz': self.published / elapsed if elapsed > 0 else 0.0,
                   'behind_max_samples': self.behind_max, 'done': self.finished,
-                  'subscribers': self._pub.get_subscription_count(),
+                  'subscribers': self._meas.get_subscription_count(),
+                  'writer_resets': self._meas.resets,
                   'current_commands': self.commands, 'commands': dict(self.limiter.counts),
                   'dropped': self.drops.counts(), 'flow_restarts': self.flow_restarts,
                   'realtime': self.realtime}

@@ -1,0 +1,185 @@
+"""
+Fault injection on the running suite: SIGSTOP and SIGKILL each node in turn, bad commands.
+
+Real node processes (the console scripts), started by ``run_suite.Suite`` like the launcher
+does, in the private domain of tests/conftest.py. Every assertion is on the order of events and
+on counters in the nodes' status topics, never on how long something took; the waits are hang
+guards only. One run, about a minute and a half:
+
+- identifier stopped (SIGSTOP) long enough for the rig's measurement writer to fill up with
+  samples it never acknowledges (> 5,000 at 1 kHz): the rig keeps running and publishing (its
+  writer is replaced: ``writer_resets``), the car goes fail-safe (stale parameters) and keeps
+  stepping; SIGCONT: the car leaves fail-safe again;
+- identifier killed (SIGKILL): the same, then restarted from its parameter file;
+- quarter car stopped, then killed and restarted: rig and identifier carry on;
+- rig stopped, then killed and restarted: identifier and car carry on, the car goes fail-safe
+  while no new model comes and recovers afterwards;
+- at the end every node exits 0 on SIGINT (SIGTERM for the identifier).
+
+A second test sends out-of-range and non-finite current commands to a rig with
+``current_source:=command``: clamped and refused commands are counted, the coil current stays
+inside the coil range.
+"""
+import json
+import math
+import os
+import signal
+
+import pytest
+
+from integration.ros_helpers import Listener, load_run_suite, NodeProcess
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+GUARD_S = 60.0   # hang guard of every wait (a loaded machine needs seconds, never this long)
+
+
+@pytest.fixture(scope='module')
+def listener():
+    lis = Listener('fault_injection_test')
+    yield lis
+    lis.close()
+
+
+def _qos():
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _latest(msgs):
+    return json.loads(msgs[-1][1].data) if msgs else {}
+
+
+def _count(msgs):
+    return len(msgs)
+
+
+def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
+    from std_msgs.msg import String
+    rs = load_run_suite()
+    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
+    cfg = rs.resolve_config(args, tmp_path)
+    rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
+    rs.set_param(cfg, rs.QC, 'status_rate_hz', 10.0)
+    rs.set_param(cfg, rs.RIG, 'wait_for_subscribers', 1)
+    rs.set_param(cfg, rs.IDENT, 'save_period_s', 0.5)
+    params_file = tmp_path / 'suite_params.yaml'
+    import yaml
+    params_file.write_text(yaml.safe_dump(cfg))
+    suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    rig = listener.subscribe('/mr_damper/rig_status', String, _qos())
+    ident = listener.subscribe('/mr_damper/identifier_status', String, _qos())
+    car = listener.subscribe('/quarter_car/status', String, _qos())
+    wait = listener.wait_for
+
+    def car_mode(expected, reason=None):
+        def check():
+            st = _latest(car)
+            return st.get('mode') == expected and (reason is None or st['reason'] == reason)
+        return check
+
+    def grows(msgs, key, by=1):
+        """Predicate: the latest status's ``key`` exceeds its value now by ``by``."""
+        base = _latest(msgs).get(key, 0)
+        return lambda: _latest(msgs).get(key, 0) >= base + by
+
+    def fresh(msgs, n=3):
+        """Predicate: ``n`` more status messages arrived (the node is alive and publishing)."""
+        base = len(msgs)
+        return lambda: len(msgs) >= base + n
+
+    def tails():
+        return {name: suite.log_tail(name) for name in rs.NODES}
+
+    try:
+        suite.start_all()
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
+
+        # -- identifier stopped: its reader stops acknowledging the 1 kHz measurements
+        os.kill(suite.pid(rs.IDENT), signal.SIGSTOP)
+        try:
+            assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
+            steps = _latest(car)['steps']
+            # the writer fills (5,000 samples) and is replaced; the rig goes on publishing
+            assert wait(grows(rig, 'writer_resets'), GUARD_S), (_latest(rig), tails())
+            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
+            assert wait(lambda: _latest(car)['steps'] > steps + 1000, GUARD_S)
+            assert _latest(car)['mode'] == 'failsafe'
+        finally:
+            os.kill(suite.pid(rs.IDENT), signal.SIGCONT)
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), _latest(ident), tails())
+        assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
+
+        # -- identifier killed, then restarted from its parameter file
+        resets = _latest(rig)['writer_resets']
+        suite.kill(rs.IDENT, signal.SIGKILL)
+        assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
+        assert wait(grows(rig, 'samples_published', 6000), GUARD_S), (_latest(rig), tails())
+        assert _latest(rig)['writer_resets'] >= resets and suite.alive(rs.RIG)
+        suite.start(rs.IDENT)
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
+
+        # -- quarter car stopped, then killed and restarted: rig and identifier carry on
+        os.kill(suite.pid(rs.QC), signal.SIGSTOP)
+        try:
+            assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
+        finally:
+            os.kill(suite.pid(rs.QC), signal.SIGCONT)
+        assert wait(fresh(car), GUARD_S) and suite.alive(rs.QC)
+        suite.kill(rs.QC, signal.SIGKILL)
+        assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+        n_car = len(car)
+        suite.start(rs.QC)
+        assert wait(lambda: len(car) > n_car and car_mode('normal')(), GUARD_S), \
+            (_latest(car), tails())
+
+        # -- rig stopped, then killed and restarted: identifier and car carry on
+        os.kill(suite.pid(rs.RIG), signal.SIGSTOP)
+        try:
+            assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
+            assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
+        finally:
+            os.kill(suite.pid(rs.RIG), signal.SIGCONT)
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
+        suite.kill(rs.RIG, signal.SIGKILL)
+        assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
+        assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
+        suite.start(rs.RIG)
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
+        assert suite.poll() == {}, tails()
+
+        # -- SIGTERM and SIGINT: exit 0
+        assert suite.kill(rs.IDENT, signal.SIGTERM, wait_s=GUARD_S) == 0, tails()
+    finally:
+        codes = suite.stop(timeout_s=GUARD_S)
+    assert codes[rs.QC] == 0 and codes[rs.RIG] == 0, (codes, tails())
+
+
+def test_rig_clamps_and_refuses_bad_current_commands(listener):
+    from std_msgs.msg import Float64, String
+    params = {'mode': 'sim', 'current_source': 'command', 'current_min_a': 0.0,
+              'current_max_a': 2.0, 'status_topic': '/fi/rig_status',
+              'measurement_topic': '/fi/measurement',
+              'current_command_topic': '/fi/current_command', 'status_period_s': 0.1}
+    statuses = listener.subscribe('/fi/rig_status', String, _qos())
+    pub = listener.publisher('/fi/current_command', Float64)
+    with NodeProcess('rig_node', params=params) as rig:
+        assert listener.wait_for(lambda: statuses and pub.get_subscription_count() > 0,
+                                 GUARD_S, procs=[rig]), rig.output()
+        for k, value in enumerate((-5.0, 1e9, math.nan, math.inf, 1.2)):
+            n = len(statuses)
+            pub.publish(Float64(data=value))
+
+            def counted(k=k, n=n):
+                st = _latest(statuses)
+                return len(statuses) > n + 1 and sum(st['commands'].values()) >= k + 1
+            # the status after this command counts it; the coil stays inside its range
+            assert listener.wait_for(counted, GUARD_S, procs=[rig]), _latest(statuses)
+            assert 0.0 <= _latest(statuses)['coil_current_a'] <= 2.0
+        st = _latest(statuses)
+        assert st['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
+                                  'refused_non_finite': 2}
+        assert st['current_commands'] == 3          # the three applied commands
+        code = rig.stop()
+    assert code == 0, rig.output()
