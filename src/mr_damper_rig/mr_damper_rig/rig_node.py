@@ -298,11 +298,20 @@ class RigNode(Node):
             self._wait_acked(self._pub_status, 2.0)   # final status out
             self.get_logger().info(f'done: {self.published} samples published')
 
+    def flush(self, timeout_s=1.5):
+        """
+        At shutdown: let the readers take the samples still in the writer, at most ``timeout_s``.
+
+        A reader that is behind (it takes the stream in bursts) gets the rest of it before the
+        writer goes; a dead or stopped one cannot delay the exit by more than ``timeout_s``.
+        """
+        self._wait_acked(self._meas.publisher, timeout_s, on_stop=True)
+
     @staticmethod
-    def _wait_acked(pub, timeout_s):
-        """Wait for the readers' acknowledgements, at most ``timeout_s``, until a stop request."""
+    def _wait_acked(pub, timeout_s, on_stop=False):
+        """Wait for the readers' acknowledgements, at most ``timeout_s`` (or a stop request)."""
         end = time.monotonic() + timeout_s
-        while time.monotonic() < end and not stop_requested():
+        while time.monotonic() < end and (on_stop or not stop_requested()):
             if pub.wait_for_all_acked(Duration(seconds=0.1)):
                 return True
         return False
@@ -328,7 +337,7 @@ def main(args=None):
     """Run the rig node; exit status 2 on a bad file or parameter."""
     return run_node(RigNode, 'rig_node', (DataError, ValueError),
                     run=lambda node: spin_node(node, lambda: node.finished and node.exit_on_end),
-                    args=args)
+                    finish=lambda node: node.flush(), args=args)
 
 
 if __name__ == '__main__':
