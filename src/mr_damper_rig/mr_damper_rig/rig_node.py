@@ -15,9 +15,10 @@ Faults elsewhere never stop the rig: when a dead or stopped reader has filled th
 measurement writer's history, the writer is replaced (``node_utils.ResettablePublisher``,
 ``writer_resets`` in the status) and the samples due meanwhile are published once the healthy
 readers have matched the new writer; other failed ``publish()`` calls are counted
-(``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each current command is checked by
-:class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of ``[current_min_a, current_max_a]``
-clamped, non-finite refused, both counted (``commands``) with a throttled warning.
+(``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each
+current command is checked by :class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of
+``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
+with a throttled warning.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
