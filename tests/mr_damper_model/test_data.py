@@ -115,3 +115,42 @@ def test_concatenate_restamps_continuously():
     assert np.all(np.diff(joined.t) > 0)
     np.testing.assert_allclose(np.diff(joined.t), 1e-3)
     assert DamperData.concatenate([d, d]).t[100] == 0.0
+
+
+def test_byte_order_mark_of_a_spreadsheet_csv_is_accepted(tmp_path):
+    path = tmp_path / 'excel.csv'
+    path.write_bytes('\ufefft,x,v,f,i\n0,0.001,0.01,5,0.5\n0.001,0.002,0.01,6,0.5\n'
+                     .encode('utf-8'))
+    d = read_csv(path)
+    np.testing.assert_array_equal(d.f, [5.0, 6.0])
+    np.testing.assert_array_equal(d.t, [0.0, 0.001])
+
+
+def test_blank_line_inside_the_data_is_an_error_trailing_ones_are_not(tmp_path):
+    path = tmp_path / 'blank.csv'
+    path.write_text('t,x,v,f,i\n0,0,0,1,0\n\n0.001,0,0,1,0\n')
+    with pytest.raises(DataError, match='line 3 has 0 fields'):
+        read_csv(path)
+    path.write_text('t,x,v,f,i\n0,0,0,1,0\n0.001,0,0,1,0\n\n\n')
+    assert read_csv(path).n == 2
+
+
+def test_large_csv_is_read_in_bounded_memory(tmp_path, monkeypatch):
+    """Peak memory of read_csv stays within 3x the arrays it returns (several blocks)."""
+    import tracemalloc
+    from mr_damper_model import data as data_mod
+    monkeypatch.setattr(data_mod, '_CSV_BLOCK_ROWS', 4096)   # many blocks, small file
+    n = 60000
+    t = np.arange(n) * 1e-3
+    arr = np.column_stack([t, 0.01 * np.sin(t), 0.01 * np.cos(t), 100 * np.sin(t), 0 * t + 0.5])
+    path = tmp_path / 'large.csv'
+    np.savetxt(path, arr, delimiter=',', header='t,x,v,f,i', comments='', fmt='%.10g')
+    tracemalloc.start()
+    try:
+        d = read_csv(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    final = 5 * 8 * n
+    assert d.n == n and d.f[-1] == pytest.approx(arr[-1, 3], rel=1e-9)
+    assert peak <= 3 * final, f'peak {peak / 1e6:.1f} MB for {final / 1e6:.1f} MB of arrays'

@@ -229,49 +229,19 @@ def read_csv(path):
     path = Path(path)
     name = str(path)
     try:
-        with open(path, newline='') as fh:
-            rows = list(csv.reader(fh))
+        # utf-8-sig: a spreadsheet's "CSV UTF-8" starts with a byte-order mark
+        with open(path, newline='', encoding='utf-8-sig') as fh:
+            values, v_empty, first_line = _parse_rows(csv.reader(fh), name)
     except OSError as exc:
         raise DataError(f'{name}: cannot read file ({exc.strerror or exc})') from None
     except (UnicodeDecodeError, csv.Error) as exc:
         raise DataError(f'{name}: not a text CSV file ({exc})') from None
-    while rows and not any(cell.strip() for cell in rows[-1]):
-        rows.pop()
-    if not rows:
-        raise DataError(f'{name}: file is empty (expected header t,x,v,f,i)')
-    header = [h.strip().lower() for h in rows[0]]
-    missing = [c for c in COLUMNS if c not in header]
-    if missing:
-        raise DataError(f"{name}: missing column(s) {', '.join(missing)} "
-                        f"(header is '{','.join(rows[0])}', expected t,x,v,f,i)")
-    col = {c: header.index(c) for c in COLUMNS}
-    body = rows[1:]
-    if not body:
-        raise DataError(f'{name}: no data rows after the header')
-    values = np.empty((len(body), len(COLUMNS)), dtype=float)
-    v_empty = np.zeros(len(body), dtype=bool)
-    for r, row in enumerate(body):
-        line = r + 2
-        if len(row) < len(header):
-            raise DataError(f'{name}: line {line} has {len(row)} fields, expected '
-                            f'{len(header)} (truncated file?)')
-        for k, c in enumerate(COLUMNS):
-            cell = row[col[c]].strip()
-            if cell == '' and c == 'v':
-                v_empty[r] = True
-                values[r, k] = math.nan
-                continue
-            try:
-                values[r, k] = float(cell)
-            except ValueError:
-                raise DataError(f"{name}: line {line} column {c}: '{cell}' is not a number") \
-                    from None
     for k, c in enumerate(COLUMNS):
         bad = ~np.isfinite(values[:, k])
         if c == 'v':
             bad &= ~v_empty
         if bad.any():
-            line = int(np.flatnonzero(bad)[0]) + 2
+            line = int(np.flatnonzero(bad)[0]) + first_line
             raise DataError(f'{name}: column {c} has {int(bad.sum())} NaN/inf value(s), '
                             f'first at line {line}')
     t, x, v, f, i = values.T
@@ -280,10 +250,93 @@ def read_csv(path):
             raise DataError(f'{name}: time is not strictly increasing, cannot derive v from x')
         v = derive_velocity(t, x)
     elif v_empty.any():
-        line = int(np.flatnonzero(v_empty)[0]) + 2
+        line = int(np.flatnonzero(v_empty)[0]) + first_line
         raise DataError(f'{name}: column v is empty on some rows only (first at line {line}); '
                         'leave it empty everywhere to derive it from x')
     return DamperData(t, x, v, f, i, source=name)
+
+
+#: Rows parsed into one block of :func:`_parse_rows` (bounded memory for any file size).
+_CSV_BLOCK_ROWS = 65536
+
+
+def _parse_rows(rows, name):
+    """
+    Parse the header and the numeric rows of a ``t,x,v,f,i`` CSV as they are read.
+
+    Values go into float blocks of ``_CSV_BLOCK_ROWS`` rows, joined once at the end: the peak
+    memory is about twice the final arrays, whatever the file size (a list of the file's rows
+    as strings took about 8x the file). Trailing blank lines are ignored.
+
+    Returns
+    -------
+    values : ndarray with shape (n, 5)
+        Columns in the order of ``COLUMNS`` (NaN where ``v`` is empty).
+    v_empty : ndarray of bool with shape (n,)
+    first_line : int
+        Line number of the first data row.
+
+    """
+    header_row = None
+    line = 0
+    for row in rows:
+        line += 1
+        if any(cell.strip() for cell in row):
+            header_row = row
+            break
+    if header_row is None:
+        raise DataError(f'{name}: file is empty (expected header t,x,v,f,i)')
+    header = [h.strip().lower() for h in header_row]
+    missing = [c for c in COLUMNS if c not in header]
+    if missing:
+        raise DataError(f"{name}: missing column(s) {', '.join(missing)} "
+                        f"(header is '{','.join(header_row)}', expected t,x,v,f,i)")
+    cols = [header.index(c) for c in COLUMNS]
+    iv = COLUMNS.index('v')
+    n_fields = len(header)
+    blocks, empties = [], []
+    block = np.empty((_CSV_BLOCK_ROWS, len(COLUMNS)))
+    empty = np.zeros(_CSV_BLOCK_ROWS, dtype=bool)
+    k = 0
+    blank_line = 0          # first of a run of blank lines (an error unless trailing)
+    first_line = line + 1   # of the data rows (for the NaN check's line numbers)
+    for row in rows:
+        line += 1
+        if not any(cell.strip() for cell in row):
+            blank_line = blank_line or line
+            continue
+        if blank_line:
+            raise DataError(f'{name}: line {blank_line} has 0 fields, expected {n_fields} '
+                            '(truncated file?)')
+        if len(row) < n_fields:
+            raise DataError(f'{name}: line {line} has {len(row)} fields, expected '
+                            f'{n_fields} (truncated file?)')
+        out = block[k]
+        for j, c in enumerate(cols):
+            cell = row[c].strip()
+            if cell == '' and j == iv:
+                empty[k] = True
+                out[j] = math.nan
+                continue
+            try:
+                out[j] = float(cell)
+            except ValueError:
+                raise DataError(f"{name}: line {line} column {COLUMNS[j]}: '{cell}' is not a "
+                                'number') from None
+        k += 1
+        if k == _CSV_BLOCK_ROWS:
+            blocks.append(block)
+            empties.append(empty)
+            block = np.empty((_CSV_BLOCK_ROWS, len(COLUMNS)))
+            empty = np.zeros(_CSV_BLOCK_ROWS, dtype=bool)
+            k = 0
+    blocks.append(block[:k])
+    empties.append(empty[:k])
+    if sum(len(b) for b in blocks) == 0:
+        raise DataError(f'{name}: no data rows after the header')
+    values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    del blocks
+    return values, np.concatenate(empties), first_line
 
 
 def write_csv(path, data):
