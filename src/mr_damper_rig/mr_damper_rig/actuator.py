@@ -100,29 +100,38 @@ class ServoActuator:
         x0 = self.x0_m if x0_m is None else float(x0_m)
         self.x = x0
         self.v = 0.0
-        self._line = [x0] * self.delay_samples
+        self._line = [(x0, math.nan)] * self.delay_samples
         self._u_prev = x0
         self.n = 0
 
-    def step(self, u_m):
+    def step(self, u_m, v_ff_m_s=None):
         """
         Hold the command ``u_m`` [m] over one sample; return the position and velocity after it.
+
+        Parameters
+        ----------
+        u_m : float
+            Displacement command [m].
+        v_ff_m_s : float or None
+            Velocity of the command [m/s] (feed-forward); only the ideal actuator uses it.
 
         Returns
         -------
         tuple of float
             (x [m], v [m/s]) at the end of the sample. The ideal actuator's velocity is the
-            finite difference of the (delayed) command.
+            (delayed) feed-forward velocity, or without one the finite difference of the
+            (delayed) command.
 
         """
         u = float(u_m)
-        if not math.isfinite(u):
+        vff = math.nan if v_ff_m_s is None else float(v_ff_m_s)
+        if not (math.isfinite(u) and (v_ff_m_s is None or math.isfinite(vff))):
             raise ExcitationError('actuator command must be finite')
         if self.delay_samples:
-            self._line.append(u)
-            u = self._line.pop(0)
+            self._line.append((u, vff))
+            u, vff = self._line.pop(0)
         if self.kind == 'ideal':
-            self.v = (u - self._u_prev) / self.dt
+            self.v = vff if vff == vff else (u - self._u_prev) / self.dt
             self.x = u
         elif self.kind == 'first':
             self.x = self._phi[0, 0] * self.x + self._gam[0] * u
@@ -169,14 +178,16 @@ class CommandedMotion(Excitation):
         self._u = actuator.x0_m
         self._t_last = None
         self._last = (actuator.x, actuator.v)
+        self._v = None
         self.commands = 0
 
-    def command(self, x_m):
-        """Set the displacement command [m] for the next sample."""
+    def command(self, x_m, v_m_s=None):
+        """Set the displacement [m] (and velocity feed-forward [m/s]) for the next sample."""
         x_m = float(x_m)
-        if not math.isfinite(x_m):
+        if not math.isfinite(x_m) or (v_m_s is not None and not math.isfinite(v_m_s)):
             raise ExcitationError('displacement command must be finite')
         self._u = x_m
+        self._v = v_m_s
         self.commands += 1
 
     def __call__(self, t):
@@ -187,7 +198,7 @@ class CommandedMotion(Excitation):
         if self._t_last is None or t != self._t_last:
             if self._t_last is not None and t < self._t_last:
                 raise ExcitationError(f'time went back from {self._t_last} to {t} s')
-            self._last = self.actuator.step(self._u)
+            self._last = self.actuator.step(self._u, self._v)
             self._t_last = t
         return self._last
 
@@ -195,5 +206,6 @@ class CommandedMotion(Excitation):
         """Reset the actuator and forget the last command."""
         self.actuator.reset()
         self._u = self.actuator.x0_m
+        self._v = None
         self._t_last = None
         self._last = (self.actuator.x, self.actuator.v)
