@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from quarter_car_sim import live_loop
+from quarter_car_sim import hil, live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
@@ -29,15 +29,10 @@ def _drive(probe, seconds):
     metrics = live_loop.make_running_metrics(params)
     loop = live_loop.ClosedLoop(car, live_loop.make_controller('skyhook'), sup, DT,
                                 metrics=metrics)
-    plain = CurrentProbe()                     # counts only: what the law alone provides
-    for k in range(int(round(seconds / DT))):
-        i_law = loop.command(car.state, 0.0)
-        if probe is not None:
-            loop.i_cmd = probe(i_law, k * DT)
-        state = loop.advance()
-        plain.observe(state.coil_current)
-        if probe is not None:
-            probe.observe(state.coil_current)
+    out = hil.run_loop(loop, seconds, probe=probe)
+    plain = CurrentProbe()                     # counts only: what the coil current covered
+    for i in out['coil_current']:
+        plain.observe(i)
     return metrics.as_dict()['rms_body_accel_wk'], plain
 
 
@@ -46,14 +41,15 @@ def test_probe_covers_every_bin_within_12_s_at_bounded_comfort_cost():
     base_wk, law_only = _drive(None, seconds)
     # skyhook alone starves some bins (the reason for probing)
     assert not law_only.covered()
-    probe = CurrentProbe(period_s=0.5, hold_s=0.05, min_samples=25)
+    assert law_only.counts.min() < 25
+    probe = CurrentProbe(period_s=1.0, hold_s=0.05, min_samples=25)
     wk, _ = _drive(probe, seconds)
     assert probe.levels_a.size == 21
     assert probe.covered(), dict(zip(probe.levels_a.round(1), probe.counts))
-    assert probe.windows == 24
-    # comfort cost of a 10 % duty probe on class C: below 15 % Wk RMS increase
-    assert wk > base_wk * 0.95
-    assert wk < base_wk * 1.15
+    assert probe.windows == 12
+    # comfort cost of a 5 % duty probe on class C (measured +8.5 %): below 12 % Wk RMS increase
+    assert wk > base_wk
+    assert wk < base_wk * 1.12
 
 
 def test_probe_targets_the_least_filled_bin_only_inside_windows():

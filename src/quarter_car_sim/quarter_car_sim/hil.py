@@ -312,3 +312,48 @@ def make_hil_plant(plant='kwok-current', *, actuator='first', compensation='poly
     else:
         raise HilError(f"`compensation` must be 'poly' or 'none', got {compensation!r}")
     return HilPlant(rig, comp, feedback_delay_steps=feedback_delay_steps)
+
+
+def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
+    """
+    Run a :class:`quarter_car_sim.live_loop.ClosedLoop` for ``seconds``, optionally probed.
+
+    Parameters
+    ----------
+    loop : quarter_car_sim.live_loop.ClosedLoop
+        The loop (its car has either the damper model or a :class:`HilPlant`).
+    seconds : float
+        Simulated time [s] (whole steps of ``loop.dt``).
+    probe : quarter_car_sim.probing.CurrentProbe or None
+        Overrides the law's current inside its probe windows and counts the coil current.
+    t_clock : float
+        Supervisor clock [s] passed to every step.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        Per step: ``t`` [s], ``travel`` [m], ``z_s`` [m], ``a_s`` [m/s^2], ``damper_force``
+        [N], ``coil_current`` [A], ``i_cmd`` [A]; with a :class:`HilPlant`, also
+        ``command`` [m] (the rig's displacement command).
+
+    """
+    n = int(round(seconds / loop.dt))
+    car = loop.car
+    hil_plant = car.plant if isinstance(car.plant, HilPlant) else None
+    keys = ('t', 'travel', 'z_s', 'a_s', 'damper_force', 'coil_current')
+    rows = np.empty((n, len(keys) + 2))
+    for k in range(n):
+        i_law = loop.command(car.state, t_clock)
+        if probe is not None:
+            loop.i_cmd = probe(i_law, car.t)
+        s = loop.advance()
+        if probe is not None:
+            probe.observe(s.coil_current)
+        rows[k, :len(keys)] = (s.t, s.travel, s.z_s, s.a_s, s.damper_force, s.coil_current)
+        rows[k, -2] = loop.i_cmd
+        rows[k, -1] = hil_plant.last_command_m if hil_plant is not None else math.nan
+    out = {key: rows[:, j] for j, key in enumerate(keys)}
+    out['i_cmd'] = rows[:, -2]
+    if hil_plant is not None:
+        out['command'] = rows[:, -1]
+    return out
