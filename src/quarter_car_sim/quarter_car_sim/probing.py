@@ -41,7 +41,7 @@ class CurrentProbe:
 
     """
 
-    def __init__(self, i_min_a=0.0, i_max_a=2.0, *, bin_a=0.1, period_s=0.5, hold_s=0.05,
+    def __init__(self, i_min_a=0.0, i_max_a=2.0, *, bin_a=0.1, period_s=1.0, hold_s=0.05,
                  min_samples=25, max_duty=0.2):
         for name, val in (('bin_a', bin_a), ('period_s', period_s), ('hold_s', hold_s),
                           ('max_duty', max_duty)):
