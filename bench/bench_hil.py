@@ -20,7 +20,6 @@ import argparse
 import os
 from pathlib import Path
 
-import numpy as np
 
 from quarter_car_sim import hil, live_loop
 from quarter_car_sim.dynamics import QuarterCar
@@ -54,12 +53,13 @@ def run(plant, seconds, probe=None):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    ap.add_argument('--seconds', type=float, default=20.0)
+    ap.add_argument('--seconds', type=float, default=20.0, help='HIL runs [s]')
+    ap.add_argument('--probe-seconds', type=float, default=100.0, help='probing runs [s]')
     args = ap.parse_args()
     print(f'load (uptime): {os.getloadavg()}')
     ride_keys = ('rms_body_accel_wk', 'rms_suspension_travel', 'rms_tyre_load_ratio')
     rec_ref, ref = run(live_loop.make_plant('kwok-current'), args.seconds)
-    print(f'model in the loop: ' + ', '.join(f'{k} {ref[k]:.4g}' for k in ride_keys))
+    print('model in the loop: ' + ', '.join(f'{k} {ref[k]:.4g}' for k in ride_keys))
     cases = [('ideal', 'none', 0.0), ('first', 'none', 0.0), ('first', 'poly', 0.0),
              ('first', 'poly', 2.0), ('second', 'none', 0.0), ('second', 'poly', 0.0),
              ('second', 'poly', 2.0)]
@@ -70,22 +70,24 @@ def main():
         plant = hil.make_hil_plant(actuator=kind, compensation=comp, adapt_gain=gain, rng=1)
         rec, ride = run(plant, args.seconds)
         tr = plant.monitor.as_dict()
-        label = comp if gain == 0 else f'adaptive'
+        label = comp if gain == 0 else 'adaptive'
         horizon = plant.compensator.delay_s * 1e3 if plant.compensator else float('nan')
         print(f'{kind:8s} {label:10s} {tr["rms_m"] * 1e3:8.3f} {tr["peak_m"] * 1e3:8.3f} '
               f'{tr["delay_s"] * 1e3:9.2f} {horizon:10.2f} '
               + ' '.join(f'{ride[k] / ref[k]:26.3f}' for k in ride_keys))
         records[(kind, label)] = rec
     # probing cost and bin coverage (model in the loop, so only the probe differs)
+    rec_law, ref_p = run(live_loop.make_plant('kwok-current'), args.probe_seconds)
     law = CurrentProbe()
-    for i in rec_ref['coil_current']:
+    for i in rec_law['coil_current']:
         law.observe(i)
     probe = CurrentProbe()
-    rec_probe, probed = run(live_loop.make_plant('kwok-current'), args.seconds, probe)
-    cost = probed['rms_body_accel_wk'] / ref['rms_body_accel_wk'] - 1
-    print(f'probe: period {probe.period_s} s, hold {probe.hold_s} s (duty {probe.duty:.0%}), '
-          f'Wk RMS {ref["rms_body_accel_wk"]:.4g} -> {probed["rms_body_accel_wk"]:.4g} m/s^2 '
-          f'(comfort cost {cost:+.1%}); bins covered (>= {probe.min_samples} samples): '
+    rec_probe, probed = run(live_loop.make_plant('kwok-current'), args.probe_seconds, probe)
+    cost = probed['rms_body_accel_wk'] / ref_p['rms_body_accel_wk'] - 1
+    print(f'probe over {args.probe_seconds:g} s: period {probe.period_s} s, hold '
+          f'{probe.hold_s} s (duty {probe.duty:.0%}), Wk RMS {ref_p["rms_body_accel_wk"]:.4g} -> '
+          f'{probed["rms_body_accel_wk"]:.4g} m/s^2 (comfort cost {cost:+.1%}); all bins '
+          f'covered at t = {probe.covered_s} s; bins covered (>= {probe.min_samples} samples): '
           f'law {int((law.counts >= probe.min_samples).sum())}/{law.counts.size}, '
           f'probed {int((probe.counts >= probe.min_samples).sum())}/{probe.counts.size}')
     print('bin [A]   ' + ' '.join(f'{x:6.1f}' for x in probe.levels_a))
