@@ -20,7 +20,6 @@ import argparse
 import os
 from pathlib import Path
 
-
 from quarter_car_sim import hil, live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
