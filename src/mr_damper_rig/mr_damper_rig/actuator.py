@@ -13,12 +13,14 @@ Each can add a pure transport delay of ``delay_s`` (rounded to whole samples: co
 and network latency), applied to the command before the dynamics.
 
 Typical values (defaults): ``tau_s = 0.012`` s, ``wn = 2 pi 25`` rad/s, ``zeta = 0.7``,
-``delay_s = 0.002`` s. Order of magnitude of the servo-hydraulic actuators used in real-time
-hybrid tests of MR dampers: Carrion & Spencer (2007, NSEL report 007, "Model-based strategies
-for real-time hybrid testing") and Chen & Ricles (2009) report 10-30 ms of equivalent delay and
-a -3 dB bandwidth of some 20-40 Hz; the vRTHS benchmark (Silva, Dyke et al. 2020,
-DanielMaurelE/vRTHS_AMBC_MRdamper) uses a transfer-function servo model of the same order.
-They are representative, not measured on the thesis rig.
+``delay_s = 0.002`` s, i.e. 10-14 ms of equivalent delay. Order of magnitude recalled (not
+re-checked here) from the real-time hybrid testing literature on servo-hydraulic actuators with
+MR dampers (Carrion & Spencer 2007, "Model-based strategies for real-time hybrid testing", UIUC
+NSEL report series; Chen & Ricles 2009), which reports equivalent delays of about 10-30 ms. The
+vRTHS benchmark DanielMaurelE/vRTHS_AMBC_MRdamper identifies an all-pole transfer function of
+its actuator from laboratory data (Cap6_ModeloActuador, MFDID) and runs at 4096 Hz with 18-bit
+channels; its fitted coefficients are in .mat files not read here. The defaults are
+representative, not measured on the thesis rig.
 """
 import math
 

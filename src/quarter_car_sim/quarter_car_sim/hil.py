@@ -18,9 +18,12 @@ Delay compensation: the command is the desired travel extrapolated ``delay_s`` a
 polynomial through the last ``order + 1`` desired samples (Horiuchi et al. 1999). With
 ``adapt_gain > 0`` the horizon adapts: the tracking monitor's remaining delay (least-squares
 ``x_m(t) ~ x_d(t - tau)``, i.e. ``tau = sum((x_d - x_m) v_d) / sum(v_d**2)`` with forgetting) is
-integrated into the horizon, the same idea as the adaptive model-based compensation of
-DanielMaurelE/vRTHS_AMBC_MRdamper (there an adaptive inverse of the actuator transfer function;
-here its first-order, pure-delay form).
+integrated into the horizon. DanielMaurelE/vRTHS_AMBC_MRdamper (adaptive model-based
+compensation, AMBC) instead commands ``a0 x + a1 x' + a2 x'' + a3 x'''`` of the desired
+displacement (the inverse of its identified all-pole actuator model, derivatives by backward
+differences) and adapts the ``a_i`` online; for a first-order lag that inverse is
+``x + tau x'``, which is the first-order extrapolation over ``tau`` used here, and the adapted
+horizon plays the role of the adapted ``a1``.
 """
 import math
 
