@@ -107,7 +107,9 @@ def _plot(records, law, probe):
     ax1.plot(rec['t'][sl], 1e3 * rec['travel'][sl], 'k', label='desired (car travel)')
     for label in ('none', 'poly', 'adaptive'):
         r = records[('first', label)]
-        ax1.plot(r['t'][sl], 1e3 * r['command'][sl], '--', label=f'command ({label})')
+        ax1.plot(r['t'][sl], 1e3 * r['measured'][sl], label=f'measured ({label})')
+    ax1.plot(rec['t'][sl], 1e3 * records[('first', 'adaptive')]['command'][sl], ':',
+             label='command (adaptive)')
     ax1.set_xlabel('t [s]')
     ax1.set_ylabel('displacement [mm]')
     ax1.set_title('first-order actuator (12 ms lag + 2 ms delay)')

@@ -128,3 +128,22 @@ def test_compensated_hil_rides_closer_to_model_in_the_loop_than_uncompensated():
     # ... compensation cuts the tracking error and brings the ride back to the reference
     assert out['poly'][1]['rms_m'] < out['none'][1]['rms_m'] / 4
     assert out['poly'][0] < out['none'][0] / 3
+
+
+def test_run_loop_records_what_the_monitor_saw():
+    params = QuarterCarParams()
+    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=3,
+                               duration_s=1.0)
+    plant = hil.make_hil_plant(actuator='first', compensation='poly', rng=4)
+    car = QuarterCar(params, plant, road, t0=0.0)
+    loop = live_loop.ClosedLoop(car, live_loop.make_controller('passive@1A'),
+                                ModelSupervisor(timeout_s=1.0, safe_current_a=0.5), DT)
+    out = hil.run_loop(loop, 1.0)
+    assert out['t'].size == 1000 and np.all(out['i_cmd'] == 1.0)
+    e = hil.tracking_error(out['travel'], out['measured'], DT)
+    mon = plant.monitor.as_dict()
+    assert mon['n'] == 1000
+    assert e['rms_m'] == pytest.approx(mon['rms_m'], rel=1e-12)
+    assert e['peak_m'] == pytest.approx(mon['peak_m'], rel=1e-12)
+    assert np.all(np.isfinite(out['command']))
+    assert not np.array_equal(out['command'], out['travel'])     # compensated command

@@ -240,6 +240,7 @@ class HilPlant:
         self._queue = [0.0] * self.feedback_delay_steps
         self.current = float(self.rig.plant.current)
         self.last_command_m = 0.0
+        self.last_measured_m = 0.0
 
     def step(self, dt, x, v, i_cmd):
         """
@@ -262,6 +263,7 @@ class HilPlant:
         self.last_command_m = u
         self.rig.command_current(i_cmd)
         _, xm, _, f, i = self.rig.sample()
+        self.last_measured_m = xm
         mon = self.monitor
         mon.update(x, v, xm)
         if self.compensator is not None and mon.n % self.adapt_every == 0:
@@ -337,14 +339,15 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
     dict of numpy.ndarray
         Per step: ``t`` [s], ``travel`` [m], ``z_s`` [m], ``a_s`` [m/s^2], ``damper_force``
         [N], ``coil_current`` [A], ``i_cmd`` [A]; with a :class:`HilPlant`, also
-        ``command`` [m] (the rig's displacement command).
+        ``command`` [m] (the rig's displacement command) and ``measured`` [m] (its measured
+        displacement).
 
     """
     n = int(round(seconds / loop.dt))
     car = loop.car
     hil_plant = car.plant if isinstance(car.plant, HilPlant) else None
     keys = ('t', 'travel', 'z_s', 'a_s', 'damper_force', 'coil_current')
-    rows = np.empty((n, len(keys) + 2))
+    rows = np.full((n, len(keys) + 3), math.nan)
     for k in range(n):
         i_law = loop.command(car.state, t_clock)
         if probe is not None:
@@ -353,10 +356,13 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
         if probe is not None:
             probe.observe(s.coil_current)
         rows[k, :len(keys)] = (s.t, s.travel, s.z_s, s.a_s, s.damper_force, s.coil_current)
-        rows[k, -2] = loop.i_cmd
-        rows[k, -1] = hil_plant.last_command_m if hil_plant is not None else math.nan
+        rows[k, -3] = loop.i_cmd
+        if hil_plant is not None:
+            rows[k, -2] = hil_plant.last_command_m
+            rows[k, -1] = hil_plant.last_measured_m
     out = {key: rows[:, j] for j, key in enumerate(keys)}
-    out['i_cmd'] = rows[:, -2]
+    out['i_cmd'] = rows[:, -3]
     if hil_plant is not None:
-        out['command'] = rows[:, -1]
+        out['command'] = rows[:, -2]
+        out['measured'] = rows[:, -1]
     return out
