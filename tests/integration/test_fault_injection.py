@@ -183,3 +183,34 @@ def test_rig_clamps_and_refuses_bad_current_commands(listener):
         assert st['current_commands'] == 3          # the three applied commands
         code = rig.stop()
     assert code == 0, rig.output()
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
+    """Signal sent while a 5,000-sample burst is being taken: exit 0, no traceback."""
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    from mr_damper_model.messages import measurement_to_msg
+    from mr_damper_model.node_utils import MEASUREMENT_QOS
+    topic = f'/fi_burst_{int(sig)}'
+    statuses = listener.subscribe(f'{topic}/status', String, _qos())
+    pub = listener.publisher(f'{topic}/measurement', JointState, MEASUREMENT_QOS)
+    params = {'measurement_topic': f'{topic}/measurement', 'status_topic': f'{topic}/status',
+              'parameters_topic': f'{topic}/params', 'status_period_s': 0.05}
+    with NodeProcess('identifier_node', params=params) as ident:
+        assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and statuses,
+                                 GUARD_S, procs=[ident]), ident.output()
+        msg = None
+        for k in range(5000):   # 1 s of 5 kHz samples, as fast as the writer takes them
+            t = k * 2e-4
+            msg = measurement_to_msg(t, 0.01 * math.sin(6.9 * t), 0.07 * math.cos(6.9 * t),
+                                     300.0 * math.cos(6.9 * t), 1.0, msg=msg)
+            pub.publish(msg)
+        # the node is taking the burst (its count moved); the signal comes while it runs
+        assert listener.wait_for(lambda: _latest(statuses).get('samples_received', 0) > 0,
+                                 GUARD_S, procs=[ident]), ident.output()
+        ident.proc.send_signal(sig)
+        code = ident.wait(GUARD_S)
+    out = ident.output()
+    assert code == 0, out
+    assert 'Traceback' not in out, out

@@ -29,9 +29,12 @@ class _Logger:
 
 @pytest.fixture(scope='module')
 def ros():
-    rclpy.init()
+    started = not rclpy.ok()   # the integration tests' listener may have initialised it
+    if started:
+        rclpy.init()
     yield
-    rclpy.try_shutdown()
+    if started:
+        rclpy.try_shutdown()
 
 
 def test_measurement_stream_is_reliable_keep_all_and_other_topics_keep_last():

@@ -202,6 +202,8 @@ class IdentifierNode(Node):
             try:
                 est = self.live.process(window)
             except Exception as exc:  # never let one window kill the node
+                if self._stop.is_set():   # the fit process was ended by shutdown()
+                    break
                 self.live.counters['fit_errors'] += 1
                 self.live.last_error = f'{type(exc).__name__}: {exc}'
                 self.get_logger().error(f'window fit failed: {self.live.last_error}',
@@ -259,11 +261,12 @@ class IdentifierNode(Node):
         self.drops.publish(self._pub_status, status_msg(status))
 
     def shutdown(self):
-        """Stop the worker and write the last valid parameters."""
+        """Stop the worker and write the last valid parameters (well within 2 s)."""
         self._stop.set()
-        self._worker.join(timeout=5.0)
         if self._fit_process is not None:
-            self._fit_process.close()
+            # a fit in progress ends with its process (the worker sees a failed fit and stops)
+            self._fit_process.close(wait_s=0.5)
+        self._worker.join(timeout=1.0)
         if self.live.last_good is not None and self.live.last_good.model_fitted != 'file':
             self._save(self.live.last_good, force=True)
 

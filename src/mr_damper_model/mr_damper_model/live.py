@@ -618,11 +618,12 @@ class FitProcess:
     def _call(self, request):
         if self._proc is None or self._proc.poll() is not None:
             self._start()
+        proc = self._proc   # close() from another thread (shutdown) must not pull it away
         try:
-            pickle.dump(request, self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-            self._proc.stdin.flush()
-            status, value = pickle.load(self._proc.stdout)
-        except (EOFError, OSError, pickle.UnpicklingError) as exc:
+            pickle.dump(request, proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            proc.stdin.flush()
+            status, value = pickle.load(proc.stdout)
+        except (EOFError, OSError, ValueError, pickle.UnpicklingError) as exc:
             self.close()
             raise RuntimeError(f'fit process failed ({type(exc).__name__}: {exc})') from None
         if status == 'error':
@@ -637,14 +638,14 @@ class FitProcess:
         """Run ``fit_data(data, model, config, x0=x0)`` in the child."""
         return self._call((data, model, config, x0))
 
-    def close(self):
-        """End the child process."""
+    def close(self, wait_s=2.0):
+        """End the child process (EOF on its stdin; killed if still there after ``wait_s``)."""
         proc, self._proc = self._proc, None
         if proc is None:
             return
         try:
             proc.stdin.close()
-            proc.wait(timeout=2.0)
+            proc.wait(timeout=wait_s)
         except (OSError, subprocess.TimeoutExpired):
             proc.kill()
             proc.wait()
