@@ -179,3 +179,15 @@ class Listener:
     def __exit__(self, *exc):
         self.close()
         return False
+
+
+def status_qos():
+    """Return the QoS the tests subscribe to JSON status topics with (reliable, depth 100)."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def latest_status(received):
+    """Return the newest JSON status of a :meth:`Listener.subscribe` list ({} if none)."""
+    import json
+    return json.loads(received[-1][1].data) if received else {}

@@ -20,14 +20,14 @@ A second test sends out-of-range and non-finite current commands to a rig with
 ``current_source:=command``: clamped and refused commands are counted, the coil current stays
 inside the coil range.
 """
-import json
 import math
 import os
 import signal
 
 import pytest
 
-from integration.ros_helpers import Listener, load_run_suite, NodeProcess
+from integration.ros_helpers import (latest_status as _latest, Listener, load_run_suite,
+                                     NodeProcess, status_qos as _qos)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -39,19 +39,6 @@ def listener():
     lis = Listener('fault_injection_test')
     yield lis
     lis.close()
-
-
-def _qos():
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def _latest(msgs):
-    return json.loads(msgs[-1][1].data) if msgs else {}
-
-
-def _count(msgs):
-    return len(msgs)
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):

@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from integration.ros_helpers import Listener, load_run_suite, NodeProcess
+from integration.ros_helpers import (latest_status as _latest_status, Listener,
+                                     load_run_suite, NodeProcess, status_qos as _status_qos)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -52,15 +53,6 @@ def listener():
     lis = Listener('h5_suite_test')
     yield lis
     lis.close()
-
-
-def _status_qos():
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def _latest_status(statuses):
-    return json.loads(statuses[-1][1].data) if statuses else {}
 
 
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
