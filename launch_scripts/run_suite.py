@@ -114,19 +114,19 @@ def resolve_config(args, out):
     if args.rate_factor is not None:
         set_param(cfg, RIG, 'rate_factor', float(args.rate_factor))
         set_param(cfg, qc, 'real_time_factor', float(args.rate_factor))
-    set_param(cfg, qc, 'log_file', str(out / 'quarter_car_log.npz'))
+    set_param(cfg, qc, 'log_file', str(out / 'quarter_car_log'))
     # the identifier saves its last good parameters here (and restarts from them); a new run
     # starts without them so that the time to the first valid model is measured honestly
     ident_file = out / 'identifier_params.json'
     if ident_file.exists():
         ident_file.unlink()
     set_param(cfg, IDENT, 'params_file', str(ident_file))
-    # the car's road must outlast the run (it is held flat after its end)
+    # a run that outlasts the car's road drives it again (ISO 8608 roads repeat seamlessly):
+    # memory stays one road length however long the run (held flat otherwise)
     factor = node_params(cfg, qc).get('real_time_factor', 1.0) or 20.0
-    if args.duration:
-        need = float(args.duration) * float(factor) + 10.0
-        if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
-            set_param(cfg, qc, 'road_duration_s', float(math.ceil(need)))
+    need = float(args.duration) * float(factor) + 10.0 if args.duration else math.inf
+    if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
+        set_param(cfg, qc, 'road_repeat', True)
     if args.config == 'replay' or args.file:
         files = [Path(f) for f in (args.file or DEFAULT_REPLAY)]
         for f in files:
@@ -323,19 +323,32 @@ class Suite:
 
 # ---------------------------------------------------------------------------------- recording
 class Recording:
-    """What the launcher's recorder node collects (plain Python; filled from ROS callbacks)."""
+    """
+    What the launcher's recorder node collects, streamed to ``out`` as it comes (flat memory).
 
-    def __init__(self):
+    - every measurement -> column log ``out/measurement`` (t, x, v, f, i, recv_epoch_s;
+      ``mr_damper_model.columnlog``), written in chunks;
+    - every parameter message -> ``out/parameters.jsonl`` (``[wall_s, dict]`` per line);
+    - in memory only bounded state: counters, the latest status of each node, the truths, the
+      latest ride metrics and parameter message.
+    """
+
+    MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
+
+    def __init__(self, out):
+        from mr_damper_model.columnlog import ColumnWriter, JsonLines
         self.lock = threading.Lock()
         self.t0 = time.monotonic()
-        self.meas = []            # (t, x, v, f, i, receipt time [s, epoch])
+        self.meas = ColumnWriter(Path(out) / 'measurement', self.MEAS_COLUMNS, chunk_rows=4096)
+        self.params = JsonLines(Path(out) / 'parameters.jsonl')
+        self.n_valid = 0
+        self.last_params = None
         self.meas_gaps = 0        # samples missing between consecutive stamps
         self.meas_out_of_order = 0
-        self.params = []          # (wall_s since start, dict)
         self.truth = None
         self.truth_spencer = None
         self.status = {}          # topic key -> latest dict
-        self.qc_status = []       # (wall_s, dict)
+        self.status_count = {}    # topic key -> messages
         self.metrics = None
         self.dt_meas = None
 
@@ -343,12 +356,26 @@ class Recording:
         """Return seconds since the recording started."""
         return time.monotonic() - self.t0
 
-    def to_dict(self):
-        """Return a JSON-ready dict (measurements excluded) for ``recording.json``."""
+    def add_params(self, d):
+        """Stream one decoded parameter message (with its receipt time)."""
         with self.lock:
-            return {'params': self.params, 'truth': self.truth,
-                    'truth_spencer': self.truth_spencer, 'status': self.status,
-                    'qc_status': self.qc_status, 'ride_metrics': self.metrics,
+            self.params.append([self.wall(), d])
+            self.last_params = d
+            self.n_valid += d.get('valid') == 1.0
+
+    def close(self):
+        """Write what is buffered and close the files."""
+        with self.lock:
+            self.meas.close()
+            self.params.close()
+
+    def to_dict(self):
+        """Return a JSON-ready dict (streams excluded) for ``recording.json``."""
+        with self.lock:
+            return {'truth': self.truth, 'truth_spencer': self.truth_spencer,
+                    'status': self.status, 'status_messages': self.status_count,
+                    'ride_metrics': self.metrics,
+                    'parameter_messages': self.params.count,
                     'measurement_gaps': self.meas_gaps,
                     'measurement_out_of_order': self.meas_out_of_order,
                     'measurements_received': len(self.meas)}
@@ -399,7 +426,8 @@ def start_recorder(rec, topics):
                 elif step > 1.5 * rec.dt_meas:
                     rec.meas_gaps += int(round(step / rec.dt_meas)) - 1
             last['t'] = t
-            rec.meas.append(sample + (time.time(),))
+            if not rec.meas.closed:
+                rec.meas.append(sample + (time.time(),))
 
     def on_params(msg):
         try:
@@ -407,8 +435,7 @@ def start_recorder(rec, topics):
         except ValueError:
             return
         d['recv_epoch_s'] = time.time()
-        with rec.lock:
-            rec.params.append((rec.wall(), d))
+        rec.add_params(d)
 
     def on_truth(msg):
         try:
@@ -430,8 +457,7 @@ def start_recorder(rec, topics):
                 return
             with rec.lock:
                 rec.status[key] = d
-                if key == 'quarter_car':
-                    rec.qc_status.append((rec.wall(), d))
+                rec.status_count[key] = rec.status_count.get(key, 0) + 1
         return cb
 
     def on_metrics(msg):
@@ -495,43 +521,45 @@ def identifier_drained(rec):
 
 
 def save_recording(rec, out):
-    """Write ``measurement.npz`` and ``recording.json`` into ``out``; return their paths."""
-    import numpy as np
-    with rec.lock:
-        meas = np.array(rec.meas, dtype=float).reshape(-1, 6)
-    mpath = Path(out) / 'measurement.npz'
-    np.savez_compressed(mpath, t=meas[:, 0], x=meas[:, 1], v=meas[:, 2], f=meas[:, 3],
-                        i=meas[:, 4], recv_epoch_s=meas[:, 5])
+    """Close the streamed files and write ``recording.json`` into ``out``; return its path."""
+    from mr_damper_model.columnlog import finite_or_none
+    rec.close()
     rpath = Path(out) / 'recording.json'
-    rpath.write_text(json.dumps(_finite(rec.to_dict())))
-    return mpath, rpath
-
-
-def _finite(value):
-    if isinstance(value, dict):
-        return {str(k): _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and value != value or value in (float('inf'), float('-inf')):
-        return None
-    return value
+    rpath.write_text(json.dumps(finite_or_none(rec.to_dict())))
+    return rpath
 
 
 class ProcessStats:
-    """CPU and memory of the node processes (psutil), sampled about once a second."""
+    """
+    CPU and memory of the node processes (psutil), sampled about once a second.
 
-    def __init__(self, suite):
+    Every sample is streamed to the column log ``out/process_samples`` (``t_s`` since the
+    start, ``process`` index into the header's ``processes``, ``cpu_percent``, ``rss_mb``): the
+    soak benchmark fits its memory slopes from it. In memory: running sums, peaks and a CPU
+    histogram (0.5 % bins) per process, so the summary is bounded for runs of any length.
+    """
+
+    CPU_BIN = 0.5       # [%]
+
+    def __init__(self, suite, out):
         import psutil
+        from mr_damper_model.columnlog import ColumnWriter
         self.psutil = psutil
         self.suite = suite
         self.handles = {}
-        self.samples = {}
+        self.stats = {}
+        self.names = list(NODES) + ['launcher_recorder']
+        self.t0 = time.monotonic()
+        self.log = ColumnWriter(Path(out) / 'process_samples',
+                                ('t_s', 'process', 'cpu_percent', 'rss_mb'), chunk_rows=256,
+                                meta={'processes': self.names})
 
     def sample(self):
         """Take one sample of every running node (and of this launcher)."""
         procs = {name: self.suite.procs[name].pid for name in self.suite.procs
                  if self.suite.alive(name)}
         procs['launcher_recorder'] = os.getpid()
+        now = time.monotonic() - self.t0
         for name, pid in procs.items():
             try:
                 h = self.handles.get(name)
@@ -543,17 +571,33 @@ class ProcessStats:
                 rss = h.memory_info().rss / 2 ** 20
             except self.psutil.Error:
                 continue
-            self.samples.setdefault(name, []).append((cpu, rss))
+            if name not in self.names:
+                self.names.append(name)
+            self.log.append((now, self.names.index(name), cpu, rss))
+            st = self.stats.setdefault(name, {'n': 0, 'cpu_sum': 0.0, 'rss_peak': 0.0,
+                                              'hist': {}})
+            st['n'] += 1
+            st['cpu_sum'] += cpu
+            st['rss_peak'] = max(st['rss_peak'], rss)
+            b = int(cpu // self.CPU_BIN)
+            st['hist'][b] = st['hist'].get(b, 0) + 1
+
+    def close(self):
+        """Close the sample log."""
+        self.log.close(processes=self.names)
 
     def summary(self):
         """Return {name: {cpu_mean_percent, cpu_p95_percent, rss_peak_mb, samples}}."""
-        import numpy as np
         out = {}
-        for name, values in self.samples.items():
-            a = np.array(values, dtype=float)
-            out[name] = {'cpu_mean_percent': float(a[:, 0].mean()),
-                         'cpu_p95_percent': float(np.percentile(a[:, 0], 95)),
-                         'rss_peak_mb': float(a[:, 1].max()), 'samples': int(a.shape[0])}
+        for name, st in self.stats.items():
+            seen, p95 = 0, 0.0
+            for b in sorted(st['hist']):
+                seen += st['hist'][b]
+                if seen >= 0.95 * st['n']:
+                    p95 = (b + 1) * self.CPU_BIN      # upper edge of the bin
+                    break
+            out[name] = {'cpu_mean_percent': st['cpu_sum'] / st['n'], 'cpu_p95_percent': p95,
+                         'rss_peak_mb': st['rss_peak'], 'samples': st['n']}
         nodes = [v['cpu_mean_percent'] for k, v in out.items() if k in NODES]
         out['nodes_total_cpu_cores'] = sum(nodes) / 100.0
         return out
@@ -564,9 +608,9 @@ def progress_line(rec, elapsed):
     """Return one progress line from the latest statuses."""
     with rec.lock:
         n_meas = len(rec.meas)
-        params = rec.params[-1][1] if rec.params else None
-        n_params = len(rec.params)
-        n_valid = sum(1 for _, p in rec.params if p.get('valid') == 1.0)
+        params = rec.last_params
+        n_params = rec.params.count
+        n_valid = rec.n_valid
         qc = rec.status.get('quarter_car', {})
         metrics = rec.metrics or {}
     ident = f'identifier {n_params} updates ({n_valid} valid)'
@@ -677,7 +721,7 @@ def main(argv=None):
 
     old_int = signal.signal(signal.SIGINT, on_sigint)
     old_term = signal.signal(signal.SIGTERM, on_sigint)
-    rec = Recording()
+    rec = Recording(out)
     stop_recorder = start_recorder(rec, topics_of(cfg))
     status = 0
     codes = {}
@@ -689,7 +733,7 @@ def main(argv=None):
             return 2
         t_start = time.monotonic()
         next_progress = args.progress_s
-        stats = ProcessStats(suite)
+        stats = ProcessStats(suite, out)
         next_stats = 0.0
         while not interrupted.is_set():
             elapsed = time.monotonic() - t_start
@@ -726,6 +770,7 @@ def main(argv=None):
         status = 1
     save_recording(rec, out)
     try:
+        stats.close()
         (out / 'process_stats.json').write_text(json.dumps(stats.summary(), indent=2))
     except NameError:                   # the nodes never started
         pass

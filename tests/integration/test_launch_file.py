@@ -158,9 +158,15 @@ def test_launcher_config_resolution(tmp_path):
     assert qc['safe_current_a'] == 1.0 and isinstance(qc['safe_current_a'], float)
     assert qc['real_time_factor'] == 3.0 and rs.node_params(cfg, rs.RIG)['rate_factor'] == 3.0
     assert qc['plant'] == 'kwok-current' == rs.node_params(cfg, rs.RIG)['plant']
-    assert qc.get('road_duration_s', 300.0) >= 40 * 3.0  # the road outlasts the run (default 300)
-    assert qc['log_file'] == str(tmp_path / 'quarter_car_log.npz')
+    # the road (default 300 s) outlasts the run (40 s at 3x): held, not repeated
+    assert qc.get('road_duration_s', 300.0) >= 40 * 3.0 and not qc.get('road_repeat', False)
+    assert qc['log_file'] == str(tmp_path / 'quarter_car_log')
     assert rs.node_params(cfg, rs.IDENT)['params_file'] == str(tmp_path / 'identifier_params.json')
+    # a run longer than the road drives it again instead of a road as long as the run
+    long = rs.resolve_config(rs.parse_args(['--out', str(tmp_path), '--duration', '3600']),
+                             tmp_path)
+    assert rs.node_params(long, rs.QC)['road_repeat'] is True
+    assert rs.node_params(long, rs.QC).get('road_duration_s', 300.0) == 300.0
 
 
 def test_launcher_replay_concatenates_csv_files(tmp_path):

@@ -27,6 +27,7 @@ import pytest
 from conftest import REPO
 from integration.ros_helpers import (latest_status as _latest_status, Listener,
                                      load_run_suite, NodeProcess, status_qos as _status_qos)
+from mr_damper_model.columnlog import ColumnReader
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -138,7 +139,7 @@ def test_full_suite_short_run(tmp_path):
     assert ident['updates'] > 10 and ident['valid_updates'] > 0
     assert ident['first_valid_s'] is not None and ident['first_valid_s'] < 15.0
     assert ident['nrmse_percent'] < 10.0
-    log = np.load(out / 'quarter_car_log.npz')
+    log = ColumnReader(out / 'quarter_car_log').read()
     mode = log['mode']
     # starts in fail-safe at the safe current, then normal once a model is accepted
     assert mode[0] == 0.0 and log['i_cmd'][0] == SAFE_A

@@ -147,3 +147,24 @@ def test_bad_arguments():
         car.step(1e-3, 0.0)
     with pytest.raises(ValueError, match='dt'):
         car.step_force(0.0, 0.0)
+
+
+def test_periodic_road_repeats_seamlessly_and_a_plain_one_is_held():
+    from quarter_car_sim import live_loop
+    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=3,
+                               duration_s=2.0, repeat=True)
+    assert road.periodic and road.duration == pytest.approx(2.0, abs=2e-3)
+    period = road.n * road.dt
+    car = QuarterCar(QuarterCarParams(), None, road)
+    flat = QuarterCar(QuarterCarParams(), None, live_loop.make_road(
+        'iso8608', road_class='C', speed_m_s=20.0, seed=3, duration_s=2.0))
+    for t in (0.0123, 0.5, 1.2345, road.t[-1] + 0.4 * road.dt):
+        z0, zd0 = car._road_at(t)
+        for lap in (1, 2, 7):
+            z, zd = car._road_at(t + lap * period)
+            assert z == pytest.approx(z0, abs=1e-12) and zd == pytest.approx(zd0, abs=1e-9)
+    # across the seam the height moves by about one step of the road, no jump
+    dz = max(abs(car._road_at(period - 1e-4 * k)[0] - car._road_at(period + 1e-4 * k)[0])
+             for k in range(1, 5))
+    assert dz < 20 * road.dt * np.max(np.abs(road.zdot))
+    assert flat._road_at(period * 3.3) == (road.z[-1], 0.0)

@@ -5,6 +5,7 @@ import sys
 import numpy as np
 import pytest
 
+from mr_damper_model.columnlog import ColumnReader
 from quarter_car_sim import live_loop
 from quarter_car_sim.controllers import Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
@@ -117,15 +118,20 @@ def test_timing_stats_known_values():
 
 def test_trace_log_round_trip(tmp_path):
     loop = _loop(Passive(0.5))
-    trace = live_loop.TraceLog()
+    path = tmp_path / 'log'
+    trace = live_loop.TraceLog(path, 1e-3, chunk_rows=16)
     for k in range(50):
         state = loop.step(0.001 * k)
         trace.append(state, loop.i_cmd, loop.f_demand, False, 0.001 * k, 1e-5, 0.0)
-    path = tmp_path / 'log.npz'
-    trace.save(path, dt=1e-3)
-    z = np.load(path)
-    assert set(live_loop.TRACE_COLUMNS) <= set(z.files)
-    assert z['t'].size == 50 and float(z['dt']) == 1e-3
+        if k == 39:
+            # streamed as it runs: the first 32 steps (two chunks) are on disk already
+            assert ColumnReader(path).rows == 32
+    trace.close(status={'mode': 'failsafe', 'failsafe_s': float('nan')})
+    r = ColumnReader(path)
+    assert r.columns == live_loop.TRACE_COLUMNS
+    assert r.meta['dt'] == 1e-3 and r.meta['status'] == {'mode': 'failsafe', 'failsafe_s': None}
+    z = r.read()
+    assert z['t'].size == 50
     np.testing.assert_allclose(np.diff(z['t']), 1e-3, atol=1e-12)
     assert np.all(z['i_cmd'] == 0.5) and np.all(z['mode'] == 0.0)
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
+from mr_damper_model.columnlog import ColumnReader, ColumnWriter, JsonLines
 from quarter_car_sim import live_loop, suite_report
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -75,8 +76,8 @@ def test_measurement_to_parameters_delay():
     np.testing.assert_allclose(d, [0.05], atol=1e-9)
 
 
-def _live_log(controller_offers=False, seconds=4.0):
-    """Run the node's loop in-process, in the node's way (t0 = -settle), and log it."""
+def _live_log(path, controller_offers=False, seconds=4.0, status=None):
+    """Run the node's loop in-process, in the node's way (t0 = -settle), and log it to path."""
     car_p = QuarterCarParams()
     road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=4,
                                duration_s=QC['road_duration_s'])
@@ -84,7 +85,7 @@ def _live_log(controller_offers=False, seconds=4.0):
     sup = ModelSupervisor(timeout_s=100.0, safe_current_a=0.5)
     ctrl = live_loop.make_controller('skyhook')
     loop = live_loop.ClosedLoop(car, ctrl, sup, 1e-3)
-    trace = live_loop.TraceLog()
+    trace = live_loop.TraceLog(path, 1e-3)
     _, msg = _truth_msg()
     n = int(round((seconds + live_loop.SETTLE_S) / 1e-3))
     for k in range(n):
@@ -92,14 +93,13 @@ def _live_log(controller_offers=False, seconds=4.0):
             sup.offer(msg, 0.0)
         state = loop.step(0.0)
         trace.append(state, loop.i_cmd, loop.f_demand, sup.mode == 'normal', 1e-3 * k, 1e-5)
-    log = trace.arrays()
-    log['dt'] = 1e-3
-    return log
+    trace.close(**({'status': status} if status else {}))
+    return ColumnReader(path)
 
 
-def test_passive_reference_reproduces_a_passive_live_run():
+def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
     """Same road, seed, plant and timing: the offline passive run IS the fail-safe live run."""
-    log = _live_log(controller_offers=False)
+    log = _live_log(tmp_path / 'log', controller_offers=False)
     ride = suite_report.ride_summary(log, QC)
     assert 'never left fail-safe' in ride['note']
     for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_tyre_load_ratio',
@@ -108,8 +108,8 @@ def test_passive_reference_reproduces_a_passive_live_run():
     assert ride['passive_0a']['rms_body_accel_wk'] != ride['passive']['rms_body_accel_wk']
 
 
-def test_live_skyhook_window_starts_at_first_normal_step():
-    log = _live_log(controller_offers=True)
+def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
+    log = _live_log(tmp_path / 'log', controller_offers=True)
     ride = suite_report.ride_summary(log, QC)
     assert ride['window_s'][0] == pytest.approx(1.0, abs=2e-3)     # step 1500 of t0 = -0.5
     assert ride['skyhook']['rms_body_accel_wk'] < ride['passive']['rms_body_accel_wk']
@@ -119,16 +119,20 @@ def test_live_skyhook_window_starts_at_first_normal_step():
 def test_make_report_end_to_end(tmp_path):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    np.savez(tmp_path / 'measurement.npz', **meas)
-    rec = {'params': [[1.0, dict(msg, recv_epoch_s=1001.5)], [1.2, dict(msg)]],
-           'truth': msg, 'truth_spencer': None,
+    cols = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
+    with ColumnWriter(tmp_path / 'measurement', cols, chunk_rows=1000) as w:
+        w.append_block(np.column_stack([meas[c] for c in cols]))
+    jl = JsonLines(tmp_path / 'parameters.jsonl')
+    jl.append([1.0, dict(msg, recv_epoch_s=1001.5)])
+    jl.append([1.2, dict(msg)])
+    jl.close()
+    rec = {'truth': msg, 'truth_spencer': None,
            'status': {'rig': {'samples_published': 4000},
                       'identifier': {'samples_received': 3990}},
            'measurement_gaps': 0, 'measurements_received': 4000}
     (tmp_path / 'recording.json').write_text(json.dumps(rec))
-    log = _live_log(controller_offers=True, seconds=3.0)
     status = {'failsafe_s': 1.5, 'mode': 'normal', 'params_rejected': {'stale': 0}}
-    np.savez(tmp_path / 'quarter_car_log.npz', **log, status=json.dumps(status))
+    _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=3.0, status=status)
     cfg = {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
            'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
            'quarter_car_node': {'ros__parameters': QC}}
@@ -163,3 +167,77 @@ def test_messages_lost_counts_the_identifier_not_the_recorder():
     assert suite_report.messages_summary(rec, {})[0] == 10
     lost, br = suite_report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
     assert lost == 3 and 'note' in br
+
+
+def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
+    params, msg = _truth_msg()
+    meas = _measurements(params)
+    whole = suite_report.fit_error(meas['f'], suite_report.model_force(msg, meas['x'],
+                                                                       meas['v'], meas['i']))
+    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 333)
+    assert suite_report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
+
+
+def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
+    """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
+    from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
+    log = _live_log(tmp_path / 'log', controller_offers=True)
+    big = suite_report.ride_summary(log, QC)
+    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 377)
+    small = suite_report.ride_summary(log, QC)
+    for key in ('skyhook', 'passive', 'passive_0a'):
+        for m, v in big[key].items():
+            assert small[key][m] == pytest.approx(v, rel=1e-9, nan_ok=True), (key, m)
+    a = log.read()
+    mask = a['t'] >= big['window_s'][0] - 5e-4
+    sub = {k: a[k][mask] for k in ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')}
+    sub['current_cmd'] = a['i_cmd'][mask]
+    ref = ride_metrics(sub, static_load=QuarterCarParams().static_tyre_load)
+    ref['rms_body_accel_wk'] = float(np.sqrt(np.mean(wk_filter(a['a_s'], 1e3)[mask] ** 2)))
+    for m in ('rms_body_accel_wk', 'rms_body_accel', 'rms_tyre_load_ratio', 'peak_body_accel',
+              'rms_suspension_travel', 'mean_current_a', 'n_samples'):
+        assert small['skyhook'][m] == pytest.approx(ref[m], rel=1e-9), m
+    assert small['passive_trace']['t'].size == small['passive_trace']['a_s'].size > 1000
+
+
+def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypatch):
+    params, msg = _truth_msg()
+    meas = _measurements(params)
+    log = [(0.0, dict(msg, window_end_s=e, recv_epoch_s=1000.0 + e + 0.05))
+           for e in (-1.0, 0.5, 0.9995, 1.0, 2.2, 3.999, 7.0)]
+    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 1000)
+    d = suite_report.measurement_to_parameters(meas, log)
+    # windows before / after the record are ignored; the rest arrive 50 ms - 2 ms later
+    np.testing.assert_allclose(d, [0.048] * 5, atol=1e-9)
+    trace = _live_log(tmp_path / 'log', seconds=1.0)
+    a = trace.read()
+    a['wall'] = np.cumsum(np.where(np.arange(a['t'].size) % 97 == 0, 3e-3, 1e-3))
+    fig = suite_report.loop_figures(dict(a, dt=1e-3))
+    per = live_loop.timing_stats(np.diff(a['wall']), float(np.median(np.diff(a['wall']))))
+    for k in ('n', 'mean_ms', 'p50_ms', 'p99_ms', 'max_ms', 'jitter_max_ms', 'jitter_p99_ms'):
+        assert fig['period'][k] == pytest.approx(per[k], rel=1e-9), k
+    assert fig['latency']['n'] == a['t'].size and fig['timing_sample_stride'] == 1
+
+
+def test_report_passes_keep_memory_bounded(tmp_path):
+    """1 M recorded samples (48 MB on disk): the identification figures take a few MB."""
+    import tracemalloc
+    params, msg = _truth_msg()
+    n = 1_000_000
+    with ColumnWriter(tmp_path / 'm', ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s'),
+                      chunk_rows=50000) as w:
+        for k in range(0, n, 50000):
+            m = _measurements(params, n=50000, rng=k)
+            w.append_block(np.column_stack([m[c] + (k * 1e-3 if c in ('t', 'recv_epoch_s')
+                                                    else 0.0)
+                                            for c in ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')]))
+    meas = ColumnReader(tmp_path / 'm')
+    log = [(1.0, dict(msg, window_end_s=500.0, recv_epoch_s=1500.05))]
+    tracemalloc.start()
+    ident = suite_report.identification_summary(meas, log, truth=msg, offline_budget_s=0)
+    delays = suite_report.measurement_to_parameters(meas, log)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert ident['truth_nrmse_percent'] < 0.1 and ident['nrmse_percent'] < 0.1
+    np.testing.assert_allclose(delays, [0.048], atol=1e-6)
+    assert peak < 16 * 2 ** 20

@@ -14,12 +14,11 @@ Topic payloads (see the README topic table):
 This module imports message types but not rclpy, so it works in any process.
 """
 import json
-import math
 
-import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
+from .columnlog import finite_or_none
 from .data import COIL_JOINT, PISTON_JOINT
 from .kwok_current import KwokCurrent
 
@@ -276,23 +275,6 @@ def kwok_parameters_from_msg(msg):
     return out
 
 
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        return value if math.isfinite(value) else None
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
-
-
 def status_msg(status):
     """
     Encode a status dict as ``std_msgs/String`` with one JSON object.
@@ -308,7 +290,7 @@ def status_msg(status):
         The status message.
 
     """
-    return String(data=json.dumps(_jsonable(status), sort_keys=True, allow_nan=False))
+    return String(data=json.dumps(finite_or_none(status), sort_keys=True, allow_nan=False))
 
 
 def status_from_msg(msg):

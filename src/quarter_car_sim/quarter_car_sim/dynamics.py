@@ -19,6 +19,7 @@ velocity and returns the force for the next (sub)step. Each control step can be 
 ``substeps`` for stiff damper characteristics; per-step work is plain Python floats.
 """
 import dataclasses
+import math
 
 import numpy as np
 from scipy.linalg import expm
@@ -210,6 +211,7 @@ class QuarterCar:
         self._rt0 = float(road.t[0])
         self._rdt = road.dt
         self._rn = road.n
+        self._periodic = bool(getattr(road, 'periodic', False))
         self._rz = road.z.tolist()
         self._rzd = road.zdot.tolist()
         p = params
@@ -261,11 +263,18 @@ class QuarterCar:
         if u <= 0.0:
             return self._rz[0], 0.0
         k = int(u)
-        if k >= self._rn - 1:
-            return self._rz[-1], 0.0
-        a = u - k
         z = self._rz
         zd = self._rzd
+        if k >= self._rn - 1:
+            if not self._periodic:
+                return z[-1], 0.0
+            # one period is n samples: sample n is sample 0 again
+            u = math.fmod(u, self._rn)
+            k = int(u)
+            k1 = 0 if k >= self._rn - 1 else k + 1
+            a = u - k
+            return z[k] + a * (z[k1] - z[k]), zd[k] + a * (zd[k1] - zd[k])
+        a = u - k
         return z[k] + a * (z[k + 1] - z[k]), zd[k] + a * (zd[k + 1] - zd[k])
 
     def _coefs(self, h):

@@ -14,9 +14,9 @@ One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop`:
    ``dt`` with that current held, and the running ride metrics take the new state.
 
 :class:`Pacer` schedules steps against a monotonic clock (real time times a factor, or as fast
-as possible) and :class:`TraceLog` keeps every step for the run's log file.
+as possible) and :class:`TraceLog` streams every step to the run's log file.
 """
-from array import array
+import dataclasses
 import math
 import time
 
@@ -35,7 +35,7 @@ TRACE_COLUMNS = ('t', 'z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'a_u', 'z_r', 'travel',
 
 
 def make_road(kind='iso8608', *, road_class='C', speed_m_s=20.0, seed=1, duration_s=120.0,
-              dt=1e-3, file=''):
+              dt=1e-3, file='', repeat=False):
     """
     Build the node's road from its parameters.
 
@@ -50,11 +50,14 @@ def make_road(kind='iso8608', *, road_class='C', speed_m_s=20.0, seed=1, duratio
     seed : int
         Seed of the random road.
     duration_s : float
-        Road length in time [s]; beyond it the last height is held.
+        Road length in time [s]; beyond it the last height is held (or the road repeats).
     dt : float
         Sample interval [s].
     file : str
         CSV road profile (``kind='file'``).
+    repeat : bool
+        Drive the road again and again (``RoadProfile.periodic``): memory stays one road
+        length for a drive of any length (ISO 8608 roads repeat seamlessly).
 
     Returns
     -------
@@ -64,13 +67,17 @@ def make_road(kind='iso8608', *, road_class='C', speed_m_s=20.0, seed=1, duratio
     from quarter_car_sim import road as road_mod
     kind = str(kind).strip().lower()
     if kind == 'iso8608':
-        return road_mod.iso8608(str(road_class).upper(), speed_m_s, duration_s, dt, int(seed))
-    if kind == 'file':
+        road = road_mod.iso8608(str(road_class).upper(), speed_m_s, duration_s, dt, int(seed))
+    elif kind == 'file':
         if not file:
             raise road_mod.RoadError('road kind "file" needs the parameter `road_file`')
-        return road_mod.from_csv(file, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
-    return road_mod.make_road(kind, speed_m_s=speed_m_s, duration_s=duration_s, dt=dt,
-                              rng=int(seed))
+        road = road_mod.from_csv(file, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
+    else:
+        road = road_mod.make_road(kind, speed_m_s=speed_m_s, duration_s=duration_s, dt=dt,
+                                  rng=int(seed))
+    if repeat:
+        road = dataclasses.replace(road, periodic=True)
+    return road
 
 
 def make_controller(name, car_params=None, options=None):
@@ -287,37 +294,47 @@ class Pacer:
 
 class TraceLog:
     """
-    Append-only per-step log of the loop (compact ``array('d')`` columns).
+    Per-step log of the loop, streamed to a column log on disk as it runs (flat memory).
 
-    Columns are :data:`TRACE_COLUMNS`; :meth:`save` writes them to an ``.npz`` file.
+    Columns are :data:`TRACE_COLUMNS` (``mr_damper_model.columnlog`` format: ``PATH.f64`` rows
+    and ``PATH.json`` header); rows are written in chunks of ``chunk_rows`` steps, so memory
+    does not grow with the run. :meth:`close` writes the final header (``dt`` and ``extra``).
+
+    Parameters
+    ----------
+    path : path
+        Log name (``run/quarter_car_log`` -> ``quarter_car_log.f64`` + ``.json``).
+    dt : float
+        Control period [s], stored in the header.
+    chunk_rows : int
+        Steps buffered before a write (1,000 steps = 152 kB at 1 kHz: one write a second).
+
     """
 
-    def __init__(self):
-        self.cols = {c: array('d') for c in TRACE_COLUMNS}
+    def __init__(self, path, dt=1e-3, chunk_rows=1000):
+        from mr_damper_model.columnlog import ColumnWriter
+        self.path = path
+        self._w = ColumnWriter(path, TRACE_COLUMNS, chunk_rows=chunk_rows, meta={'dt': dt})
+        self._n_state = TRACE_COLUMNS.index('i_cmd')
 
     def append(self, state, i_cmd, f_demand, normal, wall, compute_s, late_s=0.0):
         """Append one step."""
-        c = self.cols
-        for name in TRACE_COLUMNS[:13]:
-            c[name].append(getattr(state, name))
-        c['i_cmd'].append(i_cmd)
-        c['f_demand'].append(f_demand)
-        c['mode'].append(1.0 if normal else 0.0)
-        c['wall'].append(wall)
-        c['compute_s'].append(compute_s)
-        c['late_s'].append(late_s)
+        row = [getattr(state, name) for name in TRACE_COLUMNS[:self._n_state]]
+        row += (i_cmd, f_demand, 1.0 if normal else 0.0, wall, compute_s, late_s)
+        self._w.append(row)
 
     def __len__(self):
-        return len(self.cols['t'])
+        return len(self._w)
+
+    def close(self, **extra):
+        """Write the last rows and the header (with ``extra`` JSON values); idempotent."""
+        self._w.close(**extra)
 
     def arrays(self):
-        """Return the columns as numpy arrays."""
-        return {k: np.frombuffer(v, dtype=float).copy() if len(v) else np.zeros(0)
-                for k, v in self.cols.items()}
-
-    def save(self, path, **extra):
-        """Write the columns (and ``extra`` arrays / scalars) to ``path`` (.npz)."""
-        np.savez_compressed(path, **self.arrays(), **extra)
+        """Return the columns written so far (short logs: tests, tools)."""
+        from mr_damper_model.columnlog import ColumnReader
+        self._w.flush()
+        return ColumnReader(self.path).read()
 
 
 def timing_stats(values, nominal=None):

@@ -90,7 +90,11 @@ class QuarterCarNode(Node):
         road_class = d('road_class', 'C', 'ISO 8608 class A..H')
         speed = d('speed_m_s', 20.0, 'Vehicle speed [m/s]', (0.1, 100.0))
         seed = d('road_seed', 1, 'Seed of the random road')
-        road_s = d('road_duration_s', 300.0, 'Road length in time [s] (then held flat)',
+        road_repeat = d('road_repeat', False,
+                        'Drive the road again and again after its end instead of holding it '
+                        'flat (ISO 8608 roads repeat seamlessly; memory stays one road length)')
+        road_s = d('road_duration_s', 300.0,
+                   'Road length in time [s] (then held flat, or repeated with road_repeat)',
                    (1.0, 36000.0))
         road_file = d('road_file', '', 'CSV road profile (road = file)')
         settle = d('settle_s', live_loop.SETTLE_S,
@@ -115,7 +119,9 @@ class QuarterCarNode(Node):
         self.rt_priority = d('realtime_priority', 0,
                              'SCHED_FIFO priority of the control thread (1..99; 0 = normal '
                              'scheduling); only with real_time_factor > 0, needs CAP_SYS_NICE')
-        self.log_file = d('log_file', '', 'Write every control step to this .npz at shutdown')
+        self.log_file = d('log_file', '',
+                          'Stream every control step to this column log (LOG.f64 rows + '
+                          'LOG.json header, mr_damper_model.columnlog; "" = no log)')
         car = {k: d(k, v, doc) for k, v, doc in (
             ('m_s', 300.0, 'Sprung mass [kg]'), ('m_u', 60.0, 'Unsprung mass [kg]'),
             ('k_s', 16000.0, 'Suspension spring [N/m]'),
@@ -133,7 +139,8 @@ class QuarterCarNode(Node):
                                    i_max_a=i_max, hold_on_reject=hold,
                                    min_current_span_a=span)
         road = live_loop.make_road(road_kind, road_class=road_class, speed_m_s=speed, seed=seed,
-                                   duration_s=road_s, dt=self.dt, file=road_file)
+                                   duration_s=road_s, dt=self.dt, file=road_file,
+                                   repeat=road_repeat)
         self.car = QuarterCar(self.car_params, live_loop.make_plant(plant, plant_file), road,
                               t0=-settle)
         self.controller = live_loop.make_controller(controller, self.car_params,
@@ -141,7 +148,7 @@ class QuarterCarNode(Node):
         self.metrics = live_loop.make_running_metrics(self.car_params, self.dt)
         self.loop = live_loop.ClosedLoop(self.car, self.controller, self.sup, self.dt,
                                          metrics=self.metrics)
-        self.trace = live_loop.TraceLog() if self.log_file else None
+        self.trace = live_loop.TraceLog(self.log_file, self.dt) if self.log_file else None
         self.timing = live_loop.LoopTiming(self.dt / self.rtf if self.rtf > 0 else None)
         self.lock = threading.Lock()
         self.first_normal_t = math.nan
@@ -265,14 +272,13 @@ class QuarterCarNode(Node):
         """Stop the control thread and write the log file."""
         self.running = False
         self.thread.join(2.0)
-        if self.trace is not None and self.log_file:
+        if self.trace is not None:
             try:
-                self.trace.save(self.log_file, dt=self.dt, status=json.dumps(
-                    messages._jsonable(self.status())))
+                self.trace.close(status=self.status())
                 # plain print: after Ctrl-C the context (and /rosout) is already shut down
                 print(f'quarter_car_node: wrote {len(self.trace)} steps to {self.log_file}',
                       file=sys.stderr)
-            except OSError as exc:
+            except (OSError, ValueError) as exc:
                 print(f'quarter_car_node: cannot write {self.log_file}: {exc}', file=sys.stderr)
 
 

@@ -51,6 +51,10 @@ class RoadProfile:
         Description (e.g. ``'iso8608-C@20m/s seed 1'``).
     speed_m_s : float
         Vehicle speed [m/s] (nan when the profile is given in time only).
+    periodic : bool
+        The car drives the profile again and again (period ``n * dt``) instead of holding it
+        flat after its end. ISO 8608 profiles are synthesised periodic (an inverse FFT), so
+        they repeat seamlessly: a drive of any length needs only one period in memory.
 
     """
 
@@ -59,6 +63,7 @@ class RoadProfile:
     zdot: np.ndarray
     name: str = ''
     speed_m_s: float = float('nan')
+    periodic: bool = False
 
     def __post_init__(self):
         t = np.asarray(self.t, dtype=float)

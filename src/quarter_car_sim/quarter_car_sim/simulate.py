@@ -249,6 +249,35 @@ def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=Non
     SimResult
 
     """
+    blocks = list(simulate_blocks(params, road, controller, plant, dt=dt,
+                                  damper_params=damper_params, substeps=substeps,
+                                  settle_s=settle_s, inverse=inverse, block_steps=None))
+    b = blocks[0]
+    return SimResult(controller=controller.name, static_tyre_load=params.static_tyre_load,
+                     **b)
+
+
+def simulate_blocks(params, road, controller, plant=None, *, dt=1e-3, damper_params=None,
+                    substeps=1, settle_s=0.5, inverse=None, duration_s=None,
+                    block_steps=50000):
+    """
+    Simulate like :func:`simulate`, yielding the time series in blocks (bounded memory).
+
+    Parameters are those of :func:`simulate`, plus:
+
+    duration_s : float, optional
+        Simulated time [s] from t = 0 (default: the road's duration); longer than the road
+        for a periodic road (``RoadProfile.periodic``), else the road is held flat after its end.
+    block_steps : int or None
+        Control steps per block (None: one block of the whole run).
+
+    Yields
+    ------
+    dict
+        Arrays of the block: ``t``, the state fields of :class:`SimResult`, ``demand``,
+        ``current_cmd``, ``saturated``, and ``wall_time_s`` (loop wall time of the block [s]).
+
+    """
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f'`dt` must be > 0, got {dt}')
     if inverse is None and damper_params is not None:
@@ -262,28 +291,32 @@ def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=Non
     loop = ClosedLoop(car, controller, inverse, i_min=params.i_min, i_max=params.i_max)
     for _ in range(n_settle):
         loop.step(dt)
-    n = int(round(road.duration / dt)) + 1
-    states = [None] * n
-    demand = [0.0] * n
-    cmd = [0.0] * n
-    sat = [False] * n
+    duration = road.duration if duration_s is None else float(duration_s)
+    n = int(round(duration / dt)) + 1
+    block = n if block_steps is None else max(1, int(block_steps))
     command = loop.command
     step_i = car.step
     step_f = car.step_force
-    t_start = time.perf_counter()
     s = car.state
-    for k in range(n):
-        d, i, sa = command(s)
-        states[k] = s
-        demand[k], cmd[k], sat[k] = d, i, sa
-        s = step_i(dt, i) if i == i else step_f(dt, d)
-    wall = time.perf_counter() - t_start
-    arrays = {f: np.fromiter(map(attrgetter(f), states), dtype=float, count=n)
-              for f in _STATE_FIELDS}
-    tt = np.fromiter(map(attrgetter('t'), states), dtype=float, count=n)
-    return SimResult(t=np.asarray(tt), demand=np.asarray(demand), current_cmd=np.asarray(cmd),
-                     saturated=np.asarray(sat, dtype=bool), controller=controller.name,
-                     static_tyre_load=params.static_tyre_load, wall_time_s=wall, **arrays)
+    for start in range(0, n, block):
+        m = min(block, n - start)
+        states = [None] * m
+        demand = [0.0] * m
+        cmd = [0.0] * m
+        sat = [False] * m
+        t_start = time.perf_counter()
+        for k in range(m):
+            d, i, sa = command(s)
+            states[k] = s
+            demand[k], cmd[k], sat[k] = d, i, sa
+            s = step_i(dt, i) if i == i else step_f(dt, d)
+        wall = time.perf_counter() - t_start
+        out = {f: np.fromiter(map(attrgetter(f), states), dtype=float, count=m)
+               for f in _STATE_FIELDS}
+        out['t'] = np.fromiter(map(attrgetter('t'), states), dtype=float, count=m)
+        out.update(demand=np.asarray(demand), current_cmd=np.asarray(cmd),
+                   saturated=np.asarray(sat, dtype=bool), wall_time_s=wall)
+        yield out
 
 
 def compare(params, road, controllers, plant, *, dt=1e-3, damper_params=None, substeps=1,

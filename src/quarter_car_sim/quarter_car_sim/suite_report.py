@@ -4,11 +4,19 @@ Summary and plots of one suite run (``launch_scripts/run_suite.py``), without RO
 Inputs, all in the run's output folder:
 
 - ``suite_params.yaml``: the single parameter file the three nodes were started with;
-- ``measurement.npz`` (t, x, v, f, i of every measurement the launcher's recorder received) and
-  ``recording.json`` (every ``/mr_damper/kwok_parameters`` message with its wall receipt time,
-  the true parameters, the last status of each node, ...), written by the launcher;
-- ``quarter_car_log.npz``: every control step of the quarter-car node (``live_loop.TRACE_COLUMNS``)
-  and its final status, written by the node at shutdown.
+- ``measurement.f64/.json``: column log (``mr_damper_model.columnlog``) of t, x, v, f, i and
+  the receipt time of every measurement the launcher's recorder received, streamed as it came;
+- ``parameters.jsonl``: every ``/mr_damper/kwok_parameters`` message with its wall receipt time
+  (``[wall_s, dict]`` per line), streamed as it came;
+- ``recording.json``: counters, the true parameters, the last status of each node;
+- ``quarter_car_log.f64/.json``: column log of every control step of the quarter-car node
+  (``live_loop.TRACE_COLUMNS``), streamed by the node; its header holds ``dt`` and the final
+  status.
+
+Memory is bounded for runs of any length: every figure over the whole record is computed in
+streamed passes over the files (chunks of 65,536 rows); plots and the offline best fit use at
+most a few hundred thousand evenly spaced rows; percentiles of loop timing use at most two
+million evenly spaced periods (every period up to ~33 minutes at 1 kHz).
 
 Outputs: ``summary.json`` (keys below) and, with ``plots=True``, ``hysteresis.png`` (measured
 force against velocity and displacement per current level, with the final identified model on
@@ -26,6 +34,7 @@ best for comfort), same metric keys, ``window_s``};
 
 Command line (regenerate from a finished run): ``python -m quarter_car_sim.suite_report OUT``.
 """
+from array import array
 import json
 import math
 from pathlib import Path
@@ -33,6 +42,7 @@ import sys
 
 import numpy as np
 
+from mr_damper_model.columnlog import ArrayLog, ColumnReader, exists, finite_or_none, open_log
 from mr_damper_model.models import get_model
 
 KWOK_CURRENT_NAMES = get_model('kwok-current').param_names
@@ -47,20 +57,6 @@ def _node_params(cfg, node):
     merged = dict((cfg or {}).get('/**', {}).get('ros__parameters', {}))
     merged.update((cfg or {}).get(node, {}).get('ros__parameters', {}))
     return merged
-
-
-def _finite_or_none(value):
-    if isinstance(value, dict):
-        return {str(k): _finite_or_none(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite_or_none(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
 
 
 def model_force(params, x, v, i):
@@ -94,13 +90,64 @@ def fit_error(f_meas, f_model):
     return rmse, (100.0 * rmse / span if span > 0 else math.nan)
 
 
+CHUNK_ROWS = 65536
+
+
+class ParamsLog:
+    """
+    The parameter messages of a run, read from ``parameters.jsonl`` on each pass (bounded).
+
+    Iterating yields ``(wall_s, dict)``; ``len()`` counts the records (one pass). Lines that are
+    not JSON (the last line of a crashed run) are skipped and listed in ``bad_lines``.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.bad_lines = []
+
+    def __iter__(self):
+        from mr_damper_model.columnlog import read_json_lines
+        if not self.path.exists():
+            return
+        bad = []
+        for rec in read_json_lines(self.path, bad):
+            if isinstance(rec, list) and len(rec) == 2 and isinstance(rec[1], dict):
+                yield float(rec[0]), rec[1]
+        self.bad_lines = bad
+
+    def __len__(self):
+        return sum(1 for _ in self)
+
+
+def record_error(meas, params):
+    """
+    ``(rmse_n, nrmse_percent)`` of kwok-current ``params`` on every sample of ``meas``, streamed.
+
+    Same figures as :func:`fit_error` on the whole arrays (NRMSE by the measured force range).
+    """
+    meas = open_log(meas)
+    n, se, fmin, fmax = 0, 0.0, math.inf, -math.inf
+    for c in meas.chunks(CHUNK_ROWS, ('x', 'v', 'f', 'i')):
+        with np.errstate(over='ignore', invalid='ignore'):
+            e = model_force(params, c['x'], c['v'], c['i']) - c['f']
+        se += float(e @ e)
+        n += e.size
+        fmin, fmax = min(fmin, float(c['f'].min())), max(fmax, float(c['f'].max()))
+    if n == 0:
+        return math.nan, math.nan
+    rmse = math.sqrt(se / n)
+    span = fmax - fmin
+    return rmse, (100.0 * rmse / span if span > 0 else math.nan)
+
+
 def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
     """
     Fit kwok-current offline to the whole record (``mr_damper_model.identify``): a yardstick.
 
     When the true damper is not a kwok-current model (the Spencer plant), no parameter can be
     compared with a truth; the best kwok-current fit of everything recorded says how close the
-    live estimate is to the best this model can do.
+    live estimate is to the best this model can do. The fit uses at most ``max_samples`` evenly
+    spaced samples; its error is then measured on every sample.
 
     Returns
     -------
@@ -111,18 +158,18 @@ def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
     """
     from mr_damper_model.data import DamperData
     from mr_damper_model.identify import identify
-    t, x, v, f, i = (np.asarray(meas[k], dtype=float) for k in ('t', 'x', 'v', 'f', 'i'))
+    meas = open_log(meas)
+    sub = meas.strided(max_samples, ('t', 'x', 'v', 'f', 'i'))
+    t, x, v, f, i = (np.asarray(sub[k], dtype=float) for k in ('t', 'x', 'v', 'f', 'i'))
     if np.unique(np.round(i / 0.05)).size < 2:
         return None
-    step = max(1, int(math.ceil(t.size / max_samples)))
-    sel = slice(None, None, step)
     try:
-        res = identify(DamperData(t[sel], x[sel], v[sel], f[sel], i[sel], source='suite'),
-                       'kwok-current', seed=seed, budget_s=budget_s)
+        res = identify(DamperData(t, x, v, f, i, source='suite'), 'kwok-current', seed=seed,
+                       budget_s=budget_s)
     except (ValueError, FloatingPointError, np.linalg.LinAlgError):
         return None
     p = dict(res.parameters, i_ref_a=float((res.model_options or {}).get('i_ref_a', 2.0)))
-    rmse, nrmse = fit_error(f, model_force(p, x, v, i))
+    rmse, nrmse = record_error(meas, p)
     return {'parameters': res.parameters, 'rmse_n': rmse, 'nrmse_percent': nrmse,
             'seconds': res.seconds}
 
@@ -134,14 +181,16 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
 
     Parameters
     ----------
-    meas : dict
-        Arrays ``t, x, v, f, i`` of the recorded measurements.
-    params_log : list of (float, dict)
-        Wall receipt time [s] and decoded ``/mr_damper/kwok_parameters`` message.
+    meas : column log, reader or dict
+        Columns ``t, x, v, f, i`` of the recorded measurements
+        (``mr_damper_model.columnlog.open_log``); read in streamed passes.
+    params_log : iterable of (float, dict)
+        Wall receipt time [s] and decoded ``/mr_damper/kwok_parameters`` message; iterated a
+        few times (a list, or :class:`ParamsLog` that reads its file on each pass).
     truth : dict, optional
         True kwok-current parameters (when the plant is kwok-current).
     max_history : int
-        At most this many history entries are evaluated on the whole record.
+        At most this many history entries are evaluated on the record.
     offline_budget_s : float
         Compute budget [s] of :func:`offline_best_fit` (run when there is no kwok-current
         truth; 0 = skip).
@@ -151,21 +200,27 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
     dict
 
     """
-    valid = [(t, p) for t, p in params_log if p.get('valid') == 1.0]
-    out = {'updates': len(params_log), 'valid_updates': len(valid),
-           'first_valid_s': valid[0][0] if valid else None,
+    meas = open_log(meas)
+    n_upd, n_valid, first_valid, final = 0, 0, None, None
+    for t, p in params_log:
+        n_upd += 1
+        if p.get('valid') == 1.0:
+            n_valid += 1
+            final = p
+            if first_valid is None:
+                first_valid = t
+    out = {'updates': n_upd, 'valid_updates': n_valid, 'first_valid_s': first_valid,
            'rmse_n': math.nan, 'nrmse_percent': math.nan, 'parameters': None, 'truth': None,
            'reported_rmse_n': math.nan, 'reported_nrmse_percent': math.nan, 'history': []}
-    x, v, f, i = (np.asarray(meas.get(k, []), dtype=float) for k in 'xvfi')
-    if valid:
-        final = valid[-1][1]
+    have = meas.rows > 0
+    if final is not None:
         out['parameters'] = {n: final[n] for n in KWOK_CURRENT_NAMES if n in final}
         out['parameters']['i_ref_a'] = final.get('i_ref_a', 2.0)
         out['reported_rmse_n'] = final.get('rmse_n', math.nan)
         out['reported_nrmse_percent'] = final.get('nrmse_percent', math.nan)
         out['current_range_a'] = [final.get('current_min_a'), final.get('current_max_a')]
-        if f.size:
-            out['rmse_n'], out['nrmse_percent'] = fit_error(f, model_force(final, x, v, i))
+        if have:
+            out['rmse_n'], out['nrmse_percent'] = record_error(meas, final)
     if truth:
         tp = {n: truth[n] for n in KWOK_CURRENT_NAMES if n in truth}
         if len(tp) == len(KWOK_CURRENT_NAMES):
@@ -175,45 +230,75 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
                 out['parameter_error_percent'] = {
                     n: (100.0 * (out['parameters'][n] - tp[n]) / abs(tp[n]) if tp[n] else math.nan)
                     for n in KWOK_CURRENT_NAMES}
-            if f.size:
-                out['truth_rmse_n'], out['truth_nrmse_percent'] = fit_error(
-                    f, model_force(tp, x, v, i))
-    if f.size and not out['truth'] and offline_budget_s > 0:
+            if have:
+                out['truth_rmse_n'], out['truth_nrmse_percent'] = record_error(meas, tp)
+    if have and not out['truth'] and offline_budget_s > 0:
         out['offline_best_fit'] = offline_best_fit(meas, budget_s=offline_budget_s)
-    step = max(1, int(math.ceil(len(params_log) / max_history)))
-    picks = list(range(0, len(params_log), step))
-    if params_log and picks[-1] != len(params_log) - 1:
-        picks.append(len(params_log) - 1)
-    dec = slice(None, None, max(1, f.size // 20000))      # <= ~20k samples per evaluation
-    for k in picks:
-        t, p = params_log[k]
+    step = max(1, int(math.ceil(n_upd / max_history)))
+    picks = set(range(0, n_upd, step)) | ({n_upd - 1} if n_upd else set())
+    dec = meas.strided(20000, ('x', 'v', 'f', 'i'))      # <= ~20k samples per evaluation
+    x, v, f, i = (np.asarray(dec[k], dtype=float) for k in 'xvfi')
+    for k, (t, p) in enumerate(params_log):
+        if k not in picks:
+            continue
         entry = {'t_s': t, 'valid': p.get('valid') == 1.0, 'rmse_n': p.get('rmse_n'),
                  'nrmse_percent': p.get('nrmse_percent'),
                  'parameters': {n: p.get(n) for n in KWOK_CURRENT_NAMES}}
         if f.size and all(math.isfinite(p.get(n, math.nan)) for n in KWOK_CURRENT_NAMES):
             with np.errstate(over='ignore', invalid='ignore'):
-                fm = model_force(p, x[dec], v[dec], i[dec])
+                fm = model_force(p, x, v, i)
             if np.all(np.isfinite(fm)):
-                entry['record_rmse_n'], entry['record_nrmse_percent'] = fit_error(f[dec], fm)
+                entry['record_rmse_n'], entry['record_nrmse_percent'] = fit_error(f, fm)
         out['history'].append(entry)
     return out
 
 
-def _windowed_metrics(trace, mask, static_load, dt):
-    from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
-    sub = {k: np.asarray(trace[k])[mask] for k in ('t', 'a_s', 'travel', 'tyre_force',
-                                                   'damper_force')}
-    sub['current_cmd'] = np.asarray(trace['current_cmd'])[mask]
-    m = ride_metrics(sub, static_load=static_load)
-    # Wk filter over the whole run, RMS over the window (no filter start-up in the window)
-    wk = wk_filter(np.asarray(trace['a_s'], dtype=float), 1.0 / dt)[mask]
-    m['rms_body_accel_wk'] = float(np.sqrt(np.mean(wk ** 2)))
-    return m
+def _static_load(qc_params):
+    return _car_params(qc_params).static_tyre_load
 
 
-def passive_reference(qc_params, t_end, dt, current=None):
+def _car_params(qc_params):
+    from quarter_car_sim.params import QuarterCarParams
+    g = qc_params.get
+    return QuarterCarParams(m_s=g('m_s', 300.0), m_u=g('m_u', 60.0), k_s=g('k_s', 16000.0),
+                            k_t=g('k_t', 190000.0))
+
+
+def _metrics_of_blocks(blocks, window, static_load, dt, *, current_key='current_cmd',
+                       keep=None, max_keep=200000, n_total=None):
+    """
+    Ride metrics over the time ``window`` of a stream of blocks (the Wk filter runs over all).
+
+    ``keep``: a dict filled with at most ``max_keep`` evenly spaced rows of ``t`` and ``a_s``
+    (for the plot), given ``n_total`` rows in all.
+    """
+    from quarter_car_sim.ride_metrics import RunningRideMetrics
+    m = RunningRideMetrics(1.0 / dt, static_load)
+    lo, hi = window[0] - 0.5 * dt, window[1] + 0.5 * dt
+    step = max(1, int(math.ceil((n_total or 1) / max_keep)))
+    seen = 0
+    kt, ka = array('d'), array('d')
+    for b in blocks:
+        t = np.asarray(b['t'], dtype=float)
+        m.update_block(b['a_s'], b['travel'], b['tyre_force'], b['damper_force'],
+                       b.get(current_key), use=(t >= lo) & (t <= hi))
+        if keep is not None:
+            first = (-seen) % step
+            kt.extend(t[first::step])
+            ka.extend(np.asarray(b['a_s'], dtype=float)[first::step])
+        seen += t.size
+    if keep is not None:
+        keep['t'] = np.frombuffer(kt, dtype=float) if len(kt) else np.zeros(0)
+        keep['a_s'] = np.frombuffer(ka, dtype=float) if len(ka) else np.zeros(0)
+    return m.as_dict()
+
+
+def passive_reference(qc_params, t_end, dt, current=None, *, window=None, keep=None):
     """
     Simulate the passive damper (safe current) on the node's road, plant and car, offline.
+
+    The simulation is streamed in blocks (``simulate.simulate_blocks``) into running ride
+    metrics: memory does not grow with the run length.
 
     Parameters
     ----------
@@ -225,36 +310,42 @@ def passive_reference(qc_params, t_end, dt, current=None):
         Control period [s].
     current : float, optional
         Passive coil current [A] (default: the node's ``safe_current_a``, 0.5 A if unset).
+    window : (float, float), optional
+        Simulated-time window [s] of the metrics (default ``(0, t_end)``).
+    keep : dict, optional
+        Filled with at most 200,000 evenly spaced ``t`` and ``a_s`` samples (plots).
 
     Returns
     -------
     dict
-        Arrays ``t, a_s, travel, tyre_force, damper_force, current_cmd``, ``static_load`` and
+        Ride metrics over the window (``ride_metrics.METRIC_KEYS``) plus ``static_load`` and
         ``current_a``.
 
     """
     from quarter_car_sim import live_loop
     from quarter_car_sim.controllers import Passive
-    from quarter_car_sim.params import QuarterCarParams
-    from quarter_car_sim.road import RoadProfile
-    from quarter_car_sim.simulate import simulate
+    from quarter_car_sim.simulate import simulate_blocks
     g = qc_params.get
-    car = QuarterCarParams(m_s=g('m_s', 300.0), m_u=g('m_u', 60.0), k_s=g('k_s', 16000.0),
-                           k_t=g('k_t', 190000.0))
+    car = _car_params(qc_params)
     road = live_loop.make_road(g('road', 'iso8608'), road_class=g('road_class', 'C'),
                                speed_m_s=g('speed_m_s', 20.0), seed=g('road_seed', 1),
                                duration_s=g('road_duration_s', 300.0), dt=dt,
-                               file=g('road_file', ''))
-    n = min(road.n, int(round(t_end / dt)) + 2)
-    road = RoadProfile(road.t[:n], road.z[:n], road.zdot[:n], name=road.name,
-                       speed_m_s=road.speed_m_s)
+                               file=g('road_file', ''), repeat=bool(g('road_repeat', False)))
     current = float(g('safe_current_a', 0.5) if current is None else current)
     plant = live_loop.make_plant(g('plant', 'spencer'), g('truth_file', ''))
-    res = simulate(car, road, Passive(current), plant, dt=dt,
-                   settle_s=g('settle_s', live_loop.SETTLE_S))
-    return {'t': res.t, 'a_s': res.a_s, 'travel': res.travel, 'tyre_force': res.tyre_force,
-            'damper_force': res.damper_force, 'current_cmd': res.current_cmd,
-            'static_load': car.static_tyre_load, 'current_a': current}
+    duration = max(float(t_end) + dt, dt)
+    blocks = simulate_blocks(car, road, Passive(current), plant, dt=dt,
+                             settle_s=g('settle_s', live_loop.SETTLE_S), duration_s=duration)
+    n_total = int(round(duration / dt)) + 1
+    m = _metrics_of_blocks(blocks, window or (0.0, float(t_end)), car.static_tyre_load, dt,
+                           keep=keep, n_total=n_total)
+    m.update(static_load=car.static_tyre_load, current_a=current)
+    return m
+
+
+def _trace_blocks(log, columns):
+    for c in log.chunks(CHUNK_ROWS, columns):
+        yield c
 
 
 def ride_summary(log, qc_params):
@@ -262,46 +353,63 @@ def ride_summary(log, qc_params):
     Ride metrics of the live controller against the passive damper on the same road.
 
     Both are evaluated on the same simulated-time window: from the first control step in normal
-    mode (the controller actually used a model) to the end of the live run.
+    mode (the controller actually used a model) to the end of the live run. The live log is read
+    in streamed passes; the passive runs are simulated in blocks.
+
+    Parameters
+    ----------
+    log : column log, reader or dict
+        The quarter-car trace (``live_loop.TRACE_COLUMNS``; ``dt`` in its header or a key).
+    qc_params : dict
+        The quarter-car node's parameters.
 
     Returns
     -------
     dict
         ``skyhook`` and ``passive`` metric dicts, ``controller``, ``passive_current_a``,
-        ``window_s`` and ``wk_improvement_percent`` (positive = live controller better).
+        ``window_s``, ``wk_improvement_percent`` (positive = live controller better) and
+        ``passive_trace`` (at most 200,000 evenly spaced ``t``, ``a_s`` of the passive run).
 
     """
-    from quarter_car_sim.params import QuarterCarParams
-    t = np.asarray(log['t'], dtype=float)
-    dt = float(log['dt']) if 'dt' in log else float(np.median(np.diff(t)))
-    mode = np.asarray(log['mode'])
+    log = open_log(log)
     g = qc_params.get
-    static = QuarterCarParams(m_s=g('m_s', 300.0), m_u=g('m_u', 60.0), k_s=g('k_s', 16000.0),
-                              k_t=g('k_t', 190000.0)).static_tyre_load
-    normal = np.flatnonzero(mode > 0.5)
-    t0 = max(0.0, float(t[normal[0]])) if normal.size else math.inf
+    static = _static_load(qc_params)
+    # pass 1: first step in normal mode, end time, normal fraction after t = 0
+    t_first_normal, t_last, n_pos, n_pos_normal, dt = math.inf, math.nan, 0, 0, None
+    for c in log.chunks(CHUNK_ROWS, ('t', 'mode')):
+        t, mode = c['t'], c['mode']
+        if dt is None and t.size > 1:
+            dt = float(np.median(np.diff(t[:1000])))
+        normal = mode > 0.5
+        if math.isinf(t_first_normal) and normal.any():
+            t_first_normal = float(t[np.argmax(normal)])
+        pos = t >= 0
+        n_pos += int(pos.sum())
+        n_pos_normal += int((normal & pos).sum())
+        t_last = float(t[-1])
+    dt = float(log.meta.get('dt', dt))
+    t0 = max(0.0, t_first_normal)
     out = {'controller': g('controller', 'skyhook'),
-           'passive_current_a': float(g('safe_current_a', 0.0)), 'window_s': [t0, float(t[-1])],
-           'normal_fraction': float(mode[t >= 0].mean()) if np.any(t >= 0) else 0.0}
-    live = {'t': t, 'a_s': log['a_s'], 'travel': log['travel'], 'tyre_force': log['tyre_force'],
-            'damper_force': log['damper_force'], 'current_cmd': log['i_cmd']}
-    mask = t >= t0
-    if mask.sum() < 2:
+           'passive_current_a': float(g('safe_current_a', 0.0)), 'window_s': [t0, t_last],
+           'normal_fraction': n_pos_normal / n_pos if n_pos else 0.0}
+    if not (t_last - t0 >= dt):
         # never in normal mode: compare the whole run (the live car was passive throughout)
-        mask = t >= 0.0
-        out['window_s'] = [0.0, float(t[-1])]
+        out['window_s'] = [0.0, t_last]
         out['note'] = 'the controller never left fail-safe: both runs are passive'
-    out['skyhook'] = _windowed_metrics(live, mask, static, dt)
-    ref = passive_reference(qc_params, float(t[-1]), dt)
-    rt = np.asarray(ref['t'])
-    rmask = (rt >= out['window_s'][0] - 0.5 * dt) & (rt <= out['window_s'][1] + 0.5 * dt)
-    out['passive'] = _windowed_metrics(ref, rmask, static, dt)
-    out['passive_trace'] = {'t': rt, 'a_s': np.asarray(ref['a_s'])}
+    window = out['window_s']
+    cols = ('t', 'a_s', 'travel', 'tyre_force', 'damper_force', 'i_cmd')
+    out['skyhook'] = _metrics_of_blocks(_trace_blocks(log, cols), window, static, dt,
+                                        current_key='i_cmd')
+    keep = {}
+    ref = passive_reference(qc_params, t_last, dt, window=window, keep=keep)
+    out['passive'] = {k: v for k, v in ref.items() if k not in ('static_load', 'current_a')}
+    out['passive_trace'] = keep
     if out['passive_current_a'] != 0.0:
         # the softest passive setting too (best for comfort on this damper): the honest
         # comfort baseline, while the safe current is the car without identification
-        soft = passive_reference(qc_params, float(t[-1]), dt, current=0.0)
-        out['passive_0a'] = _windowed_metrics(soft, rmask, static, dt)
+        soft = passive_reference(qc_params, t_last, dt, current=0.0, window=window)
+        out['passive_0a'] = {k: v for k, v in soft.items()
+                             if k not in ('static_load', 'current_a')}
     a, b = out['skyhook']['rms_body_accel_wk'], out['passive']['rms_body_accel_wk']
     out['wk_improvement_percent'] = 100.0 * (b - a) / b if b > 0 else math.nan
     return out
@@ -314,7 +422,8 @@ def measurement_to_parameters(meas, params_log):
     The newest sample's arrival (the launcher's recorder receives the measurement stream as the
     identifier does) is found from its stamp ``window_end_s``; the delay runs to the arrival of
     the parameter message at the recorder (the quarter car subscribes to it the same way and
-    uses it from its next 1 ms step on). Windows older than the record are ignored.
+    uses it from its next 1 ms step on). Windows older than the record are ignored. The record
+    is read in one streamed pass.
 
     Returns
     -------
@@ -322,16 +431,31 @@ def measurement_to_parameters(meas, params_log):
         One delay per parameter message [s].
 
     """
-    t = np.asarray(meas.get('t', []), dtype=float)
-    recv = np.asarray(meas.get('recv_epoch_s', []), dtype=float)
-    if t.size < 2 or recv.size != t.size:
+    meas = open_log(meas)
+    if meas.rows < 2 or 'recv_epoch_s' not in meas.columns:
         return np.zeros(0)
-    out = []
+    ends, gots = array('d'), array('d')
     for _, p in params_log:
         end, got = p.get('window_end_s', math.nan), p.get('recv_epoch_s', math.nan)
-        if math.isfinite(end) and math.isfinite(got) and t[0] <= end <= t[-1]:
-            out.append(got - float(np.interp(end, t, recv)))
-    return np.asarray(out)
+        if end is not None and got is not None and math.isfinite(end) and math.isfinite(got):
+            ends.append(end)
+            gots.append(got)
+    if not ends:
+        return np.zeros(0)
+    ends, gots = np.frombuffer(ends, dtype=float), np.frombuffer(gots, dtype=float)
+    order = np.argsort(ends, kind='stable')
+    ends, gots = ends[order], gots[order]
+    delays = np.full(ends.size, np.nan)
+    k = None
+    for c in meas.chunks(CHUNK_ROWS, ('t', 'recv_epoch_s'), overlap=1):
+        t, recv = c['t'], c['recv_epoch_s']
+        if k is None:           # windows ending before the record are ignored
+            k = int(np.searchsorted(ends, t[0], side='left'))
+        stop = int(np.searchsorted(ends, t[-1], side='right'))
+        if stop > k:
+            delays[k:stop] = gots[k:stop] - np.interp(ends[k:stop], t, recv)
+            k = stop
+    return delays[np.isfinite(delays)]
 
 
 def messages_summary(rec, qc_status):
@@ -384,7 +508,7 @@ def _first(d, keys):
 
 def make_report(out, *, duration_s=None, config=None, plots=True):
     """
-    Build ``summary.json`` (and plots) for the run in folder ``out``.
+    Build ``summary.json`` (and plots) for the run in folder ``out``, with bounded memory.
 
     Parameters
     ----------
@@ -408,35 +532,34 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
     qc_params = _node_params(cfg, 'quarter_car_node')
     rig_params = _node_params(cfg, 'mr_damper_rig')
     rec = json.loads((out / 'recording.json').read_text())
-    with np.load(out / 'measurement.npz') as z:
-        meas = {k: z[k] for k in z.files}
-    params_log = [(t, p) for t, p in rec.get('params', [])]
+    meas = (ColumnReader(out / 'measurement') if exists(out / 'measurement')
+            else ArrayLog({k: [] for k in ('t', 'x', 'v', 'f', 'i')}))
+    params_log = ParamsLog(out / 'parameters.jsonl')
     truth = rec.get('truth')
     summary = {'duration_s': duration_s,
                'config': 'replay' if rig_params.get('mode', 'sim') != 'sim' else 'sim',
                'plant': qc_params.get('plant', 'spencer')}
     summary['identification'] = identification_summary(meas, params_log, truth)
+    if params_log.bad_lines:
+        summary['identification']['unreadable_parameter_lines'] = len(params_log.bad_lines)
     summary['identification']['truth_model'] = (
         'kwok-current' if summary['identification']['truth'] else
         ('spencer' if rec.get('truth_spencer') else None))
     if rec.get('truth_spencer'):
         summary['identification']['truth_spencer'] = rec['truth_spencer']
-    log_path = out / 'quarter_car_log.npz'
-    log = None
-    if log_path.exists():
-        with np.load(log_path) as z:
-            log = {k: z[k] for k in z.files}
-    qc_status = json.loads(str(log['status'])) if log is not None and 'status' in log else \
+    log = ColumnReader(out / 'quarter_car_log') if exists(out / 'quarter_car_log') else None
+    qc_status = (log.meta.get('status') if log is not None else None) or \
         (rec.get('status', {}).get('quarter_car') or {})
-    if log is not None and len(log['t']) > 10:
+    passive_trace = None
+    if log is not None and log.rows > 10:
         ride = ride_summary(log, qc_params)
         passive_trace = ride.pop('passive_trace')
         summary['ride'] = ride
         if duration_s is None:
-            summary['duration_s'] = float(log['wall'][-1] - log['wall'][0])
+            ends = log.strided(2, ('wall',))['wall']
+            summary['duration_s'] = float(ends[-1] - ends[0])
     else:
         summary['ride'] = {'skyhook': None, 'passive': None, 'note': 'no quarter-car log'}
-        passive_trace = None
     summary['failsafe_s'] = qc_status.get('failsafe_s')
     summary['failsafe'] = {k: qc_status.get(k) for k in (
         'mode', 'reason', 'failsafe_entries', 'params_accepted', 'params_rejected',
@@ -445,8 +568,8 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
     summary['messages_lost'] = lost
     summary['messages'] = breakdown
     summary['loop'] = qc_status.get('loop')
-    if log is not None and len(log['t']) > 10:
-        summary['loop_full_run'] = _loop_figures(log)
+    if log is not None and log.rows > 10:
+        summary['loop_full_run'] = loop_figures(log)
     if (out / 'process_stats.json').exists():
         summary['processes'] = json.loads((out / 'process_stats.json').read_text())
     lat = measurement_to_parameters(meas, params_log)
@@ -454,28 +577,73 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         summary['measurement_to_parameters_s'] = {
             'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
             'max': float(lat.max()), 'n': int(lat.size)}
-    summary = _finite_or_none(summary)
+    summary = finite_or_none(summary)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, allow_nan=False))
     if plots:
         from quarter_car_sim import suite_plots
-        suite_plots.plot_all(out, meas, params_log, summary, log, passive_trace)
+        step = max(1, int(math.ceil(summary['identification']['updates'] / 5000)))
+        params_plot = [tp for k, tp in enumerate(params_log) if k % step == 0]
+        trace = None
+        if log is not None:
+            trace = log.strided(200000, ('t', 'a_s', 'i_cmd', 'coil_current', 'mode'))
+        suite_plots.plot_all(out, meas.strided(200000), params_plot, summary, trace,
+                             passive_trace)
     return summary
 
 
-def _loop_figures(log):
+#: periods kept for the timing percentiles (every period of a run up to ~33 min at 1 kHz)
+MAX_TIMING_SAMPLES = 2_000_000
+
+
+def loop_figures(log):
+    """
+    Return the loop timing of the whole run from the quarter-car trace, in one streamed pass.
+
+    Mean, maximum and count are exact; percentiles come from at most
+    :data:`MAX_TIMING_SAMPLES` evenly spaced periods and compute times.
+    """
     from quarter_car_sim.live_loop import timing_stats
-    wall = np.asarray(log['wall'], dtype=float)
-    dt = float(log['dt'])
-    rtf = None
-    periods = np.diff(wall)
-    if periods.size:
-        nominal = float(np.median(periods))
-        rtf = dt / nominal if nominal > 0 else None
-    st = {'period': timing_stats(periods, float(np.median(periods)) if periods.size else None),
-          'latency': timing_stats(np.asarray(log['compute_s'], dtype=float)),
-          'real_time_factor_measured': rtf,
-          'sim_time_s': float(log['t'][-1] - log['t'][0])}
-    return st
+    log = open_log(log)
+    step = max(1, int(math.ceil(log.rows / MAX_TIMING_SAMPLES)))
+    per_keep, lat_keep = array('d'), array('d')
+    n_per = n_lat = 0
+    sum_per = sum_lat = 0.0
+    min_per, max_per, max_lat = math.inf, -math.inf, -math.inf
+    t_first = t_last = math.nan
+    seen = 0
+    for c in log.chunks(CHUNK_ROWS, ('t', 'wall', 'compute_s'), overlap=1):
+        first_row = 0 if seen == 0 else 1            # the overlap row was counted before
+        w = c['wall']
+        per = np.diff(w)
+        lat = c['compute_s'][first_row:]
+        if math.isnan(t_first):
+            t_first = float(c['t'][0])
+        t_last = float(c['t'][-1])
+        if per.size:
+            n_per += per.size
+            sum_per += float(per.sum())
+            min_per, max_per = min(min_per, float(per.min())), max(max_per, float(per.max()))
+            per_keep.extend(per[::step])
+        n_lat += lat.size
+        sum_lat += float(lat.sum())
+        if lat.size:
+            max_lat = max(max_lat, float(lat.max()))
+            lat_keep.extend(lat[::step])
+        seen += lat.size
+    per_a = np.frombuffer(per_keep, dtype=float) if len(per_keep) else np.zeros(0)
+    lat_a = np.frombuffer(lat_keep, dtype=float) if len(lat_keep) else np.zeros(0)
+    nominal = float(np.median(per_a)) if per_a.size else None
+    period = timing_stats(per_a, nominal)
+    latency = timing_stats(lat_a)
+    if n_per:
+        period.update(n=n_per, mean_ms=1e3 * sum_per / n_per, max_ms=1e3 * max_per,
+                      jitter_max_ms=1e3 * max(abs(max_per - nominal), abs(nominal - min_per)))
+    if n_lat:
+        latency.update(n=n_lat, mean_ms=1e3 * sum_lat / n_lat, max_ms=1e3 * max_lat)
+    dt = float(log.meta.get('dt', 1e-3))
+    return {'period': period, 'latency': latency,
+            'real_time_factor_measured': dt / nominal if nominal else None,
+            'sim_time_s': t_last - t_first, 'timing_sample_stride': step}
 
 
 def format_summary(s):
