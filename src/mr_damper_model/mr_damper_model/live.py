@@ -651,11 +651,29 @@ class FitProcess:
             proc.wait()
 
 
+def _malloc_trim():
+    """
+    Return a function that gives freed heap memory back to the OS (glibc), or a no-op.
+
+    Fits allocate and free many temporaries of varying sizes; without trimming the child's
+    heap keeps the high-water mark of its fragments (measured: +7 MB over the first 400 fits,
+    then flat in-process, but still growing after 6 minutes in the live suite). After each
+    fit ``malloc_trim(0)`` returns what is free, so the child's memory follows its use.
+    """
+    try:
+        import ctypes
+        trim = ctypes.CDLL('libc.so.6').malloc_trim
+    except (OSError, AttributeError):
+        return lambda: None
+    return lambda: trim(0)
+
+
 def _serve():
     """Child side of :class:`FitProcess`: answer pickled requests until stdin closes."""
     out = os.fdopen(os.dup(1), 'wb')
     os.dup2(2, 1)            # anything printed goes to stderr, stdout carries results only
     from . import identify   # noqa: F401  (load numpy, scipy and the models once)
+    trim = _malloc_trim()
     src = sys.stdin.buffer
     while True:
         try:
@@ -668,6 +686,7 @@ def _serve():
             reply = ('error', exc)
         pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
         out.flush()
+        trim()
 
 
 def _in_bounds(model, params, unbounded, i_ref_a):
