@@ -104,7 +104,10 @@ def test_table_and_plot(tmp_path, capsys):
 
 # --- many files, one model; validation; bags ------------------------------------------------
 
-TRIO = [QUIROZ_DIR / f'quiroz_sine_2mm5Hz_{lvl}.csv' for lvl in ('0A', '0p5A', '1p0A')]
+# different current, amplitude, frequency and sample rate (1 kHz, 200 Hz); sorted by name
+TRIO = sorted(QUIROZ_DIR / name for name in ('quiroz_sine_2mm5Hz_0A.csv',
+                                             'quiroz_sine_25mm0x25Hz_0p5A.csv',
+                                             'quiroz_sine_5mm3Hz_1p0A.csv'))
 
 
 def _direct_metrics(params_path, paths):
@@ -143,8 +146,9 @@ def joint_fit(tmp_path_factory):
 def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
     doc, out = joint_fit
     assert doc['model'] == 'kwok-current'          # three current levels
-    assert [f['source'] for f in doc['files']] == [str(p) for p in TRIO]
     from mr_damper_model.data import read_csv
+    assert sorted(round(read_csv(p).sample_rate_hz) for p in TRIO) == [200, 200, 1000]
+    assert [f['source'] for f in doc['files']] == [str(p) for p in TRIO]
     assert [f['samples'] for f in doc['files']] == [read_csv(p).n for p in TRIO]
     per, overall = _direct_metrics(out, TRIO)
     for got, ref in zip(doc['files'], per):
@@ -166,7 +170,7 @@ def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
     (folder / 'empty_subdir').mkdir()
     docs = {}
     for how, argv in {'list': [str(c) for c in copies], 'dir': [str(folder)],
-                      'glob': [str(folder / '*5Hz_*A.csv')],
+                      'glob': [str(folder / '*Hz_*A.csv')],
                       'dir+repeat': [str(folder), str(copies[0])]}.items():
         assert run([*argv, '--json', '--seed', '2']) == 0, how
         docs[how] = json.loads(capsys.readouterr().out)
@@ -206,6 +210,24 @@ def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, ca
     assert run(['--validate', str(params), *map(str, held_out), '--model', 'kwok-current']) == 0
     text = capsys.readouterr().out
     assert f'{overall["rmse_n"]:.6g}' in text and held_out[1].name in text
+
+
+def test_validate_stateful_model_starts_from_rest_in_each_file(tmp_path, capsys):
+    from mr_damper_model.data import read_csv
+    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.models import get_model
+    from mr_damper_model.params_file import save_params
+    mdl = get_model('bouc-wen')
+    lo, hi = mdl.default_bounds()
+    x = (lo + hi) / 2
+    params = tmp_path / 'bw.json'
+    save_params(params, {'model': 'bouc-wen', 'parameters': mdl.to_dict(x)})
+    assert run(['--validate', str(params), *map(str, TRIO), '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for got, path in zip(doc['files'], TRIO):
+        d = read_csv(path)                         # this file alone: the model starts at rest
+        _assert_metrics_equal(got['metrics'],
+                              fit_metrics(d.f, mdl.force(x, d.x, d.v, i=d.i, t=d.t)))
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
