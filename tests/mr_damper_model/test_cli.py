@@ -1,5 +1,6 @@
 """Tests of the mr-damper-identify command line tool."""
 import json
+from pathlib import Path
 import subprocess
 
 import numpy as np
@@ -99,3 +100,225 @@ def test_table_and_plot(tmp_path, capsys):
     text = capsys.readouterr().out
     assert 'c [N s/m]' in text and 'RMSE [N]' in text
     assert png.stat().st_size > 10000
+
+
+# --- many files, one model; validation; bags ------------------------------------------------
+
+# different current, amplitude, frequency and sample rate (1 kHz, 200 Hz); sorted by name
+TRIO = sorted(QUIROZ_DIR / name for name in ('quiroz_sine_2mm5Hz_0A.csv',
+                                             'quiroz_sine_25mm0x25Hz_0p5A.csv',
+                                             'quiroz_sine_5mm3Hz_1p0A.csv'))
+
+
+def _direct_metrics(params_path, paths):
+    """Per-file and overall metrics of a saved model, computed here without the tool."""
+    from mr_damper_model.data import read_csv
+    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.models import get_model
+    pf = load_params(params_path)
+    mdl = get_model(pf.model, **pf.model_options)
+    x = np.array([pf.parameters[n] for n in mdl.param_names])
+    recs = [read_csv(p) for p in paths]
+    fms = [mdl.force(x, d.x, d.v, i=d.i, t=d.t) for d in recs]
+    per = [fit_metrics(d.f, fm) for d, fm in zip(recs, fms)]
+    return per, fit_metrics(np.concatenate([d.f for d in recs]), np.concatenate(fms))
+
+
+def _assert_metrics_equal(doc_metrics, ref):
+    assert set(doc_metrics) == set(ref)
+    for k in ref:
+        assert doc_metrics[k] == pytest.approx(ref[k], rel=1e-12, abs=1e-12), k
+
+
+@pytest.fixture(scope='module')
+def joint_fit(tmp_path_factory):
+    """One kwok-current model fitted to three files of three current levels."""
+    import contextlib
+    import io
+    out = tmp_path_factory.mktemp('joint') / 'joint.json'
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = run([*map(str, TRIO), '--json', '--seed', '2', '--out', str(out)])
+    assert code == 0
+    return json.loads(buf.getvalue()), out
+
+
+def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
+    doc, out = joint_fit
+    assert doc['model'] == 'kwok-current'          # three current levels
+    from mr_damper_model.data import read_csv
+    assert sorted(round(read_csv(p).sample_rate_hz) for p in TRIO) == [200, 200, 1000]
+    assert [f['source'] for f in doc['files']] == [str(p) for p in TRIO]
+    assert [f['samples'] for f in doc['files']] == [read_csv(p).n for p in TRIO]
+    per, overall = _direct_metrics(out, TRIO)
+    for got, ref in zip(doc['files'], per):
+        _assert_metrics_equal(got['metrics'], ref)
+    # an algebraic model: the joint fit's metrics are those of all files together
+    _assert_metrics_equal(doc['metrics'], overall)
+    pf = load_params(out)
+    assert pf.parameters == doc['parameters']
+    assert pf.source == ', '.join(str(p) for p in TRIO)
+    assert pf.current_min_a == 0.0 and pf.current_max_a == pytest.approx(1.0, abs=0.05)
+
+
+def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
+    import shutil
+    folder = tmp_path / 'tests'
+    folder.mkdir()
+    copies = [shutil.copy(p, folder / p.name) for p in TRIO]
+    (folder / 'notes.txt').write_text('not a record\n')
+    (folder / 'empty_subdir').mkdir()
+    docs = {}
+    for how, argv in {'list': [str(c) for c in copies], 'dir': [str(folder)],
+                      'glob': [str(folder / '*Hz_*A.csv')],
+                      'dir+repeat': [str(folder), str(copies[0])]}.items():
+        assert run([*argv, '--json', '--seed', '2']) == 0, how
+        docs[how] = json.loads(capsys.readouterr().out)
+    for how in ('dir', 'glob', 'dir+repeat'):
+        assert docs[how]['parameters'] == docs['list']['parameters'], how
+        assert docs[how]['files'] == docs['list']['files'], how
+        assert docs[how]['source'] == docs['list']['source'], how
+
+
+def test_multi_file_table_and_plot(tmp_path, capsys):
+    png = tmp_path / 'joint.png'
+    assert run([*map(str, TRIO[:2]), '--plot', str(png), '--seed', '2']) == 0
+    text = capsys.readouterr().out
+    assert text.startswith('2 files: ') and 'metrics of the joint fit per file' in text
+    assert TRIO[0].name in text and TRIO[1].name in text and 'all files' in text
+    assert png.stat().st_size > 10000
+
+
+def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, capsys):
+    _, params = joint_fit
+    held_out = [QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p25A.csv',
+                QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p75A.csv']
+    png = tmp_path / 'val.png'
+    assert run(['--validate', str(params), *map(str, held_out), '--json',
+                '--plot', str(png)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc) == {'model', 'params_file', 'files', 'metrics'}
+    assert doc['model'] == 'kwok-current' and doc['params_file'] == str(params)
+    per, overall = _direct_metrics(params, held_out)
+    assert [f['source'] for f in doc['files']] == [str(p) for p in held_out]
+    for got, ref in zip(doc['files'], per):
+        assert set(got) == {'source', 'samples', 'metrics'}
+        _assert_metrics_equal(got['metrics'], ref)
+    _assert_metrics_equal(doc['metrics'], overall)
+    assert png.stat().st_size > 10000
+    # the text form prints the same numbers
+    assert run(['--validate', str(params), *map(str, held_out), '--model', 'kwok-current']) == 0
+    text = capsys.readouterr().out
+    assert f'{overall["rmse_n"]:.6g}' in text and held_out[1].name in text
+
+
+def test_validate_stateful_model_starts_from_rest_in_each_file(tmp_path, capsys):
+    from mr_damper_model.data import read_csv
+    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.models import get_model
+    from mr_damper_model.params_file import save_params
+    mdl = get_model('bouc-wen')
+    lo, hi = mdl.default_bounds()
+    x = (lo + hi) / 2
+    params = tmp_path / 'bw.json'
+    save_params(params, {'model': 'bouc-wen', 'parameters': mdl.to_dict(x)})
+    assert run(['--validate', str(params), *map(str, TRIO), '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for got, path in zip(doc['files'], TRIO):
+        d = read_csv(path)                         # this file alone: the model starts at rest
+        _assert_metrics_equal(got['metrics'],
+                              fit_metrics(d.f, mdl.force(x, d.x, d.v, i=d.i, t=d.t)))
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_bag_input_fits_and_validates_like_the_csv(joint_fit, tmp_path, capsys, storage):
+    from mr_damper_model.bag_io import write_bag
+    from mr_damper_model.data import read_csv
+    bag = tmp_path / 'bag'
+    write_bag(bag, read_csv(QFILE), storage=storage, topic='/rig/measurement')
+    single = next(p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap'))
+    docs = []
+    for src in (QFILE, bag, single):
+        assert run([str(src), '--json', '--seed', '4']) == 0
+        docs.append(json.loads(capsys.readouterr().out))
+    for d in docs[1:]:
+        assert d['parameters'] == pytest.approx(docs[0]['parameters'], rel=1e-12)
+        _assert_metrics_equal(d['metrics'], docs[0]['metrics'])
+    _, params = joint_fit
+    vals = []
+    for src in (QFILE, bag):
+        assert run(['--validate', str(params), str(src), '--json',
+                    '--topic', '/rig/measurement']) == 0
+        vals.append(json.loads(capsys.readouterr().out))
+    _assert_metrics_equal(vals[1]['metrics'], vals[0]['metrics'])
+    # a directory holding a bag and a CSV: both are read
+    (tmp_path / 'mixed').mkdir()
+    write_bag(tmp_path / 'mixed' / 'b_bag', read_csv(QFILE), storage=storage)
+    (tmp_path / 'mixed' / 'a.csv').write_text(QFILE.read_text())
+    assert run(['--validate', str(params), str(tmp_path / 'mixed'), '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [Path(f['source']).name for f in doc['files']] == ['a.csv', 'b_bag']
+    _assert_metrics_equal(doc['files'][1]['metrics'], doc['files'][0]['metrics'])
+
+
+def _bag_error_inputs(tmp_path):
+    from mr_damper_model.bag_io import write_bag
+    from mr_damper_model.data import read_csv
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_typestore, Stores
+    d = read_csv(QFILE)
+    write_bag(tmp_path / 'other', d, topic='/a', storage='mcap')
+    ts = get_typestore(Stores.ROS2_KILTED)
+    T = ts.types
+    with Writer(tmp_path / 'joints', version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        c = w.add_connection('/mr_damper/measurement', 'sensor_msgs/msg/JointState',
+                             typestore=ts)
+        for k in range(60):
+            msg = T['sensor_msgs/msg/JointState'](
+                header=T['std_msgs/msg/Header'](
+                    stamp=T['builtin_interfaces/msg/Time'](sec=k, nanosec=0), frame_id=''),
+                name=['wheel', 'coil'], position=np.zeros(2), velocity=np.zeros(2),
+                effort=np.zeros(2))
+            w.write(c, k + 1, ts.serialize_cdr(msg, 'sensor_msgs/msg/JointState'))
+    cut = tmp_path / 'cut.mcap'
+    write_bag(tmp_path / 'full', d, storage='mcap')
+    raw = next((tmp_path / 'full').glob('*.mcap')).read_bytes()
+    cut.write_bytes(raw[:len(raw) // 2])
+    return {
+        'no topic /mr_damper/measurement': [str(tmp_path / 'other'), '--topic',
+                                            '/mr_damper/measurement'],
+        "joints ['wheel', 'coil']": [str(tmp_path / 'joints')],
+        'cannot read bag': [str(cut)],
+    }
+
+
+def test_error_paths_exit_2_with_one_line(joint_fit, tmp_path, capsys):
+    _, params = joint_fit
+    notjson = tmp_path / 'notjson.json'
+    notjson.write_text('{"model": ')
+    strange = tmp_path / 'strange.json'
+    strange.write_text('{"model": "magic", "parameters": {}}')
+    nof = _write(tmp_path / 'nof.csv', _rows(), 't,x,v,i')
+    (tmp_path / 'empty').mkdir()
+    cases = {
+        'cannot read parameter file': ['--validate', str(tmp_path / 'none.json'), str(QFILE)],
+        'not valid JSON': ['--validate', str(notjson), str(QFILE)],
+        'unknown model "magic"': ['--validate', str(strange), str(QFILE)],
+        'model is "kwok-current", expected "bingham"': ['--validate', str(params), str(QFILE),
+                                                        '--model', 'bingham'],
+        'missing column(s) f': ['--validate', str(params), str(nof)],
+        'no file matches this pattern': ['--validate', str(params),
+                                         str(tmp_path / 'nothing*.csv')],
+        'directory holds no .csv': [str(tmp_path / 'empty')],
+        '--out cannot be used with it': ['--validate', str(params), str(QFILE), '--out',
+                                         str(tmp_path / 'x.json')],
+        'the following arguments are required': ['--validate', str(params)],
+    }
+    for msg, argv in {**cases, **_bag_error_inputs(tmp_path)}.items():
+        for extra in ([], ['--validate', str(params)]) if '--validate' not in argv else ([],):
+            code = run([*extra, *argv])
+            err = capsys.readouterr().err
+            assert code == 2, (msg, extra, err)
+            assert len(err.strip().splitlines()) == 1, (msg, err)
+            assert msg in err and 'Traceback' not in err, (msg, err)
+    assert not (tmp_path / 'x.json').exists()

@@ -37,6 +37,18 @@ def test_bag_round_trip_is_exact(tmp_path, storage):
     np.testing.assert_array_equal(back2.f, d.f)
 
 
+def test_replay_reads_bags_with_the_model_package_reader(tmp_path):
+    """One home for measurement bags: replay = mr_damper_model.bag_io + the stream checks."""
+    from mr_damper_model import bag_io
+    assert replay.BagWriter is bag_io.BagWriter and replay.write_bag is bag_io.write_bag
+    assert replay.MEASUREMENT_TOPIC == bag_io.MEASUREMENT_TOPIC
+    d = small()
+    bag_io.write_bag(tmp_path / 'bag', d, topic='/only', storage='mcap')
+    back = replay.read_bag(tmp_path / 'bag', None)       # the bag's only JointState topic
+    np.testing.assert_array_equal(back.f, bag_io.read_bag(tmp_path / 'bag').f)
+    np.testing.assert_array_equal(back.f, d.f)
+
+
 def test_bag_on_other_topic_and_missing_topic(tmp_path):
     replay.write_bag(tmp_path / 'bag', small(), topic='/rig/daq', storage='mcap')
     assert replay.read_bag(tmp_path / 'bag', '/rig/daq').n == 200
