@@ -27,7 +27,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'identifier_node = mr_damper_model.identifier_node:main',
+            'identifier_node = mr_damper_model.entry_points:identifier_node',
             'mr-damper-identify = mr_damper_model.cli:main',
         ],
     },

@@ -27,7 +27,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'quarter_car_node = quarter_car_sim.quarter_car_node:main',
+            'quarter_car_node = quarter_car_sim.entry_points:quarter_car_node',
             'quarter-car-sim = quarter_car_sim.cli:main',
         ],
     },

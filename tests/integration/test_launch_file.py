@@ -8,10 +8,12 @@ the suite's parameter YAMLs (node names are the YAML keys, parameters file path 
 import ast
 import importlib.util
 from pathlib import Path
+import re
 import sys
 import types
 
 import numpy as np
+
 import pytest
 import yaml
 
@@ -117,11 +119,22 @@ def test_one_parameter_file_whose_keys_are_the_node_names(launch_description, co
     assert 'plant' in cfg['/**']['ros__parameters']
 
 
+def _node_module(package, executable):
+    """Return the node module a console script runs (through ``entry_points.early_main``)."""
+    module, func = _console_scripts(package)[executable].split(':')
+    if module.endswith('.entry_points'):
+        src = (REPO / 'src' / package / (module.replace('.', '/') + '.py')).read_text()
+        found = re.search(rf"def {func}\(\):.*?early_main\('([\w.]+)'\)", src, re.S)
+        assert found, f'{executable}: no early_main in {module}.{func}'
+        module = found.group(1)
+    return module
+
+
 def test_node_names_match_the_nodes_and_the_launcher(launch_description):
     """The name in the launch file is the name each node gives itself (YAML keys must match)."""
     nodes = [a.kwargs for a in launch_description.args[0] if 'executable' in a.kwargs]
     for n in nodes:
-        module = _console_scripts(n['package'])[n['executable']].split(':')[0]
+        module = _node_module(n['package'], n['executable'])
         text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
         assert f"super().__init__('{n['name']}'" in text
     run_suite = load_run_suite()

@@ -5,7 +5,6 @@ Imports rclpy (listed in ``ROS_MODULES`` of ``tests/test_core_is_ros_free.py``);
 core never imports this module.
 """
 import os
-import signal
 import sys
 import threading
 import time
@@ -17,6 +16,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+
+from mr_damper_model.stop_flag import (  # noqa: F401 (re-exported for the nodes)
+    _STOP, install_stop_handlers, request_stop, stop_requested)
 
 #: Measurement stream, writer (rig) and readers (identifier, recorders): reliable, KEEP_ALL.
 #: Every sample of a healthy run arrives (zero loss, also in bursts and at 2-5 kHz): a reliable
@@ -44,39 +46,6 @@ STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
 
 #: What ``publish()`` raises when the middleware refuses a sample or the node is shutting down.
 PUBLISH_ERRORS = (_rclpy.RCLError, InvalidHandle)
-
-_STOP = threading.Event()
-
-
-def stop_requested():
-    """Return True once SIGINT or SIGTERM asked this process to stop (see :func:`run_node`)."""
-    return _STOP.is_set()
-
-
-def request_stop(signum=None, frame=None):
-    """Ask :func:`spin` to return (the SIGINT / SIGTERM handler of :func:`run_node`)."""
-    _STOP.set()
-
-
-def install_stop_handlers():
-    """
-    Make SIGINT and SIGTERM set the stop flag instead of raising or killing.
-
-    rclpy's own handlers (not installed by :func:`run_node`) shut the context down at once and
-    then raise ``KeyboardInterrupt`` wherever the main thread happens to be (a callback, the
-    shutdown code, an executor call converting a message: ``RuntimeError: Unable to convert call
-    argument``) and leave SIGTERM to its default action. With a flag the main thread leaves the
-    spin loop between two ``spin_once`` calls (at most ``timeout_sec`` later), then the node is
-    finished and destroyed in order, and the process exits 0. Returns False when not called
-    from the main thread (signal handlers cannot be set there; nothing changes).
-    """
-    try:
-        signal.signal(signal.SIGINT, request_stop)
-        signal.signal(signal.SIGTERM, request_stop)
-    except ValueError:
-        return False
-    _STOP.clear()
-    return True
 
 
 class DropCounter:

@@ -1,0 +1,16 @@
+"""
+Console scripts of the mr_damper_rig nodes: stop handlers first, then the node module.
+
+See :func:`mr_damper_model.stop_flag.early_main` for why the order matters.
+"""
+from mr_damper_model.stop_flag import early_main
+
+
+def rig_node():
+    """``ros2 run mr_damper_rig rig_node``."""
+    return early_main('mr_damper_rig.rig_node')
+
+
+def record():
+    """``mr-damper-record``."""
+    return early_main('mr_damper_rig.record')

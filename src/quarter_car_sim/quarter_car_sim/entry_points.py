@@ -1,0 +1,11 @@
+"""
+Console scripts of the quarter_car_sim nodes: stop handlers first, then the node module.
+
+See :func:`mr_damper_model.stop_flag.early_main` for why the order matters.
+"""
+from mr_damper_model.stop_flag import early_main
+
+
+def quarter_car_node():
+    """``ros2 run quarter_car_sim quarter_car_node``."""
+    return early_main('quarter_car_sim.quarter_car_node')

@@ -1,0 +1,67 @@
+"""
+Every node's console script exits 0 on SIGINT or SIGTERM, also while it is still starting up.
+
+The stop handlers are installed before the node module is imported
+(``mr_damper_model.stop_flag.early_main``). The test waits until the process catches SIGTERM
+(Python itself never does, so the bit in ``/proc/PID/status`` ``SigCgt`` says our handler is
+in), then signals at once: on any machine that is while rclpy, scipy and control are still
+being imported. Before the early handlers, a SIGINT in that window was swallowed inside an
+import and the node ran on until killed. Order of events and exit codes only; the waits are
+hang guards.
+"""
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+
+from conftest import VENV_BIN
+
+pytestmark = [pytest.mark.integration]
+
+GUARD_S = 90.0
+SCRIPTS = {
+    'rig_node': ['--ros-args', '-p', 'mode:=sim'],
+    'identifier_node': [],
+    'quarter_car_node': [],
+    'mr-damper-record': ['--out', '{tmp}/bag', '--storage', 'mcap'],
+}
+
+
+def _catches(pid, signum):
+    """Return True once process ``pid`` has a handler for ``signum`` (/proc SigCgt)."""
+    try:
+        with open(f'/proc/{pid}/status') as fh:
+            for line in fh:
+                if line.startswith('SigCgt:'):
+                    return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
+    except OSError:
+        pass
+    return False
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize('script', sorted(SCRIPTS))
+def test_signal_during_start_up_exits_0(tmp_path, script, sig):
+    args = [a.replace('{tmp}', str(tmp_path)) for a in SCRIPTS[script]]
+    log = tmp_path / 'node.log'
+    with open(log, 'w') as fh:
+        proc = subprocess.Popen([str(VENV_BIN / script), *args], stdout=fh,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        end = time.monotonic() + GUARD_S
+        while not _catches(proc.pid, signal.SIGTERM) and proc.poll() is None \
+                and time.monotonic() < end:
+            time.sleep(0.002)
+        assert proc.poll() is None, log.read_text()
+        assert _catches(proc.pid, signal.SIGTERM), 'stop handlers never installed'
+        os.kill(proc.pid, sig)
+        rc = proc.wait(timeout=GUARD_S)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    text = log.read_text()
+    assert 'Traceback' not in text, text
+    assert rc == 0, text
