@@ -212,7 +212,7 @@ class DamperData:
             Records to join, in order.
         restamp : bool
             If True, rewrite the time stamps so the result has a continuous, increasing time
-            base (each part keeps its own sample intervals).
+            base (each segment of each part keeps its own sample intervals).
 
         Returns
         -------
@@ -229,10 +229,10 @@ class DamperData:
             raise DataError('nothing to concatenate')
         t_parts = []
         offset = None
-        for p in parts:
-            t = p.t
-            if restamp and p.n:
-                dt = float(np.median(np.diff(t))) if p.n > 1 else 1e-3
+        for seg in (s for p in parts for s in (p.segments() if restamp else [p])):
+            t = seg.t
+            if restamp and seg.n:
+                dt = float(np.median(np.diff(t))) if seg.n > 1 else 1e-3
                 start = 0.0 if offset is None else offset + dt
                 t = t - t[0] + start
                 offset = float(t[-1])
