@@ -21,6 +21,8 @@ and never diverges for gamma >= 0. z is clipped to that saturation value (the ex
 z = 0 never exceeds it when beta + gamma > 0 and gamma >= 0), or to +-1e6 otherwise (unstable
 parameter sets in the unbounded mode), so no overflow occurs.
 """
+import math
+
 import numpy as np
 
 from mr_damper_model import compiled
@@ -51,39 +53,35 @@ def _z_loop(delta, beta, gamma, n, zs, v, t, m, out):
     """
     Time loop of :func:`bouc_wen_z` over scalars (compiled by :mod:`mr_damper_model.compiled`).
 
-    Time outer, the whole swarm inner, ``m`` sub-steps per interval; the same semi-implicit
-    step as :func:`bouc_wen_z_numpy`, with ``|z|**n`` formed as ``|z|**(n - 1) * |z|`` (one
-    power instead of two; n = 1 takes no power at all and is bit-for-bit the numpy result).
-    Writes z into ``out`` (p, N), whose column 0 must hold zeros.
+    Time outer, sub-steps, then the whole swarm innermost (independent particles in a row keep
+    the processor busy while each one's division and power complete). The same semi-implicit
+    step as :func:`bouc_wen_z_numpy`, with ``|z|**n`` formed as ``|z|**(n - 1) * |z|`` and the
+    power as ``exp((n - 1) * log|z|)`` (agreement to round-off; n = 1 takes no power at all and
+    is bit for bit the numpy result). Writes z into ``out`` (p, N), whose column 0 must hold
+    zeros.
     """
     p = delta.shape[0]
     z = np.zeros(p)
-    du = np.empty(m)
-    adu = np.empty(m)
+    nm1 = n - 1.0
     for k in range(1, v.shape[0]):
         h = (t[k] - t[k - 1]) / m
         v0 = v[k - 1]
         dv = v[k] - v0
         for j in range(m):
-            du[j] = h * (v0 + ((j + 0.5) / m) * dv)
-            adu[j] = abs(du[j])
-        for q in range(p):
-            zq = z[q]
-            dq = delta[q]
-            bq = beta[q]
-            gq = gamma[q]
-            nm1 = n[q] - 1.0
-            sq = zs[q]
-            for j in range(m):
+            du = h * (v0 + ((j + 0.5) / m) * dv)
+            adu = abs(du)
+            for q in range(p):
+                zq = z[q]
                 az = abs(zq)
-                pw = 1.0 if nm1 == 0.0 else az ** nm1
-                zq = (zq + du[j] * (dq - bq * (pw * az))) / (1.0 + gq * adu[j] * pw)
-                if zq > sq:
-                    zq = sq
-                elif zq < -sq:
-                    zq = -sq
-            z[q] = zq
-            out[q, k] = zq
+                pw = 1.0 if nm1[q] == 0.0 else math.exp(nm1[q] * math.log(az))
+                zq = (zq + du * (delta[q] - beta[q] * (pw * az))) / (1.0 + gamma[q] * adu * pw)
+                if zq > zs[q]:
+                    zq = zs[q]
+                elif zq < -zs[q]:
+                    zq = -zs[q]
+                z[q] = zq
+        for q in range(p):
+            out[q, k] = z[q]
     return out
 
 
