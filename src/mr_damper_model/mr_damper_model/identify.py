@@ -16,6 +16,10 @@ Two methods, both minimising the RMSE of the force (thesis eq. 4.3):
 ``full``
     The swarm searches all parameters, as in the thesis.
 
+Records joined from several tests (``DamperData.starts``, e.g. from ``DamperData.concatenate``)
+are fitted with one parameter set; the stateful models (Bouc-Wen, Spencer) restart from rest at
+every segment start, in the swarm's cost, the linear solve and the reported metrics alike.
+
 Rest periods at the start and end of a record (x, v and F near zero, as in the shared Quiroz
 files) are fitted as they are: every model gives F = f0 + (for Kwok) alpha*tanh(delta*sign(x))
 there, close to the small measured force, so they cost little and need no trimming.

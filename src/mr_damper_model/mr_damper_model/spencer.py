@@ -266,17 +266,19 @@ def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
     """
     Time loop of :func:`spencer_force` over scalars (compiled by :mod:`mr_damper_model.compiled`).
 
-    Time outer, the whole swarm inner; per particle the sub-steps of ``heun_substeps`` with
-    ``z_step_scalar``, i.e. the arithmetic of the streaming plant (``advance_scalar``).
+    Time outer, sub-steps, then the whole swarm innermost (independent particles in a row keep
+    the processor busy while each one's transcendental functions complete); each particle's
+    sub-step is ``heun_substeps`` with ``z_step_scalar`` and one step, the sub-step positions
+    summed as ``heun_substeps`` sums them: the arithmetic of the streaming plant
+    (``advance_scalar``), bit for bit.
     """
     p = P.shape[0]
     y = np.full(p, y0)
     z = np.zeros(p)
     u = np.full(p, i[0])
+    decay = np.empty(p)
     for q in range(p):
-        out[q, 0] = _initial_force((P[q, 0], P[q, 1], P[q, 2], P[q, 3], P[q, 4], P[q, 5],
-                                    P[q, 6], P[q, 7], P[q, 8], P[q, 9], P[q, 10], P[q, 11],
-                                    P[q, 12]), x[0], v[0], y0, u[q])
+        out[q, 0] = _initial_force(_row(P, q), x[0], v[0], y0, u[q])
     for kk in range(1, x.shape[0]):
         dt = t[kk] - t[kk - 1]
         m = substeps(dt, max_substep_s)
@@ -284,19 +286,28 @@ def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
         dx = (x[kk] - x[kk - 1]) / m
         dv = (v[kk] - v[kk - 1]) / m
         for q in range(p):
-            pq = (P[q, 0], P[q, 1], P[q, 2], P[q, 3], P[q, 4], P[q, 5], P[q, 6], P[q, 7],
-                  P[q, 8], P[q, 9], P[q, 10], P[q, 11], P[q, 12])
-            c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = pq
-            yq, zq, uq = heun_substeps(z_step_scalar, pq, y[q], z[q], u[q], x[kk - 1],
-                                       v[kk - 1], dx, dv, i[kk], h, math.exp(-eta * h), m)
-            y[q] = yq
-            z[q] = zq
-            u[q] = uq
-            c0 = c0a + c0b * uq
-            c1 = c1a + c1b * uq
-            yd = ((aa + ab * uq) * zq + c0 * v[kk] + k0 * (x[kk] - yq)) / (c0 + c1)
+            decay[q] = math.exp(-P[q, 12] * h)
+        xs = x[kk - 1]
+        vs = v[kk - 1]
+        for _ in range(m):
+            for q in range(p):
+                y[q], z[q], u[q] = heun_substeps(z_step_scalar, _row(P, q), y[q], z[q], u[q], xs,
+                                                 vs, dx, dv, i[kk], h, decay[q], 1)
+            xs = xs + dx
+            vs = vs + dv
+        for q in range(p):
+            c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = _row(P, q)
+            c0 = c0a + c0b * u[q]
+            c1 = c1a + c1b * u[q]
+            yd = ((aa + ab * u[q]) * z[q] + c0 * v[kk] + k0 * (x[kk] - y[q])) / (c0 + c1)
             out[q, kk] = c1 * yd + k1 * (x[kk] - x0)
     return out
+
+
+def _row(P, q):
+    """Row q of the (p, 13) parameter array as a tuple (for the compiled loop)."""
+    return (P[q, 0], P[q, 1], P[q, 2], P[q, 3], P[q, 4], P[q, 5], P[q, 6], P[q, 7], P[q, 8],
+            P[q, 9], P[q, 10], P[q, 11], P[q, 12])
 
 
 def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
@@ -328,7 +339,7 @@ def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
     x, v, i, t = (np.ascontiguousarray(a, dtype=float) for a in (x, v, i, t))
     y0 = float(x[0] if y0_m is None else y0_m)
     out = np.empty((P.shape[0], x.size))
-    helpers = ('_initial_force', 'substeps', 'heun_substeps', 'z_step_scalar')
+    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_step_scalar')
     loop = compiled.kernel(_force_loop, helpers=helpers)
     return loop(P, x, v, i, t, y0, float(max_substep_s), out)
 
