@@ -11,12 +11,14 @@ shared Quiroz files. Each is run twice in the same process: with the compiled lo
 Spencer with numpy takes minutes per swarm iteration, so for it (both ways) the time of one swarm
 evaluation (25 particles on the whole record) is measured, numpy on a 60-sample excerpt scaled to
 the record, and multiplied by the evaluation budget of the default identification (full PSO,
-25 particles, at most 400 iterations: at most 10,025 swarm evaluations); the output says so.
+25 particles, at most 400 iterations: at most 401 swarm evaluations, 10,025 particle
+evaluations; the stagnation patience may stop it earlier); the output says so.
 
 The first-call cost (numba import, then compile or cache load of each kernel) is measured in
 fresh interpreters with an empty ``NUMBA_CACHE_DIR`` (compile) and then the same one (load).
 
-Usage: ``python bench/bench_models.py [--seeds 5] [--numpy-seeds 5] [--skip-numpy]``
+Usage: ``python bench/bench_models.py [--seeds 5] [--numpy-seeds 5] [--skip-numpy]
+[--only bouc-wen compare spencer]``
 """
 import os
 
@@ -134,6 +136,8 @@ def main(argv=None):
     ap.add_argument('--seeds', type=int, default=5)
     ap.add_argument('--numpy-seeds', type=int, default=5)
     ap.add_argument('--skip-numpy', action='store_true')
+    ap.add_argument('--only', nargs='+', choices=('bouc-wen', 'compare', 'spencer'),
+                    default=('bouc-wen', 'compare', 'spencer'))
     args = ap.parse_args(argv)
     print(f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
           f'Python {platform.python_version()}, numpy {np.__version__}; '
@@ -155,7 +159,7 @@ def main(argv=None):
         data = validate(read_csv(QUIROZ / name))
         print(f'\n{name}: {data.n} samples at {data.sample_rate_hz:.0f} Hz '
               f'({data.duration:.1f} s)')
-        for what in ('bouc-wen', 'compare'):
+        for what in [w for w in ('bouc-wen', 'compare') if w in args.only]:
             identify(data.select(slice(0, 300)), 'bouc-wen', seed=0)     # warm the kernels
             tc, nf, _ = time_identification(data, what, seeds)
             if args.skip_numpy:
@@ -168,6 +172,8 @@ def main(argv=None):
                   f'{nf} particle evaluations)   numpy {tn:7.2f} s (median of {len(np_seeds)})'
                   f'   ratio {tn / tc:5.1f}x   target <= {TARGETS_S[what]} s   '
                   f'load {_load()}', flush=True)
+        if 'spencer' not in args.only:
+            continue
         budget = DEFAULT_BUDGETS['full']['maxiter']
         evals = budget + 1
         tc_eval = spencer_swarm_eval(data)
@@ -177,8 +183,9 @@ def main(argv=None):
         print(f'  spencer   one swarm evaluation ({SWARM} particles, whole record): compiled '
               f'{tc_eval:.3f} s, numpy {tn_eval:.1f} s (60-sample excerpt scaled), ratio '
               f'{tn_eval / tc_eval:.0f}x; EXTRAPOLATED to the default budget of {evals} swarm '
-              f'evaluations (full PSO, maxiter {budget}): compiled {tc_eval * evals:.0f} s, '
-              f'numpy {tn_eval * evals:.0f} s; target <= 2 s   load {_load()}', flush=True)
+              f'evaluations at most (full PSO, maxiter {budget}): compiled '
+              f'{tc_eval * evals:.0f} s, numpy {tn_eval * evals:.0f} s; target <= 2 s   '
+              f'load {_load()}', flush=True)
     print('\n| file | samples | identification | compiled [s] | numpy [s] | ratio | target [s] |')
     print('|---|---|---|---|---|---|---|')
     for name, n, what, tc, tn, nf, target in rows:
