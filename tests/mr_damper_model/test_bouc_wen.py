@@ -1,8 +1,11 @@
 """Tests of the classic Bouc-Wen model (thesis eq. 2.30-2.31)."""
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 
-from mr_damper_model.bouc_wen import BoucWen
+from conftest import QUIROZ_DIR
+from mr_damper_model.bouc_wen import bouc_wen_z, bouc_wen_z_numpy, BoucWen
+from mr_damper_model.data import read_csv
 
 
 def _motion(fs=1000.0, T=1.8):
@@ -43,3 +46,33 @@ def test_saturation_value_and_no_overflow():
     p = np.array([0, 0, 1.0, 0, 1000.0, 200.0, 300.0, 2.0])
     z = m.force(p, x, v, t=t)
     np.testing.assert_allclose(np.max(np.abs(z)), np.sqrt(1000.0 / 500.0), rtol=1e-3)
+
+
+def _swarm(p, unbounded, seed):
+    lo, hi = BoucWen().default_bounds(unbounded=unbounded)
+    nl = slice(4, 8)
+    return lo[nl] + (hi[nl] - lo[nl]) * np.random.default_rng(seed).uniform(size=(p, 4))
+
+
+@pytest.mark.parametrize('unbounded', [False, True])
+def test_compiled_equals_numpy_reference_random_swarm(unbounded):
+    t, x, v, _ = _motion(T=0.7)
+    N = _swarm(40, unbounded, 5)
+    z = bouc_wen_z(*N.T, v, t)
+    ref = bouc_wen_z_numpy(*N.T, v, t)
+    scale = np.max(np.abs(ref), axis=1, keepdims=True) + 1e-300
+    # |z|**n formed as |z|**(n-1) * |z|: agreement to round-off, not bit for bit
+    assert np.max(np.abs(z - ref) / scale) < 1e-12
+    # n = 1 takes no power at all: bit for bit
+    N[:, 3] = 1.0
+    np.testing.assert_array_equal(bouc_wen_z(*N.T, v, t), bouc_wen_z_numpy(*N.T, v, t))
+
+
+def test_compiled_equals_numpy_reference_on_quiroz_record():
+    d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv')
+    N = _swarm(25, False, 6)
+    z = bouc_wen_z(*N.T, d.v, d.t)
+    ref = bouc_wen_z_numpy(*N.T, d.v, d.t)
+    scale = np.max(np.abs(ref), axis=1, keepdims=True) + 1e-300
+    assert np.max(np.abs(z - ref) / scale) < 1e-12
+    assert np.all(np.max(np.abs(ref), axis=1) > 0)      # the record moves z for every particle

@@ -154,3 +154,49 @@ def test_large_csv_is_read_in_bounded_memory(tmp_path, monkeypatch):
     final = 5 * 8 * n
     assert d.n == n and d.f[-1] == pytest.approx(arr[-1, 3], rel=1e-9)
     assert peak <= 3 * final, f'peak {peak / 1e6:.1f} MB for {final / 1e6:.1f} MB of arrays'
+
+
+def test_default_single_segment_and_bad_starts():
+    d = _record(n=50)
+    np.testing.assert_array_equal(d.starts, [0])
+    assert d.n_segments == 1
+    np.testing.assert_array_equal(DamperData(d.t, d.x, d.v, d.f, d.i, starts=[20]).starts,
+                                  [0, 20])
+    with pytest.raises(DataError, match=r'synthetic: `starts` must be strictly increasing'):
+        DamperData(d.t, d.x, d.v, d.f, d.i, source='synthetic', starts=[0, 30, 10])
+    with pytest.raises(DataError, match=r'\[0, 50\)'):
+        DamperData(d.t, d.x, d.v, d.f, d.i, starts=[0, 50])
+
+
+def test_concatenate_marks_each_part_and_keeps_inner_starts():
+    a, b = _record(n=100), _record(n=60)
+    ab = DamperData.concatenate([a, b])
+    np.testing.assert_array_equal(ab.starts, [0, 100])
+    abab = DamperData.concatenate([ab, b.select(slice(0, 0)), ab], restamp=True)
+    np.testing.assert_array_equal(abab.starts, [0, 100, 160, 260])     # empty part adds none
+    assert np.all(np.diff(abab.t) > 0)
+    for seg, part in zip(abab.segments(), (a, b, a, b)):
+        np.testing.assert_array_equal(seg.f, part.f)
+        np.testing.assert_array_equal(seg.starts, [0])
+
+
+def test_select_follows_segments():
+    ab = DamperData.concatenate([_record(n=100), _record(n=60)])
+    np.testing.assert_array_equal(ab.select(slice(50, 130)).starts, [0, 50])
+    np.testing.assert_array_equal(ab.select(slice(None, None, 7)).starts, [0, 15])  # 105 first
+    np.testing.assert_array_equal(ab.select(slice(0, 100)).starts, [0])
+    mask = np.zeros(ab.n, dtype=bool)
+    mask[10:20] = mask[40:50] = mask[120:130] = True
+    np.testing.assert_array_equal(ab.select(mask).starts, [0, 20])          # gap: same test
+    np.testing.assert_array_equal(ab.select(mask, split_gaps=True).starts, [0, 10, 20])
+    np.testing.assert_array_equal(ab.select([5, 6, 2, 3]).starts, [0, 2])   # reordered
+
+
+def test_split_by_current_starts_each_run_of_a_level():
+    d = _record(n=400, currents=(0.0, 1.0, 0.0, 1.0))       # 0 A, 1 A, 0 A, 1 A runs of 100
+    joined = DamperData.concatenate([d, d])
+    groups = dict(joined.split_by_current())
+    for level in (0.0, 1.0):
+        g = groups[level]
+        assert g.n == 400
+        np.testing.assert_array_equal(g.starts, [0, 100, 200, 300])

@@ -110,6 +110,34 @@ def test_recover_bouc_wen():
     assert res.parameters['c'] == pytest.approx(truth['c'], rel=0.1)
 
 
+def test_recover_bouc_wen_from_two_joined_records():
+    """Two tests of one damper joined: one stateful fit, each test restarting from rest."""
+    m = get_model('bouc-wen')
+    truth = {'c': 600.0, 'k': 100.0, 'alpha': 300.0, 'f0': 5.0, 'delta': 300.0, 'beta': 150.0,
+             'gamma': 150.0, 'n': 1.0}
+    t, x, v, i = cam(duration=0.8)
+    a, fa, sa = synth(m, truth, t, x, v, i, seed=1)
+    # second test: 500 Hz, twice the frequency, half the stroke, starting at full speed
+    tb = np.arange(300) / 500.0
+    w = 2 * np.pi * 2 * FREQ
+    xb, vb = 0.5 * AMP * np.sin(w * tb + 1.2), 0.5 * AMP * w * np.cos(w * tb + 1.2)
+    b, fb, sb = synth(m, truth, tb, xb, vb, np.zeros(tb.size), seed=2)
+    both = DamperData.concatenate([a, b], restamp=True)
+    np.testing.assert_array_equal(both.starts, [0, a.n])
+    res = identify(both, 'bouc-wen', seed=3)
+    sigma = np.sqrt(np.mean(np.r_[np.full(a.n, sa), np.full(b.n, sb)] ** 2))
+    for part, f_true, s in ((a, fa, sa), (b, fb, sb)):
+        f_fit = m.force(res.x, part.x, part.v, t=part.t)        # each test alone
+        # (fitting the joined record as one continuous test misses by about 4 sigma)
+        assert np.sqrt(np.mean((f_fit - f_true) ** 2)) < 0.75 * s
+    assert res.metrics['rmse_n'] == pytest.approx(sigma, rel=0.15)
+    p = res.parameters
+    assert p['c'] == pytest.approx(truth['c'], rel=0.1)
+    # the hysteretic force amplitude alpha * z_max, z_max = (delta / (beta + gamma))**(1/n)
+    zmax = (p['delta'] / (p['beta'] + p['gamma'])) ** (1 / p['n'])
+    assert p['alpha'] * zmax == pytest.approx(300.0, rel=0.1)
+
+
 @pytest.mark.slow
 def test_spencer_short_record_small_budget():
     from mr_damper_model.presets import spencer_thesis_like

@@ -21,8 +21,11 @@ and never diverges for gamma >= 0. z is clipped to that saturation value (the ex
 z = 0 never exceeds it when beta + gamma > 0 and gamma >= 0), or to +-1e6 otherwise (unstable
 parameter sets in the unbounded mode), so no overflow occurs.
 """
+import math
+
 import numpy as np
 
+from mr_damper_model import compiled
 from mr_damper_model.models import (cvkz_regressors, cvkz_separable_parts, HysteresisModel,
                                     ModelError)
 
@@ -39,9 +42,60 @@ def _saturation(delta, beta, gamma, n):
     return np.minimum(zs, _Z_CAP)
 
 
+def _substep_count(delta, beta, gamma, n, zs, v, t, max_du_rate):
+    """Sub-steps per sample interval: (linearised stiffness in z) * |du| <= max_du_rate."""
+    rate = n * np.abs(np.abs(beta) + np.abs(gamma)) * np.minimum(zs, 1e3) ** (n - 1.0)
+    du_max = float(np.max(np.abs(v)) * np.max(np.diff(t)))
+    return int(np.clip(np.ceil(np.max(rate) * du_max / max_du_rate), 1, _MAX_SUBSTEPS))
+
+
+def _z_loop(delta, beta, gamma, n, zs, v, t, m, out):
+    """
+    Time loop of :func:`bouc_wen_z` over scalars (compiled by :mod:`mr_damper_model.compiled`).
+
+    Time outer, sub-steps, then the whole swarm innermost (independent particles in a row keep
+    the processor busy while each one's division and power complete). The same semi-implicit
+    step as :func:`bouc_wen_z_numpy`, with ``|z|**n`` formed as ``|z|**(n - 1) * |z|`` and the
+    power as ``exp((n - 1) * log|z|)`` (agreement to round-off; n = 1 takes no power at all and
+    is bit for bit the numpy result). Writes z into ``out`` (p, N), whose column 0 must hold
+    zeros.
+    """
+    p = delta.shape[0]
+    z = np.zeros(p)
+    nm1 = n - 1.0
+    for k in range(1, v.shape[0]):
+        h = (t[k] - t[k - 1]) / m
+        v0 = v[k - 1]
+        dv = v[k] - v0
+        for j in range(m):
+            du = h * (v0 + ((j + 0.5) / m) * dv)
+            adu = abs(du)
+            for q in range(p):
+                zq = z[q]
+                az = abs(zq)
+                pw = 1.0 if nm1[q] == 0.0 else math.exp(nm1[q] * math.log(az))
+                zq = (zq + du * (delta[q] - beta[q] * (pw * az))) / (1.0 + gamma[q] * adu * pw)
+                if zq > zs[q]:
+                    zq = zs[q]
+                elif zq < -zs[q]:
+                    zq = -zs[q]
+                z[q] = zq
+        for q in range(p):
+            out[q, k] = z[q]
+    return out
+
+
+def _prepare(delta, beta, gamma, n, v, t):
+    arrs = [np.ascontiguousarray(a, dtype=float) for a in (delta, beta, gamma, n, v, t)]
+    return arrs + [_saturation(*arrs[:4])]
+
+
 def bouc_wen_z(delta, beta, gamma, n, v, t, *, max_du_rate=0.2):
     """
-    Integrate the hysteretic variable z for a batch of parameter sets.
+    Integrate the hysteretic variable z for a batch of parameter sets (compiled loop).
+
+    Same scheme and sub-steps as :func:`bouc_wen_z_numpy` (the reference), equal to it within
+    round-off; the loop over time is compiled by numba (:mod:`mr_damper_model.compiled`).
 
     Parameters
     ----------
@@ -59,18 +113,30 @@ def bouc_wen_z(delta, beta, gamma, n, v, t, *, max_du_rate=0.2):
     numpy.ndarray with shape (p, N)
 
     """
+    delta, beta, gamma, n, v, t, zs = _prepare(delta, beta, gamma, n, v, t)
+    out = np.zeros((delta.shape[0], v.size))
+    if v.size < 2:
+        return out
+    m = _substep_count(delta, beta, gamma, n, zs, v, t, max_du_rate)
+    return compiled.kernel(_z_loop)(delta, beta, gamma, n, zs, v, t, m, out)
+
+
+def bouc_wen_z_numpy(delta, beta, gamma, n, v, t, *, max_du_rate=0.2):
+    """
+    Integrate z with numpy, vectorised over the parameter sets (reference of :func:`bouc_wen_z`).
+
+    Parameters and result as :func:`bouc_wen_z`.
+    """
+    delta, beta, gamma, n, v, t, zs = _prepare(delta, beta, gamma, n, v, t)
     p = delta.shape[0]
     N = v.size
     z = np.zeros(p)
     out = np.zeros((p, N))
     if N < 2:
         return out
-    zs = _saturation(delta, beta, gamma, n)
     nm1 = n - 1.0
     dt = np.diff(t)
-    rate = n * np.abs(np.abs(beta) + np.abs(gamma)) * np.minimum(zs, 1e3) ** nm1
-    du_max = float(np.max(np.abs(v)) * np.max(dt))
-    m = int(np.clip(np.ceil(np.max(rate) * du_max / max_du_rate), 1, _MAX_SUBSTEPS))
+    m = _substep_count(delta, beta, gamma, n, zs, v, t, max_du_rate)
     fr = (np.arange(m) + 0.5) / m
     for k in range(1, N):
         h = dt[k - 1] / m

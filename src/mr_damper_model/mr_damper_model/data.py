@@ -60,6 +60,11 @@ class DamperData:
         Coil current [A].
     source : str, optional
         Where the record came from (file name), used in error messages.
+    starts : array_like of int, optional
+        Segments: sorted sample indices where an independent test begins (0 is always one;
+        default: just 0). A record joined from several tests (:meth:`concatenate`) has one per
+        part; stateful models (Bouc-Wen, Spencer) restart from rest at each and need ``t``
+        increasing only within a segment. Memoryless models ignore them.
 
     """
 
@@ -69,6 +74,7 @@ class DamperData:
     f: np.ndarray
     i: np.ndarray
     source: str = ''
+    starts: np.ndarray = None
 
     def __post_init__(self):
         arrays = {}
@@ -84,6 +90,14 @@ class DamperData:
             raise DataError(f'{_label(self.source)}columns have different lengths ({lengths})')
         for name, a in arrays.items():
             object.__setattr__(self, name, a)
+        object.__setattr__(self, 'starts', self._check_starts(self.starts, n.pop()))
+
+    def _check_starts(self, starts, n):
+        from .models import _segment_starts, ModelError
+        try:
+            return _segment_starts(starts, n)
+        except ModelError as exc:
+            raise DataError(f'{_label(self.source)}{exc}') from None
 
     @property
     def n(self):
@@ -103,10 +117,47 @@ class DamperData:
         dt = float(np.median(np.diff(self.t)))
         return 1.0 / dt if dt > 0 else math.nan
 
-    def select(self, index):
-        """Return the samples picked by a boolean mask, an index array or a slice."""
-        return DamperData(self.t[index], self.x[index], self.v[index], self.f[index],
-                          self.i[index], source=self.source)
+    @property
+    def n_segments(self):
+        """Number of independent segments (tests) in the record."""
+        return len(self.starts)
+
+    def segments(self):
+        """Return the segments as records of their own, in order (each with starts [0])."""
+        edges = np.append(self.starts, self.n)
+        return [self.select(slice(a, b)) for a, b in zip(edges[:-1], edges[1:])]
+
+    def select(self, index, *, split_gaps=False):
+        """
+        Return the samples picked by a boolean mask, an index array or a slice.
+
+        Segment starts follow the samples: a picked sample begins a segment if it is the first,
+        if it lies in another segment than the sample picked before it, or if it comes before
+        that sample in the record (a reordering index).
+
+        Parameters
+        ----------
+        index : slice, array_like of bool with shape (n,) or array_like of int
+            Samples to keep.
+        split_gaps : bool
+            Also begin a segment wherever picked samples are not neighbours in the record
+            (a gap: the samples left out lie between them). A stepping slice never splits.
+
+        """
+        orig = np.arange(self.n)[index]
+        out = DamperData(self.t[index], self.x[index], self.v[index], self.f[index],
+                         self.i[index], source=self.source)
+        if orig.size > 1 and (self.starts.size > 1 or split_gaps
+                              or not isinstance(index, slice)):
+            seg = np.searchsorted(self.starts, orig, side='right')
+            step = np.diff(orig)
+            new = (np.diff(seg) != 0) | (step <= 0)
+            if split_gaps and not isinstance(index, slice):
+                new |= step > 1
+            if new.any():
+                object.__setattr__(out, 'starts',
+                                   np.concatenate([[0], np.flatnonzero(new) + 1]).astype(np.int64))
+        return out
 
     def current_levels(self, tol_a=0.05):
         """
@@ -130,9 +181,12 @@ class DamperData:
         -------
         list of (float, DamperData)
             ``(level_a, record)`` sorted by level; each record keeps its samples in time order.
+            Every run of a level (the record was at another level between two runs) begins a
+            segment, as do the segment starts of this record.
 
         """
-        return [(level, self.select(mask)) for level, mask in self._clusters(tol_a)]
+        return [(level, self.select(mask, split_gaps=True))
+                for level, mask in self._clusters(tol_a)]
 
     def _clusters(self, tol_a):
         if self.n == 0:
@@ -158,9 +212,16 @@ class DamperData:
             Records to join, in order.
         restamp : bool
             If True, rewrite the time stamps so the result has a continuous, increasing time
-            base (each part keeps its own sample intervals). Algebraic models (Kwok, Bingham)
-            do not use time, so joined segments from different moments are a valid data set
-            for them; models with internal state (Bouc-Wen, Spencer) are not.
+            base (each segment of each part keeps its own sample intervals).
+
+        Returns
+        -------
+        DamperData
+            Every part's first sample begins a segment (``starts``), as do the parts' own
+            segment starts: models with internal state (Bouc-Wen, Spencer) restart from rest at
+            each, so the joined record is a valid data set for them too (with or without
+            ``restamp``); algebraic models (Kwok, Bingham) ignore the segments. Empty parts
+            add nothing.
 
         """
         parts = list(parts)
@@ -168,17 +229,24 @@ class DamperData:
             raise DataError('nothing to concatenate')
         t_parts = []
         offset = None
-        for p in parts:
-            t = p.t
-            if restamp and p.n:
-                dt = float(np.median(np.diff(t))) if p.n > 1 else 1e-3
+        for seg in (s for p in parts for s in (p.segments() if restamp else [p])):
+            t = seg.t
+            if restamp and seg.n:
+                dt = float(np.median(np.diff(t))) if seg.n > 1 else 1e-3
                 start = 0.0 if offset is None else offset + dt
                 t = t - t[0] + start
                 offset = float(t[-1])
             t_parts.append(t)
+        starts = []
+        offset_n = 0
+        for p in parts:
+            if p.n:
+                starts.append(p.starts + offset_n)
+            offset_n += p.n
         return cls(np.concatenate(t_parts),
                    *(np.concatenate([getattr(p, c) for p in parts]) for c in COLUMNS[1:]),
-                   source=parts[0].source)
+                   source=parts[0].source,
+                   starts=np.concatenate(starts) if starts else None)
 
 
 def derive_velocity(t, x):

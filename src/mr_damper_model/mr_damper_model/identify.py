@@ -16,6 +16,10 @@ Two methods, both minimising the RMSE of the force (thesis eq. 4.3):
 ``full``
     The swarm searches all parameters, as in the thesis.
 
+Records joined from several tests (``DamperData.starts``, e.g. from ``DamperData.concatenate``)
+are fitted with one parameter set; the stateful models (Bouc-Wen, Spencer) restart from rest at
+every segment start, in the swarm's cost, the linear solve and the reported metrics alike.
+
 Rest periods at the start and end of a record (x, v and F near zero, as in the shared Quiroz
 files) are fitted as they are: every model gives F = f0 + (for Kwok) alpha*tanh(delta*sign(x))
 there, close to the small measured force, so they cost little and need no trimming.
@@ -210,12 +214,13 @@ class SeparableCost:
 
     def __init__(self, model, data, lin_lo, lin_hi, probe):
         self.model = model
-        self.args = model._signals(data.x, data.v, data.i, data.t)   # validated once
+        # validated once; stateful models restart at every segment start of the record
+        self.args = model._signals(data.x, data.v, data.i, data.t, data.starts)
         self.y = np.ascontiguousarray(data.f, dtype=float)
         self.n = self.y.size
         self.yy = float(self.y @ self.y)
         self.m = m = len(model.linear_names)
-        parts = model._separable_parts(*self.args) if m else None
+        parts = model._eval_separable_parts(self.args) if m else None
         self.general = None
         if parts is not None:
             static = np.asarray(parts.fixed_index, dtype=int)
@@ -242,12 +247,11 @@ class SeparableCost:
             self.WSy = np.ascontiguousarray(np.hstack([WS, W * self.y[:, None]]))
 
     def _model_factor(self, nonlinear):
-        return self.model._nonlinear_factor(nonlinear, *self.args)
+        return self.model._eval_nonlinear_factor(nonlinear, self.args)
 
     def _probe(self, probe):
         """Find the fixed / nonlinear-dependent columns by evaluating the regressors twice."""
-        x, v, i, t = self.args
-        phi = np.asarray(self.model.regressors(np.asarray(probe, dtype=float), x, v, i=i, t=t),
+        phi = np.asarray(self.model._eval_regressors(np.asarray(probe, dtype=float), self.args),
                          dtype=float)
         scale = np.max(np.abs(phi), axis=(0, 1)) + 1e-300
         same = np.all(np.abs(phi[0] - phi[1]) <= 1e-12 * scale, axis=0)
@@ -262,7 +266,8 @@ class SeparableCost:
             dscale = np.max(np.abs(D), axis=(0, 1)) + 1e-300
             if np.all(np.abs(D - h[:, :, None] * W[None]) <= 1e-9 * dscale):
                 col = dyn[0]
-                self._h = lambda nl: self.model.regressors(nl, x, v, i=i, t=t)[:, :, col]
+                self._h = lambda nl: self.model._eval_regressors(
+                    np.atleast_2d(np.asarray(nl, dtype=float)), self.args)[:, :, col]
             else:
                 self.general = True
         return static, dyn, S, W
@@ -278,8 +283,7 @@ class SeparableCost:
         b[:, :ms] = self.Sy
         if kd:
             if self.general:
-                x, v, i, t = self.args
-                D = self.model.regressors(nonlinear, x, v, i=i, t=t)[:, :, self.dyn]
+                D = self.model._eval_regressors(nonlinear, self.args)[:, :, self.dyn]
                 Dt = np.swapaxes(D, 1, 2)
                 Gdd = Dt @ D
                 Gds = Dt @ self.S
@@ -409,17 +413,17 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
     Jacobians. The signals are validated once, not per evaluation.
     """
     y = np.asarray(data.f, dtype=float)
-    sig = model._signals(data.x, data.v, data.i, data.t)
+    sig = model._signals(data.x, data.v, data.i, data.t, data.starts)
     analytic = type(model)._jacobian is not HysteresisModel._jacobian
     d = x.size
 
     def resid(p):
         with np.errstate(over='ignore', invalid='ignore'):
-            return model._force(p[None], *sig)[0] - y
+            return model._eval_force(p[None], sig)[0] - y
 
     def jac(p):
         with np.errstate(over='ignore', invalid='ignore'):
-            return model._jacobian(p, *sig)
+            return model._eval_jacobian(p, sig)
 
     start = np.clip(x, lo, hi)
     r0 = resid(start)
@@ -485,7 +489,7 @@ def _full_cost(model, data):
 
     def cost(params):
         with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-            f = model.force(params, data.x, data.v, i=data.i, t=data.t)
+            f = model.force(params, data.x, data.v, i=data.i, t=data.t, starts=data.starts)
             r = np.sqrt(np.mean((f - y) ** 2, axis=1))
         return np.where(np.isfinite(r), r, np.inf)
     return cost
@@ -611,7 +615,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
                 if swarm_data is data:
                     theta, _ = cost.solve(nl)
                 else:       # a few candidates on all samples: direct regressors
-                    G, b = gram(mdl.regressors(nl, data.x, data.v, i=data.i, t=data.t), data.f)
+                    G, b = gram(mdl.regressors(nl, data.x, data.v, i=data.i, t=data.t,
+                                               starts=data.starts), data.f)
                     theta = box_qp(G, b, lo[lin_idx], hi[lin_idx])
             cands = np.empty((len(nl), len(names)))
             cands[:, nl_idx] = nl
@@ -630,7 +635,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
             res_info['nfev'] += extra
             if rss < best:
                 x, best = xc, rss
-    f_sim = np.asarray(mdl.force(x, data.x, data.v, i=data.i, t=data.t), dtype=float)
+    f_sim = np.asarray(mdl.force(x, data.x, data.v, i=data.i, t=data.t, starts=data.starts),
+                       dtype=float)
     if np.all(np.isfinite(f_sim)):
         metrics = fit_metrics(data.f, f_sim)
     else:

@@ -5,10 +5,19 @@ Every model maps a batch of parameter sets (one row per PSO particle) and a meas
 (displacement ``x`` [m], velocity ``v`` [m/s], coil current ``i`` [A], time ``t`` [s]) to the
 damper force [N]. A single parameter set of shape ``(n_params,)`` gives a force of shape
 ``(n,)``; a batch of shape ``(p, n_params)`` gives ``(p, n)``. No model loops over particles in
-Python; the stateful ones (Bouc-Wen, Spencer) loop over time only.
+Python; the stateful ones (Bouc-Wen, Spencer) loop over time only, in compiled code
+(:mod:`mr_damper_model.compiled`).
+
+Segments. A record may join several independent tests (``DamperData.starts``): every public
+method takes ``starts``, the sorted sample indices where a test begins (0 is always one). A
+stateful model restarts from rest at each start (its internal state at its initial value, as at
+sample 0) and needs ``t`` strictly increasing only within a segment; it is evaluated segment by
+segment, so the force of a joined record equals, sample for sample, the forces of its parts
+computed alone. Memoryless models ignore ``starts``.
 """
 from dataclasses import dataclass
 import importlib
+from typing import NamedTuple
 
 import numpy as np
 
@@ -53,6 +62,16 @@ class SeparableParts:
     fixed: np.ndarray
     factor_index: np.ndarray
     weights: np.ndarray
+
+
+class Signals(NamedTuple):
+    """Validated signals of one evaluation: arrays of shape (n,) and the segment starts."""
+
+    x: np.ndarray
+    v: np.ndarray
+    i: object
+    t: object
+    starts: np.ndarray
 
 
 def cvkz_regressors(p, x, v, z):
@@ -160,6 +179,37 @@ def _signal(a, name, n=None):
     return arr
 
 
+def _segment_starts(starts, n):
+    """
+    Coerce segment starts to a sorted int array that begins with 0.
+
+    Parameters
+    ----------
+    starts : array_like of int or None
+        Sample indices where an independent segment begins (None: one segment).
+    n : int
+        Number of samples.
+
+    Returns
+    -------
+    numpy.ndarray of int with shape (n_segments,)
+
+    """
+    if starts is None:
+        return np.zeros(1, dtype=np.int64)
+    arr = np.atleast_1d(np.asarray(starts))
+    if arr.ndim != 1 or (arr.size and arr.dtype.kind not in 'iuf') \
+            or (arr.dtype.kind == 'f' and not np.all(arr == np.round(arr))):
+        raise ModelError(f'`starts` must be a 1-D array of sample indices, got {starts!r}')
+    arr = arr.astype(np.int64)
+    if arr.size == 0 or arr[0] != 0:
+        arr = np.concatenate([[0], arr])
+    if np.any(np.diff(arr) <= 0) or arr[-1] >= max(n, 1):
+        raise ModelError(f'`starts` must be strictly increasing sample indices in [0, {n}), '
+                         f'got {np.asarray(starts).tolist()}')
+    return arr
+
+
 class HysteresisModel:
     """
     Base class of the damper force models.
@@ -235,7 +285,8 @@ class HysteresisModel:
             raise ModelError('`nonlinear` contains NaN or inf')
         return arr, single
 
-    def _signals(self, x, v, i=None, t=None):
+    def _signals(self, x, v, i=None, t=None, starts=None):
+        """Validate the signals once; return :class:`Signals`."""
         x = _signal(x, 'x')
         n = x.size
         v = _signal(v, 'v', n)
@@ -245,15 +296,64 @@ class HysteresisModel:
             i = _signal(i, 'i', n)
         elif i is not None:
             i = _signal(i, 'i', n)
+        starts = _segment_starts(starts, n)
         if self.stateful:
             if t is None:
                 raise ModelError(f'model {self.name!r} is stateful and needs the time `t`')
             t = _signal(t, 't', n)
-            if n > 1 and not np.all(np.diff(t) > 0):
-                raise ModelError('`t` must be strictly increasing')
+            step_ok = np.diff(t) > 0
+            step_ok[starts[1:] - 1] = True      # t may jump back where a segment starts
+            if not np.all(step_ok):
+                raise ModelError('`t` must be strictly increasing (within each segment)')
         elif t is not None:
             t = _signal(t, 't', n)
-        return x, v, i, t
+        return Signals(x, v, i, t, starts)
+
+    def _per_segment(self, method, lead, sig, axis):
+        """
+        Evaluate ``method(*lead, x, v, i, t)`` per segment and join along ``axis``.
+
+        Memoryless models and single-segment records are evaluated in one call.
+        """
+        x, v, i, t, starts = sig
+        if not self.stateful or starts.size == 1:
+            return method(*lead, x, v, i, t)
+        edges = np.append(starts, x.size)
+        parts = [method(*lead, x[a:b], v[a:b], None if i is None else i[a:b],
+                        None if t is None else t[a:b]) for a, b in zip(edges[:-1], edges[1:])]
+        return np.concatenate(parts, axis=axis)
+
+    def _eval_force(self, P, sig):
+        """Force (p, n) of parameter rows ``P`` on validated signals ``sig``."""
+        return self._per_segment(self._force, (P,), sig, 1)
+
+    def _eval_regressors(self, N, sig):
+        """Regressors (p, n, n_linear) on validated signals."""
+        return self._per_segment(self._regressors, (N,), sig, 1)
+
+    def _eval_nonlinear_factor(self, N, sig):
+        """Nonlinear factor (p, n) on validated signals."""
+        return self._per_segment(self._nonlinear_factor, (N,), sig, 1)
+
+    def _eval_jacobian(self, p, sig):
+        """Jacobian (n, n_params) on validated signals."""
+        return self._per_segment(self._jacobian, (p,), sig, 0)
+
+    def _eval_separable_parts(self, sig):
+        """:class:`SeparableParts` (or None) on validated signals."""
+        x, v, i, t, starts = sig
+        if not self.stateful or starts.size == 1:
+            return self._separable_parts(x, v, i, t)
+        edges = np.append(starts, x.size)
+        parts = [self._separable_parts(x[a:b], v[a:b], None if i is None else i[a:b],
+                                       None if t is None else t[a:b])
+                 for a, b in zip(edges[:-1], edges[1:])]
+        if parts[0] is None:
+            return None
+        return SeparableParts(fixed_index=parts[0].fixed_index,
+                              fixed=np.concatenate([q.fixed for q in parts]),
+                              factor_index=parts[0].factor_index,
+                              weights=np.concatenate([q.weights for q in parts]))
 
     # -- public API ----------------------------------------------------------------------
     def default_bounds(self, *, unbounded=False):
@@ -275,7 +375,7 @@ class HysteresisModel:
         hi = np.array([table[p][1] for p in self.param_names], dtype=float)
         return lo, hi
 
-    def force(self, params, x, v, i=None, t=None):
+    def force(self, params, x, v, i=None, t=None, starts=None):
         """
         Damper force [N].
 
@@ -290,7 +390,11 @@ class HysteresisModel:
         i : array_like with shape (n,), optional
             Coil current [A] (current-dependent models).
         t : array_like with shape (n,), optional
-            Time [s], strictly increasing (stateful models).
+            Time [s], strictly increasing within each segment (stateful models).
+        starts : array_like of int, optional
+            Sample indices where an independent segment (test) begins, sorted; 0 is always one
+            (``DamperData.starts``). Stateful models restart from rest at each; memoryless
+            models ignore them. Default: one segment.
 
         Returns
         -------
@@ -298,11 +402,11 @@ class HysteresisModel:
 
         """
         P, single = self._params(params)
-        x, v, i, t = self._signals(x, v, i, t)
-        f = self._force(P, x, v, i, t)
+        sig = self._signals(x, v, i, t, starts)
+        f = self._eval_force(P, sig)
         return f[0] if single else f
 
-    def regressors(self, nonlinear, x, v, i=None, t=None):
+    def regressors(self, nonlinear, x, v, i=None, t=None, starts=None):
         """
         Linear regressors at given nonlinear parameters.
 
@@ -310,7 +414,7 @@ class HysteresisModel:
         ----------
         nonlinear : array_like with shape (p, n_nonlinear) or (n_nonlinear,)
             Values of ``nonlinear_names``.
-        x, v, i, t : array_like with shape (n,)
+        x, v, i, t, starts : array_like
             As in ``force``.
 
         Returns
@@ -322,11 +426,10 @@ class HysteresisModel:
         if not self.linear_names:
             raise ModelError(f'model {self.name!r} has no linear parameters')
         N, single = self._nonlinear(nonlinear)
-        x, v, i, t = self._signals(x, v, i, t)
-        phi = self._regressors(N, x, v, i, t)
+        phi = self._eval_regressors(N, self._signals(x, v, i, t, starts))
         return phi[0] if single else phi
 
-    def separable_parts(self, x, v, i=None, t=None):
+    def separable_parts(self, x, v, i=None, t=None, starts=None):
         """
         Split the regressors into fixed columns and columns ``h(nonlinear) * weights``.
 
@@ -336,7 +439,7 @@ class HysteresisModel:
 
         Parameters
         ----------
-        x, v, i, t : array_like with shape (n,)
+        x, v, i, t, starts : array_like
             As in ``force``.
 
         Returns
@@ -347,10 +450,9 @@ class HysteresisModel:
         """
         if not self.linear_names:
             return None
-        x, v, i, t = self._signals(x, v, i, t)
-        return self._separable_parts(x, v, i, t)
+        return self._eval_separable_parts(self._signals(x, v, i, t, starts))
 
-    def nonlinear_factor(self, nonlinear, x, v, i=None, t=None):
+    def nonlinear_factor(self, nonlinear, x, v, i=None, t=None, starts=None):
         """
         Evaluate the regressor factor ``h`` that depends on the nonlinear parameters.
 
@@ -358,7 +460,7 @@ class HysteresisModel:
         ----------
         nonlinear : array_like with shape (p, n_nonlinear) or (n_nonlinear,)
             Values of ``nonlinear_names``.
-        x, v, i, t : array_like with shape (n,)
+        x, v, i, t, starts : array_like
             As in ``force``.
 
         Returns
@@ -373,14 +475,14 @@ class HysteresisModel:
 
         """
         N, single = self._nonlinear(nonlinear)
-        x, v, i, t = self._signals(x, v, i, t)
+        sig = self._signals(x, v, i, t, starts)
         try:
-            h = self._nonlinear_factor(N, x, v, i, t)
+            h = self._eval_nonlinear_factor(N, sig)
         except NotImplementedError:
             raise ModelError(f'model {self.name!r} has no separable structure') from None
         return h[0] if single else h
 
-    def jacobian(self, params, x, v, i=None, t=None):
+    def jacobian(self, params, x, v, i=None, t=None, starts=None):
         """
         Differentiate the force with respect to the parameters at one parameter set.
 
@@ -391,7 +493,7 @@ class HysteresisModel:
         ----------
         params : array_like with shape (n_params,)
             Parameter values in ``param_names`` order.
-        x, v, i, t : array_like with shape (n,)
+        x, v, i, t, starts : array_like
             As in ``force``.
 
         Returns
@@ -403,8 +505,7 @@ class HysteresisModel:
         P, single = self._params(params)
         if not single:
             raise ModelError('`params` must be a single parameter set for jacobian')
-        x, v, i, t = self._signals(x, v, i, t)
-        return self._jacobian(P[0], x, v, i, t)
+        return self._eval_jacobian(P[0], self._signals(x, v, i, t, starts))
 
     def to_dict(self, params):
         """

@@ -36,7 +36,7 @@ def model_force(result, data):
     """
     mdl = get_model(result.model, **(result.model_options or {}))
     return np.asarray(mdl.force(np.asarray(result.x, dtype=float), data.x, data.v, i=data.i,
-                                t=data.t), dtype=float)
+                                t=data.t, starts=data.starts), dtype=float)
 
 
 def fit_figure(groups, *, title=''):

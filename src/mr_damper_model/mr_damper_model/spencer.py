@@ -39,6 +39,7 @@ import math
 
 import numpy as np
 
+from mr_damper_model import compiled
 from mr_damper_model.models import HysteresisModel, ModelError
 
 _EDGE = 1.0 - 1e-12
@@ -253,6 +254,129 @@ def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     return c1 * yd + k1 * (x_b - x0)
 
 
+def _initial_force(p, x, v, y, u):
+    """Force [N] at the start of a record: state (y, z = 0, u), any floats or arrays."""
+    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = p
+    c0 = c0a + c0b * u
+    c1 = c1a + c1b * u
+    return c1 * (c0 * v + k0 * (x - y)) / (c0 + c1) + k1 * (x - x0)
+
+
+def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
+    """
+    Time loop of :func:`spencer_force` over scalars (compiled by :mod:`mr_damper_model.compiled`).
+
+    Time outer, sub-steps, then the whole swarm innermost (independent particles in a row keep
+    the processor busy while each one's transcendental functions complete); each particle's
+    sub-step is ``heun_substeps`` with ``z_step_scalar`` and one step, the sub-step positions
+    summed as ``heun_substeps`` sums them: the arithmetic of the streaming plant
+    (``advance_scalar``), bit for bit.
+    """
+    p = P.shape[0]
+    y = np.full(p, y0)
+    z = np.zeros(p)
+    u = np.full(p, i[0])
+    decay = np.empty(p)
+    for q in range(p):
+        out[q, 0] = _initial_force(_row(P, q), x[0], v[0], y0, u[q])
+    for kk in range(1, x.shape[0]):
+        dt = t[kk] - t[kk - 1]
+        m = substeps(dt, max_substep_s)
+        h = dt / m
+        dx = (x[kk] - x[kk - 1]) / m
+        dv = (v[kk] - v[kk - 1]) / m
+        for q in range(p):
+            decay[q] = math.exp(-P[q, 12] * h)
+        xs = x[kk - 1]
+        vs = v[kk - 1]
+        for _ in range(m):
+            for q in range(p):
+                y[q], z[q], u[q] = heun_substeps(z_step_scalar, _row(P, q), y[q], z[q], u[q], xs,
+                                                 vs, dx, dv, i[kk], h, decay[q], 1)
+            xs = xs + dx
+            vs = vs + dv
+        for q in range(p):
+            c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = _row(P, q)
+            c0 = c0a + c0b * u[q]
+            c1 = c1a + c1b * u[q]
+            yd = ((aa + ab * u[q]) * z[q] + c0 * v[kk] + k0 * (x[kk] - y[q])) / (c0 + c1)
+            out[q, kk] = c1 * yd + k1 * (x[kk] - x0)
+    return out
+
+
+def _row(P, q):
+    """Row q of the (p, 13) parameter array as a tuple (for the compiled loop)."""
+    return (P[q, 0], P[q, 1], P[q, 2], P[q, 3], P[q, 4], P[q, 5], P[q, 6], P[q, 7], P[q, 8],
+            P[q, 9], P[q, 10], P[q, 11], P[q, 12])
+
+
+def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
+    """
+    Spencer force for a batch of parameter sets (compiled time loop).
+
+    The same sub-steps as :func:`spencer_force_numpy` (the reference) and the same arithmetic per
+    particle as the streaming plant (``advance_scalar``); the loop is compiled by numba
+    (:mod:`mr_damper_model.compiled`). No validation: see ``Spencer.force``.
+
+    Parameters
+    ----------
+    P : numpy.ndarray with shape (p, 13)
+        Parameter sets in ``SPENCER_PARAM_NAMES`` order.
+    x, v, i, t : numpy.ndarray with shape (n,)
+        Displacement [m], velocity [m/s], coil current [A], time [s] (strictly increasing).
+    y0_m : float or None
+        Initial internal displacement [m]; None: x[0].
+    max_substep_s : float
+        Largest sub-step [s].
+
+    Returns
+    -------
+    numpy.ndarray with shape (p, n)
+        Force [N].
+
+    """
+    P = np.ascontiguousarray(P, dtype=float)
+    x, v, i, t = (np.ascontiguousarray(a, dtype=float) for a in (x, v, i, t))
+    y0 = float(x[0] if y0_m is None else y0_m)
+    out = np.empty((P.shape[0], x.size))
+    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_step_scalar')
+    loop = compiled.kernel(_force_loop, helpers=helpers)
+    return loop(P, x, v, i, t, y0, float(max_substep_s), out)
+
+
+def spencer_force_numpy(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
+    """
+    Spencer force with numpy, vectorised over the parameter sets (reference of ``spencer_force``).
+
+    Parameters and result as :func:`spencer_force`.
+    """
+    pt = tuple(np.asarray(P, dtype=float).T)
+    eta = pt[12]
+    p = len(pt[0])
+    n = x.size
+    out = np.empty((p, n))
+    y0 = x[0] if y0_m is None else y0_m
+    y = np.full(p, y0)
+    z = np.zeros(p)
+    u = np.full(p, i[0])
+    out[:, 0] = _initial_force(pt, x[0], v[0], y0, u)
+    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab = pt[:9]
+    for kk in range(1, n):
+        dt = t[kk] - t[kk - 1]
+        m = substeps(dt, max_substep_s)
+        h = dt / m
+        decay = np.exp(-eta * h)
+        dx = (x[kk] - x[kk - 1]) / m
+        dv = (v[kk] - v[kk - 1]) / m
+        y, z, u = heun_substeps(z_step_array, pt, y, z, u, x[kk - 1], v[kk - 1], dx, dv,
+                                i[kk], h, decay, m)
+        c0 = c0a + c0b * u
+        c1 = c1a + c1b * u
+        yd = ((aa + ab * u) * z + c0 * v[kk] + k0 * (x[kk] - y)) / (c0 + c1)
+        out[:, kk] = c1 * yd + k1 * (x[kk] - x0)
+    return out
+
+
 class Spencer(HysteresisModel):
     """
     Spencer et al. (1997) modified Bouc-Wen model with coil current dependence.
@@ -261,7 +385,7 @@ class Spencer(HysteresisModel):
     c1b [N s/(m A)], k1 [N/m], x0 [m], alpha_a [N/m], alpha_b [N/(m A)], gamma [1/m**2],
     beta [1/m**2], A [-], eta [1/s]. Options: ``n`` = 2 (fixed), ``max_substep_s`` = 1e-4.
     Stateful (needs ``t``) and current-dependent (needs ``i``); no linear parameters (fit with
-    the full PSO; slow: a Python loop over time and sub-steps, vectorised over particles).
+    the full PSO; the time loop is compiled, see ``spencer_force``).
 
     Default bounds (around Spencer's published damper, which is the scale of the thesis damper):
     c0a, c1a in [0, 1e5] (c0a, c1a >= 1 N s/m so c0 + c1 > 0), c0b, c1b in [0, 1e5],
@@ -312,31 +436,5 @@ class Spencer(HysteresisModel):
 
     def _force(self, P, x, v, i, t):
         self._check(P)
-        pt = tuple(P.T)
-        (c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta) = pt
-        p = P.shape[0]
-        n = x.size
-        out = np.empty((p, n))
-        y0 = x[0] if self.options['y0_m'] is None else self.options['y0_m']
-        y = np.full(p, y0)
-        z = np.zeros(p)
-        u = np.full(p, i[0])
-        c0 = c0a + c0b * u
-        c1 = c1a + c1b * u
-        out[:, 0] = c1 * (c0 * v[0] + k0 * (x[0] - y0)) / (c0 + c1) + k1 * (x[0] - x0)
-        hmax = self.options['max_substep_s']
-        for kk in range(1, n):
-            dt = t[kk] - t[kk - 1]
-            m = substeps(dt, hmax)
-            h = dt / m
-            decay = np.exp(-eta * h)
-            i_drv = i[kk]
-            dx = (x[kk] - x[kk - 1]) / m
-            dv = (v[kk] - v[kk - 1]) / m
-            y, z, u = heun_substeps(z_step_array, pt, y, z, u, x[kk - 1], v[kk - 1], dx, dv,
-                                    i_drv, h, decay, m)
-            c0 = c0a + c0b * u
-            c1 = c1a + c1b * u
-            yd = ((aa + ab * u) * z + c0 * v[kk] + k0 * (x[kk] - y)) / (c0 + c1)
-            out[:, kk] = c1 * yd + k1 * (x[kk] - x0)
-        return out
+        return spencer_force(P, x, v, i, t, y0_m=self.options['y0_m'],
+                             max_substep_s=self.options['max_substep_s'])

@@ -1,0 +1,199 @@
+"""
+Benchmark: identification time of the stateful models, compiled time loops against numpy.
+
+What ``mr-damper-identify FILE --model M`` (and ``--compare``) runs with its default options:
+:func:`mr_damper_model.identify.identify` / :func:`~mr_damper_model.identify.compare_models`,
+method ``separable``, default bounds; wall time of the whole call, median of 5 seeds, on two
+shared Quiroz files. Each is run twice in the same process: with the compiled loops
+(``bouc_wen.bouc_wen_z``, ``spencer.spencer_force``) and with today's numpy references
+(``bouc_wen_z_numpy``, ``spencer_force_numpy``) patched in.
+
+Spencer with numpy takes minutes per swarm iteration, so for it (both ways) the time of one swarm
+evaluation (25 particles on the whole record) is measured, numpy on a 60-sample excerpt scaled to
+the record, and multiplied by the evaluation budget of the default identification (full PSO,
+25 particles, at most 400 iterations: at most 401 swarm evaluations, 10,025 particle
+evaluations; the stagnation patience may stop it earlier); the output says so.
+
+The first-call cost (numba import, then compile or cache load of each kernel) is measured in
+fresh interpreters with an empty ``NUMBA_CACHE_DIR`` (compile) and then the same one (load).
+
+Usage: ``python bench/bench_models.py [--seeds 5] [--numpy-seeds 5] [--skip-numpy]
+[--only bouc-wen compare spencer]``
+"""
+import os
+
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')     # as the CLI does
+
+import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import json  # noqa: E402
+from pathlib import Path  # noqa: E402
+import platform  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from mr_damper_model import bouc_wen, spencer  # noqa: E402
+from mr_damper_model.data import read_csv, validate  # noqa: E402
+from mr_damper_model.identify import compare_models, DEFAULT_BUDGETS, identify  # noqa: E402
+
+QUIROZ = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'quiroz_mr_damper'
+FILES = ('quiroz_sine_25mm0x25Hz_1p0A.csv', 'quiroz_sine_10mm1Hz_1p0A_preproc.csv')
+TARGETS_S = {'bouc-wen': 0.3, 'spencer': 2.0, 'compare': 2.0}
+SWARM = 25
+
+
+@contextlib.contextmanager
+def numpy_loops():
+    """Patch today's numpy implementations in place of the compiled loops."""
+    saved = bouc_wen.bouc_wen_z, spencer.spencer_force
+    bouc_wen.bouc_wen_z = bouc_wen.bouc_wen_z_numpy
+    spencer.spencer_force = spencer.spencer_force_numpy
+    try:
+        yield
+    finally:
+        bouc_wen.bouc_wen_z, spencer.spencer_force = saved
+
+
+def _wall(fn):
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, out
+
+
+def time_identification(data, what, seeds):
+    """Median wall time [s] over seeds and the median number of particle evaluations."""
+    times, nfev = [], []
+    for seed in seeds:
+        if what == 'compare':
+            dt, res = _wall(lambda: compare_models(data, seed=seed, method='separable'))
+            nfev.append(sum(r.nfev for r in res.values()))
+        else:
+            dt, res = _wall(lambda: identify(data, what, seed=seed, method='separable'))
+            nfev.append(res.nfev)
+        times.append(dt)
+    return float(np.median(times)), int(np.median(nfev)), times
+
+
+def spencer_swarm_eval(data, *, numpy_excerpt=None):
+    """Seconds per swarm evaluation (25 particles) of the Spencer force on the whole record."""
+    m = spencer.Spencer()
+    lo, hi = m.default_bounds()
+    P = lo + (hi - lo) * np.random.default_rng(0).uniform(size=(SWARM, lo.size))
+    n = data.n if numpy_excerpt is None else numpy_excerpt
+    sel = slice(0, n)
+    with np.errstate(all='ignore'):
+        m.force(P[:2], data.x[:5], data.v[:5], data.i[:5], data.t[:5])     # first-call cost
+        dt, _ = _wall(lambda: m.force(P, data.x[sel], data.v[sel], data.i[sel], data.t[sel]))
+    return dt * data.n / n
+
+
+_COLD = r"""
+import json, time
+t0 = time.perf_counter()
+import numba  # noqa
+t_import = time.perf_counter() - t0
+import numpy as np
+from mr_damper_model import compiled
+from mr_damper_model.bouc_wen import bouc_wen_z
+from mr_damper_model.spencer import Spencer
+from mr_damper_model.presets import spencer_thesis_like
+t = np.arange(50) / 1000.0
+v = np.cos(t)
+t0 = time.perf_counter()
+bouc_wen_z(np.ones(3), np.ones(3), np.ones(3), np.ones(3), v, t)
+t_bw = time.perf_counter() - t0
+m = Spencer()
+t0 = time.perf_counter()
+m.force(m.from_dict(spencer_thesis_like()), np.sin(t), v, np.ones(50), t)
+t_sp = time.perf_counter() - t0
+print(json.dumps({'import': t_import, 'bouc-wen': t_bw, 'spencer': t_sp,
+                  'status': compiled.cache_status()}))
+"""
+
+
+def first_call_costs():
+    """Compile and cache-load seconds of each kernel, in fresh interpreters."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        out = []
+        for _ in range(2):
+            proc = subprocess.run([sys.executable, '-c', _COLD], env=env, capture_output=True,
+                                  text=True, check=True, timeout=600)
+            out.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    return out
+
+
+def _load():
+    return ', '.join(f'{x:.2f}' for x in os.getloadavg())
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    ap.add_argument('--seeds', type=int, default=5)
+    ap.add_argument('--numpy-seeds', type=int, default=5)
+    ap.add_argument('--skip-numpy', action='store_true')
+    ap.add_argument('--only', nargs='+', choices=('bouc-wen', 'compare', 'spencer'),
+                    default=('bouc-wen', 'compare', 'spencer'))
+    args = ap.parse_args(argv)
+    print(f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
+          f'Python {platform.python_version()}, numpy {np.__version__}; '
+          f'load average at start {_load()}')
+    cold, warm = first_call_costs()
+    print('\nfirst call in a fresh process [s]   compile (empty cache)   load (cache)')
+    print(f'  import numba                       {cold["import"]:8.2f}'
+          f'                {warm["import"]:8.2f}')
+    for k in ('bouc-wen', 'spencer'):
+        print(f'  {k:<34} {cold[k]:8.2f}                {warm[k]:8.2f}')
+    hits = sum(s['cache_hits'] for s in warm['status'].values())
+    print(f'  (second process: {hits} kernels loaded from the cache, '
+          f'{sum(s["cache_misses"] for s in warm["status"].values())} compiled)')
+
+    seeds = list(range(1, args.seeds + 1))
+    np_seeds = list(range(1, args.numpy_seeds + 1))
+    rows = []
+    for name in FILES:
+        data = validate(read_csv(QUIROZ / name))
+        print(f'\n{name}: {data.n} samples at {data.sample_rate_hz:.0f} Hz '
+              f'({data.duration:.1f} s)')
+        for what in [w for w in ('bouc-wen', 'compare') if w in args.only]:
+            identify(data.select(slice(0, 300)), 'bouc-wen', seed=0)     # warm the kernels
+            tc, nf, _ = time_identification(data, what, seeds)
+            if args.skip_numpy:
+                tn = float('nan')
+            else:
+                with numpy_loops():
+                    tn, _, _ = time_identification(data, what, np_seeds)
+            rows.append((name, data.n, what, tc, tn, nf, TARGETS_S[what]))
+            print(f'  {what:<9} compiled {tc:7.3f} s (median of {len(seeds)}; '
+                  f'{nf} particle evaluations)   numpy {tn:7.2f} s (median of {len(np_seeds)})'
+                  f'   ratio {tn / tc:5.1f}x   target <= {TARGETS_S[what]} s   '
+                  f'load {_load()}', flush=True)
+        if 'spencer' not in args.only:
+            continue
+        budget = DEFAULT_BUDGETS['full']['maxiter']
+        evals = budget + 1
+        tc_eval = spencer_swarm_eval(data)
+        with numpy_loops():
+            tn_eval = spencer_swarm_eval(data, numpy_excerpt=60)
+        rows.append((name, data.n, 'spencer', tc_eval * evals, tn_eval * evals, None, 2.0))
+        print(f'  spencer   one swarm evaluation ({SWARM} particles, whole record): compiled '
+              f'{tc_eval:.3f} s, numpy {tn_eval:.1f} s (60-sample excerpt scaled), ratio '
+              f'{tn_eval / tc_eval:.0f}x; EXTRAPOLATED to the default budget of {evals} swarm '
+              f'evaluations at most (full PSO, maxiter {budget}): compiled '
+              f'{tc_eval * evals:.0f} s, numpy {tn_eval * evals:.0f} s; target <= 2 s   '
+              f'load {_load()}', flush=True)
+    print('\n| file | samples | identification | compiled [s] | numpy [s] | ratio | target [s] |')
+    print('|---|---|---|---|---|---|---|')
+    for name, n, what, tc, tn, nf, target in rows:
+        note = ' (extrapolated)' if what == 'spencer' else ''
+        print(f'| {name} | {n} | {what}{note} | {tc:.3g} | {tn:.3g} | {tn / tc:.0f}x | '
+              f'{target} |')
+    print(f'\nload average at end {_load()}')
+
+
+if __name__ == '__main__':
+    main()
