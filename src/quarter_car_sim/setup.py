@@ -28,6 +28,7 @@ setup(
     entry_points={
         'console_scripts': [
             'quarter_car_node = quarter_car_sim.quarter_car_node:main',
+            'semi_active_controller_node = quarter_car_sim.semi_active_controller_node:main',
             'quarter-car-sim = quarter_car_sim.cli:main',
         ],
     },
