@@ -218,8 +218,18 @@ class QuarterCarNode(Node):
         self.car_state_msg.header.frame_id = 'quarter_car'
         self.car_state_pub = self.create_publisher(QuarterCarState, topics['car_state_topic'],
                                                    CONTROL_QOS)
-        self.drops.subscribe(self, Float64, topics['command_topic'], self.on_command,
-                             CONTROL_QOS, 'commands_lost')
+        self.cmd_sub = self.drops.subscribe(self, Float64, topics['command_topic'],
+                                            self.on_command, CONTROL_QOS, 'commands_lost')
+
+    def _wait_for_controller(self):
+        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+        logged = False
+        while self.running and not (self.car_state_pub.get_subscription_count() > 0
+                                    and self.cmd_sub.get_publisher_count() > 0):
+            if not logged:
+                self.get_logger().info('lock-step: waiting for the controller to connect')
+                logged = True
+            time.sleep(0.005)
 
     def on_command(self, msg):
         """Take one current command of the external controller (checked and counted)."""
@@ -286,7 +296,6 @@ class QuarterCarNode(Node):
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(self.rt_priority)))
             except (AttributeError, OSError) as exc:
                 self.get_logger().warning(f'realtime_priority not applied: {exc}')
-        pacer = live_loop.Pacer(self.dt, self.rtf)
         every = max(1, int(round(self.rate_hz / self.state_rate_hz))) \
             if self.state_rate_hz > 0 else 0
         cmd = Float64()
@@ -294,6 +303,9 @@ class QuarterCarNode(Node):
         state_msg.name = list(STATE_JOINTS)
         loop = self.loop
         try:
+            if self.external and self.lockstep:
+                self._wait_for_controller()
+            pacer = live_loop.Pacer(self.dt, self.rtf)
             while self.running:
                 wall = pacer.wait()
                 t0 = time.perf_counter()
