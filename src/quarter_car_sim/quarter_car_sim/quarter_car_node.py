@@ -64,7 +64,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model import messages
-from mr_damper_model.node_utils import DropCounter, run_node, spin_node
+from mr_damper_model.node_utils import (DropCounter, run_node, set_realtime_priority,
+                                        spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -193,6 +194,10 @@ class QuarterCarNode(Node):
         self.failed = None
         self.thread = threading.Thread(target=self.control_loop, name='control', daemon=True)
         self.thread.start()
+        if self.external and self.rt_priority > 0 and self.rtf > 0:
+            # the commands arrive in the executor and middleware threads: they wake the
+            # control thread, so they get its priority too
+            set_realtime_priority(int(self.rt_priority), self.get_logger())
         name = self.controller.name if self.controller else 'external controller'
         self.get_logger().info(
             f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on {road.name}, plant '

@@ -31,7 +31,8 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_interfaces.msg import QuarterCarState
 from mr_damper_model import messages
-from mr_damper_model.node_utils import DropCounter, LATCHED_QOS, run_node, spin_node
+from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, run_node,
+                                        set_realtime_priority, spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -119,6 +120,9 @@ class SemiActiveControllerNode(Node):
         hold = d('hold_on_reject', False,
                  'Keep the model in use when a later message is refused (until stale)')
         status_rate = d('status_rate_hz', 5.0, 'Status rate [Hz]', (0.1, 100.0))
+        self.rt_priority = d('realtime_priority', 0,
+                             'SCHED_FIFO priority of the node\'s threads (1..99; 0 = normal '
+                             'scheduling); needs CAP_SYS_NICE')
         car = {k: d(k, v, doc) for k, v, doc in (
             ('m_s', 300.0, 'Sprung mass [kg] (LQR-designed laws only)'),
             ('m_u', 60.0, 'Unsprung mass [kg] (LQR-designed laws only)'),
@@ -144,6 +148,7 @@ class SemiActiveControllerNode(Node):
         self.drops.subscribe(self, Float64MultiArray, topics['params_topic'], self.on_params,
                              LATCHED_QOS, 'parameters_lost')
         self.create_timer(1.0 / status_rate, self.publish_status)
+        set_realtime_priority(int(self.rt_priority), self.get_logger())
         self.get_logger().info(f'{law.name} on {topics["car_state_topic"]} -> '
                                f'{topics["command_topic"]}; fail-safe {safe:g} A, parameter '
                                f'timeout {timeout:g} s')
