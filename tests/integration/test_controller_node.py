@@ -106,7 +106,7 @@ RIDE_COLUMNS = ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')
 
 
 def _reference_ride(n_steps):
-    """The built-in loop on the same car, road, seed and model: per-step arrays."""
+    """Run the built-in loop on the same car, road, seed and model; return per-step arrays."""
     from quarter_car_sim import live_loop
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor

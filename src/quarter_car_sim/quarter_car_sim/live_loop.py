@@ -163,7 +163,7 @@ class ClosedLoop:
 
     @property
     def controller(self):
-        """Return the controller (None with an external one)."""
+        """Return the control law; None with an external one."""
         return self.core.controller if self.core is not None else None
 
     @property
