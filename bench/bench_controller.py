@@ -17,6 +17,9 @@ Benchmark: the stand-alone controller node, state -> command latency and ride ag
    load ratio on the road (t >= 0) against the built-in loop (``live_loop.ClosedLoop``) on the
    same road, seed and model, step for step. The core alone in-process (the built-in
    controller, no DDS) is timed on the same states for comparison.
+3. Asynchronous in real time (the default ``lockstep:=false``): the same, but each step applies
+   the newest command received, so the answer to state k acts one step late (or more on a
+   stall); its ride figures against the built-in loop show what that delay costs.
 
 Machine load (``os.getloadavg``) is printed at the start and at the end.
 
@@ -156,19 +159,66 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     return sent, np.array(recv), local
 
 
-def lockstep_car(prefix, log, priority=0):
-    """Start the external lock-step car at 1 kHz in real time; return (process, log path)."""
+def external_car(prefix, log, priority=0, lockstep=True):
+    """Start the external car at 1 kHz in real time; return (process, log path)."""
     tmp = Path(tempfile.mkdtemp(prefix='bench_controller_'))
     car_log = tmp / 'car_log'
     car = _start('quarter_car_node', {
-        'plant': 'kwok-current', 'controller': 'external', 'lockstep': True,
-        'lockstep_timeout_s': 1.0, 'command_timeout_s': 1.0, 'real_time_factor': 1.0,
+        'plant': 'kwok-current', 'controller': 'external', 'lockstep': lockstep,
+        'lockstep_timeout_s': 1.0, 'command_timeout_s': 1.0 if lockstep else 0.05,
+        'real_time_factor': 1.0,
         'road_seed': SEED, 'road_duration_s': 300.0, 'safe_current_a': SAFE_A,
         'log_file': str(car_log), 'status_rate_hz': 10.0, 'realtime_priority': priority,
         'car_state_topic': f'{prefix}/car_state', 'command_topic': f'{prefix}/current_command',
         'state_topic': f'{prefix}/state', 'status_topic': f'{prefix}/car_status',
         'metrics_topic': f'{prefix}/metrics', 'params_topic': f'{prefix}/car_params'}, log)
     return car, car_log
+
+
+def external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep):
+    """Run the external car with a fresh controller; print latency and ride against built-in."""
+    # a fresh controller (its states start again at t = 0) and the car
+    _stop(procs['ctrl'])
+    status.pop('ctrl', None)
+    procs['ctrl'] = _start('semi_active_controller_node', ctrl_params, log)
+    if not _wait(lambda: status.get('ctrl', {}).get('mode') == 'normal', 30.0):
+        raise RuntimeError(f'controller not ready: {status.get("ctrl")}')
+    status.pop('car', None)
+    car, car_log = external_car(prefix, log, args.realtime_priority, lockstep)
+    procs['car'] = car
+    ok = _wait(lambda: status.get('car', {}).get('t_sim', -1.0) >= args.duration
+               - live_settle(), 60.0 + 3.0 * args.duration)
+    _stop(car)
+    if not ok:
+        raise RuntimeError(f'the car did not run {args.duration} s: {status.get("car")}')
+    from mr_damper_model.columnlog import ColumnReader
+    z = ColumnReader(car_log).read()
+    meta = ColumnReader(car_log).meta['status']
+    title = '2. lock-step' if lockstep else '3. asynchronous (newest command each step)'
+    print(f'{title}, real time: {z["t"].size} steps at 1 kHz, lock-step timeouts '
+          f'{meta["lockstep_timeouts"]}, command timeouts {meta["command_timeouts"]}, all '
+          f'steps normal {bool(np.all(z["mode"] == 1.0))}; period jitter p99 '
+          f'{meta["loop"]["period"]["jitter_p99_ms"]:.3f} ms')
+    if lockstep:
+        print(f'   state published -> its command in the car: {_stats_ms(z["compute_s"])} '
+              '(target p99 <= 2 ms)')
+        print(f'   built-in controller (core in-process, no DDS): {_stats_ms(local)}')
+    else:
+        print(f'   commands received {meta["commands_received"]} for {meta["steps"]} steps '
+              '(the answer to state k arrives during step k: it acts from step k + 1)')
+    loop = _built_in_loop()
+    states = [loop.step(0.0) for _ in range(int(z['t'].size))]
+    ref = {c: np.array([getattr(s, c) for s in states])
+           for c in ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')}
+    wk_e, tl_e = ride_figures(z)
+    wk_b, tl_b = ride_figures(ref)
+    print(f'   ride over {z["t"][-1]:.2f} s of road (ISO 8608 C, 20 m/s, seed {SEED}, '
+          'kwok-current plant, skyhook, thesis model):')
+    print(f'     external            : Wk RMS {wk_e:.5f} m/s^2, RMS tyre load ratio '
+          f'{tl_e:.5f}')
+    print(f'     built-in            : Wk RMS {wk_b:.5f} m/s^2, RMS tyre load ratio '
+          f'{tl_b:.5f}')
+    print(f'     external / built-in : Wk {wk_e / wk_b:.6f}, tyre load {tl_e / tl_b:.6f}')
 
 
 def ride_figures(columns):
@@ -231,7 +281,7 @@ def main(argv=None):
         'command_topic': f'{prefix}/current_command', 'status_topic': f'{prefix}/ctrl_status',
         'param_timeout_s': 3600.0, 'safe_current_a': SAFE_A, 'status_rate_hz': 10.0,
         'realtime_priority': args.realtime_priority}
-    ctrl = _start('semi_active_controller_node', ctrl_params, log)
+    procs = {'ctrl': _start('semi_active_controller_node', ctrl_params, log), 'car': None}
     code = 0
     try:
         sent, recv, local = latency_run(node, lambda: status.get('ctrl'), args.rate,
@@ -245,46 +295,15 @@ def main(argv=None):
             print(f'   state -> command across DDS: {_stats_ms(recv - sent)}')
         else:
             print('   (with losses command k need not answer state k: no latency from this run)')
-        # lock-step: a fresh controller (its states start again at t = 0) and the car
-        _stop(ctrl)
-        status.pop('ctrl', None)
-        ctrl = _start('semi_active_controller_node', ctrl_params, log)
-        if not _wait(lambda: status.get('ctrl', {}).get('mode') == 'normal', 30.0):
-            raise RuntimeError(f'controller not ready: {status.get("ctrl")}')
-        car, car_log = lockstep_car(prefix, log, args.realtime_priority)
-        ok = _wait(lambda: status.get('car', {}).get('t_sim', -1.0) >= args.duration
-                   - live_settle(), 60.0 + 3.0 * args.duration)
-        _stop(car)
-        if not ok:
-            raise RuntimeError(f'the car did not run {args.duration} s: {status.get("car")}')
-        from mr_damper_model.columnlog import ColumnReader
-        z = ColumnReader(car_log).read()
-        meta = ColumnReader(car_log).meta['status']
-        print(f'2. lock-step, real time: {z["t"].size} steps at 1 kHz, lock-step timeouts '
-              f'{meta["lockstep_timeouts"]}, command timeouts {meta["command_timeouts"]}, all '
-              f'steps normal {bool(np.all(z["mode"] == 1.0))}; period jitter p99 '
-              f'{meta["loop"]["period"]["jitter_p99_ms"]:.3f} ms')
-        print(f'   state published -> its command in the car: {_stats_ms(z["compute_s"])} '
-              '(target p99 <= 2 ms)')
-        print(f'   built-in controller (core in-process, no DDS): {_stats_ms(local)}')
-        loop = _built_in_loop()
-        states = [loop.step(0.0) for _ in range(int(z['t'].size))]
-        ref = {c: np.array([getattr(s, c) for s in states])
-               for c in ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')}
-        wk_e, tl_e = ride_figures(z)
-        wk_b, tl_b = ride_figures(ref)
-        print(f'   ride over {z["t"][-1]:.2f} s of road (ISO 8608 C, 20 m/s, seed {SEED}, '
-              'kwok-current plant, skyhook, thesis model):')
-        print(f'     external (lock-step): Wk RMS {wk_e:.5f} m/s^2, RMS tyre load ratio '
-              f'{tl_e:.5f}')
-        print(f'     built-in            : Wk RMS {wk_b:.5f} m/s^2, RMS tyre load ratio '
-              f'{tl_b:.5f}')
-        print(f'     external / built-in : Wk {wk_e / wk_b:.6f}, tyre load {tl_e / tl_b:.6f}')
+        for lockstep in (True, False):
+            external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep)
     except RuntimeError as exc:
         print(f'bench_controller: {exc}', file=sys.stderr)
         code = 1
     finally:
-        _stop(ctrl)
+        for proc in procs.values():
+            if proc is not None:
+                _stop(proc)
         running.clear()
         thread.join(5)
         node.destroy_node()
