@@ -15,6 +15,11 @@ Usage (venv python)::
     .venv/bin/python launch_scripts/run_suite.py [--duration 30] [--out suite_out]
         [--config sim|replay] [--file PATH ...] [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
+        [--external-controller]
+
+``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
+also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
+then the plant only and its law runs in the controller node (docs/controller-node.md).
 
 Exit status: 0 clean run, 1 a node died or failed to shut down, 2 bad command line / config.
 """
@@ -39,6 +44,13 @@ CONFIG_DIR = HERE / 'config'
 NODES = {'mr_damper_rig': 'rig_node', 'mr_damper_identifier': 'identifier_node',
          'quarter_car_node': 'quarter_car_node'}
 RIG, IDENT, QC = NODES
+#: the stand-alone controller node (started with ``--external-controller``)
+CTRL = 'semi_active_controller'
+CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
+#: car parameters the controller node takes over when the law moves out of the car
+CONTROLLER_PARAMS = ('controller', 'controller_options', 'safe_current_a', 'param_timeout_s',
+                     'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a',
+                     'params_topic', 'command_topic', 'car_state_topic')
 QUIROZ_DIR = REPO.parent / 'shared' / 'data' / 'quiroz_mr_damper'
 DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv'
                        for c in ('0', '0p25', '0p5', '0p75', '1p0'))
@@ -150,7 +162,31 @@ def resolve_config(args, out):
         except ValueError:
             raise SuiteError(f'--set {item!r}: expected NODE.PARAM=VALUE') from None
         set_param(cfg, node, name, _parse_value(text))
+    if getattr(args, 'external_controller', False) or external_controller(cfg):
+        use_external_controller(cfg)
     return cfg
+
+
+def external_controller(cfg):
+    """Return True when the car's law runs in the controller node (``controller: external``)."""
+    return str(node_params(cfg, QC).get('controller', '')).strip().lower() == 'external'
+
+
+def use_external_controller(cfg):
+    """Move the car's law into the controller node's section; the car becomes the plant."""
+    car = node_params(cfg, QC)
+    own = cfg.setdefault(CTRL, {}).setdefault('ros__parameters', {})
+    for name in CONTROLLER_PARAMS:
+        if name in car and not (name == 'controller' and external_controller(cfg)):
+            own.setdefault(name, car[name])
+    set_param(cfg, QC, 'controller', 'external')
+
+
+def suite_nodes(cfg):
+    """Return the nodes to start, in order (the controller before the car when external)."""
+    if not external_controller(cfg):
+        return dict(NODES)
+    return {RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}
 
 
 # ---------------------------------------------------------------------------------- processes
@@ -168,14 +204,18 @@ class Suite:
         ROS_DOMAIN_ID of this run (0..232).
     bin_dir : path, optional
         Folder with the console scripts (default: next to this interpreter, i.e. the venv).
+    nodes : dict, optional
+        Node name -> console script, in start order (default :data:`NODES`; see
+        :func:`suite_nodes`).
 
     """
 
-    def __init__(self, params_file, out, domain_id, bin_dir=None):
+    def __init__(self, params_file, out, domain_id, bin_dir=None, nodes=None):
         self.params_file = Path(params_file)
         self.out = Path(out)
         self.domain_id = int(domain_id)
         self.bin_dir = Path(bin_dir) if bin_dir else Path(sys.executable).parent
+        self.nodes = dict(NODES if nodes is None else nodes)
         self.procs = {}
         self.logs = {}
         self.starts = {}
@@ -184,7 +224,7 @@ class Suite:
         self.finished = set()
         (self.out / 'logs').mkdir(parents=True, exist_ok=True)
         (self.out / 'ros_log').mkdir(parents=True, exist_ok=True)
-        for name in NODES:            # a new run starts new logs (a restart appends)
+        for name in self.nodes:       # a new run starts new logs (a restart appends)
             (self.out / 'logs' / f'{name}.log').write_text('')
 
     def env(self):
@@ -199,14 +239,14 @@ class Suite:
 
     def command(self, name):
         """Return the command line of node ``name``."""
-        exe = self.bin_dir / NODES[name]
+        exe = self.bin_dir / self.nodes[name]
         return [str(exe), '--ros-args', '--params-file', str(self.params_file)]
 
     def start(self, name):
         """Start (or restart) node ``name``; its output goes to ``logs/NAME.log``."""
         if name in self.procs and self.procs[name].poll() is None:
             raise RuntimeError(f'{name} is already running')
-        exe = self.bin_dir / NODES[name]
+        exe = self.bin_dir / self.nodes[name]
         if not exe.exists():
             raise SuiteError(f'console script {exe} not found: run launch_scripts/setup_venv.sh')
         log = open(self.out / 'logs' / f'{name}.log', 'a')
@@ -224,7 +264,7 @@ class Suite:
 
     def start_all(self):
         """Start every node, in order."""
-        for name in NODES:
+        for name in self.nodes:
             self.start(name)
 
     def pid(self, name):
@@ -266,7 +306,7 @@ class Suite:
                 self.deaths[name] = rc
         return dict(self.deaths)
 
-    def stop(self, order=(QC, RIG, IDENT), drain_s=1.0, timeout_s=10.0, drained=None,
+    def stop(self, order=(QC, CTRL, RIG, IDENT), drain_s=1.0, timeout_s=10.0, drained=None,
              drain_max_s=6.0):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).
@@ -598,7 +638,7 @@ class ProcessStats:
                     break
             out[name] = {'cpu_mean_percent': st['cpu_sum'] / st['n'], 'cpu_p95_percent': p95,
                          'rss_peak_mb': st['rss_peak'], 'samples': st['n']}
-        nodes = [v['cpu_mean_percent'] for k, v in out.items() if k in NODES]
+        nodes = [v['cpu_mean_percent'] for k, v in out.items() if k in self.suite.nodes]
         out['nodes_total_cpu_cores'] = sum(nodes) / 100.0
         return out
 
@@ -659,6 +699,9 @@ def parse_args(argv):
                         'quarter_car_node or /**), YAML-typed: 1.0 is a float, 1 an int')
     p.add_argument('--bin-dir', help='folder of the node console scripts (default: the venv)')
     p.add_argument('--progress-s', type=float, default=5.0, help='progress line period [s]')
+    p.add_argument('--external-controller', action='store_true',
+                   help='run the car\'s law in semi_active_controller_node (the car is the '
+                        'plant only, controller:=external)')
     p.add_argument('--no-plots', action='store_true', help='summary.json only')
     p.add_argument('--quiet', action='store_true', help='no progress lines')
     args = p.parse_args(argv)
@@ -706,7 +749,7 @@ def main(argv=None):
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
-    suite = Suite(params_file, out, domain_id, args.bin_dir)
+    suite = Suite(params_file, out, domain_id, args.bin_dir, suite_nodes(cfg))
     print(f'run_suite: config {args.config}, domain {domain_id}, '
           f'duration {args.duration:g} s, output {out}', flush=True)
 
@@ -714,7 +757,7 @@ def main(argv=None):
 
     def on_sigint(signum, frame):
         if interrupted.is_set():       # second Ctrl-C: no more patience
-            for name in NODES:
+            for name in suite.nodes:
                 if suite.alive(name):
                     suite.procs[name].kill()
         interrupted.set()

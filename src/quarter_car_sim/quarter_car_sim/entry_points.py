@@ -9,3 +9,8 @@ from mr_damper_model.stop_flag import early_main
 def quarter_car_node():
     """``ros2 run quarter_car_sim quarter_car_node``."""
     return early_main('quarter_car_sim.quarter_car_node')
+
+
+def semi_active_controller_node():
+    """``ros2 run quarter_car_sim semi_active_controller_node``."""
+    return early_main('quarter_car_sim.semi_active_controller_node')

@@ -1,7 +1,9 @@
 """
 The quarter-car control loop of the ROS node, without ROS: car + controller + supervised inverse.
 
-One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop`:
+One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 1-2 are
+:class:`quarter_car_sim.controller_core.ControllerCore`, shared with the stand-alone
+``semi_active_controller_node``):
 
 1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the caller's
    clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
@@ -22,7 +24,6 @@ import time
 
 import numpy as np
 
-from quarter_car_sim.failsafe import clip_current
 
 #: time [s] the car runs before the road starts (t = -SETTLE_S .. 0) so that it settles on the
 #: damper's static force, as ``quarter_car_sim.simulate.simulate(settle_s=0.5)`` does
@@ -118,13 +119,18 @@ class ClosedLoop:
     """
     One quarter car driven by a controller through the supervised, identified inverse model.
 
+    The command of each step comes from :class:`quarter_car_sim.controller_core.ControllerCore`
+    (law + inverse + supervisor, shared with the stand-alone controller node); this class adds
+    the car, the step and the running metrics.
+
     Parameters
     ----------
     car : quarter_car_sim.dynamics.QuarterCar
         Car with its "true" damper plant.
-    controller : quarter_car_sim.controllers.Controller
+    controller : quarter_car_sim.controllers.Controller or None
         Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
-        inverse model of the supervisor's active parameters).
+        inverse model of the supervisor's active parameters); None when the command comes from
+        outside (an external controller node): set :attr:`i_cmd` before :meth:`advance`.
     supervisor : quarter_car_sim.failsafe.ModelSupervisor
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     dt : float
@@ -143,72 +149,41 @@ class ClosedLoop:
 
     def __init__(self, car, controller, supervisor, dt=1e-3, *, metrics=None,
                  inverse_tol_a=1e-4):
+        from quarter_car_sim.controller_core import ControllerCore
         if not dt > 0:
             raise ValueError(f'`dt` must be > 0 s, got {dt}')
         self.car = car
-        self.controller = controller
         self.sup = supervisor
+        self.core = (ControllerCore(controller, supervisor, inverse_tol_a=inverse_tol_a)
+                     if controller is not None else None)
         self.dt = float(dt)
         self.metrics = metrics
-        self.inverse_tol_a = float(inverse_tol_a)
-        self.passive = getattr(controller, 'kind', '') == 'current'
         self.steps = 0
         self.i_cmd = supervisor.safe_current_a
-        self.f_demand = math.nan
-        self.saturated = 0
-        self.last_saturated = None
-        self._inverse = None
-        self._inverse_of = None
 
-    def _inverse_for(self, params):
-        if params is not self._inverse_of:
-            from quarter_car_sim.controllers import KwokCurrentInverse
-            # the inverse stays inside the current range the model was identified on
-            lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
-            hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
-            if not hi > lo:
-                lo, hi = self.sup.i_min_a, self.sup.i_max_a
-            self._inverse = KwokCurrentInverse(
-                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a)
-            self._inverse_of = params
-        return self._inverse
+    @property
+    def controller(self):
+        """Return the control law; None with an external one."""
+        return self.core.controller if self.core is not None else None
+
+    @property
+    def f_demand(self):
+        """Last demanded body force [N] (NaN without a model, passive or external)."""
+        return self.core.f_demand if self.core is not None else math.nan
+
+    @property
+    def saturated(self):
+        """Commands the inverse could not deliver exactly."""
+        return self.core.saturated if self.core is not None else 0
+
+    @property
+    def last_saturated(self):
+        """Whether the last command was saturated (None without a model or external)."""
+        return self.core.last_saturated if self.core is not None else None
 
     def command(self, state, t_clock):
-        """
-        Return the coil current [A] for the next step, given the state and the caller's clock.
-
-        Parameters
-        ----------
-        state : CarState
-            State at the start of the step (the measurement).
-        t_clock : float
-            Caller's clock [s] (used for the parameter timeout).
-
-        Returns
-        -------
-        float
-            Coil current command [A] within the coil range.
-
-        """
-        sup = self.sup
-        sup.update(t_clock)
-        if self.passive:
-            self.f_demand = math.nan
-            self.i_cmd = clip_current(self.controller.demand(state), sup.i_min_a, sup.i_max_a,
-                                      sup.safe_current_a)
-            return self.i_cmd
-        params = sup.active
-        if params is None:
-            self.f_demand = math.nan
-            self.last_saturated = None
-            self.i_cmd = sup.safe_current_a
-            return self.i_cmd
-        f_body = float(self.controller.demand(state))
-        self.f_demand = f_body
-        current, saturated = self._inverse_for(params).current(f_body, state.travel, state.v_rel)
-        self.saturated += bool(saturated)
-        self.last_saturated = bool(saturated)
-        self.i_cmd = clip_current(current, sup.i_min_a, sup.i_max_a, sup.safe_current_a)
+        """Set and return the next step's coil current [A] (``ControllerCore.command``)."""
+        self.i_cmd = self.core.command(state, t_clock)
         return self.i_cmd
 
     def advance(self):

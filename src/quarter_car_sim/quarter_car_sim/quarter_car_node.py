@@ -33,6 +33,17 @@ Topics (defaults)
 - pub ``/quarter_car/status`` (std_msgs/String JSON: mode normal|failsafe, reason, failsafe_s,
   params accepted / rejected by reason, loop timing, current, sim time, ``dropped`` by reason).
 
+External controller (``controller:=external``): the car is the plant only. It does not take
+parameters; each control step it publishes its state on ``car_state_topic``
+(mr_damper_interfaces/QuarterCarState; reliable, depth 10), applies the latest current received
+on ``command_topic`` (std_msgs/Float64; clamped / refused and counted like the rig's commands,
+:class:`quarter_car_sim.controller_core.CommandInput`) and falls back to ``safe_current_a`` when
+no command came for ``command_timeout_s`` (counted, logged with throttle, ``mode`` failsafe with
+reason ``no_command_yet`` / ``command_timeout`` in the status). With ``lockstep:=true`` it waits
+after publishing state k for the first command received after it (at most
+``lockstep_timeout_s``, counted) and applies it to step k: the loop is then step for step the
+built-in one (docs/controller-node.md).
+
 Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
 blocks the control loop; a ``publish()`` that fails anyway is counted
 (``dropped.publish_failed``) and logged, throttled, and the loop goes on. Parameter sets the
@@ -53,7 +64,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from mr_damper_model import messages
-from mr_damper_model.node_utils import DropCounter, run_node, spin_node
+from mr_damper_model.node_utils import (DropCounter, run_node, set_realtime_priority,
+                                        spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -83,7 +95,8 @@ class QuarterCarNode(Node):
         self.rtf = d('real_time_factor', 1.0,
                      'Simulated seconds per wall second (0 = as fast as possible)', (0.0, 1000.0))
         controller = d('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, '
-                       'groundhook, hybrid, add, passive@<I>A)')
+                       'groundhook, hybrid, add, passive@<I>A; external = commands from '
+                       'command_topic, e.g. semi_active_controller_node)')
         ctrl_opts = d('controller_options', '{}',
                       'JSON keyword options of the controller, e.g. {"c_sky": 3000.0}')
         road_kind = d('road', 'iso8608', 'Road: iso8608, bump, sine, step or file')
@@ -119,6 +132,15 @@ class QuarterCarNode(Node):
         self.rt_priority = d('realtime_priority', 0,
                              'SCHED_FIFO priority of the control thread (1..99; 0 = normal '
                              'scheduling); only with real_time_factor > 0, needs CAP_SYS_NICE')
+        self.external = controller.strip().lower() == 'external'
+        cmd_timeout = d('command_timeout_s', 0.05,
+                        'External controller: safe current when no command came for this long '
+                        '[s, wall clock]', (0.001, 3600.0))
+        self.lockstep = d('lockstep', False,
+                          'External controller: wait for the command answering each state')
+        self.lockstep_timeout_s = d('lockstep_timeout_s', 1.0,
+                                    'Lock-step: longest wait for a command [s, wall clock]',
+                                    (0.001, 3600.0))
         self.log_file = d('log_file', '',
                           'Stream every control step to this column log (LOG.f64 rows + '
                           'LOG.json header, mr_damper_model.columnlog; "" = no log)')
@@ -130,6 +152,7 @@ class QuarterCarNode(Node):
             ('params_topic', '/mr_damper/kwok_parameters'),
             ('command_topic', '/mr_damper/current_command'),
             ('state_topic', '/quarter_car/state'),
+            ('car_state_topic', '/quarter_car/car_state'),
             ('status_topic', '/quarter_car/status'),
             ('metrics_topic', '/quarter_car/ride_metrics'))}
 
@@ -143,8 +166,8 @@ class QuarterCarNode(Node):
                                    repeat=road_repeat)
         self.car = QuarterCar(self.car_params, live_loop.make_plant(plant, plant_file), road,
                               t0=-settle)
-        self.controller = live_loop.make_controller(controller, self.car_params,
-                                                    json.loads(ctrl_opts or '{}'))
+        self.controller = None if self.external else live_loop.make_controller(
+            controller, self.car_params, json.loads(ctrl_opts or '{}'))
         self.metrics = live_loop.make_running_metrics(self.car_params, self.dt)
         self.loop = live_loop.ClosedLoop(self.car, self.controller, self.sup, self.dt,
                                          metrics=self.metrics)
@@ -156,20 +179,29 @@ class QuarterCarNode(Node):
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.drops = DropCounter(self.get_logger())
-        self.cmd_pub = self.create_publisher(Float64, topics['command_topic'], 10)
+        if self.external:
+            self._init_external(topics, cmd_timeout, safe, i_min, i_max)
+        else:
+            self.cmd_pub = self.create_publisher(Float64, topics['command_topic'], 10)
         self.state_pub = self.create_publisher(JointState, topics['state_topic'], 10)
         self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
         self.metrics_pub = self.create_publisher(String, topics['metrics_topic'], 10)
-        self.drops.subscribe(self, Float64MultiArray, topics['params_topic'], self.on_params,
-                             latched, 'parameters_lost')
+        if not self.external:
+            self.drops.subscribe(self, Float64MultiArray, topics['params_topic'],
+                                 self.on_params, latched, 'parameters_lost')
         self.create_timer(1.0 / status_rate, self.publish_status)
         self.running = True
         self.failed = None
         self.thread = threading.Thread(target=self.control_loop, name='control', daemon=True)
         self.thread.start()
+        if self.external and self.rt_priority > 0 and self.rtf > 0:
+            # the commands arrive in the executor and middleware threads: they wake the
+            # control thread, so they get its priority too
+            set_realtime_priority(int(self.rt_priority), self.get_logger())
+        name = self.controller.name if self.controller else 'external controller'
         self.get_logger().info(
-            f'{self.controller.name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
-            f'{road.name}, plant {plant}; fail-safe {safe:g} A, timeout {timeout:g} s')
+            f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on {road.name}, plant '
+            f'{plant}; fail-safe {safe:g} A, timeout {timeout:g} s')
 
     def _declare(self, name, default, description, fp_range=None):
         desc = ParameterDescriptor(description=description)
@@ -177,6 +209,70 @@ class QuarterCarNode(Node):
             desc.floating_point_range = [FloatingPointRange(
                 from_value=fp_range[0], to_value=fp_range[1], step=0.0)]
         return self.declare_parameter(name, default, desc).value
+
+    def _init_external(self, topics, timeout_s, safe_a, i_min_a, i_max_a):
+        """Plant only: publish the typed state, take commands (``controller:=external``)."""
+        from mr_damper_interfaces.msg import QuarterCarState
+        from quarter_car_sim.controller_core import CommandInput
+        from quarter_car_sim.semi_active_controller_node import car_state_to_msg, CONTROL_QOS
+        self._car_state_to_msg = car_state_to_msg
+        self.cmd_in = CommandInput(timeout_s, safe_a, i_min_a, i_max_a)
+        self.answered = threading.Event()
+        self.lockstep_timeouts = 0
+        self.car_state_msg = QuarterCarState()
+        self.car_state_msg.header.frame_id = 'quarter_car'
+        self.car_state_pub = self.create_publisher(QuarterCarState, topics['car_state_topic'],
+                                                   CONTROL_QOS)
+        self.cmd_sub = self.drops.subscribe(self, Float64, topics['command_topic'],
+                                            self.on_command, CONTROL_QOS, 'commands_lost')
+
+    def _wait_for_controller(self):
+        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+        logged = False
+        while self.running and not (self.car_state_pub.get_subscription_count() > 0
+                                    and self.cmd_sub.get_publisher_count() > 0):
+            if not logged:
+                self.get_logger().info('lock-step: waiting for the controller to connect')
+                logged = True
+            time.sleep(0.005)
+
+    def on_command(self, msg):
+        """Take one current command of the external controller (checked and counted)."""
+        with self.lock:
+            outcome = self.cmd_in.offer(msg.data, time.monotonic())
+        self.answered.set()
+        if outcome != 'accepted':
+            self.get_logger().warning(f'current command {msg.data!r} {outcome}',
+                                      throttle_duration_sec=1.0)
+
+    def _external_command(self, state, wall):
+        """Publish the state, (lock-step: wait for its answer) and return the current [A]."""
+        cmd_in = self.cmd_in
+        with self.lock:
+            normal = not cmd_in.timed_out
+            reason = self._external_reason()
+        self.answered.clear()
+        msg = self._car_state_to_msg(state, self.loop.i_cmd, normal, reason, self.car_state_msg)
+        self.drops.publish(self.car_state_pub, msg)
+        if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
+            self.lockstep_timeouts += 1
+            self.get_logger().warning(
+                f'no command within {self.lockstep_timeout_s:g} s of state t = {state.t:.3f} s '
+                f'({self.lockstep_timeouts} in all)', throttle_duration_sec=1.0)
+        with self.lock:
+            was = cmd_in.timeouts
+            current = cmd_in.current(time.monotonic() if self.lockstep else wall)
+            if cmd_in.timeouts > was:
+                self.get_logger().warning(
+                    f'no current command for {cmd_in.timeout_s:g} s: safe current '
+                    f'{cmd_in.safe_current_a:g} A ({cmd_in.timeouts} time(s))',
+                    throttle_duration_sec=1.0)
+            return current, not cmd_in.timed_out
+
+    def _external_reason(self):
+        if not self.cmd_in.timed_out:
+            return 'ok'
+        return 'no_command_yet' if self.cmd_in.received_at is None else 'command_timeout'
 
     # ------------------------------------------------------------------ callbacks
     def on_params(self, msg):
@@ -205,7 +301,6 @@ class QuarterCarNode(Node):
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(self.rt_priority)))
             except (AttributeError, OSError) as exc:
                 self.get_logger().warning(f'realtime_priority not applied: {exc}')
-        pacer = live_loop.Pacer(self.dt, self.rtf)
         every = max(1, int(round(self.rate_hz / self.state_rate_hz))) \
             if self.state_rate_hz > 0 else 0
         cmd = Float64()
@@ -213,14 +308,22 @@ class QuarterCarNode(Node):
         state_msg.name = list(STATE_JOINTS)
         loop = self.loop
         try:
+            if self.external and self.lockstep:
+                self._wait_for_controller()
+            pacer = live_loop.Pacer(self.dt, self.rtf)
             while self.running:
                 wall = pacer.wait()
                 t0 = time.perf_counter()
-                with self.lock:
+                if self.external:
                     state = self.car.state
-                    cmd.data = loop.command(state, wall)
-                    normal = self.sup.mode == 'normal'
-                self.drops.publish(self.cmd_pub, cmd)
+                    cmd.data, normal = self._external_command(state, wall)
+                    loop.i_cmd = cmd.data
+                else:
+                    with self.lock:
+                        state = self.car.state
+                        cmd.data = loop.command(state, wall)
+                        normal = self.sup.mode == 'normal'
+                    self.drops.publish(self.cmd_pub, cmd)
                 latency = time.perf_counter() - t0
                 new = loop.advance()
                 if normal and math.isnan(self.first_normal_t):
@@ -246,8 +349,15 @@ class QuarterCarNode(Node):
         with self.lock:
             st = self.sup.status()
             st['param_age_s'] = self.sup.age(time.monotonic())
+        if self.external:
+            with self.lock:
+                st.update(self.cmd_in.status(), mode='normal' if not self.cmd_in.timed_out
+                          else 'failsafe', reason=self._external_reason(),
+                          failsafe_s=self.cmd_in.timeout_s_total,
+                          failsafe_entries=self.cmd_in.timeouts, lockstep=self.lockstep,
+                          lockstep_timeouts=self.lockstep_timeouts)
         st.update({
-            'controller': self.controller.name,
+            'controller': self.controller.name if self.controller else 'external',
             'current_a': self.loop.i_cmd,
             'coil_current_a': self.car.state.coil_current,
             't_sim': self.car.state.t,

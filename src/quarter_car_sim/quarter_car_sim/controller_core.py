@@ -1,0 +1,321 @@
+"""
+Semi-active controller core without ROS: a vehicle state in, a supervised coil current out.
+
+The one home of "law + identified inverse + fail-safe supervisor" for one control step. Both
+the simulated car's built-in loop (:class:`quarter_car_sim.live_loop.ClosedLoop`) and the
+stand-alone ``semi_active_controller_node`` (state from a car or a vehicle over a topic) call
+:class:`ControllerCore`. The car side of an external controller (the latest command received,
+its timeout and the checks a command passes before it reaches the coil) is
+:class:`CommandInput`.
+
+One step of :meth:`ControllerCore.command`:
+
+1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the
+   caller's clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
+2. a state whose fields the laws use (:data:`LAW_FIELDS`) are not all finite is refused
+   (counted ``state_rejected.non_finite``) and answered with the safe current; a state older
+   than the previous one (``t`` decreasing) is counted ``state_rejected.out_of_order`` and
+   answered with the safe current too;
+3. with a model: the law's demanded body force (positive up) goes through the inverse of the
+   identified model (kept inside the identified current range) to a coil current, saturated to
+   the coil range; without one: the safe current. A passive law (``passive@<I>A``) gives its
+   current directly, in both modes.
+
+Pure Python (no ROS): the node converts messages into :class:`VehicleState` and calls it.
+"""
+from dataclasses import dataclass
+import math
+
+from mr_damper_rig.commands import CurrentCommandLimiter, OUTCOMES
+from quarter_car_sim.failsafe import clip_current
+
+#: Fields of the state the control laws read (see :mod:`quarter_car_sim.controllers`):
+#: body velocity and acceleration, wheel velocity, suspension travel and its rate.
+LAW_FIELDS = ('v_s', 'a_s', 'v_u', 'travel', 'v_rel')
+
+#: Reasons a state is refused (counted in :attr:`ControllerCore.state_rejected`).
+STATE_REJECTIONS = ('non_finite', 'out_of_order')
+
+#: Outcomes of a current command offered to :class:`CommandInput` (the rig's limiter's).
+COMMAND_OUTCOMES = OUTCOMES
+
+
+@dataclass
+class VehicleState:
+    """
+    What a control law needs of a vehicle corner (SI, positive up; the vehicle contract).
+
+    Attributes
+    ----------
+    t : float
+        Time stamp of the measurement [s].
+    v_s : float
+        Body (sprung mass) absolute vertical velocity [m/s] (skyhook, hybrid).
+    a_s : float
+        Body absolute vertical acceleration [m/s^2] (ADD).
+    v_u : float
+        Wheel (unsprung mass) absolute vertical velocity [m/s] (groundhook, hybrid).
+    travel : float
+        Suspension travel ``z_s - z_u`` [m], extension positive (inverse model).
+    v_rel : float
+        Suspension velocity ``v_s - v_u`` [m/s] (every law and the inverse model).
+
+    """
+
+    t: float
+    v_s: float
+    a_s: float
+    v_u: float
+    travel: float
+    v_rel: float
+
+
+class ControllerCore:
+    """
+    One semi-active control step: supervised law + inverse, with counters.
+
+    Parameters
+    ----------
+    controller : quarter_car_sim.controllers.Controller
+        Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
+        inverse model of the supervisor's active parameters).
+    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+        Gatekeeper of the identified parameters; holds the safe current and coil range.
+    inverse_tol_a : float
+        Current tolerance [A] of the inverse model.
+
+    Attributes
+    ----------
+    i_cmd : float
+        Last command [A] (the safe current before the first).
+    f_demand : float
+        Last demanded body force [N] (NaN without a model or with a passive law).
+    saturated : int
+        Commands the inverse could not deliver exactly (demand out of reach).
+    last_saturated : bool or None
+        Whether the last command was saturated (None without a model).
+    n_commands, n_normal : int
+        Commands computed, and those computed with a model in use.
+    state_rejected : dict
+        ``{reason: count}`` of :data:`STATE_REJECTIONS`.
+    last_state_t : float
+        Stamp [s] of the last state answered (NaN before the first).
+
+    """
+
+    def __init__(self, controller, supervisor, *, inverse_tol_a=1e-4):
+        self.controller = controller
+        self.sup = supervisor
+        self.inverse_tol_a = float(inverse_tol_a)
+        self.passive = getattr(controller, 'kind', '') == 'current'
+        self.i_cmd = supervisor.safe_current_a
+        self.f_demand = math.nan
+        self.saturated = 0
+        self.last_saturated = None
+        self.n_commands = 0
+        self.n_normal = 0
+        self.state_rejected = dict.fromkeys(STATE_REJECTIONS, 0)
+        self.last_state_t = math.nan
+        self._inverse = None
+        self._inverse_of = None
+
+    def _inverse_for(self, params):
+        if params is not self._inverse_of:
+            from quarter_car_sim.controllers import KwokCurrentInverse
+            # the inverse stays inside the current range the model was identified on
+            lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
+            hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
+            if not hi > lo:
+                lo, hi = self.sup.i_min_a, self.sup.i_max_a
+            self._inverse = KwokCurrentInverse(
+                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a)
+            self._inverse_of = params
+        return self._inverse
+
+    def _state_refusal(self, state):
+        for name in LAW_FIELDS:
+            if not math.isfinite(getattr(state, name)):
+                return 'non_finite'
+        t = state.t
+        if not math.isfinite(t):
+            return 'non_finite'
+        if t < self.last_state_t:
+            return 'out_of_order'
+        return None
+
+    def _safe(self):
+        self.f_demand = math.nan
+        self.last_saturated = None
+        self.i_cmd = self.sup.safe_current_a
+        return self.i_cmd
+
+    def command(self, state, t_clock):
+        """
+        Return the coil current [A] for a measured state, given the caller's clock.
+
+        Parameters
+        ----------
+        state : VehicleState or quarter_car_sim.dynamics.CarState
+            Anything with ``t`` and the :data:`LAW_FIELDS` attributes.
+        t_clock : float
+            Caller's clock [s] (used for the parameter timeout).
+
+        Returns
+        -------
+        float
+            Coil current command [A] within the coil range.
+
+        """
+        sup = self.sup
+        sup.update(t_clock)
+        self.n_commands += 1
+        refusal = self._state_refusal(state)
+        if refusal is not None:
+            self.state_rejected[refusal] += 1
+            return self._safe()
+        self.last_state_t = state.t
+        if self.passive:
+            self.f_demand = math.nan
+            self.i_cmd = clip_current(self.controller.demand(state), sup.i_min_a, sup.i_max_a,
+                                      sup.safe_current_a)
+            return self.i_cmd
+        params = sup.active
+        if params is None:
+            return self._safe()
+        self.n_normal += 1
+        f_body = float(self.controller.demand(state))
+        self.f_demand = f_body
+        current, saturated = self._inverse_for(params).current(f_body, state.travel, state.v_rel)
+        self.saturated += bool(saturated)
+        self.last_saturated = bool(saturated)
+        self.i_cmd = clip_current(current, sup.i_min_a, sup.i_max_a, sup.safe_current_a)
+        return self.i_cmd
+
+    def offer_parameters(self, values, t_clock):
+        """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
+        return self.sup.offer(values, t_clock)
+
+    def status(self):
+        """
+        Summarise the core as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            The supervisor's status (``mode``, ``reason``, ``failsafe_s``, ...) plus
+            ``controller``, ``current_a``, ``commands``, ``commands_normal``,
+            ``saturated_steps``, ``state_rejected`` and ``last_state_t``.
+
+        """
+        st = self.sup.status()
+        st.update({'controller': getattr(self.controller, 'name', str(self.controller)),
+                   'current_a': self.i_cmd, 'commands': self.n_commands,
+                   'commands_normal': self.n_normal, 'saturated_steps': self.saturated,
+                   'state_rejected': dict(self.state_rejected),
+                   'last_state_t': self.last_state_t})
+        return st
+
+
+class CommandInput:
+    """
+    The car side of an external controller: the latest current command, checked and timed.
+
+    A command is checked by the rig's :class:`mr_damper_rig.commands.CurrentCommandLimiter`
+    (clamped into ``[i_min_a, i_max_a]``, non-finite refused, every outcome of
+    :data:`COMMAND_OUTCOMES` counted). :meth:`current` returns the latest applied
+    command while it is younger than ``timeout_s``, else the safe current (the transition is
+    counted in :attr:`timeouts` and the time spent on the safe current in
+    :attr:`timeout_s_total`).
+
+    Parameters
+    ----------
+    timeout_s : float
+        Longest a command is held [s, caller's clock] before the safe current applies.
+    safe_current_a : float
+        Coil current [A] without a fresh command.
+    i_min_a, i_max_a : float
+        Coil current range [A].
+
+    """
+
+    def __init__(self, timeout_s, safe_current_a, i_min_a=0.0, i_max_a=2.0):
+        for name, value in (('timeout_s', timeout_s), ('safe_current_a', safe_current_a),
+                            ('i_min_a', i_min_a), ('i_max_a', i_max_a)):
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f'`{name}` must be a finite number, got {value!r}')
+        if not timeout_s > 0:
+            raise ValueError(f'`timeout_s` must be > 0 s, got {timeout_s}')
+        if not i_min_a < i_max_a:
+            raise ValueError(f'`i_min_a` ({i_min_a}) must be below `i_max_a` ({i_max_a})')
+        if not i_min_a <= safe_current_a <= i_max_a:
+            raise ValueError(f'`safe_current_a` ({safe_current_a} A) must lie in '
+                             f'[{i_min_a}, {i_max_a}] A')
+        self.timeout_s = float(timeout_s)
+        self.safe_current_a = float(safe_current_a)
+        self.i_min_a, self.i_max_a = float(i_min_a), float(i_max_a)
+        self.limiter = CurrentCommandLimiter(i_min_a, i_max_a)
+        self.latest_a = None
+        self.received_at = None
+        self.n_received = 0
+        self.timeouts = 0
+        self.timeout_s_total = 0.0
+        self.timed_out = True
+        self._last_t = None
+
+    def offer(self, i_a, t_now):
+        """
+        Take one received command.
+
+        Parameters
+        ----------
+        i_a : float
+            Commanded coil current [A].
+        t_now : float
+            Receipt time [s] on the caller's clock.
+
+        Returns
+        -------
+        str
+            One of :data:`COMMAND_OUTCOMES` (also counted).
+
+        """
+        self.n_received += 1
+        try:
+            i_a = float(i_a)
+        except (TypeError, ValueError):
+            i_a = math.nan
+        current, outcome = self.limiter.apply(i_a)
+        if current is not None:
+            self.latest_a = current
+            self.received_at = float(t_now)
+        return outcome
+
+    def current(self, t_now):
+        """
+        Return the current [A] to apply at ``t_now`` (latest command, or safe when stale).
+
+        Parameters
+        ----------
+        t_now : float
+            Time [s] on the caller's clock; non-decreasing between calls.
+
+        Returns
+        -------
+        float
+
+        """
+        t_now = float(t_now)
+        fresh = self.received_at is not None and t_now - self.received_at <= self.timeout_s
+        if self._last_t is not None and t_now > self._last_t and self.timed_out:
+            self.timeout_s_total += t_now - self._last_t
+        if not fresh and not self.timed_out:
+            self.timeouts += 1
+        self.timed_out = not fresh
+        self._last_t = t_now if self._last_t is None else max(self._last_t, t_now)
+        return self.latest_a if fresh else self.safe_current_a
+
+    def status(self):
+        """Return ``commands`` (outcome counts), ``commands_received``, timeout counters."""
+        return {'commands': dict(self.limiter.counts), 'commands_received': self.n_received,
+                'command_timeouts': self.timeouts, 'command_timed_out': self.timed_out,
+                'command_timeout_s_total': self.timeout_s_total}

@@ -1,0 +1,176 @@
+"""Tests of quarter_car_sim.controller_core: law + inverse + supervisor, command input."""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from quarter_car_sim import live_loop
+from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, ControllerCore,
+                                             LAW_FIELDS, VehicleState)
+from quarter_car_sim.controllers import ADD, Groundhook, KwokCurrentInverse, Passive, Skyhook
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.failsafe import ModelSupervisor
+from quarter_car_sim.params import QuarterCarParams
+
+SAFE = 0.5
+
+
+def _truth():
+    from mr_damper_model import presets
+    model, params = presets.thesis_kwok_current()
+    msg = dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
+               valid=1.0)
+    return params, msg
+
+
+def _states(n=2000, seed=4):
+    """Car states of a passive ride on an ISO 8608 C road (the laws' inputs)."""
+    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=seed,
+                               duration_s=n * 1e-3 + 1.0)
+    car = QuarterCar(QuarterCarParams(), live_loop.make_plant('kwok-current'), road, t0=-0.1)
+    out = []
+    for _ in range(n):
+        out.append(car.step(1e-3, 0.7))
+    return out
+
+
+def _vehicle(state):
+    return VehicleState(t=state.t, **{n: getattr(state, n) for n in LAW_FIELDS})
+
+
+def test_no_model_then_model_then_stale_then_refused():
+    _, msg = _truth()
+    core = ControllerCore(Skyhook(3000.0), ModelSupervisor(timeout_s=1.0, safe_current_a=SAFE))
+    states = _states(400)
+    for k, s in enumerate(states[:100]):
+        assert core.command(s, 0.001 * k) == SAFE
+    assert core.sup.reason == 'no_parameters_yet' and core.n_normal == 0
+    core.offer_parameters(msg, 0.1)
+    currents = [core.command(s, 0.1 + 0.001 * k) for k, s in enumerate(states[100:300])]
+    assert core.n_normal == 200 and core.sup.mode == 'normal'
+    assert len(set(np.round(currents, 4))) > 20          # a law, not a constant
+    assert all(0.0 <= c <= 2.0 for c in currents)
+    assert core.command(states[300], 1.2) == SAFE       # accepted at 0.1 s: stale after 1.1 s
+    assert core.sup.reason == 'stale' and math.isnan(core.f_demand)
+    core.offer_parameters(msg, 1.3)
+    core.command(states[301], 1.3)
+    assert core.sup.mode == 'normal'
+    verdict = core.offer_parameters(dict(msg, valid=0.0), 1.31)
+    assert not verdict.accepted
+    assert core.command(states[302], 1.31) == SAFE and core.sup.reason == 'invalid_flag'
+    st = core.status()
+    assert st['commands'] == 303 and st['commands_normal'] == 201
+    assert st['params_accepted'] == 2 and st['params_rejected']['invalid_flag'] == 1
+
+
+def test_command_equals_law_through_the_identified_inverse():
+    """Reference: the law's force through ``KwokCurrentInverse`` of the identified range."""
+    truth, msg = _truth()
+    msg = dict(msg, current_min_a=0.1, current_max_a=1.8)
+    for law in (Skyhook(2500.0, 150.0), Groundhook(), ADD()):
+        core = ControllerCore(law, ModelSupervisor(timeout_s=10.0, safe_current_a=SAFE))
+        core.offer_parameters(msg, 0.0)
+        inv = KwokCurrentInverse(truth, i_ref_a=msg['i_ref_a'], i_min=0.1, i_max=1.8)
+        n_sat = 0
+        for s in _states(600)[::3]:
+            want, sat = inv.current(law.demand(s), s.travel, s.v_rel)
+            assert core.command(s, 0.0) == pytest.approx(want, abs=1e-12)
+            assert core.f_demand == law.demand(s) and core.last_saturated == sat
+            n_sat += sat
+        assert core.saturated == n_sat
+
+
+def test_vehicle_state_and_car_state_give_the_same_command():
+    _, msg = _truth()
+    a = ControllerCore(Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    b = ControllerCore(Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    a.offer_parameters(msg, 0.0)
+    b.offer_parameters(msg, 0.0)
+    for s in _states(300):
+        assert a.command(s, 0.0) == b.command(_vehicle(s), 0.0)
+
+
+def test_closed_loop_uses_the_core_step_for_step():
+    """The built-in loop's commands are the core's on the same states (one home)."""
+    _, msg = _truth()
+    params = QuarterCarParams()
+    road = live_loop.make_road('iso8608', seed=2, duration_s=2.0)
+    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=-0.2)
+    loop = live_loop.ClosedLoop(car, Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    ref = ControllerCore(Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    loop.sup.offer(msg, 0.0)
+    ref.offer_parameters(msg, 0.0)
+    for _ in range(500):
+        want = ref.command(car.state, 0.0)
+        loop.step(0.0)
+        assert loop.i_cmd == want
+    assert loop.saturated == ref.saturated and loop.steps == 500
+
+
+def test_non_finite_and_out_of_order_states_get_the_safe_current():
+    _, msg = _truth()
+    core = ControllerCore(Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    core.offer_parameters(msg, 0.0)
+    good = _vehicle(_states(50)[-1])
+    core.command(good, 0.0)
+    n = 0
+    for name in LAW_FIELDS + ('t',):
+        for bad in (math.nan, math.inf):
+            assert core.command(dataclasses.replace(good, **{name: bad}), 0.0) == SAFE
+            n += 1
+            assert core.state_rejected['non_finite'] == n
+    older = dataclasses.replace(good, t=good.t - 0.01)
+    assert core.command(older, 0.0) == SAFE
+    assert core.state_rejected == {'non_finite': n, 'out_of_order': 1}
+    core.command(good, 0.0)                          # the same stamp again is in order
+    assert core.state_rejected == {'non_finite': n, 'out_of_order': 1}
+    assert core.last_state_t == good.t and core.n_commands == n + 3
+
+
+def test_passive_law_ignores_the_model():
+    core = ControllerCore(Passive(1.2), ModelSupervisor(safe_current_a=SAFE))
+    s = _states(10)[-1]
+    assert core.command(s, 0.0) == 1.2 and core.sup.mode == 'failsafe'
+
+
+# ---------------------------------------------------------------------------- CommandInput
+def test_command_timeout_falls_back_to_the_safe_current():
+    cmd = CommandInput(timeout_s=0.05, safe_current_a=SAFE)
+    assert cmd.current(0.0) == SAFE and cmd.timed_out and cmd.timeouts == 0   # none yet
+    cmd.offer(1.5, 0.01)
+    assert cmd.current(0.02) == 1.5 and cmd.current(0.06) == 1.5 and not cmd.timed_out
+    assert cmd.current(0.0601) == SAFE and cmd.timeouts == 1
+    assert cmd.current(0.2) == SAFE and cmd.timeouts == 1           # one entry, not per step
+    cmd.offer(0.2, 0.3)
+    assert cmd.current(0.3) == 0.2 and not cmd.timed_out
+    assert cmd.current(0.5) == SAFE and cmd.timeouts == 2
+    # time on the safe current: 0..0.02 (none yet) and 0.0601..0.3 (0.3 -> 0.5 was fresh)
+    assert cmd.timeout_s_total == pytest.approx(0.02 + (0.3 - 0.0601), abs=1e-9)
+    st = cmd.status()
+    assert st['command_timeouts'] == 2 and st['commands_received'] == 2
+
+
+def test_bad_commands_are_clamped_or_refused_and_counted():
+    cmd = CommandInput(timeout_s=1.0, safe_current_a=SAFE, i_min_a=0.0, i_max_a=2.0)
+    applied = []
+    for k, value in enumerate((-5.0, 1e9, math.nan, math.inf, 1.2, 'x')):
+        cmd.offer(value, 0.1 * k)
+        applied.append(cmd.current(0.1 * k))
+    # a refused command leaves the previous one in force (it still ages)
+    assert applied == [0.0, 2.0, 2.0, 2.0, 1.2, 1.2]
+    assert cmd.status()['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
+                                        'refused_non_finite': 3}
+    assert tuple(cmd.status()['commands']) == COMMAND_OUTCOMES
+    assert cmd.received_at == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'timeout_s': 0.0}, 'timeout_s'), ({'timeout_s': math.nan}, 'timeout_s'),
+    ({'safe_current_a': 3.0}, 'safe_current_a'), ({'i_min_a': 2.0, 'i_max_a': 1.0}, 'i_min_a'),
+])
+def test_command_input_rejects_bad_settings(kwargs, match):
+    args = dict(timeout_s=0.05, safe_current_a=SAFE, i_min_a=0.0, i_max_a=2.0)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        CommandInput(**args)

@@ -1,0 +1,127 @@
+"""In-process tests of the controller node and of the car's external branch (callbacks)."""
+import math
+import time
+
+import pytest
+
+
+@pytest.fixture
+def ctx():
+    import rclpy
+    from rclpy.context import Context
+    context = Context()
+    rclpy.init(context=context)
+    made = []
+    yield context, made
+    for node in made:
+        if hasattr(node, 'stop'):
+            node.stop()
+        node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def _make(ctx, cls, **params):
+    from rclpy.parameter import Parameter
+    context, made = ctx
+    node = cls(context=context, parameter_overrides=[Parameter(k, value=v)
+                                                     for k, v in params.items()])
+    made.append(node)
+    return node
+
+
+def _params_msg(**changes):
+    from mr_damper_model import presets
+    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
+    model, params = presets.thesis_kwok_current()
+    values = dict(params, i_ref_a=2.0, window_end_s=1.0, current_min_a=0.0, current_max_a=2.0,
+                  rmse_n=1.0, nrmse_percent=0.5, valid=1.0)
+    values.update(changes)
+    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+
+
+def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
+    from quarter_car_sim.dynamics import CarState
+    return CarState(t, 0.01, v_s, 2.0, 0.0, v_s - v_rel, -1.0, 0.0, 0.01, v_rel, 2900.0, -50.0,
+                    0.4)
+
+
+TOPICS = {'params_topic': '/cnunit/params', 'car_state_topic': '/cnunit/car_state',
+          'command_topic': '/cnunit/cmd', 'status_topic': '/cnunit/status'}
+
+
+def test_state_message_round_trip_keeps_the_law_fields():
+    from quarter_car_sim.controller_core import LAW_FIELDS
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
+                                                             vehicle_state_from_msg)
+    s = _car_state(t=2.5)
+    msg = car_state_to_msg(s, 1.25, False, 'stale')
+    v = vehicle_state_from_msg(msg)
+    assert v.t == pytest.approx(2.5, abs=1e-9)
+    for name in LAW_FIELDS:
+        assert getattr(v, name) == getattr(s, name)
+    assert msg.current_command_a == 1.25 and msg.fail_safe_reason == 'stale'
+    assert msg.fail_safe_mode == msg.MODE_FAIL_SAFE
+    assert (msg.tyre_load_n, msg.coil_current_a) == (s.tyre_force, s.coil_current)
+
+
+def test_controller_node_answers_states_through_the_supervised_core(ctx):
+    from std_msgs.msg import Float64MultiArray
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
+                                                             SemiActiveControllerNode)
+    node = _make(ctx, SemiActiveControllerNode, safe_current_a=0.25, **TOPICS)
+    sent = []
+    node.cmd_pub.publish = lambda m: sent.append(m.data)
+    node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
+    assert sent == [0.25] and node.status()['reason'] == 'no_parameters_yet'
+    node.on_params(_params_msg())
+    node.on_state(car_state_to_msg(_car_state(1.001), 0.0, True, 'ok'))
+    assert node.core.sup.mode == 'normal' and 0.0 <= sent[-1] <= 2.0 and sent[-1] != 0.25
+    bad = car_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
+    node.on_state(bad)
+    assert sent[-1] == 0.25
+    node.on_params(Float64MultiArray(data=[1.0]))               # no label: undecodable
+    st = node.status()
+    assert st['mode'] == 'failsafe' and st['reason'] == 'undecodable'
+    assert st['commands'] == 3 and st['commands_normal'] == 1
+    assert st['state_rejected'] == {'non_finite': 1, 'out_of_order': 0}
+    assert st['params_accepted'] == 1 and st['params_rejected']['undecodable'] == 1
+
+
+def test_controller_node_refuses_an_active_controller(ctx):
+    from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
+    with pytest.raises(ValueError, match='force actuator'):
+        _make(ctx, SemiActiveControllerNode, controller='skyhook-ideal', **TOPICS)
+
+
+def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
+    from std_msgs.msg import Float64
+    from quarter_car_sim.quarter_car_node import QuarterCarNode
+    node = _make(ctx, QuarterCarNode, controller='external', real_time_factor=2.0,
+                 plant='kwok-current', road_duration_s=30.0, command_timeout_s=0.2,
+                 safe_current_a=0.5, log_file=str(tmp_path / 'log'),
+                 params_topic='/cnunit/p', command_topic='/cnunit/c', state_topic='/cnunit/s',
+                 car_state_topic='/cnunit/cs', status_topic='/cnunit/st',
+                 metrics_topic='/cnunit/m')
+    st = node.status()
+    assert (st['mode'], st['reason'], st['controller']) == ('failsafe', 'no_command_yet',
+                                                            'external')
+    for value in (1.2, -1.0, 5.0, math.nan):
+        node.on_command(Float64(data=value))
+    st = node.status()
+    assert st['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
+                              'refused_non_finite': 1}
+    steps = st['steps']
+    deadline = time.monotonic() + 30.0            # hang guard: the loop applies the command
+    while node.status()['steps'] < steps + 20 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = node.status()
+    assert st['mode'] == 'normal' and st['current_a'] == 2.0      # the clamped 5 A
+    deadline = time.monotonic() + 30.0            # no more commands: safe after the timeout
+    while node.status()['reason'] != 'command_timeout' and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = node.status()
+    assert st['mode'] == 'failsafe' and st['command_timeouts'] == 1
+    steps = st['steps']
+    while node.status()['steps'] < steps + 20 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert node.status()['current_a'] == 0.5
