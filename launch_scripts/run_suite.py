@@ -629,6 +629,15 @@ def progress_line(rec, elapsed):
     return f'[{elapsed:6.1f} s] rig {n_meas} samples | {ident} | {car}'
 
 
+def hil_report_config(cfg):
+    """Config for the report of a HIL run: the passive reference drives the rig's damper."""
+    import copy
+    report = copy.deepcopy(cfg)
+    set_param(report, QC, 'plant', node_params(cfg, RIG).get('plant', 'spencer'))
+    set_param(report, QC, 'truth_file', node_params(cfg, RIG).get('truth_file', ''))
+    return report
+
+
 def add_hil_summary(summary, rec, cfg, out):
     """Add tracking error and identification quality vs the cam rig (``--config hil``)."""
     from mr_damper_model.columnlog import finite_or_none
@@ -793,10 +802,12 @@ def main(argv=None):
         pass
     try:
         from quarter_car_sim import suite_report
-        summary = suite_report.make_report(out, duration_s=elapsed, config=cfg,
+        hil = node_params(cfg, QC).get('plant') == 'rig'
+        summary = suite_report.make_report(out, duration_s=elapsed,
+                                           config=hil_report_config(cfg) if hil else cfg,
                                            plots=not args.no_plots)
         print(suite_report.format_summary(summary), flush=True)
-        if args.config == 'hil':
+        if hil:
             add_hil_summary(summary, rec, cfg, out)
     except Exception as exc:  # noqa: B902 - the run itself succeeded; say why there is no summary
         print(f'run_suite: no summary: {type(exc).__name__}: {exc}', file=sys.stderr)

@@ -24,11 +24,16 @@ Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston fo
 displacement commands [m] of ``displacement_command_topic`` (std_msgs/Float64, reliable, depth
 10; the quarter car's suspension travel) through a servo-actuator model
 (:class:`mr_damper_rig.actuator.ServoActuator`: ``actuator`` order first | second | ideal,
-``actuator_tau_s``, ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``), sampled at
-``rate_hz`` on the rig's own clock with the latest command held. Commands are checked by
-:class:`mr_damper_rig.commands.DisplacementCommandGuard`: out of ``+-stroke_m`` clamped,
-non-finite refused, and after ``command_timeout_s`` without a command the actuator returns to
-neutral at ``return_speed_m_s``; all counted in the status (``displacement_commands``).
+``actuator_tau_s``, ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``). The rig
+runs in lockstep with the car: each command received steps the actuator and the damper by one
+DAQ period (``1 / rate_hz``, the car's control period) and publishes that sample at once, so a
+loaded machine delays the loop but never lets the two clocks drift apart. Commands are checked
+by :class:`mr_damper_rig.commands.DisplacementCommandGuard`: out of ``+-stroke_m`` clamped,
+non-finite refused (the sample is still taken, with the last command held). When the car falls
+silent for longer than ``command_timeout_s`` (wall time times ``rate_factor``), the rig runs on
+its own clock from the last command on: it holds that command for ``command_timeout_s`` and then
+returns to neutral at ``return_speed_m_s``; all counted in the status
+(``displacement_commands``). ``wait_for_subscribers`` and ``duration_s`` do not apply.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
@@ -256,6 +261,8 @@ class RigNode(Node):
         self._msg = None
         self.published = 0
         self.behind_max = 0
+        self._last_cmd_wall = None   # commanded: wall time of the last command
+        self._free = 0               # commanded: samples run on the rig's own clock since then
         self.commands = 0
         self.flow_restarts = 0
         self.finished = False
@@ -305,6 +312,30 @@ class RigNode(Node):
             self.get_logger().warning(
                 f'displacement command {msg.data} m {what} ({outcome}, '
                 f'{self.follower.guard.counts[outcome]} in all)', throttle_duration_sec=1.0)
+        if self._start is None:
+            self._start = time.monotonic()
+            self.source.t0 = self.get_clock().now().nanoseconds * 1e-9
+        self._last_cmd_wall = time.monotonic()
+        self._free = 0
+        self._publish_sample()   # lockstep: one rig sample per car step
+
+    def _publish_sample(self):
+        self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
+        self.published += 1
+        if not self._meas.publish(self._msg):
+            self.drops.count('measurement_not_published')
+
+    def _tick_commanded(self):
+        """Run on the rig's own clock while the car is silent (hold, then back to neutral)."""
+        if self._last_cmd_wall is None:
+            return
+        silent_s = (time.monotonic() - self._last_cmd_wall) * (self.rate_factor or 1.0)
+        if silent_s <= self.follower.guard.timeout_s:
+            return
+        due = int(silent_s * self.follower.rig.sample_rate_hz) - self._free
+        for _ in range(max(0, min(due, 5000))):
+            self._publish_sample()
+            self._free += 1
 
     def _on_flow(self, msg):
         try:
@@ -322,6 +353,9 @@ class RigNode(Node):
 
     def _tick(self):
         if self.finished:
+            return
+        if self.follower is not None:
+            self._tick_commanded()
             return
         if self._start is None:
             subs = self._meas.get_subscription_count()
