@@ -167,8 +167,13 @@ def test_remote_plant_over_a_zero_latency_link_reproduces_the_in_process_hil_pla
 def test_remote_plant_counts_refused_gapped_and_stale_measurements():
     plant = hil.make_remote_plant(DT, compensation='none', stale_after_s=0.005)
     assert plant.step(DT, 0.01, 0.0, 1.0) == 0.0              # nothing measured yet
+    assert not plant.answered
     assert plant.receive(0.0, 0.001, 0.0, 100.0, 1.0)
+    assert plant.answered                                      # the rig took the command
     assert plant.step(DT, 0.01, 0.0, 1.0) == 100.0
+    assert not plant.answered
+    plant.count_wait(False)
+    plant.count_wait(True)
     assert not plant.receive(math.nan, 0.0, 0.0, 0.0, 0.0)     # non-finite: refused
     assert not plant.receive(0.0, 0.0, 0.0, 0.0, 0.0)          # same stamp: refused
     assert plant.receive(0.004, 0.002, 0.0, 50.0, 1.5)         # 3 samples missing
@@ -177,7 +182,7 @@ def test_remote_plant_counts_refused_gapped_and_stale_measurements():
     assert plant.current == 1.5 and plant.last_command_m == 0.01
     st = plant.as_dict()
     assert st['counts'] == {'measurements': 2, 'gaps': 3, 'out_of_order': 1, 'non_finite': 1,
-                            'no_measurement_steps': 1, 'stale_steps': 5}
+                            'no_measurement_steps': 1, 'stale_steps': 5, 'wait_timeouts': 1}
     assert st['tracking']['n'] == 11
     assert st['tracking']['peak_m'] == pytest.approx(0.009)
     assert st['travel_rms_m'] == pytest.approx(0.01)

@@ -379,7 +379,7 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
 
 #: Counter keys of :attr:`RemoteRigPlant.counts`.
 REMOTE_COUNTS = ('measurements', 'gaps', 'out_of_order', 'non_finite', 'no_measurement_steps',
-                 'stale_steps')
+                 'stale_steps', 'wait_timeouts')
 
 
 class RemoteRigPlant:
@@ -411,8 +411,8 @@ class RemoteRigPlant:
         the first measurement.
     counts : dict
         :data:`REMOTE_COUNTS`: measurements taken, stamp gaps (missing samples), out-of-order
-        and non-finite measurements refused, steps without any measurement yet (force 0 N) and
-        steps with a stale one.
+        and non-finite measurements refused, steps without any measurement yet (force 0 N),
+        steps with a stale one, and waits for the rig that timed out (:meth:`count_wait`).
 
     """
 
@@ -478,6 +478,16 @@ class RemoteRigPlant:
         self.counts['measurements'] += 1
         self._age = 0
         return True
+
+    @property
+    def answered(self):
+        """True once a measurement came in after the last step (the rig took the command)."""
+        return self.stamp_s is not None and self._age == 0
+
+    def count_wait(self, answered):
+        """Count the outcome of a bounded wait for :attr:`answered` (False: timed out)."""
+        if not answered:
+            self.counts['wait_timeouts'] += 1
 
     def step(self, dt, x, v, i_cmd):
         """

@@ -39,7 +39,9 @@ on ``displacement_command_topic`` (std_msgs/Float64 [m], reliable, depth 10) and
 force of the rig's measurement stream (``measurement_topic``, sensor_msgs/JointState as the rig
 publishes it; best effort, depth 10: only the newest matters) through
 :class:`quarter_car_sim.hil.RemoteRigPlant`; the status carries ``hil`` (tracking RMS / peak of
-command vs measured displacement, link counts). ``probe:=true`` runs
+desired vs measured displacement, link counts). With ``hil_wait_s > 0`` each step first waits (at
+most that long, timeouts counted) for the rig's answer to the previous command, so an overloaded
+machine slows the loop down instead of letting the car run on stale forces. ``probe:=true`` runs
 :class:`quarter_car_sim.probing.CurrentProbe` over the law's current (also in fail-safe, so
 the identifier sees every current bin); the status carries ``probe``.
 
@@ -158,6 +160,10 @@ class QuarterCarNode(Node):
                          '[1/s] (0 = fixed)', (0.0, 100.0)),
             stale_after_s=d('hil_stale_s', 0.05, 'plant rig: measurements older than this [s] '
                             'count the step as stale (the last force is kept)', (0.001, 10.0)))
+        self.hil_wait_s = d('hil_wait_s', 0.0, 'plant rig: wait up to this long [s, wall] for '
+                            'the rig\'s answer to the last command before the next step (0 = '
+                            'never wait: hard real time; > 0: the loop slows down to the rig '
+                            'instead of running on stale forces)', (0.0, 1.0))
         probe_on = d('probe', False, 'Probe the least-filled current bin now and then so the '
                      'identifier sees every current (quarter_car_sim.probing)')
         probe_opts = dict(
@@ -189,6 +195,7 @@ class QuarterCarNode(Node):
         self.trace = live_loop.TraceLog(self.log_file, self.dt) if self.log_file else None
         self.timing = live_loop.LoopTiming(self.dt / self.rtf if self.rtf > 0 else None)
         self.lock = threading.Lock()
+        self.answered = threading.Condition(self.lock)   # plant rig: a measurement came
         self.first_normal_t = math.nan
 
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -248,8 +255,9 @@ class QuarterCarNode(Node):
         except ValueError as exc:
             self.drops.count('undecodable_measurement', detail=str(exc))
             return
-        with self.lock:
+        with self.answered:
             self.remote.receive(*sample)
+            self.answered.notify()
 
     def control_loop(self):
         """Run the paced control steps until shutdown (control thread)."""
@@ -283,7 +291,10 @@ class QuarterCarNode(Node):
                 if self.remote is None:
                     new = loop.advance()
                 else:
-                    with self.lock:
+                    with self.answered:
+                        if self.hil_wait_s > 0 and loop.steps > 0:
+                            self.remote.count_wait(self.answered.wait_for(
+                                lambda: self.remote.answered, self.hil_wait_s))
                         new = loop.advance()
                     disp.data = self.remote.last_command_m
                     self.drops.publish(self.disp_pub, disp)
@@ -359,11 +370,10 @@ def main(args=None):
     sys.setswitchinterval(0.0005)
     # ValueError, OSError: bad parameter, road or truth file
     # SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
-    # sets and runs the status timer; with plant rig it also takes the rig's 1 kHz
-    # measurements: EventsExecutor (a third of the CPU time of the SingleThreadedExecutor)
+    # sets and runs the status timer (with plant rig also the rig's measurements; with the
+    # EventsExecutor here the rig received a fifth of the commands the control thread sent)
     return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError),
-                    run=lambda node: spin_node(node, events=node.remote is not None),
-                    finish=_finish, args=args)
+                    run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
 
 
 def _finish(node):
