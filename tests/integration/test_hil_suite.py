@@ -151,6 +151,8 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
         assert listener.wait_for(lambda: len(car_st) > n_status + 5, HANG_S, procs=procs)
         st = car_status()
         hil = st['hil']
+        n_rig = len(rig_st)             # a rig status published after the car's status
+        assert listener.wait_for(lambda: len(rig_st) > n_rig + 1, HANG_S, procs=procs)
         rig_status = latest_status(rig_st)
         for proc in (car, rig, ident):        # car first: the rig then times the car out
             assert proc.stop() == 0, proc.output()[-3000:]
@@ -158,7 +160,12 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     cmds = rig_status['displacement_commands']
     assert cmds['accepted'] > 0 and cmds['refused_non_finite'] == 0
     assert rig_status['samples_published'] > 0 and rig_status['current_commands'] > 0
-    assert hil['counts']['measurements'] > 0
+    # lockstep: one sample per command taken (plus samples of its own clock if the car fell
+    # silent); the car cannot have taken more measurements than the rig published
+    taken = sum(cmds[k] for k in ('accepted', 'clamped_low', 'clamped_high',
+                                  'refused_non_finite'))
+    assert rig_status['samples_published'] >= taken
+    assert 0 < hil['counts']['measurements'] <= rig_status['samples_published']
     assert hil['counts']['non_finite'] == 0 and hil['counts']['out_of_order'] == 0
     tr = hil['tracking']
     assert tr['n'] > 0 and math.isfinite(tr['rms_m']) and math.isfinite(hil['travel_rms_m'])
