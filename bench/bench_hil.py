@@ -9,6 +9,10 @@ Skyhook (true Kwok-current parameters through the supervisor) on an ISO 8608 cla
   with polynomial extrapolation, and with the adaptive horizon;
 - ride metrics (Wk-weighted body acceleration RMS, travel RMS, tyre load RMS) of each HIL run
   against model-in-the-loop (ratio);
+- the ROS 2 link simulated in one process (``hil.SimulatedLink``: the rig node's guarded
+  actuator, the car's ``RemoteRigPlant``) with 0, 5 and 20 ms of message latency: tracking
+  error and ride against model-in-the-loop, without compensation, with the fixed horizon and
+  with the adaptive one;
 - the comfort cost of the current probe (Wk RMS increase) and per-bin sample counts with and
   without probing.
 
@@ -75,6 +79,22 @@ def main():
               f'{tr["delay_s"] * 1e3:9.2f} {horizon:10.2f} '
               + ' '.join(f'{ride[k] / ref[k]:26.3f}' for k in ride_keys))
         records[(kind, label)] = rec
+    # the ROS 2 link, simulated: message latency on top of the actuator
+    print('ROS 2 link simulated (first-order actuator, force one sample late + latency):')
+    print(f'{"latency_ms":>10s} {"comp":10s} {"rms_mm":>8s} {"peak_mm":>8s} {"horizon_ms":>10s} '
+          f'{"wk/ref":>8s} {"travel/ref":>10s}')
+    for latency in (0, 5, 20):
+        for comp, gain in (('none', 0.0), ('poly', 0.0), ('poly', 2.0)):
+            link = hil.make_simulated_link(actuator='first', compensation=comp,
+                                           adapt_gain=gain, latency_steps=latency, rng=1,
+                                           delay_s=0.015)
+            _, ride = run(link, args.seconds)
+            tr = link.monitor.as_dict()
+            horizon = link.remote.compensator.delay_s * 1e3 if comp == 'poly' else float('nan')
+            label = comp if gain == 0 else 'adaptive'
+            print(f'{latency:10d} {label:10s} {tr["rms_m"] * 1e3:8.3f} {tr["peak_m"] * 1e3:8.3f} '
+                  f'{horizon:10.2f} {ride["rms_body_accel_wk"] / ref["rms_body_accel_wk"]:8.3f} '
+                  f'{ride["rms_suspension_travel"] / ref["rms_suspension_travel"]:10.3f}')
     # probing cost and bin coverage (model in the loop, so only the probe differs)
     rec_law, ref_p = run(live_loop.make_plant('kwok-current'), args.probe_seconds)
     law = CurrentProbe()

@@ -13,7 +13,7 @@ At the end it writes ``summary.json`` and plots into ``--out``
 Usage (venv python)::
 
     .venv/bin/python launch_scripts/run_suite.py [--duration 30] [--out suite_out]
-        [--config sim|replay] [--file PATH ...] [--real-time | --faster | --rate-factor F]
+        [--config sim|replay|hil] [--file PATH ...] [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
         [--external-controller]
 
@@ -76,7 +76,7 @@ def load_config(config='sim', params=None):
 
     Parameters
     ----------
-    config : {'sim', 'replay'}
+    config : {'sim', 'replay', 'hil'}
         Which shipped configuration (``launch_scripts/config/suite_<config>.yaml``).
     params : path, optional
         A parameter YAML of your own instead (same layout).
@@ -669,6 +669,31 @@ def progress_line(rec, elapsed):
     return f'[{elapsed:6.1f} s] rig {n_meas} samples | {ident} | {car}'
 
 
+def hil_report_config(cfg):
+    """Config for the report of a HIL run: the passive reference drives the rig's damper."""
+    import copy
+    report = copy.deepcopy(cfg)
+    set_param(report, QC, 'plant', node_params(cfg, RIG).get('plant', 'spencer'))
+    set_param(report, QC, 'truth_file', node_params(cfg, RIG).get('truth_file', ''))
+    return report
+
+
+def add_hil_summary(summary, rec, cfg, out):
+    """Add tracking error and identification quality vs the cam rig (``--config hil``)."""
+    from mr_damper_model.columnlog import finite_or_none
+    from quarter_car_sim.hil import format_hil_summary, hil_summary
+    with rec.lock:
+        status = dict(rec.status)
+    rig = node_params(cfg, RIG)
+    summary['hil'] = hil_summary(status.get('quarter_car'), status.get('rig'),
+                                 (summary.get('identification') or {}).get('parameters'),
+                                 plant=rig.get('plant', 'spencer'),
+                                 truth_file=rig.get('truth_file', ''))
+    (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2,
+                                                 allow_nan=False))
+    print(format_hil_summary(summary['hil']), flush=True)
+
+
 def parse_args(argv):
     """Parse the launcher's command line."""
     p = argparse.ArgumentParser(
@@ -678,8 +703,9 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay'), default='sim',
-                   help='sim: virtual rig; replay: a CSV or bag replayed into the identifier')
+    p.add_argument('--config', choices=('sim', 'replay', 'hil'), default='sim',
+                   help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
+                        'hil: the rig follows the car (hardware in the loop, docs/hil.md)')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -819,9 +845,13 @@ def main(argv=None):
         pass
     try:
         from quarter_car_sim import suite_report
-        summary = suite_report.make_report(out, duration_s=elapsed, config=cfg,
+        hil = node_params(cfg, QC).get('plant') == 'rig'
+        summary = suite_report.make_report(out, duration_s=elapsed,
+                                           config=hil_report_config(cfg) if hil else cfg,
                                            plots=not args.no_plots)
         print(suite_report.format_summary(summary), flush=True)
+        if hil:
+            add_hil_summary(summary, rec, cfg, out)
     except Exception as exc:  # noqa: B902 - the run itself succeeded; say why there is no summary
         print(f'run_suite: no summary: {type(exc).__name__}: {exc}', file=sys.stderr)
         status = status or 1

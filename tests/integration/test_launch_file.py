@@ -99,7 +99,7 @@ def test_three_nodes_with_installed_console_scripts(launch_description):
         assert func in {f.name for f in tree.body if isinstance(f, ast.FunctionDef)}
 
 
-@pytest.mark.parametrize('config', ['sim', 'replay'])
+@pytest.mark.parametrize('config', ['sim', 'replay', 'hil'])
 def test_one_parameter_file_whose_keys_are_the_node_names(launch_description, config):
     items = launch_description.args[0]
     args = {a.args[0]: a.kwargs for a in items if 'executable' not in a.kwargs}
@@ -141,7 +141,7 @@ def test_node_names_match_the_nodes_and_the_launcher(launch_description):
     assert run_suite.NODES == {n['name']: n['executable'] for n in nodes}
 
 
-@pytest.mark.parametrize('config', ['sim', 'replay'])
+@pytest.mark.parametrize('config', ['sim', 'replay', 'hil'])
 def test_yaml_parameters_are_declared_by_the_nodes(config):
     """Every parameter in the YAML is one the node declares (typos would be silently ignored)."""
     cfg = yaml.safe_load((CONFIG_DIR / f'suite_{config}.yaml').read_text())

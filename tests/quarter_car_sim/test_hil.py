@@ -147,3 +147,92 @@ def test_run_loop_records_what_the_monitor_saw():
     assert e['peak_m'] == pytest.approx(mon['peak_m'], rel=1e-12)
     assert np.all(np.isfinite(out['command']))
     assert not np.array_equal(out['command'], out['travel'])     # compensated command
+
+
+# ------------------------------------------------------------ remote rig (over ROS 2 topics)
+def test_remote_plant_over_a_zero_latency_link_reproduces_the_in_process_hil_plant():
+    # same rig seed, same actuator and compensator: the remote plant's force is the previous
+    # rig sample's, exactly HilPlant's one-sample-late feedback
+    seconds = 2.0
+    ref, _ = _run(hil.make_hil_plant(actuator='first', compensation='poly', rng=5), seconds)
+    link = hil.make_simulated_link(actuator='first', compensation='poly', rng=5,
+                                   delay_s=ServoActuator('first').equivalent_delay_s)
+    got, _ = _run(link, seconds)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+    counts = link.remote.counts
+    assert counts['measurements'] == got.shape[0] and counts['no_measurement_steps'] == 1
+    assert counts['gaps'] == counts['stale_steps'] == counts['out_of_order'] == 0
+
+
+def test_remote_plant_counts_refused_gapped_and_stale_measurements():
+    plant = hil.make_remote_plant(DT, compensation='none', stale_after_s=0.005)
+    assert plant.step(DT, 0.01, 0.0, 1.0) == 0.0              # nothing measured yet
+    assert not plant.answered
+    assert plant.receive(0.0, 0.001, 0.0, 100.0, 1.0)
+    assert plant.answered                                      # the rig took the command
+    assert plant.step(DT, 0.01, 0.0, 1.0) == 100.0
+    assert not plant.answered
+    plant.count_wait(False)
+    plant.count_wait(True)
+    assert not plant.receive(math.nan, 0.0, 0.0, 0.0, 0.0)     # non-finite: refused
+    assert not plant.receive(0.0, 0.0, 0.0, 0.0, 0.0)          # same stamp: refused
+    assert plant.receive(0.004, 0.002, 0.0, 50.0, 1.5)         # 3 samples missing
+    for _ in range(10):                                        # no new measurement: stale
+        assert plant.step(DT, 0.01, 0.0, 1.0) == 50.0
+    assert plant.current == 1.5 and plant.last_command_m == 0.01
+    st = plant.as_dict()
+    assert st['counts'] == {'measurements': 2, 'gaps': 3, 'out_of_order': 1, 'non_finite': 1,
+                            'no_measurement_steps': 1, 'stale_steps': 5, 'wait_timeouts': 1}
+    assert st['tracking']['n'] == 11
+    assert st['tracking']['peak_m'] == pytest.approx(0.009)
+    assert st['travel_rms_m'] == pytest.approx(0.01)
+    with pytest.raises(hil.HilError, match='stale_after_s'):
+        hil.make_remote_plant(DT, stale_after_s=0.0)
+    with pytest.raises(hil.HilError, match='compensation'):
+        hil.make_remote_plant(DT, compensation='smith')
+
+
+def test_adaptive_horizon_over_a_latent_link_grows_by_the_latency_and_cuts_the_error():
+    # 5 ms of message latency the initial horizon does not know of: the adapted horizon ends
+    # about 5 ms above the one adapted without latency, and the tracking error falls below the
+    # fixed horizon's
+    seconds = 8.0
+    out = {}
+    for latency, gain in ((0, 2.0), (5, 0.0), (5, 2.0)):
+        link = hil.make_simulated_link(actuator='first', latency_steps=latency,
+                                       adapt_gain=gain, delay_s=0.014, rng=6)
+        _run(link, seconds)
+        out[latency, gain] = (link.remote.compensator.delay_s, link.monitor.as_dict())
+    assert out[5, 0.0][0] == pytest.approx(0.014)
+    grown = out[5, 2.0][0] - out[0, 2.0][0]
+    assert 0.003 < grown < 0.0065
+    assert out[5, 2.0][1]['rms_m'] < 0.7 * out[5, 0.0][1]['rms_m']
+    # adapted: no remaining delay left (least squares, whole run)
+    assert abs(out[5, 2.0][1]['delay_s']) < 0.25 * abs(out[5, 0.0][1]['delay_s'])
+
+
+def test_cam_rig_comparison_ranks_the_truth_with_the_cam_fit_and_a_wrong_model_below():
+    from mr_damper_model import presets
+    model, params = presets.thesis_kwok_current()
+    truth = dict(params, i_ref_a=model.options['i_ref_a'])
+    good = hil.cam_rig_comparison(truth, 'kwok-current', maxiter=20)
+    # the truth is as good as a fit on the validation record (noise only), the fit is good
+    assert good['hil_nrmse_percent'] <= good['cam_nrmse_percent'] + 0.05
+    assert good['cam_nrmse_percent'] < 2.0 and good['ratio'] < 1.05
+    wrong = dict(truth, **{k: 1.5 * v for k, v in params.items()})
+    bad = hil.cam_rig_comparison(wrong, 'kwok-current', maxiter=20)
+    assert bad['hil_nrmse_percent'] > 3 * good['hil_nrmse_percent']
+    assert bad['cam_nrmse_percent'] == pytest.approx(good['cam_nrmse_percent'])    # seeded
+
+
+def test_hil_summary_reports_the_tracking_and_probe_of_the_statuses():
+    qc = {'hil': {'tracking': {'rms_m': 0.001, 'peak_m': 0.004, 'delay_s': 0.0005, 'n': 10},
+                  'travel_rms_m': 0.01, 'horizon_s': 0.016, 'counts': {'measurements': 10}},
+          'probe': {'covered': 21, 'bins': 21, 'covered_s': 40.0, 'windows': 40}}
+    rig = {'displacement_commands': {'accepted': 10}, 'samples_published': 12}
+    s = hil.hil_summary(qc, rig, None)
+    assert s['tracking_rms_m'] == 0.001 and s['travel_rms_m'] == 0.01
+    assert s['rig_commands'] == {'accepted': 10} and s['rig_samples'] == 12
+    assert s['identification'] == {'note': 'no valid identified parameters'}
+    text = hil.format_hil_summary(s)
+    assert 'tracking RMS 1.00 mm' in text and '21/21 bins' in text

@@ -1,9 +1,14 @@
 """
-Coil current commands checked against the coil range before the rig applies them (no ROS).
+Commands checked before the rig applies them: coil current and piston displacement (no ROS).
 
 A command below ``i_min_a`` or above ``i_max_a`` is clamped to the range and counted; a NaN or
 infinite command is refused (the coil keeps its current) and counted. ``counts`` goes into the
 rig's status; the node logs a throttled warning for each clamped or refused command.
+
+Displacement commands (hardware-in-the-loop, ``excitation:=commanded``) go through
+:class:`DisplacementCommandGuard` the same way: clamped to the stroke, non-finite refused, and a
+silent commander makes the actuator hold, then return to neutral (all counted);
+:class:`CommandFollower` samples the rig with the guarded target.
 """
 import math
 
@@ -66,3 +71,151 @@ class CurrentCommandLimiter:
             outcome, current = 'accepted', i_a
         self.counts[outcome] += 1
         return current, outcome
+
+
+#: Counter keys of :attr:`DisplacementCommandGuard.counts`.
+DISPLACEMENT_OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite',
+                         'stale_timeouts', 'stale_samples')
+
+
+class DisplacementCommandGuard:
+    """
+    Displacement commands of the rig's actuator: stroke clamp, non-finite refusal, stale timeout.
+
+    A command outside ``center_m +- stroke_m`` is clamped to the stroke end and counted; a NaN or
+    infinite command is refused (the previous one stays) and counted. When no new command has
+    come for ``timeout_s`` (sample time of the rig), the rig holds the last command until then
+    and afterwards returns to the neutral position ``center_m`` at ``return_speed_m_s`` (one
+    ``stale_timeouts`` per silence, ``stale_samples`` for every sample past the timeout); the
+    next command takes over again at once.
+
+    Parameters
+    ----------
+    stroke_m : float
+        Half stroke [m] around ``center_m`` (> 0).
+    timeout_s : float
+        Command age [s] after which the actuator returns to neutral (> 0).
+    return_speed_m_s : float
+        Speed of the return to neutral [m/s] (> 0).
+    center_m : float
+        Neutral position [m].
+
+    Raises
+    ------
+    ValueError
+        On a non-finite or non-positive setting (the message names the argument).
+
+    """
+
+    def __init__(self, stroke_m=0.08, timeout_s=0.05, return_speed_m_s=0.05, center_m=0.0):
+        for name, value in (('stroke_m', stroke_m), ('timeout_s', timeout_s),
+                            ('return_speed_m_s', return_speed_m_s)):
+            if not (math.isfinite(float(value)) and float(value) > 0):
+                raise ValueError(f'`{name}` must be a positive number, got {value}')
+        if not math.isfinite(float(center_m)):
+            raise ValueError(f'`center_m` must be finite, got {center_m}')
+        self.stroke_m = float(stroke_m)
+        self.timeout_s = float(timeout_s)
+        self.return_speed_m_s = float(return_speed_m_s)
+        self.center_m = float(center_m)
+        self.counts = dict.fromkeys(DISPLACEMENT_OUTCOMES, 0)
+        self.last_command_t = None
+        self.target_m = self.center_m
+        self._stale = False
+        self._t_prev = None
+
+    def command(self, x_m, t_s):
+        """
+        Take one displacement command received at rig time ``t_s`` [s].
+
+        Parameters
+        ----------
+        x_m : float
+            Requested piston displacement [m].
+        t_s : float
+            Rig sample time [s] when it arrived.
+
+        Returns
+        -------
+        target_m : float or None
+            The displacement the actuator will follow [m]; None if refused.
+        outcome : str
+            One of ``accepted``, ``clamped_low``, ``clamped_high``, ``refused_non_finite``
+            (also counted).
+
+        """
+        x_m = float(x_m)
+        lo, hi = self.center_m - self.stroke_m, self.center_m + self.stroke_m
+        if not math.isfinite(x_m):
+            self.counts['refused_non_finite'] += 1
+            return None, 'refused_non_finite'
+        if x_m < lo:
+            outcome, x_m = 'clamped_low', lo
+        elif x_m > hi:
+            outcome, x_m = 'clamped_high', hi
+        else:
+            outcome = 'accepted'
+        self.counts[outcome] += 1
+        self.target_m = x_m
+        self.last_command_t = float(t_s)
+        self._stale = False
+        return x_m, outcome
+
+    def target(self, t_s):
+        """
+        Return the actuator command [m] for the rig sample at time ``t_s`` [s].
+
+        Before the first command: neutral. Within ``timeout_s`` of the last command: that
+        command. Later: a ramp back to neutral (counted).
+        """
+        t_s = float(t_s)
+        dt = 0.0 if self._t_prev is None else max(t_s - self._t_prev, 0.0)
+        self._t_prev = t_s
+        if self.last_command_t is None or t_s - self.last_command_t <= self.timeout_s:
+            return self.target_m
+        if not self._stale:
+            self._stale = True
+            self.counts['stale_timeouts'] += 1
+        self.counts['stale_samples'] += 1
+        step = self.return_speed_m_s * dt
+        gap = self.center_m - self.target_m
+        self.target_m = self.center_m if abs(gap) <= step else self.target_m + math.copysign(
+            step, gap)
+        return self.target_m
+
+
+class CommandFollower:
+    """
+    A virtual rig whose actuator follows guarded displacement commands, sampled one by one.
+
+    Parameters
+    ----------
+    rig : mr_damper_rig.virtual_rig.VirtualRig
+        Rig driven by a :class:`mr_damper_rig.actuator.CommandedMotion`.
+    guard : DisplacementCommandGuard
+        Checks the commands and supplies the target of each sample.
+
+    """
+
+    def __init__(self, rig, guard):
+        from mr_damper_rig.actuator import CommandedMotion
+        if not isinstance(rig.excitation, CommandedMotion):
+            raise ValueError('the rig must be driven by a CommandedMotion excitation')
+        self.rig = rig
+        self.guard = guard
+        self.samples = 0
+
+    @property
+    def t_next(self):
+        """Rig time [s] of the next sample."""
+        return self.samples * self.rig.dt
+
+    def command(self, x_m):
+        """Take a displacement command [m] now (``DisplacementCommandGuard.command``)."""
+        return self.guard.command(x_m, self.t_next)
+
+    def sample(self):
+        """Step the actuator to the guarded target; return the DAQ sample ``(t, x, v, f, i)``."""
+        self.rig.excitation.command(self.guard.target(self.t_next))
+        self.samples += 1
+        return self.rig.sample()

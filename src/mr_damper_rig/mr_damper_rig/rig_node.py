@@ -20,6 +20,21 @@ current command is checked by :class:`mr_damper_rig.commands.CurrentCommandLimit
 ``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
 with a throttled warning.
 
+Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
+displacement commands [m] of ``displacement_command_topic`` (std_msgs/Float64, reliable, depth
+10; the quarter car's suspension travel) through a servo-actuator model
+(:class:`mr_damper_rig.actuator.ServoActuator`: ``actuator`` order first | second | ideal,
+``actuator_tau_s``, ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``). The rig
+runs in lockstep with the car: each command received steps the actuator and the damper by one
+DAQ period (``1 / rate_hz``, the car's control period) and publishes that sample at once, so a
+loaded machine delays the loop but never lets the two clocks drift apart. Commands are checked
+by :class:`mr_damper_rig.commands.DisplacementCommandGuard`: out of ``+-stroke_m`` clamped,
+non-finite refused (the sample is still taken, with the last command held). When the car falls
+silent for longer than ``command_timeout_s`` (wall time times ``rate_factor``), the rig runs on
+its own clock from the last command on: it holds that command for ``command_timeout_s`` and then
+returns to neutral at ``return_speed_m_s``; all counted in the status
+(``displacement_commands``). ``wait_for_subscribers`` and ``duration_s`` do not apply.
+
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
 """
@@ -41,7 +56,7 @@ from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QO
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
-from .commands import CurrentCommandLimiter
+from .commands import CommandFollower, CurrentCommandLimiter, DisplacementCommandGuard
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
 #: Current commands: only the newest matters; a command the rig could not take in time is lost
@@ -70,7 +85,9 @@ def build_virtual_rig(options):
     ----------
     options : dict
         ``plant``, ``excitation``, ``amplitude_m``, ``frequency_hz``, ``currents_a``,
-        ``step_s``, ``current_source``, ``noise_n``, ``seed``, ``rate_hz``, ``truth_file``.
+        ``step_s``, ``current_source``, ``noise_n``, ``seed``, ``rate_hz``, ``truth_file``;
+        with ``excitation`` ``'commanded'`` also ``actuator``, ``actuator_tau_s``,
+        ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``.
 
     Returns
     -------
@@ -86,10 +103,17 @@ def build_virtual_rig(options):
     if options['truth_file']:
         params = load_params(options['truth_file'], model=options['plant']).parameters
     plant = make_plant(options['plant'], params)
-    excitation = exc_mod.make_excitation(options['excitation'],
-                                         amplitude_m=options['amplitude_m'],
-                                         frequency_hz=options['frequency_hz'],
-                                         seed=options['seed'])
+    if options['excitation'] == 'commanded':
+        from .actuator import CommandedMotion, ServoActuator
+        excitation = CommandedMotion(ServoActuator(
+            options['actuator'], 1.0 / options['rate_hz'], tau_s=options['actuator_tau_s'],
+            wn_rad_s=options['actuator_wn_rad_s'], zeta=options['actuator_zeta'],
+            delay_s=options['actuator_delay_s']))
+    else:
+        excitation = exc_mod.make_excitation(options['excitation'],
+                                             amplitude_m=options['amplitude_m'],
+                                             frequency_hz=options['frequency_hz'],
+                                             seed=options['seed'])
     if options['current_source'] == 'command':
         schedule = exc_mod.ConstantSchedule(0.0)   # until the first command arrives
     elif options['current_source'] == 'schedule':
@@ -141,7 +165,28 @@ class RigNode(Node):
         d('truth_file', '', ParameterDescriptor(
             description='Parameter file of the true damper (default: presets)'))
         d('excitation', 'cam', ParameterDescriptor(
-            description='cam | multisine | chirp | random'))
+            description='cam | multisine | chirp | random | commanded (hardware in the loop: '
+            'follow displacement_command_topic through the actuator model)'))
+        # hardware in the loop (excitation commanded)
+        d('displacement_command_topic', '/mr_damper/displacement_command', ParameterDescriptor(
+            description='commanded: piston displacement commands [m] (std_msgs/Float64)'))
+        d('actuator', 'first', ParameterDescriptor(
+            description='commanded: servo actuator model first | second | ideal'))
+        d('actuator_tau_s', 0.012, ParameterDescriptor(
+            description='commanded: time constant of the first-order actuator [s]'))
+        d('actuator_wn_rad_s', 2 * math.pi * 25.0, ParameterDescriptor(
+            description='commanded: natural frequency of the second-order actuator [rad/s]'))
+        d('actuator_zeta', 0.7, ParameterDescriptor(
+            description='commanded: damping ratio of the second-order actuator [-]'))
+        d('actuator_delay_s', 0.002, ParameterDescriptor(
+            description='commanded: transport delay of the actuator [s] (whole samples)'))
+        d('stroke_m', 0.08, ParameterDescriptor(
+            description='commanded: half stroke [m]; commands beyond are clamped (counted)'))
+        d('command_timeout_s', 0.05, ParameterDescriptor(
+            description='commanded: hold the last command this long [s, rig time], then '
+            'return to neutral (counted)'))
+        d('return_speed_m_s', 0.05, ParameterDescriptor(
+            description='commanded: speed of the return to neutral [m/s]'))
         d('amplitude_m', 0.03, ParameterDescriptor(description='Excitation amplitude [m]'))
         d('frequency_hz', 1.1, ParameterDescriptor(description='Excitation frequency [Hz]'))
         d('currents_a', [0.0, 0.5, 1.0, 1.5, 2.0], ParameterDescriptor(
@@ -164,6 +209,7 @@ class RigNode(Node):
             raise ValueError(f'rate_factor must be >= 0, got {self.rate_factor}')
         self.exit_on_end = bool(p('exit_on_end'))
         self.rig = None
+        self.follower = None
         if self.mode in ('csv', 'bag'):
             if not p('file'):
                 raise DataError(f'mode {self.mode} needs the `file` parameter')
@@ -176,11 +222,18 @@ class RigNode(Node):
         elif self.mode == 'sim':
             options = {k: p(k) for k in ('plant', 'excitation', 'amplitude_m', 'frequency_hz',
                                          'currents_a', 'step_s', 'current_source', 'noise_n',
-                                         'seed', 'rate_hz', 'truth_file')}
+                                         'seed', 'rate_hz', 'truth_file', 'actuator',
+                                         'actuator_tau_s', 'actuator_wn_rad_s', 'actuator_zeta',
+                                         'actuator_delay_s')}
             options['currents_a'] = [float(c) for c in options['currents_a']]
             self.rig = build_virtual_rig(options)
+            sampler = self.rig
+            if options['excitation'] == 'commanded':
+                sampler = self.follower = CommandFollower(self.rig, DisplacementCommandGuard(
+                    float(p('stroke_m')), float(p('command_timeout_s')),
+                    float(p('return_speed_m_s')), self.rig.excitation.center_m))
             t0 = self.get_clock().now().nanoseconds * 1e-9
-            self.source = SimSource(self.rig, float(p('rate_hz')), t0, float(p('duration_s')))
+            self.source = SimSource(sampler, float(p('rate_hz')), t0, float(p('duration_s')))
             self.get_logger().info(f'virtual rig: {options["plant"]} damper, '
                                    f'{options["excitation"]} excitation, x{self.rate_factor}')
         else:
@@ -196,6 +249,9 @@ class RigNode(Node):
             if p('current_source') == 'command':
                 self.drops.subscribe(self, Float64, p('current_command_topic'), self._on_command,
                                      COMMAND_QOS, 'command_lost')
+        if self.follower is not None:
+            self.drops.subscribe(self, Float64, p('displacement_command_topic'),
+                                 self._on_displacement, COMMAND_QOS, 'displacement_command_lost')
         self._flow_window = int(p('flow_window'))
         self._flow_received = None   # consumer's samples_received (latest, first seen)
         self._flow_base = None
@@ -205,6 +261,8 @@ class RigNode(Node):
         self._msg = None
         self.published = 0
         self.behind_max = 0
+        self._last_cmd_wall = None   # commanded: wall time of the last command
+        self._free = 0               # commanded: samples run on the rig's own clock since then
         self.commands = 0
         self.flow_restarts = 0
         self.finished = False
@@ -247,6 +305,38 @@ class RigNode(Node):
         self.rig.command_current(current)
         self.commands += 1
 
+    def _on_displacement(self, msg):
+        target, outcome = self.follower.command(msg.data)
+        if outcome != 'accepted':
+            what = 'refused' if target is None else f'clamped to {target} m'
+            self.get_logger().warning(
+                f'displacement command {msg.data} m {what} ({outcome}, '
+                f'{self.follower.guard.counts[outcome]} in all)', throttle_duration_sec=1.0)
+        if self._start is None:
+            self._start = time.monotonic()
+            self.source.t0 = self.get_clock().now().nanoseconds * 1e-9
+        self._last_cmd_wall = time.monotonic()
+        self._free = 0
+        self._publish_sample()   # lockstep: one rig sample per car step
+
+    def _publish_sample(self):
+        self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
+        self.published += 1
+        if not self._meas.publish(self._msg):
+            self.drops.count('measurement_not_published')
+
+    def _tick_commanded(self):
+        """Run on the rig's own clock while the car is silent (hold, then back to neutral)."""
+        if self._last_cmd_wall is None:
+            return
+        silent_s = (time.monotonic() - self._last_cmd_wall) * (self.rate_factor or 1.0)
+        if silent_s <= self.follower.guard.timeout_s:
+            return
+        due = int(silent_s * self.follower.rig.sample_rate_hz) - self._free
+        for _ in range(max(0, min(due, 5000))):
+            self._publish_sample()
+            self._free += 1
+
     def _on_flow(self, msg):
         try:
             received = int(status_from_msg(msg)['samples_received'])
@@ -263,6 +353,9 @@ class RigNode(Node):
 
     def _tick(self):
         if self.finished:
+            return
+        if self.follower is not None:
+            self._tick_commanded()
             return
         if self._start is None:
             subs = self._meas.get_subscription_count()
@@ -329,6 +422,11 @@ class RigNode(Node):
                   'current_commands': self.commands, 'commands': dict(self.limiter.counts),
                   'dropped': self.drops.counts(), 'flow_restarts': self.flow_restarts,
                   'realtime': self.realtime}
+        if self.follower is not None:
+            status['displacement_commands'] = dict(self.follower.guard.counts)
+            status['actuator'] = {'kind': self.follower.rig.excitation.actuator.kind,
+                                  'equivalent_delay_s':
+                                      self.follower.rig.excitation.actuator.equivalent_delay_s}
         if self.rig is not None:
             status['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
         self.drops.publish(self._pub_status, status_msg(status))

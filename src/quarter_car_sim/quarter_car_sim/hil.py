@@ -24,6 +24,14 @@ displacement (the inverse of its identified all-pole actuator model, derivatives
 differences) and adapts the ``a_i`` online; for a first-order lag that inverse is
 ``x + tau x'``, which is the first-order extrapolation over ``tau`` used here, and the adapted
 horizon plays the role of the adapted ``a1``.
+
+Over ROS 2 (``plant:=rig``, docs/hil.md) the rig is another process: :class:`RemoteRigPlant` has
+the same plant interface, takes the rig's measurements as they arrive (:meth:`receive`) and
+leaves the (compensated) displacement command for the node to publish after each step; the
+force the car uses is the latest measured one, at least one rig sample old. The rig's clock
+and the car's are both paced in real time, so the compensator's horizon (adapted online) covers
+the actuator's lag plus the message latency. :func:`cam_rig_comparison` rates a model the
+identifier learnt from road-induced motion against one learnt on the cam rig.
 """
 import math
 
@@ -326,7 +334,8 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
     Parameters
     ----------
     loop : quarter_car_sim.live_loop.ClosedLoop
-        The loop (its car has either the damper model or a :class:`HilPlant`).
+        The loop (its car has the damper model, a :class:`HilPlant` or a
+        :class:`SimulatedLink`).
     seconds : float
         Simulated time [s] (whole steps of ``loop.dt``).
     probe : quarter_car_sim.probing.CurrentProbe or None
@@ -338,14 +347,14 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
     -------
     dict of numpy.ndarray
         Per step: ``t`` [s], ``travel`` [m], ``z_s`` [m], ``a_s`` [m/s^2], ``damper_force``
-        [N], ``coil_current`` [A], ``i_cmd`` [A]; with a :class:`HilPlant`, also
+        [N], ``coil_current`` [A], ``i_cmd`` [A]; with a rig in the loop, also
         ``command`` [m] (the rig's displacement command) and ``measured`` [m] (its measured
         displacement).
 
     """
     n = int(round(seconds / loop.dt))
     car = loop.car
-    hil_plant = car.plant if isinstance(car.plant, HilPlant) else None
+    hil_plant = car.plant if isinstance(car.plant, (HilPlant, SimulatedLink)) else None
     keys = ('t', 'travel', 'z_s', 'a_s', 'damper_force', 'coil_current')
     rows = np.full((n, len(keys) + 3), math.nan)
     for k in range(n):
@@ -366,3 +375,438 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
         out['command'] = rows[:, -2]
         out['measured'] = rows[:, -1]
     return out
+
+
+#: Counter keys of :attr:`RemoteRigPlant.counts`.
+REMOTE_COUNTS = ('measurements', 'gaps', 'out_of_order', 'non_finite', 'no_measurement_steps',
+                 'stale_steps', 'wait_timeouts')
+
+
+class RemoteRigPlant:
+    """
+    Damper-plant interface over a rig in another process (measurements in, commands out).
+
+    Parameters
+    ----------
+    dt : float
+        Car step [s] (also the expected rig sample interval, for gap counting).
+    compensator : DelayCompensator or None
+        Delay compensation of the displacement command (None: the travel is sent as is).
+    stale_after_s : float
+        A measurement older than this [s of car time] counts the step as stale
+        (``stale_steps``); the car keeps using the last measured force.
+    adapt_every : int
+        Car steps between horizon adaptations of the compensator.
+    forgetting_s : float
+        Time constant [s] of the tracking monitor's recent-delay estimate.
+
+    Attributes
+    ----------
+    current : float
+        Latest measured coil current [A] (0 before the first measurement).
+    last_command_m : float
+        Displacement command [m] of the last step: what the node publishes.
+    monitor : TrackingMonitor
+        Desired displacement (the car's travel) vs the latest measured one, every step after
+        the first measurement.
+    counts : dict
+        :data:`REMOTE_COUNTS`: measurements taken, stamp gaps (missing samples), out-of-order
+        and non-finite measurements refused, steps without any measurement yet (force 0 N),
+        steps with a stale one, and waits for the rig that timed out (:meth:`count_wait`).
+
+    """
+
+    model_name = 'hil-remote'
+    params = {}
+    model_options = {}
+
+    def __init__(self, dt, compensator=None, *, stale_after_s=0.05, adapt_every=100,
+                 forgetting_s=1.0):
+        if not (math.isfinite(dt) and dt > 0):
+            raise HilError(f'`dt` must be > 0 s, got {dt}')
+        if not (math.isfinite(stale_after_s) and stale_after_s > 0):
+            raise HilError(f'`stale_after_s` must be > 0 s, got {stale_after_s}')
+        if int(adapt_every) != adapt_every or adapt_every < 1:
+            raise HilError(f'`adapt_every` must be an integer >= 1, got {adapt_every}')
+        self.dt = float(dt)
+        self.compensator = compensator
+        self.stale_steps = max(1, int(round(stale_after_s / self.dt)))
+        self.adapt_every = int(adapt_every)
+        self.monitor = TrackingMonitor(self.dt, forgetting_s)
+        self.reset()
+
+    def reset(self):
+        """Forget measurements, counts, compensator history and tracking sums."""
+        if self.compensator is not None:
+            self.compensator.reset()
+        self.monitor.reset()
+        self.counts = dict.fromkeys(REMOTE_COUNTS, 0)
+        self.current = 0.0
+        self.last_command_m = 0.0
+        self.measured_m = math.nan
+        self.force_n = math.nan
+        self.stamp_s = None
+        self._age = 0
+        self._travel2 = 0.0
+
+    def receive(self, t_s, x_m, v_m_s, f_n, i_a):
+        """
+        Take one rig measurement (stamp [s], displacement [m], velocity [m/s], force [N], A).
+
+        Returns
+        -------
+        bool
+            False if refused (non-finite value or stamp not after the last; counted).
+
+        """
+        if not all(math.isfinite(float(a)) for a in (t_s, x_m, v_m_s, f_n, i_a)):
+            self.counts['non_finite'] += 1
+            return False
+        t_s = float(t_s)
+        if self.stamp_s is not None:
+            step = t_s - self.stamp_s
+            if step <= 0:
+                self.counts['out_of_order'] += 1
+                return False
+            missing = int(round(step / self.dt)) - 1
+            if missing > 0:
+                self.counts['gaps'] += missing
+        self.stamp_s = t_s
+        self.measured_m = float(x_m)
+        self.force_n = float(f_n)
+        self.current = float(i_a)
+        self.counts['measurements'] += 1
+        self._age = 0
+        return True
+
+    @property
+    def answered(self):
+        """True once a measurement came in after the last step (the rig took the command)."""
+        return self.stamp_s is not None and self._age == 0
+
+    def count_wait(self, answered):
+        """Count the outcome of a bounded wait for :attr:`answered` (False: timed out)."""
+        if not answered:
+            self.counts['wait_timeouts'] += 1
+
+    def step(self, dt, x, v, i_cmd):
+        """
+        One car step: set the command for travel ``x`` [m] (velocity ``v`` [m/s]).
+
+        ``i_cmd`` [A] goes to the rig on its own topic (the node's current command); it is not
+        used here.
+
+        Returns
+        -------
+        float
+            The latest measured force [N] (resisting extension positive), 0 N before any.
+
+        """
+        u = float(x) if self.compensator is None else self.compensator(x)
+        self.last_command_m = u
+        if self.stamp_s is None:
+            self.counts['no_measurement_steps'] += 1
+            return 0.0
+        self._age += 1
+        if self._age > self.stale_steps:
+            self.counts['stale_steps'] += 1
+        mon = self.monitor
+        mon.update(x, v, self.measured_m)
+        self._travel2 += float(x) * float(x)
+        if self.compensator is not None and mon.n % self.adapt_every == 0:
+            self.compensator.adapt(mon.recent_delay_s, self.adapt_every * self.dt)
+        return self.force_n
+
+    def as_dict(self):
+        """
+        Status of the link.
+
+        Returns
+        -------
+        dict
+            ``tracking`` (:meth:`TrackingMonitor.as_dict`), ``travel_rms_m`` (RMS of the
+            desired displacement over the same steps), ``horizon_s`` (compensation horizon,
+            nan without compensator), ``last_command_m``, ``counts``.
+
+        """
+        n = self.monitor.n
+        return {'tracking': self.monitor.as_dict(),
+                'travel_rms_m': math.sqrt(self._travel2 / n) if n else math.nan,
+                'horizon_s': (self.compensator.delay_s if self.compensator is not None
+                              else math.nan),
+                'last_command_m': self.last_command_m,
+                'counts': dict(self.counts)}
+
+
+def make_remote_plant(dt=1e-3, *, compensation='poly', delay_s=0.014, order=2, adapt_gain=0.0,
+                      stale_after_s=0.05):
+    """
+    Build a :class:`RemoteRigPlant` with polynomial delay compensation (or none).
+
+    Parameters
+    ----------
+    dt : float
+        Car step [s].
+    compensation : {'poly', 'none'}
+        Polynomial extrapolation of the command, or the travel as is.
+    delay_s : float
+        Initial horizon [s]: the actuator's equivalent delay (first order: ``tau_s`` +
+        transport delay) plus the expected message latency.
+    order, adapt_gain :
+        Options of :class:`DelayCompensator`.
+    stale_after_s : float
+        See :class:`RemoteRigPlant`.
+
+    Returns
+    -------
+    RemoteRigPlant
+
+    """
+    if compensation == 'poly':
+        comp = DelayCompensator(dt, delay_s, order=order, adapt_gain=adapt_gain)
+    elif compensation == 'none':
+        comp = None
+    else:
+        raise HilError(f"`compensation` must be 'poly' or 'none', got {compensation!r}")
+    return RemoteRigPlant(dt, comp, stale_after_s=stale_after_s)
+
+
+class SimulatedLink:
+    """
+    :class:`RemoteRigPlant` and a guarded rig in one process, with a message latency.
+
+    What the ROS 2 nodes do, without ROS (tests and benches): each car step the command goes to
+    the rig (:class:`mr_damper_rig.commands.CommandFollower`), the rig takes one sample and
+    the measurement reaches the car ``latency_steps`` car steps later (0: before the next step,
+    i.e. the force is one sample late as in :class:`HilPlant`).
+
+    Parameters
+    ----------
+    remote : RemoteRigPlant
+        The car's side.
+    follower : mr_damper_rig.commands.CommandFollower
+        The rig's side (its rig's sample interval should be the car's step).
+    latency_steps : int
+        Extra car steps a measurement is in flight (>= 0).
+
+    """
+
+    def __init__(self, remote, follower, latency_steps=0):
+        if int(latency_steps) != latency_steps or latency_steps < 0:
+            raise HilError(f'`latency_steps` must be an integer >= 0, got {latency_steps}')
+        self.remote = remote
+        self.follower = follower
+        self.latency_steps = int(latency_steps)
+        self.model_name = remote.model_name
+        self.params, self.model_options = remote.params, remote.model_options
+        self.reset()
+
+    @property
+    def current(self):
+        """Coil current the car sees [A] (the latest measured one)."""
+        return self.remote.current
+
+    @property
+    def monitor(self):
+        """The car side's :class:`TrackingMonitor`."""
+        return self.remote.monitor
+
+    @property
+    def last_command_m(self):
+        """Displacement command of the last step [m]."""
+        return self.remote.last_command_m
+
+    @property
+    def last_measured_m(self):
+        """Latest measured displacement the car has [m]."""
+        return self.remote.measured_m
+
+    def reset(self):
+        """Reset both sides; nothing in flight."""
+        self.remote.reset()
+        self.follower.rig.reset()
+        self.follower.rig.excitation.reset()
+        self._flight = []
+
+    def step(self, dt, x, v, i_cmd):
+        """One car step over the link; return the force the car uses [N]."""
+        f = self.remote.step(dt, x, v, i_cmd)
+        self.follower.rig.command_current(i_cmd)
+        self.follower.command(self.remote.last_command_m)
+        self._flight.append(self.follower.sample())
+        while len(self._flight) > self.latency_steps:
+            self.remote.receive(*self._flight.pop(0))
+        return f
+
+
+def make_simulated_link(plant='kwok-current', *, actuator='first', compensation='poly',
+                        delay_s=None, order=2, adapt_gain=0.0, latency_steps=0, dt=1e-3,
+                        force_noise_n=2.0, daq_bits=16, rng=None, stroke_m=0.08,
+                        **actuator_options):
+    """
+    Build a :class:`SimulatedLink` (true damper ``plant`` on a virtual rig with an actuator).
+
+    ``delay_s`` (initial horizon) defaults to the actuator's equivalent delay plus the latency
+    and the one-sample feedback; the other arguments are those of :func:`make_hil_plant` and
+    :func:`make_remote_plant`.
+    """
+    from mr_damper_rig.actuator import CommandedMotion, ServoActuator
+    from mr_damper_rig.commands import CommandFollower, DisplacementCommandGuard
+    from mr_damper_rig.virtual_rig import VirtualRig
+    from quarter_car_sim.live_loop import make_plant
+    act = ServoActuator(actuator, dt, **actuator_options)
+    rig = VirtualRig(make_plant(plant), CommandedMotion(act), sample_rate_hz=1.0 / dt,
+                     force_noise_n=force_noise_n, daq_bits=daq_bits, rng=rng)
+    if delay_s is None:
+        delay_s = act.equivalent_delay_s + (latency_steps + 1) * dt
+    remote = make_remote_plant(dt, compensation=compensation, delay_s=delay_s, order=order,
+                               adapt_gain=adapt_gain)
+    follower = CommandFollower(rig, DisplacementCommandGuard(stroke_m, center_m=act.x0_m))
+    return SimulatedLink(remote, follower, latency_steps)
+
+
+def _nrmse_percent(params, data):
+    """NRMSE [%] (by the measured force range) of kwok-current ``params`` on ``data``."""
+    from mr_damper_model.models import get_model
+    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    with np.errstate(over='ignore', invalid='ignore'):
+        f = model.force(model.from_dict(params), data.x, data.v, i=data.i)
+    rmse = float(np.sqrt(np.mean((f - data.f) ** 2)))
+    return 100.0 * rmse / float(np.ptp(data.f)) if math.isfinite(rmse) else math.nan
+
+
+def cam_rig_record(plant='kwok-current', truth_file='', *, levels_a=(0.0, 0.5, 1.0, 1.5, 2.0),
+                   hold_s=4 / 1.1, seed=1, noise_n=2.0):
+    """
+    Record the true damper on the cam rig (1.1 Hz, 30 mm) over a current step schedule.
+
+    Parameters
+    ----------
+    plant, truth_file : str
+        True damper (``quarter_car_sim.live_loop.make_plant``): the same as the HIL rig's.
+    levels_a : sequence of float
+        Coil current levels [A].
+    hold_s : float
+        Time at each level [s] (4 cam periods).
+    seed : int
+        Load-cell noise seed.
+    noise_n : float
+        Load-cell noise standard deviation [N].
+
+    Returns
+    -------
+    mr_damper_model.data.DamperData
+
+    """
+    from mr_damper_rig.excitation import CamSine, StepSchedule
+    from mr_damper_rig.virtual_rig import VirtualRig
+    from quarter_car_sim.live_loop import make_plant
+    rig = VirtualRig(make_plant(plant, truth_file), CamSine(), StepSchedule(levels_a, hold_s),
+                     force_noise_n=noise_n, rng=seed)
+    return rig.run()
+
+
+def cam_rig_comparison(hil_params, plant='kwok-current', truth_file='', *, seed=1,
+                       budget_s=None, maxiter=None):
+    """
+    Identification quality of a HIL-identified model against the cam rig.
+
+    The same true damper is recorded twice on the cam rig (different noise seeds): the first
+    record identifies the cam-rig model (``mr_damper_model.identify``, kwok-current), the second
+    validates both it and the HIL-identified model.
+
+    Parameters
+    ----------
+    hil_params : dict
+        Kwok-current parameters by name (and ``i_ref_a``) the identifier learnt on the road.
+    plant, truth_file : str
+        True damper of the HIL run.
+    seed : int
+        Seed of the records and the swarm.
+    budget_s, maxiter : float, int or None
+        Compute budget [s] and swarm iterations of the cam-rig identification (None: the
+        identifier's defaults; ``maxiter`` alone makes it deterministic).
+
+    Returns
+    -------
+    dict
+        ``hil_nrmse_percent``, ``cam_nrmse_percent`` (both on the validation record),
+        ``ratio`` (HIL / cam), ``cam_parameters``, ``record_s``.
+
+    """
+    from mr_damper_model.identify import identify
+    train = cam_rig_record(plant, truth_file, seed=seed)
+    valid = cam_rig_record(plant, truth_file, seed=seed + 1)
+    res = identify(train, 'kwok-current', seed=seed, budget_s=budget_s, maxiter=maxiter)
+    cam = dict(res.parameters, i_ref_a=float((res.model_options or {}).get('i_ref_a', 2.0)))
+    e_hil = _nrmse_percent(hil_params, valid)
+    e_cam = _nrmse_percent(cam, valid)
+    return {'hil_nrmse_percent': e_hil, 'cam_nrmse_percent': e_cam,
+            'ratio': e_hil / e_cam if e_cam > 0 else math.nan,
+            'cam_parameters': res.parameters, 'record_s': float(valid.t[-1] - valid.t[0])}
+
+
+def hil_summary(qc_status, rig_status, identified=None, *, plant='kwok-current',
+                truth_file='', maxiter=None):
+    """
+    Build the hardware-in-the-loop part of a suite summary.
+
+    Parameters
+    ----------
+    qc_status : dict
+        Last status of the quarter-car node (its ``hil`` and ``probe`` entries).
+    rig_status : dict
+        Last status of the rig node (``displacement_commands``, ``samples_published``).
+    identified : dict or None
+        Final valid kwok-current parameters of the identifier (None: no comparison).
+    plant, truth_file, maxiter :
+        See :func:`cam_rig_comparison`.
+
+    Returns
+    -------
+    dict
+        ``tracking_rms_m``, ``tracking_peak_m``, ``travel_rms_m``, ``remaining_delay_s``,
+        ``horizon_s``, ``link`` (counts), ``probe``, ``rig_commands``, ``rig_samples``,
+        ``identification`` (:func:`cam_rig_comparison` or a note).
+
+    """
+    link = (qc_status or {}).get('hil') or {}
+    tr = link.get('tracking') or {}
+    out = {'tracking_rms_m': tr.get('rms_m'), 'tracking_peak_m': tr.get('peak_m'),
+           'remaining_delay_s': tr.get('delay_s'), 'travel_rms_m': link.get('travel_rms_m'),
+           'horizon_s': link.get('horizon_s'), 'link': link.get('counts'),
+           'probe': (qc_status or {}).get('probe'),
+           'rig_commands': (rig_status or {}).get('displacement_commands'),
+           'rig_samples': (rig_status or {}).get('samples_published')}
+    if identified:
+        try:
+            out['identification'] = cam_rig_comparison(identified, plant, truth_file,
+                                                       maxiter=maxiter)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            out['identification'] = {'note': f'no comparison: {exc}'}
+    else:
+        out['identification'] = {'note': 'no valid identified parameters'}
+    return out
+
+
+def format_hil_summary(h):
+    """Return the human-readable lines of :func:`hil_summary` (printed by the launcher)."""
+    def mm(value):
+        return 'n/a' if value is None else f'{1e3 * value:.2f} mm'
+    lines = [f'hil: tracking RMS {mm(h.get("tracking_rms_m"))}, peak '
+             f'{mm(h.get("tracking_peak_m"))} (travel RMS {mm(h.get("travel_rms_m"))}), '
+             f'remaining delay {mm(h.get("remaining_delay_s")).replace(" mm", " ms")}, '
+             f'horizon {mm(h.get("horizon_s")).replace(" mm", " ms")}',
+             f'  link {h.get("link")}', f'  rig commands {h.get("rig_commands")}']
+    probe = h.get('probe') or {}
+    if probe:
+        lines.append(f'  probe: {probe.get("covered")}/{probe.get("bins")} bins covered '
+                     f'(at {probe.get("covered_s")} s), {probe.get("windows")} windows')
+    ident = h.get('identification') or {}
+    if 'hil_nrmse_percent' in ident:
+        lines.append(f'  identification on a cam-rig record: HIL model NRMSE '
+                     f'{ident["hil_nrmse_percent"]:.2f} %, cam-rig model '
+                     f'{ident["cam_nrmse_percent"]:.2f} % (ratio {ident["ratio"]:.2f})')
+    else:
+        lines.append(f'  identification: {ident.get("note")}')
+    return '\n'.join(lines)

@@ -87,6 +87,13 @@ class CurrentProbe:
         else:
             self.outside += 1
 
+    def as_dict(self):
+        """Return ``levels_a``, ``counts``, ``covered`` / ``bins``, ``covered_s``, ``windows``."""
+        return {'levels_a': self.levels_a.tolist(), 'counts': self.counts.tolist(),
+                'covered': int(self.counts.size - self.starving), 'bins': int(self.counts.size),
+                'covered_s': self.covered_s, 'windows': self.windows, 'outside': self.outside,
+                'duty': self.duty}
+
     def covered(self):
         """
         Return True when every bin holds ``min_samples``.

@@ -44,6 +44,18 @@ after publishing state k for the first command received after it (at most
 ``lockstep_timeout_s``, counted) and applies it to step k: the loop is then step for step the
 built-in one (docs/controller-node.md).
 
+Hardware in the loop (``plant:=rig``, docs/hil.md): the car has no damper model of its own. Each
+control step it publishes the (delay-compensated) suspension travel as the displacement command
+on ``displacement_command_topic`` (std_msgs/Float64 [m], reliable, depth 10) and uses the latest
+force of the rig's measurement stream (``measurement_topic``, sensor_msgs/JointState as the rig
+publishes it; best effort, depth 10: only the newest matters) through
+:class:`quarter_car_sim.hil.RemoteRigPlant`; the status carries ``hil`` (tracking RMS / peak of
+desired vs measured displacement, link counts). With ``hil_wait_s > 0`` each step first waits (at
+most that long, timeouts counted) for the rig's answer to the previous command, so an overloaded
+machine slows the loop down instead of letting the car run on stale forces. ``probe:=true`` runs
+:class:`quarter_car_sim.probing.CurrentProbe` over the law's current (also in fail-safe, so
+the identifier sees every current bin); the status carries ``probe``.
+
 Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
 blocks the control loop; a ``publish()`` that fails anyway is counted
 (``dropped.publish_failed``) and logged, throttled, and the loop goes on. Parameter sets the
@@ -66,10 +78,11 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (DropCounter, run_node, set_realtime_priority,
                                         spin_node)
-from quarter_car_sim import live_loop
+from quarter_car_sim import hil, live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
+from quarter_car_sim.probing import CurrentProbe
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 
@@ -113,7 +126,7 @@ class QuarterCarNode(Node):
         settle = d('settle_s', live_loop.SETTLE_S,
                    'Time [s] run before the road starts (settling)', (0.0, 60.0))
         plant = d('plant', 'spencer', 'True damper plant (same as the rig): spencer or '
-                  'kwok-current')
+                  'kwok-current; rig = hardware in the loop (the rig node\'s measured force)')
         plant_file = d('truth_file', '',
                        'JSON parameter file of the true damper, as the rig (default: preset)')
         safe = d('safe_current_a', 0.5, 'Coil current in fail-safe [A]', (0.0, 10.0))
@@ -156,6 +169,35 @@ class QuarterCarNode(Node):
             ('status_topic', '/quarter_car/status'),
             ('metrics_topic', '/quarter_car/ride_metrics'))}
 
+        # hardware in the loop (plant rig) and current probing
+        hil_topics = {k: d(k, v, 'Topic name (plant rig)') for k, v in (
+            ('displacement_command_topic', '/mr_damper/displacement_command'),
+            ('measurement_topic', '/mr_damper/measurement'))}
+        hil_opts = dict(
+            compensation=d('hil_compensation', 'poly', 'plant rig: delay compensation of the '
+                           'displacement command, poly (extrapolation) or none'),
+            delay_s=d('hil_delay_s', 0.014, 'plant rig: initial compensation horizon [s] '
+                      '(actuator lag + transport delay + latency)', (0.0, 0.1)),
+            order=d('hil_order', 2, 'plant rig: extrapolation polynomial order 0..3'),
+            adapt_gain=d('hil_adapt_gain', 0.0, 'plant rig: adaptation gain of the horizon '
+                         '[1/s] (0 = fixed)', (0.0, 100.0)),
+            stale_after_s=d('hil_stale_s', 0.05, 'plant rig: measurements older than this [s] '
+                            'count the step as stale (the last force is kept)', (0.001, 10.0)))
+        self.hil_wait_s = d('hil_wait_s', 0.0, 'plant rig: wait up to this long [s, wall] for '
+                            'the rig\'s answer to the last command before the next step (0 = '
+                            'never wait: hard real time; > 0: the loop slows down to the rig '
+                            'instead of running on stale forces)', (0.0, 1.0))
+        probe_on = d('probe', False, 'Probe the least-filled current bin now and then so the '
+                     'identifier sees every current (quarter_car_sim.probing)')
+        probe_opts = dict(
+            bin_a=d('probe_bin_a', 0.1, 'Probe bin width [A] (the identifier\'s current_bin_a)',
+                    (0.001, 10.0)),
+            period_s=d('probe_period_s', 1.0, 'Time between probe windows [s]', (0.01, 3600.0)),
+            hold_s=d('probe_hold_s', 0.1, 'Probe window length [s]', (0.001, 3600.0)),
+            min_samples=d('probe_min_samples', 500, 'Samples a bin needs to count as covered'),
+            max_duty=d('probe_max_duty', 0.2, 'Cap of probe_hold_s / probe_period_s',
+                       (0.001, 1.0)))
+
         self.dt = 1.0 / self.rate_hz
         self.car_params = QuarterCarParams(**car)
         self.sup = ModelSupervisor(timeout_s=timeout, safe_current_a=safe, i_min_a=i_min,
@@ -164,8 +206,10 @@ class QuarterCarNode(Node):
         road = live_loop.make_road(road_kind, road_class=road_class, speed_m_s=speed, seed=seed,
                                    duration_s=road_s, dt=self.dt, file=road_file,
                                    repeat=road_repeat)
-        self.car = QuarterCar(self.car_params, live_loop.make_plant(plant, plant_file), road,
-                              t0=-settle)
+        self.remote = (hil.make_remote_plant(self.dt, **hil_opts) if plant == 'rig' else None)
+        true_plant = self.remote or live_loop.make_plant(plant, plant_file)
+        self.probe = CurrentProbe(i_min, i_max, **probe_opts) if probe_on else None
+        self.car = QuarterCar(self.car_params, true_plant, road, t0=-settle)
         self.controller = None if self.external else live_loop.make_controller(
             controller, self.car_params, json.loads(ctrl_opts or '{}'))
         self.metrics = live_loop.make_running_metrics(self.car_params, self.dt)
@@ -174,6 +218,7 @@ class QuarterCarNode(Node):
         self.trace = live_loop.TraceLog(self.log_file, self.dt) if self.log_file else None
         self.timing = live_loop.LoopTiming(self.dt / self.rtf if self.rtf > 0 else None)
         self.lock = threading.Lock()
+        self.answered = threading.Condition(self.lock)   # plant rig: a measurement came
         self.first_normal_t = math.nan
 
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -189,6 +234,13 @@ class QuarterCarNode(Node):
         if not self.external:
             self.drops.subscribe(self, Float64MultiArray, topics['params_topic'],
                                  self.on_params, latched, 'parameters_lost')
+        if self.remote is not None:
+            self.disp_pub = self.create_publisher(Float64,
+                                                  hil_topics['displacement_command_topic'], 10)
+            self.drops.subscribe(self, JointState, hil_topics['measurement_topic'],
+                                 self.on_measurement, QoSProfile(
+                                     depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
+                                 'measurements_lost')
         self.create_timer(1.0 / status_rate, self.publish_status)
         self.running = True
         self.failed = None
@@ -292,6 +344,17 @@ class QuarterCarNode(Node):
             self.get_logger().warning(f'parameters refused ({verdict.reason}): {verdict.detail}',
                                       throttle_duration_sec=1.0)
 
+    def on_measurement(self, msg):
+        """Hand a rig measurement to the remote-rig plant (plant rig)."""
+        try:
+            sample = messages.measurement_from_msg(msg)
+        except ValueError as exc:
+            self.drops.count('undecodable_measurement', detail=str(exc))
+            return
+        with self.answered:
+            self.remote.receive(*sample)
+            self.answered.notify()
+
     def control_loop(self):
         """Run the paced control steps until shutdown (control thread)."""
         if self.rt_priority > 0 and self.rtf > 0:
@@ -304,6 +367,7 @@ class QuarterCarNode(Node):
         every = max(1, int(round(self.rate_hz / self.state_rate_hz))) \
             if self.state_rate_hz > 0 else 0
         cmd = Float64()
+        disp = Float64()
         state_msg = JointState()
         state_msg.name = list(STATE_JOINTS)
         loop = self.loop
@@ -322,10 +386,23 @@ class QuarterCarNode(Node):
                     with self.lock:
                         state = self.car.state
                         cmd.data = loop.command(state, wall)
+                        if self.probe is not None:
+                            cmd.data = loop.i_cmd = self.probe(cmd.data, state.t)
                         normal = self.sup.mode == 'normal'
                     self.drops.publish(self.cmd_pub, cmd)
                 latency = time.perf_counter() - t0
-                new = loop.advance()
+                if self.remote is None:
+                    new = loop.advance()
+                else:
+                    with self.answered:
+                        if self.hil_wait_s > 0 and loop.steps > 0:
+                            self.remote.count_wait(self.answered.wait_for(
+                                lambda: self.remote.answered, self.hil_wait_s))
+                        new = loop.advance()
+                    disp.data = self.remote.last_command_m
+                    self.drops.publish(self.disp_pub, disp)
+                if self.probe is not None:
+                    self.probe.observe(new.coil_current)
                 if normal and math.isnan(self.first_normal_t):
                     self.first_normal_t = state.t
                 if every and loop.steps % every == 0:
@@ -369,6 +446,11 @@ class QuarterCarNode(Node):
             'loop': self.timing.stats(),
             'dropped': self.drops.counts(),
         })
+        if self.remote is not None:
+            with self.lock:
+                st['hil'] = self.remote.as_dict()
+        if self.probe is not None:
+            st['probe'] = self.probe.as_dict()
         return st
 
     def publish_status(self):
@@ -398,7 +480,8 @@ def main(args=None):
     sys.setswitchinterval(0.0005)
     # ValueError, OSError: bad parameter, road or truth file
     # SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
-    # sets and runs the status timer
+    # sets and runs the status timer (with plant rig also the rig's measurements; with the
+    # EventsExecutor here the rig received a fifth of the commands the control thread sent)
     return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError),
                     run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
 
