@@ -261,6 +261,7 @@ def test_time_gap_skips_the_windows_that_span_it():
     ends = window_s + hop_s * np.arange(40)
     spanning = [e for e in ends if e - window_s < t_before and t_after <= e <= arrays[0][-1]]
     assert li.counters['windows_skipped']['gap'] == len(spanning) == 3
+    assert li.counters['stamp_gaps'] == 1
     assert not [e for e in ests if e.window_start_s < t_before < t_after <= e.window_end_s]
     assert_no_wrong_valid(ests)
     assert_accounted(li)

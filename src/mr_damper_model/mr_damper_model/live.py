@@ -751,7 +751,8 @@ class LiveIdentifier:
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
                          'rejected': {r: 0 for r in REJECT_REASONS},
                          'out_of_range': {r: 0 for r in RANGE_CHANNELS},
-                         'stream_restarts': 0, 'windows_due': 0, 'windows_superseded': 0,
+                         'stream_restarts': 0, 'stamp_gaps': 0,
+                         'windows_due': 0, 'windows_superseded': 0,
                          'windows_fitted': 0, 'windows_valid': 0,
                          'windows_skipped': {r: 0 for r in SKIP_REASONS},
                          'windows_refused': {},
@@ -866,6 +867,9 @@ class LiveIdentifier:
                 return channel + '_range'
             if self._t_origin is None:
                 self._t_origin = t
+            elif t - self._last_t > cfg.max_gap_s:
+                # counted once per gap, here: the windows across it may all be superseded
+                c['stamp_gaps'] += 1
             row = self._buf[self._head]
             row[0] = t
             row[1] = x
@@ -1237,7 +1241,7 @@ class LiveIdentifier:
         Return the status counters and figures as a JSON-ready dict.
 
         Keys: ``samples_received``, ``samples_accepted``, ``rejected`` {reason: count},
-        ``out_of_range`` {channel: count}, ``stream_restarts``, ``windows_due``,
+        ``out_of_range`` {channel: count}, ``stream_restarts``, ``stamp_gaps``, ``windows_due``,
         ``windows_superseded``, ``windows_fitted``, ``windows_valid``, ``windows_skipped``
         {reason: count}, ``windows_refused`` {reason: count} (fitted, published not valid),
         ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
