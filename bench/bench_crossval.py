@@ -2,8 +2,8 @@
 Cross-validation of one-model-for-all-conditions damper models on the shared Quiroz files.
 
     .venv/bin/python bench/bench_crossval.py [--models kwok-current kwok-current-lag ...]
-        [--seed 1] [--workers 2] [--swarm-size 25] [--maxiter N] [--polish] [--splits N]
-        [--data-dir DIR]
+        [--seed 1] [--workers 2] [--swarm-size 25] [--maxiter N] [--polish] [--inverse]
+        [--splits N] [--data-dir DIR]
 
 The six test series (25 mm at 0.1, 0.25, 0.5 Hz; 10 mm at 1 Hz; 5 mm at 3 Hz; 2 mm at 5 Hz,
 each at 0, 0.25, 0.5, 0.75 and 1.0 A) are split every possible way into four training and two
@@ -137,6 +137,28 @@ def report(spec, runs, best):
     return float(np.median(flat)), float(flat.max()), flat, raw
 
 
+def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
+    """Median time per call [us]: kwok-current scalar inverse vs the kwok-current-lag one."""
+    from mr_damper_model.inverse import KwokCurrentInverse, KwokCurrentLagInverse
+    rec = data[('5mm3Hz', '0p5')]
+    k = min(n_calls, rec.n)
+    x, v, f = rec.x[:k].tolist(), rec.v[:k].tolist(), rec.f[:k].tolist()
+    dt = 1.0 / rec.sample_rate_hz
+    inv_kc = KwokCurrentInverse(params_lag[:10], i_ref_a=i_ref_a, i_max=1.0)
+    inv_lag = KwokCurrentLagInverse(params_lag, i_ref_a=i_ref_a, i_max=1.0)
+    out = {}
+    for name, call in (('kwok-current', lambda j: inv_kc.current(f[j], x[j], v[j])),
+                       ('kwok-current-lag', lambda j: inv_lag.step(f[j], x[j], v[j], dt))):
+        reps = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for j in range(k):
+                call(j)
+            reps.append((time.perf_counter() - t0) / k * 1e6)
+        out[name] = float(np.median(reps))
+    return out, k
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--models', nargs='+', default=['kwok-current'],
@@ -150,6 +172,9 @@ def main(argv=None):
     p.add_argument('--polish', action='store_true',
                    help='identify(..., polish=True) for every model: the stateful ones too '
                    '(their swarm then works on every k-th sample, the polish on all)')
+    p.add_argument('--inverse', action='store_true',
+                   help='also time the scalar inverses (force -> current) per call, with the '
+                   'kwok-current-lag parameters of the first split')
     p.add_argument('--splits', type=int, default=None,
                    help='use only the first N of the 15 splits (quick runs)')
     args = p.parse_args(argv)
@@ -192,6 +217,14 @@ def main(argv=None):
     for spec, med, p90, worst, rmed, rworst, fit_s in summary:
         print(f'{spec:30s} {med:7.3f} {p90:7.3f} {worst:7.3f} {rmed:8.3f} {rworst:9.3f} '
               f'{fit_s:6.2f}')
+    lag = [r for r in runs if parse_model(r[0])[0] == 'kwok-current-lag']
+    if args.inverse and lag:
+        i_ref_a = parse_model(lag[0][0])[1].get('i_ref_a', 2.0)
+        p_lag = get_model('kwok-current-lag').from_dict(lag[0][5])
+        times, k = bench_inverse(_DATA, p_lag, i_ref_a)
+        print(f'\nscalar inverse, {k} samples of 5mm3Hz 0.5 A, median of 3 [us/call]: '
+              + ', '.join(f'{n} {us:.1f}' for n, us in times.items())
+              + f' (ratio {times["kwok-current-lag"] / times["kwok-current"]:.2f})')
     print(f'\nwall {time.perf_counter() - t0:.1f} s; load after: {os.getloadavg()[0]:.2f} '
           f'{os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}')
 

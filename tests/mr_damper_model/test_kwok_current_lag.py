@@ -6,6 +6,7 @@ import pytest
 
 from mr_damper_model.data import DamperData
 from mr_damper_model.identify import identify
+from mr_damper_model.inverse import KwokCurrentLagInverse
 from mr_damper_model.kwok_current import KwokCurrent
 from mr_damper_model.kwok_current_lag import first_order_lag, KwokCurrentLag
 from mr_damper_model.models import get_model, ModelError
@@ -134,3 +135,55 @@ def test_identify_recovers_known_parameters():
     # the fit is at the noise level: RMSE within 1 % of the truth's on the noisy force
     rmse_truth = np.sqrt(np.mean((m.force(m.from_dict(truth), x, v, i=i, t=t) - f) ** 2))
     assert res.metrics['rmse_n'] <= 1.01 * rmse_truth
+
+
+def _lag_force_by_sample(q, x, v, i, dt):
+    """Compute the model's force by its recursion, each sample with its own time constant."""
+    out, u = [], v[0]
+    for k in range(x.size):
+        s = i[k]
+        if k:
+            a = math.exp(-dt / (q['tau0'] + q['tau1'] * s))
+            u = a * u + (1 - a) * v[k]
+        c = q['c0'] + q['c1'] * s
+        alpha = q['alpha0'] + q['alpha1'] * s * (2 - s) + q['alpha2'] * s * s
+        beta = q['beta0'] * math.exp(q['beta1'] * s)
+        out.append(c * v[k] + q['k'] * x[k] + q['f0']
+                   + alpha * math.tanh(beta * u + q['delta'] * np.sign(x[k])))
+    return np.array(out), u
+
+
+def test_inverse_round_trip_is_exact():
+    # force -> current -> force: the currents the inverse returns make the demanded force
+    # (the current itself is not unique where the lag makes F(i) rise and fall)
+    n = 400
+    t = np.arange(n) * 1e-3
+    w = 2 * np.pi * 3.0
+    x = 0.005 * np.sin(w * t)
+    v = 0.005 * w * np.cos(w * t)
+    i = 0.1 + 0.8 * np.mod(np.arange(n) * 0.37, 1.0)     # a jump at every sample
+    m = KwokCurrentLag(i_ref_a=1.0)
+    q = _p(tau0=0.003, tau1=0.008)
+    f = m.force(m.from_dict(q), x, v, i=i, t=t)
+    np.testing.assert_allclose(_lag_force_by_sample(q, x, v, i, 1e-3)[0], f, rtol=1e-12,
+                               atol=1e-9)
+    inv = KwokCurrentLagInverse(m.from_dict(q), i_ref_a=1.0, i_min=0.0, i_max=1.0)
+    got = np.array([inv.step(f[k], x[k], v[k], 1e-3) for k in range(n)])
+    np.testing.assert_array_equal(got[:, 1], 0)
+    f_back, u_last = _lag_force_by_sample(q, x, v, got[:, 0], 1e-3)
+    np.testing.assert_allclose(f_back, f, rtol=0, atol=1e-6 * np.max(np.abs(f)))
+    assert abs(inv.u - u_last) <= 1e-12
+    # where F(i) is monotone the current itself comes back
+    assert np.mean(np.abs(got[:, 0] - i) <= 1e-6) >= 0.5
+
+
+def test_inverse_saturates_and_rejects_bad_input():
+    m = KwokCurrentLag(i_ref_a=1.0)
+    p = m.from_dict(_p())
+    inv = KwokCurrentLagInverse(p, i_ref_a=1.0, i_min=0.0, i_max=1.0)
+    assert inv.step(1e6, 0.001, 0.05, 1e-3) == (1.0, 1)
+    assert inv.step(-1e6, 0.001, 0.05, 1e-3) == (0.0, -1)
+    with pytest.raises(ModelError, match='dt'):
+        inv.step(0.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ModelError, match='tau'):
+        KwokCurrentLagInverse(m.from_dict(_p(tau0=-1.0)))
