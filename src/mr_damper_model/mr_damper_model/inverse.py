@@ -29,6 +29,8 @@ from mr_damper_model.models import ModelError
 
 _N_GRID = 33
 _MAX_ITER = 100
+#: Dense check grid of the lag model's scalar inverse (a demand first found out of reach).
+_N_DENSE = 65
 
 
 @dataclass
@@ -353,3 +355,103 @@ class KwokCurrentInverse:
                 fa *= 0.5
             b, fb = c, fc
         return min(max(b * self.i_ref_a, self.i_min), self.i_max)
+
+
+class KwokCurrentLagInverse(KwokCurrentInverse):
+    """
+    Scalar inverse of ``kwok-current-lag`` for a control loop, one sample at a time.
+
+    The model's lagged velocity ``u`` is a state: at each sample, with the previous ``u`` and
+    the sample interval dt, ``u(i) = a(i)*u_prev + (1 - a(i))*v`` with
+    ``a(i) = exp(-dt/(tau0 + tau1*s))``, and the force is the kwok-current force with ``u``
+    in the tanh (``c(i)*v`` stays on the piston velocity). :meth:`step` solves that force for
+    the current exactly as :class:`KwokCurrentInverse` does, then advances ``u`` with the
+    current it returns; the first call starts at rest (``u = v``, as the model's first sample).
+    Near a velocity reversal the lag can make F(i) rise and fall over the range (u changes
+    sign with i), with a narrow peak that the end-point test and the coarse grid step over: a
+    demand found out of reach is checked once more on a dense grid (:data:`_N_DENSE` points)
+    before the current saturates.
+
+    Parameters
+    ----------
+    params : dict or array_like with shape (12,)
+        KwokCurrentLag parameters (``KwokCurrentLag.param_names``).
+    i_ref_a, i_min, i_max, n_grid, tol_a
+        As in :class:`KwokCurrentInverse`.
+
+    """
+
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
+        from mr_damper_model.kwok_current_lag import KwokCurrentLag
+        model = KwokCurrentLag()
+        if isinstance(params, dict):
+            p = model.from_dict(params)
+        else:
+            p = np.asarray(params, dtype=float).ravel()
+            if p.size != model.n_params or not np.all(np.isfinite(p)):
+                raise ModelError(f'`params` must have {model.n_params} finite values '
+                                 f'({", ".join(model.param_names)})')
+        if p[10] < 0 or p[11] < 0:
+            raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
+        super().__init__(p[:10], i_ref_a=i_ref_a, i_min=i_min, i_max=i_max, n_grid=n_grid,
+                         tol_a=tol_a)
+        self._tau0, self._tau1 = float(p[10]), float(p[11])
+        self._dense = [(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
+                       / self.i_ref_a for j in range(_N_DENSE)]
+        self.u = None           # lagged velocity after the last step [m/s]
+        self._u_prev = 0.0
+        self._dt = 0.0
+
+    def _lagged(self, s, v):
+        """Lagged velocity [m/s] after this sample at normalised current s."""
+        if self._dt <= 0.0:             # first sample
+            return self._u_prev
+        tau = self._tau0 + self._tau1 * max(s, 0.0)
+        if tau <= 0.0:
+            return v
+        a = math.exp(-self._dt / tau)
+        return a * self._u_prev + (1.0 - a) * v
+
+    def _f(self, s, x, v):
+        u = self._lagged(s, v)
+        c = self._p[0] + self._p[1] * s
+        return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
+
+    def current(self, f_des, x, v):
+        """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
+        cur, flag = super().current(f_des, x, v)
+        if flag == 0:
+            return cur, flag
+        g = self._dense
+        d = [self._f(s, x, v) - f_des for s in g]
+        for j in range(len(g) - 1):
+            if d[j] * d[j + 1] <= 0.0:
+                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
+        return cur, flag
+
+    def step(self, f_des, x, v, dt):
+        """
+        Return ``(current [A], flag)`` for one sample and advance the lag state.
+
+        Parameters
+        ----------
+        f_des, x, v : float
+            Desired force [N], displacement [m], velocity [m/s], as in :meth:`current`.
+        dt : float
+            Time since the previous sample [s] (ignored at the first call).
+
+        Returns
+        -------
+        tuple of (float, int)
+            As :meth:`KwokCurrentInverse.current`.
+
+        """
+        if not (math.isfinite(dt) and dt > 0):
+            raise ModelError(f'`dt` must be a positive time step [s], got {dt}')
+        if self.u is None:
+            self._u_prev, self._dt = v, 0.0      # first sample: u = v
+        else:
+            self._u_prev, self._dt = self.u, dt
+        cur, flag = self.current(f_des, x, v)
+        self.u = self._lagged(cur / self.i_ref_a, v)
+        return cur, flag

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODEL_NAMES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer')
+MODEL_NAMES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer', 'kwok-current-lag')
 
 _REGISTRY = {
     'kwok': ('mr_damper_model.kwok', 'Kwok'),
@@ -29,6 +29,7 @@ _REGISTRY = {
     'bingham': ('mr_damper_model.bingham', 'Bingham'),
     'bouc-wen': ('mr_damper_model.bouc_wen', 'BoucWen'),
     'spencer': ('mr_damper_model.spencer', 'Spencer'),
+    'kwok-current-lag': ('mr_damper_model.kwok_current_lag', 'KwokCurrentLag'),
 }
 
 
