@@ -307,14 +307,16 @@ class Suite:
         return dict(self.deaths)
 
     def stop(self, order=(QC, CTRL, RIG, IDENT), drain_s=1.0, timeout_s=10.0, drained=None,
-             drain_max_s=6.0):
+             stall_s=3.0, guard_s=60.0):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).
 
         Order: the quarter car first (so the end of the stream does not read as stale parameters
         and a fail-safe), then the rig; the identifier gets ``drain_s`` to take the rest of the
-        stream before it is stopped, or, with ``drained`` (a callable), until ``drained()`` is
-        true (at most ``drain_max_s``).
+        stream before it is stopped, or, with ``drained`` (a callable returning ``(done,
+        progress)``), until ``done`` - as long as ``progress`` (the identifier's sample count)
+        keeps moving: a slow identifier on a loaded machine still gets every sample, a stuck one
+        holds the stop for ``stall_s`` at most (and everything for ``guard_s``).
 
         Returns
         -------
@@ -333,9 +335,8 @@ class Suite:
                 proc.send_signal(signal.SIGINT)
                 if name == RIG and drain_s > 0:
                     time.sleep(drain_s)
-                    end = time.monotonic() + max(0.0, drain_max_s - drain_s)
-                    while drained is not None and not drained() and time.monotonic() < end:
-                        time.sleep(0.1)
+                    if drained is not None:
+                        wait_while_progressing(drained, stall_s, guard_s)
         for name in order:
             if name not in self.procs:
                 continue
@@ -552,12 +553,37 @@ def start_recorder(rec, topics):
 
 
 def identifier_drained(rec):
-    """Return True once the identifier's status counts every sample the recorder saw."""
+    """
+    Return ``(done, progress)``: does the identifier's status count every sample seen so far.
+
+    ``progress`` is the identifier's ``samples_received`` (None before its first status).
+    """
     with rec.lock:
         ident = rec.status.get('identifier') or {}
         seen = len(rec.meas) + rec.meas_gaps
     got = ident.get('samples_received')
-    return isinstance(got, (int, float)) and got >= seen
+    ok = isinstance(got, (int, float))
+    return ok and got >= seen, got if ok else None
+
+
+def wait_while_progressing(check, stall_s, guard_s, poll_s=0.1):
+    """
+    Wait until ``check()[0]``, while ``check()[1]`` keeps changing; return ``check()[0]``.
+
+    Gives up when the progress value has not changed for ``stall_s`` or after ``guard_s`` in
+    all (wall seconds: hang guards, not a time budget).
+    """
+    start = last_move = time.monotonic()
+    done, last = check()
+    while not done:
+        now = time.monotonic()
+        if now - last_move > stall_s or now - start > guard_s:
+            return False
+        time.sleep(poll_s)
+        done, value = check()
+        if value != last:
+            last, last_move = value, time.monotonic()
+    return True
 
 
 def save_recording(rec, out):

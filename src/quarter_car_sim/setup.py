@@ -28,7 +28,8 @@ setup(
     entry_points={
         'console_scripts': [
             'quarter_car_node = quarter_car_sim.entry_points:quarter_car_node',
-            'semi_active_controller_node = quarter_car_sim.entry_points:semi_active_controller_node',
+            'semi_active_controller_node = '
+            'quarter_car_sim.entry_points:semi_active_controller_node',
             'quarter-car-sim = quarter_car_sim.cli:main',
         ],
     },

@@ -217,3 +217,18 @@ def test_node_default_yaml_lists_every_declared_parameter():
     declared |= {'m_s', 'm_u', 'k_s', 'k_t'}
     cfg = yaml.safe_load((REPO / 'src/quarter_car_sim/config/quarter_car.yaml').read_text())
     assert set(cfg['quarter_car_node']['ros__parameters']) == declared
+
+
+def test_drain_waits_while_the_identifier_progresses_and_not_for_a_stuck_one():
+    """The stop drains a slow identifier to the last sample; a stuck one cannot hold it."""
+    rs = load_run_suite()
+    calls = []
+
+    def slow():               # 1 sample more per look: done after 50 looks, however slow
+        calls.append(1)
+        return len(calls) >= 50, len(calls)
+    assert rs.wait_while_progressing(slow, stall_s=30.0, guard_s=300.0, poll_s=0.0)
+    assert len(calls) == 50
+    assert not rs.wait_while_progressing(lambda: (False, 7), stall_s=0.05, guard_s=300.0,
+                                         poll_s=0.01)
+    assert rs.wait_while_progressing(lambda: (True, None), stall_s=0.0, guard_s=0.0)
