@@ -26,12 +26,24 @@ def test_compare_json(params_file, capsys):
     out = json.loads(capsys.readouterr().out)
     names = set(out['controllers'])
     assert {'passive@0.0A', 'passive@2.0A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid',
-            'skyhook-ideal', 'lqr-active'} <= names
+            'sh-add', 'clipped-optimal', 'skyhook-ideal', 'lqr-active', 'bound'} <= names
+    assert names == set(f'passive@{i:.1f}A' for i in cli.COMPARE_CURRENTS_A) | set(
+        cli.COMPARE_NAMES) | {'bound'}
+    assert 0.0 <= out['controllers']['bound']['mean_current_a'] <= 2.0
     for m in out['controllers'].values():
         for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
                     'rms_tyre_load_ratio'):
             assert m[key] > 0
     assert out['controllers']['lqr-active']['mean_current_a'] is None
+
+
+def test_compare_table_names_the_new_laws_and_the_bound(params_file, capsys):
+    rc = cli.main(['--compare', '--duration', '2', '--plant', 'kwok',
+                   '--damper-params', str(params_file)])
+    assert rc == 0
+    rows = [line.split()[0] for line in capsys.readouterr().out.splitlines()[2:-1]]
+    assert rows[-3:] == ['skyhook-ideal', 'lqr-active', 'bound']
+    assert 'sh-add' in rows and 'clipped-optimal' in rows
 
 
 def test_single_controller_table(params_file, capsys):

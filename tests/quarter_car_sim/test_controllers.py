@@ -12,7 +12,11 @@ from quarter_car_sim.dynamics import CarState
 
 SEMI_ACTIVE = [ctl.Skyhook(), ctl.Skyhook(4000.0, 0.0), ctl.SkyhookOnOff(), ctl.Groundhook(),
                ctl.Hybrid(alpha=0.0), ctl.Hybrid(alpha=0.5), ctl.Hybrid(alpha=1.0), ctl.ADD(),
-               ctl.SkyhookIdeal()]
+               ctl.SkyhookIdeal(), ctl.ShAdd(), ctl.ShAdd(8000.0, 300.0, 0.5),
+               ctl.ClippedOptimal(ctl.clipped_optimal_gain()),
+               ctl.ClippedOptimal(ctl.clipped_optimal_gain(),
+                                  ctl.KwokCurrentInverse(
+                                      presets.thesis_kwok_current()[1]).body_force_range)]
 
 
 def _random_states(n, seed=0):
@@ -116,6 +120,8 @@ def test_inverse_rejects_bad_params():
                                        ctl.SkyhookOnOff), ('groundhook', ctl.Groundhook),
                                        ('hybrid', ctl.Hybrid), ('add', ctl.ADD),
                                        ('skyhook-ideal', ctl.SkyhookIdeal),
+                                       ('sh-add', ctl.ShAdd),
+                                       ('clipped-optimal', ctl.ClippedOptimal),
                                        ('lqr-active', ctl.LqrActive)])
 def test_make_controller_names(name, cls):
     c = ctl.make_controller(name)
@@ -132,3 +138,90 @@ def test_passive_names(i, name):
 def test_unknown_controller():
     with pytest.raises(ValueError, match='unknown controller'):
         ctl.make_controller('magic')
+
+
+def _state(v_s=0.0, a_s=0.0, v_rel=0.0, travel=0.0, z_u=0.0, z_r=0.0, v_u=None):
+    v_u = v_s - v_rel if v_u is None else v_u
+    return CarState(0.0, travel + z_u, v_s, a_s, z_u, v_u, 0.0, z_r, travel, v_rel, 3500.0,
+                    0.0, 0.0)
+
+
+@pytest.mark.parametrize('v_s, a_s, v_rel, law, high', [
+    # alpha = 1 / (2 pi 2 Hz) = 0.0796 s: |v_s| >= alpha |a_s| -> skyhook choice
+    (0.2, 1.0, 0.1, 'skyhook', True),       # v_s v_rel > 0 -> c_max
+    (0.2, 1.0, -0.1, 'skyhook', False),     # v_s v_rel < 0 -> c_min (ADD would say c_max)
+    (-0.2, -1.0, -0.1, 'skyhook', True),
+    (0.2, -2.5, 0.1, 'skyhook', True),      # 0.2 >= 0.199: still skyhook
+    # |v_s| < alpha |a_s| -> ADD choice
+    (0.2, -2.6, 0.1, 'add', False),         # a_s v_rel < 0 -> c_min (skyhook would say c_max)
+    (0.01, 1.0, 0.1, 'add', True),          # a_s v_rel > 0 -> c_max
+    (-0.01, 1.0, 0.1, 'add', True),         # skyhook would say c_min
+    (0.01, -1.0, -0.1, 'add', True),
+])
+def test_sh_add_switches_as_its_condition_says(v_s, a_s, v_rel, law, high):
+    c = ctl.ShAdd(4000.0, 300.0, 2.0)
+    s = _state(v_s, a_s, v_rel)
+    assert c.alpha == pytest.approx(1.0 / (4.0 * math.pi))
+    assert (v_s ** 2 - c.alpha ** 2 * a_s ** 2 >= 0.0) == (law == 'skyhook')
+    assert c.choice(s) == law
+    assert c.demand(s) == pytest.approx(-(4000.0 if high else 300.0) * v_rel)
+    # the same choice as the underlying laws in that state
+    ref = ctl.SkyhookOnOff(4000.0, 300.0) if law == 'skyhook' else ctl.ADD(4000.0, 300.0)
+    assert c.demand(s) == ref.demand(s)
+
+
+def test_sh_add_rejects_bad_gains():
+    with pytest.raises(ValueError, match='c_min'):
+        ctl.ShAdd(100.0, 200.0)
+    with pytest.raises(ValueError, match='f_switch_hz'):
+        ctl.ShAdd(f_switch_hz=0.0)
+
+
+def test_clipped_optimal_is_the_lqr_force_when_feasible_and_clipped_otherwise():
+    gain = ctl.clipped_optimal_gain()
+    inv = ctl.KwokCurrentInverse(presets.thesis_kwok_current()[1])
+    law = ctl.ClippedOptimal(gain, inv.body_force_range)
+    lqr = ctl.LqrActive(gain)
+    states = _random_states(4000, seed=3)
+    n_equal = n_clipped = 0
+    for s in states:
+        f_lqr = lqr.demand(s)
+        assert law.desired(s) == f_lqr
+        lo, hi = inv.body_force_range(s.travel, s.v_rel)
+        lo_d, hi_d = (lo, min(hi, 0.0)) if s.v_rel > 0 else (max(lo, 0.0), hi)
+        d = law.demand(s)
+        if lo_d <= f_lqr <= hi_d:
+            assert d == f_lqr
+            n_equal += 1
+        else:
+            # clipped: the nearest end of the reachable, dissipative range (0 if none)
+            assert d * s.v_rel <= 0.0
+            if lo_d <= hi_d:
+                assert d == pytest.approx(lo_d if f_lqr < lo_d else hi_d)
+                assert lo - 1e-9 <= d <= hi + 1e-9
+            n_clipped += 1
+    assert n_equal > 200 and n_clipped > 200
+
+
+def test_clipped_optimal_without_range_clips_to_dissipative_only():
+    law = ctl.ClippedOptimal([0.0, 1000.0, 0.0, 0.0])     # F = -1000 v_s
+    assert law.demand(_state(v_s=0.3, v_rel=0.1)) == pytest.approx(-300.0)
+    assert law.demand(_state(v_s=0.3, v_rel=-0.1)) == 0.0
+    assert law.demand(_state(v_s=-0.3, v_rel=-0.1)) == pytest.approx(300.0)
+    assert law.demand(_state(v_s=0.3, v_rel=0.0)) == 0.0
+
+
+def test_clipped_optimal_gain_is_the_lqr_design():
+    from quarter_car_sim.linear_analysis import lqr_design
+    from quarter_car_sim.params import QuarterCarParams
+    ref = lqr_design(QuarterCarParams(), **ctl.DEFAULT_CO_WEIGHTS).gain
+    np.testing.assert_allclose(ctl.clipped_optimal_gain(), ref)
+    with pytest.raises(ValueError, match='unknown LQR weight'):
+        ctl.clipped_optimal_gain(q_magic=1.0)
+
+
+def test_make_controller_clipped_optimal_uses_the_inverse_range():
+    inv = ctl.KwokCurrentInverse(presets.thesis_kwok_current()[1])
+    c = ctl.make_controller('clipped-optimal', inverse=inv)
+    assert c.force_range == inv.body_force_range
+    assert ctl.make_controller('clipped-optimal').force_range is None

@@ -3,12 +3,14 @@
 
 Examples::
 
-    quarter-car-sim --compare                       # identify the plant, all controllers
+    quarter-car-sim --compare                       # identify the plant, all controllers + bound
     quarter-car-sim --controller skyhook --road bump --speed 10 --json
     quarter-car-sim --compare --damper-params fit.json --plant kwok --plot ride.png
 
 Without ``--damper-params`` the tool first runs a simulated rig test of the plant and identifies
 kwok-current parameters with ``mr_damper_model.identify``; the controllers only ever see those.
+``--compare`` also runs the offline optimal semi-active bound (``quarter_car_sim.bound``, full
+road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
 Bad input exits with status 2 and one line on stderr.
 """
 import argparse
@@ -18,8 +20,8 @@ import sys
 
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
-COMPARE_NAMES = ('skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add', 'skyhook-ideal',
-                 'lqr-active')
+COMPARE_NAMES = ('skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add', 'sh-add',
+                 'clipped-optimal', 'skyhook-ideal', 'lqr-active')
 TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'acc', '{:7.3f}'),
               ('rms_suspension_travel', 'travel mm', '{:9.1f}'),
               ('rms_tyre_load_ratio', 'tyre', '{:6.3f}'),
@@ -53,9 +55,10 @@ def build_parser():
         prog='quarter-car-sim',
         description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
     p.add_argument('--controller', default='skyhook',
-                   help='passive@<I>A, skyhook, skyhook-onoff, groundhook, hybrid, add, '
-                        'skyhook-ideal, lqr-active (default skyhook)')
-    p.add_argument('--compare', action='store_true', help='run every controller on the same road')
+                   help='passive@<I>A, skyhook, skyhook-onoff, groundhook, hybrid, add, sh-add, '
+                        'clipped-optimal, skyhook-ideal, lqr-active (default skyhook)')
+    p.add_argument('--compare', action='store_true',
+                   help='run every controller and the offline semi-active bound on the same road')
     p.add_argument('--road', default='iso8608-C',
                    help='iso8608-A..H, bump, sine, step or FILE.csv (default iso8608-C)')
     p.add_argument('--speed', type=_positive('--speed'), default=20.0, metavar='M_PER_S',
@@ -84,6 +87,7 @@ def run(args):
     """Run the study for parsed ``args``; return the JSON-ready dict and the results."""
     from mr_damper_model.plant import make_plant
 
+    from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
     from quarter_car_sim.controllers import make_controller, Passive
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.road import make_road
@@ -92,11 +96,8 @@ def run(args):
     params = QuarterCarParams()
     road = make_road(args.road, speed_m_s=args.speed, duration_s=args.duration, dt=args.dt,
                      rng=args.seed)
-    if args.compare:
-        controllers = [Passive(i) for i in COMPARE_CURRENTS_A]
-        controllers += [make_controller(n, params=params) for n in COMPARE_NAMES]
-    else:
-        controllers = [make_controller(args.controller, params=params)]
+    if not args.compare:
+        make_controller(args.controller, params=params)     # bad name: fail before identifying
     plant = make_plant(PLANTS[args.plant])
     if args.damper_params:
         inverse = make_inverse(args.damper_params, i_min=params.i_min, i_max=params.i_max)
@@ -109,7 +110,16 @@ def run(args):
         inverse = make_inverse(d, i_min=params.i_min, i_max=params.i_max)
         ident = {'source': 'identified from simulated rig test', 'metrics': d['metrics']}
     ident['parameters'] = inverse.params
+    if args.compare:
+        controllers = [Passive(i) for i in COMPARE_CURRENTS_A]
+        controllers += [make_controller(n, params=params, inverse=inverse)
+                        for n in COMPARE_NAMES]
+    else:
+        controllers = [make_controller(args.controller, params=params, inverse=inverse)]
     results = compare(params, road, controllers, plant, dt=args.dt, damper_params=inverse)
+    if args.compare:
+        results[bound_name()] = semi_active_bound(params, road, KwokForceModel(inverse), plant,
+                                                  dt=args.dt).replay
     out = {
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
         'seed': args.seed, 'plant': PLANTS[args.plant], 'dt_s': args.dt,

@@ -4,7 +4,8 @@ Suspension controllers and the force -> coil current path.
 A controller has ``name``, ``kind`` and ``demand(state) -> float``:
 
 - ``kind == 'current'`` (:class:`Passive`): ``demand`` returns a coil current [A];
-- ``kind == 'semi-active'`` (skyhook, on-off skyhook, groundhook, hybrid, ADD): ``demand``
+- ``kind == 'semi-active'`` (skyhook, on-off skyhook, groundhook, hybrid, ADD, SH-ADD,
+  clipped-optimal): ``demand``
   returns the desired damper force **on the body** [N], positive up, always dissipative
   (``demand * v_rel <= 0``); it goes through an inverse damper model
   (:class:`KwokCurrentInverse`) to a current saturated to the coil's range;
@@ -24,7 +25,16 @@ velocity ``v_rel = v_s - v_u``:
 - hybrid (Ahmadian): ``F = -c (alpha s_sky + (1 - alpha) s_gnd)`` with ``s_sky = v_s`` when
   ``v_s v_rel > 0`` (else 0) and ``s_gnd = -v_u`` when ``v_u v_rel < 0`` (else 0);
 - ADD (Savaresi 2005, acceleration-driven damper): ``F = -c_max v_rel`` when
-  ``a_s v_rel > 0``, else ``-c_min v_rel``.
+  ``a_s v_rel > 0``, else ``-c_min v_rel``;
+- SH-ADD (Savaresi and Spelta 2007, mixed skyhook / ADD): per sample, the skyhook choice
+  (``c_max`` when ``v_s v_rel > 0``) if ``v_s^2 - alpha^2 a_s^2 >= 0`` (slow body motion), else
+  the ADD choice (``c_max`` when ``a_s v_rel > 0``); ``F = -c v_rel`` with ``c`` the choice;
+- clipped-optimal (Dyke et al. 1996): the fully active LQR force ``-K x`` clipped to what the
+  damper can give: dissipative, and within ``[F(i_min), F(i_max)]`` of the identified model at
+  the present travel and velocity.
+
+See docs/control-laws.md for the laws, their gains and the offline semi-active bound
+(:mod:`quarter_car_sim.bound`).
 """
 import math
 
@@ -214,6 +224,65 @@ class ADD(Controller):
         return -self.c_min * vr
 
 
+DEFAULT_SHADD_F_SWITCH_HZ = 1.0
+"""Default SH-ADD switching frequency ``1 / (2 pi alpha)`` [Hz] (see :class:`ShAdd`).
+
+bench/bench_laws.py (Spencer plant, ISO 8608 C, 20 m/s, 60 s, seeds 1-3, c_max 4000 N s/m):
+Wk RMS against 0 A passive -3.0 / 0.0 / +6.6 % at 1 / 2 / 4 Hz (tyre load -6.2 / -8.4 /
+-11.9 %); 0.7 Hz: -3.3 % (-5.4 %). 1 Hz is the comfort choice."""
+
+
+class ShAdd(Controller):
+    """
+    Mixed skyhook / acceleration-driven damper, SH-ADD (Savaresi and Spelta 2007).
+
+    Each sample picks skyhook or ADD by the sign of ``v_s^2 - alpha^2 a_s^2``:
+
+    - ``>= 0`` (the body moves slowly, below about ``1 / (2 pi alpha)`` Hz): skyhook choice,
+      ``c_max`` when ``v_s v_rel > 0`` else ``c_min``;
+    - ``< 0`` (fast body motion): ADD choice, ``c_max`` when ``a_s v_rel > 0`` else ``c_min``;
+
+    and demands ``F = -c v_rel`` [N on body] (dissipative for ``c >= 0``).
+
+    Parameters
+    ----------
+    c_max, c_min : float
+        High and low damping [N s/m], ``c_max >= c_min >= 0``.
+    f_switch_hz : float
+        Switching frequency [Hz]: ``alpha = 1 / (2 pi f_switch_hz)`` [s] (for a sine of
+        frequency f, ``|v_s| >= alpha |a_s|`` exactly when ``f <= f_switch_hz``).
+    name : str
+        Controller name.
+
+    """
+
+    def __init__(self, c_max=4000.0, c_min=0.0, f_switch_hz=DEFAULT_SHADD_F_SWITCH_HZ,
+                 name='sh-add'):
+        self.c_max, self.c_min = float(c_max), float(c_min)
+        if not (math.isfinite(self.c_max) and 0.0 <= self.c_min <= self.c_max):
+            raise ValueError(f'need 0 <= `c_min` <= `c_max`, got {c_min}, {c_max}')
+        f_sw = float(f_switch_hz)
+        if not (math.isfinite(f_sw) and f_sw > 0.0):
+            raise ValueError(f'`f_switch_hz` must be > 0, got {f_switch_hz}')
+        self.f_switch_hz = f_sw
+        self.alpha = 1.0 / (2.0 * math.pi * f_sw)
+        self.name = name
+
+    def choice(self, state):
+        """Return ``'skyhook'`` or ``'add'``: the law SH-ADD follows in this state."""
+        vs, a = state.v_s, self.alpha * state.a_s
+        return 'skyhook' if vs * vs - a * a >= 0.0 else 'add'
+
+    def demand(self, state):
+        """Desired damper force on the body [N]."""
+        vr = state.v_rel
+        if self.choice(state) == 'skyhook':
+            high = state.v_s * vr > 0.0
+        else:
+            high = state.a_s * vr > 0.0
+        return -(self.c_max if high else self.c_min) * vr
+
+
 class SkyhookIdeal(Skyhook):
     """
     Skyhook with a perfect semi-active actuator (force applied directly, no current limits).
@@ -256,6 +325,94 @@ class LqrActive(Controller):
                  + k[3] * state.v_u)
 
 
+DEFAULT_CO_WEIGHTS = {'q_accel': 1.0, 'q_travel': 0.0, 'q_tyre': 1.0e3, 'r_force': 1.0e-5}
+"""Default LQR weights of the clipped-optimal law (see :func:`clipped_optimal_gain`).
+
+SI units. Comfort first (unit weight on a_s), no travel weight (the spring holds it), a light
+tyre-deflection weight and a force weight that keeps the demand near the damper's soft end.
+bench/bench_laws.py (Spencer plant, ISO 8608 C, 20 m/s, 60 s, seeds 1-3): Wk RMS / tyre load
+against 0 A passive -4.6 % / -2.8 % (q_tyre 1e4, r_force 1e-6: -1.0 % / -9.7 %; q_tyre 1e5:
++25 % / -28 %); see docs/control-laws.md."""
+
+
+def clipped_optimal_gain(params=None, **weights):
+    """
+    LQR gain of the clipped-optimal law: active force on the linear quarter car.
+
+    Designed with :func:`quarter_car_sim.linear_analysis.lqr_design` (``control.lqr``) on the
+    car without damper: cost ``q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2 +
+    r_force F^2`` (SI units).
+
+    Parameters
+    ----------
+    params : QuarterCarParams, optional
+        Car parameters (default car).
+    **weights
+        Overrides of :data:`DEFAULT_CO_WEIGHTS`.
+
+    Returns
+    -------
+    ndarray with shape (4,)
+        Gain for ``F = -K [travel, v_s, z_u - z_r, v_u]``.
+
+    """
+    from quarter_car_sim.linear_analysis import lqr_design
+    from quarter_car_sim.params import QuarterCarParams
+    unknown = sorted(set(weights) - set(DEFAULT_CO_WEIGHTS))
+    if unknown:
+        raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
+    w = {**DEFAULT_CO_WEIGHTS, **weights}
+    return lqr_design(params or QuarterCarParams(), **w).gain
+
+
+class ClippedOptimal(LqrActive):
+    """
+    Clipped-optimal semi-active control (Dyke et al. 1996): LQR force clipped to the damper.
+
+    The desired force is the fully active LQR force ``-K [travel, v_s, z_u - z_r, v_u]``; the
+    demand is that force clipped to what the damper can give: to the force range of the
+    damper model at the present travel and velocity over the current range
+    (``force_range``), then to the dissipative half-line (``F v_rel <= 0``, 0 at
+    ``v_rel = 0``). Without ``force_range`` only the dissipative clipping is done here and the
+    inverse model's saturation (nearest reachable force) does the range clipping, which gives
+    the same current for a force monotone in the current.
+
+    Parameters
+    ----------
+    gain : array_like with shape (4,)
+        LQR gain (:func:`clipped_optimal_gain`).
+    force_range : callable, optional
+        ``force_range(travel, v_rel) -> (lo, hi)``: reachable damper forces on the body [N]
+        (e.g. :meth:`KwokCurrentInverse.body_force_range`).
+    name : str
+        Controller name.
+
+    """
+
+    kind = 'semi-active'
+
+    def __init__(self, gain, force_range=None, name='clipped-optimal'):
+        super().__init__(gain, name=name)
+        self.force_range = force_range
+
+    def desired(self, state):
+        """Unclipped LQR force on the body [N]."""
+        return LqrActive.demand(self, state)
+
+    def demand(self, state):
+        """Desired damper force on the body [N], clipped to the damper (dissipative)."""
+        f = self.desired(state)
+        vr = state.v_rel
+        if self.force_range is not None:
+            lo, hi = self.force_range(state.travel, vr)
+            f = min(max(f, lo), hi)
+        if vr > 0.0:
+            return min(f, 0.0)
+        if vr < 0.0:
+            return max(f, 0.0)
+        return 0.0
+
+
 class KwokCurrentInverse:
     """
     Force on the body -> coil current, through the identified kwok-current damper model.
@@ -290,6 +447,20 @@ class KwokCurrentInverse:
         """Model force [N] (resisting extension positive) at travel x [m], v [m/s], i [A]."""
         return self._inverse.force(i, x, v)
 
+    def body_force_range(self, travel, v_rel):
+        """
+        Damper forces on the body the model can make at this travel and velocity.
+
+        Returns
+        -------
+        lo, hi : float
+            Smallest and largest of ``-model_force`` at ``i_min`` and ``i_max`` [N].
+
+        """
+        a = -self._inverse.force(self.i_min, travel, v_rel)
+        b = -self._inverse.force(self.i_max, travel, v_rel)
+        return (a, b) if a <= b else (b, a)
+
     def current(self, f_body, travel, v_rel):
         """
         Return the current command for a desired damper force on the body.
@@ -316,7 +487,7 @@ class KwokCurrentInverse:
 
 
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,
-                    params=None):
+                    params=None, inverse=None):
     """
     Build a controller from its command-line name.
 
@@ -324,16 +495,21 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     ----------
     name : str
         ``passive@<I>A`` (or ``passive`` = 0 A), ``skyhook``, ``skyhook-onoff``, ``groundhook``,
-        ``hybrid``, ``add``, ``skyhook-ideal``, ``lqr-active``.
+        ``hybrid``, ``add``, ``sh-add``, ``clipped-optimal``, ``skyhook-ideal``,
+        ``lqr-active``.
     c_sky, c_p : float
         Skyhook gain and passive part [N s/m] (skyhook, hybrid, skyhook-ideal).
     lqr_gain : array_like, optional
-        LQR gain; default designed by :func:`quarter_car_sim.linear_analysis.lqr_design` on
-        ``params``.
+        LQR gain (lqr-active, clipped-optimal); default designed on ``params`` by
+        :func:`quarter_car_sim.linear_analysis.lqr_design` (lqr-active) or
+        :func:`clipped_optimal_gain` (clipped-optimal).
     alpha : float
         Hybrid weight.
     params : QuarterCarParams, optional
         Car parameters for the LQR design.
+    inverse : KwokCurrentInverse, optional
+        Inverse model whose force range clips the clipped-optimal demand (else the inverse of
+        the loop saturates it, see :class:`ClippedOptimal`).
 
     Returns
     -------
@@ -359,6 +535,11 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
         return Hybrid(c_sky, alpha)
     if n == 'add':
         return ADD()
+    if n == 'sh-add':
+        return ShAdd()
+    if n == 'clipped-optimal':
+        gain = clipped_optimal_gain(params) if lqr_gain is None else lqr_gain
+        return ClippedOptimal(gain, None if inverse is None else inverse.body_force_range)
     if n == 'skyhook-ideal':
         return SkyhookIdeal(c_sky, c_p)
     if n == 'lqr-active':
@@ -371,4 +552,4 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
 
 
 CONTROLLER_NAMES = ('passive@<I>A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add',
-                    'skyhook-ideal', 'lqr-active')
+                    'sh-add', 'clipped-optimal', 'skyhook-ideal', 'lqr-active')

@@ -90,7 +90,7 @@ def make_controller(name, car_params=None, options=None):
     name : str
         A name of ``quarter_car_sim.controllers.make_controller`` of kind ``'current'``
         (``passive@<I>A``) or ``'semi-active'`` (skyhook, skyhook-onoff, groundhook, hybrid,
-        add).
+        add, sh-add, clipped-optimal); it delegates to the core factory.
     car_params : QuarterCarParams, optional
         Car parameters (LQR design only).
     options : dict, optional
@@ -111,7 +111,8 @@ def make_controller(name, car_params=None, options=None):
     ctrl = controllers.make_controller(name, params=car_params, **(options or {}))
     if ctrl.kind not in ('current', 'semi-active'):
         raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
-                         'MR damper (use skyhook, groundhook, hybrid, add or passive@<I>A)')
+                         'MR damper (use skyhook, groundhook, hybrid, add, sh-add, '
+                         'clipped-optimal or passive@<I>A)')
     return ctrl
 
 
