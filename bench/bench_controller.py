@@ -248,8 +248,9 @@ def main(argv=None):
     os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
     sys.setswitchinterval(0.0005)
     import rclpy
-    from std_msgs.msg import Float64MultiArray, String
-    from mr_damper_model.messages import dict_to_array_msg
+    from mr_damper_interfaces.msg import KwokParameters
+    from std_msgs.msg import String
+    from mr_damper_model.messages import kwok_parameters_msg
     from mr_damper_model.node_utils import LATCHED_QOS, make_executor, set_realtime_priority
     print(f'bench_controller: load at start {os.getloadavg()}, {os.cpu_count()} CPUs, '
           f'realtime priority {args.realtime_priority}')
@@ -261,8 +262,8 @@ def main(argv=None):
                              lambda m: status.update(ctrl=json.loads(m.data)), 10)
     node.create_subscription(String, f'{prefix}/car_status',
                              lambda m: status.update(car=json.loads(m.data)), 10)
-    ppub = node.create_publisher(Float64MultiArray, f'{prefix}/params', LATCHED_QOS)
-    ppub.publish(dict_to_array_msg(_params()))
+    ppub = node.create_publisher(KwokParameters, f'{prefix}/params', LATCHED_QOS)
+    ppub.publish(kwok_parameters_msg(_params()))
     executor = make_executor(True)
     executor.add_node(node)
     # this process's publisher and receiver compete with the nodes: same priority as theirs

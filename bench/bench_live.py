@@ -74,7 +74,8 @@ def main(argv=None):
     import psutil
     import rclpy
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Float64MultiArray, String
+    from mr_damper_interfaces.msg import KwokParameters
+    from std_msgs.msg import String
 
     from mr_damper_model.messages import kwok_parameters_from_msg, status_from_msg
 
@@ -95,7 +96,7 @@ def main(argv=None):
     node.create_subscription(String, '/mr_damper/rig_status',
                              lambda m: latest.__setitem__('rig', status_from_msg(m)), 10)
     node.create_subscription(
-        Float64MultiArray, '/mr_damper/kwok_parameters',
+        KwokParameters, '/mr_damper/kwok_parameters',
         lambda m: updates.append((time.monotonic(), kwok_parameters_from_msg(m))),
         QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.VOLATILE))

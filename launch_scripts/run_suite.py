@@ -436,7 +436,8 @@ def start_recorder(rec, topics):
     from rclpy.executors import ExternalShutdownException
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64MultiArray, String
+    from mr_damper_interfaces.msg import DamperModel, KwokParameters
+    from std_msgs.msg import String
 
     from mr_damper_model import messages as mm
 
@@ -472,7 +473,7 @@ def start_recorder(rec, topics):
 
     def on_params(msg):
         try:
-            d = mm.array_msg_to_dict(msg)
+            d = mm.kwok_parameters_flat(msg)
         except ValueError:
             return
         d['recv_epoch_s'] = time.time()
@@ -480,13 +481,13 @@ def start_recorder(rec, topics):
 
     def on_truth(msg):
         try:
-            rec.truth = mm.array_msg_to_dict(msg)
+            rec.truth = mm.kwok_parameters_flat(msg)
         except ValueError:
             pass
 
     def on_truth_spencer(msg):
         try:
-            rec.truth_spencer = mm.array_msg_to_dict(msg)
+            rec.truth_spencer = mm.damper_model_from_msg(msg)['parameters']
         except ValueError:
             pass
 
@@ -509,9 +510,9 @@ def start_recorder(rec, topics):
 
     subs = [
         node.create_subscription(JointState, topics['measurement'], on_meas, reliable),
-        node.create_subscription(Float64MultiArray, topics['parameters'], on_params, latched),
-        node.create_subscription(Float64MultiArray, topics['truth'], on_truth, latched),
-        node.create_subscription(Float64MultiArray, topics['truth_spencer'], on_truth_spencer,
+        node.create_subscription(KwokParameters, topics['parameters'], on_params, latched),
+        node.create_subscription(KwokParameters, topics['truth'], on_truth, latched),
+        node.create_subscription(DamperModel, topics['truth_spencer'], on_truth_spencer,
                                  latched),
         node.create_subscription(String, topics['ride_metrics'], on_metrics, status_qos),
     ]

@@ -60,12 +60,20 @@ class NodeProcess:
         Extra arguments before ``--ros-args``.
     env : dict, optional
         Extra environment variables.
+    remap : dict, optional
+        Remappings ``-r from:=to`` (topic names, ``__ns``, ``__node``).
+    namespace : str, optional
+        Node namespace (``-r __ns:=/namespace``).
 
     """
 
-    def __init__(self, exe, params=None, args=(), env=None):
+    def __init__(self, exe, params=None, args=(), env=None, remap=None, namespace=None):
         path = Path(exe) if os.sep in str(exe) else VENV_BIN / exe
         cmd = [str(path), *args, '--ros-args']
+        if namespace:
+            cmd += ['-r', f'__ns:=/{namespace.strip("/")}']
+        for old, new in (remap or {}).items():
+            cmd += ['-r', f'{old}:={new}']
         for name, value in (params or {}).items():
             cmd += ['-p', f'{name}:={ros_param(value)}']
         self.cmd = cmd
@@ -143,6 +151,14 @@ class Listener:
                                       lambda m: received.append((time.monotonic(), m)), qos)
         return received
 
+    def diagnostics(self):
+        """Subscribe to ``/diagnostics`` and return the :class:`Diagnostics` collecting it."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        diag = Diagnostics()
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', diag.add,
+                                      status_qos())
+        return diag
+
     def publisher(self, topic, msg_type, qos=None):
         """Create a publisher: reliable, depth 1000, unless ``qos`` is given."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -185,6 +201,62 @@ def status_qos():
     """Return the QoS the tests subscribe to JSON status topics with (reliable, depth 100)."""
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class Diagnostics:
+    """
+    The ``/diagnostics`` statuses received, by status name.
+
+    The name is the node's fully qualified name without the leading slash, e.g.
+    ``'mr_damper_identifier'`` or ``'fl/mr_damper_identifier'``. Keeps the newest
+    :class:`~mr_damper_model.health.Health` and a count per name, and the sequence of levels
+    (bounded), so tests assert order and counts of events.
+
+    """
+
+    def __init__(self, max_levels=10_000):
+        self._lock = threading.Lock()
+        self._latest = {}
+        self._counts = {}
+        self._levels = {}
+        self._max = int(max_levels)
+
+    def add(self, msg):
+        """Subscription callback: record each status of a ``DiagnosticArray``."""
+        from mr_damper_model.messages import health_from_diagnostic
+        with self._lock:
+            for status in msg.status:
+                health = health_from_diagnostic(status)
+                self._latest[status.name] = health
+                self._counts[status.name] = self._counts.get(status.name, 0) + 1
+                levels = self._levels.setdefault(status.name, [])
+                if len(levels) < self._max:
+                    levels.append(health.level)
+
+    def latest(self, name):
+        """Return the newest Health of ``name`` (None before the first)."""
+        with self._lock:
+            return self._latest.get(name)
+
+    def values(self, name):
+        """Return the newest status values of ``name`` ({} before the first)."""
+        health = self.latest(name)
+        return dict(health.values) if health is not None else {}
+
+    def count(self, name):
+        """Return how many statuses of ``name`` arrived."""
+        with self._lock:
+            return self._counts.get(name, 0)
+
+    def levels(self, name):
+        """Return the levels of ``name`` in the order they arrived."""
+        with self._lock:
+            return list(self._levels.get(name, []))
+
+    def names(self):
+        """Return the status names seen so far."""
+        with self._lock:
+            return sorted(self._latest)
 
 
 def latest_status(received):

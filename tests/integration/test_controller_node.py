@@ -38,12 +38,12 @@ CTRL_TOPICS = dict(TOPICS, status_topic=f'{PREFIX}/ctrl_status')
 
 @pytest.fixture(scope='module')
 def listener():
-    from std_msgs.msg import Float64MultiArray
-    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
+    from mr_damper_interfaces.msg import KwokParameters
+    from mr_damper_model.messages import kwok_parameters_msg
     from mr_damper_model.node_utils import LATCHED_QOS
     lis = Listener('controller_node_test')
-    pub = lis.publisher(TOPICS['params_topic'], Float64MultiArray, LATCHED_QOS)
-    pub.publish(dict_to_array_msg(_good_params(), KWOK_PARAMETER_LABELS))   # latched
+    pub = lis.publisher(TOPICS['params_topic'], KwokParameters, LATCHED_QOS)
+    pub.publish(kwok_parameters_msg(_good_params()))   # latched
     lis.params_pub = pub
     yield lis
     lis.close()

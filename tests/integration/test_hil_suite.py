@@ -108,8 +108,9 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
 
 def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listener):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Float64MultiArray, String
-    from mr_damper_model.messages import array_msg_to_dict
+    from mr_damper_interfaces.msg import KwokParameters
+    from std_msgs.msg import String
+    from mr_damper_model.messages import kwok_parameters_flat
     # coarser bins than the shipped config (5 instead of 9) so that the probe covers them in
     # fewer windows; the same bins in the car's probe and the identifier
     bins = {'probe_bin_a': 0.5}
@@ -120,7 +121,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     rig_st = listener.subscribe('/mr_damper/rig_status', String, status_qos())
     ident_st = listener.subscribe('/mr_damper/identifier_status', String, status_qos())
     car_st = listener.subscribe('/quarter_car/status', String, status_qos())
-    params = listener.subscribe('/mr_damper/kwok_parameters', Float64MultiArray, QoSProfile(
+    params = listener.subscribe('/mr_damper/kwok_parameters', KwokParameters, QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
     with NodeProcess('identifier_node', params=ident_p) as ident, \
@@ -172,7 +173,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     assert tr['rms_m'] < hil['travel_rms_m']
     assert tr['peak_m'] >= tr['rms_m']
     # valid parameters over the whole coil range, thanks to the probe; the car took one
-    sets = [array_msg_to_dict(m) for _, m in params]
+    sets = [kwok_parameters_flat(m) for _, m in params]
     valid = [p for p in sets if p.get('valid') == 1.0]
     assert valid, sets[-3:]
     assert any(p['current_max_a'] - p['current_min_a'] >= 1.0 for p in valid)

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from mr_damper_interfaces.msg import KwokParameters
+from std_msgs.msg import String
 
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.live import pinned_parameters
@@ -136,7 +137,7 @@ def test_sensor_faults_never_become_valid_models():
     names = {'measurement_topic': '/faults/measurement',
              'parameters_topic': '/faults/kwok_parameters',
              'status_topic': '/faults/identifier_status'}
-    params = lis.subscribe(names['parameters_topic'], Float64MultiArray)
+    params = lis.subscribe(names['parameters_topic'], KwokParameters)
     status = lis.subscribe(names['status_topic'], String, STATUS_QOS)
     pub = lis.publisher(names['measurement_topic'], JointState, KEEP_ALL)
     ident = NodeProcess('identifier_node', names)

@@ -45,8 +45,8 @@ def _good_params():
 
 
 def _params_msg(values):
-    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
-    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+    from mr_damper_model.messages import kwok_parameters_msg
+    return kwok_parameters_msg(values)
 
 
 @pytest.fixture(scope='module')
@@ -58,7 +58,8 @@ def listener():
 
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Float64, Float64MultiArray, String
+    from mr_damper_interfaces.msg import KwokParameters
+    from std_msgs.msg import Float64, String
     topic = '/h5test/kwok_parameters'
     params = {'params_topic': topic, 'command_topic': '/h5test/current_command',
               'status_topic': '/h5test/status', 'metrics_topic': '/h5test/metrics',
@@ -67,7 +68,7 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
     statuses = listener.subscribe('/h5test/status', String, _status_qos())
     commands = listener.subscribe('/h5test/current_command', Float64, QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-    pub = listener.publisher(topic, Float64MultiArray, QoSProfile(
+    pub = listener.publisher(topic, KwokParameters, QoSProfile(
         depth=1, reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
     with NodeProcess('quarter_car_node', params=params) as qc:
@@ -79,7 +80,7 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
 
         def send(values, expect_mode, counter=None, count=None):
             n = len(statuses)
-            pub.publish(values if isinstance(values, Float64MultiArray) else _params_msg(values))
+            pub.publish(values if isinstance(values, KwokParameters) else _params_msg(values))
 
             def seen():
                 if len(statuses) <= n + 1:
@@ -106,7 +107,7 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
             st = send(values, 'failsafe', reason, 1)
             assert st['reason'] == reason
             send(good, 'normal')
-        undecodable = Float64MultiArray(data=[1.0, 2.0])          # no label: decode refuses
+        undecodable = KwokParameters()           # i_ref_a 0: decode refuses
         st = send(undecodable, 'failsafe', 'undecodable', 1)
         st = send(good, 'normal')
         assert st['params_accepted'] == 2 + len(bad_sets)

@@ -1,12 +1,15 @@
-"""Message conversions: measurement JointState, labelled Float64MultiArray, JSON status."""
+"""Message conversions: measurement JointState, typed parameters, diagnostics, JSON status."""
 import math
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from mr_damper_interfaces.msg import DamperModel, KwokParameters
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import String
 
 from mr_damper_model import messages as m
+from mr_damper_model.health import Health, WARN
 
 
 def test_measurement_round_trip_keeps_values_and_stamp():
@@ -49,41 +52,78 @@ def test_negative_stamp_is_refused():
         m.measurement_to_msg(-1.0, 0, 0, 0, 0)
 
 
-def test_kwok_parameters_layout_and_decoding_by_label():
+def test_kwok_parameters_typed_round_trip():
     params = dict(zip(m.KWOK_CURRENT_NAMES, np.arange(1.0, 11.0)))
-    msg = m.kwok_parameters_msg(dict(params, window_end_s=12.5, current_min_a=0.0,
-                                     current_max_a=2.0, rmse_n=3.0, nrmse_percent=1.5,
-                                     valid=True))
-    dim = msg.layout.dim[0]
-    assert dim.label.split(',') == list(m.KWOK_PARAMETER_LABELS)
-    assert dim.size == dim.stride == len(msg.data) == 17
+    msg = m.kwok_parameters_msg(dict(params, window_start_s=10.5, window_end_s=12.5,
+                                     current_min_a=0.0, current_max_a=2.0, rmse_n=3.0,
+                                     nrmse_percent=1.5, valid=True), stamp_s=20.25)
+    assert isinstance(msg, KwokParameters)
+    assert (msg.c0, msg.f0, msg.i_ref_a) == (1.0, 10.0, 2.0)
+    assert (msg.window_end.sec, msg.window_end.nanosec) == (12, 500_000_000)
+    assert msg.header.frame_id == 'mr_damper' and msg.header.stamp.sec == 20
+    assert msg.valid and msg.reason == ''
     back = m.kwok_parameters_from_msg(msg)
     assert back['parameters'] == params
-    assert back['valid'] is True and back['i_ref_a'] == 2.0 and back['window_end_s'] == 12.5
-    # a publisher with another element order decodes the same (by label)
-    order = list(reversed(m.KWOK_PARAMETER_LABELS))
-    d = m.array_msg_to_dict(msg)
-    other = m.dict_to_array_msg(d, order)
-    assert m.kwok_parameters_from_msg(other) == back
+    assert back['valid'] is True and back['i_ref_a'] == 2.0
+    assert (back['window_start_s'], back['window_end_s'], back['stamp_s']) == (10.5, 12.5, 20.25)
+    assert (back['current_min_a'], back['current_max_a'], back['rmse_n']) == (0.0, 2.0, 3.0)
+    flat = m.kwok_parameters_flat(msg)
+    assert {k: flat[k] for k in m.KWOK_CURRENT_NAMES} == params
+    assert flat['valid'] is True and flat['current_max_a'] == 2.0
 
 
-def test_kwok_parameters_invalid_flag_and_missing_names():
+def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
     params = dict(zip(m.KWOK_CURRENT_NAMES, np.ones(10)))
-    assert m.kwok_parameters_from_msg(m.kwok_parameters_msg(params))['valid'] is False
+    msg = m.kwok_parameters_msg(dict(params, reason='nrmse_above_threshold'))
+    back = m.kwok_parameters_from_msg(msg)
+    assert back['valid'] is False and back['reason'] == 'nrmse_above_threshold'
+    assert math.isnan(back['window_start_s']) and math.isnan(back['window_end_s'])
+    assert math.isnan(back['rmse_n'])
+    # not valid always carries a reason
+    assert m.kwok_parameters_from_msg(m.kwok_parameters_msg(params))['reason'] == 'not_valid'
     with pytest.raises(ValueError, match='beta1'):
         m.kwok_parameters_msg({k: v for k, v in params.items() if k != 'beta1'})
-    short = m.dict_to_array_msg({'c0': 1.0})
-    with pytest.raises(m.MessageError, match='misses'):
-        m.kwok_parameters_from_msg(short)
+    with pytest.raises(ValueError, match='i_ref_a'):
+        m.kwok_parameters_msg(dict(params, i_ref_a=0.0))
 
 
-def test_array_msg_label_count_mismatch_is_layout_error():
-    msg = Float64MultiArray(data=[1.0, 2.0])
-    with pytest.raises(m.MessageError):
-        m.array_msg_to_dict(msg)
-    msg.layout.dim = [MultiArrayDimension(label='a,b,c', size=3, stride=3)]
-    with pytest.raises(m.MessageError, match='3 labels for 2'):
-        m.array_msg_to_dict(msg)
+def test_kwok_parameters_with_zero_reference_current_is_a_layout_error():
+    msg = KwokParameters()           # every field 0: no model can use it
+    with pytest.raises(m.MessageError, match='i_ref_a') as info:
+        m.kwok_parameters_from_msg(msg)
+    assert info.value.reason == 'layout'
+
+
+def test_damper_model_round_trip_and_mismatch():
+    params = {'c0a': 784.0, 'alpha_a': 12441.0, 'gamma': 136320.0}
+    msg = m.damper_model_msg('spencer', params, {'i_ref_a': 2.0}, stamp_s=1.5)
+    assert isinstance(msg, DamperModel) and msg.header.stamp.nanosec == 500_000_000
+    assert m.damper_model_from_msg(msg) == {'model': 'spencer', 'parameters': params,
+                                            'model_options': {'i_ref_a': 2.0}}
+    msg.parameter_values = [1.0]
+    with pytest.raises(m.MessageError, match='3 names for 1 values'):
+        m.damper_model_from_msg(msg)
+
+
+def test_diagnostic_status_round_trip_with_nesting_non_finite_and_numpy():
+    values = {'samples_received': np.int64(12000), 'valid': np.bool_(True),
+              'param_age_s': float('nan'), 'windows_skipped': {'gap': 2, 'no_bins': 0},
+              'reason': 'stale', 'bins_a': [0.0, np.float64(2.0)], 'cap': float('inf')}
+    status = m.diagnostic_status_msg('fl/mr_damper_identifier', Health(WARN, 'stale', values),
+                                     hardware_id='fl')
+    assert isinstance(status, DiagnosticStatus)
+    assert status.level == DiagnosticStatus.WARN
+    kv = {v.key: v.value for v in status.values}
+    assert kv['windows_skipped.gap'] == '2' and kv['valid'] == 'true'
+    assert kv['param_age_s'] == 'nan' and kv['reason'] == 'stale'
+    back = m.health_from_diagnostic(status)
+    assert back.level == WARN and back.message == 'stale'
+    assert back.values['samples_received'] == 12000 and back.values['valid'] is True
+    assert back.values['windows_skipped'] == {'gap': 2, 'no_bins': 0}
+    assert math.isnan(back.values['param_age_s']) and back.values['cap'] == math.inf
+    assert back.values['bins_a'] == [0.0, 2.0]
+    array = m.diagnostic_array_msg([status], stamp_s=3.0)
+    assert isinstance(array, DiagnosticArray) and array.header.stamp.sec == 3
 
 
 def test_status_json_round_trip_with_non_finite_and_numpy():

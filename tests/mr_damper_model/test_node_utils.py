@@ -195,3 +195,108 @@ def test_resettable_publisher_replaces_a_writer_a_reader_stopped_acknowledging(r
     assert pub.ready()
     node.destroy_node()
     stalled.destroy_node()
+
+
+_SPECS = (
+    node_utils.Param('gain', 2.0, 'Controller gain [N s/m]', 0.0, 10.0, dynamic=True),
+    node_utils.Param('safe_current_a', 0.5, 'Safe current [A]', 0.0, 2.0, dynamic=True),
+    node_utils.Param('window', 3, 'Window count [-]', 1, 100),
+    node_utils.Param('mode', 'sim', 'Source of the samples'),
+)
+
+
+def test_parameters_have_descriptions_ranges_and_refuse_what_cannot_change(ros):
+    from rclpy.parameter import Parameter
+    node = rclpy.create_node('param_spec_test')
+    applied = []
+
+    def on_set(changes):
+        if changes.get('gain', 0.0) > 5.0 and 'safe_current_a' not in changes:
+            return 'gain above 5 needs a safe current in the same request'
+        applied.append(changes)
+        return ''
+
+    values = node_utils.declare_parameters(node, _SPECS, on_set)
+    assert values == {'gain': 2.0, 'safe_current_a': 0.5, 'window': 3, 'mode': 'sim'}
+    desc = node.describe_parameter('gain')
+    assert desc.description == 'Controller gain [N s/m]' and not desc.read_only
+    assert (desc.floating_point_range[0].from_value,
+            desc.floating_point_range[0].to_value) == (0.0, 10.0)
+    assert node.describe_parameter('window').integer_range[0].to_value == 100
+    assert node.describe_parameter('mode').read_only
+    # a dynamic parameter in range is applied through the callback
+    result = node.set_parameters([Parameter('gain', value=4.0)])[0]
+    assert result.successful and applied == [{'gain': 4.0}]
+    assert node.get_parameter('gain').value == 4.0
+    # out of range: rclpy refuses before the callback
+    result = node.set_parameters([Parameter('gain', value=11.0)])[0]
+    assert not result.successful and 'out of range' in result.reason
+    # the node's own check refuses with its reason; nothing changes
+    result = node.set_parameters([Parameter('gain', value=6.0)])[0]
+    assert not result.successful and 'safe current' in result.reason
+    assert node.get_parameter('gain').value == 4.0 and len(applied) == 1
+    # start-up-only parameters are refused, not accepted and ignored
+    result = node.set_parameters([Parameter('mode', value='csv')])[0]
+    assert not result.successful and 'read-only' in result.reason
+    assert node.get_parameter('mode').value == 'sim'
+    node.destroy_node()
+
+
+def test_a_value_out_of_range_at_start_up_is_a_parameter_error(ros):
+    from rclpy.exceptions import ParameterException
+    from rclpy.parameter import Parameter
+    node = rclpy.create_node('param_range_test', parameter_overrides=[
+        Parameter('window', value=0)])
+    with pytest.raises(ParameterException):
+        node_utils.declare_parameters(node, _SPECS[2:])
+    node.destroy_node()
+
+
+def test_dynamic_parameters_need_an_on_set_callback(ros):
+    node = rclpy.create_node('param_no_callback')
+    with pytest.raises(ValueError, match='on_set'):
+        node_utils.declare_parameters(node, _SPECS[:1])
+    node.destroy_node()
+
+
+def test_diagnostics_publisher_sends_named_levels_and_survives_a_status_error(ros):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from mr_damper_model.health import Health, STALE, WARN
+    from mr_damper_model.messages import health_from_diagnostic
+    node = rclpy.create_node('diag_test', namespace='fl')
+    listener = rclpy.create_node('diag_listener')
+    got = []
+    listener.create_subscription(DiagnosticArray, '/diagnostics', got.append,
+                                 node_utils.DIAGNOSTICS_QOS)
+    calls = []
+
+    def health():
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError('boom')
+        return Health(WARN, 'fail-safe: stale', {'param_age_s': 1.5})
+
+    drops = node_utils.DropCounter(_Logger())
+    diag = node_utils.DiagnosticsPublisher(node, health, period_s=3600.0, hardware_id='fl',
+                                           drops=drops)
+    assert diag.name == 'fl/diag_test'
+    for _ in range(3000):   # discovery: a hang guard, not a time bound
+        if listener.count_publishers('/diagnostics') >= 1 and \
+                node.count_subscribers('/diagnostics') >= 1:
+            break
+        rclpy.spin_once(listener, timeout_sec=0.01)
+    assert diag.publish().level == WARN
+    assert diag.publish().level == STALE         # the error became a STALE status
+    for _ in range(3000):
+        if len(got) == 2:
+            break
+        rclpy.spin_once(listener, timeout_sec=0.01)
+    statuses = [s for msg in got for s in msg.status]
+    assert [s.name for s in statuses] == ['fl/diag_test'] * 2
+    first, second = (health_from_diagnostic(s) for s in statuses)
+    assert first.level == WARN and first.values == {'param_age_s': 1.5}
+    assert statuses[0].hardware_id == 'fl'
+    assert second.level == STALE and 'RuntimeError: boom' in second.message
+    assert diag.published == 2 and drops.counts() == {}
+    node.destroy_node()
+    listener.destroy_node()

@@ -35,22 +35,22 @@ def node_factory(tmp_path):
 
 def _msg(**changes):
     from mr_damper_model import presets
-    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
+    from mr_damper_model.messages import kwok_parameters_msg
     model, params = presets.thesis_kwok_current()
     values = dict(params, i_ref_a=2.0, window_end_s=1.0, current_min_a=0.0, current_max_a=2.0,
                   rmse_n=1.0, nrmse_percent=0.5, valid=1.0)
     values.update(changes)
-    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+    return kwok_parameters_msg(values)
 
 
 def test_callbacks_drive_the_supervisor_and_status(node_factory, tmp_path):
-    from std_msgs.msg import Float64MultiArray
+    from mr_damper_interfaces.msg import KwokParameters
     node = node_factory(safe_current_a=0.25)
     assert node.sup.safe_current_a == 0.25 and node.sup.mode == 'failsafe'
     node.on_params(_msg())
     assert node.sup.mode == 'normal'
     node.on_params(_msg(valid=0.0))
-    node.on_params(Float64MultiArray(data=[1.0]))
+    node.on_params(KwokParameters())              # i_ref_a 0: undecodable
     st = node.status()
     assert st['mode'] == 'failsafe' and st['reason'] == 'undecodable'
     assert st['params_accepted'] == 1

@@ -31,12 +31,12 @@ def _make(ctx, cls, **params):
 
 def _params_msg(**changes):
     from mr_damper_model import presets
-    from mr_damper_model.messages import dict_to_array_msg, KWOK_PARAMETER_LABELS
+    from mr_damper_model.messages import kwok_parameters_msg
     model, params = presets.thesis_kwok_current()
     values = dict(params, i_ref_a=2.0, window_end_s=1.0, current_min_a=0.0, current_max_a=2.0,
                   rmse_n=1.0, nrmse_percent=0.5, valid=1.0)
     values.update(changes)
-    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+    return kwok_parameters_msg(values)
 
 
 def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
@@ -65,7 +65,7 @@ def test_state_message_round_trip_keeps_the_law_fields():
 
 
 def test_controller_node_answers_states_through_the_supervised_core(ctx):
-    from std_msgs.msg import Float64MultiArray
+    from mr_damper_interfaces.msg import KwokParameters
     from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
                                                              SemiActiveControllerNode)
     node = _make(ctx, SemiActiveControllerNode, safe_current_a=0.25, **TOPICS)
@@ -79,7 +79,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     bad = car_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
     node.on_state(bad)
     assert sent[-1] == 0.25
-    node.on_params(Float64MultiArray(data=[1.0]))               # no label: undecodable
+    node.on_params(KwokParameters())               # i_ref_a 0: undecodable
     st = node.status()
     assert st['mode'] == 'failsafe' and st['reason'] == 'undecodable'
     assert st['commands'] == 3 and st['commands_normal'] == 1

@@ -6,7 +6,7 @@ Identifier node: live current-dependent Kwok identification of the measured MR d
 Subscribes to the measurement topic (``sensor_msgs/JointState``, one message per DAQ sample),
 fits sliding windows with :mod:`mr_damper_model.live` in a worker thread (so the measurement
 callbacks keep up with 1 kHz while a window is fitted) and publishes the kwok-current estimate
-(``std_msgs/Float64MultiArray``, labelled) and a JSON status (``std_msgs/String``).  The last valid
+(``mr_damper_interfaces/KwokParameters``) and a JSON status (``std_msgs/String``).  The last valid
 parameters are saved to ``params_file`` and reloaded at start-up.  Parameters: see the README
 table or ``--ros-args -p name:=value``.
 """
@@ -20,7 +20,8 @@ import numpy as np
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from mr_damper_interfaces.msg import KwokParameters
+from std_msgs.msg import String
 
 from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
@@ -128,7 +129,7 @@ class IdentifierNode(Node):
 
         self.drops = DropCounter(self.get_logger())
         self._pub_params = self.create_publisher(
-            Float64MultiArray, p('parameters_topic').value, PARAMETERS_QOS)
+            KwokParameters, p('parameters_topic').value, PARAMETERS_QOS)
         self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
         self._ages = np.zeros(_AGES)
         self._n_ages = 0
@@ -225,7 +226,8 @@ class IdentifierNode(Node):
                 self._save(est)
 
     def _publish_estimate(self, est):
-        if self.drops.publish(self._pub_params, kwok_parameters_msg(est.message_values()),
+        if self.drops.publish(self._pub_params, kwok_parameters_msg(
+                est.message_values(), stamp_s=self.get_clock().now().nanoseconds * 1e-9),
                               'parameters_publish_failed'):
             self._published += 1
 

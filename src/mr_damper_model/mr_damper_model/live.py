@@ -316,9 +316,10 @@ class LiveEstimate:
     def message_values(self):
         """Return the values of the ``kwok_parameters`` message (see ``messages``)."""
         d = dict(self.parameters)
-        d.update(i_ref_a=self.i_ref_a, window_end_s=self.window_end_s,
-                 current_min_a=self.current_min_a, current_max_a=self.current_max_a,
-                 rmse_n=self.rmse_n, nrmse_percent=self.nrmse_percent, valid=self.valid)
+        d.update(i_ref_a=self.i_ref_a, window_start_s=self.window_start_s,
+                 window_end_s=self.window_end_s, current_min_a=self.current_min_a,
+                 current_max_a=self.current_max_a, rmse_n=self.rmse_n,
+                 nrmse_percent=self.nrmse_percent, valid=self.valid, reason=self.reason)
         return d
 
     def params_file_dict(self, source=''):

@@ -7,19 +7,28 @@ Topic payloads (see the README topic table):
   joints ``('mr_damper_piston', 'mr_damper_coil')``; piston position = displacement [m],
   velocity [m/s], effort = damper force [N]; coil effort = coil current [A], coil position and
   velocity NaN.
-- parameters: ``std_msgs/Float64MultiArray`` with ``layout.dim[0].label`` the comma-separated
-  element names, ``size`` = ``stride`` = their number.  Decoding is by label, never by position.
-- status: ``std_msgs/String`` holding one JSON object (non-finite floats become ``null``).
+- parameters: ``mr_damper_interfaces/KwokParameters`` (one field per coefficient, window times,
+  current range, fit quality, ``valid`` and ``reason``).
+- true damper of a simulation: ``mr_damper_interfaces/DamperModel`` (named parameters) or
+  ``KwokParameters`` for a kwok-current truth.
+- health: ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (levels and flat key-values,
+  see :mod:`mr_damper_model.health`).
+- status (being replaced by ``/diagnostics``): ``std_msgs/String`` holding one JSON object
+  (non-finite floats become ``null``).
 
 This module imports message types but not rclpy, so it works in any process.
 """
 import json
+import math
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from mr_damper_interfaces.msg import DamperModel, KwokParameters
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import String
 
 from .columnlog import finite_or_none
 from .data import COIL_JOINT, PISTON_JOINT
+from .health import flatten, Health, unflatten
 from .kwok_current import KwokCurrent
 
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
@@ -160,119 +169,257 @@ def measurement_from_msg(msg):
             float(eff[ip]), float(eff[ic]))
 
 
-def dict_to_array_msg(values, labels=None):
+def _time_or_zero(t, stamp):
+    """Write ``t`` [s] into ``stamp``; a NaN or negative time (unknown) becomes 0."""
+    if t is None or not math.isfinite(t) or t < 0:
+        stamp.sec, stamp.nanosec = 0, 0
+        return stamp
+    return seconds_to_stamp(t, stamp)
+
+
+def _seconds_or_nan(stamp):
+    """Read a stamp [s]; the zero stamp (unknown) becomes NaN."""
+    return math.nan if stamp.sec == 0 and stamp.nanosec == 0 else stamp_to_seconds(stamp)
+
+
+def kwok_parameters_msg(estimate, msg=None, *, stamp_s=None, frame_id='mr_damper'):
     """
-    Encode named floats as a labelled ``Float64MultiArray``.
-
-    Parameters
-    ----------
-    values : dict[str, float]
-        Values; booleans become 1.0 / 0.0.
-    labels : sequence of str, optional
-        Element names in order (default: the keys of ``values``).  Missing names are NaN.
-
-    Returns
-    -------
-    std_msgs.msg.Float64MultiArray
-        Message with ``layout.dim[0].label = ','.join(labels)``.
-
-    """
-    labels = tuple(values) if labels is None else tuple(labels)
-    for name in labels:
-        if ',' in name:
-            raise ValueError(f'`labels`: name {name!r} contains a comma')
-    msg = Float64MultiArray()
-    n = len(labels)
-    msg.layout.dim = [MultiArrayDimension(label=','.join(labels), size=n, stride=n)]
-    msg.data = [float(values.get(name, _NAN)) for name in labels]
-    return msg
-
-
-def array_msg_to_dict(msg):
-    """
-    Decode a labelled ``Float64MultiArray`` into a dict by label.
-
-    Parameters
-    ----------
-    msg : std_msgs.msg.Float64MultiArray
-        Message written by :func:`dict_to_array_msg` (or any publisher of the same layout).
-
-    Returns
-    -------
-    dict[str, float]
-        Element name -> value.
-
-    Raises
-    ------
-    MessageError
-        ``reason='layout'`` if the label is missing or its count differs from the data.
-
-    """
-    if not msg.layout.dim or not msg.layout.dim[0].label:
-        raise MessageError('layout', 'Float64MultiArray without layout.dim[0].label')
-    labels = msg.layout.dim[0].label.split(',')
-    data = list(msg.data)
-    if len(labels) != len(data):
-        raise MessageError('layout', f'{len(labels)} labels for {len(data)} elements')
-    return {name.strip(): float(value) for name, value in zip(labels, data)}
-
-
-def kwok_parameters_msg(estimate):
-    """
-    Encode a kwok-current estimate for ``/mr_damper/kwok_parameters`` (or the true parameters).
+    Encode a kwok-current estimate as ``mr_damper_interfaces/KwokParameters``.
 
     Parameters
     ----------
     estimate : dict
         Must contain the ten kwok-current parameters; optional ``i_ref_a`` (default 2.0),
-        ``window_end_s``, ``current_min_a``, ``current_max_a``, ``rmse_n``, ``nrmse_percent``
-        (NaN if absent) and ``valid`` (bool, default False).
+        ``window_start_s``, ``window_end_s`` (sample times [s]; NaN or absent: unknown, sent
+        as the zero time), ``current_min_a``, ``current_max_a``, ``rmse_n``, ``nrmse_percent``
+        (NaN if absent), ``valid`` (bool, default False) and ``reason`` (str).
+    msg : KwokParameters, optional
+        Message to fill (new one if None).
+    stamp_s : float, optional
+        ``header.stamp`` [s] (the publisher's clock); None leaves it unchanged.
+    frame_id : str
+        ``header.frame_id``: the damper.
 
     Returns
     -------
-    std_msgs.msg.Float64MultiArray
-        Message with the :data:`KWOK_PARAMETER_LABELS` layout.
+    mr_damper_interfaces.msg.KwokParameters
+        The message.
+
+    Raises
+    ------
+    ValueError
+        If a parameter is missing or ``i_ref_a`` is not > 0.
 
     """
     missing = [n for n in KWOK_CURRENT_NAMES if n not in estimate]
     if missing:
         raise ValueError(f'`estimate` misses kwok-current parameters {missing}')
-    values = dict(estimate)
-    values.setdefault('i_ref_a', 2.0)
-    values['valid'] = 1.0 if values.get('valid', False) else 0.0
-    return dict_to_array_msg(values, KWOK_PARAMETER_LABELS)
+    i_ref = float(estimate.get('i_ref_a', 2.0))
+    if not i_ref > 0:
+        raise ValueError(f'`estimate`: i_ref_a must be > 0 A, got {i_ref!r}')
+    if msg is None:
+        msg = KwokParameters()
+    msg.header.frame_id = frame_id
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    for name in KWOK_CURRENT_NAMES:
+        setattr(msg, name, float(estimate[name]))
+    msg.i_ref_a = i_ref
+    _time_or_zero(estimate.get('window_start_s', _NAN), msg.window_start)
+    _time_or_zero(estimate.get('window_end_s', _NAN), msg.window_end)
+    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
+        setattr(msg, name, float(estimate.get(name, _NAN)))
+    msg.valid = bool(estimate.get('valid', False))
+    msg.reason = '' if msg.valid else str(estimate.get('reason', '') or 'not_valid')
+    return msg
 
 
 def kwok_parameters_from_msg(msg):
     """
-    Decode ``/mr_damper/kwok_parameters`` by label.
+    Decode ``mr_damper_interfaces/KwokParameters``.
 
     Parameters
     ----------
-    msg : std_msgs.msg.Float64MultiArray
+    msg : mr_damper_interfaces.msg.KwokParameters
         Parameters message.
 
     Returns
     -------
     dict
-        ``'parameters'`` (dict of the ten kwok-current parameters), ``'valid'`` (bool) and the
-        remaining labelled values (``i_ref_a``, ``window_end_s``, ``current_min_a``,
-        ``current_max_a``, ``rmse_n``, ``nrmse_percent``) as floats.
+        ``'parameters'`` (dict of the ten kwok-current parameters), ``'valid'`` (bool),
+        ``'reason'`` (str), ``'stamp_s'`` (header stamp [s]) and ``i_ref_a``,
+        ``window_start_s``, ``window_end_s`` (NaN when unknown), ``current_min_a``,
+        ``current_max_a``, ``rmse_n``, ``nrmse_percent`` as floats.
 
     Raises
     ------
     MessageError
-        ``reason='layout'`` on a bad layout or a missing parameter name.
+        ``reason='layout'`` if ``i_ref_a`` is not > 0 (a set no model can use).
 
     """
-    d = array_msg_to_dict(msg)
-    missing = [n for n in KWOK_CURRENT_NAMES if n not in d]
-    if missing:
-        raise MessageError('layout', f'kwok parameters message misses {missing}')
-    out = {k: v for k, v in d.items() if k not in KWOK_CURRENT_NAMES}
-    out['parameters'] = {n: d[n] for n in KWOK_CURRENT_NAMES}
-    out['valid'] = d.get('valid', 0.0) == 1.0
+    if not msg.i_ref_a > 0:
+        raise MessageError('layout', f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
+    out = {'parameters': {n: float(getattr(msg, n)) for n in KWOK_CURRENT_NAMES},
+           'valid': bool(msg.valid), 'reason': msg.reason,
+           'stamp_s': stamp_to_seconds(msg.header.stamp),
+           'i_ref_a': float(msg.i_ref_a),
+           'window_start_s': _seconds_or_nan(msg.window_start),
+           'window_end_s': _seconds_or_nan(msg.window_end)}
+    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
+        out[name] = float(getattr(msg, name))
     return out
+
+
+def kwok_parameters_flat(msg):
+    """
+    Decode ``KwokParameters`` into one flat dict (the fail-safe supervisor's input).
+
+    Returns
+    -------
+    dict
+        The ten parameters, ``i_ref_a``, ``current_min_a``, ``current_max_a``, ``rmse_n``,
+        ``nrmse_percent``, ``window_start_s``, ``window_end_s`` (floats), ``valid`` (bool) and
+        ``reason`` (str).
+
+    Raises
+    ------
+    MessageError
+        As :func:`kwok_parameters_from_msg`.
+
+    """
+    d = kwok_parameters_from_msg(msg)
+    flat = dict(d.pop('parameters'))
+    flat.update(d)
+    return flat
+
+
+def damper_model_msg(model, parameters, options=None, *, stamp_s=None, frame_id='mr_damper'):
+    """
+    Encode a named-parameter damper model as ``mr_damper_interfaces/DamperModel``.
+
+    Parameters
+    ----------
+    model : str
+        Model name (``'spencer'``, ``'kwok-current'``, ...).
+    parameters : dict[str, float]
+        Parameter name -> value (SI), in the model's order.
+    options : dict[str, float], optional
+        Model options (e.g. ``{'i_ref_a': 2.0}``).
+    stamp_s : float, optional
+        ``header.stamp`` [s].
+    frame_id : str
+        ``header.frame_id``: the damper.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.DamperModel
+        The message.
+
+    """
+    msg = DamperModel()
+    msg.header.frame_id = frame_id
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    msg.model = str(model)
+    msg.parameter_names = [str(k) for k in parameters]
+    msg.parameter_values = [float(v) for v in parameters.values()]
+    options = dict(options or {})
+    msg.option_names = [str(k) for k in options]
+    msg.option_values = [float(v) for v in options.values()]
+    return msg
+
+
+def damper_model_from_msg(msg):
+    """
+    Decode ``mr_damper_interfaces/DamperModel``.
+
+    Returns
+    -------
+    dict
+        ``{'model': str, 'parameters': {name: value}, 'model_options': {name: value}}`` (the
+        layout of a parameter file, :mod:`mr_damper_model.params_file`).
+
+    Raises
+    ------
+    MessageError
+        ``reason='layout'`` if names and values differ in number.
+
+    """
+    names, values = list(msg.parameter_names), list(msg.parameter_values)
+    onames, ovalues = list(msg.option_names), list(msg.option_values)
+    if len(names) != len(values) or len(onames) != len(ovalues):
+        raise MessageError('layout', f'damper model with {len(names)} names for {len(values)} '
+                           f'values, {len(onames)} option names for {len(ovalues)} values')
+    return {'model': msg.model,
+            'parameters': {n: float(v) for n, v in zip(names, values)},
+            'model_options': {n: float(v) for n, v in zip(onames, ovalues)}}
+
+
+def diagnostic_status_msg(name, health, hardware_id=''):
+    """
+    Build one ``diagnostic_msgs/DiagnosticStatus`` from a :class:`~.health.Health`.
+
+    Parameters
+    ----------
+    name : str
+        Status name, by convention ``'<node name>: <component>'``.
+    health : Health
+        Level, message and values (flattened to key-values, see :mod:`.health`).
+    hardware_id : str
+        The device (e.g. the damper or corner).
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticStatus
+        The status.
+
+    """
+    return DiagnosticStatus(level=bytes([health.level]), name=name, message=health.message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in flatten(health.values)])
+
+
+def diagnostic_array_msg(statuses, stamp_s=None):
+    """
+    Wrap statuses in a ``diagnostic_msgs/DiagnosticArray`` stamped ``stamp_s`` [s].
+
+    Parameters
+    ----------
+    statuses : list of DiagnosticStatus
+        Statuses (:func:`diagnostic_status_msg`).
+    stamp_s : float, optional
+        ``header.stamp`` [s] (the publisher's clock).
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticArray
+        The array.
+
+    """
+    msg = DiagnosticArray(status=list(statuses))
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    return msg
+
+
+def health_from_diagnostic(status):
+    """
+    Read one ``diagnostic_msgs/DiagnosticStatus`` back into a :class:`~.health.Health`.
+
+    Parameters
+    ----------
+    status : diagnostic_msgs.msg.DiagnosticStatus
+        A status of the suite (or any: non-JSON values stay text).
+
+    Returns
+    -------
+    Health
+        Level, message and nested values (:func:`~.health.unflatten`).
+
+    """
+    level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else status.level
+    return Health(int(level), status.message,
+                  unflatten((kv.key, kv.value) for kv in status.values))
 
 
 def status_msg(status):

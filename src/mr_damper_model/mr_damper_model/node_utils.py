@@ -1,21 +1,28 @@
 """
-ROS 2 helpers shared by the suite's nodes: QoS profiles, executor, spin loop and ``main`` wrapper.
+ROS 2 helpers shared by the suite's nodes: QoS, parameters, diagnostics, spin loop, ``main``.
 
 Imports rclpy (listed in ``ROS_MODULES`` of ``tests/test_core_is_ros_free.py``); the numerical
 core never imports this module.
 """
+from dataclasses import dataclass
 import os
 import sys
 import threading
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidHandle
+from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+
+from mr_damper_model.health import Health, STALE
+from mr_damper_model.messages import diagnostic_array_msg, diagnostic_status_msg
 
 from mr_damper_model.stop_flag import (  # noqa: F401 (re-exported for the nodes)
     _STOP, install_stop_handlers, request_stop, stop_requested)
@@ -43,6 +50,10 @@ LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 #: JSON status topics (KEEP_LAST 10: a stalled reader costs the writer nothing).
 STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE)
+
+#: ``/diagnostics``: KEEP_LAST 10, reliable (as ROS 2's diagnostic_updater publishes it).
+DIAGNOSTICS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE)
 
 #: What ``publish()`` raises when the middleware refuses a sample or the node is shutting down.
 PUBLISH_ERRORS = (_rclpy.RCLError, InvalidHandle)
@@ -190,6 +201,161 @@ class ResettablePublisher:
         return self.publisher.get_subscription_count()
 
 
+@dataclass(frozen=True)
+class Param:
+    """
+    One declared ROS parameter of a node: default, description, range, and whether it may change.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    default : bool, int, float, str or list
+        Default value (its type is the parameter's type).
+    description : str
+        What it does, with its unit in brackets (``'Peak force [N]'``).
+    low, high : float or None
+        Inclusive range of a numeric parameter (None: unbounded on that side); rclpy refuses
+        values outside it, at start-up and at run time.
+    dynamic : bool
+        True: applied while the node runs (the node's on-set callback applies it); False:
+        read at start-up only, declared read-only, so ``ros2 param set`` is refused with a
+        reason instead of being accepted and ignored.
+
+    """
+
+    name: str
+    default: object
+    description: str
+    low: float = None
+    high: float = None
+    dynamic: bool = False
+
+    def descriptor(self):
+        """Return the ``ParameterDescriptor`` (description, range, read-only, constraints)."""
+        desc = ParameterDescriptor(
+            description=self.description, read_only=not self.dynamic,
+            additional_constraints=('can be changed while running' if self.dynamic else
+                                    'read at start-up: restart the node to change it'))
+        if self.low is None and self.high is None:
+            return desc
+        if isinstance(self.default, bool) or not isinstance(self.default, (int, float)):
+            raise TypeError(f'parameter {self.name}: a range needs a numeric default')
+        if isinstance(self.default, int):
+            desc.integer_range = [IntegerRange(
+                from_value=int(self.low if self.low is not None else -2 ** 31),
+                to_value=int(self.high if self.high is not None else 2 ** 31 - 1), step=0)]
+        else:
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(self.low if self.low is not None else -1e300),
+                to_value=float(self.high if self.high is not None else 1e300), step=0.0)]
+        return desc
+
+
+def declare_parameters(node, specs, on_set=None):
+    """
+    Declare ``specs`` on ``node`` and install the on-set callback of the dynamic ones.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node.
+    specs : iterable of Param
+        Its parameters.
+    on_set : callable or None
+        ``on_set(changes)`` with ``changes`` a dict name -> new value of dynamic parameters
+        (already type- and range-checked by rclpy); applies them and returns ``''``, or returns
+        the reason they are refused (nothing applied). Required if a spec is dynamic.
+
+    Returns
+    -------
+    dict
+        Name -> value after overrides (``-p``, parameter files).
+
+    Raises
+    ------
+    rclpy.exceptions.InvalidParameterValueException
+        A value outside its range (the node cannot start; ``run_node`` reports it).
+
+    """
+    specs = list(specs)
+    values = {}
+    for spec in specs:
+        values[spec.name] = node.declare_parameter(spec.name, spec.default,
+                                                   spec.descriptor()).value
+    dynamic = {s.name for s in specs if s.dynamic}
+    if dynamic:
+        if on_set is None:
+            raise ValueError('`on_set` is required when a parameter is dynamic')
+
+        def callback(params):
+            changes = {p.name: p.value for p in params if p.name in dynamic}
+            if not changes:
+                return SetParametersResult(successful=True)
+            reason = on_set(changes)
+            if reason:
+                node.get_logger().warning(f'parameter change refused: {reason}')
+            else:
+                node.get_logger().info(f'parameters changed: {changes}')
+            return SetParametersResult(successful=not reason, reason=reason or '')
+
+        node.add_on_set_parameters_callback(callback)
+    return values
+
+
+class DiagnosticsPublisher:
+    """
+    Publish a node's :class:`~mr_damper_model.health.Health` on ``/diagnostics`` periodically.
+
+    One ``DiagnosticStatus`` per period, named ``'<fully qualified node name>'`` without the
+    leading slash (``'fl/mr_damper_identifier'`` under namespace ``fl``), stamped by the node's
+    clock (ROS time under ``use_sim_time``). ``/diagnostics`` is absolute by convention: every
+    corner's nodes publish to the same topic, told apart by the status name.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node.
+    health : callable
+        ``health()`` -> Health; an exception becomes a STALE status naming it (the node goes
+        on).
+    period_s : float
+        Publication period [s] (about 1 Hz by convention).
+    hardware_id : str
+        The device, e.g. the damper or the car corner.
+    drops : DropCounter, optional
+        Counts a failed publish (``diagnostics_publish_failed``) instead of raising.
+
+    """
+
+    def __init__(self, node, health, *, period_s=1.0, hardware_id='', drops=None):
+        self._node = node
+        self._health = health
+        self._drops = drops
+        self.name = node.get_fully_qualified_name().lstrip('/')
+        self.hardware_id = hardware_id
+        self.published = 0
+        self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+        self._timer = node.create_timer(float(period_s), self.publish)
+
+    def publish(self):
+        """Build and publish the status now; return the :class:`Health` sent."""
+        try:
+            health = self._health()
+        except Exception as exc:  # noqa: B902 - a status bug must not kill the node
+            health = Health(STALE, f'status unavailable: {type(exc).__name__}: {exc}')
+        stamp = self._node.get_clock().now().nanoseconds * 1e-9
+        msg = diagnostic_array_msg(
+            [diagnostic_status_msg(self.name, health, self.hardware_id)], stamp_s=stamp)
+        if self._drops is not None:
+            if self._drops.publish(self._pub, msg, 'diagnostics_publish_failed'):
+                self.published += 1
+        else:
+            self._pub.publish(msg)
+            self.published += 1
+        return health
+
+
 def spin(executor, done=lambda: False, timeout_sec=0.1):
     """
     Spin ``executor`` until shutdown, a stop request (SIGINT / SIGTERM) or ``done()``.
@@ -265,7 +431,9 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
     name : str
         Node name for the error line on stderr.
     errors : tuple of type
-        Exceptions that mean bad parameters or input files: one error line, exit status 2.
+        Exceptions that mean bad parameters or input files: one error line, exit status 2
+        (rclpy's ``ParameterException``, e.g. a value outside its declared range or of the
+        wrong type, always counts as one).
     run : callable
         ``run(node)`` spins the node until :func:`stop_requested`; default :func:`spin_node`.
     finish : callable or None
@@ -289,7 +457,7 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
             run(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except errors as exc:
+    except tuple(errors) + (ParameterException,) as exc:
         print(f'{name}: error: {exc}', file=sys.stderr)
         code = 2
     finally:

@@ -47,10 +47,11 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Float64MultiArray, String
+from mr_damper_interfaces.msg import DamperModel, KwokParameters
+from std_msgs.msg import Float64, String
 
 from mr_damper_model.data import DataError
-from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
+from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
 from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QOS,
                                         ResettablePublisher, run_node, set_realtime_priority,
@@ -273,22 +274,27 @@ class RigNode(Node):
         self.create_timer(float(p('tick_s')), self._tick)
         self.create_timer(float(p('status_period_s')), self._publish_status)
 
+    def _now_s(self):
+        """Return the node clock's time [s] (ROS time under ``use_sim_time``)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     def _publish_truth(self, kwok_topic, spencer_topic):
         truth = self.rig.true_parameters()
         model = truth.get('model')
         params = truth.get('parameters', {})
         if model == 'kwok-current':
-            pub = self.create_publisher(Float64MultiArray, kwok_topic, LATCHED_QOS)
+            pub = self.create_publisher(KwokParameters, kwok_topic, LATCHED_QOS)
             values = dict(params)
             currents = [float(c) for c in self.get_parameter('currents_a').value] or [0.0]
             values.update(i_ref_a=float(truth.get('model_options', {}).get('i_ref_a', 2.0)),
-                          window_end_s=0.0, current_min_a=min(currents),
+                          current_min_a=min(currents),
                           current_max_a=max(currents), rmse_n=0.0,
                           nrmse_percent=0.0, valid=True)
-            self.drops.publish(pub, kwok_parameters_msg(values))
+            self.drops.publish(pub, kwok_parameters_msg(values, stamp_s=self._now_s()))
         else:
-            pub = self.create_publisher(Float64MultiArray, spencer_topic, LATCHED_QOS)
-            self.drops.publish(pub, dict_to_array_msg({k: float(v) for k, v in params.items()}))
+            pub = self.create_publisher(DamperModel, spencer_topic, LATCHED_QOS)
+            self.drops.publish(pub, damper_model_msg(model, params, truth.get('model_options'),
+                                                     stamp_s=self._now_s()))
         self._truth_pub = pub
 
     def _on_command(self, msg):

@@ -14,7 +14,7 @@ and metrics go through the executor in the main thread.
 
 Topics (defaults)
 -----------------
-- sub ``/mr_damper/kwok_parameters`` (std_msgs/Float64MultiArray, decoded by label;
+- sub ``/mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters;
   reliable, transient local, depth 1);
 - pub ``/mr_damper/current_command`` (std_msgs/Float64, A, every control step; reliable, 10);
 - pub ``/quarter_car/state`` (sensor_msgs/JointState at ``state_rate_hz``; header.stamp = sim
@@ -71,9 +71,10 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from mr_damper_interfaces.msg import KwokParameters
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Float64, String
 
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (DropCounter, run_node, set_realtime_priority,
@@ -232,7 +233,7 @@ class QuarterCarNode(Node):
         self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
         self.metrics_pub = self.create_publisher(String, topics['metrics_topic'], 10)
         if not self.external:
-            self.drops.subscribe(self, Float64MultiArray, topics['params_topic'],
+            self.drops.subscribe(self, KwokParameters, topics['params_topic'],
                                  self.on_params, latched, 'parameters_lost')
         if self.remote is not None:
             self.disp_pub = self.create_publisher(Float64,
@@ -331,7 +332,7 @@ class QuarterCarNode(Node):
         """Offer a parameter message to the supervisor (decoded by label)."""
         now = time.monotonic()
         try:
-            values = messages.array_msg_to_dict(msg)
+            values = messages.kwok_parameters_flat(msg)
         except ValueError as exc:
             with self.lock:
                 self.sup.refuse('undecodable', str(exc), now)

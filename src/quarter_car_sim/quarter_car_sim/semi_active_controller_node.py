@@ -15,7 +15,7 @@ Topics (defaults)
 - sub ``/quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState; reliable, depth 10):
   the laws read ``body_velocity_m_s``, ``body_acceleration_m_s2``, ``wheel_velocity_m_s``,
   ``suspension_travel_m``, ``suspension_velocity_m_s`` and ``header.stamp``;
-- sub ``/mr_damper/kwok_parameters`` (std_msgs/Float64MultiArray, decoded by label; reliable,
+- sub ``/mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters; reliable,
   transient local, depth 1);
 - pub ``/mr_damper/current_command`` (std_msgs/Float64, A, one per state; reliable, depth 10);
 - pub ``/semi_active_controller/status`` (std_msgs/String JSON at ``status_rate_hz``).
@@ -27,9 +27,9 @@ import time
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Float64, String
 
-from mr_damper_interfaces.msg import QuarterCarState
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, run_node,
                                         set_realtime_priority, spin_node)
@@ -145,7 +145,7 @@ class SemiActiveControllerNode(Node):
         self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
         self.drops.subscribe(self, QuarterCarState, topics['car_state_topic'], self.on_state,
                              CONTROL_QOS, 'states_lost')
-        self.drops.subscribe(self, Float64MultiArray, topics['params_topic'], self.on_params,
+        self.drops.subscribe(self, KwokParameters, topics['params_topic'], self.on_params,
                              LATCHED_QOS, 'parameters_lost')
         self.create_timer(1.0 / status_rate, self.publish_status)
         set_realtime_priority(int(self.rt_priority), self.get_logger())
@@ -174,7 +174,7 @@ class SemiActiveControllerNode(Node):
         """Offer a parameter message to the supervisor (decoded by label)."""
         now = time.monotonic()
         try:
-            values = messages.array_msg_to_dict(msg)
+            values = messages.kwok_parameters_flat(msg)
         except ValueError as exc:
             self.core.sup.refuse('undecodable', str(exc), now)
             self.get_logger().warning(f'undecodable parameters: {exc}',
