@@ -177,6 +177,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     valid = [p for p in sets if p.get('valid') == 1.0]
     assert valid, sets[-3:]
     assert any(p['current_max_a'] - p['current_min_a'] >= 1.0 for p in valid)
-    assert all(math.isfinite(v) for p in valid for v in p.values())
+    assert all(math.isfinite(v) for p in valid for k, v in p.items()
+               if k not in ('valid', 'reason', 'window_start_s', 'window_end_s'))
     assert st['params_accepted'] >= 1
     assert math.isfinite(st['first_normal_t_sim'])
