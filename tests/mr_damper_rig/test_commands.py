@@ -116,3 +116,44 @@ def test_command_follower_drives_the_actuator_with_the_guarded_target():
     assert fol.guard.counts['clamped_high'] == 1 and fol.guard.counts['accepted'] == 1
     with pytest.raises(ValueError, match='CommandedMotion'):
         CommandFollower(VirtualRig(excitation=CamSine()), _guard())
+
+
+def test_tracking_error_is_zero_for_an_ideal_actuator_and_the_lag_of_a_first_order_one():
+    from mr_damper_rig.actuator import CommandedMotion, ServoActuator
+    from mr_damper_rig.commands import CommandFollower
+    from mr_damper_rig.virtual_rig import VirtualRig
+    ideal = CommandFollower(VirtualRig(excitation=CommandedMotion(
+        ServoActuator('ideal', 1e-3, delay_s=0.0)), force_noise_n=0.0, daq_bits=32), _guard())
+    for x in (0.01, 0.02, -0.01):
+        ideal.command(x)
+        ideal.sample()
+    track = ideal.tracking.values()
+    assert track['samples'] == 3 and track['max_abs_m'] == pytest.approx(0.0, abs=1e-9)
+    # first-order lag, tau = 10 ms, step of 10 mm held: the error after k samples of 1 ms is
+    # 10 mm * exp(-k dt / tau) (exact zero-order-hold discretisation)
+    tau, dt = 0.01, 1e-3
+    lag = CommandFollower(VirtualRig(excitation=CommandedMotion(
+        ServoActuator('first', dt, tau_s=tau, delay_s=0.0)), force_noise_n=0.0, daq_bits=32),
+        _guard(timeout_s=1.0))
+    lag.command(0.01)
+    errors = [0.01 - lag.sample()[1] for _ in range(50)]
+    expected = 0.01 * np.exp(-np.arange(1, 51) * dt / tau)
+    np.testing.assert_allclose(errors, expected, rtol=1e-6, atol=1e-12)
+    assert lag.tracking.max_abs_m == pytest.approx(expected[0], rel=1e-6)
+    assert lag.tracking.rms_m == pytest.approx(np.sqrt(np.mean(expected ** 2)), rel=1e-6)
+    assert lag.tracking.last_m == pytest.approx(expected[-1], rel=1e-6)
+
+
+def test_ranges_change_while_running_and_bad_ones_change_nothing():
+    lim = CurrentCommandLimiter(0.0, 2.0)
+    lim.set_range(0.5, 1.5)
+    assert lim.apply(2.0) == (1.5, 'clamped_high') and lim.apply(0.0) == (0.5, 'clamped_low')
+    with pytest.raises(ValueError, match='i_min_a'):
+        lim.set_range(1.5, 1.0)
+    assert (lim.i_min_a, lim.i_max_a) == (0.5, 1.5)
+    guard = _guard(stroke_m=0.05, timeout_s=0.05, return_speed_m_s=0.05)
+    guard.configure(stroke_m=0.02)
+    assert guard.command(0.03, 0.0) == (0.02, 'clamped_high')
+    with pytest.raises(ValueError, match='timeout_s'):
+        guard.configure(stroke_m=0.04, timeout_s=-1.0)
+    assert (guard.stroke_m, guard.timeout_s) == (0.02, 0.05)   # nothing applied

@@ -338,6 +338,11 @@ class DiagnosticsPublisher:
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
         self._timer = node.create_timer(float(period_s), self.publish)
 
+    @property
+    def publisher(self):
+        """The ``/diagnostics`` publisher (e.g. to wait for the readers' acknowledgements)."""
+        return self._pub
+
     def publish(self):
         """Build and publish the status now; return the :class:`Health` sent."""
         try:

@@ -33,6 +33,19 @@ class CurrentCommandLimiter:
     """
 
     def __init__(self, i_min_a=0.0, i_max_a=2.0):
+        self.set_range(i_min_a, i_max_a)
+        self.counts = dict.fromkeys(OUTCOMES, 0)
+
+    def set_range(self, i_min_a, i_max_a):
+        """
+        Set the coil current range [A] (also while running); nothing changes on an error.
+
+        Raises
+        ------
+        ValueError
+            On a non-finite or empty range (the message names the argument).
+
+        """
         i_min_a, i_max_a = float(i_min_a), float(i_max_a)
         for name, value in (('i_min_a', i_min_a), ('i_max_a', i_max_a)):
             if not math.isfinite(value):
@@ -41,7 +54,6 @@ class CurrentCommandLimiter:
             raise ValueError(f'`i_min_a` ({i_min_a}) must be below `i_max_a` ({i_max_a})')
         self.i_min_a = i_min_a
         self.i_max_a = i_max_a
-        self.counts = dict.fromkeys(OUTCOMES, 0)
 
     def apply(self, i_a):
         """
@@ -108,21 +120,37 @@ class DisplacementCommandGuard:
     """
 
     def __init__(self, stroke_m=0.08, timeout_s=0.05, return_speed_m_s=0.05, center_m=0.0):
-        for name, value in (('stroke_m', stroke_m), ('timeout_s', timeout_s),
-                            ('return_speed_m_s', return_speed_m_s)):
-            if not (math.isfinite(float(value)) and float(value) > 0):
-                raise ValueError(f'`{name}` must be a positive number, got {value}')
         if not math.isfinite(float(center_m)):
             raise ValueError(f'`center_m` must be finite, got {center_m}')
-        self.stroke_m = float(stroke_m)
-        self.timeout_s = float(timeout_s)
-        self.return_speed_m_s = float(return_speed_m_s)
+        self.configure(stroke_m=stroke_m, timeout_s=timeout_s,
+                       return_speed_m_s=return_speed_m_s)
         self.center_m = float(center_m)
         self.counts = dict.fromkeys(DISPLACEMENT_OUTCOMES, 0)
         self.last_command_t = None
         self.target_m = self.center_m
         self._stale = False
         self._t_prev = None
+
+    def configure(self, *, stroke_m=None, timeout_s=None, return_speed_m_s=None):
+        """
+        Change the stroke [m], timeout [s] and return speed [m/s] (None: unchanged).
+
+        Also while running; all are checked before any is applied.
+
+        Raises
+        ------
+        ValueError
+            On a non-finite or non-positive value (the message names the argument).
+
+        """
+        new = {'stroke_m': stroke_m, 'timeout_s': timeout_s,
+               'return_speed_m_s': return_speed_m_s}
+        for name, value in new.items():
+            if value is not None and not (math.isfinite(float(value)) and float(value) > 0):
+                raise ValueError(f'`{name}` must be a positive number, got {value}')
+        for name, value in new.items():
+            if value is not None:
+                setattr(self, name, float(value))
 
     def command(self, x_m, t_s):
         """
@@ -195,6 +223,12 @@ class CommandFollower:
     guard : DisplacementCommandGuard
         Checks the commands and supplies the target of each sample.
 
+    Attributes
+    ----------
+    tracking : TrackingError
+        Guarded target minus measured piston displacement of every sample (actuator lag and
+        delay, stroke clamps, return to neutral, DAQ quantisation and noise).
+
     """
 
     def __init__(self, rig, guard):
@@ -204,6 +238,7 @@ class CommandFollower:
         self.rig = rig
         self.guard = guard
         self.samples = 0
+        self.tracking = TrackingError()
 
     @property
     def t_next(self):
@@ -216,6 +251,45 @@ class CommandFollower:
 
     def sample(self):
         """Step the actuator to the guarded target; return the DAQ sample ``(t, x, v, f, i)``."""
-        self.rig.excitation.command(self.guard.target(self.t_next))
+        target = self.guard.target(self.t_next)
+        self.rig.excitation.command(target)
         self.samples += 1
-        return self.rig.sample()
+        sample = self.rig.sample()
+        self.tracking.add(target - sample[1])
+        return sample
+
+
+class TrackingError:
+    """
+    Running statistics of the displacement tracking error [m]: count, RMS, largest magnitude.
+
+    Non-finite errors are counted apart (``non_finite``) and left out of the statistics.
+    """
+
+    def __init__(self):
+        self.samples = 0
+        self.non_finite = 0
+        self._sum_sq = 0.0
+        self.max_abs_m = 0.0
+        self.last_m = math.nan
+
+    def add(self, error_m):
+        """Add one error [m] (target minus measured displacement)."""
+        error_m = float(error_m)
+        self.last_m = error_m
+        if not math.isfinite(error_m):
+            self.non_finite += 1
+            return
+        self.samples += 1
+        self._sum_sq += error_m * error_m
+        self.max_abs_m = max(self.max_abs_m, abs(error_m))
+
+    @property
+    def rms_m(self):
+        """Root mean square of the finite errors [m] (NaN before the first)."""
+        return math.sqrt(self._sum_sq / self.samples) if self.samples else math.nan
+
+    def values(self):
+        """Return ``{'samples', 'non_finite', 'rms_m', 'max_abs_m', 'last_m'}`` for the status."""
+        return {'samples': self.samples, 'non_finite': self.non_finite, 'rms_m': self.rms_m,
+                'max_abs_m': self.max_abs_m, 'last_m': self.last_m}

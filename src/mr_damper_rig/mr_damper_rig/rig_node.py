@@ -1,39 +1,40 @@
 """
 Rig node: the virtual MR damper rig, or a replay of a recorded DAQ CSV file or rosbag2.
 
-``ros2 run mr_damper_rig rig_node`` (console script ``rig_node``).  Publishes one
-``sensor_msgs/JointState`` per DAQ sample on the measurement topic, paced in real time times
-``rate_factor`` by publishing the samples that are due at every timer tick (so the effective rate
-is exact even though a 1 kHz rclpy timer is not); ``rate_factor`` 0 publishes as fast as the
-consumer takes the samples: it keeps at most ``flow_window`` samples ahead of the
-``samples_received`` count the consumer reports on ``flow_topic`` (the identifier's status; DDS
-acknowledgements are no use for this: they arrive with the writer's heartbeat, every ~3 s).
-In ``sim`` mode the true damper parameters are published (latched) for comparison. A JSON
-status is published on the status topic.
+``ros2 run mr_damper_rig rig_node`` (console script ``rig_node``). Converts messages and calls
+the core: :class:`mr_damper_rig.pacing.Pacer` says how many samples are due at each tick (real
+time times ``rate_factor``, or with ``rate_factor`` 0 at most ``flow_window`` samples ahead of
+the consumer's count on ``mr_damper/samples_received``), the sources of
+:mod:`mr_damper_rig.replay` give the samples, :mod:`mr_damper_rig.commands` checks the commands
+and :class:`mr_damper_rig.rig_health.RigHealth` turns the counters into ``/diagnostics``.
+
+Topics (relative names: remap them with ``--ros-args -r old:=new`` or start the node in a
+namespace, ``-r __ns:=/fl``): publishes ``mr_damper/measurement`` (sensor_msgs/JointState, one
+per DAQ sample, reliable keep-all), in ``sim`` mode the latched truth on
+``mr_damper/true_parameters`` (KwokParameters, kwok-current plant) or
+``mr_damper/true_spencer_parameters`` (DamperModel, Spencer plant), ``/diagnostics``, and with
+``publish_clock`` (csv / bag replays) ``/clock``: one rosgraph_msgs/Clock per timer tick in
+which samples went out, carrying the stamp of the newest of them, so nodes started with
+``use_sim_time:=true`` run on the recording's time at any ``rate_factor``. The rig's own
+timers and pacing stay on wall time (a steady clock): it is the clock source. Subscribes to
+``mr_damper/current_command`` (std_msgs/Float64, ``current_source:=command``),
+``mr_damper/displacement_command`` (std_msgs/Float64, ``excitation:=commanded``) and
+``mr_damper/samples_received`` (std_msgs/UInt64, ``rate_factor`` 0).
 
 Faults elsewhere never stop the rig: when a dead or stopped reader has filled the reliable
 measurement writer's history, the writer is replaced (``node_utils.ResettablePublisher``,
-``writer_resets`` in the status) and the samples due meanwhile are published once the healthy
-readers have matched the new writer; other failed ``publish()`` calls are counted
-(``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each
-current command is checked by :class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of
-``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
-with a throttled warning.
+``writer_resets``) and the samples due meanwhile are published once the healthy readers have
+matched the new writer; other failed ``publish()`` calls are counted (``dropped``). Current
+commands out of ``[current_min_a, current_max_a]`` are clamped, non-finite ones refused, both
+counted (``commands``) with a throttled warning.
 
 Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
-displacement commands [m] of ``displacement_command_topic`` (std_msgs/Float64, reliable, depth
-10; the quarter car's suspension travel) through a servo-actuator model
-(:class:`mr_damper_rig.actuator.ServoActuator`: ``actuator`` order first | second | ideal,
-``actuator_tau_s``, ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``). The rig
-runs in lockstep with the car: each command received steps the actuator and the damper by one
-DAQ period (``1 / rate_hz``, the car's control period) and publishes that sample at once, so a
-loaded machine delays the loop but never lets the two clocks drift apart. Commands are checked
-by :class:`mr_damper_rig.commands.DisplacementCommandGuard`: out of ``+-stroke_m`` clamped,
-non-finite refused (the sample is still taken, with the last command held). When the car falls
-silent for longer than ``command_timeout_s`` (wall time times ``rate_factor``), the rig runs on
-its own clock from the last command on: it holds that command for ``command_timeout_s`` and then
-returns to neutral at ``return_speed_m_s``; all counted in the status
-(``displacement_commands``). ``wait_for_subscribers`` and ``duration_s`` do not apply.
+displacement commands [m] through a servo-actuator model, in lockstep with the car: each
+command received steps the actuator and the damper by one DAQ period and publishes that sample
+at once. Commands beyond ``+-stroke_m`` are clamped, non-finite refused; a car silent for
+longer than ``command_timeout_s`` (wall time times ``rate_factor``) makes the rig run on its
+own clock, holding and then returning to neutral (:class:`mr_damper_rig.pacing.LockstepPacer`).
+The tracking error (guarded target minus measured displacement) is in the diagnostics.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
@@ -42,27 +43,102 @@ import math
 import sys
 import time
 
+from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import DamperModel, KwokParameters
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, UInt64
 
 from mr_damper_model.data import DataError
 from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg,
-                                      measurement_to_msg, status_from_msg, status_msg)
-from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QOS,
+                                      measurement_to_msg, seconds_to_stamp)
+from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                        LATCHED_QOS, MEASUREMENT_QOS, Param,
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
-from .commands import CommandFollower, CurrentCommandLimiter, DisplacementCommandGuard
+from .commands import (CommandFollower, CurrentCommandLimiter, DisplacementCommandGuard)
+from .pacing import LockstepPacer, Pacer
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
+from .rig_health import RigHealth
 
-#: Current commands: only the newest matters; a command the rig could not take in time is lost
-#: and counted (``dropped.command_lost``), the writer never waits for the rig.
+#: Current and displacement commands: only the newest matters; a command the rig could not
+#: take in time is lost and counted (``dropped.command_lost``), the writer never waits.
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: ``/clock``: reliable keep-last (rclpy's time source reads it best effort, depth 1).
+CLOCK_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                       reliability=ReliabilityPolicy.RELIABLE)
+
+#: Relative topic names (resolved in the node's namespace).
+MEASUREMENT = 'mr_damper/measurement'
+TRUE_PARAMETERS = 'mr_damper/true_parameters'
+TRUE_SPENCER = 'mr_damper/true_spencer_parameters'
+CURRENT_COMMAND = 'mr_damper/current_command'
+DISPLACEMENT_COMMAND = 'mr_damper/displacement_command'
+SAMPLES_RECEIVED = 'mr_damper/samples_received'
+
+#: Every parameter of the rig node (the one place they are declared).
+PARAMETERS = (
+    Param('mode', 'sim', 'Source: sim (virtual rig) or csv / bag (replay of a file)'),
+    Param('file', '', 'CSV file (csv) or rosbag2 directory / .db3 / .mcap (bag)'),
+    Param('bag_topic', MEASUREMENT_TOPIC,
+          'bag: measurement topic inside the bag (sensor_msgs/JointState)'),
+    Param('rate_factor', 1.0, 'Speed relative to real time [-]; 0: as fast as the consumer '
+          'takes the samples (flow control on mr_damper/samples_received); changes between '
+          'values > 0 while running', 0.0, 1000.0, dynamic=True),
+    Param('loop', False, 'Replay the file again and again (stamps keep increasing)'),
+    Param('time_offset_s', 0.0, 'csv: added to the time stamps [s]', -1e9, 1e9),
+    Param('duration_s', 0.0, 'sim: simulated time to publish [s] (0: until stopped)',
+          0.0, 1e9),
+    Param('exit_on_end', True, 'Exit (status 0) when the replay or the sim duration is done'),
+    Param('wait_for_subscribers', 0, 'Wait until this many measurement readers matched '
+          '(at most 30 s) before the first sample', 0, 1000),
+    Param('flow_window', 1000, 'rate_factor 0: samples allowed ahead of the consumer\'s '
+          'count', 1, 10_000_000, dynamic=True),
+    Param('tick_s', 0.002, 'Publishing timer period [s, wall time]: the samples due are '
+          'published at every tick', 1e-4, 1.0),
+    Param('publish_clock', False, 'csv / bag: publish /clock (one per tick) from the stamps '
+          'of the published samples, for nodes with use_sim_time'),
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the publishing threads '
+          '(0: normal scheduling; needs root)', 0, 99),
+    Param('plant', 'spencer', 'sim: true damper model, spencer or kwok-current'),
+    Param('truth_file', '', 'sim: parameter file of the true damper (empty: presets)'),
+    Param('excitation', 'cam', 'sim: piston motion, cam, multisine, chirp, random or '
+          'commanded (hardware in the loop: follow mr_damper/displacement_command)'),
+    Param('actuator', 'first', 'commanded: servo actuator model first, second or ideal'),
+    Param('actuator_tau_s', 0.012, 'commanded: time constant of the first-order actuator [s]',
+          0.0, 10.0),
+    Param('actuator_wn_rad_s', 2 * math.pi * 25.0,
+          'commanded: natural frequency of the second-order actuator [rad/s]', 0.0, 1e5),
+    Param('actuator_zeta', 0.7, 'commanded: damping ratio of the second-order actuator [-]',
+          0.0, 10.0),
+    Param('actuator_delay_s', 0.002, 'commanded: transport delay of the actuator [s] '
+          '(whole samples)', 0.0, 1.0),
+    Param('stroke_m', 0.08, 'commanded: half stroke [m]; commands beyond are clamped '
+          '(counted)', 1e-6, 1.0, dynamic=True),
+    Param('command_timeout_s', 0.05, 'commanded: hold the last command this long [s, rig '
+          'time], then return to neutral (counted)', 1e-6, 60.0, dynamic=True),
+    Param('return_speed_m_s', 0.05, 'commanded: speed of the return to neutral [m/s]',
+          1e-6, 10.0, dynamic=True),
+    Param('amplitude_m', 0.03, 'sim: excitation amplitude [m]', 0.0, 1.0),
+    Param('frequency_hz', 1.1, 'sim: excitation frequency [Hz]', 0.0, 1000.0),
+    Param('currents_a', [0.0, 0.5, 1.0, 1.5, 2.0],
+          'sim: coil current schedule levels [A], repeated'),
+    Param('step_s', 4.0, 'sim: dwell per current level [s]', 1e-3, 1e6),
+    Param('current_source', 'schedule', 'sim: coil current from the schedule, or command '
+          '(follow mr_damper/current_command)'),
+    Param('current_min_a', 0.0, 'Coil current minimum [A]: lower commands are clamped to it',
+          -10.0, 10.0, dynamic=True),
+    Param('current_max_a', 2.0, 'Coil current maximum [A]: higher commands are clamped to it',
+          -10.0, 10.0, dynamic=True),
+    Param('noise_n', 2.0, 'sim: load-cell noise standard deviation [N]', 0.0, 1e6),
+    Param('seed', 1, 'sim: random seed', 0, 2 ** 31 - 1),
+    Param('rate_hz', 1000.0, 'sim: DAQ rate [Hz]', 1.0, 1e6),
+)
 
 
 class _Repeating:
@@ -127,101 +203,27 @@ def build_virtual_rig(options):
 
 
 class RigNode(Node):
-    """Thin ROS adapter over the virtual rig and the replay readers."""
+    """Thin ROS adapter over the virtual rig, the replay sources and the pacer."""
 
-    def __init__(self):
-        super().__init__('mr_damper_rig')
-        d = self.declare_parameter
-        d('mode', 'sim', ParameterDescriptor(description='sim | csv | bag'))
-        d('file', '', ParameterDescriptor(description='CSV file (csv) or rosbag2 (bag)'))
-        d('bag_topic', MEASUREMENT_TOPIC, ParameterDescriptor(
-            description='Measurement topic inside the bag'))
-        d('rate_factor', 1.0, ParameterDescriptor(
-            description='Speed relative to real time; 0: as fast as subscribers acknowledge'))
-        d('loop', False, ParameterDescriptor(description='Replay the file again and again'))
-        d('time_offset_s', 0.0, ParameterDescriptor(
-            description='Added to CSV time stamps [s]'))
-        d('duration_s', 0.0, ParameterDescriptor(
-            description='sim: simulated time to publish [s] (0: until stopped)'))
-        d('exit_on_end', True, ParameterDescriptor(
-            description='Exit (status 0) when the replay or the sim duration is done'))
-        d('wait_for_subscribers', 0, ParameterDescriptor(
-            description='Wait until this many measurement subscribers matched (max 30 s)'))
-        d('flow_topic', '/mr_damper/identifier_status', ParameterDescriptor(
-            description='rate_factor 0: JSON status whose samples_received paces the replay'))
-        d('flow_window', 1000, ParameterDescriptor(
-            description='rate_factor 0: samples allowed ahead of the consumer'))
-        d('tick_s', 0.002, ParameterDescriptor(
-            description='Publishing timer period [s] (samples due are published per tick)'))
-        d('status_period_s', 0.5, ParameterDescriptor(description='Status period [s]'))
-        d('realtime_priority', 0, ParameterDescriptor(
-            description='SCHED_FIFO priority of the publishing threads (0: normal scheduling)'))
-        d('measurement_topic', MEASUREMENT_TOPIC)
-        d('true_parameters_topic', '/mr_damper/true_parameters')
-        d('true_spencer_topic', '/mr_damper/true_spencer_parameters')
-        d('current_command_topic', '/mr_damper/current_command')
-        d('status_topic', '/mr_damper/rig_status')
-        # sim options
-        d('plant', 'spencer', ParameterDescriptor(description='spencer | kwok-current'))
-        d('truth_file', '', ParameterDescriptor(
-            description='Parameter file of the true damper (default: presets)'))
-        d('excitation', 'cam', ParameterDescriptor(
-            description='cam | multisine | chirp | random | commanded (hardware in the loop: '
-            'follow displacement_command_topic through the actuator model)'))
-        # hardware in the loop (excitation commanded)
-        d('displacement_command_topic', '/mr_damper/displacement_command', ParameterDescriptor(
-            description='commanded: piston displacement commands [m] (std_msgs/Float64)'))
-        d('actuator', 'first', ParameterDescriptor(
-            description='commanded: servo actuator model first | second | ideal'))
-        d('actuator_tau_s', 0.012, ParameterDescriptor(
-            description='commanded: time constant of the first-order actuator [s]'))
-        d('actuator_wn_rad_s', 2 * math.pi * 25.0, ParameterDescriptor(
-            description='commanded: natural frequency of the second-order actuator [rad/s]'))
-        d('actuator_zeta', 0.7, ParameterDescriptor(
-            description='commanded: damping ratio of the second-order actuator [-]'))
-        d('actuator_delay_s', 0.002, ParameterDescriptor(
-            description='commanded: transport delay of the actuator [s] (whole samples)'))
-        d('stroke_m', 0.08, ParameterDescriptor(
-            description='commanded: half stroke [m]; commands beyond are clamped (counted)'))
-        d('command_timeout_s', 0.05, ParameterDescriptor(
-            description='commanded: hold the last command this long [s, rig time], then '
-            'return to neutral (counted)'))
-        d('return_speed_m_s', 0.05, ParameterDescriptor(
-            description='commanded: speed of the return to neutral [m/s]'))
-        d('amplitude_m', 0.03, ParameterDescriptor(description='Excitation amplitude [m]'))
-        d('frequency_hz', 1.1, ParameterDescriptor(description='Excitation frequency [Hz]'))
-        d('currents_a', [0.0, 0.5, 1.0, 1.5, 2.0], ParameterDescriptor(
-            description='Coil current schedule levels [A]'))
-        d('step_s', 4.0, ParameterDescriptor(description='Dwell per current level [s]'))
-        d('current_source', 'schedule', ParameterDescriptor(
-            description='schedule | command (follow the current command topic)'))
-        d('current_min_a', 0.0, ParameterDescriptor(
-            description='Coil current minimum [A]: lower commands are clamped to it'))
-        d('current_max_a', 2.0, ParameterDescriptor(
-            description='Coil current maximum [A]: higher commands are clamped to it'))
-        d('noise_n', 2.0, ParameterDescriptor(description='Load-cell noise std [N]'))
-        d('seed', 1, ParameterDescriptor(description='Random seed of the sim'))
-        d('rate_hz', 1000.0, ParameterDescriptor(description='sim DAQ rate [Hz]'))
-
-        p = lambda name: self.get_parameter(name).value  # noqa: E731
-        self.mode = p('mode')
-        self.rate_factor = float(p('rate_factor'))
-        if self.rate_factor < 0 or not math.isfinite(self.rate_factor):
-            raise ValueError(f'rate_factor must be >= 0, got {self.rate_factor}')
-        self.exit_on_end = bool(p('exit_on_end'))
+    def __init__(self, **kwargs):
+        super().__init__('mr_damper_rig', **kwargs)   # kwargs: e.g. parameter_overrides (tests)
+        p = declare_parameters(self, PARAMETERS, self._on_set)
+        self.mode = p['mode']
+        self.exit_on_end = bool(p['exit_on_end'])
         self.rig = None
         self.follower = None
         if self.mode in ('csv', 'bag'):
-            if not p('file'):
+            if not p['file']:
                 raise DataError(f'mode {self.mode} needs the `file` parameter')
-            data = read_stream(self.mode, p('file'), p('bag_topic'))   # whole file checked
-            self.source = ArraySource(data, loop=bool(p('loop')),
-                                      offset_s=float(p('time_offset_s'))
+            data = read_stream(self.mode, p['file'], p['bag_topic'])   # whole file checked
+            self.source = ArraySource(data, loop=bool(p['loop']),
+                                      offset_s=float(p['time_offset_s'])
                                       if self.mode == 'csv' else 0.0)
-            self.get_logger().info(f'replaying {p("file")}: {data.n} samples, '
-                                   f'{data.duration:.3f} s, x{self.rate_factor}')
+            hardware = f'replay {p["file"]}'
+            self.get_logger().info(f'replaying {p["file"]}: {data.n} samples, '
+                                   f'{data.duration:.3f} s, x{p["rate_factor"]}')
         elif self.mode == 'sim':
-            options = {k: p(k) for k in ('plant', 'excitation', 'amplitude_m', 'frequency_hz',
+            options = {k: p[k] for k in ('plant', 'excitation', 'amplitude_m', 'frequency_hz',
                                          'currents_a', 'step_s', 'current_source', 'noise_n',
                                          'seed', 'rate_hz', 'truth_file', 'actuator',
                                          'actuator_tau_s', 'actuator_wn_rad_s', 'actuator_zeta',
@@ -231,59 +233,109 @@ class RigNode(Node):
             sampler = self.rig
             if options['excitation'] == 'commanded':
                 sampler = self.follower = CommandFollower(self.rig, DisplacementCommandGuard(
-                    float(p('stroke_m')), float(p('command_timeout_s')),
-                    float(p('return_speed_m_s')), self.rig.excitation.center_m))
-            t0 = self.get_clock().now().nanoseconds * 1e-9
-            self.source = SimSource(sampler, float(p('rate_hz')), t0, float(p('duration_s')))
+                    p['stroke_m'], p['command_timeout_s'], p['return_speed_m_s'],
+                    self.rig.excitation.center_m))
+            self.source = SimSource(sampler, float(p['rate_hz']), self._now_s(),
+                                    float(p['duration_s']))
+            hardware = f'virtual rig ({options["plant"]})'
             self.get_logger().info(f'virtual rig: {options["plant"]} damper, '
-                                   f'{options["excitation"]} excitation, x{self.rate_factor}')
+                                   f'{options["excitation"]} excitation, x{p["rate_factor"]}')
         else:
             raise ValueError(f"mode must be 'sim', 'csv' or 'bag', got {self.mode!r}")
+        publish_clock = bool(p['publish_clock'])
+        if publish_clock and self.mode == 'sim':
+            raise ValueError('publish_clock needs a replay (mode csv or bag): the sim rig '
+                             'stamps its samples with the wall clock')
+        if publish_clock and self.get_parameter('use_sim_time').value:
+            raise ValueError('publish_clock and use_sim_time together: the rig is the clock '
+                             'source, start it on wall time')
 
+        # Wall time is the point here: the rig paces the stream (and is the clock source of a
+        # replay), so its timers and its pacer run on a steady clock, never on /clock.
+        if self.follower is not None:
+            self.pacer = LockstepPacer(float(p['rate_hz']), float(p['command_timeout_s']),
+                                       float(p['rate_factor']), clock=time.monotonic)
+        else:
+            self.pacer = Pacer(self.source, float(p['rate_factor']), clock=time.monotonic,
+                               wait_for_subscribers=int(p['wait_for_subscribers']),
+                               flow_window=int(p['flow_window']))
         self.drops = DropCounter(self.get_logger())
-        self.limiter = CurrentCommandLimiter(float(p('current_min_a')), float(p('current_max_a')))
-        self._meas = ResettablePublisher(self, JointState, p('measurement_topic'),
-                                         MEASUREMENT_QOS)
-        self._pub_status = self.create_publisher(String, p('status_topic'), STATUS_QOS)
+        self.limiter = CurrentCommandLimiter(p['current_min_a'], p['current_max_a'])
+        self._health = RigHealth()
+        self._wait_subs = int(p['wait_for_subscribers'])
+        self._meas = ResettablePublisher(self, JointState, MEASUREMENT, MEASUREMENT_QOS)
+        self._clock_pub = (self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
+                           if publish_clock else None)
+        self._clock_msg = ClockMsg()
+        self.clock_published = 0
+        self.clock_last_s = math.nan
         if self.rig is not None:
-            self._publish_truth(p('true_parameters_topic'), p('true_spencer_topic'))
-            if p('current_source') == 'command':
-                self.drops.subscribe(self, Float64, p('current_command_topic'), self._on_command,
+            self._publish_truth()
+            if p['current_source'] == 'command':
+                self.drops.subscribe(self, Float64, CURRENT_COMMAND, self._on_command,
                                      COMMAND_QOS, 'command_lost')
         if self.follower is not None:
-            self.drops.subscribe(self, Float64, p('displacement_command_topic'),
-                                 self._on_displacement, COMMAND_QOS, 'displacement_command_lost')
-        self._flow_window = int(p('flow_window'))
-        self._flow_received = None   # consumer's samples_received (latest, first seen)
-        self._flow_base = None
-        if self.rate_factor == 0:
-            self.create_subscription(String, p('flow_topic'), self._on_flow, STATUS_QOS)
-        self._wait_subs = int(p('wait_for_subscribers'))
+            self.drops.subscribe(self, Float64, DISPLACEMENT_COMMAND, self._on_displacement,
+                                 COMMAND_QOS, 'displacement_command_lost')
+        elif self.pacer.rate_factor == 0:
+            self.create_subscription(UInt64, SAMPLES_RECEIVED, self._on_flow, STATUS_QOS)
         self._msg = None
-        self.published = 0
-        self.behind_max = 0
-        self._last_cmd_wall = None   # commanded: wall time of the last command
-        self._free = 0               # commanded: samples run on the rig's own clock since then
+        self._held = None       # (index, sample) built but refused by the writer
+        self.backlog = 0
         self.commands = 0
-        self.flow_restarts = 0
         self.finished = False
-        self._start = None
-        self._end = None
-        self._created = time.monotonic()
-        self.realtime = set_realtime_priority(int(p('realtime_priority')), self.get_logger())
-        self.create_timer(float(p('tick_s')), self._tick)
-        self.create_timer(float(p('status_period_s')), self._publish_status)
+        self.realtime = set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(float(p['tick_s']), self._tick, clock=self._wall)
+        self._diag = DiagnosticsPublisher(self, self.health, period_s=p['diagnostics_period_s'],
+                                          hardware_id=hardware, drops=self.drops)
 
     def _now_s(self):
         """Return the node clock's time [s] (ROS time under ``use_sim_time``)."""
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _publish_truth(self, kwok_topic, spencer_topic):
+    def _on_set(self, changes):
+        """Apply dynamic parameters to the core objects; return '' or why they are refused."""
+        new = {name: self.get_parameter(name).value for name in
+               ('current_min_a', 'current_max_a', 'stroke_m', 'command_timeout_s',
+                'return_speed_m_s')}
+        new.update(changes)
+        guard_keys = {'stroke_m', 'command_timeout_s', 'return_speed_m_s'}
+        try:
+            follows_current = (self.rig is not None and
+                               self.get_parameter('current_source').value == 'command')
+            if {'current_min_a', 'current_max_a'} & set(changes) and not follows_current:
+                return 'current_min_a / current_max_a apply only with current_source:=command'
+            if guard_keys & set(changes) and self.follower is None:
+                return (f'{sorted(guard_keys & set(changes))} apply only with '
+                        'excitation:=commanded')
+            if 'rate_factor' in changes and (changes['rate_factor'] == 0) != (
+                    self.pacer.rate_factor == 0):
+                return ('rate_factor cannot change to or from 0 while running (flow control '
+                        'is chosen at start-up)')
+            if 'flow_window' in changes and self.pacer.rate_factor != 0:
+                return 'flow_window applies only with rate_factor 0'
+            CurrentCommandLimiter(new['current_min_a'], new['current_max_a'])   # check only
+            if 'rate_factor' in changes:
+                self.pacer.set_rate_factor(changes['rate_factor'])
+            if 'flow_window' in changes:
+                self.pacer.set_flow_window(changes['flow_window'])
+            self.limiter.set_range(new['current_min_a'], new['current_max_a'])
+            if self.follower is not None:
+                self.follower.guard.configure(stroke_m=new['stroke_m'],
+                                              timeout_s=new['command_timeout_s'],
+                                              return_speed_m_s=new['return_speed_m_s'])
+                self.pacer.timeout_s = float(new['command_timeout_s'])
+        except ValueError as exc:
+            return str(exc)
+        return ''
+
+    def _publish_truth(self):
         truth = self.rig.true_parameters()
         model = truth.get('model')
         params = truth.get('parameters', {})
         if model == 'kwok-current':
-            pub = self.create_publisher(KwokParameters, kwok_topic, LATCHED_QOS)
+            pub = self.create_publisher(KwokParameters, TRUE_PARAMETERS, LATCHED_QOS)
             values = dict(params)
             currents = [float(c) for c in self.get_parameter('currents_a').value] or [0.0]
             values.update(i_ref_a=float(truth.get('model_options', {}).get('i_ref_a', 2.0)),
@@ -292,7 +344,7 @@ class RigNode(Node):
                           nrmse_percent=0.0, valid=True)
             self.drops.publish(pub, kwok_parameters_msg(values, stamp_s=self._now_s()))
         else:
-            pub = self.create_publisher(DamperModel, spencer_topic, LATCHED_QOS)
+            pub = self.create_publisher(DamperModel, TRUE_SPENCER, LATCHED_QOS)
             self.drops.publish(pub, damper_model_msg(model, params, truth.get('model_options'),
                                                      stamp_s=self._now_s()))
         self._truth_pub = pub
@@ -318,85 +370,81 @@ class RigNode(Node):
             self.get_logger().warning(
                 f'displacement command {msg.data} m {what} ({outcome}, '
                 f'{self.follower.guard.counts[outcome]} in all)', throttle_duration_sec=1.0)
-        if self._start is None:
-            self._start = time.monotonic()
-            self.source.t0 = self.get_clock().now().nanoseconds * 1e-9
-        self._last_cmd_wall = time.monotonic()
-        self._free = 0
-        self._publish_sample()   # lockstep: one rig sample per car step
+        if self.pacer.start_s is None:
+            self.source.t0 = self._now_s()
+        self.pacer.command()
+        self._publish_lockstep()   # lockstep: one rig sample per car step
 
-    def _publish_sample(self):
-        self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
-        self.published += 1
+    def _publish_lockstep(self, free=False):
+        self._msg = measurement_to_msg(*self.source.sample(self.pacer.published), msg=self._msg)
+        self.pacer.sent(free=free)
         if not self._meas.publish(self._msg):
             self.drops.count('measurement_not_published')
 
-    def _tick_commanded(self):
-        """Run on the rig's own clock while the car is silent (hold, then back to neutral)."""
-        if self._last_cmd_wall is None:
-            return
-        silent_s = (time.monotonic() - self._last_cmd_wall) * (self.rate_factor or 1.0)
-        if silent_s <= self.follower.guard.timeout_s:
-            return
-        due = int(silent_s * self.follower.rig.sample_rate_hz) - self._free
-        for _ in range(max(0, min(due, 5000))):
-            self._publish_sample()
-            self._free += 1
-
     def _on_flow(self, msg):
-        try:
-            received = int(status_from_msg(msg)['samples_received'])
-        except (ValueError, KeyError, TypeError):
-            return
-        if self._flow_received is not None and received < self._flow_received \
-                and self._flow_base is not None:
-            # the consumer restarted (its count began again): pace against the new count
-            self._flow_base = received - self.published
-            self.flow_restarts += 1
-        self._flow_received = received
-        if self._flow_base is None and self._start is None:
-            self._flow_base = received
+        self.pacer.on_flow(msg.data)
 
     def _tick(self):
         if self.finished:
             return
         if self.follower is not None:
-            self._tick_commanded()
+            for _ in range(self.pacer.due()):   # the car is silent: the rig's own clock
+                self._publish_lockstep(free=True)
             return
-        if self._start is None:
-            subs = self._meas.get_subscription_count()
-            waiting = time.monotonic() - self._created < 30.0
-            if subs < self._wait_subs and waiting:
+        if not self.pacer.started:
+            if self.pacer.waiting(self._meas.get_subscription_count()):
                 return
-            if self.rate_factor == 0 and self._flow_base is None and waiting:
-                return   # the consumer's first status gives the base count
-            self._start = time.monotonic()
-            if self.rig is not None:   # stamps: wall clock at the first sample + sim time
-                self.source.t0 = self.get_clock().now().nanoseconds * 1e-9
-        total = self.source.total()
-        if self.rate_factor > 0:
-            due = self.source.count_due((time.monotonic() - self._start) * self.rate_factor)
-        elif self._flow_base is not None:
-            due = self._flow_received - self._flow_base + self._flow_window
-        else:
-            due = self.published + 1   # no flow status: one sample per tick
-        if total is not None:
-            due = min(due, total)
-        if self.rate_factor > 0:
-            self.behind_max = max(self.behind_max, due - self.published)
-        n = max(0, min(due - self.published, 5000))
-        for _ in range(n):
-            self._msg = measurement_to_msg(*self.source.sample(self.published), msg=self._msg)
+            if self.rig is not None:   # stamps: ROS time at the first sample + sim time
+                self.source.t0 = self._now_s()
+        due = self.pacer.due()
+        sent = 0
+        for _ in range(due):
+            k = self.pacer.published
+            row = self._held[1] if self._held and self._held[0] == k else self.source.sample(k)
+            self._msg = measurement_to_msg(*row, msg=self._msg)
             if not self._meas.publish(self._msg):
-                break   # writer replaced: this sample and the rest go out once it is ready
-            self.published += 1
-        if total is not None and self.published >= total:
-            self._end = time.monotonic()
+                self._held = (k, row)   # writer replaced: sent again once it is ready
+                break
+            self._held = None
+            self.pacer.sent()
+            sent += 1
+            newest_s = row[0]
+        self.backlog = due - sent
+        if sent and self._clock_pub is not None:
+            self.clock_last_s = newest_s
+            seconds_to_stamp(newest_s, self._clock_msg.clock)
+            if self.drops.publish(self._clock_pub, self._clock_msg, 'clock_publish_failed'):
+                self.clock_published += 1
+        if self.pacer.finished:
             self._wait_acked(self._meas.publisher, 10.0)
             self.finished = True
-            self._publish_status()
-            self._wait_acked(self._pub_status, 2.0)   # final status out
-            self.get_logger().info(f'done: {self.published} samples published')
+            self._diag.publish()
+            self._wait_acked(self._diag.publisher, 2.0)   # final status out
+            self.get_logger().info(f'done: {self.pacer.published} samples published')
+
+    def status_values(self):
+        """Return the rig's status values (what ``/diagnostics`` carries)."""
+        values = {'mode': self.mode, **self.pacer.values(), 'backlog_samples': self.backlog,
+                  'subscribers': self._meas.get_subscription_count(),
+                  'wait_for_subscribers': self._wait_subs, 'writer_resets': self._meas.resets,
+                  'current_commands': self.commands, 'commands': dict(self.limiter.counts),
+                  'dropped': self.drops.counts(), 'realtime': self.realtime}
+        values['done'] = self.finished
+        if self.follower is not None:
+            actuator = self.follower.rig.excitation.actuator
+            values['displacement_commands'] = dict(self.follower.guard.counts)
+            values['actuator'] = {'kind': actuator.kind,
+                                  'equivalent_delay_s': actuator.equivalent_delay_s}
+            values['tracking_error'] = self.follower.tracking.values()
+        if self.rig is not None:
+            values['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
+        if self._clock_pub is not None:
+            values['clock'] = {'published': self.clock_published, 'last_s': self.clock_last_s}
+        return values
+
+    def health(self):
+        """Return the rig's :class:`~mr_damper_model.health.Health` (for ``/diagnostics``)."""
+        return self._health(self.status_values())
 
     def flush(self, timeout_s=1.5):
         """
@@ -415,27 +463,6 @@ class RigNode(Node):
             if pub.wait_for_all_acked(Duration(seconds=0.1)):
                 return True
         return False
-
-    def _publish_status(self):
-        end = self._end if self._end is not None else time.monotonic()
-        elapsed = end - self._start if self._start else 0.0
-        status = {'mode': self.mode, 'samples_published': self.published,
-                  'rate_factor': self.rate_factor, 'elapsed_s': elapsed,
-                  'effective_rate_hz': self.published / elapsed if elapsed > 0 else 0.0,
-                  'behind_max_samples': self.behind_max, 'done': self.finished,
-                  'subscribers': self._meas.get_subscription_count(),
-                  'writer_resets': self._meas.resets,
-                  'current_commands': self.commands, 'commands': dict(self.limiter.counts),
-                  'dropped': self.drops.counts(), 'flow_restarts': self.flow_restarts,
-                  'realtime': self.realtime}
-        if self.follower is not None:
-            status['displacement_commands'] = dict(self.follower.guard.counts)
-            status['actuator'] = {'kind': self.follower.rig.excitation.actuator.kind,
-                                  'equivalent_delay_s':
-                                      self.follower.rig.excitation.actuator.equivalent_delay_s}
-        if self.rig is not None:
-            status['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
-        self.drops.publish(self._pub_status, status_msg(status))
 
 
 def main(args=None):
