@@ -77,7 +77,9 @@ def main(argv=None):
     from mr_damper_interfaces.msg import KwokParameters
     from std_msgs.msg import String
 
-    from mr_damper_model.messages import kwok_parameters_from_msg, status_from_msg
+    from diagnostic_msgs.msg import DiagnosticArray
+    from mr_damper_model.messages import (health_from_diagnostic, kwok_parameters_from_msg,
+                                          status_from_msg)
 
     bin_dir = Path(sys.executable).parent
     rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments
@@ -93,8 +95,13 @@ def main(argv=None):
             p99s.append(age['p99'])
 
     node.create_subscription(String, '/mr_damper/identifier_status', on_ident, 10)
-    node.create_subscription(String, '/mr_damper/rig_status',
-                             lambda m: latest.__setitem__('rig', status_from_msg(m)), 10)
+
+    def on_diagnostics(msg):
+        for st in msg.status:
+            if st.name == 'mr_damper_rig':   # the rig's status values (identifier: topic)
+                latest['rig'] = health_from_diagnostic(st).values
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     node.create_subscription(
         KwokParameters, '/mr_damper/kwok_parameters',
         lambda m: updates.append((time.monotonic(), kwok_parameters_from_msg(m))),

@@ -54,7 +54,10 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
     import yaml
     params_file.write_text(yaml.safe_dump(cfg))
     suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
-    rig = listener.subscribe('/mr_damper/rig_status', String, _qos())
+    rig_diag = listener.diagnostics()
+
+    def rig():
+        return rig_diag.values('mr_damper_rig')
     ident = listener.subscribe('/mr_damper/identifier_status', String, _qos())
     car = listener.subscribe('/quarter_car/status', String, _qos())
     wait = listener.wait_for
@@ -67,8 +70,9 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def grows(msgs, key, by=1):
         """Predicate: the latest status's ``key`` exceeds its value now by ``by``."""
-        base = _latest(msgs).get(key, 0)
-        return lambda: _latest(msgs).get(key, 0) >= base + by
+        latest = msgs if callable(msgs) else (lambda: _latest(msgs))
+        base = latest().get(key, 0)
+        return lambda: latest().get(key, 0) >= base + by
 
     def fresh(msgs, n=3):
         """Predicate: ``n`` more status messages arrived (the node is alive and publishing)."""
@@ -88,8 +92,8 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
             steps = _latest(car)['steps']
             # the writer fills (5,000 samples) and is replaced; the rig goes on publishing
-            assert wait(grows(rig, 'writer_resets'), GUARD_S), (_latest(rig), tails())
-            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
+            assert wait(grows(rig, 'writer_resets'), GUARD_S), (rig(), tails())
+            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), rig()
             assert wait(lambda: _latest(car)['steps'] > steps + 1000, GUARD_S)
             assert _latest(car)['mode'] == 'failsafe'
         finally:
@@ -98,11 +102,11 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
 
         # -- identifier killed, then restarted from its parameter file
-        resets = _latest(rig)['writer_resets']
+        resets = rig()['writer_resets']
         suite.kill(rs.IDENT, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
-        assert wait(grows(rig, 'samples_published', 6000), GUARD_S), (_latest(rig), tails())
-        assert _latest(rig)['writer_resets'] >= resets and suite.alive(rs.RIG)
+        assert wait(grows(rig, 'samples_published', 6000), GUARD_S), (rig(), tails())
+        assert rig()['writer_resets'] >= resets and suite.alive(rs.RIG)
         suite.start(rs.IDENT)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
 
@@ -110,7 +114,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         os.kill(suite.pid(rs.QC), signal.SIGSTOP)
         try:
             assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
-            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
+            assert wait(grows(rig, 'samples_published', 2000), GUARD_S), rig()
         finally:
             os.kill(suite.pid(rs.QC), signal.SIGCONT)
         assert wait(fresh(car), GUARD_S) and suite.alive(rs.QC)
@@ -144,30 +148,31 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
 
 def test_rig_clamps_and_refuses_bad_current_commands(listener):
-    from std_msgs.msg import Float64, String
+    from std_msgs.msg import Float64
     params = {'mode': 'sim', 'current_source': 'command', 'current_min_a': 0.0,
-              'current_max_a': 2.0, 'status_topic': '/fi/rig_status',
-              'measurement_topic': '/fi/measurement',
-              'current_command_topic': '/fi/current_command', 'status_period_s': 0.1}
-    statuses = listener.subscribe('/fi/rig_status', String, _qos())
-    pub = listener.publisher('/fi/current_command', Float64)
-    with NodeProcess('rig_node', params=params) as rig:
-        assert listener.wait_for(lambda: statuses and pub.get_subscription_count() > 0,
+              'current_max_a': 2.0, 'diagnostics_period_s': 0.1}
+    diag = listener.diagnostics()
+    name = 'fi/mr_damper_rig'     # the rig in namespace fi: /fi/mr_damper/current_command
+    pub = listener.publisher('/fi/mr_damper/current_command', Float64)
+    with NodeProcess('rig_node', params=params, namespace='fi') as rig:
+        assert listener.wait_for(lambda: diag.count(name) and pub.get_subscription_count() > 0,
                                  GUARD_S, procs=[rig]), rig.output()
         for k, value in enumerate((-5.0, 1e9, math.nan, math.inf, 1.2)):
-            n = len(statuses)
+            n = diag.count(name)
             pub.publish(Float64(data=value))
 
             def counted(k=k, n=n):
-                st = _latest(statuses)
-                return len(statuses) > n + 1 and sum(st['commands'].values()) >= k + 1
+                st = diag.values(name)
+                return diag.count(name) > n + 1 and sum(st['commands'].values()) >= k + 1
             # the status after this command counts it; the coil stays inside its range
-            assert listener.wait_for(counted, GUARD_S, procs=[rig]), _latest(statuses)
-            assert 0.0 <= _latest(statuses)['coil_current_a'] <= 2.0
-        st = _latest(statuses)
+            assert listener.wait_for(counted, GUARD_S, procs=[rig]), diag.values(name)
+            assert 0.0 <= diag.values(name)['coil_current_a'] <= 2.0
+        st = diag.values(name)
         assert st['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
                                   'refused_non_finite': 2}
         assert st['current_commands'] == 3          # the three applied commands
+        # the clamped and refused commands raised warnings on /diagnostics (level WARN)
+        assert 1 in diag.levels(name)
         code = rig.stop()
     assert code == 0, rig.output()
 

@@ -49,28 +49,25 @@ def listener():
 def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64, String
+    from std_msgs.msg import Float64
     from mr_damper_model.messages import measurement_from_msg
-    topics = {'displacement_command_topic': '/hilrig/displacement_command',
-              'measurement_topic': '/hilrig/measurement', 'status_topic': '/hilrig/status',
-              'current_command_topic': '/hilrig/current_command',
-              'true_parameters_topic': '/hilrig/truth',
-              'true_spencer_topic': '/hilrig/truth_spencer'}
-    params = _suite_params('mr_damper_rig', **topics, wait_for_subscribers=1,
+    # the rig in namespace hilrig: its relative topics resolve to /hilrig/mr_damper/...
+    params = _suite_params('mr_damper_rig', wait_for_subscribers=1,
                            realtime_priority=0, actuator='ideal', actuator_delay_s=0.0,
                            command_timeout_s=0.05, return_speed_m_s=0.2, stroke_m=0.05,
-                           status_period_s=0.1, noise_n=0.0)
-    statuses = listener.subscribe(topics['status_topic'], String, status_qos())
-    meas = listener.subscribe(topics['measurement_topic'], JointState, QoSProfile(
+                           diagnostics_period_s=0.1, noise_n=0.0)
+    diag = listener.diagnostics()
+    meas = listener.subscribe('/hilrig/mr_damper/measurement', JointState, QoSProfile(
         depth=10000, reliability=ReliabilityPolicy.RELIABLE))
-    pub = listener.publisher(topics['displacement_command_topic'], Float64,
+    pub = listener.publisher('/hilrig/mr_damper/displacement_command', Float64,
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-    with NodeProcess('rig_node', params=params) as rig:
-        assert listener.wait_for(lambda: statuses and pub.get_subscription_count(),
+    name = 'hilrig/mr_damper_rig'
+    with NodeProcess('rig_node', params=params, namespace='hilrig') as rig:
+        assert listener.wait_for(lambda: diag.count(name) and pub.get_subscription_count(),
                                  HANG_S, procs=[rig]), rig.output()
 
         def status():
-            return latest_status(statuses).get('displacement_commands') or {}
+            return diag.values(name).get('displacement_commands') or {}
 
         def send(values):
             for v in values:
@@ -102,7 +99,12 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
         send([0.01])
         assert listener.wait_for(lambda: status().get('accepted') == 4
                                  and status().get('stale_timeouts') == 2, HANG_S, procs=[rig])
-        assert latest_status(statuses)['samples_published'] > 0
+        assert diag.values(name)['samples_published'] > 0
+        # the tracking error of the ideal actuator: the guarded target exactly (DAQ
+        # quantisation aside), over every sample published
+        track = diag.values(name)['tracking_error']
+        assert track['samples'] == diag.values(name)['samples_published']
+        assert track['max_abs_m'] <= 1e-4
         assert rig.stop() == 0
 
 
@@ -118,7 +120,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     ident_p = _suite_params('mr_damper_identifier', current_bin_a=0.5)
     car_p = _suite_params('quarter_car_node', realtime_priority=0, road_duration_s=600.0,
                           status_rate_hz=10.0, **bins)
-    rig_st = listener.subscribe('/mr_damper/rig_status', String, status_qos())
+    rig_diag = listener.diagnostics()
     ident_st = listener.subscribe('/mr_damper/identifier_status', String, status_qos())
     car_st = listener.subscribe('/quarter_car/status', String, status_qos())
     params = listener.subscribe('/mr_damper/kwok_parameters', KwokParameters, QoSProfile(
@@ -152,9 +154,10 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
         assert listener.wait_for(lambda: len(car_st) > n_status + 5, HANG_S, procs=procs)
         st = car_status()
         hil = st['hil']
-        n_rig = len(rig_st)             # a rig status published after the car's status
-        assert listener.wait_for(lambda: len(rig_st) > n_rig + 1, HANG_S, procs=procs)
-        rig_status = latest_status(rig_st)
+        n_rig = rig_diag.count('mr_damper_rig')   # a rig status published after the car's
+        assert listener.wait_for(lambda: rig_diag.count('mr_damper_rig') > n_rig + 1, HANG_S,
+                                 procs=procs)
+        rig_status = rig_diag.values('mr_damper_rig')
         for proc in (car, rig, ident):        # car first: the rig then times the car out
             assert proc.stop() == 0, proc.output()[-3000:]
     # the rig received the car's commands and published measurements; the car took them

@@ -63,12 +63,12 @@ class Topics:
         self.meas = (lis.subscribe(self.names['measurement_topic'], JointState, KEEP_ALL)
                      if measurement else None)
 
-    def rig_names(self, tag):
-        return {'measurement_topic': self.names['measurement_topic'],
-                'status_topic': f'/{tag}/rig_status',
-                'flow_topic': self.names['status_topic'],
-                'true_parameters_topic': f'/{tag}/true_parameters',
-                'true_spencer_topic': f'/{tag}/true_spencer_parameters'}
+    def rig_remap(self, tag):
+        """Remappings of the rig's relative topic names onto this run's names."""
+        return {'mr_damper/measurement': self.names['measurement_topic'],
+                'mr_damper/samples_received': f'/{tag}/samples_received',
+                'mr_damper/true_parameters': f'/{tag}/true_parameters',
+                'mr_damper/true_spencer_parameters': f'/{tag}/true_spencer_parameters'}
 
     def last_status(self):
         return status_from_msg(self.status[-1][1]) if self.status else {}
@@ -113,9 +113,10 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     n = int(duration * 1000)
     ident = NodeProcess('identifier_node', dict(topics.names, params_file=str(params_file),
                                                 save_period_s=0.5))
-    rig = NodeProcess('rig_node', dict(topics.rig_names(tag), mode='sim', plant=plant,
+    rig = NodeProcess('rig_node', dict(mode='sim', plant=plant,
                                        duration_s=duration, step_s=2.0, rate_factor=2.0,
-                                       wait_for_subscribers=2, seed=3))
+                                       wait_for_subscribers=2, seed=3),
+                      remap=topics.rig_remap(tag))
     with ident, rig:
         assert rig.wait(90) == 0, rig.output()
         assert wait_identified(listener, topics, n, [ident]), \
@@ -202,8 +203,8 @@ def test_replay_matches_offline_tool(listener, tmp_path, source):
     tag = f'replay_{source}'
     topics = Topics(listener, tag)
     ident = NodeProcess('identifier_node', dict(topics.names, **OFFLINE_SAME))
-    rig = NodeProcess('rig_node', dict(topics.rig_names(tag), wait_for_subscribers=1,
-                                       **rig_params))
+    rig = NodeProcess('rig_node', dict(wait_for_subscribers=1, **rig_params),
+                      remap=topics.rig_remap(tag))
     with ident, rig:
         assert rig.wait(90) == 0, rig.output()
         assert wait_identified(listener, topics, data.n, [ident]), topics.last_status()
@@ -265,13 +266,13 @@ def test_bad_replay_file_exits_2_and_publishes_nothing(listener, tmp_path):
     bad = tmp_path / 'half_bad.csv'
     bad.write_text('\n'.join(lines) + '\n')
     meas = listener.subscribe('/badfile/measurement', JointState, KEEP_ALL)
-    rig = NodeProcess('rig_node', {'mode': 'csv', 'file': str(bad),
-                                   'measurement_topic': '/badfile/measurement'})
+    remap = {'mr_damper/measurement': '/badfile/measurement'}
+    rig = NodeProcess('rig_node', {'mode': 'csv', 'file': str(bad)}, remap=remap)
     assert rig.wait(60) == 2
     out = rig.output()
     assert f'{bad}: column i has 1 NaN/inf value' in out, out
     assert meas == []
-    rig2 = NodeProcess('rig_node', {'mode': 'bag', 'file': str(tmp_path / 'nobag'),
-                                    'measurement_topic': '/badfile/measurement'})
+    rig2 = NodeProcess('rig_node', {'mode': 'bag', 'file': str(tmp_path / 'nobag')},
+                       remap=remap)
     assert rig2.wait(60) == 2 and 'nobag: bag not found' in rig2.output()
     assert meas == []

@@ -114,3 +114,15 @@ def test_publish_clock_needs_a_replay_and_wall_time(make_node):
     with pytest.raises(ValueError, match='use_sim_time'):
         make_node(mode='csv', file=str(QUIROZ), publish_clock=True, use_sim_time=True)
     assert math.isnan(make_node(mode='csv', file=str(QUIROZ)).clock_last_s)
+
+
+def test_default_parameter_file_matches_the_declared_parameters():
+    import yaml
+    from conftest import REPO
+    from mr_damper_rig.rig_node import PARAMETERS
+    cfg = yaml.safe_load((REPO / 'src/mr_damper_rig/config/rig.yaml').read_text())
+    values = cfg['mr_damper_rig']['ros__parameters']
+    defaults = {p.name: p.default for p in PARAMETERS}
+    assert set(values) == set(defaults)
+    for name, value in values.items():
+        assert value == defaults[name] and type(value) is type(defaults[name]), name

@@ -340,7 +340,7 @@ class DiagnosticsPublisher:
 
     @property
     def publisher(self):
-        """The ``/diagnostics`` publisher (e.g. to wait for the readers' acknowledgements)."""
+        """Return the ``/diagnostics`` writer, e.g. to wait for its readers' acknowledgements."""
         return self._pub
 
     def publish(self):

@@ -277,7 +277,7 @@ class LockstepPacer:
         self._rate = self.rate_factor or 1.0
 
     def command(self):
-        """A command arrived (its sample is published at once: count it with :meth:`sent`)."""
+        """Note a command now (its sample is published at once: count it with :meth:`sent`)."""
         now = self._clock()
         if self.start_s is None:
             self.start_s = now
