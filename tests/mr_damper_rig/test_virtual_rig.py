@@ -67,3 +67,29 @@ def test_default_rig_is_thesis_like():
     assert np.max(np.abs(data.f)) == pytest.approx(150.0, rel=0.15)
     with pytest.raises(ValueError, match='force_noise_n'):
         VirtualRig(force_noise_n=-1.0)
+
+
+def _node_options(**changes):
+    options = {'plant': 'kwok-current', 'excitation': 'cam', 'amplitude_m': 0.03,
+               'frequency_hz': 1.1, 'currents_a': [0.0, 1.0, 2.0], 'step_s': 0.5,
+               'current_source': 'schedule', 'noise_n': 0.0, 'seed': 1, 'rate_hz': 1000.0,
+               'truth_file': '', 'actuator': 'ideal', 'actuator_tau_s': 0.012,
+               'actuator_wn_rad_s': 157.0, 'actuator_zeta': 0.7, 'actuator_delay_s': 0.0}
+    options.update(changes)
+    return options
+
+
+def test_rig_node_options_build_a_repeating_schedule_or_a_commanded_rig():
+    from mr_damper_rig.actuator import CommandedMotion
+    from mr_damper_rig.virtual_rig import build_virtual_rig
+    rig = build_virtual_rig(_node_options())
+    # the steps 0, 1, 2 A of 0.5 s start again every 1.5 s
+    for t in (0.1, 0.6, 1.1):
+        assert rig.schedule(t) == rig.schedule(t + 1.5) == rig.schedule(t + 3.0)
+    assert [rig.schedule(t) for t in (0.1, 0.6, 1.1)] == [0.0, 1.0, 2.0]
+    commanded = build_virtual_rig(_node_options(excitation='commanded',
+                                                current_source='command'))
+    assert isinstance(commanded.excitation, CommandedMotion)
+    assert commanded.schedule(10.0) == 0.0            # 0 A until the first current command
+    with pytest.raises(ValueError, match='current_source'):
+        build_virtual_rig(_node_options(current_source='both'))

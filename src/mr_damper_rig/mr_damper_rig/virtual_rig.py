@@ -194,3 +194,63 @@ class VirtualRig:
         """
         return {'model': self.plant.model_name, 'parameters': dict(self.plant.params),
                 'model_options': dict(self.plant.model_options)}
+
+
+class RepeatingSchedule:
+    """A current schedule started again at the end of each pass (``duration_s`` None)."""
+
+    duration_s = None
+
+    def __init__(self, schedule):
+        self._schedule = schedule
+        self._period = float(schedule.duration_s)
+
+    def __call__(self, t):
+        return self._schedule(t % self._period)
+
+
+def build_virtual_rig(options):
+    """
+    Build the virtual rig from the rig node's sim options (its parameters of the same names).
+
+    Parameters
+    ----------
+    options : dict
+        ``plant``, ``excitation``, ``amplitude_m``, ``frequency_hz``, ``currents_a``,
+        ``step_s``, ``current_source``, ``noise_n``, ``seed``, ``rate_hz``, ``truth_file``;
+        with ``excitation`` ``'commanded'`` also ``actuator``, ``actuator_tau_s``,
+        ``actuator_wn_rad_s``, ``actuator_zeta``, ``actuator_delay_s``.
+
+    Returns
+    -------
+    VirtualRig
+
+    """
+    from mr_damper_model.params_file import load_params
+
+    from . import excitation as exc_mod
+    params = None
+    if options['truth_file']:
+        params = load_params(options['truth_file'], model=options['plant']).parameters
+    plant = make_plant(options['plant'], params)
+    if options['excitation'] == 'commanded':
+        from .actuator import CommandedMotion, ServoActuator
+        excitation = CommandedMotion(ServoActuator(
+            options['actuator'], 1.0 / options['rate_hz'], tau_s=options['actuator_tau_s'],
+            wn_rad_s=options['actuator_wn_rad_s'], zeta=options['actuator_zeta'],
+            delay_s=options['actuator_delay_s']))
+    else:
+        excitation = exc_mod.make_excitation(options['excitation'],
+                                             amplitude_m=options['amplitude_m'],
+                                             frequency_hz=options['frequency_hz'],
+                                             seed=options['seed'])
+    if options['current_source'] == 'command':
+        schedule = exc_mod.ConstantSchedule(0.0)   # until the first command arrives
+    elif options['current_source'] == 'schedule':
+        schedule = RepeatingSchedule(exc_mod.step_schedule(options['currents_a'],
+                                                           options['step_s']))
+    else:
+        raise ValueError("current_source must be 'schedule' or 'command', "
+                         f"got {options['current_source']!r}")
+    return VirtualRig(plant, excitation, schedule, sample_rate_hz=options['rate_hz'],
+                      force_noise_n=options['noise_n'], rng=options['seed'])
