@@ -92,8 +92,8 @@ from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import CarHealth
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
-from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
-                                                         node_time_s, offer_parameters)
+from quarter_car_sim.semi_active_controller_node import (
+    car_state_to_msg, CONTROL_QOS, node_time_s, offer_parameters, SUPERVISED_LAW_PARAMETERS)
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 
@@ -105,9 +105,7 @@ PARAMETERS = (
     Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
           'hybrid, add, passive@<I>A; external = commands on mr_damper/current_command, e.g. '
           'semi_active_controller_node)'),
-    Param('controller_options', '{}', 'JSON keyword options (gains) of the controller, e.g. '
-          '{"c_sky": 3000.0}; a change rebuilds the law (refused: the old one stays)',
-          dynamic=True),
+) + SUPERVISED_LAW_PARAMETERS + (
     Param('road', 'iso8608', 'Road: iso8608, bump, sine, step or file'),
     Param('road_class', 'C', 'ISO 8608 class A..H'),
     Param('speed_m_s', 20.0, 'Vehicle speed [m/s]', 0.1, 100.0),
@@ -123,15 +121,6 @@ PARAMETERS = (
           'rig = hardware in the loop (the rig node\'s measured force)'),
     Param('truth_file', '', 'JSON parameter file of the true damper, as the rig (default: '
           'preset)'),
-    Param('safe_current_a', 0.5, 'Coil current in fail-safe [A]', 0.0, 10.0, dynamic=True),
-    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale [s, node '
-          'clock]', 0.01, 3600.0, dynamic=True),
-    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
-    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
-    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
-          '[A]', 0.0, 10.0, dynamic=True),
-    Param('hold_on_reject', False, 'Keep the model in use when a later message is refused '
-          '(until stale)', dynamic=True),
     Param('state_rate_hz', 100.0, 'State publication rate (0 = none) [Hz]', 0.0, 10000.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('lateness_warn_ms', 5.0, 'Diagnostics WARN when the control loop\'s lateness p99 '

@@ -46,10 +46,8 @@ from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
 from quarter_car_sim.params import QuarterCarParams
 
-#: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
-PARAMETERS = (
-    Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
-          'hybrid, add, passive@<I>A)'),
+#: Parameters of the supervised law, shared with the quarter car's built-in controller.
+SUPERVISED_LAW_PARAMETERS = (
     Param('controller_options', '{}', 'JSON keyword options (gains) of the controller, e.g. '
           '{"c_sky": 3000.0}; a change rebuilds the law (refused: the old one stays)',
           dynamic=True),
@@ -62,6 +60,13 @@ PARAMETERS = (
           '[A]', 0.0, 10.0, dynamic=True),
     Param('hold_on_reject', False, 'Keep the model in use when a later message is refused '
           '(until stale)', dynamic=True),
+)
+
+#: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
+PARAMETERS = (
+    Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
+          'hybrid, add, passive@<I>A)'),
+) + SUPERVISED_LAW_PARAMETERS + (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
           'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
