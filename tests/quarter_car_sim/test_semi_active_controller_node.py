@@ -157,3 +157,27 @@ def test_car_external_command_timeout_is_dynamic(ctx, tmp_path):
     assert node.sup.safe_current_a == 0.6
     res = node.set_parameters([Parameter('controller_options', value='{"c_sky": 1.0}')])
     assert not res[0].successful and 'no built-in controller' in res[0].reason
+
+
+def test_parameter_age_and_timeout_follow_ros_time_under_use_sim_time(ctx):
+    from rclpy.parameter import Parameter
+    from rclpy.time import Time
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
+                                                             SemiActiveControllerNode)
+    node = _make(ctx, SemiActiveControllerNode, param_timeout_s=1.0)
+    node.set_parameters([Parameter('use_sim_time', value=True)])
+    clock = node.get_clock()
+    assert clock.ros_time_is_active
+    clock.set_ros_time_override(Time(seconds=100.0))      # what a /clock message does
+    node.on_params(_params_msg())
+    assert node.core.sup.accepted_at == pytest.approx(100.0)
+    clock.set_ros_time_override(Time(seconds=100.5))
+    st = node.status()
+    assert st['mode'] == 'normal' and st['param_age_s'] == pytest.approx(0.5)
+    # 1.5 s of ROS time later (no wall time passes): stale
+    clock.set_ros_time_override(Time(seconds=101.5))
+    node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
+    st = node.status()
+    assert (st['mode'], st['reason']) == ('failsafe', 'stale')
+    clock.set_ros_time_override(Time(seconds=102.25))
+    assert node.status()['failsafe_s'] == pytest.approx(0.75)    # 101.5 .. 102.25 in ROS time
