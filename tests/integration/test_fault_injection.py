@@ -60,7 +60,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
     wait = listener.wait_for
 
     def car_st():
-        """The car's newest /diagnostics values."""
+        """Return the car's newest /diagnostics values."""
         return diag.values(rs.QC)
 
     def car_mode(expected, reason=None):

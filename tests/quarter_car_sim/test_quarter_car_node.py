@@ -65,7 +65,8 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     assert set(st['ride_metrics']) >= {'rms_body_accel_wk', 'rms_tyre_load_ratio',
                                        'rms_suspension_travel'}
     assert set(st['loop']) >= {'period', 'lateness', 'latency', 'step'}
-    assert st['current_a'] == 0.25 and 'saturated_steps' in st and 'param_age_s' in st
+    assert 0.0 <= st['current_a'] <= 2.0 and st['safe_current_a'] == 0.25
+    assert 'saturated_steps' in st and 'param_age_s' in st
     json.dumps(node.status())                     # JSON-ready (the log file's header)
     node.on_params(_msg())
     import time
@@ -152,3 +153,22 @@ def test_parameter_age_is_on_the_node_clock(node_factory):
     assert node.sup.accepted_at == pytest.approx(now, abs=5.0)    # ROS time, not monotonic
     assert node.get_clock().clock_type == ClockType.ROS_TIME
     assert Time(seconds=node.sup.accepted_at).nanoseconds > 0
+
+
+def test_dead_control_thread_is_an_error_on_diagnostics_and_ends_the_node(node_factory):
+    import time
+    import rclpy
+    from mr_damper_model.health import ERROR
+    node = node_factory(real_time_factor=0.5, log_file='')
+
+    def broken():
+        raise RuntimeError('plant diverged')
+    node.loop.advance = broken                       # injected fault in the next step
+    deadline = time.monotonic() + 30.0               # hang guard only
+    while rclpy.ok(context=node.context) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert node.failed == 'RuntimeError: plant diverged'
+    assert node.diagnostics.published == 1           # said once, then the shutdown
+    h = node.health()
+    assert h.level == ERROR and h.message == 'control thread died: RuntimeError: plant diverged'
+    assert not rclpy.ok(context=node.context)        # the process now exits 1
