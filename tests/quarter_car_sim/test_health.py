@@ -105,3 +105,17 @@ def test_controller_rules():
                            state_rejected={'non_finite': 13, 'out_of_order': 0}))
     assert h.level == WARN and h.message == failsafe_message('stale')
     assert h.values['commands'] == 40
+
+
+def test_rig_link_faults_warn_with_their_counts():
+    rules = CarHealth()
+    counts = {'measurements': 100, 'stale_steps': 0, 'wait_timeouts': 0}
+    hil = {'tracking': {'rms_m': 1e-4}, 'counts': counts}
+    h = rules(_car_status(hil=hil))
+    assert h.level == OK and h.values['hil']['tracking']['rms_m'] == 1e-4
+    hil['counts'] = {'measurements': 200, 'stale_steps': 4, 'wait_timeouts': 1}
+    h = rules(_car_status(hil=hil))
+    assert h.level == WARN
+    assert h.message == 'rig link since the last check: 4 stale_steps, 1 wait_timeouts'
+    hil['counts'] = {'measurements': 300, 'stale_steps': 4, 'wait_timeouts': 1}
+    assert rules(_car_status(hil=hil)).level == OK

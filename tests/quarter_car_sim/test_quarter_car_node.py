@@ -172,3 +172,24 @@ def test_dead_control_thread_is_an_error_on_diagnostics_and_ends_the_node(node_f
     h = node.health()
     assert h.level == ERROR and h.message == 'control thread died: RuntimeError: plant diverged'
     assert not rclpy.ok(context=node.context)        # the process now exits 1
+
+
+def test_parameter_timeout_runs_on_ros_time_under_use_sim_time(node_factory):
+    import time
+    from rclpy.time import Time
+    node = node_factory(use_sim_time=True, param_timeout_s=1.0, real_time_factor=0.5)
+    clock = node.get_clock()
+    assert clock.ros_time_is_active
+    clock.set_ros_time_override(Time(seconds=100.0))     # what a /clock message does
+    node.on_params(_msg())
+    assert node.sup.accepted_at == pytest.approx(100.0)
+    # the control thread steps on (wall-paced) while ROS time stands: the model stays fresh
+    steps = node.loop.steps
+    deadline = time.monotonic() + 30.0                   # hang guard only
+    while node.loop.steps < steps + 50 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert node.sup.mode == 'normal' and node.status()['param_age_s'] == pytest.approx(0.0)
+    clock.set_ros_time_override(Time(seconds=101.5))     # 1.5 s of ROS time later: stale
+    while node.sup.reason != 'stale' and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert (node.sup.mode, node.sup.reason) == ('failsafe', 'stale')

@@ -10,8 +10,9 @@ running ride metrics (``ride_metrics``) of the car; the level and message say wh
 - OK: running in normal mode;
 - WARN: fail-safe, with why (no parameters yet, stale, refused and the reason, no command yet,
   command timeout); the control loop late (pacer re-anchored, or lateness p99 above
-  ``lateness_warn_ms``); samples dropped, states refused or lock-step timeouts since the
-  previous check;
+  ``lateness_warn_ms``); samples dropped, states refused, lock-step timeouts or rig-link faults
+  (``plant:=rig``: stale or missing measurements, wait timeouts, bad samples) since the previous
+  check;
 - ERROR: the control thread died or stopped; the command (car, ``controller:=external``) or
   state (controller node) input refused at every check for ``persistent_checks`` checks in a
   row with nothing usable in between.
@@ -136,8 +137,20 @@ class CarHealth:
         n = self._rising.rise('lockstep_timeouts', status.get('lockstep_timeouts', 0))
         if n:
             problems.append((WARN, f'{n} lock-step timeout(s) since the last check'))
+        problems.append(self._rig_link(status.get('hil')))
         problems.append(_dropped(self._rising, status.get('dropped')))
         return worst([p for p in problems if p], values)
+
+    def _rig_link(self, hil):
+        """``plant:=rig``: faults of the rig link (stale, missing, bad samples) since the last."""
+        counts = (hil or {}).get('counts') or {}
+        n = {k: self._rising.rise(f'hil.{k}', v) for k, v in sorted(counts.items())
+             if k != 'measurements'}
+        n = {k: v for k, v in n.items() if v}
+        if not n:
+            return None
+        return (WARN, 'rig link since the last check: '
+                + ', '.join(f'{v} {k}' for k, v in n.items()))
 
     def _commands(self, status):
         counts = status.get('commands')
