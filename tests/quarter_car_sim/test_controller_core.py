@@ -178,6 +178,7 @@ def test_command_input_rejects_bad_settings(kwargs, match):
 
 def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing():
     from quarter_car_sim.controller_core import reconfigure
+    from quarter_car_sim.controllers import make_controller
     _, msg = _truth()
     sup = ModelSupervisor(timeout_s=10.0, safe_current_a=SAFE)
     core = ControllerCore(Skyhook(3000.0), sup)
@@ -185,7 +186,7 @@ def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing()
     s = _states(300)[-1]
 
     def make_law(options):
-        return live_loop.make_controller('skyhook', None, options)
+        return make_controller('skyhook', **options)
     f1 = (core.command(s, 0.1), core.f_demand)[1]
     assert reconfigure({'controller_options': '{"c_sky": 6000.0}'}, sup, core=core,
                        make_law=make_law) == ''
