@@ -28,7 +28,6 @@ Usage::
     .venv/bin/python bench/bench_controller.py [--duration 20] [--stream-s 10] [--domain-id 75]
 """
 import argparse
-import json
 import os
 from pathlib import Path
 import signal
@@ -74,8 +73,8 @@ def _built_in_loop():
     return loop
 
 
-def _start(exe, params, log):
-    cmd = [str(Path(sys.executable).parent / exe), '--ros-args']
+def _start(exe, params, log, namespace='bench_controller'):
+    cmd = [str(Path(sys.executable).parent / exe), '--ros-args', '-r', f'__ns:=/{namespace}']
     for k, v in params.items():
         v = ('true' if v else 'false') if isinstance(v, bool) else v
         cmd += ['-p', f'{k}:={v}']
@@ -125,9 +124,9 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     n = int(rate_hz * duration_s)
     states = _ride_states(n)
     recv = []
-    node.create_subscription(Float64, f'{prefix}/current_command',
+    node.create_subscription(Float64, f'{prefix}/mr_damper/current_command',
                              lambda m: recv.append(time.perf_counter()), CONTROL_QOS)
-    pub = node.create_publisher(QuarterCarState, f'{prefix}/car_state', CONTROL_QOS)
+    pub = node.create_publisher(QuarterCarState, f'{prefix}/quarter_car/car_state', CONTROL_QOS)
     if not _wait(lambda: pub.get_subscription_count() > 0 and ctrl_status()
                  and ctrl_status().get('mode') == 'normal', 30.0):
         raise RuntimeError(f'controller not ready: {ctrl_status()}')
@@ -168,10 +167,8 @@ def external_car(prefix, log, priority=0, lockstep=True):
         'lockstep_timeout_s': 1.0, 'command_timeout_s': 1.0 if lockstep else 0.05,
         'real_time_factor': 1.0,
         'road_seed': SEED, 'road_duration_s': 300.0, 'safe_current_a': SAFE_A,
-        'log_file': str(car_log), 'status_rate_hz': 10.0, 'realtime_priority': priority,
-        'car_state_topic': f'{prefix}/car_state', 'command_topic': f'{prefix}/current_command',
-        'state_topic': f'{prefix}/state', 'status_topic': f'{prefix}/car_status',
-        'metrics_topic': f'{prefix}/metrics', 'params_topic': f'{prefix}/car_params'}, log)
+        'log_file': str(car_log), 'diagnostics_period_s': 0.1, 'realtime_priority': priority},
+        log)
     return car, car_log
 
 
@@ -249,8 +246,8 @@ def main(argv=None):
     sys.setswitchinterval(0.0005)
     import rclpy
     from mr_damper_interfaces.msg import KwokParameters
-    from std_msgs.msg import String
-    from mr_damper_model.messages import kwok_parameters_msg
+    from diagnostic_msgs.msg import DiagnosticArray
+    from mr_damper_model.messages import health_from_diagnostic, kwok_parameters_msg
     from mr_damper_model.node_utils import LATCHED_QOS, make_executor, set_realtime_priority
     print(f'bench_controller: load at start {os.getloadavg()}, {os.cpu_count()} CPUs, '
           f'realtime priority {args.realtime_priority}')
@@ -258,11 +255,16 @@ def main(argv=None):
     rclpy.init()
     node = rclpy.create_node('bench_controller')
     status = {}
-    node.create_subscription(String, f'{prefix}/ctrl_status',
-                             lambda m: status.update(ctrl=json.loads(m.data)), 10)
-    node.create_subscription(String, f'{prefix}/car_status',
-                             lambda m: status.update(car=json.loads(m.data)), 10)
-    ppub = node.create_publisher(KwokParameters, f'{prefix}/params', LATCHED_QOS)
+    names = {f'{prefix[1:]}/semi_active_controller': 'ctrl',
+             f'{prefix[1:]}/quarter_car_node': 'car'}
+
+    def on_diagnostics(msg):
+        for st in msg.status:
+            if st.name in names:
+                status[names[st.name]] = health_from_diagnostic(st).values
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
+    ppub = node.create_publisher(KwokParameters, f'{prefix}/mr_damper/kwok_parameters',
+                                 LATCHED_QOS)
     ppub.publish(kwok_parameters_msg(_params()))
     executor = make_executor(True)
     executor.add_node(node)
@@ -278,9 +280,7 @@ def main(argv=None):
     thread.start()
     log = open(Path(tempfile.gettempdir()) / 'bench_controller_nodes.log', 'w')
     ctrl_params = {
-        'params_topic': f'{prefix}/params', 'car_state_topic': f'{prefix}/car_state',
-        'command_topic': f'{prefix}/current_command', 'status_topic': f'{prefix}/ctrl_status',
-        'param_timeout_s': 3600.0, 'safe_current_a': SAFE_A, 'status_rate_hz': 10.0,
+        'param_timeout_s': 3600.0, 'safe_current_a': SAFE_A, 'diagnostics_period_s': 0.1,
         'realtime_priority': args.realtime_priority}
     procs = {'ctrl': _start('semi_active_controller_node', ctrl_params, log), 'car': None}
     code = 0

@@ -20,20 +20,15 @@ import signal
 import numpy as np
 import pytest
 
-from integration.ros_helpers import (latest_status as _latest, Listener, NodeProcess,
-                                     status_qos as _qos)
+from integration.ros_helpers import Listener, NodeProcess
 from integration.test_suite import _good_params   # the valid thesis parameter set
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 GUARD_S = 60.0      # hang guard of every wait
 SAFE_A = 0.5
-PREFIX = '/ctrl_node_test'
-TOPICS = {'params_topic': f'{PREFIX}/params', 'car_state_topic': f'{PREFIX}/car_state',
-          'command_topic': f'{PREFIX}/current_command'}
-CAR_TOPICS = dict(TOPICS, state_topic=f'{PREFIX}/state', status_topic=f'{PREFIX}/car_status',
-                  metrics_topic=f'{PREFIX}/metrics')
-CTRL_TOPICS = dict(TOPICS, status_topic=f'{PREFIX}/ctrl_status')
+NS = 'ctrl_node_test'           # car and controller in one namespace: their topics meet there
+CAR_NAME, CTRL_NAME = f'{NS}/quarter_car_node', f'{NS}/semi_active_controller'
 
 
 @pytest.fixture(scope='module')
@@ -42,7 +37,7 @@ def listener():
     from mr_damper_model.messages import kwok_parameters_msg
     from mr_damper_model.node_utils import LATCHED_QOS
     lis = Listener('controller_node_test')
-    pub = lis.publisher(TOPICS['params_topic'], KwokParameters, LATCHED_QOS)
+    pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
     pub.publish(kwok_parameters_msg(_good_params()))   # latched
     lis.params_pub = pub
     yield lis
@@ -50,38 +45,47 @@ def listener():
 
 
 CAR = {'plant': 'kwok-current', 'controller': 'external', 'safe_current_a': SAFE_A,
-       'road_duration_s': 30.0, 'road_seed': 3, 'status_rate_hz': 20.0, **CAR_TOPICS}
-CTRL = {'safe_current_a': SAFE_A, 'param_timeout_s': 3600.0, 'status_rate_hz': 20.0,
-        **CTRL_TOPICS}
+       'road_duration_s': 30.0, 'road_seed': 3, 'diagnostics_period_s': 0.05}
+CTRL = {'safe_current_a': SAFE_A, 'param_timeout_s': 3600.0, 'diagnostics_period_s': 0.05}
+
+
+def car_status(listener):
+    """Newest diagnostics values of the car ({} before the first)."""
+    return listener.diag.values(CAR_NAME)
+
+
+def ctrl_status(listener):
+    """Newest diagnostics values of the controller node ({} before the first)."""
+    return listener.diag.values(CTRL_NAME)
 
 
 def test_commands_arrive_then_controller_killed_car_goes_safe(listener):
-    from std_msgs.msg import String
-    car_st = listener.subscribe(CAR_TOPICS['status_topic'], String, _qos())
-    ctrl_st = listener.subscribe(CTRL_TOPICS['status_topic'], String, _qos())
+    listener.diag = listener.diagnostics()       # this test's statuses only
     wait = listener.wait_for
     car_params = dict(CAR, real_time_factor=1.0, command_timeout_s=0.05)
-    with NodeProcess('quarter_car_node', params=car_params) as car:
-        assert wait(lambda: len(car_st) > 2, GUARD_S, procs=[car]), car.output()
-        st = _latest(car_st)
+    n0 = listener.diag.count(CAR_NAME)
+    with NodeProcess('quarter_car_node', params=car_params, namespace=NS) as car:
+        assert wait(lambda: listener.diag.count(CAR_NAME) > n0 + 2, GUARD_S,
+                    procs=[car]), car.output()
+        st = car_status(listener)
         assert (st['mode'], st['reason']) == ('failsafe', 'no_command_yet')
         assert st['commands_received'] == 0 and st['current_a'] == SAFE_A
         steps_alone = st['steps']
         assert steps_alone > 0                          # the plant runs without a controller
-        ctrl = NodeProcess('semi_active_controller_node', params=CTRL)
+        ctrl = NodeProcess('semi_active_controller_node', params=CTRL, namespace=NS)
         try:
             # order: the controller takes the model, its commands reach the car, the car is
             # normal
-            assert wait(lambda: _latest(ctrl_st).get('mode') == 'normal', GUARD_S,
+            assert wait(lambda: ctrl_status(listener).get('mode') == 'normal', GUARD_S,
                         procs=[car, ctrl]), ctrl.output()
-            assert wait(lambda: _latest(car_st).get('mode') == 'normal', GUARD_S,
-                        procs=[car, ctrl]), (_latest(car_st), ctrl.output())
-            assert wait(lambda: _latest(car_st)['commands_received'] > 500, GUARD_S,
+            assert wait(lambda: car_status(listener).get('mode') == 'normal', GUARD_S,
+                        procs=[car, ctrl]), (car_status(listener), ctrl.output())
+            assert wait(lambda: car_status(listener)['commands_received'] > 500, GUARD_S,
                         procs=[car, ctrl])
-            cst = _latest(ctrl_st)
+            cst = ctrl_status(listener)
             assert cst['params_accepted'] == 1 and cst['commands_normal'] > 0
             assert cst['state_rejected'] == {'non_finite': 0, 'out_of_order': 0}
-            st = _latest(car_st)
+            st = car_status(listener)
             assert st['command_timeouts'] == 0 and st['reason'] == 'ok'
             assert st['commands']['refused_non_finite'] == 0
             assert 0.0 <= st['current_a'] <= 2.0
@@ -89,13 +93,13 @@ def test_commands_arrive_then_controller_killed_car_goes_safe(listener):
             os.kill(ctrl.proc.pid, signal.SIGKILL)
             ctrl.proc.wait(GUARD_S)
         # the controller is gone: the car falls back to the safe current and keeps stepping
-        assert wait(lambda: _latest(car_st).get('reason') == 'command_timeout', GUARD_S,
-                    procs=[car]), _latest(car_st)
-        st = _latest(car_st)
+        assert wait(lambda: car_status(listener).get('reason') == 'command_timeout', GUARD_S,
+                    procs=[car]), car_status(listener)
+        st = car_status(listener)
         assert st['mode'] == 'failsafe' and st['command_timeouts'] == 1
         steps, received = st['steps'], st['commands_received']
-        assert wait(lambda: _latest(car_st)['steps'] > steps + 200, GUARD_S, procs=[car])
-        st = _latest(car_st)
+        assert wait(lambda: car_status(listener)['steps'] > steps + 200, GUARD_S, procs=[car])
+        st = car_status(listener)
         assert st['current_a'] == SAFE_A and st['commands_received'] == received
         assert st['mode'] == 'failsafe' and st['command_timeouts'] == 1
         code = car.stop()
@@ -133,28 +137,26 @@ def _ride_figures(columns):
 
 
 def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
-    from std_msgs.msg import String
     from mr_damper_model.columnlog import ColumnReader
-    car_st = listener.subscribe(CAR_TOPICS['status_topic'], String, _qos())
-    ctrl_st = listener.subscribe(CTRL_TOPICS['status_topic'], String, _qos())
+    listener.diag = listener.diagnostics()       # this test's statuses only
     wait = listener.wait_for
     log = tmp_path / 'car_log'
-    with NodeProcess('semi_active_controller_node', params=CTRL) as ctrl:
+    with NodeProcess('semi_active_controller_node', params=CTRL, namespace=NS) as ctrl:
         # the controller has the model before the car's first state: every step is normal
-        assert wait(lambda: _latest(ctrl_st).get('mode') == 'normal', GUARD_S,
+        assert wait(lambda: ctrl_status(listener).get('mode') == 'normal', GUARD_S,
                     procs=[ctrl]), ctrl.output()
         car_params = dict(CAR, real_time_factor=0.0, lockstep=True, lockstep_timeout_s=GUARD_S,
                           command_timeout_s=GUARD_S, log_file=str(log))
-        with NodeProcess('quarter_car_node', params=car_params) as car:
-            assert wait(lambda: _latest(car_st).get('t_sim', -1.0) >= 3.0, GUARD_S * 3,
-                        procs=[car, ctrl]), (_latest(car_st), car.output(), ctrl.output())
+        with NodeProcess('quarter_car_node', params=car_params, namespace=NS) as car:
+            assert wait(lambda: car_status(listener).get('t_sim', -1.0) >= 3.0, GUARD_S * 3,
+                        procs=[car, ctrl]), (car_status(listener), car.output(), ctrl.output())
             code = car.stop()
         assert code == 0, car.output()
         z = ColumnReader(log).read()
         n = int(z['t'].size)
         # the controller answered every state of the logged steps, each with the model
-        assert wait(lambda: _latest(ctrl_st)['commands'] >= n, GUARD_S, procs=[ctrl])
-        st = _latest(ctrl_st)
+        assert wait(lambda: ctrl_status(listener)['commands'] >= n, GUARD_S, procs=[ctrl])
+        st = ctrl_status(listener)
         assert st['commands_normal'] == st['commands'] and st['params_accepted'] == 1
     car_final = ColumnReader(log).meta['status']
     assert car_final['lockstep_timeouts'] == 0 and car_final['command_timeouts'] == 0

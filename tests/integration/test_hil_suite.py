@@ -119,10 +119,9 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     rig_p = _suite_params('mr_damper_rig', realtime_priority=0)
     ident_p = _suite_params('mr_damper_identifier', current_bin_a=0.5)
     car_p = _suite_params('quarter_car_node', realtime_priority=0, road_duration_s=600.0,
-                          status_rate_hz=10.0, **bins)
-    rig_diag = listener.diagnostics()
+                          diagnostics_period_s=0.1, **bins)
     ident_st = listener.subscribe('/mr_damper/identifier_status', String, status_qos())
-    car_st = listener.subscribe('/quarter_car/status', String, status_qos())
+    diag = listener.diagnostics()
     params = listener.subscribe('/mr_damper/kwok_parameters', KwokParameters, QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
@@ -133,7 +132,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
         levels = [0.0, 0.5, 1.0, 1.5, 2.0]
 
         def car_status():
-            return latest_status(car_st)
+            return diag.values('quarter_car_node')
 
         def bins_held():
             held = latest_status(ident_st).get('bins_a') or []
@@ -150,14 +149,15 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
         assert listener.wait_for(lambda: car_status().get('mode') == 'normal', HANG_S,
                                  procs=procs), (car_status(), ident.output()[-2000:])
         # the car's tracking after it has driven on the rig's force
-        n_status = len(car_st)
-        assert listener.wait_for(lambda: len(car_st) > n_status + 5, HANG_S, procs=procs)
+        n_status = diag.count('quarter_car_node')
+        assert listener.wait_for(lambda: diag.count('quarter_car_node') > n_status + 5, HANG_S,
+                                 procs=procs)
         st = car_status()
         hil = st['hil']
-        n_rig = rig_diag.count('mr_damper_rig')   # a rig status published after the car's
-        assert listener.wait_for(lambda: rig_diag.count('mr_damper_rig') > n_rig + 1, HANG_S,
+        n_rig = diag.count('mr_damper_rig')   # a rig status published after the car's
+        assert listener.wait_for(lambda: diag.count('mr_damper_rig') > n_rig + 1, HANG_S,
                                  procs=procs)
-        rig_status = rig_diag.values('mr_damper_rig')
+        rig_status = diag.values('mr_damper_rig')
         for proc in (car, rig, ident):        # car first: the rig then times the car out
             assert proc.stop() == 0, proc.output()[-3000:]
     # the rig received the car's commands and published measurements; the car took them

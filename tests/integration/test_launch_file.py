@@ -210,11 +210,8 @@ def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
 
 
 def test_node_default_yaml_lists_every_declared_parameter():
-    import re
-    src = (REPO / 'src/quarter_car_sim/quarter_car_sim/quarter_car_node.py').read_text()
-    declared = set(re.findall(r"\bd\('([a-z_]+)',", src))
-    declared |= set(re.findall(r"\('([a-z_]+_topic)', '/", src))
-    declared |= {'m_s', 'm_u', 'k_s', 'k_t'}
+    from quarter_car_sim.quarter_car_node import PARAMETERS
+    declared = {spec.name for spec in PARAMETERS}
     cfg = yaml.safe_load((REPO / 'src/quarter_car_sim/config/quarter_car.yaml').read_text())
     assert set(cfg['quarter_car_node']['ros__parameters']) == declared
 

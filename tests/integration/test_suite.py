@@ -25,8 +25,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from integration.ros_helpers import (latest_status as _latest_status, Listener,
-                                     load_run_suite, NodeProcess, status_qos as _status_qos)
+from integration.ros_helpers import Listener, load_run_suite, NodeProcess
 from mr_damper_model.columnlog import ColumnReader
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -59,39 +58,39 @@ def listener():
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from mr_damper_interfaces.msg import KwokParameters
-    from std_msgs.msg import Float64, String
-    topic = '/h5test/kwok_parameters'
-    params = {'params_topic': topic, 'command_topic': '/h5test/current_command',
-              'status_topic': '/h5test/status', 'metrics_topic': '/h5test/metrics',
-              'state_topic': '/h5test/state', 'safe_current_a': SAFE_A,
-              'param_timeout_s': 30.0, 'status_rate_hz': 20.0, 'road_duration_s': 60.0}
-    statuses = listener.subscribe('/h5test/status', String, _status_qos())
-    commands = listener.subscribe('/h5test/current_command', Float64, QoSProfile(
+    from std_msgs.msg import Float64
+    topic = '/h5test/mr_damper/kwok_parameters'
+    params = {'safe_current_a': SAFE_A, 'param_timeout_s': 30.0, 'diagnostics_period_s': 0.05,
+              'road_duration_s': 60.0}
+    diag = listener.diagnostics()
+    name = 'h5test/quarter_car_node'
+    commands = listener.subscribe('/h5test/mr_damper/current_command', Float64, QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     pub = listener.publisher(topic, KwokParameters, QoSProfile(
         depth=1, reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    with NodeProcess('quarter_car_node', params=params) as qc:
-        assert listener.wait_for(lambda: statuses and pub.get_subscription_count() > 0, 20,
-                                 procs=[qc]), qc.output()
-        st = _latest_status(statuses)
+    with NodeProcess('quarter_car_node', params=params, namespace='h5test') as qc:
+        assert listener.wait_for(lambda: diag.count(name) and pub.get_subscription_count() > 0,
+                                 20, procs=[qc]), qc.output()
+        st = diag.values(name)
         assert st['mode'] == 'failsafe' and st['reason'] == 'no_parameters_yet'
         assert st['current_a'] == SAFE_A
+        assert 'fail-safe: no identified parameters yet' in diag.latest(name).message
 
         def send(values, expect_mode, counter=None, count=None):
-            n = len(statuses)
+            n = diag.count(name)
             pub.publish(values if isinstance(values, KwokParameters) else _params_msg(values))
 
             def seen():
-                if len(statuses) <= n + 1:
+                if diag.count(name) <= n + 1:
                     return False
-                s = _latest_status(statuses)
+                s = diag.values(name)
                 ok = s['mode'] == expect_mode
                 if counter:
                     ok = ok and s['params_rejected'][counter] == count
                 return ok
-            assert listener.wait_for(seen, 10, procs=[qc]), (values, _latest_status(statuses))
-            return _latest_status(statuses)
+            assert listener.wait_for(seen, 10, procs=[qc]), (values, diag.values(name))
+            return diag.values(name)
 
         good = _good_params()
         st = send(good, 'normal')
@@ -106,6 +105,7 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
         for reason, values in bad_sets:
             st = send(values, 'failsafe', reason, 1)
             assert st['reason'] == reason
+            assert f'parameters refused ({reason})' in diag.latest(name).message
             send(good, 'normal')
         undecodable = KwokParameters()           # i_ref_a 0: decode refuses
         st = send(undecodable, 'failsafe', 'undecodable', 1)
@@ -162,42 +162,44 @@ def test_full_suite_short_run(tmp_path):
 
 
 def test_identifier_killed_then_restarted(listener, tmp_path):
-    from std_msgs.msg import String
     rs = load_run_suite()
     args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '60'])
     cfg = rs.resolve_config(args, tmp_path)
     rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
-    rs.set_param(cfg, rs.QC, 'status_rate_hz', 10.0)
+    rs.set_param(cfg, rs.QC, 'diagnostics_period_s', 0.1)
     rs.set_param(cfg, rs.RIG, 'wait_for_subscribers', 1)
     rs.set_param(cfg, rs.IDENT, 'save_period_s', 0.5)
     params_file = tmp_path / 'suite_params.yaml'
     import yaml
     params_file.write_text(yaml.safe_dump(cfg))
     suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
-    statuses = listener.subscribe('/quarter_car/status', String, _status_qos())
+    diag = listener.diagnostics()
+
+    def car():
+        return diag.values('quarter_car_node')
     try:
         suite.start_all()
 
         def mode(expected):
             def check():
-                return statuses and _latest_status(statuses)['mode'] == expected
+                return car().get('mode') == expected
             return check
         assert listener.wait_for(mode('normal'), 40), \
-            (_latest_status(statuses), suite.log_tail(rs.IDENT), suite.log_tail(rs.RIG))
+            (car(), suite.log_tail(rs.IDENT), suite.log_tail(rs.RIG))
         time.sleep(1.0)
         suite.kill(rs.IDENT, signal.SIGKILL)
         # order of events, not durations: stale after the timeout, the car keeps stepping
-        assert listener.wait_for(mode('failsafe'), 60), _latest_status(statuses)
-        st = _latest_status(statuses)
+        assert listener.wait_for(mode('failsafe'), 60), car()
+        st = car()
         assert st['reason'] == 'stale'
         steps = st['steps']
-        assert listener.wait_for(lambda: _latest_status(statuses)['steps'] > steps + 500, 60)
-        st = _latest_status(statuses)
+        assert listener.wait_for(lambda: car()['steps'] > steps + 500, 60)
+        st = car()
         assert suite.alive(rs.QC) and st['mode'] == 'failsafe'
         assert st['current_a'] == SAFE_A
         suite.start(rs.IDENT)                      # restarts from its saved parameter file
         assert listener.wait_for(mode('normal'), 30), \
-            (_latest_status(statuses), suite.log_tail(rs.IDENT))
+            (car(), suite.log_tail(rs.IDENT))
         assert suite.poll() == {}
     finally:
         codes = suite.stop()

@@ -174,3 +174,57 @@ def test_command_input_rejects_bad_settings(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         CommandInput(**args)
+
+
+def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing():
+    from quarter_car_sim.controller_core import reconfigure
+    from quarter_car_sim.controllers import make_controller
+    _, msg = _truth()
+    sup = ModelSupervisor(timeout_s=10.0, safe_current_a=SAFE)
+    core = ControllerCore(Skyhook(3000.0), sup)
+    sup.offer(msg, 0.0)
+    s = _states(300)[-1]
+
+    def make_law(options):
+        return make_controller('skyhook', **options)
+    f1 = (core.command(s, 0.1), core.f_demand)[1]
+    assert reconfigure({'controller_options': '{"c_sky": 6000.0}'}, sup, core=core,
+                       make_law=make_law) == ''
+    core.command(s, 0.2)
+    assert core.controller.c_sky == 6000.0 and core.f_demand != f1
+    assert core.f_demand == Skyhook(6000.0).demand(s)
+    # a bad option, a bad JSON, an active law: refused with the reason, nothing changed
+    assert 'controller_options refused' in reconfigure(
+        {'controller_options': '{"c_skyy": 1.0}', 'safe_current_a': 0.9}, sup, core=core,
+        make_law=make_law)
+    assert 'controller_options refused' in reconfigure({'controller_options': '[1]'}, sup,
+                                                       core=core, make_law=make_law)
+    from quarter_car_sim.controllers import SkyhookIdeal
+    assert 'cannot drive an MR damper' in reconfigure(
+        {'controller_options': '{}'}, sup, core=core, make_law=lambda o: SkyhookIdeal(3000.0))
+    assert core.controller.c_sky == 6000.0 and sup.safe_current_a == SAFE
+    # supervisor settings, by node parameter name
+    assert reconfigure({'param_timeout_s': 0.05, 'safe_current_a': 0.9}, sup) == ''
+    assert (sup.timeout_s, sup.safe_current_a) == (0.05, 0.9)
+    assert core.command(s, 0.3) == 0.9 and sup.reason == 'stale'
+    assert 'safe_current_a' in reconfigure({'safe_current_a': 5.0}, sup)
+    assert 'not changeable while running: i_max_a' == reconfigure({'i_max_a': 1.0}, sup)
+    assert 'only with controller:=external' in reconfigure({'command_timeout_s': 1.0}, sup)
+    assert 'no built-in controller' in reconfigure({'controller_options': '{}'}, sup)
+    # the command input of an external controller takes the timeout and the safe current
+    cmd = CommandInput(0.05, 0.9)
+    assert reconfigure({'command_timeout_s': 2.0, 'safe_current_a': 0.2}, sup,
+                       command_input=cmd) == ''
+    assert (cmd.timeout_s, cmd.safe_current_a, sup.safe_current_a) == (2.0, 0.2, 0.2)
+    assert cmd.current(0.0) == 0.2
+    assert 'timeout_s' in reconfigure({'command_timeout_s': 0.0}, sup, command_input=cmd)
+    assert cmd.timeout_s == 2.0
+
+
+def test_set_controller_refuses_an_active_law():
+    from quarter_car_sim.controllers import SkyhookIdeal
+    core = ControllerCore(Skyhook(3000.0), ModelSupervisor(safe_current_a=SAFE))
+    with pytest.raises(ValueError, match='cannot drive an MR damper'):
+        core.set_controller(SkyhookIdeal(3000.0))
+    core.set_controller(Passive(1.2))
+    assert core.passive and core.command(_vehicle(_states(5)[-1]), 0.0) == 1.2

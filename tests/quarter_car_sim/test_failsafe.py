@@ -213,3 +213,25 @@ def test_refuse_counts_undecodable_and_fails_safe():
     assert not verdict.accepted and sup.rejected['undecodable'] == 1 and sup.mode == 'failsafe'
     with pytest.raises(SupervisorError, match='reason'):
         sup.refuse('whatever', '', 0.2)
+
+
+def test_reconfigure_applies_valid_settings_and_refuses_the_rest_whole():
+    sup = make(timeout_s=10.0)
+    sup.offer(with_(), 0.0)
+    assert sup.update(2.0) == 'normal'
+    # a shorter timeout makes the model in use stale at the next update
+    sup.reconfigure(timeout_s=1.0, safe_current_a=0.8)
+    assert (sup.timeout_s, sup.safe_current_a) == (1.0, 0.8)
+    assert sup.update(2.0) == 'failsafe' and sup.reason == 'stale'
+    # a stricter span applies to the next message
+    sup.reconfigure(min_current_span_a=1.5, hold_on_reject=1)
+    assert sup.hold_on_reject is True
+    assert sup.offer(with_(current_max_a=1.0), 3.0).reason == 'narrow_current_range'
+    # invalid values and start-up settings: refused, nothing changed
+    for changes, match in (({'safe_current_a': 3.0}, 'safe_current_a'),
+                           ({'timeout_s': 0.0, 'safe_current_a': 0.1}, 'timeout_s'),
+                           ({'i_max_a': 5.0}, 'cannot change i_max_a')):
+        with pytest.raises(SupervisorError, match=match):
+            sup.reconfigure(**changes)
+    assert (sup.timeout_s, sup.safe_current_a, sup.i_max_a) == (1.0, 0.8, 2.0)
+    assert sup.rejected['narrow_current_range'] == 1        # counters kept

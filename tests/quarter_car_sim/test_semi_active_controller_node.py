@@ -23,8 +23,8 @@ def ctx():
 def _make(ctx, cls, **params):
     from rclpy.parameter import Parameter
     context, made = ctx
-    node = cls(context=context, parameter_overrides=[Parameter(k, value=v)
-                                                     for k, v in params.items()])
+    node = cls(context=context, namespace='cnunit',
+               parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     made.append(node)
     return node
 
@@ -43,10 +43,6 @@ def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
     from quarter_car_sim.dynamics import CarState
     return CarState(t, 0.01, v_s, 2.0, 0.0, v_s - v_rel, -1.0, 0.0, 0.01, v_rel, 2900.0, -50.0,
                     0.4)
-
-
-TOPICS = {'params_topic': '/cnunit/params', 'car_state_topic': '/cnunit/car_state',
-          'command_topic': '/cnunit/cmd', 'status_topic': '/cnunit/status'}
 
 
 def test_state_message_round_trip_keeps_the_law_fields():
@@ -68,7 +64,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     from mr_damper_interfaces.msg import KwokParameters
     from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
                                                              SemiActiveControllerNode)
-    node = _make(ctx, SemiActiveControllerNode, safe_current_a=0.25, **TOPICS)
+    node = _make(ctx, SemiActiveControllerNode, safe_current_a=0.25)
     sent = []
     node.cmd_pub.publish = lambda m: sent.append(m.data)
     node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
@@ -85,12 +81,17 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     assert st['commands'] == 3 and st['commands_normal'] == 1
     assert st['state_rejected'] == {'non_finite': 1, 'out_of_order': 0}
     assert st['params_accepted'] == 1 and st['params_rejected']['undecodable'] == 1
+    from mr_damper_model.health import WARN
+    h = node.health()                               # what /diagnostics carries
+    assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (undecodable)')
+    assert 'states refused since the last check: 1 non_finite' in h.message
+    assert h.values['commands'] == 3 and node.diagnostics.name == 'cnunit/semi_active_controller'
 
 
 def test_controller_node_refuses_an_active_controller(ctx):
     from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     with pytest.raises(ValueError, match='force actuator'):
-        _make(ctx, SemiActiveControllerNode, controller='skyhook-ideal', **TOPICS)
+        _make(ctx, SemiActiveControllerNode, controller='skyhook-ideal')
 
 
 def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
@@ -98,13 +99,11 @@ def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
     from quarter_car_sim.quarter_car_node import QuarterCarNode
     node = _make(ctx, QuarterCarNode, controller='external', real_time_factor=2.0,
                  plant='kwok-current', road_duration_s=30.0, command_timeout_s=0.2,
-                 safe_current_a=0.5, log_file=str(tmp_path / 'log'),
-                 params_topic='/cnunit/p', command_topic='/cnunit/c', state_topic='/cnunit/s',
-                 car_state_topic='/cnunit/cs', status_topic='/cnunit/st',
-                 metrics_topic='/cnunit/m')
+                 safe_current_a=0.5, log_file=str(tmp_path / 'log'))
     st = node.status()
     assert (st['mode'], st['reason'], st['controller']) == ('failsafe', 'no_command_yet',
                                                             'external')
+    assert 'fail-safe: no current command yet' in node.health().message.split('; ')
     for value in (1.2, -1.0, 5.0, math.nan):
         node.on_command(Float64(data=value))
     st = node.status()
@@ -125,3 +124,60 @@ def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
     while node.status()['steps'] < steps + 20 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert node.status()['current_a'] == 0.5
+
+
+def test_controller_node_dynamic_parameters(ctx):
+    from rclpy.parameter import Parameter
+    from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
+    node = _make(ctx, SemiActiveControllerNode, controller_options='{"c_sky": 3000.0}')
+    res = node.set_parameters([Parameter('controller_options', value='{"c_sky": 5000.0}'),
+                               Parameter('safe_current_a', value=0.3),
+                               Parameter('param_timeout_s', value=7.0)])
+    assert all(r.successful for r in res), res
+    assert node.core.controller.c_sky == 5000.0
+    assert (node.core.sup.safe_current_a, node.core.sup.timeout_s) == (0.3, 7.0)
+    res = node.set_parameters([Parameter('controller_options', value='not json')])
+    assert not res[0].successful and 'controller_options refused' in res[0].reason
+    res = node.set_parameters([Parameter('controller', value='groundhook')])
+    assert not res[0].successful and 'read-only' in res[0].reason
+    res = node.set_parameters([Parameter('safe_current_a', value=11.0)])     # out of range
+    assert not res[0].successful and node.core.sup.safe_current_a == 0.3
+    assert node.core.controller.c_sky == 5000.0
+
+
+def test_car_external_command_timeout_is_dynamic(ctx, tmp_path):
+    from rclpy.parameter import Parameter
+    from quarter_car_sim.quarter_car_node import QuarterCarNode
+    node = _make(ctx, QuarterCarNode, controller='external', real_time_factor=0.5,
+                 plant='kwok-current', road_duration_s=30.0, command_timeout_s=0.2)
+    res = node.set_parameters([Parameter('command_timeout_s', value=0.7),
+                               Parameter('safe_current_a', value=0.6)])
+    assert all(r.successful for r in res), res
+    assert (node.cmd_in.timeout_s, node.cmd_in.safe_current_a) == (0.7, 0.6)
+    assert node.sup.safe_current_a == 0.6
+    res = node.set_parameters([Parameter('controller_options', value='{"c_sky": 1.0}')])
+    assert not res[0].successful and 'no built-in controller' in res[0].reason
+
+
+def test_parameter_age_and_timeout_follow_ros_time_under_use_sim_time(ctx):
+    from rclpy.parameter import Parameter
+    from rclpy.time import Time
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
+                                                             SemiActiveControllerNode)
+    node = _make(ctx, SemiActiveControllerNode, param_timeout_s=1.0)
+    node.set_parameters([Parameter('use_sim_time', value=True)])
+    clock = node.get_clock()
+    assert clock.ros_time_is_active
+    clock.set_ros_time_override(Time(seconds=100.0))      # what a /clock message does
+    node.on_params(_params_msg())
+    assert node.core.sup.accepted_at == pytest.approx(100.0)
+    clock.set_ros_time_override(Time(seconds=100.5))
+    st = node.status()
+    assert st['mode'] == 'normal' and st['param_age_s'] == pytest.approx(0.5)
+    # 1.5 s of ROS time later (no wall time passes): stale
+    clock.set_ros_time_override(Time(seconds=101.5))
+    node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
+    st = node.status()
+    assert (st['mode'], st['reason']) == ('failsafe', 'stale')
+    clock.set_ros_time_override(Time(seconds=102.25))
+    assert node.status()['failsafe_s'] == pytest.approx(0.75)    # 101.5 .. 102.25 in ROS time

@@ -191,6 +191,28 @@ class ControllerCore:
         self.i_cmd = clip_current(current, sup.i_min_a, sup.i_max_a, sup.safe_current_a)
         return self.i_cmd
 
+    def set_controller(self, controller):
+        """
+        Replace the control law while running (e.g. new gains); the next command uses it.
+
+        Parameters
+        ----------
+        controller : quarter_car_sim.controllers.Controller
+            Kind ``'current'`` or ``'semi-active'``.
+
+        Raises
+        ------
+        ValueError
+            A law of another kind (an active law cannot drive an MR damper).
+
+        """
+        kind = getattr(controller, 'kind', None)
+        if kind not in ('current', 'semi-active'):
+            raise ValueError(f'controller {getattr(controller, "name", controller)!r} is '
+                             f'{kind}: it cannot drive an MR damper')
+        self.controller = controller
+        self.passive = kind == 'current'
+
     def offer_parameters(self, values, t_clock):
         """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
         return self.sup.offer(values, t_clock)
@@ -262,6 +284,18 @@ class CommandInput:
         self.timed_out = True
         self._last_t = None
 
+    def reconfigure(self, *, timeout_s=None, safe_current_a=None):
+        """
+        Change the command timeout [s] and/or the safe current [A] while running.
+
+        Validated as at construction; nothing changes on an invalid value (ValueError).
+        """
+        timeout_s = self.timeout_s if timeout_s is None else timeout_s
+        safe_current_a = self.safe_current_a if safe_current_a is None else safe_current_a
+        CommandInput(timeout_s, safe_current_a, self.i_min_a, self.i_max_a)   # validates
+        self.timeout_s = float(timeout_s)
+        self.safe_current_a = float(safe_current_a)
+
     def offer(self, i_a, t_now):
         """
         Take one received command.
@@ -319,3 +353,79 @@ class CommandInput:
         return {'commands': dict(self.limiter.counts), 'commands_received': self.n_received,
                 'command_timeouts': self.timeouts, 'command_timed_out': self.timed_out,
                 'command_timeout_s_total': self.timeout_s_total}
+
+
+#: Node parameters applied while running, and the supervisor setting each one sets.
+SUPERVISOR_PARAMETERS = {'param_timeout_s': 'timeout_s', 'safe_current_a': 'safe_current_a',
+                         'hold_on_reject': 'hold_on_reject',
+                         'min_current_span_a': 'min_current_span_a'}
+
+
+def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=None):
+    """
+    Apply changed node parameters to the controller cores, all or nothing.
+
+    The one place the car and the controller node turn a ``ros2 param set`` into core calls:
+    every change is validated first (the new law built, the supervisor and command input
+    settings checked), then all are applied, so a refused change leaves everything as it was.
+
+    Parameters
+    ----------
+    changes : dict
+        Parameter name -> new value; names of :data:`SUPERVISOR_PARAMETERS`,
+        ``controller_options`` (JSON object of the law's keyword options) and
+        ``command_timeout_s`` [s].
+    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+        Gets the supervisor settings.
+    core : ControllerCore, optional
+        Gets the new law (``controller_options``); None: no built-in law.
+    make_law : callable, optional
+        ``make_law(options_dict)`` -> law; raises ValueError on bad options.
+    command_input : CommandInput, optional
+        Gets ``command_timeout_s`` and ``safe_current_a`` (external controller).
+
+    Returns
+    -------
+    str
+        ``''`` when applied, else the reason nothing was.
+
+    """
+    import json
+    from quarter_car_sim.failsafe import SupervisorError
+    unknown = sorted(set(changes) - set(SUPERVISOR_PARAMETERS)
+                     - {'controller_options', 'command_timeout_s'})
+    if unknown:
+        return f'not changeable while running: {", ".join(unknown)}'
+    law = None
+    if 'controller_options' in changes:
+        if core is None or make_law is None:
+            return 'controller_options: no built-in controller (controller:=external)'
+        try:
+            options = json.loads(changes['controller_options'] or '{}')
+            if not isinstance(options, dict):
+                raise ValueError('not a JSON object')
+            law = make_law(options)
+            if getattr(law, 'kind', None) not in ('current', 'semi-active'):
+                raise ValueError(f'a {getattr(law, "kind", "?")} law cannot drive an MR damper')
+        except (ValueError, TypeError) as exc:
+            return f'controller_options refused: {exc}'
+    if 'command_timeout_s' in changes and command_input is None:
+        return 'command_timeout_s: only with controller:=external'
+    sup_changes = {SUPERVISOR_PARAMETERS[k]: v for k, v in changes.items()
+                   if k in SUPERVISOR_PARAMETERS}
+    try:
+        supervisor.check_settings(**sup_changes)
+        if command_input is not None:
+            CommandInput(changes.get('command_timeout_s', command_input.timeout_s),
+                         changes.get('safe_current_a', command_input.safe_current_a),
+                         command_input.i_min_a, command_input.i_max_a)
+    except (SupervisorError, ValueError) as exc:
+        return str(exc)
+    if sup_changes:
+        supervisor.reconfigure(**sup_changes)
+    if command_input is not None:
+        command_input.reconfigure(timeout_s=changes.get('command_timeout_s'),
+                                  safe_current_a=changes.get('safe_current_a'))
+    if law is not None:
+        core.set_controller(law)
+    return ''

@@ -28,7 +28,7 @@ until it goes stale.
 
 The module is pure Python/numpy (no ROS): the node feeds it decoded dictionaries and times.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
@@ -174,6 +174,40 @@ class ModelSupervisor:
         if missing:
             raise SupervisorError(f'`bounds` lacks {", ".join(missing)}.')
         self.rejected = {r: 0 for r in REASONS[3:]}
+
+    #: Settings :meth:`reconfigure` may change while the supervisor runs.
+    RECONFIGURABLE = ('timeout_s', 'safe_current_a', 'hold_on_reject', 'min_current_span_a',
+                      'current_tol_a', 'pinned_fraction')
+
+    def reconfigure(self, **changes):
+        """
+        Change settings while running, all or nothing, validated as at construction.
+
+        Parameters
+        ----------
+        **changes
+            Any of :data:`RECONFIGURABLE` (same meaning and units as the constructor's).
+            The new values apply from the next :meth:`update` / :meth:`offer`: a shorter
+            ``timeout_s`` can make the model in use stale at once, a stricter threshold
+            applies to the next message (the model in use stays).
+
+        Raises
+        ------
+        SupervisorError
+            An unknown setting or an invalid value (nothing changed).
+
+        """
+        self.check_settings(**changes)
+        for name, value in changes.items():
+            setattr(self, name, bool(value) if name == 'hold_on_reject' else value)
+
+    def check_settings(self, **changes):
+        """Raise :class:`SupervisorError` if :meth:`reconfigure` would refuse ``changes``."""
+        unknown = sorted(set(changes) - set(self.RECONFIGURABLE))
+        if unknown:
+            raise SupervisorError(f'cannot change {", ".join(unknown)} while running '
+                                  f'(only {", ".join(self.RECONFIGURABLE)})')
+        replace(self, **changes)          # runs __post_init__: raises on an invalid value
 
     # ------------------------------------------------------------------ checks
     def check(self, msg):

@@ -10,33 +10,71 @@ Kwok-current model + fail-safe supervisor: no, stale, invalid or refused model -
 The callback of the state converts the message, calls the core and publishes; nothing else runs
 per state. See docs/controller-node.md for the vehicle contract.
 
-Topics (defaults)
------------------
-- sub ``/quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState; reliable, depth 10):
+Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
+-----------------------------------------------------------------------------
+- sub ``quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState; reliable, depth 10):
   the laws read ``body_velocity_m_s``, ``body_acceleration_m_s2``, ``wheel_velocity_m_s``,
   ``suspension_travel_m``, ``suspension_velocity_m_s`` and ``header.stamp``;
-- sub ``/mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters; reliable,
+- sub ``mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters; reliable,
   transient local, depth 1);
-- pub ``/mr_damper/current_command`` (std_msgs/Float64, A, one per state; reliable, depth 10);
-- pub ``/semi_active_controller/status`` (std_msgs/String JSON at ``status_rate_hz``).
+- pub ``mr_damper/current_command`` (std_msgs/Float64, A, one per state; reliable, depth 10);
+- pub ``/diagnostics`` (diagnostic_msgs/DiagnosticArray every ``diagnostics_period_s``, status
+  name ``semi_active_controller`` or ``<ns>/semi_active_controller``): level and message from
+  :class:`quarter_car_sim.health.ControllerHealth` (OK normal; WARN fail-safe and why, states
+  refused, drops; ERROR states refused persistently); values: mode, reason, failsafe_s,
+  failsafe_entries, params_accepted, params_rejected.<reason>, param_age_s, current_a,
+  commands, commands_normal, saturated_steps, state_rejected.<reason>, dropped.<reason>.
+
+Parameter age and timeout are on the node's clock (ROS time: ``/clock`` under
+``use_sim_time``).
 """
 import json
 import sys
-import time
 
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64
 
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_model import messages
-from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, run_node,
-                                        set_realtime_priority, spin_node)
-from quarter_car_sim import live_loop
+from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                        LATCHED_QOS, Param, run_node, set_realtime_priority,
+                                        spin_node)
+from quarter_car_sim import controller_core, live_loop
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.failsafe import ModelSupervisor
+from quarter_car_sim.health import ControllerHealth
 from quarter_car_sim.params import QuarterCarParams
+
+#: Parameters of the supervised law, shared with the quarter car's built-in controller.
+SUPERVISED_LAW_PARAMETERS = (
+    Param('controller_options', '{}', 'JSON keyword options (gains) of the controller, e.g. '
+          '{"c_sky": 3000.0}; a change rebuilds the law (refused: the old one stays)',
+          dynamic=True),
+    Param('safe_current_a', 0.5, 'Coil current in fail-safe [A]', 0.0, 10.0, dynamic=True),
+    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale [s, node '
+          'clock]', 0.01, 3600.0, dynamic=True),
+    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
+    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
+    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
+          '[A]', 0.0, 10.0, dynamic=True),
+    Param('hold_on_reject', False, 'Keep the model in use when a later message is refused '
+          '(until stale)', dynamic=True),
+)
+
+#: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
+PARAMETERS = (
+    Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
+          'hybrid, add, passive@<I>A)'),
+) + SUPERVISED_LAW_PARAMETERS + (
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
+          'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
+    Param('m_s', 300.0, 'Sprung mass (LQR-designed laws only) [kg]', 1.0, 1e5),
+    Param('m_u', 60.0, 'Unsprung mass (LQR-designed laws only) [kg]', 0.1, 1e4),
+    Param('k_s', 16000.0, 'Suspension spring (LQR-designed laws only) [N/m]', 1.0, 1e8),
+    Param('k_t', 190000.0, 'Tyre stiffness (LQR-designed laws only) [N/m]', 1.0, 1e9),
+)
 
 #: State and command topics: reliable, depth 10 (only the newest matters; a stalled reader
 #: costs the writer nothing).
@@ -95,6 +133,30 @@ def car_state_to_msg(state, current_command_a, normal, reason, msg=None):
     return msg
 
 
+def node_time_s(node):
+    """Return the node clock's now [s]: ROS time (``/clock`` under ``use_sim_time``)."""
+    return node.get_clock().now().nanoseconds * 1e-9
+
+
+def offer_parameters(supervisor, msg, now, logger):
+    """
+    Offer a ``KwokParameters`` message received at ``now`` [s, node clock] to ``supervisor``.
+
+    An undecodable message is refused as ``'undecodable'``; refusals are logged (throttled).
+    The caller holds the supervisor's lock if it has one. Returns the ``Verdict``.
+    """
+    try:
+        values = messages.kwok_parameters_flat(msg)
+    except ValueError as exc:
+        verdict = supervisor.refuse('undecodable', str(exc), now)
+    else:
+        verdict = supervisor.offer(values, now)
+    if not verdict.accepted:
+        logger.warning(f'parameters refused ({verdict.reason}): {verdict.detail}',
+                       throttle_duration_sec=1.0)
+    return verdict
+
+
 class SemiActiveControllerNode(Node):
     """
     The controller node (see the module docstring).
@@ -104,66 +166,44 @@ class SemiActiveControllerNode(Node):
 
     def __init__(self, **node_kwargs):
         super().__init__('semi_active_controller', **node_kwargs)
-        d = self._declare
-        controller = d('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, '
-                       'groundhook, hybrid, add, passive@<I>A)')
-        ctrl_opts = d('controller_options', '{}',
-                      'JSON keyword options of the controller, e.g. {"c_sky": 3000.0}')
-        safe = d('safe_current_a', 0.5, 'Coil current in fail-safe [A]', (0.0, 10.0))
-        timeout = d('param_timeout_s', 1.0,
-                    'Identified parameters older than this [s, wall clock] are stale',
-                    (0.01, 3600.0))
-        i_min = d('i_min_a', 0.0, 'Coil current minimum [A]', (0.0, 10.0))
-        i_max = d('i_max_a', 2.0, 'Coil current maximum [A]', (0.0, 10.0))
-        span = d('min_current_span_a', 1.0,
-                 'Refuse models identified over a narrower current range [A]', (0.0, 10.0))
-        hold = d('hold_on_reject', False,
-                 'Keep the model in use when a later message is refused (until stale)')
-        status_rate = d('status_rate_hz', 5.0, 'Status rate [Hz]', (0.1, 100.0))
-        self.rt_priority = d('realtime_priority', 0,
-                             'SCHED_FIFO priority of the node\'s threads (1..99; 0 = normal '
-                             'scheduling); needs CAP_SYS_NICE')
-        car = {k: d(k, v, doc) for k, v, doc in (
-            ('m_s', 300.0, 'Sprung mass [kg] (LQR-designed laws only)'),
-            ('m_u', 60.0, 'Unsprung mass [kg] (LQR-designed laws only)'),
-            ('k_s', 16000.0, 'Suspension spring [N/m] (LQR-designed laws only)'),
-            ('k_t', 190000.0, 'Tyre stiffness [N/m] (LQR-designed laws only)'))}
-        topics = {k: d(k, v, 'Topic name') for k, v in (
-            ('params_topic', '/mr_damper/kwok_parameters'),
-            ('car_state_topic', '/quarter_car/car_state'),
-            ('command_topic', '/mr_damper/current_command'),
-            ('status_topic', '/semi_active_controller/status'))}
-
-        sup = ModelSupervisor(timeout_s=timeout, safe_current_a=safe, i_min_a=i_min,
-                              i_max_a=i_max, hold_on_reject=hold, min_current_span_a=span)
-        law = live_loop.make_controller(controller, QuarterCarParams(**car),
-                                        json.loads(ctrl_opts or '{}'))
+        p = self.p = declare_parameters(self, PARAMETERS, self._on_set)
+        self.car_params = QuarterCarParams(**{k: p[k] for k in ('m_s', 'm_u', 'k_s', 'k_t')})
+        sup = ModelSupervisor(timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
+                              i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
+                              hold_on_reject=p['hold_on_reject'],
+                              min_current_span_a=p['min_current_span_a'])
+        law = self._make_law(json.loads(p['controller_options'] or '{}'))
         self.core = ControllerCore(law, sup)
+        self.health_rules = ControllerHealth()
         self.drops = DropCounter(self.get_logger())
         self.cmd = Float64()
-        self.cmd_pub = self.create_publisher(Float64, topics['command_topic'], CONTROL_QOS)
-        self.status_pub = self.create_publisher(String, topics['status_topic'], 10)
-        self.drops.subscribe(self, QuarterCarState, topics['car_state_topic'], self.on_state,
+        self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', CONTROL_QOS)
+        self.drops.subscribe(self, QuarterCarState, 'quarter_car/car_state', self.on_state,
                              CONTROL_QOS, 'states_lost')
-        self.drops.subscribe(self, KwokParameters, topics['params_topic'], self.on_params,
+        self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters', self.on_params,
                              LATCHED_QOS, 'parameters_lost')
-        self.create_timer(1.0 / status_rate, self.publish_status)
-        set_realtime_priority(int(self.rt_priority), self.get_logger())
-        self.get_logger().info(f'{law.name} on {topics["car_state_topic"]} -> '
-                               f'{topics["command_topic"]}; fail-safe {safe:g} A, parameter '
-                               f'timeout {timeout:g} s')
+        self.diagnostics = DiagnosticsPublisher(self, self.health,
+                                                period_s=p['diagnostics_period_s'],
+                                                hardware_id='semi_active_controller',
+                                                drops=self.drops)
+        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        self.get_logger().info(
+            f'{law.name}: {self.resolve_topic_name("quarter_car/car_state")} -> '
+            f'{self.resolve_topic_name("mr_damper/current_command")}; fail-safe '
+            f'{p["safe_current_a"]:g} A, parameter timeout {p["param_timeout_s"]:g} s')
 
-    def _declare(self, name, default, description, fp_range=None):
-        desc = ParameterDescriptor(description=description)
-        if fp_range is not None and isinstance(default, float):
-            desc.floating_point_range = [FloatingPointRange(
-                from_value=fp_range[0], to_value=fp_range[1], step=0.0)]
-        return self.declare_parameter(name, default, desc).value
+    def _make_law(self, options):
+        return live_loop.make_controller(self.p['controller'], self.car_params, options)
+
+    def _on_set(self, changes):
+        """Apply changed dynamic parameters (validated by the cores); '' or the reason."""
+        return controller_core.reconfigure(changes, self.core.sup, core=self.core,
+                                           make_law=self._make_law)
 
     def on_state(self, msg):
         """Answer one state with one current command."""
         rejected = sum(self.core.state_rejected.values())
-        self.cmd.data = self.core.command(vehicle_state_from_msg(msg), time.monotonic())
+        self.cmd.data = self.core.command(vehicle_state_from_msg(msg), node_time_s(self))
         self.drops.publish(self.cmd_pub, self.cmd)
         if sum(self.core.state_rejected.values()) > rejected:
             self.get_logger().warning(
@@ -171,32 +211,22 @@ class SemiActiveControllerNode(Node):
                 throttle_duration_sec=1.0)
 
     def on_params(self, msg):
-        """Offer a parameter message to the supervisor (decoded by label)."""
-        now = time.monotonic()
-        try:
-            values = messages.kwok_parameters_flat(msg)
-        except ValueError as exc:
-            self.core.sup.refuse('undecodable', str(exc), now)
-            self.get_logger().warning(f'undecodable parameters: {exc}',
-                                      throttle_duration_sec=1.0)
-            return
-        verdict = self.core.offer_parameters(values, now)
-        if not verdict.accepted:
-            self.get_logger().warning(f'parameters refused ({verdict.reason}): {verdict.detail}',
-                                      throttle_duration_sec=1.0)
+        """Offer a parameter message to the supervisor (received at the node clock's now)."""
+        offer_parameters(self.core.sup, msg, node_time_s(self), self.get_logger())
 
     def status(self):
         """Return the status dict (the core's, the parameter age and the drop counts)."""
-        now = time.monotonic()
+        now = node_time_s(self)
         self.core.sup.update(now)
         st = self.core.status()
         st['param_age_s'] = self.core.sup.age(now)
+        st['param_timeout_s'] = self.core.sup.timeout_s
         st['dropped'] = self.drops.counts()
         return st
 
-    def publish_status(self):
-        """Publish the status (executor timer)."""
-        self.drops.publish(self.status_pub, messages.status_msg(self.status()))
+    def health(self):
+        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        return self.health_rules(self.status())
 
 
 def main(args=None):
