@@ -263,7 +263,8 @@ class KwokCurrentInverse:
     (Illinois regula falsi between them), or the demand is beyond both end forces while the
     mid-range force lies between them (F(i) monotone: saturate at the nearest end). Only when
     F(i) has an interior extremum is the range pre-scanned on a grid, as ``inverse_current``
-    does.
+    does. The one scalar inverse of the suite: the identifier's checks, the car's control loop
+    (``sign_convention='body'``) and the offline bound use it.
 
     Parameters
     ----------
@@ -276,14 +277,31 @@ class KwokCurrentInverse:
     tol_a : float or None
         Stop the root search when the bracket is narrower than this [A]; None: only when the
         force matches to 1e-9 relative.
+    sign_convention : {'model', 'body'}
+        Sign of the demand given to :meth:`current`: ``'model'`` the damper model's force
+        (resisting extension positive); ``'body'`` the damper force on a vehicle body, positive
+        up, which is the negative of the model force (``x``, ``v`` are then the suspension
+        travel and velocity, extension positive).
+
+    Attributes
+    ----------
+    params : dict
+        The parameters by name (``KwokCurrent.param_names``, float).
 
     """
 
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
         p = _param_vector(params)
         if not (i_ref_a > 0 and i_max > i_min):
             raise ModelError('need `i_ref_a` > 0 and `i_max` > `i_min`')
+        if sign_convention not in ('model', 'body'):
+            raise ModelError(f"`sign_convention` must be 'model' or 'body', "
+                             f'got {sign_convention!r}')
+        self.sign_convention = sign_convention
+        self._body = sign_convention == 'body'
         self._p = tuple(float(q) for q in p)
+        self.params = dict(zip(KwokCurrent.param_names, self._p))
         self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
         self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
         self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
@@ -297,20 +315,40 @@ class KwokCurrentInverse:
     def _f(self, s, x, v):
         return kwok_current_force_scalar(self._p, s, x, v)
 
+    def body_force_range(self, travel, v_rel):
+        """
+        Damper forces on the body [N] the model can make at this travel and velocity.
+
+        Parameters
+        ----------
+        travel, v_rel : float
+            Suspension travel [m] and velocity [m/s] (piston displacement and velocity).
+
+        Returns
+        -------
+        lo, hi : float
+            Smallest and largest of ``-force`` at ``i_min`` and ``i_max`` [N].
+
+        """
+        a = -self.force(self.i_min, travel, v_rel)
+        b = -self.force(self.i_max, travel, v_rel)
+        return (a, b) if a <= b else (b, a)
+
     def current(self, f_des, x, v):
         """
         Return ``(current [A], flag)``: flag 0 reachable, -1 saturated low, +1 saturated high.
 
         A demand out of reach gets the current of the nearest achievable force; the flag says
-        whether the demand was below (-1, including the wrong sign for the motion) or above
-        (+1) that force.
+        whether the demand was below (-1) or above (+1) that force, in the sign of
+        ``sign_convention`` (model convention: -1 includes the wrong sign for the motion,
+        which a semi-active damper cannot make). Only a reachable demand has flag 0.
 
         Parameters
         ----------
         f_des : float
-            Desired force [N].
+            Desired force [N] (model force, or force on the body with ``'body'``).
         x : float
-            Displacement [m].
+            Displacement (suspension travel) [m].
         v : float
             Velocity [m/s].
 
@@ -319,6 +357,13 @@ class KwokCurrentInverse:
         tuple of (float, int)
 
         """
+        if self._body:
+            cur, flag = self._current(-f_des, x, v)
+            return cur, -flag
+        return self._current(f_des, x, v)
+
+    def _current(self, f_des, x, v):
+        """:meth:`current` for a model force ``f_des`` [N]."""
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
             raise ModelError('`f_des`, `x`, `v` must be finite')
         s_lo, s_hi = self._s_lo, self._s_hi
@@ -376,12 +421,13 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
     ----------
     params : dict or array_like with shape (12,)
         KwokCurrentLag parameters (``KwokCurrentLag.param_names``).
-    i_ref_a, i_min, i_max, n_grid, tol_a
+    i_ref_a, i_min, i_max, n_grid, tol_a, sign_convention
         As in :class:`KwokCurrentInverse`.
 
     """
 
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
         from mr_damper_model.kwok_current_lag import KwokCurrentLag
         model = KwokCurrentLag()
         if isinstance(params, dict):
@@ -394,7 +440,7 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         if p[10] < 0 or p[11] < 0:
             raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
         super().__init__(p[:10], i_ref_a=i_ref_a, i_min=i_min, i_max=i_max, n_grid=n_grid,
-                         tol_a=tol_a)
+                         tol_a=tol_a, sign_convention=sign_convention)
         self._tau0, self._tau1 = float(p[10]), float(p[11])
         self._dense = [(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
                        / self.i_ref_a for j in range(_N_DENSE)]
@@ -417,9 +463,9 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         c = self._p[0] + self._p[1] * s
         return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
 
-    def current(self, f_des, x, v):
+    def _current(self, f_des, x, v):
         """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
-        cur, flag = super().current(f_des, x, v)
+        cur, flag = super()._current(f_des, x, v)
         if flag == 0:
             return cur, flag
         g = self._dense

@@ -16,7 +16,7 @@ measurement writer's history, the writer is replaced (``node_utils.ResettablePub
 ``writer_resets`` in the status) and the samples due meanwhile are published once the healthy
 readers have matched the new writer; other failed ``publish()`` calls are counted
 (``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each
-current command is checked by :class:`mr_damper_rig.commands.CurrentCommandLimiter`: out of
+current command is checked by :class:`mr_damper_model.commands.CurrentCommandLimiter`: out of
 ``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
 with a throttled warning.
 
@@ -49,6 +49,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 
+from mr_damper_model.commands import CurrentCommandLimiter
 from mr_damper_model.data import DataError
 from mr_damper_model.messages import (dict_to_array_msg, kwok_parameters_msg,
                                       measurement_to_msg, status_from_msg, status_msg)
@@ -56,7 +57,7 @@ from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QO
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
-from .commands import CommandFollower, CurrentCommandLimiter, DisplacementCommandGuard
+from .commands import CommandFollower, DisplacementCommandGuard
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 
 #: Current commands: only the newest matters; a command the rig could not take in time is lost

@@ -78,11 +78,14 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (DropCounter, run_node, set_realtime_priority,
                                         spin_node)
+from mr_damper_model.plant import make_plant
 from quarter_car_sim import hil, live_loop
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
+from quarter_car_sim.road import make_road
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 
@@ -203,15 +206,14 @@ class QuarterCarNode(Node):
         self.sup = ModelSupervisor(timeout_s=timeout, safe_current_a=safe, i_min_a=i_min,
                                    i_max_a=i_max, hold_on_reject=hold,
                                    min_current_span_a=span)
-        road = live_loop.make_road(road_kind, road_class=road_class, speed_m_s=speed, seed=seed,
-                                   duration_s=road_s, dt=self.dt, file=road_file,
-                                   repeat=road_repeat)
+        road = make_road(road_kind, road_class=road_class, speed_m_s=speed, rng=int(seed),
+                         duration_s=road_s, dt=self.dt, file=road_file, repeat=road_repeat)
         self.remote = (hil.make_remote_plant(self.dt, **hil_opts) if plant == 'rig' else None)
-        true_plant = self.remote or live_loop.make_plant(plant, plant_file)
+        true_plant = self.remote or make_plant(plant, plant_file)
         self.probe = CurrentProbe(i_min, i_max, **probe_opts) if probe_on else None
         self.car = QuarterCar(self.car_params, true_plant, road, t0=-settle)
-        self.controller = None if self.external else live_loop.make_controller(
-            controller, self.car_params, json.loads(ctrl_opts or '{}'))
+        self.controller = None if self.external else make_controller(
+            controller, params=self.car_params, damper_only=True, **json.loads(ctrl_opts or '{}'))
         self.metrics = live_loop.make_running_metrics(self.car_params, self.dt)
         self.loop = live_loop.ClosedLoop(self.car, self.controller, self.sup, self.dt,
                                          metrics=self.metrics)

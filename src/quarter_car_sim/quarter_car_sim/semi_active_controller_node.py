@@ -33,8 +33,8 @@ from mr_damper_interfaces.msg import QuarterCarState
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (DropCounter, LATCHED_QOS, run_node,
                                         set_realtime_priority, spin_node)
-from quarter_car_sim import live_loop
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 
@@ -136,8 +136,8 @@ class SemiActiveControllerNode(Node):
 
         sup = ModelSupervisor(timeout_s=timeout, safe_current_a=safe, i_min_a=i_min,
                               i_max_a=i_max, hold_on_reject=hold, min_current_span_a=span)
-        law = live_loop.make_controller(controller, QuarterCarParams(**car),
-                                        json.loads(ctrl_opts or '{}'))
+        law = make_controller(controller, params=QuarterCarParams(**car), damper_only=True,
+                              **json.loads(ctrl_opts or '{}'))
         self.core = ControllerCore(law, sup)
         self.drops = DropCounter(self.get_logger())
         self.cmd = Float64()
