@@ -24,7 +24,9 @@ import math
 
 import numpy as np
 
-from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force_scalar
+from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_force_scalar,
+                                          kwok_current_force_slope_at,
+                                          kwok_current_terms_scalar)
 from mr_damper_model.models import ModelError
 
 _N_GRID = 33
@@ -259,12 +261,16 @@ class KwokCurrentInverse:
     """
     Scalar, plain-Python inverse for 1 kHz control loops (same answers as ``inverse_current``).
 
-    Fast path first: the force at the two ends of the current range brackets the demand
-    (Illinois regula falsi between them), or the demand is beyond both end forces while the
-    mid-range force lies between them (F(i) monotone: saturate at the nearest end). Only when
-    F(i) has an interior extremum is the range pre-scanned on a grid, as ``inverse_current``
-    does. The one scalar inverse of the suite: the identifier's checks, the car's control loop
-    (``sign_convention='body'``) and the offline bound use it.
+    Fast path first: the forces at the two ends of the current range bracket the demand
+    (Illinois regula falsi between them: reachable, flag 0). Otherwise the demand is beyond
+    both end forces, and the slopes dF/di at the ends
+    (``mr_damper_model.kwok_current.kwok_current_force_slope_at``) say whether F(i) turns
+    inside the range: running away from the demand at both ends (monotone), the nearest end
+    saturates (flag -1 at ``i_min``, +1 at ``i_max``); with one interior extremum, it is found
+    (Illinois on the slope) and either brackets the demand (solved, flag 0) or is the nearest
+    force (flag +-1). Only F(i) with two interior extrema is pre-scanned on a grid, as
+    ``inverse_current`` does. The one scalar inverse of the suite: the car's control loop uses
+    it with ``sign_convention='body'``.
 
     Parameters
     ----------
@@ -304,6 +310,8 @@ class KwokCurrentInverse:
         self.params = dict(zip(KwokCurrent.param_names, self._p))
         self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
         self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
+        self._terms_lo = kwok_current_terms_scalar(self._p, self._s_lo)
+        self._terms_hi = kwok_current_terms_scalar(self._p, self._s_hi)
         self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
         self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
                       for j in range(n_grid)]
@@ -362,18 +370,44 @@ class KwokCurrentInverse:
             return cur, -flag
         return self._current(f_des, x, v)
 
+    def _fg(self, s, x, v):
+        """Force [N] and its slope dF/ds [N] at normalised current s."""
+        return kwok_current_force_slope_at(kwok_current_terms_scalar(self._p, s), self._p, x, v)
+
+    def _ends(self, x, v):
+        """Force [N] and slope dF/ds [N] at ``i_min`` and at ``i_max``."""
+        p = self._p
+        return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
+                + kwok_current_force_slope_at(self._terms_hi, p, x, v))
+
     def _current(self, f_des, x, v):
         """:meth:`current` for a model force ``f_des`` [N]."""
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
             raise ModelError('`f_des`, `x`, `v` must be finite')
         s_lo, s_hi = self._s_lo, self._s_hi
-        d_lo = self._f(s_lo, x, v) - f_des
-        d_hi = self._f(s_hi, x, v) - f_des
+        f_lo, g_lo, f_hi, g_hi = self._ends(x, v)
+        d_lo = f_lo - f_des
+        d_hi = f_hi - f_des
         if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
             return self._solve(s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
-        d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
-        if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
-            return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+        # the demand is beyond both end forces (on the same side): reachable only at an
+        # interior extremum of F(i); the slopes at the ends say whether there is one
+        above = d_lo < 0.0
+        if g_lo * g_hi < 0.0:
+            # one interior extremum (a maximum when F rises from i_min)
+            if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+            s_x, d_x = self._extremum(s_lo, s_hi, g_lo, g_hi, f_des, x, v)
+            if d_x == 0.0 or (d_x < 0.0) != above:
+                return self._solve(s_lo, s_x, d_lo, d_x, f_des, x, v), 0
+            return (min(max(s_x * self.i_ref_a, self.i_min), self.i_max),
+                    1 if d_x < 0.0 else -1)
+        if g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
+            # F(i) runs the same way at both ends as from end to end: monotone unless it has
+            # two interior extrema, which a mid-range force outside the end forces shows
+            d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
+            if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
         g = self._grid
         d = [self._f(s, x, v) - f_des for s in g]
         for j in range(len(g) - 1):
@@ -381,6 +415,29 @@ class KwokCurrentInverse:
                 return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
         jn = min(range(len(g)), key=lambda q: abs(d[q]))
         return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
+
+    def _extremum(self, a, b, ga, gb, f_des, x, v):
+        """
+        Interior extremum of F on [a, b] (slopes ga, gb of opposite sign), by Illinois.
+
+        Returns the normalised current of the extremum and ``F - f_des`` [N] there.
+        """
+        for _ in range(_MAX_ITER):
+            if abs(b - a) <= 1e-12:
+                break
+            c = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
+            if not min(a, b) < c < max(a, b):
+                c = 0.5 * (a + b)
+            gc = self._fg(c, x, v)[1]
+            if gc == 0.0:
+                b = c
+                break
+            if gc * gb < 0.0:
+                a, ga = b, gb
+            else:
+                ga *= 0.5
+            b, gb = c, gc
+        return b, self._f(b, x, v) - f_des
 
     def _solve(self, a, b, fa, fb, f_des, x, v):
         """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
@@ -457,6 +514,15 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
             return v
         a = math.exp(-self._dt / tau)
         return a * self._u_prev + (1.0 - a) * v
+
+    def _fg(self, s, x, v):
+        """Force [N] and a central-difference slope dF/ds [N] (the lag has no closed form)."""
+        h = 1e-6
+        return self._f(s, x, v), (self._f(s + h, x, v) - self._f(s - h, x, v)) / (2.0 * h)
+
+    def _ends(self, x, v):
+        """Force [N] and slope dF/ds [N] at ``i_min`` and at ``i_max`` (with the lag)."""
+        return self._fg(self._s_lo, x, v) + self._fg(self._s_hi, x, v)
 
     def _f(self, s, x, v):
         u = self._lagged(s, v)
