@@ -54,13 +54,7 @@ class BeforeInverse(KwokCurrentInverse):
         d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
         if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
             return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
-        g = self._grid
-        d = [self._f(s, x, v) - f_des for s in g]
-        for j in range(len(g) - 1):
-            if d[j] * d[j + 1] <= 0.0:
-                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
-        jn = min(range(len(g)), key=lambda q: abs(d[q]))
-        return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
+        return self._grid_scan(f_des, x, v)
 
 
 class BeforeCarAdapter:

@@ -408,6 +408,10 @@ class KwokCurrentInverse:
             d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
             if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
                 return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+        return self._grid_scan(f_des, x, v)
+
+    def _grid_scan(self, f_des, x, v):
+        """Pre-scan the range on the grid: the first bracket, else the nearest grid force."""
         g = self._grid
         d = [self._f(s, x, v) - f_des for s in g]
         for j in range(len(g) - 1):
