@@ -24,7 +24,8 @@ import math
 
 import numpy as np
 
-from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_force_scalar,
+from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_coefficients,
+                                          kwok_current_force_scalar,
                                           kwok_current_force_slope_at,
                                           kwok_current_terms_scalar)
 from mr_damper_model.models import ModelError
@@ -77,10 +78,10 @@ def _param_vector(params):
 
 def _force(p, s, x, v, sx):
     """Kwok-current force at normalised current s (elementwise, broadcasting)."""
-    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
-    beta = b0 * np.exp(np.clip(b1 * s, -50.0, 50.0))
-    alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
-    return (c0 + c1 * s) * v + k * x + alpha * np.tanh(beta * v + delta * sx) + f0
+    s = np.asarray(s, dtype=float)
+    terms = kwok_current_coefficients(p[None, :], s if s.ndim == 2 else s.reshape(1, -1))
+    c, alpha, beta = (t if s.ndim == 2 else t.reshape(s.shape) for t in terms)
+    return c * v + p[2] * x + alpha * np.tanh(beta * v + p[8] * sx) + p[9]
 
 
 def inverse_current(f_des, x, v, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-6):
