@@ -129,10 +129,6 @@ class VirtualRig:
             raise ExcitationError('commanded current must be finite')
         self._command = i_a
 
-    def release_command(self):
-        """Return to the current schedule."""
-        self._command = None
-
     def sample(self):
         """
         Advance one DAQ period and return the measured sample.
