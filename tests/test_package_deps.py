@@ -77,3 +77,27 @@ def test_the_check_sees_a_missing_dependency(tmp_path):
                                      '<exec_depend>rclpy</exec_depend></package>')
     assert set(imported_modules(pkg)) == {'rclpy', 'scipy'}
     assert declared_dependencies(pkg) == {'rclpy'}
+
+
+def test_workspace_dependencies_point_one_way():
+    # mr_damper_model <- quarter_car_sim <- mr_damper_rig (and whatever sits on top): the
+    # declared dependencies among the workspace's packages have no cycle
+    names = {p.parent.name for p in (REPO / 'src').glob('*/package.xml')}
+    deps = {p.parent.name: declared_dependencies(p.parent) & names
+            for p in (REPO / 'src').glob('*/package.xml')}
+    assert 'mr_damper_rig' not in deps['quarter_car_sim']
+    assert not deps['mr_damper_model'] - {'mr_damper_interfaces'}
+    done, path = set(), []
+
+    def visit(name):
+        assert name not in path, f'dependency cycle: {" -> ".join(path + [name])}'
+        if name in done:
+            return
+        path.append(name)
+        for dep in sorted(deps[name]):
+            visit(dep)
+        path.pop()
+        done.add(name)
+
+    for name in sorted(deps):
+        visit(name)
