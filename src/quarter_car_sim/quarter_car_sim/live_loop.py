@@ -1,7 +1,9 @@
 """
-The quarter-car control loop of the ROS node, without ROS: car + controller + supervised inverse.
+The quarter-car control loop, without ROS: car + controller + (supervised) inverse.
 
-One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 1-2 are
+:class:`ClosedLoop` is the car's one closed loop: the ROS node runs it supervised, offline
+studies (:mod:`quarter_car_sim.simulate`) with a fixed identified inverse. One control step
+(period ``dt``, 1 ms by default) of the supervised loop (steps 1-2 are
 :class:`quarter_car_sim.controller_core.ControllerCore`, shared with the stand-alone
 ``semi_active_controller_node``):
 
@@ -9,8 +11,9 @@ One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 
    clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
 2. with a model: the controller's demanded body force (positive up) is turned into a coil
    current by the inverse of the identified model (the damper model
-   force resisting extension is the negative of the body force; the plain-float fast path
-   ``mr_damper_model.inverse.KwokCurrentInverse``), saturated to the coil range;
+   force resisting extension is the negative of the body force: the scalar inverse
+   ``mr_damper_model.inverse.KwokCurrentInverse`` with ``sign_convention='body'``), saturated
+   to the coil range;
    without one: the safe current (fail-safe). A passive controller gives a current directly;
 3. the quarter car (its plant is the "true" damper, never the identified model) advances by
    ``dt`` with that current held, and the running ride metrics take the new state.
