@@ -376,7 +376,7 @@ class KwokCurrentInverse:
         return kwok_current_force_slope_at(kwok_current_terms_scalar(self._p, s), self._p, x, v)
 
     def _ends(self, x, v):
-        """Force [N] and slope dF/ds [N] at ``i_min`` and at ``i_max``."""
+        """Force [N] and slope dF/ds [N] (None: not computed yet) at ``i_min`` and ``i_max``."""
         p = self._p
         return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
                 + kwok_current_force_slope_at(self._terms_hi, p, x, v))
@@ -394,6 +394,8 @@ class KwokCurrentInverse:
         # the demand is beyond both end forces (on the same side): reachable only at an
         # interior extremum of F(i); the slopes at the ends say whether there is one
         above = d_lo < 0.0
+        if g_lo is None:
+            g_lo, g_hi = self._fg(s_lo, x, v)[1], self._fg(s_hi, x, v)[1]
         if g_lo * g_hi < 0.0:
             # one interior extremum (a maximum when F rises from i_min)
             if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
@@ -526,8 +528,8 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         return self._f(s, x, v), (self._f(s + h, x, v) - self._f(s - h, x, v)) / (2.0 * h)
 
     def _ends(self, x, v):
-        """Force [N] and slope dF/ds [N] at ``i_min`` and at ``i_max`` (with the lag)."""
-        return self._fg(self._s_lo, x, v) + self._fg(self._s_hi, x, v)
+        """Force [N] at ``i_min`` and at ``i_max`` (slopes None: computed when needed)."""
+        return self._f(self._s_lo, x, v), None, self._f(self._s_hi, x, v), None
 
     def _f(self, s, x, v):
         u = self._lagged(s, v)
