@@ -151,3 +151,26 @@ def test_module_does_not_import_rclpy():
     code = 'import sys, quarter_car_sim.live_loop; print("rclpy" in sys.modules)'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
+
+
+def test_fixed_inverse_loop_applies_an_active_force_and_checks_its_settings():
+    # without a supervisor an active law's force goes to the car directly (command NaN), as
+    # QuarterCar.step_force does; an external command needs a supervisor; a supervised loop
+    # takes its inverse from the supervisor only
+    from quarter_car_sim.controllers import SkyhookIdeal
+    params = QuarterCarParams()
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=3, duration_s=0.2)
+    law = SkyhookIdeal()
+    loop = live_loop.ClosedLoop(QuarterCar(params, None, road), law, dt=1e-3)
+    ref = QuarterCar(params, None, road)
+    for _ in range(100):
+        f = law.demand(ref.state)
+        a, b = loop.step(), ref.step_force(1e-3, f)
+        fields = ('t', 'z_s', 'v_s', 'z_u', 'v_u', 'damper_force')
+        assert [getattr(a, n) for n in fields] == [getattr(b, n) for n in fields]
+        assert np.isnan(loop.i_cmd) and loop.f_demand == f
+    with pytest.raises(ValueError, match='supervisor'):
+        live_loop.ClosedLoop(QuarterCar(params, None, road), None, dt=1e-3)
+    sup_loop = _loop(Skyhook(), seconds=0.2)
+    with pytest.raises(ValueError, match='supervisor'):
+        sup_loop.inverse = None
