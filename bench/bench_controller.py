@@ -59,16 +59,20 @@ def _ride_states(n):
 
 
 def _built_in_loop():
+    from mr_damper_model.plant import make_plant
     from quarter_car_sim import live_loop
+    from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
     from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.road import make_road
     params = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=SEED,
-                               duration_s=300.0, dt=1e-3)
-    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=SEED,
+                     duration_s=300.0, dt=1e-3)
+    car = QuarterCar(params, make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
     sup = ModelSupervisor(timeout_s=3600.0, safe_current_a=SAFE_A)
-    loop = live_loop.ClosedLoop(car, live_loop.make_controller('skyhook', params), sup, 1e-3)
+    law = make_controller('skyhook', params=params, damper_only=True)
+    loop = live_loop.ClosedLoop(car, law, sup, 1e-3)
     sup.offer(_params(), 0.0)
     return loop
 

@@ -9,8 +9,8 @@ Skyhook (true Kwok-current parameters through the supervisor) on an ISO 8608 cla
   with polynomial extrapolation, and with the adaptive horizon;
 - ride metrics (Wk-weighted body acceleration RMS, travel RMS, tyre load RMS) of each HIL run
   against model-in-the-loop (ratio);
-- the ROS 2 link simulated in one process (``hil.SimulatedLink``: the rig node's guarded
-  actuator, the car's ``RemoteRigPlant``) with 0, 5 and 20 ms of message latency: tracking
+- the ROS 2 link simulated in one process (``car_in_the_loop.SimulatedLink``: the rig node's
+  guarded actuator, the car's ``RemoteRigPlant``) with 0, 5 and 20 ms of message latency: tracking
   error and ride against model-in-the-loop, without compensation, with the fixed horizon and
   with the adaptive one;
 - the comfort cost of the current probe (Wk RMS increase) and per-bin sample counts with and
@@ -24,11 +24,15 @@ import argparse
 import os
 from pathlib import Path
 
+from mr_damper_model.plant import make_plant
+from mr_damper_rig import car_in_the_loop as cil
 from quarter_car_sim import hil, live_loop
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
+from quarter_car_sim.road import make_road
 
 DT = 1e-3
 
@@ -43,13 +47,13 @@ def _truth_msg():
 def run(plant, seconds, probe=None):
     """Skyhook on ISO C with ``plant`` as the car's damper; return (record, ride metrics)."""
     params = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=7,
-                               duration_s=seconds)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=7,
+                     duration_s=seconds)
     car = QuarterCar(params, plant, road, t0=0.0)
     sup = ModelSupervisor(timeout_s=1e9, safe_current_a=0.5)
     sup.offer(_truth_msg(), 0.0)
     metrics = live_loop.make_running_metrics(params)
-    loop = live_loop.ClosedLoop(car, live_loop.make_controller('skyhook'), sup, DT,
+    loop = live_loop.ClosedLoop(car, make_controller('skyhook', damper_only=True), sup, DT,
                                 metrics=metrics)
     return hil.run_loop(loop, seconds, probe=probe), metrics.as_dict()
 
@@ -61,7 +65,7 @@ def main():
     args = ap.parse_args()
     print(f'load (uptime): {os.getloadavg()}')
     ride_keys = ('rms_body_accel_wk', 'rms_suspension_travel', 'rms_tyre_load_ratio')
-    rec_ref, ref = run(live_loop.make_plant('kwok-current'), args.seconds)
+    rec_ref, ref = run(make_plant('kwok-current'), args.seconds)
     print('model in the loop: ' + ', '.join(f'{k} {ref[k]:.4g}' for k in ride_keys))
     cases = [('ideal', 'none', 0.0), ('first', 'none', 0.0), ('first', 'poly', 0.0),
              ('first', 'poly', 2.0), ('second', 'none', 0.0), ('second', 'poly', 0.0),
@@ -70,7 +74,7 @@ def main():
           f'{"horizon_ms":>10s} ' + ' '.join(f'{k + "/ref":>26s}' for k in ride_keys))
     records = {}
     for kind, comp, gain in cases:
-        plant = hil.make_hil_plant(actuator=kind, compensation=comp, adapt_gain=gain, rng=1)
+        plant = cil.make_hil_plant(actuator=kind, compensation=comp, adapt_gain=gain, rng=1)
         rec, ride = run(plant, args.seconds)
         tr = plant.monitor.as_dict()
         label = comp if gain == 0 else 'adaptive'
@@ -85,7 +89,7 @@ def main():
           f'{"wk/ref":>8s} {"travel/ref":>10s}')
     for latency in (0, 5, 20):
         for comp, gain in (('none', 0.0), ('poly', 0.0), ('poly', 2.0)):
-            link = hil.make_simulated_link(actuator='first', compensation=comp,
+            link = cil.make_simulated_link(actuator='first', compensation=comp,
                                            adapt_gain=gain, latency_steps=latency, rng=1,
                                            delay_s=0.015)
             _, ride = run(link, args.seconds)
@@ -96,12 +100,12 @@ def main():
                   f'{horizon:10.2f} {ride["rms_body_accel_wk"] / ref["rms_body_accel_wk"]:8.3f} '
                   f'{ride["rms_suspension_travel"] / ref["rms_suspension_travel"]:10.3f}')
     # probing cost and bin coverage (model in the loop, so only the probe differs)
-    rec_law, ref_p = run(live_loop.make_plant('kwok-current'), args.probe_seconds)
+    rec_law, ref_p = run(make_plant('kwok-current'), args.probe_seconds)
     law = CurrentProbe()
     for i in rec_law['coil_current']:
         law.observe(i)
     probe = CurrentProbe()
-    rec_probe, probed = run(live_loop.make_plant('kwok-current'), args.probe_seconds, probe)
+    rec_probe, probed = run(make_plant('kwok-current'), args.probe_seconds, probe)
     cost = probed['rms_body_accel_wk'] / ref_p['rms_body_accel_wk'] - 1
     print(f'probe over {args.probe_seconds:g} s: period {probe.period_s} s, hold '
           f'{probe.hold_s} s (duty {probe.duty:.0%}), Wk RMS {ref_p["rms_body_accel_wk"]:.4g} -> '

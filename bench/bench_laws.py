@@ -27,12 +27,13 @@ import statistics
 import time
 
 from mr_damper_model.plant import make_plant
+from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.plots import plot_tradeoff
 from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import identify_damper, make_inverse, simulate
+from quarter_car_sim.simulate import make_inverse, simulate
 
 PASSIVE_A = (0.0, 0.25, 0.5, 1.0, 1.5, 2.0)
 SKY_GAINS = (1000.0, 2000.0, 3000.0, 5000.0)

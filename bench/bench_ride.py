@@ -3,7 +3,7 @@
 Ride benchmark: every controller on ISO 8608 class C at 20 m/s, 60 s, several seeds (medians).
 
 Chain: the "true" damper plant is first identified on the simulated rig (kwok-current model,
-``quarter_car_sim.simulate.identify_damper``); the semi-active controllers only use those
+``mr_damper_rig.virtual_rig.identify_damper``); the semi-active controllers only use those
 identified parameters through the inverse model. Reported:
 
 - the --compare table (medians over seeds) with each controller's change in Wk RMS body
@@ -32,12 +32,13 @@ import numpy as np
 from scipy import signal
 
 from mr_damper_model.plant import make_plant
+from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.plots import plot_tradeoff
 from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
 from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import identify_damper, make_inverse, simulate
+from quarter_car_sim.simulate import make_inverse, simulate
 
 PLANTS = {'kwok': 'kwok-current', 'spencer': 'spencer'}
 PASSIVE_A = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
@@ -66,8 +67,8 @@ class RangeLimitedSkyhook(ctl.SkyhookIdeal):
     def demand(self, state):
         """Skyhook force clipped to [F(0 A), F(2 A)] of the identified model (on the body)."""
         d = super().demand(state)
-        lo = -self.inverse.model_force(state.travel, state.v_rel, self.inverse.i_min)
-        hi = -self.inverse.model_force(state.travel, state.v_rel, self.inverse.i_max)
+        lo = -self.inverse.force(self.inverse.i_min, state.travel, state.v_rel)
+        hi = -self.inverse.force(self.inverse.i_max, state.travel, state.v_rel)
         a, b = min(lo, hi), max(lo, hi)
         if lo * hi > 0.0 and not a <= d <= b:
             return lo if abs(d - lo) <= abs(d - hi) else hi
@@ -142,7 +143,7 @@ def main(argv=None):
     diag['best_passive_wk_energy_below_2hz'] = statistics.median(shares)
     diag['bound_if_all_below_2hz_removed_pct'] = 100.0 * (
         1.0 - np.sqrt(1.0 - diag['best_passive_wk_energy_below_2hz']))
-    diag['identified_0A_force_n'] = {f'{v:g} m/s': inverse.model_force(0.005, v, 0.0)
+    diag['identified_0A_force_n'] = {f'{v:g} m/s': inverse.force(0.0, 0.005, v)
                                      for v in (0.02, 0.05, 0.1, 0.2)}
     diag['skyhook_range_limited_wk'] = statistics.median(
         [m['rms_body_accel_wk'] for m, _ in run(RangeLimitedSkyhook(inverse))])

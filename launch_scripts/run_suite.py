@@ -708,7 +708,7 @@ def hil_report_config(cfg):
 def add_hil_summary(summary, rec, cfg, out):
     """Add tracking error and identification quality vs the cam rig (``--config hil``)."""
     from mr_damper_model.columnlog import finite_or_none
-    from quarter_car_sim.hil import format_hil_summary, hil_summary
+    from mr_damper_rig.car_in_the_loop import format_hil_summary, hil_summary
     with rec.lock:
         status = dict(rec.status)
     rig = node_params(cfg, RIG)

@@ -30,7 +30,6 @@ setup(
             'quarter_car_node = quarter_car_sim.entry_points:quarter_car_node',
             'semi_active_controller_node = '
             'quarter_car_sim.entry_points:semi_active_controller_node',
-            'quarter-car-sim = quarter_car_sim.cli:main',
         ],
     },
 )

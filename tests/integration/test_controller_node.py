@@ -111,16 +111,20 @@ RIDE_COLUMNS = ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')
 
 def _reference_ride(n_steps):
     """Run the built-in loop on the same car, road, seed and model; return per-step arrays."""
+    from mr_damper_model.plant import make_plant
     from quarter_car_sim import live_loop
+    from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
     from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.road import make_road
     params = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=CAR['road_seed'],
-                               duration_s=CAR['road_duration_s'], dt=1e-3)
-    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=CAR['road_seed'],
+                     duration_s=CAR['road_duration_s'], dt=1e-3)
+    car = QuarterCar(params, make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
     sup = ModelSupervisor(timeout_s=3600.0, safe_current_a=SAFE_A)
-    loop = live_loop.ClosedLoop(car, live_loop.make_controller('skyhook', params), sup, 1e-3)
+    law = make_controller('skyhook', params=params, damper_only=True)
+    loop = live_loop.ClosedLoop(car, law, sup, 1e-3)
     sup.offer(_good_params(), 0.0)
     states = [loop.step(0.0) for _ in range(n_steps)]
     return {c: np.array([getattr(s, c) for s in states]) for c in RIDE_COLUMNS}

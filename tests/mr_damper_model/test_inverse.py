@@ -76,3 +76,43 @@ def test_bad_input():
         inverse_current([1.0], [0.0], [0.1], p, i_min=2.0, i_max=1.0)
     with pytest.raises(ValueError, match='missing'):
         inverse_current([1.0], [0.0], [0.1], {'c0': 1.0})
+
+
+def test_scalar_round_trip_is_exact_and_flag_zero_only_when_reachable():
+    # demands the model makes at a known current: each is reachable (flag 0) and the current
+    # found makes it again to the solver's force tolerance 1e-9 (1 + |F|) N
+    model, p = thesis_kwok_current()
+    inv = KwokCurrentInverse(p)
+    x, v, i = _samples(2000, 3)
+    f_des = model.force(model.from_dict(p), x, v, i)
+    for k in range(x.size):
+        cur, flag = inv.current(f_des[k], x[k], v[k])
+        assert flag == 0 and 0.0 <= cur <= 2.0
+        assert abs(inv.force(cur, x[k], v[k]) - f_des[k]) <= 1e-9 * (1.0 + abs(f_des[k]))
+    # out of reach: never flag 0, the current is an end of the range or the nearest force's
+    for f, x_, v_ in ((-500.0, 0.0, 0.2), (5000.0, 0.0, 0.2), (500.0, 0.0, -0.2)):
+        assert inv.current(f, x_, v_)[1] != 0
+
+
+def test_body_sign_convention_is_the_negated_model_demand():
+    # the body convention (force on the car body, positive up) is the model convention with
+    # the demand negated: the same current to the last bit, the flag negated
+    model, p = thesis_kwok_current()
+    model_inv = KwokCurrentInverse(p, tol_a=1e-4)
+    body_inv = KwokCurrentInverse(p, tol_a=1e-4, sign_convention='body')
+    rng = np.random.default_rng(4)
+    n = 3000
+    f, x, v = rng.uniform(-1500, 1500, n), rng.normal(0, 0.02, n), rng.normal(0, 0.3, n)
+    flags = set()
+    for k in range(n):
+        cur_m, flag_m = model_inv.current(-f[k], x[k], v[k])
+        cur_b, flag_b = body_inv.current(f[k], x[k], v[k])
+        assert cur_b == cur_m and flag_b == -flag_m
+        flags.add(flag_b)
+    assert flags == {-1, 0, 1}
+    lo, hi = body_inv.body_force_range(0.01, 0.2)
+    assert (lo, hi) == tuple(sorted((-model_inv.force(0.0, 0.01, 0.2),
+                                     -model_inv.force(2.0, 0.01, 0.2))))
+    assert body_inv.params == {k: float(p[k]) for k in model.param_names}
+    with pytest.raises(ValueError, match='sign_convention'):
+        KwokCurrentInverse(p, sign_convention='up')

@@ -3,7 +3,10 @@ import numpy as np
 import pytest
 
 from mr_damper_model.kwok import Kwok
-from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_force_scalar,
+                                          kwok_current_force_slope_at,
+                                          kwok_current_terms_scalar)
+from mr_damper_model.presets import thesis_kwok_current
 
 
 def _p():
@@ -41,3 +44,25 @@ def test_monotone_in_current_within_default_bounds():
 def test_i_ref_validation():
     with pytest.raises(ValueError, match='i_ref_a'):
         KwokCurrent(i_ref_a=0.0)
+
+
+def test_scalar_force_and_slope_match_the_model():
+    # the plain-float force equals the vectorised model's, and the slope-returning variant
+    # gives the very same force with a slope equal to a central difference of it
+    model, p = thesis_kwok_current()
+    vec = model.from_dict(p)
+    rng = np.random.default_rng(5)
+    x, v, i = rng.uniform(-0.03, 0.03, 300), rng.uniform(-0.3, 0.3, 300), rng.uniform(0, 2, 300)
+    f_model = model.force(vec, x, v, i)
+    i_ref = model.options['i_ref_a']
+    h = 1e-6
+    for k in range(x.size):
+        s = i[k] / i_ref
+        f = kwok_current_force_scalar(vec, s, x[k], v[k])
+        assert f == pytest.approx(f_model[k], rel=1e-12, abs=1e-9)
+        f2, slope = kwok_current_force_slope_at(kwok_current_terms_scalar(vec, s), vec, x[k],
+                                                v[k])
+        assert f2 == f
+        fd = (kwok_current_force_scalar(vec, s + h, x[k], v[k])
+              - kwok_current_force_scalar(vec, s - h, x[k], v[k])) / (2 * h)
+        assert slope == pytest.approx(fd, rel=1e-5, abs=1e-4)

@@ -66,3 +66,17 @@ def test_make_plant_errors():
         plant.step(0.001, float('nan'), 0.0, 0.0)
     with pytest.raises(ValueError, match='beta0'):
         KwokCurrentPlant({'c0': 1.0})
+
+
+def test_make_plant_reads_a_parameter_file(tmp_path):
+    # a truth file (params_file format) gives the same plant as its parameters; '' the preset
+    from mr_damper_model.params_file import save_params
+    model, truth = thesis_kwok_current()
+    changed = dict(truth, c0=2.0 * truth['c0'])
+    path = tmp_path / 'truth.json'
+    save_params(path, {'model': 'kwok-current', 'parameters': changed})
+    a, b = make_plant('kwok-current', str(path)), make_plant('kwok-current', changed)
+    assert a.params == b.params == {k: float(v) for k, v in changed.items()}
+    assert make_plant('kwok-current', '').params == make_plant('kwok-current').params
+    with pytest.raises(ValueError, match='model'):
+        make_plant('spencer', str(path))            # the file holds another model

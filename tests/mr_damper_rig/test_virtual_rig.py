@@ -5,7 +5,7 @@ import pytest
 from mr_damper_model.plant import make_plant
 from mr_damper_model.presets import thesis_kwok_current
 from mr_damper_rig.excitation import CamSine, ConstantSchedule
-from mr_damper_rig.virtual_rig import VirtualRig
+from mr_damper_rig.virtual_rig import identify_damper, VirtualRig
 
 
 def _kwok_rig(**kw):
@@ -93,3 +93,13 @@ def test_rig_node_options_build_a_repeating_schedule_or_a_commanded_rig():
     assert commanded.schedule(10.0) == 0.0            # 0 A until the first current command
     with pytest.raises(ValueError, match='current_source'):
         build_virtual_rig(_node_options(current_source='both'))
+
+
+def test_identify_damper_recovers_kwok_truth():
+    d = identify_damper(make_plant('kwok-current'), seed=1)
+    assert d['model'] == 'kwok-current'
+    for k in ('c1', 'alpha1', 'alpha2', 'beta0', 'delta'):
+        assert d['parameters'][k] == pytest.approx(thesis_kwok_current()[1][k], rel=0.05), k
+    from quarter_car_sim.simulate import make_inverse
+    inv = make_inverse(d)
+    assert inv.i_ref_a == 2.0

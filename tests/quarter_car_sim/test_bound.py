@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from mr_damper_model import presets
+from mr_damper_model.inverse import KwokCurrentInverse
 from mr_damper_model.plant import KwokCurrentPlant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.bound import (bound_name, CurrentSchedule, KwokForceModel,
@@ -97,7 +98,7 @@ def test_wide_linear_damper_reproduces_the_unconstrained_optimum():
 def kwok_case():
     # the damper model is the plant (no coil lag): the replay reproduces the prediction
     _, truth = presets.thesis_kwok_current()
-    inverse = ctl.KwokCurrentInverse(truth, tol_a=1e-6)
+    inverse = KwokCurrentInverse(truth, tol_a=1e-6, sign_convention='body')
     plant = KwokCurrentPlant(truth, coil_tau_s=0.0)
     road = iso8608('C', 20.0, 3.0, 1e-3, rng=2)
     res = semi_active_bound(PARAMS, road, KwokForceModel(inverse), plant, settle_s=0.0)

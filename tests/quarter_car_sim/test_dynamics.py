@@ -7,7 +7,7 @@ import pytest
 
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar, state_matrices
 from quarter_car_sim.params import QuarterCarParams
-from quarter_car_sim.road import iso8608, RoadProfile, step
+from quarter_car_sim.road import iso8608, make_road, RoadProfile, step
 
 P = QuarterCarParams()
 
@@ -150,14 +150,13 @@ def test_bad_arguments():
 
 
 def test_periodic_road_repeats_seamlessly_and_a_plain_one_is_held():
-    from quarter_car_sim import live_loop
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=3,
-                               duration_s=2.0, repeat=True)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=3,
+                     duration_s=2.0, repeat=True)
     assert road.periodic and road.duration == pytest.approx(2.0, abs=2e-3)
     period = road.n * road.dt
     car = QuarterCar(QuarterCarParams(), None, road)
-    flat = QuarterCar(QuarterCarParams(), None, live_loop.make_road(
-        'iso8608', road_class='C', speed_m_s=20.0, seed=3, duration_s=2.0))
+    flat = QuarterCar(QuarterCarParams(), None, make_road(
+        'iso8608', road_class='C', speed_m_s=20.0, rng=3, duration_s=2.0))
     for t in (0.0123, 0.5, 1.2345, road.t[-1] + 0.4 * road.dt):
         z0, zd0 = car._road_at(t)
         for lap in (1, 2, 7):

@@ -6,11 +6,13 @@ import numpy as np
 import pytest
 
 from mr_damper_model.columnlog import ColumnReader
+from mr_damper_model.plant import make_plant
 from quarter_car_sim import live_loop
-from quarter_car_sim.controllers import Passive, Skyhook
+from quarter_car_sim.controllers import make_controller, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
+from quarter_car_sim.road import make_road
 
 
 def _truth():
@@ -23,9 +25,9 @@ def _truth():
 
 def _loop(controller, *, safe=0.5, seconds=3.0):
     params = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=3,
-                               duration_s=seconds)
-    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=-0.5)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=3,
+                     duration_s=seconds)
+    car = QuarterCar(params, make_plant('kwok-current'), road, t0=-0.5)
     sup = ModelSupervisor(timeout_s=1.0, safe_current_a=safe)
     metrics = live_loop.make_running_metrics(params, 1e-3)
     return live_loop.ClosedLoop(car, controller, sup, 1e-3, metrics=metrics)
@@ -56,14 +58,14 @@ def test_inverse_delivers_the_demanded_force_with_the_true_model():
     loop = _loop(Skyhook(3000.0))
     truth, msg = _truth()
     loop.sup.offer(msg, 0.0)
-    from quarter_car_sim.controllers import KwokCurrentInverse
-    inv = KwokCurrentInverse(truth)
+    from mr_damper_model.inverse import KwokCurrentInverse
+    inv = KwokCurrentInverse(truth, tol_a=1e-4, sign_convention='body')
     checked = 0
     for k in range(2000):
         state = loop.car.state
         i = loop.command(state, 0.0)
         if not loop.last_saturated:                   # reachable demands
-            f_model = inv.model_force(state.travel, state.v_rel, i)
+            f_model = inv.force(i, state.travel, state.v_rel)
             assert -f_model == pytest.approx(loop.f_demand, abs=0.5)
             checked += 1
         loop.advance()
@@ -87,7 +89,7 @@ def test_passive_controller_ignores_the_model():
 
 def test_active_controller_refused():
     with pytest.raises(ValueError, match='force actuator'):
-        live_loop.make_controller('skyhook-ideal')
+        make_controller('skyhook-ideal', damper_only=True)
 
 
 def test_pacer_schedule_and_reanchor():
@@ -149,3 +151,26 @@ def test_module_does_not_import_rclpy():
     code = 'import sys, quarter_car_sim.live_loop; print("rclpy" in sys.modules)'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
+
+
+def test_fixed_inverse_loop_applies_an_active_force_and_checks_its_settings():
+    # without a supervisor an active law's force goes to the car directly (command NaN), as
+    # QuarterCar.step_force does; an external command needs a supervisor; a supervised loop
+    # takes its inverse from the supervisor only
+    from quarter_car_sim.controllers import SkyhookIdeal
+    params = QuarterCarParams()
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=3, duration_s=0.2)
+    law = SkyhookIdeal()
+    loop = live_loop.ClosedLoop(QuarterCar(params, None, road), law, dt=1e-3)
+    ref = QuarterCar(params, None, road)
+    for _ in range(100):
+        f = law.demand(ref.state)
+        a, b = loop.step(), ref.step_force(1e-3, f)
+        fields = ('t', 'z_s', 'v_s', 'z_u', 'v_u', 'damper_force')
+        assert [getattr(a, n) for n in fields] == [getattr(b, n) for n in fields]
+        assert np.isnan(loop.i_cmd) and loop.f_demand == f
+    with pytest.raises(ValueError, match='supervisor'):
+        live_loop.ClosedLoop(QuarterCar(params, None, road), None, dt=1e-3)
+    sup_loop = _loop(Skyhook(), seconds=0.2)
+    with pytest.raises(ValueError, match='supervisor'):
+        sup_loop.inverse = None

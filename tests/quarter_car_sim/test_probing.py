@@ -2,11 +2,14 @@
 import numpy as np
 import pytest
 
+from mr_damper_model.plant import make_plant
 from quarter_car_sim import hil, live_loop
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe, ProbeError
+from quarter_car_sim.road import make_road
 
 DT = 1e-3
 
@@ -21,13 +24,13 @@ def _truth_msg():
 def _drive(probe, seconds):
     """Skyhook on an ISO C road; the probe overrides the law's command; return Wk RMS."""
     params = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=5,
-                               duration_s=seconds)
-    car = QuarterCar(params, live_loop.make_plant('kwok-current'), road, t0=0.0)
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=5,
+                     duration_s=seconds)
+    car = QuarterCar(params, make_plant('kwok-current'), road, t0=0.0)
     sup = ModelSupervisor(timeout_s=1e9, safe_current_a=0.5)
     sup.offer(_truth_msg(), 0.0)
     metrics = live_loop.make_running_metrics(params)
-    loop = live_loop.ClosedLoop(car, live_loop.make_controller('skyhook'), sup, DT,
+    loop = live_loop.ClosedLoop(car, make_controller('skyhook', damper_only=True), sup, DT,
                                 metrics=metrics)
     out = hil.run_loop(loop, seconds, probe=probe)
     plain = CurrentProbe()                     # counts only: what the coil current covered

@@ -103,3 +103,18 @@ def test_make_road_specs(tmp_path):
         rd.make_road('gravel')
     with pytest.raises(rd.RoadError, match='speed'):
         rd.make_road('iso8608-C', speed_m_s=-5.0)
+
+
+def test_make_road_node_options(tmp_path):
+    # a bare 'iso8608' takes `road_class`; 'file' needs `file`; `repeat` makes it periodic
+    a = rd.make_road('iso8608', road_class='D', duration_s=2.0, rng=3)
+    b = rd.make_road('iso8608-D', duration_s=2.0, rng=3)
+    np.testing.assert_array_equal(a.z, b.z)
+    assert a.name == b.name and not a.periodic
+    assert rd.make_road('iso8608', road_class='D', duration_s=2.0, rng=3, repeat=True).periodic
+    with pytest.raises(rd.RoadError, match='road_file'):
+        rd.make_road('file')
+    path = tmp_path / 'road.csv'
+    path.write_text('t,z\n0.0,0.0\n0.5,0.01\n1.0,0.0\n')
+    c = rd.make_road('file', file=str(path), duration_s=1.0)
+    np.testing.assert_array_equal(c.z, rd.make_road(str(path), duration_s=1.0).z)

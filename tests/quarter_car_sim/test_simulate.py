@@ -9,8 +9,9 @@ from mr_damper_model.plant import make_plant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from quarter_car_sim.params import QuarterCarParams
+from quarter_car_sim.live_loop import ClosedLoop
 from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import ClosedLoop, compare, identify_damper, make_inverse, simulate
+from quarter_car_sim.simulate import compare, make_inverse, simulate
 
 P = QuarterCarParams()
 ROAD = iso8608('C', 20.0, 8.0, 1e-3, rng=4)
@@ -44,11 +45,15 @@ def test_closed_loop_equals_simulate():
     inv = make_inverse(TRUTH)
     r = simulate(P, ROAD, ctl.Hybrid(), plant, inverse=inv, settle_s=0.0)
     car = QuarterCar(P, plant, ROAD)
-    loop = ClosedLoop(car, ctl.Hybrid(), inv)
-    samples = [loop.step(1e-3) for _ in range(500)]
-    np.testing.assert_allclose([s.current_cmd for s in samples], r.current_cmd[:500],
+    loop = ClosedLoop(car, ctl.Hybrid(), dt=1e-3, inverse=inv)
+    samples = []                        # (state at the start of the period, command)
+    for _ in range(500):
+        state = car.state
+        loop.step()
+        samples.append((state, loop.i_cmd))
+    np.testing.assert_allclose([i for _, i in samples], r.current_cmd[:500],
                                rtol=0, atol=1e-12)
-    np.testing.assert_allclose([s.state.a_s for s in samples], r.a_s[:500], atol=1e-9)
+    np.testing.assert_allclose([s.a_s for s, _ in samples], r.a_s[:500], atol=1e-9)
 
 
 def test_compare_same_road_and_active_references():
@@ -75,15 +80,6 @@ def test_seed_repeatable():
     a = simulate(P, ROAD, ctl.Skyhook(), plant, damper_params=TRUTH)
     b = simulate(P, ROAD, ctl.Skyhook(), plant, damper_params=TRUTH)
     np.testing.assert_array_equal(a.a_s, b.a_s)
-
-
-def test_identify_damper_recovers_kwok_truth():
-    d = identify_damper(make_plant('kwok-current'), seed=1)
-    assert d['model'] == 'kwok-current'
-    for k in ('c1', 'alpha1', 'alpha2', 'beta0', 'delta'):
-        assert d['parameters'][k] == pytest.approx(TRUTH[k], rel=0.05), k
-    inv = make_inverse(d)
-    assert inv.i_ref_a == 2.0
 
 
 def test_semi_active_needs_inverse_and_plant():

@@ -79,11 +79,14 @@ def test_measurement_to_parameters_delay():
 def _live_log(path, controller_offers=False, seconds=4.0, status=None):
     """Run the node's loop in-process, in the node's way (t0 = -settle), and log it to path."""
     car_p = QuarterCarParams()
-    road = live_loop.make_road('iso8608', road_class='C', speed_m_s=20.0, seed=4,
-                               duration_s=QC['road_duration_s'])
-    car = QuarterCar(car_p, live_loop.make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
+    from mr_damper_model.plant import make_plant
+    from quarter_car_sim.controllers import make_controller
+    from quarter_car_sim.road import make_road
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=4,
+                     duration_s=QC['road_duration_s'])
+    car = QuarterCar(car_p, make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
     sup = ModelSupervisor(timeout_s=100.0, safe_current_a=0.5)
-    ctrl = live_loop.make_controller('skyhook')
+    ctrl = make_controller('skyhook', damper_only=True)
     loop = live_loop.ClosedLoop(car, ctrl, sup, 1e-3)
     trace = live_loop.TraceLog(path, 1e-3)
     _, msg = _truth_msg()

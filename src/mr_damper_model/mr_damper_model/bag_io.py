@@ -25,7 +25,6 @@ MEASUREMENT_TOPIC = '/mr_damper/measurement'
 JOINTSTATE_TYPE = 'sensor_msgs/msg/JointState'
 #: Suffixes of single-file bags.
 BAG_SUFFIXES = ('.db3', '.mcap')
-STORAGES = ('sqlite3', 'mcap')
 
 
 def is_bag(path):

@@ -221,7 +221,9 @@ def _param_table(results, labels, units):
 
 
 def _metrics_json(m):
-    return {k: (None if not math.isfinite(v) else float(v)) for k, v in m.items()}
+    """Metrics as JSON values (non-finite -> None, ``columnlog.finite_or_none``)."""
+    from .columnlog import finite_or_none
+    return finite_or_none(m)
 
 
 def _predict(model, model_options, x, data):

@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 COLUMNS = ('t', 'x', 'v', 'f', 'i')
-COLUMN_UNITS = {'t': 's', 'x': 'm', 'v': 'm/s', 'f': 'N', 'i': 'A'}
 #: Joint names of a measurement on ROS topics and in bags (sensor_msgs/JointState): the piston
 #: carries x, v and the force, the coil carries the current (as its effort).
 PISTON_JOINT = 'mr_damper_piston'

@@ -24,7 +24,10 @@ import math
 
 import numpy as np
 
-from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force_scalar
+from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_coefficients,
+                                          kwok_current_force_scalar,
+                                          kwok_current_force_slope_at,
+                                          kwok_current_terms_scalar)
 from mr_damper_model.models import ModelError
 
 _N_GRID = 33
@@ -75,10 +78,10 @@ def _param_vector(params):
 
 def _force(p, s, x, v, sx):
     """Kwok-current force at normalised current s (elementwise, broadcasting)."""
-    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
-    beta = b0 * np.exp(np.clip(b1 * s, -50.0, 50.0))
-    alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
-    return (c0 + c1 * s) * v + k * x + alpha * np.tanh(beta * v + delta * sx) + f0
+    s = np.asarray(s, dtype=float)
+    terms = kwok_current_coefficients(p[None, :], s if s.ndim == 2 else s.reshape(1, -1))
+    c, alpha, beta = (t if s.ndim == 2 else t.reshape(s.shape) for t in terms)
+    return c * v + p[2] * x + alpha * np.tanh(beta * v + p[8] * sx) + p[9]
 
 
 def inverse_current(f_des, x, v, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-6):
@@ -259,11 +262,16 @@ class KwokCurrentInverse:
     """
     Scalar, plain-Python inverse for 1 kHz control loops (same answers as ``inverse_current``).
 
-    Fast path first: the force at the two ends of the current range brackets the demand
-    (Illinois regula falsi between them), or the demand is beyond both end forces while the
-    mid-range force lies between them (F(i) monotone: saturate at the nearest end). Only when
-    F(i) has an interior extremum is the range pre-scanned on a grid, as ``inverse_current``
-    does.
+    Fast path first: the forces at the two ends of the current range bracket the demand
+    (Illinois regula falsi between them: reachable, flag 0). Otherwise the demand is beyond
+    both end forces, and the slopes dF/di at the ends
+    (``mr_damper_model.kwok_current.kwok_current_force_slope_at``) say whether F(i) turns
+    inside the range: running away from the demand at both ends (monotone), the nearest end
+    saturates (flag -1 at ``i_min``, +1 at ``i_max``); with one interior extremum, it is found
+    (Illinois on the slope) and either brackets the demand (solved, flag 0) or is the nearest
+    force (flag +-1). Only F(i) with two interior extrema is pre-scanned on a grid, as
+    ``inverse_current`` does. The one scalar inverse of the suite: the car's control loop uses
+    it with ``sign_convention='body'``.
 
     Parameters
     ----------
@@ -276,16 +284,35 @@ class KwokCurrentInverse:
     tol_a : float or None
         Stop the root search when the bracket is narrower than this [A]; None: only when the
         force matches to 1e-9 relative.
+    sign_convention : {'model', 'body'}
+        Sign of the demand given to :meth:`current`: ``'model'`` the damper model's force
+        (resisting extension positive); ``'body'`` the damper force on a vehicle body, positive
+        up, which is the negative of the model force (``x``, ``v`` are then the suspension
+        travel and velocity, extension positive).
+
+    Attributes
+    ----------
+    params : dict
+        The parameters by name (``KwokCurrent.param_names``, float).
 
     """
 
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
         p = _param_vector(params)
         if not (i_ref_a > 0 and i_max > i_min):
             raise ModelError('need `i_ref_a` > 0 and `i_max` > `i_min`')
+        if sign_convention not in ('model', 'body'):
+            raise ModelError(f"`sign_convention` must be 'model' or 'body', "
+                             f'got {sign_convention!r}')
+        self.sign_convention = sign_convention
+        self._body = sign_convention == 'body'
         self._p = tuple(float(q) for q in p)
+        self.params = dict(zip(KwokCurrent.param_names, self._p))
         self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
         self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
+        self._terms_lo = kwok_current_terms_scalar(self._p, self._s_lo)
+        self._terms_hi = kwok_current_terms_scalar(self._p, self._s_hi)
         self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
         self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
                       for j in range(n_grid)]
@@ -297,20 +324,40 @@ class KwokCurrentInverse:
     def _f(self, s, x, v):
         return kwok_current_force_scalar(self._p, s, x, v)
 
+    def body_force_range(self, travel, v_rel):
+        """
+        Damper forces on the body [N] the model can make at this travel and velocity.
+
+        Parameters
+        ----------
+        travel, v_rel : float
+            Suspension travel [m] and velocity [m/s] (piston displacement and velocity).
+
+        Returns
+        -------
+        lo, hi : float
+            Smallest and largest of ``-force`` at ``i_min`` and ``i_max`` [N].
+
+        """
+        a = -self.force(self.i_min, travel, v_rel)
+        b = -self.force(self.i_max, travel, v_rel)
+        return (a, b) if a <= b else (b, a)
+
     def current(self, f_des, x, v):
         """
         Return ``(current [A], flag)``: flag 0 reachable, -1 saturated low, +1 saturated high.
 
         A demand out of reach gets the current of the nearest achievable force; the flag says
-        whether the demand was below (-1, including the wrong sign for the motion) or above
-        (+1) that force.
+        whether the demand was below (-1) or above (+1) that force, in the sign of
+        ``sign_convention`` (model convention: -1 includes the wrong sign for the motion,
+        which a semi-active damper cannot make). Only a reachable demand has flag 0.
 
         Parameters
         ----------
         f_des : float
-            Desired force [N].
+            Desired force [N] (model force, or force on the body with ``'body'``).
         x : float
-            Displacement [m].
+            Displacement (suspension travel) [m].
         v : float
             Velocity [m/s].
 
@@ -319,16 +366,55 @@ class KwokCurrentInverse:
         tuple of (float, int)
 
         """
+        if self._body:
+            cur, flag = self._current(-f_des, x, v)
+            return cur, -flag
+        return self._current(f_des, x, v)
+
+    def _fg(self, s, x, v):
+        """Force [N] and its slope dF/ds [N] at normalised current s."""
+        return kwok_current_force_slope_at(kwok_current_terms_scalar(self._p, s), self._p, x, v)
+
+    def _ends(self, x, v):
+        """Force [N] and slope dF/ds [N] (None: not computed yet) at ``i_min`` and ``i_max``."""
+        p = self._p
+        return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
+                + kwok_current_force_slope_at(self._terms_hi, p, x, v))
+
+    def _current(self, f_des, x, v):
+        """:meth:`current` for a model force ``f_des`` [N]."""
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
             raise ModelError('`f_des`, `x`, `v` must be finite')
         s_lo, s_hi = self._s_lo, self._s_hi
-        d_lo = self._f(s_lo, x, v) - f_des
-        d_hi = self._f(s_hi, x, v) - f_des
+        f_lo, g_lo, f_hi, g_hi = self._ends(x, v)
+        d_lo = f_lo - f_des
+        d_hi = f_hi - f_des
         if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
             return self._solve(s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
-        d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
-        if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
-            return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+        # the demand is beyond both end forces (on the same side): reachable only at an
+        # interior extremum of F(i); the slopes at the ends say whether there is one
+        above = d_lo < 0.0
+        if g_lo is None:
+            g_lo, g_hi = self._fg(s_lo, x, v)[1], self._fg(s_hi, x, v)[1]
+        if g_lo * g_hi < 0.0:
+            # one interior extremum (a maximum when F rises from i_min)
+            if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+            s_x, d_x = self._extremum(s_lo, s_hi, g_lo, g_hi, f_des, x, v)
+            if d_x == 0.0 or (d_x < 0.0) != above:
+                return self._solve(s_lo, s_x, d_lo, d_x, f_des, x, v), 0
+            return (min(max(s_x * self.i_ref_a, self.i_min), self.i_max),
+                    1 if d_x < 0.0 else -1)
+        if g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
+            # F(i) runs the same way at both ends as from end to end: monotone unless it has
+            # two interior extrema, which a mid-range force outside the end forces shows
+            d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
+            if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+        return self._grid_scan(f_des, x, v)
+
+    def _grid_scan(self, f_des, x, v):
+        """Pre-scan the range on the grid: the first bracket, else the nearest grid force."""
         g = self._grid
         d = [self._f(s, x, v) - f_des for s in g]
         for j in range(len(g) - 1):
@@ -336,6 +422,29 @@ class KwokCurrentInverse:
                 return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
         jn = min(range(len(g)), key=lambda q: abs(d[q]))
         return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
+
+    def _extremum(self, a, b, ga, gb, f_des, x, v):
+        """
+        Interior extremum of F on [a, b] (slopes ga, gb of opposite sign), by Illinois.
+
+        Returns the normalised current of the extremum and ``F - f_des`` [N] there.
+        """
+        for _ in range(_MAX_ITER):
+            if abs(b - a) <= 1e-12:
+                break
+            c = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
+            if not min(a, b) < c < max(a, b):
+                c = 0.5 * (a + b)
+            gc = self._fg(c, x, v)[1]
+            if gc == 0.0:
+                b = c
+                break
+            if gc * gb < 0.0:
+                a, ga = b, gb
+            else:
+                ga *= 0.5
+            b, gb = c, gc
+        return b, self._f(b, x, v) - f_des
 
     def _solve(self, a, b, fa, fb, f_des, x, v):
         """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
@@ -376,12 +485,13 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
     ----------
     params : dict or array_like with shape (12,)
         KwokCurrentLag parameters (``KwokCurrentLag.param_names``).
-    i_ref_a, i_min, i_max, n_grid, tol_a
+    i_ref_a, i_min, i_max, n_grid, tol_a, sign_convention
         As in :class:`KwokCurrentInverse`.
 
     """
 
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None):
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
         from mr_damper_model.kwok_current_lag import KwokCurrentLag
         model = KwokCurrentLag()
         if isinstance(params, dict):
@@ -394,7 +504,7 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         if p[10] < 0 or p[11] < 0:
             raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
         super().__init__(p[:10], i_ref_a=i_ref_a, i_min=i_min, i_max=i_max, n_grid=n_grid,
-                         tol_a=tol_a)
+                         tol_a=tol_a, sign_convention=sign_convention)
         self._tau0, self._tau1 = float(p[10]), float(p[11])
         self._dense = [(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
                        / self.i_ref_a for j in range(_N_DENSE)]
@@ -412,14 +522,23 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         a = math.exp(-self._dt / tau)
         return a * self._u_prev + (1.0 - a) * v
 
+    def _fg(self, s, x, v):
+        """Force [N] and a central-difference slope dF/ds [N] (the lag has no closed form)."""
+        h = 1e-6
+        return self._f(s, x, v), (self._f(s + h, x, v) - self._f(s - h, x, v)) / (2.0 * h)
+
+    def _ends(self, x, v):
+        """Force [N] at ``i_min`` and at ``i_max`` (slopes None: computed when needed)."""
+        return self._f(self._s_lo, x, v), None, self._f(self._s_hi, x, v), None
+
     def _f(self, s, x, v):
         u = self._lagged(s, v)
         c = self._p[0] + self._p[1] * s
         return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
 
-    def current(self, f_des, x, v):
+    def _current(self, f_des, x, v):
         """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
-        cur, flag = super().current(f_des, x, v)
+        cur, flag = super()._current(f_des, x, v)
         if flag == 0:
             return cur, flag
         g = self._dense

@@ -72,6 +72,65 @@ def kwok_current_force_scalar(p, s, x, v):
     return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
 
 
+def kwok_current_terms_scalar(p, s):
+    """
+    Evaluate the current-dependent terms of the kwok-current force at one normalised current.
+
+    Parameters
+    ----------
+    p : sequence of float
+        The ten parameters in ``KwokCurrent.param_names`` order.
+    s : float
+        Normalised current i / i_ref_a [-].
+
+    Returns
+    -------
+    tuple of float
+        ``c(i)`` [N s/m], ``alpha(i)`` [N], ``beta(i)`` [s/m], and their slopes over s
+        ``d alpha/ds`` [N] and ``d beta/ds`` [s/m] (0 where beta's exponent is clipped at
+        +-50); ``dc/ds`` is ``c1``.
+
+    """
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    bs = b1 * s
+    beta = b0 * math.exp(max(-50.0, min(50.0, bs)))
+    return (c0 + c1 * s, a0 + a1 * s * (2.0 - s) + a2 * s * s, beta,
+            2.0 * (a1 * (1.0 - s) + a2 * s), b1 * beta if -50.0 < bs < 50.0 else 0.0)
+
+
+def kwok_current_force_slope_at(terms, p, x, v):
+    """
+    Kwok-current force [N] and its slope dF/ds [N] from the terms at one current.
+
+    The force is :func:`kwok_current_force_scalar`'s at that current (the same operations, so
+    the same float); the slope ``dF/ds = c1 v + alpha'(s) z + alpha(s) (1 - z**2) beta'(s) v``
+    with ``z = tanh(beta v + delta sign(x))`` tells the scalar inverse whether F(i) has an
+    interior extremum. With the terms of a fixed current (the ends of a current range) computed
+    once, one sample costs one ``tanh``.
+
+    Parameters
+    ----------
+    terms : tuple of float
+        :func:`kwok_current_terms_scalar` at the current.
+    p : sequence of float
+        The ten parameters in ``KwokCurrent.param_names`` order.
+    x : float
+        Displacement [m].
+    v : float
+        Velocity [m/s].
+
+    Returns
+    -------
+    force, slope : float
+
+    """
+    c, alpha, beta, dalpha, dbeta = terms
+    sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+    z = math.tanh(beta * v + p[8] * sx)
+    return (c * v + p[2] * x + alpha * z + p[9],
+            p[1] * v + dalpha * z + alpha * (1.0 - z * z) * dbeta * v)
+
+
 class KwokCurrent(HysteresisModel):
     """
     Current-dependent Kwok model.

@@ -233,8 +233,10 @@ def make_plant(name='spencer', params=None, **options):
     ----------
     name : {'spencer', 'kwok-current'}
         Plant model.
-    params : dict or None
-        Parameters; None: ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``.
+    params : dict, str, path or None
+        Parameters, or a parameter file of the plant (``mr_damper_model.params_file`` format,
+        read with ``load_params``: the rig's and the car's ``truth_file``); None or ``''``:
+        ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``.
     **options
         Keyword options of ``SpencerPlant`` / ``KwokCurrentPlant``. For 'spencer' ``y0_m``
         defaults to 0.0: x is measured from mid-stroke and the internal displacement starts
@@ -247,6 +249,9 @@ def make_plant(name='spencer', params=None, **options):
 
     """
     from mr_damper_model import presets
+    if isinstance(params, str) or hasattr(params, '__fspath__'):
+        from mr_damper_model.params_file import load_params
+        params = load_params(params, model=name).parameters if str(params) else None
     if name == 'spencer':
         options.setdefault('y0_m', 0.0)
         return SpencerPlant(presets.spencer_thesis_like() if params is None else params,

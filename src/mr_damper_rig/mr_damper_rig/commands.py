@@ -1,89 +1,13 @@
 """
-Commands checked before the rig applies them: coil current and piston displacement (no ROS).
+Piston displacement commands checked before the rig applies them (no ROS).
 
-A command below ``i_min_a`` or above ``i_max_a`` is clamped to the range and counted; a NaN or
-infinite command is refused (the coil keeps its current) and counted. ``counts`` goes into the
-rig's status; the node logs a throttled warning for each clamped or refused command.
-
-Displacement commands (hardware-in-the-loop, ``excitation:=commanded``) go through
-:class:`DisplacementCommandGuard` the same way: clamped to the stroke, non-finite refused, and a
+Coil current commands are checked by :class:`mr_damper_model.commands.CurrentCommandLimiter`
+(shared with the car). Displacement commands (hardware-in-the-loop, ``excitation:=commanded``)
+go through :class:`DisplacementCommandGuard`: clamped to the stroke, non-finite refused, and a
 silent commander makes the actuator hold, then return to neutral (all counted);
 :class:`CommandFollower` samples the rig with the guarded target.
 """
 import math
-
-#: Outcome keys of :attr:`CurrentCommandLimiter.counts`.
-OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite')
-
-
-class CurrentCommandLimiter:
-    """
-    Clamp coil current commands to ``[i_min_a, i_max_a]``, refuse non-finite ones, count both.
-
-    Parameters
-    ----------
-    i_min_a, i_max_a : float
-        Coil current range [A], finite, ``i_min_a < i_max_a``.
-
-    Raises
-    ------
-    ValueError
-        On a non-finite or empty range (the message names the argument).
-
-    """
-
-    def __init__(self, i_min_a=0.0, i_max_a=2.0):
-        self.set_range(i_min_a, i_max_a)
-        self.counts = dict.fromkeys(OUTCOMES, 0)
-
-    def set_range(self, i_min_a, i_max_a):
-        """
-        Set the coil current range [A] (also while running); nothing changes on an error.
-
-        Raises
-        ------
-        ValueError
-            On a non-finite or empty range (the message names the argument).
-
-        """
-        i_min_a, i_max_a = float(i_min_a), float(i_max_a)
-        for name, value in (('i_min_a', i_min_a), ('i_max_a', i_max_a)):
-            if not math.isfinite(value):
-                raise ValueError(f'`{name}` must be finite, got {value}')
-        if not i_min_a < i_max_a:
-            raise ValueError(f'`i_min_a` ({i_min_a}) must be below `i_max_a` ({i_max_a})')
-        self.i_min_a = i_min_a
-        self.i_max_a = i_max_a
-
-    def apply(self, i_a):
-        """
-        Check one command.
-
-        Parameters
-        ----------
-        i_a : float
-            Requested coil current [A].
-
-        Returns
-        -------
-        current_a : float or None
-            The current to apply [A], within the range; None if the command is refused.
-        outcome : str
-            One of :data:`OUTCOMES` (also counted).
-
-        """
-        i_a = float(i_a)
-        if not math.isfinite(i_a):
-            outcome, current = 'refused_non_finite', None
-        elif i_a < self.i_min_a:
-            outcome, current = 'clamped_low', self.i_min_a
-        elif i_a > self.i_max_a:
-            outcome, current = 'clamped_high', self.i_max_a
-        else:
-            outcome, current = 'accepted', i_a
-        self.counts[outcome] += 1
-        return current, outcome
-
 
 #: Counter keys of :attr:`DisplacementCommandGuard.counts`.
 DISPLACEMENT_OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite',

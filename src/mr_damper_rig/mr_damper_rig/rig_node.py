@@ -23,10 +23,12 @@ timers and pacing stay on wall time (a steady clock): it is the clock source. Su
 
 Faults elsewhere never stop the rig: when a dead or stopped reader has filled the reliable
 measurement writer's history, the writer is replaced (``node_utils.ResettablePublisher``,
-``writer_resets``) and the samples due meanwhile are published once the healthy readers have
-matched the new writer; other failed ``publish()`` calls are counted (``dropped``). Current
-commands out of ``[current_min_a, current_max_a]`` are clamped, non-finite ones refused, both
-counted (``commands``) with a throttled warning.
+``writer_resets`` in the diagnostics) and the samples due meanwhile are published once the healthy
+readers have matched the new writer; other failed ``publish()`` calls are counted
+(``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each
+current command is checked by :class:`mr_damper_model.commands.CurrentCommandLimiter`: out of
+``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
+with a throttled warning.
 
 Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
 displacement commands [m] through a servo-actuator model, in lockstep with the car: each
@@ -52,6 +54,7 @@ from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import DamperModel, KwokParameters
 from std_msgs.msg import Float64, UInt64
 
+from mr_damper_model.commands import CurrentCommandLimiter
 from mr_damper_model.data import DataError
 from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg,
                                       measurement_to_msg, seconds_to_stamp)
@@ -60,7 +63,7 @@ from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
-from .commands import (CommandFollower, CurrentCommandLimiter, DisplacementCommandGuard)
+from .commands import CommandFollower, DisplacementCommandGuard
 from .pacing import LockstepPacer, Pacer
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
 from .rig_health import RigHealth

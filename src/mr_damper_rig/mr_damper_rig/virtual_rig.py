@@ -129,10 +129,6 @@ class VirtualRig:
             raise ExcitationError('commanded current must be finite')
         self._command = i_a
 
-    def release_command(self):
-        """Return to the current schedule."""
-        self._command = None
-
     def sample(self):
         """
         Advance one DAQ period and return the measured sample.
@@ -254,3 +250,67 @@ def build_virtual_rig(options):
                          f"got {options['current_source']!r}")
     return VirtualRig(plant, excitation, schedule, sample_rate_hz=options['rate_hz'],
                       force_noise_n=options['noise_n'], rng=options['seed'])
+
+
+RIG_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
+"""Coil current steps of the simulated identification test [A]."""
+
+RIG_EXCITATIONS = ((1.1, 0.03), (3.0, 0.015))
+"""(frequency [Hz], amplitude [m]) of the simulated identification test: the thesis cam
+(1.1 Hz, 30 mm, peak 0.21 m/s) and a faster one (3 Hz, 15 mm, peak 0.28 m/s) that covers the
+piston velocities of a class C road at 20 m/s better."""
+
+
+def simulated_rig_data(plant, *, seed=0, periods=4):
+    """
+    Simulate an identification test of a damper plant on the virtual rig.
+
+    For each excitation of :data:`RIG_EXCITATIONS` the rig steps the current through
+    :data:`RIG_CURRENTS_A`, ``periods`` cam periods per level, with the rig's load-cell noise
+    and 16-bit DAQ; the records are joined (time restamped).
+
+    Parameters
+    ----------
+    plant : DamperPlant
+        The "true" damper (reset by the rig).
+    seed : int
+        Noise seed.
+    periods : int
+        Cam periods per current level.
+
+    Returns
+    -------
+    mr_damper_model.data.DamperData
+
+    """
+    from mr_damper_model.data import DamperData
+    gen = np.random.default_rng(seed)
+    parts = []
+    for f_hz, amp in RIG_EXCITATIONS:
+        rig = VirtualRig(plant, CamSine(f_hz, amp), StepSchedule(RIG_CURRENTS_A, periods / f_hz),
+                         rng=gen)
+        parts.append(rig.run())
+    return DamperData.concatenate(parts, restamp=True)
+
+
+def identify_damper(plant, *, seed=0, budget_s=None):
+    """
+    Identify kwok-current parameters of a plant from a simulated rig test.
+
+    Uses :func:`simulated_rig_data` and ``mr_damper_model.identify.identify``.
+
+    Returns
+    -------
+    dict
+        Parameter-file dictionary (``model``, ``parameters``, ``model_options``, ``metrics``,
+        ``seed``, ``source``, ...) as accepted by
+        ``quarter_car_sim.simulate.make_inverse``.
+
+    """
+    from mr_damper_model.identify import identify
+    data = simulated_rig_data(plant, seed=seed)
+    res = identify(data, 'kwok-current', seed=seed, budget_s=budget_s,
+                   model_options={'i_ref_a': 2.0})
+    d = res.to_json_dict()
+    d['source'] = data.source
+    return d

@@ -53,7 +53,7 @@ class KwokForceModel:
 
     Parameters
     ----------
-    inverse : quarter_car_sim.controllers.KwokCurrentInverse
+    inverse : mr_damper_model.inverse.KwokCurrentInverse
         Identified model (its parameters, reference current and current range).
 
     """

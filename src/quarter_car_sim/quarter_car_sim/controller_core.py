@@ -26,7 +26,7 @@ Pure Python (no ROS): the node converts messages into :class:`VehicleState` and 
 from dataclasses import dataclass
 import math
 
-from mr_damper_rig.commands import CurrentCommandLimiter, OUTCOMES
+from mr_damper_model.commands import CurrentCommandLimiter, OUTCOMES
 from quarter_car_sim.failsafe import clip_current
 
 #: Fields of the state the control laws read (see :mod:`quarter_car_sim.controllers`):
@@ -36,7 +36,7 @@ LAW_FIELDS = ('v_s', 'a_s', 'v_u', 'travel', 'v_rel')
 #: Reasons a state is refused (counted in :attr:`ControllerCore.state_rejected`).
 STATE_REJECTIONS = ('non_finite', 'out_of_order')
 
-#: Outcomes of a current command offered to :class:`CommandInput` (the rig's limiter's).
+#: Outcomes of a current command offered to :class:`CommandInput` (the limiter's).
 COMMAND_OUTCOMES = OUTCOMES
 
 
@@ -121,14 +121,15 @@ class ControllerCore:
 
     def _inverse_for(self, params):
         if params is not self._inverse_of:
-            from quarter_car_sim.controllers import KwokCurrentInverse
+            from mr_damper_model.inverse import KwokCurrentInverse
             # the inverse stays inside the current range the model was identified on
             lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
             hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
             if not hi > lo:
                 lo, hi = self.sup.i_min_a, self.sup.i_max_a
             self._inverse = KwokCurrentInverse(
-                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a)
+                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a,
+                sign_convention='body')
             self._inverse_of = params
         return self._inverse
 
@@ -238,11 +239,88 @@ class ControllerCore:
         return st
 
 
+class FixedModelCore:
+    """
+    One control step with a fixed identified inverse and no supervisor (offline studies).
+
+    The command stage of :class:`quarter_car_sim.live_loop.ClosedLoop` in
+    ``quarter_car_sim.simulate``: a semi-active law's body force goes through ``inverse``
+    (``mr_damper_model.inverse.KwokCurrentInverse`` with ``sign_convention='body'``) to a
+    current, a passive law's current is clipped to ``[i_min, i_max]``, and an active law's
+    force is applied directly (command NaN).
+
+    Parameters
+    ----------
+    controller : quarter_car_sim.controllers.Controller
+        Any kind (``'current'``, ``'semi-active'``, ``'active'``).
+    inverse : mr_damper_model.inverse.KwokCurrentInverse or None
+        Needed for semi-active controllers. May be replaced at any time (``core.inverse``).
+    i_min, i_max : float
+        Coil current range [A] (passive currents are clipped to it).
+
+    Attributes
+    ----------
+    i_cmd : float
+        Last command [A] (NaN for force-applying controllers and before the first).
+    demand : float
+        Last controller output: body force [N], or current [A] for a passive law.
+    f_demand : float
+        Last demanded body force [N] (NaN with a passive law).
+    saturated : int
+        Commands that could not be delivered exactly.
+    last_saturated : bool or None
+        Whether the last command was saturated.
+
+    """
+
+    def __init__(self, controller, inverse=None, *, i_min=0.0, i_max=2.0):
+        if controller.kind == 'semi-active' and inverse is None:
+            raise ValueError(f'controller {controller.name!r} needs an inverse model')
+        self.controller = controller
+        self.inverse = inverse
+        self.i_min, self.i_max = float(i_min), float(i_max)
+        self.i_cmd = self.demand = self.f_demand = math.nan
+        self.saturated = 0
+        self.last_saturated = None
+
+    def demand_command(self, state):
+        """
+        Demand and command for a state (no bookkeeping: the offline simulation's hot path).
+
+        Returns
+        -------
+        demand : float
+            Controller output (force [N] on the body, or current [A]).
+        current_cmd : float
+            Current command [A] (NaN for force-applying controllers).
+        saturated : bool
+
+        """
+        ctl = self.controller
+        d = ctl.demand(state)
+        kind = ctl.kind
+        if kind == 'semi-active':
+            i, flag = self.inverse.current(d, state.travel, state.v_rel)
+            return d, i, flag != 0
+        if kind == 'current':
+            i = min(max(d, self.i_min), self.i_max)
+            return d, i, i != d
+        return d, math.nan, False
+
+    def command(self, state, t_clock=None):
+        """Set and return the command [A] for ``state`` (``t_clock`` is not used)."""
+        d, i, sat = self.demand_command(state)
+        self.demand, self.i_cmd, self.last_saturated = d, i, sat
+        self.f_demand = math.nan if self.controller.kind == 'current' else d
+        self.saturated += sat
+        return i
+
+
 class CommandInput:
     """
     The car side of an external controller: the latest current command, checked and timed.
 
-    A command is checked by the rig's :class:`mr_damper_rig.commands.CurrentCommandLimiter`
+    A command is checked by the rig's :class:`mr_damper_model.commands.CurrentCommandLimiter`
     (clamped into ``[i_min_a, i_max_a]``, non-finite refused, every outcome of
     :data:`COMMAND_OUTCOMES` counted). :meth:`current` returns the latest applied
     command while it is younger than ``timeout_s``, else the safe current (the transition is

@@ -8,7 +8,8 @@ A controller has ``name``, ``kind`` and ``demand(state) -> float``:
   clipped-optimal): ``demand``
   returns the desired damper force **on the body** [N], positive up, always dissipative
   (``demand * v_rel <= 0``); it goes through an inverse damper model
-  (:class:`KwokCurrentInverse`) to a current saturated to the coil's range;
+  (:class:`mr_damper_model.inverse.KwokCurrentInverse` with ``sign_convention='body'``) to a
+  current saturated to the coil's range;
 - ``kind == 'active'`` (``skyhook-ideal``, ``lqr-active``): ``demand`` is a force on the body
   applied directly (``QuarterCar.step_force``), no damper and no current limits.
 
@@ -39,9 +40,6 @@ See docs/control-laws.md for the laws, their gains and the offline semi-active b
 import math
 
 import numpy as np
-
-from mr_damper_model.inverse import KwokCurrentInverse as ModelInverse
-from mr_damper_model.kwok_current import KwokCurrent
 
 DEFAULT_C_SKY = 2000.0
 """Default skyhook gain [N s/m].
@@ -383,7 +381,7 @@ class ClippedOptimal(LqrActive):
         LQR gain (:func:`clipped_optimal_gain`).
     force_range : callable, optional
         ``force_range(travel, v_rel) -> (lo, hi)``: reachable damper forces on the body [N]
-        (e.g. :meth:`KwokCurrentInverse.body_force_range`).
+        (e.g. :meth:`mr_damper_model.inverse.KwokCurrentInverse.body_force_range`).
     name : str
         Controller name.
 
@@ -413,83 +411,10 @@ class ClippedOptimal(LqrActive):
         return 0.0
 
 
-class KwokCurrentInverse:
-    """
-    Force on the body -> coil current, through the identified kwok-current damper model.
-
-    The car-side view of :class:`mr_damper_model.inverse.KwokCurrentInverse` (which does the
-    solving): the demand is a force on the body, positive up, while the damper model's force
-    resists extension (model force = ``-f_body``); the answer is ``(current, saturated)``.
-
-    Parameters
-    ----------
-    params : dict
-        Identified kwok-current parameters (name -> value, SI); extra keys are ignored.
-    i_ref_a : float
-        Reference current of the model [A].
-    i_min, i_max : float
-        Coil current range [A]; the command is saturated to it.
-    tol_a : float
-        Current tolerance [A].
-
-    """
-
-    names = KwokCurrent.param_names
-
-    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-4):
-        self.params = {n: float(params[n]) for n in self.names if n in params}
-        self._inverse = ModelInverse(params, i_ref_a=i_ref_a, i_min=i_min, i_max=i_max,
-                                     tol_a=tol_a)
-        self.i_ref_a, self.i_min, self.i_max = (self._inverse.i_ref_a, self._inverse.i_min,
-                                                self._inverse.i_max)
-
-    def model_force(self, x, v, i):
-        """Model force [N] (resisting extension positive) at travel x [m], v [m/s], i [A]."""
-        return self._inverse.force(i, x, v)
-
-    def body_force_range(self, travel, v_rel):
-        """
-        Damper forces on the body the model can make at this travel and velocity.
-
-        Returns
-        -------
-        lo, hi : float
-            Smallest and largest of ``-model_force`` at ``i_min`` and ``i_max`` [N].
-
-        """
-        a = -self._inverse.force(self.i_min, travel, v_rel)
-        b = -self._inverse.force(self.i_max, travel, v_rel)
-        return (a, b) if a <= b else (b, a)
-
-    def current(self, f_body, travel, v_rel):
-        """
-        Return the current command for a desired damper force on the body.
-
-        Parameters
-        ----------
-        f_body : float
-            Desired damper force on the body [N], positive up (model force = ``-f_body``).
-        travel, v_rel : float
-            Suspension travel [m] and velocity [m/s] (piston position and velocity).
-
-        Returns
-        -------
-        current : float
-            Command [A] in ``[i_min, i_max]``.
-        saturated : bool
-            True when the demand is not reachable in the current range: the command is then
-            the current whose force is nearest, usually ``i_min`` (wrong-sign or too small
-            demand) or ``i_max``.
-
-        """
-        current, flag = self._inverse.current(-f_body, travel, v_rel)
-        return current, flag != 0
-
-
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,
-                    params=None, inverse=None):
+                    params=None, inverse=None, damper_only=False):
     """
-    Build a controller from its command-line name.
+    Build a controller from its name: the one controller factory (command line and nodes).
 
     Parameters
     ----------
@@ -507,15 +432,33 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
         Hybrid weight.
     params : QuarterCarParams, optional
         Car parameters for the LQR design.
-    inverse : KwokCurrentInverse, optional
+    inverse : mr_damper_model.inverse.KwokCurrentInverse, optional
         Inverse model whose force range clips the clipped-optimal demand (else the inverse of
         the loop saturates it, see :class:`ClippedOptimal`).
+    damper_only : bool
+        Only controllers that drive an MR damper by its coil current (kinds ``'current'`` and
+        ``'semi-active'``), as the car and controller nodes need.
 
     Returns
     -------
     Controller
 
+    Raises
+    ------
+    ValueError
+        Unknown name; with ``damper_only``, a fully active controller (``skyhook-ideal``,
+        ``lqr-active``): it applies forces directly and cannot drive an MR damper.
+
     """
+    ctrl = _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse)
+    if damper_only and ctrl.kind not in ('current', 'semi-active'):
+        raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
+                         'MR damper (use skyhook, groundhook, hybrid, add, sh-add, '
+                         'clipped-optimal or passive@<I>A)')
+    return ctrl
+
+
+def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse):
     n = str(name).strip().lower()
     if n == 'passive':
         return Passive(0.0)

@@ -1,7 +1,9 @@
 """
-The quarter-car control loop of the ROS node, without ROS: car + controller + supervised inverse.
+The quarter-car control loop, without ROS: car + controller + (supervised) inverse.
 
-One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 1-2 are
+:class:`ClosedLoop` is the car's one closed loop: the ROS node runs it supervised, offline
+studies (:mod:`quarter_car_sim.simulate`) with a fixed identified inverse. One control step
+(period ``dt``, 1 ms by default) of the supervised loop (steps 1-2 are
 :class:`quarter_car_sim.controller_core.ControllerCore`, shared with the stand-alone
 ``semi_active_controller_node``):
 
@@ -9,8 +11,9 @@ One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 
    clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
 2. with a model: the controller's demanded body force (positive up) is turned into a coil
    current by the inverse of the identified model (the damper model
-   force resisting extension is the negative of the body force; the plain-float fast path
-   ``quarter_car_sim.controllers.KwokCurrentInverse``), saturated to the coil range;
+   force resisting extension is the negative of the body force: the scalar inverse
+   ``mr_damper_model.inverse.KwokCurrentInverse`` with ``sign_convention='body'``), saturated
+   to the coil range;
    without one: the safe current (fail-safe). A passive controller gives a current directly;
 3. the quarter car (its plant is the "true" damper, never the identified model) advances by
    ``dt`` with that current held, and the running ride metrics take the new state.
@@ -18,7 +21,6 @@ One control step (period ``dt``, 1 ms by default) of :class:`ClosedLoop` (steps 
 :class:`Pacer` schedules steps against a monotonic clock (real time times a factor, or as fast
 as possible) and :class:`TraceLog` streams every step to the run's log file.
 """
-import dataclasses
 import math
 import time
 
@@ -35,94 +37,20 @@ TRACE_COLUMNS = ('t', 'z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'a_u', 'z_r', 'travel',
                  'wall', 'compute_s', 'late_s')
 
 
-def make_road(kind='iso8608', *, road_class='C', speed_m_s=20.0, seed=1, duration_s=120.0,
-              dt=1e-3, file='', repeat=False):
-    """
-    Build the node's road from its parameters.
-
-    Parameters
-    ----------
-    kind : str
-        ``'iso8608'`` (class ``road_class``), ``'bump'``, ``'sine'``, ``'step'`` or ``'file'``.
-    road_class : str
-        ISO 8608 class A..H.
-    speed_m_s : float
-        Vehicle speed [m/s].
-    seed : int
-        Seed of the random road.
-    duration_s : float
-        Road length in time [s]; beyond it the last height is held (or the road repeats).
-    dt : float
-        Sample interval [s].
-    file : str
-        CSV road profile (``kind='file'``).
-    repeat : bool
-        Drive the road again and again (``RoadProfile.periodic``): memory stays one road
-        length for a drive of any length (ISO 8608 roads repeat seamlessly).
-
-    Returns
-    -------
-    quarter_car_sim.road.RoadProfile
-
-    """
-    from quarter_car_sim import road as road_mod
-    kind = str(kind).strip().lower()
-    if kind == 'iso8608':
-        road = road_mod.iso8608(str(road_class).upper(), speed_m_s, duration_s, dt, int(seed))
-    elif kind == 'file':
-        if not file:
-            raise road_mod.RoadError('road kind "file" needs the parameter `road_file`')
-        road = road_mod.from_csv(file, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
-    else:
-        road = road_mod.make_road(kind, speed_m_s=speed_m_s, duration_s=duration_s, dt=dt,
-                                  rng=int(seed))
-    if repeat:
-        road = dataclasses.replace(road, periodic=True)
-    return road
-
-
-def make_controller(name, car_params=None, options=None):
-    """
-    Build a controller of the core by name, for a damper driven by a coil current.
-
-    Parameters
-    ----------
-    name : str
-        A name of ``quarter_car_sim.controllers.make_controller`` of kind ``'current'``
-        (``passive@<I>A``) or ``'semi-active'`` (skyhook, skyhook-onoff, groundhook, hybrid,
-        add, sh-add, clipped-optimal); it delegates to the core factory.
-    car_params : QuarterCarParams, optional
-        Car parameters (LQR design only).
-    options : dict, optional
-        Keyword options of ``make_controller`` (e.g. ``{'c_sky': 3000.0}``).
-
-    Returns
-    -------
-    quarter_car_sim.controllers.Controller
-
-    Raises
-    ------
-    ValueError
-        Unknown name, or a fully active controller (``skyhook-ideal``, ``lqr-active``): they
-        apply forces directly and cannot drive an MR damper.
-
-    """
-    from quarter_car_sim import controllers
-    ctrl = controllers.make_controller(name, params=car_params, **(options or {}))
-    if ctrl.kind not in ('current', 'semi-active'):
-        raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
-                         'MR damper (use skyhook, groundhook, hybrid, add, sh-add, '
-                         'clipped-optimal or passive@<I>A)')
-    return ctrl
-
-
 class ClosedLoop:
     """
-    One quarter car driven by a controller through the supervised, identified inverse model.
+    Controller -> inverse model -> quarter car, one control period of ``dt`` per :meth:`step`.
 
-    The command of each step comes from :class:`quarter_car_sim.controller_core.ControllerCore`
-    (law + inverse + supervisor, shared with the stand-alone controller node); this class adds
-    the car, the step and the running metrics.
+    The one closed loop of the car (the node, the offline simulation
+    ``quarter_car_sim.simulate``, hardware in the loop, benches). Timing of one period: the
+    command is computed from the state at ``t_k``, and the car (plant) advances to
+    ``t_k + dt`` with that command held. The command stage is one of two cores:
+
+    - with a ``supervisor``: :class:`quarter_car_sim.controller_core.ControllerCore` (law +
+      inverse of the supervisor's active identified parameters + fail-safe, shared with the
+      stand-alone controller node), as the car node runs;
+    - without: :class:`quarter_car_sim.controller_core.FixedModelCore` (law + the fixed
+      ``inverse``; active laws apply their force directly), as offline studies run.
 
     Parameters
     ----------
@@ -130,16 +58,20 @@ class ClosedLoop:
         Car with its "true" damper plant.
     controller : quarter_car_sim.controllers.Controller or None
         Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
-        inverse model of the supervisor's active parameters); None when the command comes from
-        outside (an external controller node): set :attr:`i_cmd` before :meth:`advance`.
-    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+        inverse model); ``'active'`` only without a supervisor. None (with a supervisor) when
+        the command comes from outside (an external controller node): set :attr:`i_cmd` before
+        :meth:`advance`.
+    supervisor : quarter_car_sim.failsafe.ModelSupervisor or None
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     dt : float
         Control period [s].
+    inverse : mr_damper_model.inverse.KwokCurrentInverse, optional
+        Fixed inverse (``sign_convention='body'``) without a supervisor; the car's current
+        range ``car.params.i_min`` .. ``i_max`` clips passive currents.
     metrics : object, optional
-        Running ride metrics with ``update(state, current)``.
+        Running ride metrics with ``update(state, current, saturated)``.
     inverse_tol_a : float
-        Current tolerance [A] of the inverse model.
+        Current tolerance [A] of the supervised inverse model.
 
     Notes
     -----
@@ -148,24 +80,42 @@ class ClosedLoop:
 
     """
 
-    def __init__(self, car, controller, supervisor, dt=1e-3, *, metrics=None,
-                 inverse_tol_a=1e-4):
-        from quarter_car_sim.controller_core import ControllerCore
+    def __init__(self, car, controller, supervisor=None, dt=1e-3, *, inverse=None,
+                 metrics=None, inverse_tol_a=1e-4):
+        from quarter_car_sim.controller_core import ControllerCore, FixedModelCore
         if not dt > 0:
             raise ValueError(f'`dt` must be > 0 s, got {dt}')
         self.car = car
         self.sup = supervisor
-        self.core = (ControllerCore(controller, supervisor, inverse_tol_a=inverse_tol_a)
-                     if controller is not None else None)
+        if supervisor is not None:
+            self.core = (ControllerCore(controller, supervisor, inverse_tol_a=inverse_tol_a)
+                         if controller is not None else None)
+            self.i_cmd = supervisor.safe_current_a
+        else:
+            if controller is None:
+                raise ValueError('an external controller needs a `supervisor`')
+            self.core = FixedModelCore(controller, inverse, i_min=car.params.i_min,
+                                       i_max=car.params.i_max)
+            self.i_cmd = math.nan
         self.dt = float(dt)
         self.metrics = metrics
         self.steps = 0
-        self.i_cmd = supervisor.safe_current_a
 
     @property
     def controller(self):
         """Return the control law; None with an external one."""
         return self.core.controller if self.core is not None else None
+
+    @property
+    def inverse(self):
+        """Fixed inverse model without a supervisor (settable, e.g. on new parameters)."""
+        return getattr(self.core, 'inverse', None)
+
+    @inverse.setter
+    def inverse(self, value):
+        if self.sup is not None:
+            raise ValueError('a supervised loop takes its inverse from the supervisor')
+        self.core.inverse = value
 
     @property
     def f_demand(self):
@@ -182,22 +132,31 @@ class ClosedLoop:
         """Whether the last command was saturated (None without a model or external)."""
         return self.core.last_saturated if self.core is not None else None
 
-    def command(self, state, t_clock):
-        """Set and return the next step's coil current [A] (``ControllerCore.command``)."""
+    def command(self, state, t_clock=0.0):
+        """Set and return the next step's coil current [A] (NaN: force applied directly)."""
         self.i_cmd = self.core.command(state, t_clock)
         return self.i_cmd
 
     def advance(self):
         """Advance the car by ``dt`` with the last command held; return the new state."""
-        new = self.car.step(self.dt, self.i_cmd)
+        i = self.i_cmd
+        if i == i or self.sup is not None:
+            new = self.car.step(self.dt, i)
+        else:
+            new = self.car.step_force(self.dt, self.core.f_demand)
         self.steps += 1
         if self.metrics is not None:
-            self.metrics.update(new, self.i_cmd, self.last_saturated)
+            self.metrics.update(new, i, self.last_saturated)
         return new
 
-    def step(self, t_clock):
+    def step(self, t_clock=0.0):
         """
         Run one control step: command from the current state, then advance the car by ``dt``.
+
+        Parameters
+        ----------
+        t_clock : float
+            Supervisor clock [s] (not used without a supervisor).
 
         Returns
         -------
@@ -346,30 +305,6 @@ def timing_stats(values, nominal=None):
         out['jitter_p99_ms'] = 1e3 * float(np.percentile(j, 99))
         out['jitter_max_ms'] = 1e3 * float(j.max())
     return out
-
-
-def make_plant(name='spencer', params_file=''):
-    """
-    Build the "true" damper plant of the car (the same configuration as the rig's).
-
-    Parameters
-    ----------
-    name : str
-        ``'spencer'`` or ``'kwok-current'`` (``mr_damper_model.plant.make_plant``).
-    params_file : str
-        Optional parameter file of the plant (``mr_damper_model.params_file`` format, read
-        the same way as the rig node's ``truth_file``); default: the plant's preset (thesis
-        damper).
-
-    Returns
-    -------
-    mr_damper_model.plant.DamperPlant
-
-    """
-    from mr_damper_model.params_file import load_params
-    from mr_damper_model.plant import make_plant as _make_plant
-    params = load_params(params_file, model=name).parameters if params_file else None
-    return _make_plant(name, params)
 
 
 def make_running_metrics(car_params, dt=1e-3):

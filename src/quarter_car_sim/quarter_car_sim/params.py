@@ -86,17 +86,6 @@ class QuarterCarParams:
         """Static tyre load (m_s + m_u) g [N]."""
         return (self.m_s + self.m_u) * self.g
 
-    @property
-    def body_frequency_hz(self):
-        """Body-bounce frequency of the uncoupled approximation sqrt(k_eq/m_s)/(2 pi) [Hz]."""
-        k_eq = self.k_s * self.k_t / (self.k_s + self.k_t)
-        return math.sqrt(k_eq / self.m_s) / (2.0 * math.pi)
-
-    @property
-    def wheel_frequency_hz(self):
-        """Wheel-hop frequency of the uncoupled approximation sqrt((k_s+k_t)/m_u)/(2 pi) [Hz]."""
-        return math.sqrt((self.k_s + self.k_t) / self.m_u) / (2.0 * math.pi)
-
     def replace(self, **changes):
         """Return a copy with some fields changed (validated)."""
         return dataclasses.replace(self, **changes)

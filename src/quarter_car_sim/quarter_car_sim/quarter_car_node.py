@@ -85,13 +85,16 @@ from mr_damper_model import messages
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
                                         LATCHED_QOS, Param, run_node, set_realtime_priority,
                                         spin_node)
+from mr_damper_model.plant import make_plant
 from quarter_car_sim import controller_core, hil, live_loop
 from quarter_car_sim.control_thread import ControlThread
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import CarHealth
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
+from quarter_car_sim.road import make_road
 from quarter_car_sim.semi_active_controller_node import (
     car_state_to_msg, CONTROL_QOS, node_time_s, offer_parameters, SUPERVISED_LAW_PARAMETERS)
 
@@ -206,13 +209,12 @@ class QuarterCarNode(Node):
                                    safe_current_a=p['safe_current_a'], i_min_a=p['i_min_a'],
                                    i_max_a=p['i_max_a'], hold_on_reject=p['hold_on_reject'],
                                    min_current_span_a=p['min_current_span_a'])
-        road = live_loop.make_road(p['road'], road_class=p['road_class'],
-                                   speed_m_s=p['speed_m_s'], seed=p['road_seed'],
-                                   duration_s=p['road_duration_s'], dt=self.dt,
-                                   file=p['road_file'], repeat=p['road_repeat'])
+        road = make_road(p['road'], road_class=p['road_class'], speed_m_s=p['speed_m_s'],
+                         rng=int(p['road_seed']), duration_s=p['road_duration_s'], dt=self.dt,
+                         file=p['road_file'], repeat=p['road_repeat'])
         plant = p['plant']
         self.remote = (hil.make_remote_plant(self.dt, **hil_opts) if plant == 'rig' else None)
-        true_plant = self.remote or live_loop.make_plant(plant, p['truth_file'])
+        true_plant = self.remote or make_plant(plant, p['truth_file'])
         self.probe = (CurrentProbe(p['i_min_a'], p['i_max_a'], **probe_opts)
                       if p['probe'] else None)
         self.car = QuarterCar(self.car_params, true_plant, road, t0=-p['settle_s'])
@@ -258,7 +260,8 @@ class QuarterCarNode(Node):
             f'{p["param_timeout_s"]:g} s')
 
     def _make_law(self, options):
-        return live_loop.make_controller(self.p['controller'], self.car_params, options)
+        return make_controller(self.p['controller'], params=self.car_params, damper_only=True,
+                               **options)
 
     def _now(self):
         """Node clock [s] (ROS time), for message ages and timeouts."""

@@ -353,36 +353,55 @@ def from_csv(path, speed_m_s=None, dt=1e-3, duration_s=None):
     return RoadProfile(t, z, zd, name=f'file {p.name}', speed_m_s=v)
 
 
-def make_road(spec, *, speed_m_s=20.0, duration_s=60.0, dt=1e-3, rng=None):
+def make_road(spec, *, speed_m_s=20.0, duration_s=60.0, dt=1e-3, rng=None, road_class='C',
+              file='', repeat=False):
     """
-    Road from a short text spec, as used by the command line.
+    Road from a short text spec: the one road factory (command line, car node, report).
 
     Parameters
     ----------
     spec : str
-        ``'iso8608-C'`` (any class A..H), ``'bump'`` (0.05 m x 1 m half-sine), ``'sine'``
-        (10 mm at 1.2 Hz), ``'step'`` (20 mm) or a path to a CSV file.
+        ``'iso8608-C'`` (any class A..H; bare ``'iso8608'`` takes ``road_class``), ``'bump'``
+        (0.05 m x 1 m half-sine), ``'sine'`` (10 mm at 1.2 Hz), ``'step'`` (20 mm), ``'file'``
+        (the CSV profile ``file``) or a path to a CSV file.
     speed_m_s, duration_s, dt, rng
-        As for :func:`iso8608`.
+        As for :func:`iso8608`: vehicle speed [m/s], road length in time [s] (beyond it the
+        last height is held, or the road repeats), sample interval [s], seed of a random road.
+    road_class : str
+        ISO 8608 class A..H of a bare ``'iso8608'``.
+    file : str
+        CSV road profile of ``spec='file'``.
+    repeat : bool
+        Drive the road again and again (``RoadProfile.periodic``): memory stays one road
+        length for a drive of any length (ISO 8608 roads repeat seamlessly).
 
     Returns
     -------
     RoadProfile
 
     """
+    road = _make_road(spec, speed_m_s, duration_s, dt, rng, road_class, file)
+    return dataclasses.replace(road, periodic=True) if repeat else road
+
+
+def _make_road(spec, speed_m_s, duration_s, dt, rng, road_class, file):
     s = str(spec).strip()
     low = s.lower()
     if not (math.isfinite(speed_m_s) and speed_m_s > 0):
         raise RoadError(f'speed must be > 0 m/s, got {speed_m_s}')
     if low.startswith('iso8608'):
-        cls = low[len('iso8608'):].lstrip('-_: ')
-        return iso8608(cls.upper() if cls else '', speed_m_s, duration_s, dt, rng)
+        cls = low[len('iso8608'):].lstrip('-_: ') or str(road_class)
+        return iso8608(cls.upper(), speed_m_s, duration_s, dt, rng)
     if low == 'bump':
         return bump(speed_m_s=speed_m_s, duration_s=duration_s, dt=dt)
     if low == 'sine':
         return sine(duration_s=duration_s, dt=dt, frequency_hz=1.2)
     if low == 'step':
         return step(duration_s=duration_s, dt=dt)
+    if low == 'file':
+        if not file:
+            raise RoadError('road kind "file" needs the parameter `road_file`')
+        return from_csv(file, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
     if low.endswith('.csv') or Path(s).exists():
         return from_csv(s, speed_m_s=speed_m_s, dt=dt, duration_s=duration_s)
     raise RoadError(f'unknown road {spec!r} (use iso8608-A..H, bump, sine, step or a CSV file)')

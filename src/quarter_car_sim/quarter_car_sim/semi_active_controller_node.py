@@ -40,8 +40,9 @@ from mr_damper_model import messages
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
                                         LATCHED_QOS, Param, run_node, set_realtime_priority,
                                         spin_node)
-from quarter_car_sim import controller_core, live_loop
+from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
+from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
 from quarter_car_sim.params import QuarterCarParams
@@ -193,7 +194,8 @@ class SemiActiveControllerNode(Node):
             f'{p["safe_current_a"]:g} A, parameter timeout {p["param_timeout_s"]:g} s')
 
     def _make_law(self, options):
-        return live_loop.make_controller(self.p['controller'], self.car_params, options)
+        return make_controller(self.p['controller'], params=self.car_params, damper_only=True,
+                               **options)
 
     def _on_set(self, changes):
         """Apply changed dynamic parameters (validated by the cores); '' or the reason."""

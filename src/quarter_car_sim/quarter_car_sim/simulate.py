@@ -1,10 +1,11 @@
 """
 Closed-loop simulation: car + damper plant + controller + inverse model, and comparisons.
 
-Timing of one control period ``dt`` (the same in :class:`ClosedLoop` and :func:`simulate`):
-the controller reads the state at ``t_k``, its demand goes through the inverse model to a
-current command, and the car (plant) advances to ``t_k + dt`` with that command held. The logged
-sample ``k`` holds the state at ``t_k`` with the demand and command computed from it.
+The loop is :class:`quarter_car_sim.live_loop.ClosedLoop` without a supervisor (a fixed
+identified inverse). Timing of one control period ``dt``: the controller reads the state at
+``t_k``, its demand goes through the inverse model to a current command, and the car (plant)
+advances to ``t_k + dt`` with that command held. The logged sample ``k`` holds the state at
+``t_k`` with the demand and command computed from it.
 """
 import dataclasses
 import math
@@ -14,98 +15,10 @@ import time
 import numpy as np
 
 from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.live_loop import ClosedLoop
 
 _STATE_FIELDS = ('z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'a_u', 'z_r', 'travel', 'v_rel',
                  'tyre_force', 'damper_force', 'coil_current')
-
-
-@dataclasses.dataclass
-class LoopSample:
-    """
-    One control period of :class:`ClosedLoop`.
-
-    Attributes
-    ----------
-    state : CarState
-        State at the start of the period (what the controller saw).
-    demand : float
-        Controller output: force on the body [N], or current [A] for passive controllers.
-    current_cmd : float
-        Coil current command [A] (nan for active / ideal force controllers).
-    saturated : bool
-        The command was clipped to the coil range (False for the others).
-    next_state : CarState
-        State at the end of the period.
-
-    """
-
-    state: object
-    demand: float
-    current_cmd: float
-    saturated: bool
-    next_state: object
-
-
-class ClosedLoop:
-    """
-    Controller -> inverse model -> quarter car, one control period per :meth:`step`.
-
-    Parameters
-    ----------
-    car : QuarterCar
-        The car (with its damper plant).
-    controller : Controller
-        See :mod:`quarter_car_sim.controllers`.
-    inverse : KwokCurrentInverse or None
-        Scalar force -> current inverse (:class:`quarter_car_sim.controllers.KwokCurrentInverse`
-        built from identified parameters); needed for semi-active controllers. May be replaced
-        at any time (``loop.inverse = ...``), e.g. on new identified parameters.
-    i_min, i_max : float
-        Coil current range [A] (passive currents are clipped to it too).
-
-    """
-
-    def __init__(self, car, controller, inverse=None, *, i_min=0.0, i_max=2.0):
-        self.car = car
-        self.controller = controller
-        self.inverse = inverse
-        self.i_min, self.i_max = float(i_min), float(i_max)
-        if controller.kind == 'semi-active' and inverse is None:
-            raise ValueError(f'controller {controller.name!r} needs an inverse model')
-
-    def command(self, state):
-        """
-        Demand and command for a state.
-
-        Returns
-        -------
-        demand : float
-            Controller output (force [N] on the body, or current [A]).
-        current_cmd : float
-            Current command [A] (nan for force-applying controllers).
-        saturated : bool
-
-        """
-        ctl = self.controller
-        d = ctl.demand(state)
-        kind = ctl.kind
-        if kind == 'semi-active':
-            i, sat = self.inverse.current(d, state.travel, state.v_rel)
-            return d, i, sat
-        if kind == 'current':
-            i = min(max(d, self.i_min), self.i_max)
-            return d, i, i != d
-        return d, float('nan'), False
-
-    def step(self, dt):
-        """Run one control period of ``dt`` [s]; return a :class:`LoopSample`."""
-        s = self.car.state
-        d, i, sat = self.command(s)
-        if i == i:
-            nxt = self.car.step(dt, i)
-        else:
-            nxt = self.car.step_force(dt, d)
-        return LoopSample(s, d, i, sat, nxt)
 
 
 @dataclasses.dataclass
@@ -181,6 +94,10 @@ class SimResult:
         return ride_metrics(self)
 
 
+#: Current tolerance [A] of the offline inverse model (as the car node's ``inverse_tol_a``).
+INVERSE_TOL_A = 1e-4
+
+
 def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     """
     Build the inverse model from identified parameters.
@@ -200,7 +117,7 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     KwokCurrentInverse
 
     """
-    from quarter_car_sim.controllers import KwokCurrentInverse
+    from mr_damper_model.inverse import KwokCurrentInverse
     if isinstance(damper_params, KwokCurrentInverse):
         return damper_params
     if isinstance(damper_params, (str, bytes)) or hasattr(damper_params, '__fspath__'):
@@ -214,7 +131,7 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     else:
         params, opts = dict(d), {}
     return KwokCurrentInverse(params, i_ref_a=float(opts.get('i_ref_a', 2.0)), i_min=i_min,
-                              i_max=i_max)
+                              i_max=i_max, tol_a=INVERSE_TOL_A, sign_convention='body')
 
 
 def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=None,
@@ -288,13 +205,13 @@ def simulate_blocks(params, road, controller, plant=None, *, dt=1e-3, damper_par
     car = QuarterCar(params, plant if controller.kind != 'active' else None, road,
                      substeps=substeps, t0=road.t[0] - n_settle * dt)
     controller.reset()
-    loop = ClosedLoop(car, controller, inverse, i_min=params.i_min, i_max=params.i_max)
+    loop = ClosedLoop(car, controller, dt=dt, inverse=inverse)
     for _ in range(n_settle):
-        loop.step(dt)
+        loop.step()
     duration = road.duration if duration_s is None else float(duration_s)
     n = int(round(duration / dt)) + 1
     block = n if block_steps is None else max(1, int(block_steps))
-    command = loop.command
+    command = loop.core.demand_command
     step_i = car.step
     step_f = car.step_force
     s = car.state
@@ -338,68 +255,3 @@ def compare(params, road, controllers, plant, *, dt=1e-3, damper_params=None, su
         out[ctl.name] = simulate(params, road, ctl, plant, dt=dt, inverse=inverse,
                                  substeps=substeps, settle_s=settle_s)
     return out
-
-
-RIG_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
-"""Coil current steps of the simulated identification test [A]."""
-
-RIG_EXCITATIONS = ((1.1, 0.03), (3.0, 0.015))
-"""(frequency [Hz], amplitude [m]) of the simulated identification test: the thesis cam
-(1.1 Hz, 30 mm, peak 0.21 m/s) and a faster one (3 Hz, 15 mm, peak 0.28 m/s) that covers the
-piston velocities of a class C road at 20 m/s better."""
-
-
-def simulated_rig_data(plant, *, seed=0, periods=4):
-    """
-    Simulate a rig test of a damper plant on H1's virtual rig (``mr_damper_rig.virtual_rig``).
-
-    For each excitation of :data:`RIG_EXCITATIONS` the rig steps the current through
-    :data:`RIG_CURRENTS_A`, ``periods`` cam periods per level, with the rig's load-cell noise
-    and 16-bit DAQ; the records are joined (time restamped).
-
-    Parameters
-    ----------
-    plant : DamperPlant
-        The "true" damper (reset by the rig).
-    seed : int
-        Noise seed.
-    periods : int
-        Cam periods per current level.
-
-    Returns
-    -------
-    mr_damper_model.data.DamperData
-
-    """
-    from mr_damper_model.data import DamperData
-    from mr_damper_rig.excitation import CamSine, StepSchedule
-    from mr_damper_rig.virtual_rig import VirtualRig
-    gen = np.random.default_rng(seed)
-    parts = []
-    for f_hz, amp in RIG_EXCITATIONS:
-        rig = VirtualRig(plant, CamSine(f_hz, amp), StepSchedule(RIG_CURRENTS_A, periods / f_hz),
-                         rng=gen)
-        parts.append(rig.run())
-    return DamperData.concatenate(parts, restamp=True)
-
-
-def identify_damper(plant, *, seed=0, budget_s=None):
-    """
-    Identify kwok-current parameters of a plant from a simulated rig test.
-
-    Uses :func:`simulated_rig_data` and ``mr_damper_model.identify.identify``.
-
-    Returns
-    -------
-    dict
-        Parameter-file dictionary (``model``, ``parameters``, ``model_options``, ``metrics``,
-        ``seed``, ``source``, ...) as accepted by :func:`make_inverse`.
-
-    """
-    from mr_damper_model.identify import identify
-    data = simulated_rig_data(plant, seed=seed)
-    res = identify(data, 'kwok-current', seed=seed, budget_s=budget_s,
-                   model_options={'i_ref_a': 2.0})
-    d = res.to_json_dict()
-    d['source'] = data.source
-    return d

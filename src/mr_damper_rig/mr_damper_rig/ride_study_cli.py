@@ -12,6 +12,10 @@ kwok-current parameters with ``mr_damper_model.identify``; the controllers only 
 ``--compare`` also runs the offline optimal semi-active bound (``quarter_car_sim.bound``, full
 road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
 Bad input exits with status 2 and one line on stderr.
+
+It lives in ``mr_damper_rig`` because it needs both the rig (the simulated identification test,
+:func:`mr_damper_rig.virtual_rig.simulated_rig_data`) and the car: the dependencies point one
+way, ``mr_damper_model <- quarter_car_sim <- mr_damper_rig``.
 """
 import argparse
 import json
@@ -78,20 +82,16 @@ def build_parser():
     return p
 
 
-def _finite_or_none(d):
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-            for k, v in d.items()}
-
-
 def run(args):
     """Run the study for parsed ``args``; return the JSON-ready dict and the results."""
+    from mr_damper_model.columnlog import finite_or_none
     from mr_damper_model.plant import make_plant
-
+    from mr_damper_rig.virtual_rig import identify_damper
     from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
     from quarter_car_sim.controllers import make_controller, Passive
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.road import make_road
-    from quarter_car_sim.simulate import compare, identify_damper, make_inverse
+    from quarter_car_sim.simulate import compare, make_inverse
 
     params = QuarterCarParams()
     road = make_road(args.road, speed_m_s=args.speed, duration_s=args.duration, dt=args.dt,
@@ -123,8 +123,8 @@ def run(args):
     out = {
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
         'seed': args.seed, 'plant': PLANTS[args.plant], 'dt_s': args.dt,
-        'damper_params': _finite_or_none(ident) if isinstance(ident, dict) else ident,
-        'controllers': {n: _finite_or_none(r.metrics()) for n, r in results.items()},
+        'damper_params': finite_or_none(ident),
+        'controllers': {n: finite_or_none(r.metrics()) for n, r in results.items()},
     }
     return out, results
 

@@ -7,7 +7,7 @@ import pytest
 from conftest import VENV_BIN
 from mr_damper_model import presets
 from mr_damper_model.params_file import save_params
-from quarter_car_sim import cli
+from mr_damper_rig import ride_study_cli as cli
 
 
 @pytest.fixture
