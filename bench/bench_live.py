@@ -77,7 +77,9 @@ def main(argv=None):
     from mr_damper_interfaces.msg import KwokParameters
     from std_msgs.msg import String
 
-    from mr_damper_model.messages import kwok_parameters_from_msg, status_from_msg
+    from diagnostic_msgs.msg import DiagnosticArray
+    from mr_damper_model.messages import (health_from_diagnostic, kwok_parameters_from_msg,
+                                          status_from_msg)
 
     bin_dir = Path(sys.executable).parent
     rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments
@@ -86,13 +88,15 @@ def main(argv=None):
     updates = []
     p99s = []   # stamp-age p99 of each status (each over the identifier's last 10 000 samples)
 
-    def on_ident(msg):
-        latest['ident'] = status_from_msg(msg)
-        age = latest['ident'].get('stamp_age_ms')
-        if age and age.get('n', 0) >= 10000:
-            p99s.append(age['p99'])
+    def on_diagnostics(msg):
+        for st in msg.status:
+            if st.name == 'mr_damper_identifier':   # the identifier's status values
+                latest['ident'] = health_from_diagnostic(st).values
+                age = latest['ident'].get('stamp_age_ms')
+                if age and age.get('n', 0) >= 10000:
+                    p99s.append(age['p99'])
 
-    node.create_subscription(String, '/mr_damper/identifier_status', on_ident, 10)
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     node.create_subscription(String, '/mr_damper/rig_status',
                              lambda m: latest.__setitem__('rig', status_from_msg(m)), 10)
     node.create_subscription(
@@ -111,7 +115,9 @@ def main(argv=None):
 
     logs = {name: open(f'/tmp/bench_live_{name}.log', 'w') for name in ('rig', 'ident')}
     rt = ['-p', f'realtime_priority:={args.realtime_priority}']
-    extra = [a for kv in args.ident_param for a in ('-p', kv)]
+    # diagnostics at 5 Hz, as the JSON status was (the stamp-age p99 series keeps its density)
+    extra = ['-p', 'diagnostics_period_s:=0.2']
+    extra += [a for kv in args.ident_param for a in ('-p', kv)]
     ident = subprocess.Popen([str(bin_dir / 'identifier_node'), '--ros-args', *rt, *extra],
                              stdout=logs['ident'],
                              stderr=subprocess.STDOUT)

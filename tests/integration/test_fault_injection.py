@@ -55,7 +55,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
     params_file.write_text(yaml.safe_dump(cfg))
     suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
     rig = listener.subscribe('/mr_damper/rig_status', String, _qos())
-    ident = listener.subscribe('/mr_damper/identifier_status', String, _qos())
+    ident_diag = listener.diagnostics()
+
+    def ident():
+        return ident_diag.values('mr_damper_identifier')
+
+    def ident_count():
+        return ident_diag.count('mr_damper_identifier')
     car = listener.subscribe('/quarter_car/status', String, _qos())
     wait = listener.wait_for
 
@@ -67,13 +73,15 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def grows(msgs, key, by=1):
         """Predicate: the latest status's ``key`` exceeds its value now by ``by``."""
-        base = _latest(msgs).get(key, 0)
-        return lambda: _latest(msgs).get(key, 0) >= base + by
+        latest = msgs if callable(msgs) else (lambda: _latest(msgs))
+        base = latest().get(key, 0)
+        return lambda: latest().get(key, 0) >= base + by
 
     def fresh(msgs, n=3):
         """Predicate: ``n`` more status messages arrived (the node is alive and publishing)."""
-        base = len(msgs)
-        return lambda: len(msgs) >= base + n
+        count = msgs if callable(msgs) else (lambda: len(msgs))
+        base = count()
+        return lambda: count() >= base + n
 
     def tails():
         return {name: suite.log_tail(name) for name in rs.NODES}
@@ -94,7 +102,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert _latest(car)['mode'] == 'failsafe'
         finally:
             os.kill(suite.pid(rs.IDENT), signal.SIGCONT)
-        assert wait(car_mode('normal'), GUARD_S), (_latest(car), _latest(ident), tails())
+        assert wait(car_mode('normal'), GUARD_S), (_latest(car), ident(), tails())
         assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
 
         # -- identifier killed, then restarted from its parameter file
@@ -109,13 +117,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         # -- quarter car stopped, then killed and restarted: rig and identifier carry on
         os.kill(suite.pid(rs.QC), signal.SIGSTOP)
         try:
-            assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+            assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
             assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
         finally:
             os.kill(suite.pid(rs.QC), signal.SIGCONT)
         assert wait(fresh(car), GUARD_S) and suite.alive(rs.QC)
         suite.kill(rs.QC, signal.SIGKILL)
-        assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+        assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
         n_car = len(car)
         suite.start(rs.QC)
         assert wait(lambda: len(car) > n_car and car_mode('normal')(), GUARD_S), \
@@ -125,13 +133,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         os.kill(suite.pid(rs.RIG), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
-            assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
+            assert wait(fresh(ident_count), GUARD_S) and wait(fresh(car), GUARD_S)
         finally:
             os.kill(suite.pid(rs.RIG), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
         suite.kill(rs.RIG, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
-        assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
+        assert wait(fresh(ident_count), GUARD_S) and wait(fresh(car), GUARD_S)
         suite.start(rs.RIG)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
         assert suite.poll() == {}, tails()
@@ -176,16 +184,15 @@ def test_rig_clamps_and_refuses_bad_current_commands(listener):
 def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
     """Signal sent while a 5,000-sample burst is being taken: exit 0, no traceback."""
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import String
     from mr_damper_model.messages import measurement_to_msg
     from mr_damper_model.node_utils import MEASUREMENT_QOS
-    topic = f'/fi_burst_{int(sig)}'
-    statuses = listener.subscribe(f'{topic}/status', String, _qos())
-    pub = listener.publisher(f'{topic}/measurement', JointState, MEASUREMENT_QOS)
-    params = {'measurement_topic': f'{topic}/measurement', 'status_topic': f'{topic}/status',
-              'parameters_topic': f'{topic}/params', 'status_period_s': 0.05}
-    with NodeProcess('identifier_node', params=params) as ident:
-        assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and statuses,
+    ns = f'fi_burst_{int(sig)}'
+    diag = listener.diagnostics()
+    name = f'{ns}/mr_damper_identifier'
+    pub = listener.publisher(f'/{ns}/mr_damper/measurement', JointState, MEASUREMENT_QOS)
+    params = {'diagnostics_period_s': 0.05}
+    with NodeProcess('identifier_node', params=params, namespace=ns) as ident:
+        assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and diag.count(name),
                                  GUARD_S, procs=[ident]), ident.output()
         msg = None
         for k in range(5000):   # 1 s of 5 kHz samples, as fast as the writer takes them
@@ -194,7 +201,7 @@ def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
                                      300.0 * math.cos(6.9 * t), 1.0, msg=msg)
             pub.publish(msg)
         # the node is taking the burst (its count moved); the signal comes while it runs
-        assert listener.wait_for(lambda: _latest(statuses).get('samples_received', 0) > 0,
+        assert listener.wait_for(lambda: diag.values(name).get('samples_received', 0) > 0,
                                  GUARD_S, procs=[ident]), ident.output()
         ident.proc.send_signal(sig)
         code = ident.wait(GUARD_S)
