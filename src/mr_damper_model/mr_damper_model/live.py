@@ -13,9 +13,10 @@ the work, so it can be tested and benchmarked without ROS:
    consecutive, increasing, out-of-order samples: the buffer restarts.
 2. **Sliding window** (:meth:`LiveIdentifier.next_window`): a window of ``window_s`` seconds of
    *sample* time becomes due every ``hop_s``; when the fitter is slower than the hop, only the
-   newest due window is fitted and the others are counted as superseded.  Every window also
-   carries the samples that arrived since the previous one (``new``), however many windows were
-   superseded, so each accepted sample is judged and binned exactly once.
+   newest due window is fitted and the others are counted as superseded (with
+   ``backlog_windows`` > 0, for replays under sim time, every window is fitted in order).
+   Every window also carries the samples that arrived since the previous one (``new``), however
+   many windows were superseded, so each accepted sample is judged and binned exactly once.
 3. **Window checks**: windows spanning a time gap longer than ``max_gap_s`` (``gap``), with too
    few samples, no motion (velocity RMS), no force variation or motion in one direction only are
    skipped and counted by reason; their new samples that the next window holds are offered
