@@ -74,12 +74,9 @@ def main(argv=None):
     import psutil
     import rclpy
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from mr_damper_interfaces.msg import KwokParameters
-    from std_msgs.msg import String
-
     from diagnostic_msgs.msg import DiagnosticArray
-    from mr_damper_model.messages import (health_from_diagnostic, kwok_parameters_from_msg,
-                                          status_from_msg)
+    from mr_damper_interfaces.msg import KwokParameters
+    from mr_damper_model.messages import health_from_diagnostic, kwok_parameters_from_msg
 
     bin_dir = Path(sys.executable).parent
     rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments
@@ -88,17 +85,14 @@ def main(argv=None):
     updates = []
     p99s = []   # stamp-age p99 of each status (each over the identifier's last 10 000 samples)
 
-    def on_ident(msg):
-        latest['ident'] = status_from_msg(msg)
-        age = latest['ident'].get('stamp_age_ms')
-        if age and age.get('n', 0) >= 10000:
-            p99s.append(age['p99'])
-
-    node.create_subscription(String, '/mr_damper/identifier_status', on_ident, 10)
-
     def on_diagnostics(msg):
         for st in msg.status:
-            if st.name == 'mr_damper_rig':   # the rig's status values (identifier: topic)
+            if st.name == 'mr_damper_identifier':   # the identifier's status values
+                latest['ident'] = health_from_diagnostic(st).values
+                age = latest['ident'].get('stamp_age_ms')
+                if age and age.get('n', 0) >= 10000:
+                    p99s.append(age['p99'])
+            elif st.name == 'mr_damper_rig':
                 latest['rig'] = health_from_diagnostic(st).values
 
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
@@ -118,7 +112,9 @@ def main(argv=None):
 
     logs = {name: open(f'/tmp/bench_live_{name}.log', 'w') for name in ('rig', 'ident')}
     rt = ['-p', f'realtime_priority:={args.realtime_priority}']
-    extra = [a for kv in args.ident_param for a in ('-p', kv)]
+    # diagnostics at 5 Hz, as the JSON status was (the stamp-age p99 series keeps its density)
+    extra = ['-p', 'diagnostics_period_s:=0.2']
+    extra += [a for kv in args.ident_param for a in ('-p', kv)]
     ident = subprocess.Popen([str(bin_dir / 'identifier_node'), '--ros-args', *rt, *extra],
                              stdout=logs['ident'],
                              stderr=subprocess.STDOUT)

@@ -58,7 +58,12 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def rig():
         return diag.values('mr_damper_rig')
-    ident = listener.subscribe('/mr_damper/identifier_status', String, _qos())
+
+    def ident():
+        return diag.values('mr_damper_identifier')
+
+    def ident_count():
+        return diag.count('mr_damper_identifier')
     wait = listener.wait_for
 
     def car_st():
@@ -79,8 +84,9 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def fresh(msgs, n=3):
         """Predicate: ``n`` more status messages arrived (the node is alive and publishing)."""
-        base = len(msgs)
-        return lambda: len(msgs) >= base + n
+        count = msgs if callable(msgs) else (lambda: len(msgs))
+        base = count()
+        return lambda: count() >= base + n
 
     def fresh_car(n=3):
         """Predicate: ``n`` more car statuses arrived (alive and publishing)."""
@@ -106,7 +112,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert car_st()['mode'] == 'failsafe'
         finally:
             os.kill(suite.pid(rs.IDENT), signal.SIGCONT)
-        assert wait(car_mode('normal'), GUARD_S), (car_st(), _latest(ident), tails())
+        assert wait(car_mode('normal'), GUARD_S), (car_st(), ident(), tails())
         assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
 
         # -- identifier killed, then restarted from its parameter file
@@ -121,13 +127,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         # -- quarter car stopped, then killed and restarted: rig and identifier carry on
         os.kill(suite.pid(rs.QC), signal.SIGSTOP)
         try:
-            assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+            assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
             assert wait(grows(rig, 'samples_published', 2000), GUARD_S), rig()
         finally:
             os.kill(suite.pid(rs.QC), signal.SIGCONT)
         assert wait(fresh_car(), GUARD_S) and suite.alive(rs.QC)
         suite.kill(rs.QC, signal.SIGKILL)
-        assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
+        assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
         n_car = diag.count(rs.QC)
         suite.start(rs.QC)
         assert wait(lambda: diag.count(rs.QC) > n_car and car_mode('normal')(), GUARD_S), \
@@ -137,13 +143,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         os.kill(suite.pid(rs.RIG), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
-            assert wait(fresh(ident), GUARD_S) and wait(fresh_car(), GUARD_S)
+            assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
         finally:
             os.kill(suite.pid(rs.RIG), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
         suite.kill(rs.RIG, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
-        assert wait(fresh(ident), GUARD_S) and wait(fresh_car(), GUARD_S)
+        assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
         suite.start(rs.RIG)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
         assert suite.poll() == {}, tails()
@@ -189,16 +195,15 @@ def test_rig_clamps_and_refuses_bad_current_commands(listener):
 def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
     """Signal sent while a 5,000-sample burst is being taken: exit 0, no traceback."""
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import String
     from mr_damper_model.messages import measurement_to_msg
     from mr_damper_model.node_utils import MEASUREMENT_QOS
-    topic = f'/fi_burst_{int(sig)}'
-    statuses = listener.subscribe(f'{topic}/status', String, _qos())
-    pub = listener.publisher(f'{topic}/measurement', JointState, MEASUREMENT_QOS)
-    params = {'measurement_topic': f'{topic}/measurement', 'status_topic': f'{topic}/status',
-              'parameters_topic': f'{topic}/params', 'status_period_s': 0.05}
-    with NodeProcess('identifier_node', params=params) as ident:
-        assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and statuses,
+    ns = f'fi_burst_{int(sig)}'
+    diag = listener.diagnostics()
+    name = f'{ns}/mr_damper_identifier'
+    pub = listener.publisher(f'/{ns}/mr_damper/measurement', JointState, MEASUREMENT_QOS)
+    params = {'diagnostics_period_s': 0.05}
+    with NodeProcess('identifier_node', params=params, namespace=ns) as ident:
+        assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and diag.count(name),
                                  GUARD_S, procs=[ident]), ident.output()
         msg = None
         for k in range(5000):   # 1 s of 5 kHz samples, as fast as the writer takes them
@@ -207,7 +212,7 @@ def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
                                      300.0 * math.cos(6.9 * t), 1.0, msg=msg)
             pub.publish(msg)
         # the node is taking the burst (its count moved); the signal comes while it runs
-        assert listener.wait_for(lambda: _latest(statuses).get('samples_received', 0) > 0,
+        assert listener.wait_for(lambda: diag.values(name).get('samples_received', 0) > 0,
                                  GUARD_S, procs=[ident]), ident.output()
         ident.proc.send_signal(sig)
         code = ident.wait(GUARD_S)

@@ -120,7 +120,6 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     ident_p = _suite_params('mr_damper_identifier', current_bin_a=0.5)
     car_p = _suite_params('quarter_car_node', realtime_priority=0, road_duration_s=600.0,
                           diagnostics_period_s=0.1, **bins)
-    ident_st = listener.subscribe('/mr_damper/identifier_status', String, status_qos())
     diag = listener.diagnostics()
     params = listener.subscribe('/mr_damper/kwok_parameters', KwokParameters, QoSProfile(
         depth=1000, reliability=ReliabilityPolicy.RELIABLE,
@@ -135,7 +134,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
             return diag.values('quarter_car_node')
 
         def bins_held():
-            held = latest_status(ident_st).get('bins_a') or []
+            held = diag.values('mr_damper_identifier').get('bins_a') or []
             return all(any(abs(h - lv) < 0.25 for h in held) for lv in levels)
 
         def probe_covered():
@@ -145,7 +144,8 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
         # events: probe covers every bin; the identifier holds every bin; the car goes normal
         assert listener.wait_for(probe_covered, HANG_S, procs=procs), \
             (car_status().get('probe'), car.output()[-2000:], rig.output()[-2000:])
-        assert listener.wait_for(bins_held, HANG_S, procs=procs), latest_status(ident_st)
+        assert listener.wait_for(bins_held, HANG_S, procs=procs), \
+            diag.values('mr_damper_identifier')
         assert listener.wait_for(lambda: car_status().get('mode') == 'normal', HANG_S,
                                  procs=procs), (car_status(), ident.output()[-2000:])
         # the car's tracking after it has driven on the rig's force

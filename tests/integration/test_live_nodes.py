@@ -10,7 +10,7 @@ Rig / replay node -> identifier node over real ROS 2 topics (separate processes)
   rosbags) -> valid parameters identical to ``mr-damper-identify`` on the same window's samples
   (same seed, no warm start, no wall-time budget: the same identify() call);
 - bad messages from a test publisher (NaN, out-of-order, duplicate stamps, wrong joint names)
-  -> counted by reason in the status, node alive, parameters equal to the clean stream's;
+  -> counted by reason in the diagnostics, node alive, parameters equal to the clean stream's;
 - a bad replay file -> exit status 2, one error naming the file, nothing published.
 
 Rigs run faster than real time (rate_factor 2, or 0 = as fast as the identifier takes it).
@@ -24,24 +24,24 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import KwokParameters
-from std_msgs.msg import String
 
 from conftest import QUIROZ_DIR, VENV_BIN
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.data import DamperData
 from mr_damper_model.messages import (kwok_parameters_from_msg, measurement_from_msg,
-                                      measurement_to_msg, status_from_msg)
+                                      measurement_to_msg)
 from mr_damper_model.params_file import load_params
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 KEEP_ALL = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.RELIABLE)
 #: identifier settings that make each window's fit exactly the offline tool's call
 OFFLINE_SAME = {'warm_start': False, 'budget_s': 0.0, 'maxiter': 0, 'swarm_size': 25,
                 'seed': 1}
+#: identifier diagnostics as often as its JSON status was published
+DIAG = {'diagnostics_period_s': 0.2}
 
 
 @pytest.fixture(scope='module')
@@ -56,10 +56,12 @@ class Topics:
 
     def __init__(self, lis, tag, measurement=False):
         self.names = {'measurement_topic': f'/{tag}/measurement',
-                      'parameters_topic': f'/{tag}/kwok_parameters',
-                      'status_topic': f'/{tag}/identifier_status'}
+                      'parameters_topic': f'/{tag}/kwok_parameters'}
+        # the identifier runs in namespace `tag`: its diagnostics status is `tag/...`
+        self.tag = tag
+        self.diag_name = f'{tag}/mr_damper_identifier'
         self.params = lis.subscribe(self.names['parameters_topic'], KwokParameters)
-        self.status = lis.subscribe(self.names['status_topic'], String, STATUS_QOS)
+        self.diag = lis.diagnostics()
         self.meas = (lis.subscribe(self.names['measurement_topic'], JointState, KEEP_ALL)
                      if measurement else None)
 
@@ -70,8 +72,16 @@ class Topics:
                 'mr_damper/true_parameters': f'/{tag}/true_parameters',
                 'mr_damper/true_spencer_parameters': f'/{tag}/true_spencer_parameters'}
 
+    def ident(self, params):
+        """Start the identifier of this run (namespace `tag`, topics remapped onto its names)."""
+        remap = {'mr_damper/measurement': self.names['measurement_topic'],
+                 'mr_damper/kwok_parameters': self.names['parameters_topic'],
+                 'mr_damper/samples_received': f'/{self.tag}/samples_received'}
+        return NodeProcess('identifier_node', dict(DIAG, **params), remap=remap,
+                           namespace=self.tag)
+
     def last_status(self):
-        return status_from_msg(self.status[-1][1]) if self.status else {}
+        return self.diag.values(self.diag_name)
 
     def estimates(self):
         return [kwok_parameters_from_msg(m) for _, m in self.params]
@@ -111,8 +121,7 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     params_file = tmp_path / 'identified.json'
     duration = 12.0
     n = int(duration * 1000)
-    ident = NodeProcess('identifier_node', dict(topics.names, params_file=str(params_file),
-                                                save_period_s=0.5))
+    ident = topics.ident(dict(params_file=str(params_file), save_period_s=0.5))
     rig = NodeProcess('rig_node', dict(mode='sim', plant=plant,
                                        duration_s=duration, step_s=2.0, rate_factor=2.0,
                                        wait_for_subscribers=2, seed=3),
@@ -171,8 +180,9 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
         return
     # ... and a restarted identifier starts from it: latched initial estimate, valid
     topics2 = Topics(listener, tag + '_restart')
-    with NodeProcess('identifier_node', dict(topics2.names, params_file=str(params_file))) as p:
-        assert listener.wait_for(lambda: topics2.params and topics2.status, 20.0, procs=[p])
+    with topics2.ident(dict(params_file=str(params_file))) as p:
+        assert listener.wait_for(lambda: topics2.params and topics2.last_status(), 20.0,
+                                 procs=[p])
         first = topics2.estimates()[0]
         assert first['valid'] and math.isnan(first['window_end_s'])   # from a file: no window
         assert first['parameters'] == pytest.approx(saved.parameters, rel=1e-12)
@@ -202,7 +212,7 @@ def test_replay_matches_offline_tool(listener, tmp_path, source):
         rig_params = {'mode': 'bag', 'file': str(tmp_path / 'bag'), 'rate_factor': 0.0}
     tag = f'replay_{source}'
     topics = Topics(listener, tag)
-    ident = NodeProcess('identifier_node', dict(topics.names, **OFFLINE_SAME))
+    ident = topics.ident(OFFLINE_SAME)
     rig = NodeProcess('rig_node', dict(wait_for_subscribers=1, **rig_params),
                       remap=topics.rig_remap(tag))
     with ident, rig:
@@ -232,7 +242,7 @@ def test_bad_messages_are_counted_and_harmless(listener):
     data = read_csv_stream(QUIROZ).select(slice(0, 3000))
     topics = Topics(listener, 'badmsg')
     pub = listener.publisher(topics.names['measurement_topic'], JointState, KEEP_ALL)
-    with NodeProcess('identifier_node', dict(topics.names, **OFFLINE_SAME)) as ident:
+    with topics.ident(OFFLINE_SAME) as ident:
         assert listener.wait_for(lambda: pub.get_subscription_count() > 0, 15.0, procs=[ident])
         sent = {'nonfinite': 0, 'out_of_order': 0, 'duplicate': 0, 'joint_names': 0}
         for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):

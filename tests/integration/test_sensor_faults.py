@@ -17,12 +17,11 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import KwokParameters
-from std_msgs.msg import String
 
 from integration.ros_helpers import Listener, NodeProcess
+from mr_damper_model.health import WARN
 from mr_damper_model.live import pinned_parameters
-from mr_damper_model.messages import (kwok_parameters_from_msg, measurement_to_msg,
-                                      status_from_msg)
+from mr_damper_model.messages import kwok_parameters_from_msg, measurement_to_msg
 from mr_damper_model.presets import thesis_kwok_current
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -31,7 +30,9 @@ RATE = 1000.0
 MODEL, TRUTH = thesis_kwok_current()
 P_TRUE = np.array([TRUTH[k] for k in MODEL.param_names])
 TOL = 0.03            # RMS force error of a valid set over the force range, per current level
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: the identifier's diagnostics status (namespace `faults`), as often as its JSON status was
+DIAG_NAME = 'faults/mr_damper_identifier'
+DIAG = {'diagnostics_period_s': 0.2}
 KEEP_ALL = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.RELIABLE)
 #: samples published ahead of the identifier's judged stamp (below Fast DDS's 5000 limit)
@@ -69,15 +70,15 @@ def force_error(est):
 
 
 class Stream:
-    """Publishes samples paced on the identifier's status; keeps status snapshots."""
+    """Publishes samples paced on the identifier's diagnostics; keeps status snapshots."""
 
-    def __init__(self, lis, pub, status, ident):
-        self.lis, self.pub, self.status, self.ident = lis, pub, status, ident
+    def __init__(self, lis, pub, diag, ident):
+        self.lis, self.pub, self.diag, self.ident = lis, pub, diag, ident
         self.sent = 0
         self.t_last = -1.0
 
     def last(self):
-        return status_from_msg(self.status[-1][1]) if self.status else {}
+        return self.diag.values(DIAG_NAME)
 
     def judged_up_to(self):
         """Return the stamp up to which every sample was judged (-1 before any window)."""
@@ -134,18 +135,15 @@ def diff(after, before, key):
 
 def test_sensor_faults_never_become_valid_models():
     lis = Listener('sensor_faults_test')
-    names = {'measurement_topic': '/faults/measurement',
-             'parameters_topic': '/faults/kwok_parameters',
-             'status_topic': '/faults/identifier_status'}
-    params = lis.subscribe(names['parameters_topic'], KwokParameters)
-    status = lis.subscribe(names['status_topic'], String, STATUS_QOS)
-    pub = lis.publisher(names['measurement_topic'], JointState, KEEP_ALL)
-    ident = NodeProcess('identifier_node', names)
+    params = lis.subscribe('/faults/mr_damper/kwok_parameters', KwokParameters)
+    diag = lis.diagnostics()
+    pub = lis.publisher('/faults/mr_damper/measurement', JointState, KEEP_ALL)
+    ident = NodeProcess('identifier_node', DIAG, namespace='faults')
     try:
         with ident:
             assert lis.wait_for(lambda: pub.get_subscription_count() > 0, WAIT_S,
                                 procs=[ident]), ident.output()
-            run_faults(lis, Stream(lis, pub, status, ident), params)
+            run_faults(lis, Stream(lis, pub, diag, ident), params)
             assert ident.alive()
     finally:
         lis.close()
@@ -165,6 +163,7 @@ def run_faults(lis, stream, params):
     t0 = stream.clean_until(valid_full, params, 6.0, 'convergence over 0..2 A')
     n_converged = len(estimates())
     snaps = [stream.snapshot(t0 - 1.0)]
+    n_levels = len(stream.diag.levels(DIAG_NAME))
 
     # --- spikes: 5 samples of 1e30 N (range check), 10 in-range spikes of 3000 N (outliers)
     seg = segment(t0, 2.0, 2.0, 3)
@@ -243,5 +242,6 @@ def run_faults(lis, stream, params):
     assert final['samples_received'] == stream.sent
     assert final['samples_accepted'] == stream.sent - 5
     assert final['fit_errors'] == 0
-    # and said so in its log
+    # and said so in its diagnostics (WARN while the faults' counts rose) and its log
+    assert WARN in stream.diag.levels(DIAG_NAME)[n_levels:]
     assert 'skipped: inconsistent (sensor fault suspected' in stream.ident.output()

@@ -10,21 +10,9 @@ from mr_damper_model.live import (LiveConfig, LiveIdentifier, check_excitation, 
                                   kwok_current_at, kwok_to_kwok_current)
 from mr_damper_model.presets import thesis_kwok_current
 
+from live_records import cam_record
+
 RATE = 1000.0
-
-
-def cam_record(currents=(0.0, 0.5, 1.0, 1.5, 2.0), hold_s=2.0, noise_n=2.0, seed=0, t0=0.0):
-    """Thesis cam (1.1 Hz, 30 mm) through the kwok-current truth, current steps."""
-    model, truth = thesis_kwok_current()
-    n = int(round(hold_s * RATE)) * len(currents)
-    t = t0 + np.arange(n) / RATE
-    w = 2 * np.pi * 1.1
-    x = 0.03 * np.sin(w * (t - t0))
-    v = 0.03 * w * np.cos(w * (t - t0))
-    i = np.repeat(np.asarray(currents, dtype=float), int(round(hold_s * RATE)))
-    p = np.array([truth[k] for k in model.param_names])
-    f = model.force(p, x, v, i=i) + noise_n * np.random.default_rng(seed).standard_normal(n)
-    return DamperData(t, x, v, f, i), model, truth
 
 
 def feed(li, data, every=1):

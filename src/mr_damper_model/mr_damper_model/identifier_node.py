@@ -3,274 +3,268 @@ Identifier node: live current-dependent Kwok identification of the measured MR d
 
 ``ros2 run mr_damper_model identifier_node`` (console script ``identifier_node``).
 
-Subscribes to the measurement topic (``sensor_msgs/JointState``, one message per DAQ sample),
-fits sliding windows with :mod:`mr_damper_model.live` in a worker thread (so the measurement
-callbacks keep up with 1 kHz while a window is fitted) and publishes the kwok-current estimate
-(``mr_damper_interfaces/KwokParameters``) and a JSON status (``std_msgs/String``).  The last valid
-parameters are saved to ``params_file`` and reloaded at start-up.  Parameters: see the README
-table or ``--ros-args -p name:=value``.
+Subscribes to ``mr_damper/measurement`` (``sensor_msgs/JointState``, one message per DAQ sample)
+and publishes the kwok-current estimate on ``mr_damper/kwok_parameters``
+(``mr_damper_interfaces/KwokParameters``, latched), the count of samples received on
+``mr_damper/samples_received`` (``std_msgs/UInt64``, every 0.1 s: the rig's flow control reads
+it) and its health on ``/diagnostics``.  Topic names are relative: remap them
+(``-r mr_damper/measurement:=/fl/measurement``) or give the node a namespace
+(``-r __ns:=/fl``).  The work is done by :class:`mr_damper_model.live_worker.IdentifierRuntime`
+over :class:`mr_damper_model.live.LiveIdentifier`; this file converts messages.
+
+With ``use_sim_time:=true`` (a replay publishing ``/clock``) every time the node uses is ROS
+time and every due window is fitted in order with an iteration-count stop (``backlog_windows``
+of :class:`~mr_damper_model.live.LiveConfig` = ``sim_backlog_windows``), so the parameter
+sequence does not depend on the replay speed.  Parameters: ``PARAMETERS`` (docs/nodes.md).
 """
-import math
 import os
 import sys
-import threading
 import time
 
-import numpy as np
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import KwokParameters
-from std_msgs.msg import String
+from std_msgs.msg import UInt64
 
 from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
-from .live import FitProcess, LiveConfig, LiveIdentifier
-from .messages import (MessageError, kwok_parameters_msg, measurement_from_msg, status_msg)
-from .node_utils import (DropCounter, LATCHED_QOS, MEASUREMENT_QOS, run_node,
-                         set_realtime_priority, STATUS_QOS)
+from .live import DYNAMIC_FIELDS, FitProcess, LiveConfig, LiveIdentifier
+from .live_worker import IdentifierRuntime
+from .messages import kwok_parameters_msg, measurement_from_msg, MessageError
+from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, LATCHED_QOS,
+                         MEASUREMENT_QOS, Param, run_node, set_realtime_priority)
 from .params_file import load_params, save_params
 
-#: Parameters: latched for late subscribers.
-PARAMETERS_QOS = LATCHED_QOS
+#: ``mr_damper/samples_received``: reliable, KEEP_LAST 10 (the rig needs the newest count only).
+SAMPLES_RECEIVED_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                                  reliability=ReliabilityPolicy.RELIABLE)
+#: Period of ``mr_damper/samples_received`` [s, wall time: it paces the transport].
+SAMPLES_RECEIVED_PERIOD_S = 0.1
 
-#: Samples kept for the stamp-age (latency) percentiles of the status.
-_AGES = 10000
+_D = LiveConfig()
+_BIG = 1e9
+#: LiveConfig settings: name, description, low, high (dynamic: those in live.DYNAMIC_FIELDS).
+_LIVE = (
+    ('window_s', 'Sliding window length [s]', 0.05, 3600.0),
+    ('hop_s', 'Window hop [s] (one parameter update per hop; at most window_s)', 0.001, 3600.0),
+    ('budget_s', 'Compute budget per window [s] (0: none; ignored under use_sim_time)',
+     0.0, 3600.0),
+    ('maxiter', 'PSO iterations per window (0: identify default)', 0, 1000000),
+    ('swarm_size', 'PSO particles', 2, 100000),
+    ('seed', 'PSO seed of every window (under use_sim_time: of window 0, the others derived '
+     'from it)', 0, 2 ** 31 - 1),
+    ('warm_start', 'Warm-start each window from the previous solution', None, None),
+    ('unbounded', 'Use the wide thesis-comparison bounds', None, None),
+    ('i_ref_a', 'Reference current of the kwok-current model [A]', 0.001, 1000.0),
+    ('max_nrmse_percent', 'Validity threshold on the fit NRMSE [%]', 1e-6, 1000.0),
+    ('current_bin_a', 'Current bin width [A]', 1e-4, 100.0),
+    ('min_bin_fraction', 'Bin used once it holds this fraction of a window [1]', 0.0, 1.0),
+    ('bin_max_age_s', 'Drop current bins older than this [s] (0: never)', 0.0, _BIG),
+    ('max_fit_samples', 'Decimate fit data above this count [samples] (0: never)', 0, 10 ** 8),
+    ('max_rate_hz', 'Highest expected sample rate [Hz] (buffer size)', 1.0, 1e6),
+    ('min_window_samples', 'Minimum samples in a window [samples]', 0, 10 ** 8),
+    ('min_velocity_rms_m_s', 'Minimum velocity RMS of a window [m/s]', 0.0, 1000.0),
+    ('min_force_std_n', 'Minimum force standard deviation of a window [N]', 0.0, _BIG),
+    ('min_direction_fraction', 'Minimum fraction of samples moving in each direction [1]',
+     0.0, 0.5),
+    ('restart_samples', 'Consecutive increasing out-of-order samples that restart the stream '
+     '[samples]', 1, 10 ** 8),
+    ('force_limit_n', 'Reject samples with a force magnitude above this [N]', 1e-6, _BIG),
+    ('velocity_limit_m_s', 'Reject samples with a velocity magnitude above this [m/s]',
+     1e-9, 1e6),
+    ('displacement_limit_m', 'Reject samples with a displacement magnitude above this [m]',
+     1e-9, 1e3),
+    ('current_limit_min_a', 'Reject samples with a current below this [A]', -1000.0, 1000.0),
+    ('current_limit_max_a', 'Reject samples with a current above this [A]', -1000.0, 1000.0),
+    ('max_gap_s', 'Skip windows with a stamp step above this [s]', 1e-9, 3600.0),
+    ('outlier_mad_k', 'Outlier threshold in robust standard deviations (1.4826 MAD) of the '
+     'force from its 5-sample running median [1]', 1e-6, 1e6),
+    ('outlier_floor_fraction', 'Outlier threshold floor as a fraction of the robust force '
+     'range [1]', 0.0, 100.0),
+    ('stuck_s', 'A force exactly constant this long [s] is a stuck load cell (dropout at 0)',
+     1e-6, _BIG),
+    ('max_error_ratio', 'Refuse a set whose RMSE on data covered by the last valid set exceeds '
+     'this times that set\'s (plus the floor) [1]', 1e-6, 1e6),
+    ('max_shift_ratio', 'Skip new samples the last valid set explains this times worse than '
+     'its own data in the same state cells (plus the floor) [1]', 1e-6, 1e6),
+    ('error_floor_percent', 'Floor of both comparisons [% of the robust force range]',
+     0.0, 1000.0),
+    ('pinned_fraction', 'Refuse sets with a parameter this fraction of its bound span from a '
+     'non-zero bound [1]', 0.0, 0.499),
+    ('inconsistent_reset_s', 'Forget the reference and bins after this long of consecutive '
+     'inconsistent windows [s] (0: never; a persistent sensor fault is then identified as the '
+     'damper)', 0.0, _BIG),
+)
 
-_LIVE_DESCRIPTIONS = {
-    'window_s': 'Sliding window length [s]',
-    'hop_s': 'Window hop [s] (one parameter update per hop)',
-    'budget_s': 'Compute budget per window [s] (0: none)',
-    'maxiter': 'PSO iterations per window (0: identify default)',
-    'swarm_size': 'PSO particles',
-    'seed': 'PSO seed of every window',
-    'warm_start': 'Warm-start each window from the previous solution',
-    'unbounded': 'Use the wide thesis-comparison bounds',
-    'i_ref_a': 'Reference current of the kwok-current model [A]',
-    'max_nrmse_percent': 'Validity threshold on the fit NRMSE [%]',
-    'current_bin_a': 'Current bin width [A]',
-    'min_bin_fraction': 'Bin used once it holds this fraction of a window',
-    'bin_max_age_s': 'Drop current bins older than this [s] (0: never)',
-    'max_fit_samples': 'Decimate fit data above this count (0: never)',
-    'max_rate_hz': 'Highest expected sample rate [Hz] (buffer size)',
-    'min_window_samples': 'Minimum samples in a window',
-    'min_velocity_rms_m_s': 'Minimum velocity RMS of a window [m/s]',
-    'min_force_std_n': 'Minimum force standard deviation of a window [N]',
-    'min_direction_fraction': 'Minimum fraction of samples moving in each direction',
-    'restart_samples': 'Consecutive increasing out-of-order samples that restart the stream',
-    'force_limit_n': 'Reject samples with |force| above this [N]',
-    'velocity_limit_m_s': 'Reject samples with |velocity| above this [m/s]',
-    'displacement_limit_m': 'Reject samples with |displacement| above this [m]',
-    'current_limit_min_a': 'Reject samples with a current below this [A]',
-    'current_limit_max_a': 'Reject samples with a current above this [A]',
-    'max_gap_s': 'Skip windows with a stamp step above this [s]',
-    'outlier_mad_k': 'Outlier threshold in robust standard deviations (1.4826 MAD) of the '
-                     'force from its 5-sample running median',
-    'outlier_floor_fraction': 'Outlier threshold floor as a fraction of the robust force range',
-    'stuck_s': 'A force exactly constant this long [s] is a stuck load cell (dropout at 0)',
-    'max_error_ratio': 'Refuse a set whose RMSE on data covered by the last valid set exceeds '
-                       'this times that set\'s (plus the floor)',
-    'max_shift_ratio': 'Skip new samples the last valid set explains this times worse than '
-                       'its own data in the same state cells (plus the floor)',
-    'error_floor_percent': 'Floor of both comparisons [% of the robust force range]',
-    'pinned_fraction': 'Refuse sets with a parameter this fraction of its bound span from a '
-                       'non-zero bound',
-    'inconsistent_reset_s': 'Forget the reference and bins after this long of consecutive '
-                            'inconsistent windows [s] (0: never; a persistent sensor fault is '
-                            'then identified as the damper)',
-}
+#: Every parameter of the node (the one place they are declared).
+PARAMETERS = tuple(
+    Param(name, getattr(_D, name), description, low, high, dynamic=name in DYNAMIC_FIELDS)
+    for name, description, low, high in _LIVE) + (
+    Param('params_file', '', 'JSON file of the last valid parameters (read at start, written '
+          'on updates); empty: none'),
+    Param('save_period_s', 2.0, 'Minimum time between parameter-file writes [s] (ROS time)',
+          0.0, 86400.0, dynamic=True),
+    Param('fit_in_process', True, 'Fit windows in a worker process (the receiving threads '
+          'never wait for the GIL held by a fit); false: in a thread of this process'),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the receiving threads (0: normal '
+          'scheduling)', 0, 99),
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s] (ROS time)',
+          0.01, 3600.0),
+    Param('no_sample_timeout_s', 5.0, 'Diagnostics ERROR after this long without a sample [s] '
+          '(ROS time; 0: never)', 0.0, _BIG, dynamic=True),
+    Param('sim_backlog_windows', 300, 'Under use_sim_time: due windows held for in-order '
+          'fitting [windows] (more are passed over and counted: windows_overflow)', 1, 100000),
+)
 
 
 class IdentifierNode(Node):
-    """Thin ROS adapter over :class:`mr_damper_model.live.LiveIdentifier`."""
+    """Thin ROS adapter over :class:`mr_damper_model.live_worker.IdentifierRuntime`."""
 
-    def __init__(self):
-        super().__init__('mr_damper_identifier')
-        defaults = LiveConfig()
-        for name, description in _LIVE_DESCRIPTIONS.items():
-            self.declare_parameter(name, getattr(defaults, name),
-                                   ParameterDescriptor(description=description))
-        self.declare_parameter('measurement_topic', '/mr_damper/measurement')
-        self.declare_parameter('parameters_topic', '/mr_damper/kwok_parameters')
-        self.declare_parameter('status_topic', '/mr_damper/identifier_status')
-        self.declare_parameter('params_file', '', ParameterDescriptor(
-            description='JSON file of the last valid parameters (read at start, written on '
-                        'updates); empty: none'))
-        self.declare_parameter('save_period_s', 2.0, ParameterDescriptor(
-            description='Minimum wall time between parameter-file writes [s]'))
-        self.declare_parameter('fit_in_process', True, ParameterDescriptor(
-            description='Fit windows in a worker process (the receiving threads never wait '
-                        'for the GIL held by a fit); false: in a thread of this process'))
-        self.declare_parameter('realtime_priority', 0, ParameterDescriptor(
-            description='SCHED_FIFO priority of the receiving threads (0: normal scheduling)'))
-        self.declare_parameter('status_period_s', 0.2, ParameterDescriptor(
-            description='Status publication period [s]'))
-        p = self.get_parameter
-        config = LiveConfig(**{name: p(name).value for name in _LIVE_DESCRIPTIONS})
-        self._params_file = p('params_file').value
-        self._save_period = float(p('save_period_s').value)
-        self._fit_process = FitProcess() if p('fit_in_process').value else None
-        fit = self._fit_process
-        initial = None
-        self._initial_source = 'none'
-        if self._params_file and os.path.exists(self._params_file):
+    def __init__(self, **node_kwargs):
+        super().__init__('mr_damper_identifier', **node_kwargs)
+        p = declare_parameters(self, PARAMETERS, self._on_set)
+        sim_time = bool(self.get_parameter('use_sim_time').value)
+        config = LiveConfig(**{name: p[name] for name, *_ in _LIVE},
+                            backlog_windows=p['sim_backlog_windows'] if sim_time else 0)
+        params_file = p['params_file']
+        fit = FitProcess() if p['fit_in_process'] else None
+        initial, source = None, 'none'
+        if params_file and os.path.exists(params_file):
             try:
-                initial = load_params(self._params_file)
-                self._initial_source = 'file'
+                initial, source = load_params(params_file), 'file'
             except DataError as exc:
                 self.get_logger().error(f'ignoring parameter file: {exc}')
-                self._initial_source = 'file_error'
+                source = 'file_error'
         try:
-            self.live = LiveIdentifier(config, initial=initial, fit=fit)
+            live = LiveIdentifier(config, initial=initial, fit=fit)
         except (ValueError, KeyError) as exc:
-            self.get_logger().error(f'ignoring parameter file {self._params_file}: {exc}')
-            self._initial_source = 'file_error'
-            self.live = LiveIdentifier(config, fit=fit)
-
+            self.get_logger().error(f'ignoring parameter file {params_file}: {exc}')
+            source = 'file_error'
+            live = LiveIdentifier(config, fit=fit)
+        save = ((lambda est: save_params(params_file, est.params_file_dict()))
+                if params_file else None)
+        self.runtime = IdentifierRuntime(
+            live, self._now, save=save, save_period_s=p['save_period_s'], fit_process=fit,
+            no_sample_timeout_s=p['no_sample_timeout_s'], initial_source=source)
         self.drops = DropCounter(self.get_logger())
-        self._pub_params = self.create_publisher(
-            KwokParameters, p('parameters_topic').value, PARAMETERS_QOS)
-        self._pub_status = self.create_publisher(String, p('status_topic').value, STATUS_QOS)
-        self._ages = np.zeros(_AGES)
-        self._n_ages = 0
-        self._published = 0
-        self._saved = 0
-        self._last_save = -math.inf
-        self._pending_save = None
-        self._stop = threading.Event()
-        if self.live.estimate is not None:   # latched at once: it needs no fit process
-            est = self.live.estimate
-            self.get_logger().info(
-                f'initial parameters from {self._params_file} '
-                f'({"valid" if est.valid else "not valid: " + est.reason})')
+        self._pub_params = self.create_publisher(KwokParameters, 'mr_damper/kwok_parameters',
+                                                 LATCHED_QOS)
+        self._pub_received = self.create_publisher(UInt64, 'mr_damper/samples_received',
+                                                   SAMPLES_RECEIVED_QOS)
+        self._received_msg = UInt64()
+        if live.estimate is not None:   # latched at once: it needs no fit process
+            est = live.estimate
+            self.get_logger().info(f'initial parameters from {params_file} '
+                                   f'({"valid" if est.valid else "not valid: " + est.reason})')
             self._publish_estimate(est)
         # ready to fit before subscribing: the fit process imports numpy, scipy and the models
         # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
-        self._fit_ready = self._warm_up()
+        self.runtime.fit_ready = self._warm_up(fit)
         # samples the rig's bounded history dropped before this node took them (stalled or
         # restarted identifier) are reported by the middleware and counted as `message_lost`
-        self.drops.subscribe(self, JointState, p('measurement_topic').value,
-                             self._on_measurement, MEASUREMENT_QOS, 'message_lost')
-        self.create_timer(float(p('status_period_s').value), self._publish_status)
-        self._realtime = set_realtime_priority(int(p('realtime_priority').value),
-                                               self.get_logger())
-        self._worker = threading.Thread(target=self._work, name='identifier_fit', daemon=True)
-        self._worker.start()
+        self.drops.subscribe(self, JointState, 'mr_damper/measurement', self._on_measurement,
+                             MEASUREMENT_QOS, 'message_lost')
+        # wall-time timer: the count paces the rig's transport (a stopped /clock must not stop
+        # it, or a rig waiting for the count before it advances the clock would wait forever)
+        self.create_timer(SAMPLES_RECEIVED_PERIOD_S, self._publish_received,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.diagnostics = DiagnosticsPublisher(
+            self, self._health, period_s=p['diagnostics_period_s'], hardware_id='mr_damper',
+            drops=self.drops)
+        self._realtime = set_realtime_priority(p['realtime_priority'], self.get_logger())
+        self.runtime.start(self._on_outcome, normal_priority=self._realtime)
         self.get_logger().info(
-            f'identifying {p("measurement_topic").value} -> {p("parameters_topic").value}: '
-            f'window {config.window_s} s every {config.hop_s} s, budget {config.budget_s} s')
+            f'identifying {self.resolve_topic_name("mr_damper/measurement")} -> '
+            f'{self.resolve_topic_name("mr_damper/kwok_parameters")}: window {config.window_s} s'
+            f' every {config.hop_s} s, '
+            + (f'every window in order (sim time), maxiter {config.maxiter}' if sim_time else
+               f'budget {config.budget_s} s'))
 
-    def _warm_up(self):
+    def _now(self):
+        """ROS time [s] (sim time under ``use_sim_time``)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _warm_up(self, fit):
         """Start the fit process and import the fitting code in it; return True if ready."""
-        if self._fit_process is None:
+        if fit is None:
             return True          # in-thread fits: identify was imported with this module
-        start = time.monotonic()
+        start = time.monotonic()  # wall time: how long the process start took
         try:
-            self._fit_process.warm_up()
-        except Exception as exc:  # the first fit will retry and report
+            fit.warm_up()
+        except Exception as exc:  # noqa: B902 - the first fit will retry and report
             self.get_logger().warning(f'fit process did not start: {exc}')
             return False
         self.get_logger().info(f'fit process ready in {time.monotonic() - start:.2f} s')
         return True
 
-    # measurement callback: conversion and checks only (the fit runs in the worker thread)
+    def _on_set(self, changes):
+        """Apply dynamic parameters (validated by ``LiveIdentifier.reconfigure``)."""
+        live_changes = {k: v for k, v in changes.items() if k in DYNAMIC_FIELDS}
+        try:
+            self.runtime.live.reconfigure(**live_changes)
+        except ValueError as exc:
+            return str(exc)
+        if 'no_sample_timeout_s' in changes:
+            self.runtime.health_rules.no_sample_timeout_s = float(changes['no_sample_timeout_s'])
+        if 'save_period_s' in changes and self.runtime.saver is not None:
+            self.runtime.saver.period_s = float(changes['save_period_s'])
+        return ''
+
+    # measurement callback: conversion only (the fit runs in the runtime's worker thread)
     def _on_measurement(self, msg):
         try:
             sample = measurement_from_msg(msg)
         except MessageError as exc:
-            self.live.count_rejected(exc.reason)
+            self.runtime.reject(exc.reason)
             self.get_logger().warning(f'rejected measurement: {exc}', throttle_duration_sec=1.0)
             return
-        reason = self.live.add_sample(*sample)
-        # stamp age at receipt [s]: the transport latency when stamps are wall-clock time
-        self._ages[self._n_ages % _AGES] = self.get_clock().now().nanoseconds * 1e-9 - sample[0]
-        self._n_ages += 1
+        reason = self.runtime.receive(*sample)
         if reason:
             self.get_logger().warning(f'rejected measurement at t={sample[0]:.6f} s: {reason}',
                                       throttle_duration_sec=1.0)
 
-    def _work(self):
-        if self._realtime:   # fits run at normal priority, below the receiving threads
-            try:
-                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-            except OSError:
-                pass
-        while not self._stop.is_set():
-            window = self.live.next_window()
-            if window is None:
-                self._stop.wait(0.005)
-                continue
-            try:
-                est = self.live.process(window)
-            except Exception as exc:  # never let one window kill the node
-                if self._stop.is_set():   # the fit process was ended by shutdown()
-                    break
-                self.live.counters['fit_errors'] += 1
-                self.live.last_error = f'{type(exc).__name__}: {exc}'
-                self.get_logger().error(f'window fit failed: {self.live.last_error}',
-                                        throttle_duration_sec=5.0)
-                continue
-            if est is None:
-                if self.live.last_skip in ('inconsistent', 'gap'):
-                    self.get_logger().warning(
-                        f'window ending at {window.end_s:.3f} s skipped: {self.live.last_skip}'
-                        ' (sensor fault suspected; see the status counters)',
-                        throttle_duration_sec=2.0)
-                continue
-            if not est.valid:
-                self.get_logger().warning(
-                    f'window ending at {est.window_end_s:.3f} s: parameters not valid '
-                    f'({est.reason})', throttle_duration_sec=2.0)
-            self._publish_estimate(est)
-            if est.valid:
-                self._save(est)
+    def _on_outcome(self, outcome):
+        """Worker thread: publish an estimate, log skips and errors; True if published."""
+        log = self.get_logger()
+        if outcome.error:
+            log.error(f'window fit failed: {outcome.error}', throttle_duration_sec=5.0)
+            return False
+        est = outcome.estimate
+        if est is None:
+            if outcome.skip in ('inconsistent', 'gap'):
+                log.warning(f'window ending at {outcome.end_s:.3f} s skipped: {outcome.skip} '
+                            '(sensor fault suspected; see the diagnostics)',
+                            throttle_duration_sec=2.0)
+            return False
+        if not est.valid:
+            log.warning(f'window ending at {est.window_end_s:.3f} s: parameters not valid '
+                        f'({est.reason})', throttle_duration_sec=2.0)
+        return self._publish_estimate(est)
 
     def _publish_estimate(self, est):
-        if self.drops.publish(self._pub_params, kwok_parameters_msg(
-                est.message_values(), stamp_s=self.get_clock().now().nanoseconds * 1e-9),
-                              'parameters_publish_failed'):
-            self._published += 1
+        return self.drops.publish(self._pub_params, kwok_parameters_msg(
+            est.message_values(), stamp_s=self._now()), 'parameters_publish_failed')
 
-    def _save(self, est, force=False):
-        if not self._params_file:
-            return
-        now = time.monotonic()
-        if not force and now - self._last_save < self._save_period:
-            self._pending_save = est
-            return
-        try:
-            save_params(self._params_file, est.params_file_dict())
-            self._saved += 1
-            self._last_save = now
-            self._pending_save = None
-        except OSError as exc:
-            self.get_logger().error(f'cannot write {self._params_file}: {exc}',
+    def _publish_received(self):
+        self._received_msg.data = int(self.runtime.live.counters['samples_received'])
+        self.drops.publish(self._pub_received, self._received_msg,
+                           'samples_received_publish_failed')
+        error = self.runtime.flush_saves()
+        if error:
+            self.get_logger().error(f'cannot write the parameter file: {error}',
                                     throttle_duration_sec=10.0)
 
-    def _publish_status(self):
-        if self._pending_save is not None:
-            self._save(self._pending_save)
-        status = self.live.status()
-        ages = self._ages[:min(self._n_ages, _AGES)]
-        if ages.size:
-            p50, p99 = np.percentile(ages, [50, 99]) * 1e3
-            status['stamp_age_ms'] = {'p50': p50, 'p99': p99, 'max': float(ages.max()) * 1e3,
-                                      'n': int(ages.size)}
-        status.update(parameters_published=self._published, params_file_writes=self._saved,
-                      initial_source=self._initial_source, worker_alive=self._worker.is_alive(),
-                      realtime=self._realtime, fit_ready_at_subscribe=self._fit_ready,
-                      dropped=self.drops.counts())
-        self.drops.publish(self._pub_status, status_msg(status))
+    def _health(self):
+        return self.runtime.health({'dropped': self.drops.counts(), 'realtime': self._realtime,
+                                    'use_sim_time': self.runtime.live.config.backlog_windows > 0})
 
     def shutdown(self):
         """Stop the worker and write the last valid parameters (well within 2 s)."""
-        self._stop.set()
-        if self._fit_process is not None:
-            # a fit in progress ends with its process (the worker sees a failed fit and stops)
-            self._fit_process.close(wait_s=0.5)
-        self._worker.join(timeout=1.0)
-        if self.live.last_good is not None and self.live.last_good.model_fitted != 'file':
-            self._save(self.live.last_good, force=True)
+        error = self.runtime.shutdown(wait_s=1.0)
+        if error:
+            self.get_logger().error(f'cannot write the parameter file: {error}')
 
 
 def main(args=None):

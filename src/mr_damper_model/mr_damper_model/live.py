@@ -13,9 +13,10 @@ the work, so it can be tested and benchmarked without ROS:
    consecutive, increasing, out-of-order samples: the buffer restarts.
 2. **Sliding window** (:meth:`LiveIdentifier.next_window`): a window of ``window_s`` seconds of
    *sample* time becomes due every ``hop_s``; when the fitter is slower than the hop, only the
-   newest due window is fitted and the others are counted as superseded.  Every window also
-   carries the samples that arrived since the previous one (``new``), however many windows were
-   superseded, so each accepted sample is judged and binned exactly once.
+   newest due window is fitted and the others are counted as superseded (with
+   ``backlog_windows`` > 0, for replays under sim time, every window is fitted in order).
+   Every window also carries the samples that arrived since the previous one (``new``), however
+   many windows were superseded, so each accepted sample is judged and binned exactly once.
 3. **Window checks**: windows spanning a time gap longer than ``max_gap_s`` (``gap``), with too
    few samples, no motion (velocity RMS), no force variation or motion in one direction only are
    skipped and counted by reason; their new samples that the next window holds are offered
@@ -49,7 +50,7 @@ Threading: ``add_sample`` and ``next_window`` may be called from one thread and 
 (the fit) from another; the sample buffer is protected by a lock, the bins and the warm start
 belong to the fitting thread.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 import math
 import os
 import pickle
@@ -169,6 +170,14 @@ class LiveConfig:
         reference and the bins and identify afresh (``reference_resets``); 0: never.  A real,
         abrupt damper change then recovers, but so does a persistent sensor fault (an offset
         step becomes f0): leave it 0 unless an operator watches the resets.
+    backlog_windows : int
+        0 (real time): only the newest due window is fitted, older due windows are superseded.
+        N > 0 (replays, ``use_sim_time``): every due window is fitted in order, whatever the
+        fitter's pace; the buffer holds N hops of due windows besides the current one, and
+        windows whose samples left it meanwhile are counted in ``windows_overflow``.  Each
+        window's fit then stops on ``maxiter`` (no wall-time ``budget_s``) with a seed derived
+        from ``seed`` and the window's index (:func:`window_seed`), so the estimate sequence
+        does not depend on the replay speed.
 
     """
 
@@ -206,6 +215,7 @@ class LiveConfig:
     error_floor_percent: float = 2.0
     pinned_fraction: float = 1e-3
     inconsistent_reset_s: float = 0.0
+    backlog_windows: int = 0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
@@ -222,7 +232,7 @@ class LiveConfig:
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
-        for name in ('maxiter', 'max_fit_samples', 'min_window_samples'):
+        for name in ('maxiter', 'max_fit_samples', 'min_window_samples', 'backlog_windows'):
             if int(getattr(self, name)) < 0:
                 raise ValueError(f'`{name}` must be >= 0')
         if int(self.swarm_size) < 2:
@@ -246,7 +256,8 @@ class Window:
 
     ``span`` holds the samples from the older of the window start and the first new sample up
     to ``end_s`` (time order); its last ``n_new`` samples are the ones no earlier window handed
-    out (more than a window's worth when windows were superseded).
+    out (more than a window's worth when windows were superseded).  ``index`` is the
+    window's position ``m`` in its stream (end ``t0 + window_s + m * hop_s``).
     """
 
     data: DamperData
@@ -254,6 +265,7 @@ class Window:
     span: DamperData = None
     n_new: int = 0
     first_new_seq: int = 0
+    index: int = 0
 
     @property
     def new(self):
@@ -549,6 +561,42 @@ def flag_samples(data, config):
     return out
 
 
+#: LiveConfig fields that may change while the identifier runs
+#: (:meth:`LiveIdentifier.reconfigure`): sample rejection thresholds, window checks, fault
+#: screening, validity and quality limits.
+#: The rest (window and hop lengths, buffer size, current bins, model constant, the fit's swarm,
+#: seed, budget and bounds, the backlog) is read at start-up.
+DYNAMIC_FIELDS = (
+    'force_limit_n', 'velocity_limit_m_s', 'displacement_limit_m', 'current_limit_min_a',
+    'current_limit_max_a', 'restart_samples', 'max_gap_s', 'min_window_samples',
+    'min_velocity_rms_m_s', 'min_force_std_n', 'min_direction_fraction', 'outlier_mad_k',
+    'outlier_floor_fraction', 'stuck_s', 'max_nrmse_percent', 'max_error_ratio',
+    'max_shift_ratio', 'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
+    'min_bin_fraction', 'bin_max_age_s')
+
+
+def window_seed(seed, index):
+    """
+    Return the swarm seed of window ``index`` of a stream (in-order mode).
+
+    Parameters
+    ----------
+    seed : int
+        ``LiveConfig.seed``.
+    index : int
+        Window position ``m`` in its stream.
+
+    Returns
+    -------
+    int
+        A seed in ``[0, 2**32)`` that depends only on ``seed`` and ``index``
+        (``numpy.random.SeedSequence``), so each window's swarm starts differently but the same
+        window always starts the same way.
+
+    """
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
 def fit_kwargs(config):
     """
     Return the keyword arguments of the :func:`identify` call of one window.
@@ -630,6 +678,11 @@ class FitProcess:
         if status == 'error':
             raise value
         return value
+
+    def alive(self):
+        """Return True while the child runs (False before the first call or once it died)."""
+        proc = self._proc
+        return proc is not None and proc.poll() is None
 
     def warm_up(self):
         """Start the child and import the fitting code in it; return True."""
@@ -734,10 +787,12 @@ class LiveIdentifier:
 
     def __init__(self, config=None, initial=None, fit=None):
         self.config = config if config is not None else LiveConfig()
-        self._fit = fit_data if fit is None else fit
+        self._fit_window = fit_data if fit is None else fit
+        self._seed = None          # in-order mode: the seed of the window being processed
         cfg = self.config
         # two windows and three hops: room for the samples of superseded windows
-        self._cap = int(math.ceil((2 * cfg.window_s + 3 * cfg.hop_s) * cfg.max_rate_hz)) + 16
+        self._cap = int(math.ceil((2 * cfg.window_s + (3 + int(cfg.backlog_windows)) * cfg.hop_s)
+                                  * cfg.max_rate_hz)) + 16
         self._buf = np.empty((self._cap, 5))
         self._lock = threading.Lock()
         self._count = 0            # samples in the buffer (<= cap)
@@ -753,7 +808,7 @@ class LiveIdentifier:
                          'rejected': {r: 0 for r in REJECT_REASONS},
                          'out_of_range': {r: 0 for r in RANGE_CHANNELS},
                          'stream_restarts': 0, 'stamp_gaps': 0,
-                         'windows_due': 0, 'windows_superseded': 0,
+                         'windows_due': 0, 'windows_superseded': 0, 'windows_overflow': 0,
                          'windows_fitted': 0, 'windows_valid': 0,
                          'windows_skipped': {r: 0 for r in SKIP_REASONS},
                          'windows_refused': {},
@@ -906,6 +961,11 @@ class LiveIdentifier:
         The window also hands out every sample up to its end that no earlier window handed out
         (:attr:`Window.new`); samples that left the buffer before that are counted in
         ``samples_lost`` (the buffer holds two windows and three hops).
+
+        With ``backlog_windows`` > 0 the oldest due window is returned instead (every window in
+        order, none superseded); only when the fitter fell so far behind that the oldest due
+        windows' samples left the buffer (``backlog_windows`` more hops) are those windows
+        passed over, counted in ``windows_overflow``.
         """
         cfg = self.config
         with self._lock:
@@ -916,12 +976,15 @@ class LiveIdentifier:
                 return None
             m = int(math.floor((self._last_t - first_end) / cfg.hop_s + 1e-9))
             m = max(m, self._next_index)
-            self.counters['windows_due'] += 1
-            self.counters['windows_superseded'] += m - self._next_index
-            self._next_index = m + 1
-            end = first_end + m * cfg.hop_s
             n = self._count
             oldest = self._seq - n
+            if cfg.backlog_windows:
+                m = self._in_order_index(m, n)
+            else:
+                self.counters['windows_superseded'] += m - self._next_index
+            self.counters['windows_due'] += 1
+            self._next_index = m + 1
+            end = first_end + m * cfg.hop_s
             if self._handed < oldest:
                 self.counters['samples_lost'] += oldest - self._handed
                 self._handed = oldest
@@ -935,7 +998,18 @@ class LiveIdentifier:
             self._handed = oldest + k_end
         span = DamperData(*rows.T, source='window')
         window = span.select(slice(max(k_win - k_new, 0), None))
-        return Window(window, end, span, n_new, oldest + k_new)
+        return Window(window, end, span, n_new, oldest + k_new, m)
+
+    def _in_order_index(self, newest, n):
+        """Index of the oldest due window whose samples are all still buffered (lock held)."""
+        m = self._next_index
+        t_old = self._buf[(self._head - n) % self._cap, 0]
+        start = self._t_origin + m * self.config.hop_s      # samples after it form window m
+        if n == self._cap and t_old > start + 1e-9:
+            m_kept = int(math.ceil((t_old - self._t_origin) / self.config.hop_s - 1e-9))
+            m = min(max(m, m_kept), newest)
+            self.counters['windows_overflow'] += m - self._next_index
+        return m
 
     def _give_back(self, window, n):
         """Offer the last ``n`` new samples of ``window`` again with the next window."""
@@ -959,10 +1033,49 @@ class LiveIdentifier:
 
         """
         self.last_skip = ''
+        cfg = self.config
+        self._seed = window_seed(cfg.seed, window.index) if cfg.backlog_windows else None
         try:
             return self._process(window)
         finally:
             self.processed_up_to_s = float(window.end_s)
+
+    def _fit(self, data, model, config, x0=None):
+        """Fit one window's data (in-order mode: stop on ``maxiter``, seeded per window)."""
+        if self._seed is not None:
+            config = replace(config, seed=self._seed, budget_s=0.0)
+        return self._fit_window(data, model, config, x0=x0)
+
+    def reconfigure(self, **changes):
+        """
+        Change settings of :data:`DYNAMIC_FIELDS` while running; return the new config.
+
+        Parameters
+        ----------
+        **changes
+            ``LiveConfig`` field -> new value.
+
+        Returns
+        -------
+        LiveConfig
+            The configuration now in use (validated as a whole, so an error names the field).
+
+        Raises
+        ------
+        ValueError
+            A field that is not dynamic or unknown (nothing changed), or a value the new
+            configuration refuses (nothing changed).
+
+        """
+        names = {f.name for f in fields(LiveConfig)}
+        for name in changes:
+            if name not in names:
+                raise ValueError(f'`{name}` is not a LiveConfig setting')
+            if name not in DYNAMIC_FIELDS:
+                raise ValueError(f'`{name}` is read at start-up and cannot change while running')
+        config = replace(self.config, **changes)
+        self.config = config
+        return config
 
     def _process(self, window):
         t_start = time.perf_counter()
@@ -1243,7 +1356,8 @@ class LiveIdentifier:
 
         Keys: ``samples_received``, ``samples_accepted``, ``rejected`` {reason: count},
         ``out_of_range`` {channel: count}, ``stream_restarts``, ``stamp_gaps``, ``windows_due``,
-        ``windows_superseded``, ``windows_fitted``, ``windows_valid``, ``windows_skipped``
+        ``windows_superseded``, ``windows_overflow`` (in-order mode: passed over, their samples
+        left the buffer), ``windows_fitted``, ``windows_valid``, ``windows_skipped``
         {reason: count}, ``windows_refused`` {reason: count} (fitted, published not valid),
         ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
         ``samples_lost`` (left the buffer before a window handed them out),

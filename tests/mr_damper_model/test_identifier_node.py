@@ -1,0 +1,121 @@
+"""
+Identifier node in-process: dynamic parameters reach the core, the rest is refused with a reason.
+
+Also: relative topic names under a namespace, the ``samples_received`` count, the diagnostics
+values of received and rejected samples, and ROS time under ``use_sim_time``.
+"""
+import time
+
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from std_msgs.msg import UInt64
+
+from mr_damper_model.health import ERROR, OK
+from mr_damper_model.identifier_node import IdentifierNode, PARAMETERS
+from mr_damper_model.live import DYNAMIC_FIELDS
+from mr_damper_model.messages import measurement_to_msg
+
+
+@pytest.fixture(scope='module')
+def ros():
+    started = not rclpy.ok()
+    if started:
+        rclpy.init()
+    yield
+    if started:
+        rclpy.try_shutdown()
+
+
+@pytest.fixture
+def make_node(ros):
+    nodes = []
+
+    def make(*overrides, **kw):
+        params = [Parameter('fit_in_process', value=False)] + list(overrides)
+        node = IdentifierNode(parameter_overrides=params, **kw)
+        nodes.append(node)
+        return node
+    yield make
+    for node in nodes:
+        node.shutdown()
+        node.destroy_node()
+
+
+def test_dynamic_parameters_reach_the_core(make_node):
+    node = make_node()
+    live = node.runtime.live
+    res = node.set_parameters([Parameter('max_nrmse_percent', value=4.0),
+                               Parameter('force_limit_n', value=800.0),
+                               Parameter('no_sample_timeout_s', value=9.0)])
+    assert all(r.successful for r in res), res
+    assert live.config.max_nrmse_percent == 4.0 and live.config.force_limit_n == 800.0
+    assert node.runtime.health_rules.no_sample_timeout_s == 9.0
+    node._on_measurement(measurement_to_msg(0.0, 0.0, 0.0, 900.0, 1.0))
+    assert live.counters['out_of_range']['force'] == 1      # the new limit applies
+
+
+def test_read_only_out_of_range_and_inconsistent_changes_are_refused(make_node):
+    node = make_node()
+    before = node.runtime.live.config
+    (res,) = node.set_parameters([Parameter('window_s', value=3.0)])
+    assert not res.successful and 'read-only' in res.reason
+    (res,) = node.set_parameters([Parameter('max_nrmse_percent', value=-1.0)])
+    assert not res.successful and 'max_nrmse_percent out of range' in res.reason
+    (res,) = node.set_parameters([Parameter('current_limit_min_a', value=3.0)])
+    assert not res.successful and '`current_limit_min_a`' in res.reason
+    assert node.runtime.live.config is before
+    assert node.get_parameter('current_limit_min_a').value == before.current_limit_min_a
+
+
+def test_every_live_threshold_is_declared_dynamic_and_the_rest_read_only():
+    dynamic = {p.name for p in PARAMETERS if p.dynamic}
+    assert set(DYNAMIC_FIELDS) <= dynamic
+    assert dynamic - set(DYNAMIC_FIELDS) == {'save_period_s', 'no_sample_timeout_s'}
+    for p in PARAMETERS:
+        assert p.description and (isinstance(p.default, (bool, str)) or p.low is not None)
+
+
+def test_relative_names_samples_received_and_diagnostics(make_node):
+    node = make_node(Parameter('no_sample_timeout_s', value=0.0), namespace='fl')
+    assert node._pub_received.topic_name == '/fl/mr_damper/samples_received'
+    assert node._pub_params.topic_name == '/fl/mr_damper/kwok_parameters'
+    assert node.diagnostics.name == 'fl/mr_damper_identifier'
+    h = node.diagnostics.publish()
+    assert (h.level, h.message) == (OK, 'waiting for samples')
+    for k in range(5):
+        node._on_measurement(measurement_to_msg(1.0 + k * 1e-3, 0.0, 0.01, 10.0, 0.5))
+    bad = measurement_to_msg(2.0, 0.0, 0.0, 0.0, 0.0)
+    bad.name = ['piston', 'coil']
+    node._on_measurement(bad)
+    v = node.diagnostics.publish().values
+    assert v['samples_received'] == 6 and v['samples_accepted'] == 5
+    assert v['rejected']['joint_names'] == 1 and v['stamp_age_ms']['n'] == 5
+    # the count on mr_damper/samples_received
+    got = []
+    sub_node = rclpy.create_node('samples_received_probe')
+    sub_node.create_subscription(UInt64, '/fl/mr_damper/samples_received',
+                                 lambda m: got.append(m.data), 10)
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    ex.add_node(sub_node)
+    end = time.monotonic() + 15.0                    # hang guard (discovery)
+    while (not got or got[-1] != 6) and time.monotonic() < end:
+        ex.spin_once(timeout_sec=0.05)
+    ex.remove_node(node)
+    sub_node.destroy_node()
+    assert got and got[-1] == 6
+
+
+def test_sim_time_fits_in_order_and_ages_are_ros_time(make_node):
+    node = make_node(Parameter('use_sim_time', value=True),
+                     Parameter('sim_backlog_windows', value=7))
+    assert node.runtime.live.config.backlog_windows == 7
+    assert node.get_clock().now().nanoseconds == 0          # no /clock yet: ROS time is 0
+    node._on_measurement(measurement_to_msg(5.0, 0.0, 0.01, 10.0, 0.5))
+    assert node.runtime.ages.summary()['p50'] == pytest.approx(-5000.0)
+    real = make_node(Parameter('no_sample_timeout_s', value=1e-9))
+    assert real.runtime.live.config.backlog_windows == 0
+    assert real.diagnostics.publish().level == OK            # first report: the reference
+    assert real.diagnostics.publish().level == ERROR         # then no sample for too long
