@@ -27,7 +27,7 @@ import signal
 import pytest
 
 from integration.ros_helpers import (latest_status as _latest, Listener, load_run_suite,
-                                     NodeProcess, status_qos as _qos)
+                                     NodeProcess)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -42,7 +42,6 @@ def listener():
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
-    from std_msgs.msg import String
     rs = load_run_suite()
     args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
     cfg = rs.resolve_config(args, tmp_path)

@@ -45,3 +45,12 @@ def test_a_mixed_stream_is_counted_by_outcome():
 def test_bad_range_is_refused_naming_the_argument(lo, hi, name):
     with pytest.raises(ValueError, match=name):
         CurrentCommandLimiter(lo, hi)
+
+
+def test_range_changes_while_running_and_a_bad_one_changes_nothing():
+    lim = CurrentCommandLimiter(0.0, 2.0)
+    lim.set_range(0.5, 1.5)
+    assert lim.apply(2.0) == (1.5, 'clamped_high') and lim.apply(0.0) == (0.5, 'clamped_low')
+    with pytest.raises(ValueError, match='i_min_a'):
+        lim.set_range(1.5, 1.0)
+    assert (lim.i_min_a, lim.i_max_a) == (0.5, 1.5)

@@ -101,13 +101,7 @@ def test_tracking_error_is_zero_for_an_ideal_actuator_and_the_lag_of_a_first_ord
     assert lag.tracking.last_m == pytest.approx(expected[-1], rel=1e-6)
 
 
-def test_ranges_change_while_running_and_bad_ones_change_nothing():
-    lim = CurrentCommandLimiter(0.0, 2.0)
-    lim.set_range(0.5, 1.5)
-    assert lim.apply(2.0) == (1.5, 'clamped_high') and lim.apply(0.0) == (0.5, 'clamped_low')
-    with pytest.raises(ValueError, match='i_min_a'):
-        lim.set_range(1.5, 1.0)
-    assert (lim.i_min_a, lim.i_max_a) == (0.5, 1.5)
+def test_guard_settings_change_while_running_and_bad_ones_change_nothing():
     guard = _guard(stroke_m=0.05, timeout_s=0.05, return_speed_m_s=0.05)
     guard.configure(stroke_m=0.02)
     assert guard.command(0.03, 0.0) == (0.02, 'clamped_high')
