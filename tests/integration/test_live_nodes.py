@@ -101,6 +101,17 @@ def wait_identified(lis, topics, n_samples, procs, timeout=60.0):
     return lis.wait_for(done, 30.0, procs=procs[:1])
 
 
+def run_summary(status, estimates, t0):
+    """Status counters and (end [s from t0], current range [A], valid) of each estimate."""
+    keys = ('windows_due', 'windows_superseded', 'windows_fitted', 'windows_valid',
+            'windows_skipped', 'windows_refused', 'catch_up_fits', 'reference_resets',
+            'samples_flagged', 'samples_binned', 'samples_unbinned', 'samples_pending',
+            'samples_lost', 'bins_a', 'last_check', 'compute_s_max')
+    return ({k: status.get(k) for k in keys},
+            [(round(e['window_end_s'] - t0, 3), e['current_min_a'], e['current_max_a'],
+              e['valid']) for e in estimates])
+
+
 def kwok_current_force(params, data):
     from mr_damper_model.models import get_model
     model = get_model('kwok-current', i_ref_a=2.0)
@@ -137,25 +148,29 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     assert listener.wait_for(lambda: len(topics.meas) >= n, 180.0)
     assert len(topics.meas) == n
     final = topics.estimates()[-1]
-    assert final['valid'], status
-    assert final['current_min_a'] == pytest.approx(0.0, abs=0.01)
-    assert final['current_max_a'] == pytest.approx(2.0, abs=0.01)
     data = received_data(topics.meas)
+    # what happened, should an assertion fail: counters and the published estimates
+    why = (run_summary(status, topics.estimates(), data.t[0]), ident.output()[-2000:])
+    assert final['valid'], why
+    assert final['current_min_a'] == pytest.approx(0.0, abs=0.01), why
+    assert final['current_max_a'] == pytest.approx(2.0, abs=0.01), why
     # every sample was judged once and none lost, whatever windows were superseded (the fit
     # process is ready before the node subscribes, and superseded windows' samples are binned)
-    assert status['samples_lost'] == 0
+    assert status['samples_lost'] == 0, why
     flagged = status['samples_flagged']
     assert status['samples_binned'] + status['samples_unbinned'] + sum(flagged.values()) \
-        + status['samples_pending'] == n
-    assert flagged['inconsistent'] == flagged['stuck'] == flagged['dropout'] == 0
-    assert flagged['outlier'] <= 10
+        + status['samples_pending'] == n, why
+    # a healthy damper raises no fault, whatever windows a slow fitter superseded (their
+    # samples are judged against sets fitted on the levels in between: catch_up_fits)
+    assert flagged['inconsistent'] == flagged['stuck'] == flagged['dropout'] == 0, why
+    assert flagged['outlier'] <= 10, why
     # so no current level goes missing: steps every 2 s from t = 0 (2 A from 8 s); the 2 A
     # bin holds the 500 samples it needs by 8.5 s, so the first window processed after 8.6 s
     # (whenever the fitter got to it) covers 0..2 A; a valid set over 0..2 A was published
     later = [e for e in topics.estimates() if e['window_end_s'] - data.t[0] >= 8.6]
-    assert later and later[0]['current_min_a'] < 0.01 and later[0]['current_max_a'] > 1.99
+    assert later and later[0]['current_min_a'] < 0.01 and later[0]['current_max_a'] > 1.99, why
     full = [e for e in topics.estimates() if e['valid'] and e['current_max_a'] > 1.99]
-    assert full
+    assert full, why
     f_est = kwok_current_force(final['parameters'], data)
     peak = np.max(np.abs(data.f))
     if plant == 'kwok-current':

@@ -17,6 +17,10 @@ the work, so it can be tested and benchmarked without ROS:
    ``backlog_windows`` > 0, for replays under sim time, every window is fitted in order).
    Every window also carries the samples that arrived since the previous one (``new``), however
    many windows were superseded, so each accepted sample is judged and binned exactly once.
+   New samples older than the window's own span are screened, judged, binned and fitted one
+   window length at a time, in time order, before it (``catch_up_fits``, not published): no
+   sample is judged against a reference fitted more than ``window_s`` before it, however long
+   the fitter was delayed (:meth:`LiveIdentifier._catch_up_parts`).
 3. **Window checks**: windows spanning a time gap longer than ``max_gap_s`` (``gap``), with too
    few samples, no motion (velocity RMS), no force variation or motion in one direction only are
    skipped and counted by reason; their new samples that the next window holds are offered
@@ -814,7 +818,7 @@ class LiveIdentifier:
                          'windows_refused': {},
                          'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
                          'samples_flagged': {r: 0 for r in FLAG_REASONS},
-                         'reference_resets': 0, 'fit_errors': 0}
+                         'reference_resets': 0, 'catch_up_fits': 0, 'fit_errors': 0}
         self._bins = {}
         self._ref = None           # last valid set of this stream, as a consistency reference
         self._inconsistent_since = None   # window end of the first of consecutive rejections
@@ -1105,27 +1109,86 @@ class LiveIdentifier:
         for name in ('outlier', 'stuck', 'dropout'):
             c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
         clean = new.select(flags == '')
+        # new samples older than this window (windows superseded while the fitter was busy)
+        # are judged, binned and fitted one window length at a time, in time order
+        parts = self._catch_up_parts(clean, window.end_s)
+        for part_end, part in parts[:-1]:
+            if self._admit(part, part_end, data.n) and part.n >= cfg.min_window_samples:
+                self._fit_bins(part, data.n, t_start, catch_up=True)
+        if not self._admit(parts[-1][1], window.end_s, data.n):
+            c['windows_skipped']['inconsistent'] += 1
+            self.last_skip = 'inconsistent'
+            return None
+        return self._fit_bins(data, data.n, t_start)
+
+    def _catch_up_parts(self, clean, end_s):
+        """
+        Split a window's screened new samples into consecutive ``window_s`` spans.
+
+        Returns ``[(span_end_s, samples), ...]`` in time order; the last span is the window's
+        own (after ``end_s - window_s``), the earlier ones end at ``end_s - j * window_s``.
+        Only windows that follow superseded ones carry samples before their own span.  Judging
+        those against the reference one span at a time, with a fit after each, bounds the age
+        of the reference a sample is judged against by ``window_s`` whatever the fitter's
+        delay: the damper's slow memory (e.g. the force shift of a Bouc-Wen damper back at 0 A
+        after a 2 A dwell) is then judged against a set fitted on the levels in between, as a
+        window of its own would have been, not against a set of the first level only.
+        """
+        ws = self.config.window_s
+        lower = end_s - ws + 1e-9                  # the window's own samples: t > lower
+        k_own = int(np.searchsorted(clean.t, lower, side='right'))
+        parts = [(end_s, clean.select(slice(k_own, None)))]
+        if k_own:
+            span = np.floor((lower - clean.t[:k_own]) / ws).astype(np.int64) + 1
+            for j in range(int(span[0]), 0, -1):   # oldest first (stamps increase)
+                part = clean.select(np.flatnonzero(span == j))
+                if part.n:
+                    parts.insert(-1, (end_s - j * ws, part))
+        return parts
+
+    def _admit(self, clean, end_s, keep):
+        """
+        Judge screened new samples against the reference; bin them unless inconsistent.
+
+        Returns False (samples counted as ``samples_flagged['inconsistent']``) when the last
+        valid set explains them much worse than its own data (:meth:`_consistency`) and no
+        reference reset is due (``inconsistent_reset_s``); True when they were binned.
+        """
+        cfg = self.config
+        c = self.counters
         if self._consistency(clean):
             if self._inconsistent_since is None:
-                self._inconsistent_since = window.end_s
-            if not (0 < cfg.inconsistent_reset_s
-                    <= window.end_s - self._inconsistent_since):
-                c['windows_skipped']['inconsistent'] += 1
-                self.last_skip = 'inconsistent'
+                self._inconsistent_since = end_s
+            if not (0 < cfg.inconsistent_reset_s <= end_s - self._inconsistent_since):
                 c['samples_flagged']['inconsistent'] += clean.n
-                return None
+                return False
             c['reference_resets'] += 1          # start afresh from these samples
             self._ref = None
             self._bins.clear()
             self._last_solution.clear()
         self._inconsistent_since = None
-        self._update_bins(clean, data.n, window.end_s)
+        self._update_bins(clean, keep, end_s)
         c['samples_binned'] += clean.n
+        return True
+
+    def _fit_bins(self, data, keep, t_start, catch_up=False):
+        """
+        Fit the usable bins; return the estimate (None: no usable bin or a fit error).
+
+        ``data``: the window (its first and last stamps are the estimate's); ``keep``: samples
+        a window holds (a bin is usable with ``min_bin_fraction`` of them).  A catch-up fit
+        (samples of superseded windows, see :meth:`_catch_up_parts`) is counted in
+        ``catch_up_fits`` and, when valid, becomes the consistency reference and warm start;
+        it is not published (:attr:`estimate` is the window's).
+        """
+        cfg = self.config
+        c = self.counters
         usable = [b for b in sorted(self._bins.values(), key=lambda b: b.level)
-                  if b.data.n >= max(cfg.min_bin_fraction * data.n, 10)]
+                  if b.data.n >= max(cfg.min_bin_fraction * keep, 10)]
         if not usable:
-            c['windows_skipped']['no_bins'] += 1
-            self.last_skip = 'no_bins'
+            if not catch_up:
+                c['windows_skipped']['no_bins'] += 1
+                self.last_skip = 'no_bins'
             return None
         fit = DamperData.concatenate([b.data for b in usable])
         order = np.argsort(fit.t, kind='stable')
@@ -1163,6 +1226,11 @@ class LiveIdentifier:
             current_max_a=float(max(levels)), rmse_n=rmse, nrmse_percent=nrmse,
             robust_nrmse_percent=robust_nrmse, seconds=seconds, n_samples=fit.n, bins_a=levels,
             result=result)
+        if catch_up:
+            c['catch_up_fits'] += 1
+            if est.valid:
+                self._set_reference(est, fit, f_new, scale)
+            return est
         c['windows_fitted'] += 1
         self.last_compute_s = seconds
         self._compute_sum += seconds
@@ -1362,7 +1430,8 @@ class LiveIdentifier:
         ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
         ``samples_lost`` (left the buffer before a window handed them out),
         ``samples_pending`` (accepted, not yet handed out: after the last due window end),
-        ``samples_flagged`` {reason: count}, ``reference_resets``, ``fit_errors``,
+        ``samples_flagged`` {reason: count}, ``reference_resets``, ``catch_up_fits`` (fits of
+        the samples of superseded windows, see :meth:`_catch_up_parts`), ``fit_errors``,
         ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
         [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
