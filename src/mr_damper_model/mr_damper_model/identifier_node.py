@@ -110,7 +110,7 @@ PARAMETERS = tuple(
           'never wait for the GIL held by a fit); false: in a thread of this process'),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the receiving threads (0: normal '
           'scheduling)', 0, 99),
-    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s] (ROS time)',
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s] (wall time)',
           0.01, 3600.0),
     Param('no_sample_timeout_s', 5.0, 'Diagnostics ERROR after this long without a sample [s] '
           '(ROS time; 0: never)', 0.0, _BIG, dynamic=True),

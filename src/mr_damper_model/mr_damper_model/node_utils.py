@@ -13,6 +13,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -307,7 +308,7 @@ class DiagnosticsPublisher:
     """
     Publish a node's :class:`~mr_damper_model.health.Health` on ``/diagnostics`` periodically.
 
-    One ``DiagnosticStatus`` per period, named ``'<fully qualified node name>'`` without the
+    One ``DiagnosticStatus`` per period of wall time (steady clock), named ``'<fully qualified node name>'`` without the
     leading slash (``'fl/mr_damper_identifier'`` under namespace ``fl``), stamped by the node's
     clock (ROS time under ``use_sim_time``). ``/diagnostics`` is absolute by convention: every
     corner's nodes publish to the same topic, told apart by the status name.
@@ -336,7 +337,10 @@ class DiagnosticsPublisher:
         self.hardware_id = hardware_id
         self.published = 0
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
-        self._timer = node.create_timer(float(period_s), self.publish)
+        # a steady (wall) timer: under use_sim_time the status keeps coming when /clock stops
+        # (end of a replay, stalled player); the stamp is still the node's (ROS) time
+        self._timer = node.create_timer(float(period_s), self.publish,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     @property
     def publisher(self):
