@@ -1,10 +1,10 @@
 """
 Fault injection on the running suite: SIGSTOP and SIGKILL each node in turn, bad commands.
 
-Real node processes (the console scripts), started by ``run_suite.Suite`` like the launcher
-does, in the private domain of tests/conftest.py. Every assertion is on the order of events and
-on counters in the nodes' status topics, never on how long something took; the waits are hang
-guards only. One run, about a minute and a half:
+Real node processes (the console scripts), started by ``mr_damper_bringup.processes.Suite`` like
+the launcher does, in the private domain of tests/conftest.py. Every assertion is on the order
+of events and on counters in the nodes' status topics, never on how long something took; the
+waits are hang guards only. One run, about a minute and a half:
 
 - identifier stopped (SIGSTOP) long enough for the rig's measurement writer to fill up with
   samples it never acknowledges (> 5,000 at 1 kHz): the rig keeps running and publishing (its
@@ -26,8 +26,11 @@ import signal
 
 import pytest
 
-from integration.ros_helpers import (latest_status as _latest, Listener, load_run_suite,
-                                     NodeProcess, status_qos as _qos)
+from integration.ros_helpers import latest_status as _latest, Listener, NodeProcess
+from integration.ros_helpers import status_qos as _qos
+from mr_damper_bringup.config import IDENT, NODES, QC, resolve_config, RIG, set_param
+from mr_damper_bringup.launcher import parse_args
+from mr_damper_bringup.processes import Suite
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -43,17 +46,16 @@ def listener():
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
     from std_msgs.msg import String
-    rs = load_run_suite()
-    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
-    cfg = rs.resolve_config(args, tmp_path)
-    rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
-    rs.set_param(cfg, rs.QC, 'status_rate_hz', 10.0)
-    rs.set_param(cfg, rs.RIG, 'wait_for_subscribers', 1)
-    rs.set_param(cfg, rs.IDENT, 'save_period_s', 0.5)
+    args = parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
+    cfg = resolve_config(args, tmp_path)
+    set_param(cfg, QC, 'param_timeout_s', 1.0)
+    set_param(cfg, QC, 'status_rate_hz', 10.0)
+    set_param(cfg, RIG, 'wait_for_subscribers', 1)
+    set_param(cfg, IDENT, 'save_period_s', 0.5)
     params_file = tmp_path / 'suite_params.yaml'
     import yaml
     params_file.write_text(yaml.safe_dump(cfg))
-    suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    suite = Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
     rig = listener.subscribe('/mr_damper/rig_status', String, _qos())
     ident = listener.subscribe('/mr_damper/identifier_status', String, _qos())
     car = listener.subscribe('/quarter_car/status', String, _qos())
@@ -76,14 +78,14 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         return lambda: len(msgs) >= base + n
 
     def tails():
-        return {name: suite.log_tail(name) for name in rs.NODES}
+        return {name: suite.log_tail(name) for name in NODES}
 
     try:
         suite.start_all()
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
 
         # -- identifier stopped: its reader stops acknowledging the 1 kHz measurements
-        os.kill(suite.pid(rs.IDENT), signal.SIGSTOP)
+        os.kill(suite.pid(IDENT), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
             steps = _latest(car)['steps']
@@ -93,54 +95,54 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert wait(lambda: _latest(car)['steps'] > steps + 1000, GUARD_S)
             assert _latest(car)['mode'] == 'failsafe'
         finally:
-            os.kill(suite.pid(rs.IDENT), signal.SIGCONT)
+            os.kill(suite.pid(IDENT), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), _latest(ident), tails())
-        assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
+        assert suite.alive(RIG) and suite.alive(IDENT) and suite.alive(QC)
 
         # -- identifier killed, then restarted from its parameter file
         resets = _latest(rig)['writer_resets']
-        suite.kill(rs.IDENT, signal.SIGKILL)
+        suite.kill(IDENT, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
         assert wait(grows(rig, 'samples_published', 6000), GUARD_S), (_latest(rig), tails())
-        assert _latest(rig)['writer_resets'] >= resets and suite.alive(rs.RIG)
-        suite.start(rs.IDENT)
+        assert _latest(rig)['writer_resets'] >= resets and suite.alive(RIG)
+        suite.start(IDENT)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
 
         # -- quarter car stopped, then killed and restarted: rig and identifier carry on
-        os.kill(suite.pid(rs.QC), signal.SIGSTOP)
+        os.kill(suite.pid(QC), signal.SIGSTOP)
         try:
             assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
             assert wait(grows(rig, 'samples_published', 2000), GUARD_S), _latest(rig)
         finally:
-            os.kill(suite.pid(rs.QC), signal.SIGCONT)
-        assert wait(fresh(car), GUARD_S) and suite.alive(rs.QC)
-        suite.kill(rs.QC, signal.SIGKILL)
+            os.kill(suite.pid(QC), signal.SIGCONT)
+        assert wait(fresh(car), GUARD_S) and suite.alive(QC)
+        suite.kill(QC, signal.SIGKILL)
         assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), _latest(ident)
         n_car = len(car)
-        suite.start(rs.QC)
+        suite.start(QC)
         assert wait(lambda: len(car) > n_car and car_mode('normal')(), GUARD_S), \
             (_latest(car), tails())
 
         # -- rig stopped, then killed and restarted: identifier and car carry on
-        os.kill(suite.pid(rs.RIG), signal.SIGSTOP)
+        os.kill(suite.pid(RIG), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
             assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
         finally:
-            os.kill(suite.pid(rs.RIG), signal.SIGCONT)
+            os.kill(suite.pid(RIG), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
-        suite.kill(rs.RIG, signal.SIGKILL)
+        suite.kill(RIG, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), _latest(car)
         assert wait(fresh(ident), GUARD_S) and wait(fresh(car), GUARD_S)
-        suite.start(rs.RIG)
+        suite.start(RIG)
         assert wait(car_mode('normal'), GUARD_S), (_latest(car), tails())
         assert suite.poll() == {}, tails()
 
         # -- SIGTERM and SIGINT: exit 0
-        assert suite.kill(rs.IDENT, signal.SIGTERM, wait_s=GUARD_S) == 0, tails()
+        assert suite.kill(IDENT, signal.SIGTERM, wait_s=GUARD_S) == 0, tails()
     finally:
         codes = suite.stop(timeout_s=GUARD_S)
-    assert codes[rs.QC] == 0 and codes[rs.RIG] == 0, (codes, tails())
+    assert codes[QC] == 0 and codes[RIG] == 0, (codes, tails())
 
 
 def test_rig_clamps_and_refuses_bad_current_commands(listener):

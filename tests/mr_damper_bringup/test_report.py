@@ -1,4 +1,4 @@
-"""Tests of quarter_car_sim.suite_report (summary of a suite run) and suite_plots, without ROS."""
+"""Tests of mr_damper_bringup.report (summary of a suite run from its MCAP) and its plots."""
 import json
 import math
 import subprocess
@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 import yaml
 
-from mr_damper_model.columnlog import ColumnReader, ColumnWriter, JsonLines
-from quarter_car_sim import live_loop, suite_report
+from mr_damper_bringup import report as suite_report
+from mr_damper_bringup.recorder import SuiteRecorder
+from mr_damper_model.columnlog import ColumnReader, ColumnWriter
+from mr_damper_model.models import get_model
+from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
@@ -25,25 +28,19 @@ def _truth_msg():
                         rmse_n=1.0, nrmse_percent=0.1, window_end_s=1.0)
 
 
+def _model_force(params, x, v, i):
+    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    return model.force(model.from_dict(params), x, v, i=i)
+
+
 def _measurements(params, n=4000, rng=0):
     gen = np.random.default_rng(rng)
     t = np.arange(n) * 1e-3
     x = 0.03 * np.sin(2 * np.pi * 1.1 * t)
     v = 0.03 * 2 * np.pi * 1.1 * np.cos(2 * np.pi * 1.1 * t)
     i = np.repeat([0.0, 0.5, 1.0, 2.0], n // 4)
-    f = suite_report.model_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
+    f = _model_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
     return {'t': t, 'x': x, 'v': v, 'f': f, 'i': i, 'recv_epoch_s': 1000.0 + t + 0.002}
-
-
-def test_model_force_is_the_kwok_current_model():
-    from mr_damper_model.models import get_model
-    params, _ = _truth_msg()
-    model = get_model('kwok-current', i_ref_a=2.0)
-    x = np.linspace(-0.03, 0.03, 50)
-    v = np.linspace(0.2, -0.2, 50)
-    i = np.linspace(0.0, 2.0, 50)
-    np.testing.assert_allclose(suite_report.model_force(params, x, v, i),
-                               model.force(model.from_dict(params), x, v, i), rtol=1e-12)
 
 
 def test_fit_error_known_values():
@@ -116,43 +113,99 @@ def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     assert ride['wk_improvement_percent'] > 0
 
 
+def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=()):
+    """
+    Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
+
+    ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
+    ``drop``: measurement indices not recorded (gaps).
+    """
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_model import messages as mm
+    with SuiteRecorder(path, config_text=yaml.safe_dump(cfg), start_ns=999_000_000_000) as rec:
+        rec.write('truth', serialize_message(mm.kwok_parameters_msg(truth)), 999_000_000_001)
+        for k in range(meas['t'].size):
+            if k in drop:
+                continue
+            msg = mm.measurement_to_msg(*(meas[c][k] for c in 'txvfi'))
+            rec.write('measurement', serialize_message(msg),
+                      int(round(meas['recv_epoch_s'][k] * 1e9)))
+        for t, d in params_msgs:
+            rec.write('parameters', serialize_message(mm.kwok_parameters_msg(d)),
+                      int(round(t * 1e9)))
+        for t, node, d in statuses:
+            rec.write(f'{node}_status', serialize_message(mm.status_msg(d)), int(round(t * 1e9)))
+    return path
+
+
+def _cfg():
+    return {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
+            'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
+            'quarter_car_node': {'ros__parameters': QC}}
+
+
+def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=500)
+    statuses = [(1000.2, 'rig', {'samples_published': 250}),
+                (1001.0, 'identifier', {'samples_received': 497}),
+                (1001.1, 'rig', {'samples_published': 500})]
+    _write_run(tmp_path / 'suite.mcap', meas, [(1000.3, dict(msg, valid=False))], statuses,
+               msg, _cfg(), drop=(100, 101, 300))
+    rec = suite_report.read_recording(tmp_path / 'suite.mcap', tmp_path)
+    assert rec['config'] == _cfg()
+    assert rec['measurements_received'] == 497 and rec['measurement_gaps'] == 3
+    assert rec['status'] == {'rig': {'samples_published': 500},
+                             'identifier': {'samples_received': 497}}
+    assert rec['status_messages'] == {'rig': 2, 'identifier': 1}
+    assert rec['truth']['c0'] == params['c0'] and rec['truth']['valid'] == 1.0
+    assert rec['parameter_messages'] == 1
+    assert rec['topic_messages']['measurement'] == 497 and rec['undecodable'] == {}
+    got = ColumnReader(tmp_path / 'measurement').read()
+    keep = np.setdiff1d(np.arange(500), [100, 101, 300])
+    for c in ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s'):
+        np.testing.assert_allclose(got[c], meas[c][keep], rtol=0, atol=1e-9)
+    (line,) = (tmp_path / 'parameters.jsonl').read_text().splitlines()
+    t, d = json.loads(line)
+    assert t == pytest.approx(1.3) and d['valid'] == 0.0
+    assert d['recv_epoch_s'] == pytest.approx(1000.3)
+
+
 def test_make_report_end_to_end(tmp_path):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    cols = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
-    with ColumnWriter(tmp_path / 'measurement', cols, chunk_rows=1000) as w:
-        w.append_block(np.column_stack([meas[c] for c in cols]))
-    jl = JsonLines(tmp_path / 'parameters.jsonl')
-    jl.append([1.0, dict(msg, recv_epoch_s=1001.5)])
-    jl.append([1.2, dict(msg)])
-    jl.close()
-    rec = {'truth': msg, 'truth_spencer': None,
-           'status': {'rig': {'samples_published': 4000},
-                      'identifier': {'samples_received': 3990}},
-           'measurement_gaps': 0, 'measurements_received': 4000}
-    (tmp_path / 'recording.json').write_text(json.dumps(rec))
+    statuses = [(1004.5, 'rig', {'samples_published': 4000}),
+                (1004.6, 'identifier', {'samples_received': 3990})]
+    _write_run(tmp_path / 'suite.mcap', meas,
+               [(1000.0, dict(msg)), (1000.2, dict(msg))], statuses, msg, _cfg())
     status = {'failsafe_s': 1.5, 'mode': 'normal', 'params_rejected': {'stale': 0}}
     _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=3.0, status=status)
-    cfg = {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
-           'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
-           'quarter_car_node': {'ros__parameters': QC}}
-    (tmp_path / 'suite_params.yaml').write_text(yaml.safe_dump(cfg))
     s = suite_report.make_report(tmp_path, duration_s=5.0)
     assert json.loads((tmp_path / 'summary.json').read_text()) == s
     assert s['duration_s'] == 5.0 and s['failsafe_s'] == 1.5
-    assert s['identification']['first_valid_s'] == 1.0
+    # receive time of the first valid parameters - the recorder's start (999 s)
+    assert s['identification']['first_valid_s'] == pytest.approx(1.0)
     assert s['identification']['truth_model'] == 'kwok-current'
+    assert s['identification']['updates'] == 2
     # 4000 samples in the recorded span, 3990 at the identifier
     assert s['messages_lost'] == 10
+    assert s['recording']['messages']['measurement'] == 4000
     assert set(s['ride']) >= {'skyhook', 'passive', 'window_s'}
     for png in ('hysteresis.png', 'convergence.png', 'ride.png'):
         assert (tmp_path / png).stat().st_size > 5000
+    assert not list(tmp_path.glob('.report_*'))        # the extracts are gone
     text = suite_report.format_summary(s)
     assert 'parameter errors' in text and 'messages lost: 10' in text
 
 
+def test_make_report_without_a_recording_says_so(tmp_path):
+    with pytest.raises(FileNotFoundError, match='suite.mcap'):
+        suite_report.make_report(tmp_path)
+
+
 def test_module_does_not_import_rclpy():
-    code = ('import sys, quarter_car_sim.suite_report, quarter_car_sim.suite_plots; '
+    code = ('import sys, mr_damper_bringup.report, mr_damper_bringup.plots; '
             'print("rclpy" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
@@ -172,8 +225,8 @@ def test_messages_lost_counts_the_identifier_not_the_recorder():
 def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    whole = suite_report.fit_error(meas['f'], suite_report.model_force(msg, meas['x'],
-                                                                       meas['v'], meas['i']))
+    force = _model_force(msg, meas['x'], meas['v'], meas['i'])
+    whole = suite_report.fit_error(meas['f'], force)
     monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 333)
     assert suite_report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
 
