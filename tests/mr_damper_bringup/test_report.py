@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from mr_damper_bringup import report as suite_report
+from mr_damper_bringup import report
 from mr_damper_bringup.recorder import SuiteRecorder
 from mr_damper_model.columnlog import ColumnReader, ColumnWriter
 from mr_damper_model.models import get_model
@@ -44,9 +44,9 @@ def _measurements(params, n=4000, rng=0):
 
 
 def test_fit_error_known_values():
-    rmse, nrmse = suite_report.fit_error([0.0, 10.0, 0.0, 10.0], [1.0, 9.0, 1.0, 9.0])
+    rmse, nrmse = report.fit_error([0.0, 10.0, 0.0, 10.0], [1.0, 9.0, 1.0, 9.0])
     assert rmse == pytest.approx(1.0) and nrmse == pytest.approx(10.0)
-    assert all(math.isnan(v) for v in suite_report.fit_error([], []))
+    assert all(math.isnan(v) for v in report.fit_error([], []))
 
 
 def test_identification_summary_recovers_truth():
@@ -54,7 +54,7 @@ def test_identification_summary_recovers_truth():
     meas = _measurements(params)
     bad = dict(msg, valid=0.0, c1=0.0)
     log = [(1.0, bad), (2.5, msg), (3.0, msg)]
-    ident = suite_report.identification_summary(meas, log, truth=msg)
+    ident = report.identification_summary(meas, log, truth=msg)
     assert ident['updates'] == 3 and ident['valid_updates'] == 2
     assert ident['first_valid_s'] == 2.5
     assert all(abs(e) < 1e-9 for e in ident['parameter_error_percent'].values())
@@ -69,7 +69,7 @@ def test_measurement_to_parameters_delay():
     params, msg = _truth_msg()
     meas = _measurements(params)
     log = [(0.0, dict(msg, window_end_s=2.0, recv_epoch_s=1000.0 + 2.0 + 0.002 + 0.05))]
-    d = suite_report.measurement_to_parameters(meas, log)
+    d = report.measurement_to_parameters(meas, log)
     np.testing.assert_allclose(d, [0.05], atol=1e-9)
 
 
@@ -97,7 +97,7 @@ def _live_log(path, controller_offers=False, seconds=4.0, status=None):
 def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
     """Same road, seed, plant and timing: the offline passive run IS the fail-safe live run."""
     log = _live_log(tmp_path / 'log', controller_offers=False)
-    ride = suite_report.ride_summary(log, QC)
+    ride = report.ride_summary(log, QC)
     assert 'never left fail-safe' in ride['note']
     for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_tyre_load_ratio',
                 'rms_suspension_travel'):
@@ -107,7 +107,7 @@ def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
 
 def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     log = _live_log(tmp_path / 'log', controller_offers=True)
-    ride = suite_report.ride_summary(log, QC)
+    ride = report.ride_summary(log, QC)
     assert ride['window_s'][0] == pytest.approx(1.0, abs=2e-3)     # step 1500 of t0 = -0.5
     assert ride['skyhook']['rms_body_accel_wk'] < ride['passive']['rms_body_accel_wk']
     assert ride['wk_improvement_percent'] > 0
@@ -153,7 +153,7 @@ def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
                 (1001.1, 'rig', {'samples_published': 500})]
     _write_run(tmp_path / 'suite.mcap', meas, [(1000.3, dict(msg, valid=False))], statuses,
                msg, _cfg(), drop=(100, 101, 300))
-    rec = suite_report.read_recording(tmp_path / 'suite.mcap', tmp_path)
+    rec = report.read_recording(tmp_path / 'suite.mcap', tmp_path)
     assert rec['config'] == _cfg()
     assert rec['measurements_received'] == 497 and rec['measurement_gaps'] == 3
     assert rec['status'] == {'rig': {'samples_published': 500},
@@ -181,7 +181,7 @@ def test_make_report_end_to_end(tmp_path):
                [(1000.0, dict(msg)), (1000.2, dict(msg))], statuses, msg, _cfg())
     status = {'failsafe_s': 1.5, 'mode': 'normal', 'params_rejected': {'stale': 0}}
     _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=3.0, status=status)
-    s = suite_report.make_report(tmp_path, duration_s=5.0)
+    s = report.make_report(tmp_path, duration_s=5.0)
     assert json.loads((tmp_path / 'summary.json').read_text()) == s
     assert s['duration_s'] == 5.0 and s['failsafe_s'] == 1.5
     # receive time of the first valid parameters - the recorder's start (999 s)
@@ -195,13 +195,13 @@ def test_make_report_end_to_end(tmp_path):
     for png in ('hysteresis.png', 'convergence.png', 'ride.png'):
         assert (tmp_path / png).stat().st_size > 5000
     assert not list(tmp_path.glob('.report_*'))        # the extracts are gone
-    text = suite_report.format_summary(s)
+    text = report.format_summary(s)
     assert 'parameter errors' in text and 'messages lost: 10' in text
 
 
 def test_make_report_without_a_recording_says_so(tmp_path):
     with pytest.raises(FileNotFoundError, match='suite.mcap'):
-        suite_report.make_report(tmp_path)
+        report.make_report(tmp_path)
 
 
 def test_module_does_not_import_rclpy():
@@ -214,11 +214,11 @@ def test_module_does_not_import_rclpy():
 def test_messages_lost_counts_the_identifier_not_the_recorder():
     rec = {'status': {'identifier': {'samples_received': 1040}}, 'measurement_gaps': 40,
            'measurements_received': 1000}
-    lost, br = suite_report.messages_summary(rec, {})
+    lost, br = report.messages_summary(rec, {})
     assert lost == 0 and br['measurement_gaps_at_recorder'] == 40
     rec['status']['identifier']['samples_received'] = 1030
-    assert suite_report.messages_summary(rec, {})[0] == 10
-    lost, br = suite_report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
+    assert report.messages_summary(rec, {})[0] == 10
+    lost, br = report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
     assert lost == 3 and 'note' in br
 
 
@@ -226,18 +226,18 @@ def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     params, msg = _truth_msg()
     meas = _measurements(params)
     force = _model_force(msg, meas['x'], meas['v'], meas['i'])
-    whole = suite_report.fit_error(meas['f'], force)
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 333)
-    assert suite_report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
+    whole = report.fit_error(meas['f'], force)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 333)
+    assert report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
 
 
 def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
     from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
     log = _live_log(tmp_path / 'log', controller_offers=True)
-    big = suite_report.ride_summary(log, QC)
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 377)
-    small = suite_report.ride_summary(log, QC)
+    big = report.ride_summary(log, QC)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 377)
+    small = report.ride_summary(log, QC)
     for key in ('skyhook', 'passive', 'passive_0a'):
         for m, v in big[key].items():
             assert small[key][m] == pytest.approx(v, rel=1e-9, nan_ok=True), (key, m)
@@ -258,14 +258,14 @@ def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypa
     meas = _measurements(params)
     log = [(0.0, dict(msg, window_end_s=e, recv_epoch_s=1000.0 + e + 0.05))
            for e in (-1.0, 0.5, 0.9995, 1.0, 2.2, 3.999, 7.0)]
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 1000)
-    d = suite_report.measurement_to_parameters(meas, log)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 1000)
+    d = report.measurement_to_parameters(meas, log)
     # windows before / after the record are ignored; the rest arrive 50 ms - 2 ms later
     np.testing.assert_allclose(d, [0.048] * 5, atol=1e-9)
     trace = _live_log(tmp_path / 'log', seconds=1.0)
     a = trace.read()
     a['wall'] = np.cumsum(np.where(np.arange(a['t'].size) % 97 == 0, 3e-3, 1e-3))
-    fig = suite_report.loop_figures(dict(a, dt=1e-3))
+    fig = report.loop_figures(dict(a, dt=1e-3))
     per = live_loop.timing_stats(np.diff(a['wall']), float(np.median(np.diff(a['wall']))))
     for k in ('n', 'mean_ms', 'p50_ms', 'p99_ms', 'max_ms', 'jitter_max_ms', 'jitter_p99_ms'):
         assert fig['period'][k] == pytest.approx(per[k], rel=1e-9), k
@@ -287,8 +287,8 @@ def test_report_passes_keep_memory_bounded(tmp_path):
     meas = ColumnReader(tmp_path / 'm')
     log = [(1.0, dict(msg, window_end_s=500.0, recv_epoch_s=1500.05))]
     tracemalloc.start()
-    ident = suite_report.identification_summary(meas, log, truth=msg, offline_budget_s=0)
-    delays = suite_report.measurement_to_parameters(meas, log)
+    ident = report.identification_summary(meas, log, truth=msg, offline_budget_s=0)
+    delays = report.measurement_to_parameters(meas, log)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     assert ident['truth_nrmse_percent'] < 0.1 and ident['nrmse_percent'] < 0.1

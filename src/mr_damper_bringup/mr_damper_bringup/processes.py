@@ -243,7 +243,7 @@ class ProcessStats:
         self.suite = suite
         self.handles = {}
         self.stats = {}
-        self.names = list(NODES) + ['launcher']
+        self.names = list(NODES) + [RECORDER, 'launcher']
         self.t0 = time.monotonic()
         self.log = ColumnWriter(Path(out) / 'process_samples',
                                 ('t_s', 'process', 'cpu_percent', 'rss_mb'), chunk_rows=256,
@@ -293,6 +293,8 @@ class ProcessStats:
                     break
             out[name] = {'cpu_mean_percent': st['cpu_sum'] / st['n'], 'cpu_p95_percent': p95,
                          'rss_peak_mb': st['rss_peak'], 'samples': st['n']}
-        nodes = [v['cpu_mean_percent'] for k, v in out.items() if k in self.suite.nodes]
+        # the suite's nodes; the recorder (a monitor, not part of the loop) is listed apart
+        nodes = [v['cpu_mean_percent'] for k, v in out.items()
+                 if k in self.suite.nodes and k != RECORDER]
         out['nodes_total_cpu_cores'] = sum(nodes) / 100.0
         return out

@@ -32,7 +32,7 @@ from rclpy.utilities import remove_ros_args
 
 from mr_damper_model.messages import status_msg
 from mr_damper_model.node_utils import (DropCounter, install_stop_handlers, LATCHED_QOS,
-                                        MEASUREMENT_QOS, stop_requested)
+                                        make_executor, MEASUREMENT_QOS, stop_requested)
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
@@ -113,14 +113,19 @@ def main(argv=None):
         def taken():
             return sum(n for k, n in recorder.counts.items() if k != OWN_STATUS)
 
+        # the suite's executor (EventsExecutor) in a spin_once loop: rclpy.spin_once(node)
+        # adds and removes the node on every call, too slow for a few kHz of messages
+        executor = make_executor()
+        executor.add_node(node)
+
         def spin_and_count():
-            rclpy.spin_once(node, timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.05)
             return False, taken()
 
         node.get_logger().info(f'recording {len(recorder.topics)} topics into {out}')
         try:
             while rclpy.ok() and not stop_requested():
-                rclpy.spin_once(node, timeout_sec=0.1)
+                executor.spin_once(timeout_sec=0.1)
                 if args.duration > 0 and time.monotonic() - start >= args.duration:
                     break
                 if args.count > 0 and recorder.counts.get('measurement', 0) >= args.count:
@@ -132,6 +137,7 @@ def main(argv=None):
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
+            executor.remove_node(node)
             node.destroy_node()
             rclpy.try_shutdown()
     lost = sum(drops.counts().values())
