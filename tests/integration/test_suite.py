@@ -162,6 +162,10 @@ def test_full_suite_short_run(tmp_path):
                 'quarter_car_status', 'recorder_status'):
         assert recorded.get(key, 0) > 0, (key, recorded)
     assert summary['recording']['undecodable'] == {}
+    # the settings of the report: what each node ran with, asked from its parameter services
+    assert set(summary['recording']['node_parameters']) >= {'mr_damper_rig',
+                                                            'mr_damper_identifier',
+                                                            'quarter_car_node'}
     msgs = summary['messages']
     assert msgs['measurement_gaps_at_recorder'] == 0
     assert (msgs['measurements_received_by_recorder']

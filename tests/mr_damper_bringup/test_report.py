@@ -113,17 +113,22 @@ def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     assert ride['wk_improvement_percent'] > 0
 
 
-def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=()):
+def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None):
     """
     Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
 
     ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
-    ``drop``: measurement indices not recorded (gaps).
+    ``drop``: measurement indices not recorded (gaps); ``node_params``: {node: parameters} as
+    the recorder asks them from the nodes.
     """
     from rclpy.serialization import serialize_message
 
     from mr_damper_model import messages as mm
+    from mr_damper_bringup.topics import NODE_PARAMETERS_TOPIC
     with SuiteRecorder(path, config_text=yaml.safe_dump(cfg), start_ns=999_000_000_000) as rec:
+        for node, p in (node_params or {}).items():
+            rec.write_text(NODE_PARAMETERS_TOPIC, yaml.safe_dump({node: {'ros__parameters': p}}),
+                           999_000_000_002)
         rec.write('truth', serialize_message(mm.kwok_parameters_msg(truth)), 999_000_000_001)
         for k in range(meas['t'].size):
             if k in drop:
@@ -142,7 +147,7 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=()):
 def _cfg():
     return {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
             'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
-            'quarter_car_node': {'ros__parameters': QC}}
+            'quarter_car_node': {'ros__parameters': dict(QC)}}
 
 
 def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
@@ -197,6 +202,26 @@ def test_make_report_end_to_end(tmp_path):
     assert not list(tmp_path.glob('.report_*'))        # the extracts are gone
     text = report.format_summary(s)
     assert 'parameter errors' in text and 'messages lost: 10' in text
+
+
+def test_settings_come_from_what_the_nodes_report(tmp_path):
+    """The car's reported parameters (its defaults included) win over the YAML section."""
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=1000)
+    cfg = _cfg()
+    del cfg['quarter_car_node']['ros__parameters']['safe_current_a']     # a node default
+    car = dict(QC, safe_current_a=0.25, use_sim_time=False)
+    _write_run(tmp_path / 'suite.mcap', meas, [(1000.0, dict(msg))], [], msg, cfg,
+               node_params={'quarter_car_node': car})
+    rec = report.read_recording(tmp_path / 'suite.mcap', tmp_path)
+    assert rec['node_parameters'] == {'quarter_car_node': car}
+    eff = report.effective_config(rec)
+    assert eff['quarter_car_node']['ros__parameters']['safe_current_a'] == 0.25
+    assert eff['mr_damper_rig'] == cfg['mr_damper_rig']
+    _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=2.0)
+    s = report.make_report(tmp_path, duration_s=3.0, plots=False)
+    assert s['ride']['passive_current_a'] == 0.25
+    assert s['recording']['node_parameters'] == ['quarter_car_node']
 
 
 def test_make_report_without_a_recording_says_so(tmp_path):

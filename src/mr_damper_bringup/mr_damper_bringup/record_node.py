@@ -19,16 +19,20 @@ Example::
     mr-damper-record --out meas.mcap --only measurement      # the measurement topic alone
 """
 import argparse
+import array
 import importlib
 from pathlib import Path
 import sys
 import time
 
 import rclpy
+from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.executors import ExternalShutdownException
+from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
+import yaml
 
 from mr_damper_model.messages import status_msg
 from mr_damper_model.node_utils import (DropCounter, install_stop_handlers, LATCHED_QOS,
@@ -36,7 +40,7 @@ from mr_damper_model.node_utils import (DropCounter, install_stop_handlers, LATC
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
-from .topics import SUITE_TOPICS, topic_table
+from .topics import NODE_PARAMETERS_TOPIC, PARAMETER_NODES, SUITE_TOPICS, topic_table
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': LATCHED_QOS,
@@ -49,6 +53,63 @@ def message_class(type_name):
     """Return the rclpy message class of ``'pkg/msg/Name'``."""
     pkg, kind, name = type_name.split('/')
     return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
+
+class ParameterPoller:
+    """
+    Ask each suite node for all its parameters every ``period_s``; record a set when it changed.
+
+    Uses the nodes' standard parameter services (``/NODE/list_parameters``,
+    ``/NODE/get_parameters``), so the recording holds the values each node runs with, its own
+    defaults included; a node that is not up is skipped until it is.
+    """
+
+    def __init__(self, node, recorder, names, period_s):
+        self.node = node
+        self.recorder = recorder
+        self.clients = {name: (node.create_client(ListParameters, f'/{name}/list_parameters'),
+                               node.create_client(GetParameters, f'/{name}/get_parameters'))
+                        for name in names}
+        self.last = {}
+        self.busy = set()
+        self.timer = node.create_timer(period_s, self.poll)
+
+    def poll(self):
+        """Send a list request to every node that is up and not already being asked."""
+        for name, (lister, getter) in self.clients.items():
+            if name in self.busy or not (lister.service_is_ready() and getter.service_is_ready()):
+                continue
+            self.busy.add(name)
+            future = lister.call_async(ListParameters.Request())
+            future.add_done_callback(lambda f, name=name: self._listed(name, f))
+
+    def _listed(self, name, future):
+        try:
+            names = list(future.result().result.names)
+        except Exception:  # noqa: B902 - the node went away: ask again next period
+            self.busy.discard(name)
+            return
+        request = GetParameters.Request(names=names)
+        future = self.clients[name][1].call_async(request)
+        future.add_done_callback(lambda f, name=name, names=names: self._got(name, names, f))
+
+    def _got(self, name, names, future):
+        self.busy.discard(name)
+        try:
+            values = future.result().values
+        except Exception:  # noqa: B902 - as above
+            return
+        params = {}
+        for key, value in zip(names, values):
+            value = parameter_value_to_python(value)
+            if isinstance(value, (array.array, list, tuple)):
+                value = list(value)
+            params[key] = value
+        if params and params != self.last.get(name):
+            self.last[name] = params
+            self.recorder.write_text(
+                NODE_PARAMETERS_TOPIC, yaml.safe_dump({name: {'ros__parameters': params}}),
+                self.node.get_clock().now().nanoseconds)
 
 
 def _parser():
@@ -67,6 +128,8 @@ def _parser():
                    help='at a stop, record on until nothing came for this long [s]')
     p.add_argument('--status-period-s', type=float, default=0.2,
                    help='period of the own status [s]')
+    p.add_argument('--parameters-period-s', type=float, default=2.0,
+                   help='period of asking the suite nodes for their parameters [s] (0: never)')
     return p
 
 
@@ -109,6 +172,9 @@ def main(argv=None):
                 'lost': drops.counts(), 'file': str(out)}))
 
         timer = node.create_timer(args.status_period_s, publish_status)
+        poller = None
+        if args.parameters_period_s > 0:
+            poller = ParameterPoller(node, recorder, PARAMETER_NODES, args.parameters_period_s)
 
         def taken():
             return sum(n for k, n in recorder.counts.items() if k != OWN_STATUS)
@@ -131,6 +197,8 @@ def main(argv=None):
                 if args.count > 0 and recorder.counts.get('measurement', 0) >= args.count:
                     break
             node.destroy_timer(timer)
+            if poller is not None:
+                node.destroy_timer(poller.timer)
             publish_status()
             # drain: take what is still in flight until nothing came for --quiet-s
             wait_while_progressing(spin_and_count, args.quiet_s, 60.0, poll_s=0.0)

@@ -16,7 +16,7 @@ it).
 """
 from pathlib import Path
 
-from .topics import CONFIG_TOPIC, topic_table
+from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
 
 
 class SuiteRecorder:
@@ -77,13 +77,31 @@ class SuiteRecorder:
         for key, row in self.topics.items():
             self._conns[key] = self._writer.add_connection(row.name, row.type,
                                                            typestore=self.typestore)
+        for row in (CONFIG_TOPIC, NODE_PARAMETERS_TOPIC):
+            self._conns[row.name] = self._writer.add_connection(row.name, row.type,
+                                                                typestore=self.typestore)
         if self.config_text is not None:
-            conn = self._writer.add_connection(CONFIG_TOPIC.name, CONFIG_TOPIC.type,
-                                               typestore=self.typestore)
-            msg = self.typestore.types[CONFIG_TOPIC.type](data=str(self.config_text))
-            self._writer.write(conn, self.start_ns,
-                               self.typestore.serialize_cdr(msg, CONFIG_TOPIC.type))
+            self.write_text(CONFIG_TOPIC, self.config_text, self.start_ns)
         return self
+
+    def write_text(self, row, text, log_time_ns):
+        """
+        Write a text record of the recorder itself (not from DDS) on ``row``.
+
+        Parameters
+        ----------
+        row : Topic
+            :data:`~mr_damper_bringup.topics.CONFIG_TOPIC` or
+            :data:`~mr_damper_bringup.topics.NODE_PARAMETERS_TOPIC`.
+        text : str
+            The YAML text (a ``std_msgs/String``).
+        log_time_ns : int
+            Record time [ns].
+
+        """
+        msg = self.typestore.types[row.type](data=str(text))
+        self._writer.write(self._conns[row.name], int(log_time_ns),
+                           self.typestore.serialize_cdr(msg, row.type))
 
     def write(self, key, raw, log_time_ns):
         """

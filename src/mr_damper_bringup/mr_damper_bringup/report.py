@@ -5,8 +5,11 @@ Inputs, in the run's output folder:
 
 - ``suite.mcap``: the run's one recording (``mr-damper-record``, :mod:`mr_damper_bringup.
   recorder`): every suite topic with its receive time, and on ``/mr_damper/suite_config`` the
-  parameter YAML the nodes were started with. :func:`read_recording` reads it back in one
-  streamed pass (rosbags): measurements into a temporary column log (t, x, v, f, i and the
+  parameter YAML the nodes were started with, and on ``/mr_damper/node_parameters`` the
+  parameters each node reported running with (defaults included; :func:`effective_config`
+  merges both, so the settings are the nodes' own; the fallback values in this module only
+  matter for a recording without them). :func:`read_recording` reads it back in one streamed
+  pass (rosbags): measurements into a temporary column log (t, x, v, f, i and the
   receive time), parameter messages into a temporary JSON-lines file, and the bounded rest
   (counters, true parameters, the last status of each node, the last ride metrics);
 - ``quarter_car_log.f64/.json``: column log of every control step of the quarter-car node
@@ -50,8 +53,8 @@ from mr_damper_model.kwok_current import KwokCurrent
 from mr_damper_model.models import get_model
 
 from .config import node_params, QC, RIG
-from .topics import (CONFIG_TOPIC, decode_json, decode_parameters, decode_status, status_key,
-                     SUITE_TOPICS)
+from .topics import (CONFIG_TOPIC, decode_json, decode_parameters, decode_status,
+                     NODE_PARAMETERS_TOPIC, status_key, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 #: file name of the run's recording in the output folder
@@ -75,7 +78,8 @@ def read_recording(path, work):
     Returns
     -------
     dict
-        ``config`` (the parameter dict the suite ran with, or None), ``truth``,
+        ``config`` (the parameter dict the suite ran with, or None), ``node_parameters``
+        (node -> the parameters it reported running with, its defaults included), ``truth``,
         ``truth_spencer`` (decoded true parameters), ``status`` (last status per node),
         ``status_messages``, ``ride_metrics`` (last), ``topic_messages`` (messages per topic
         key), ``parameter_messages``, ``measurements_received``, ``measurement_gaps`` (samples
@@ -91,8 +95,9 @@ def read_recording(path, work):
     work = Path(work)
     keys = {row.name: key for key, row in SUITE_TOPICS.items()}
     keys[CONFIG_TOPIC.name] = 'config'
-    rec = {'config': None, 'truth': None, 'truth_spencer': None, 'status': {},
-           'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
+    keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
+    rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
+           'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
            'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
            'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
@@ -108,7 +113,8 @@ def read_recording(path, work):
                     rec['start_epoch_s'] = t_rx
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
-                               'ride_metrics', 'config') and status_key(key) is None:
+                               'ride_metrics', 'config', 'node_parameters') \
+                        and status_key(key) is None:
                     continue
                 msg = reader.deserialize(raw, conn.msgtype)
                 try:
@@ -116,6 +122,10 @@ def read_recording(path, work):
                         sample = decode_measurement(msg)
                     elif key == 'config':
                         rec['config'] = yaml.safe_load(msg.data)
+                        continue
+                    elif key == 'node_parameters':
+                        for node, section in yaml.safe_load(msg.data).items():
+                            rec['node_parameters'][node] = section['ros__parameters']
                         continue
                     elif key == 'ride_metrics':
                         rec['ride_metrics'] = decode_json(msg)
@@ -127,7 +137,7 @@ def read_recording(path, work):
                         rec['status'][node] = decode_status(msg)
                         rec['status_messages'][node] = rec['status_messages'].get(node, 0) + 1
                         continue
-                except (ValueError, yaml.YAMLError):
+                except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
                     rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1
                     continue
                 if key == 'parameters':
@@ -614,13 +624,30 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         raise FileNotFoundError(f'{path}: no recording of the run')
     with tempfile.TemporaryDirectory(prefix='.report_', dir=out) as work:
         rec = read_recording(path, work)
-        cfg = config if config is not None else rec['config']
+        cfg = config if config is not None else effective_config(rec)
         if cfg is None:
             raise ValueError(f'{path}: no {CONFIG_TOPIC.name} message (the suite config)')
         meas = (ColumnReader(Path(work) / 'measurement') if rec['measurements_received']
                 else ArrayLog({k: [] for k in ('t', 'x', 'v', 'f', 'i')}))
         params_log = ParamsLog(Path(work) / 'parameters.jsonl')
         return _report(out, rec, cfg, meas, params_log, duration_s, plots)
+
+
+def effective_config(rec):
+    """
+    Return the settings of a recorded run: the suite YAML with each node's own report on top.
+
+    The YAML (``/mr_damper/suite_config``) holds what was set; the node parameters
+    (``/mr_damper/node_parameters``) what each node ran with, its defaults included, so no node
+    default is copied here. None when the recording has neither.
+    """
+    import copy
+    if rec.get('config') is None and not rec.get('node_parameters'):
+        return None
+    cfg = copy.deepcopy(rec.get('config') or {})
+    for node, params in (rec.get('node_parameters') or {}).items():
+        cfg.setdefault(node, {}).setdefault('ros__parameters', {}).update(params)
+    return cfg
 
 
 def _report(out, rec, cfg, meas, params_log, duration_s, plots):
@@ -632,7 +659,8 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                'config': 'replay' if rig_params.get('mode', 'sim') != 'sim' else 'sim',
                'plant': qc_params.get('plant', 'spencer'),
                'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
-                             'undecodable': rec['undecodable']}}
+                             'undecodable': rec['undecodable'],
+                             'node_parameters': sorted(rec.get('node_parameters') or {})}}
     summary['identification'] = identification_summary(meas, params_log, truth)
     summary['identification']['truth_model'] = (
         'kwok-current' if summary['identification']['truth'] else

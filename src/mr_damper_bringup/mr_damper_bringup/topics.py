@@ -50,6 +50,15 @@ SUITE_TOPICS = {
 #: nodes were started with (``std_msgs/String``), so the report needs nothing but the MCAP.
 CONFIG_TOPIC = Topic('/mr_damper/suite_config', STRING, 'latched')
 
+#: Written by the recorder, not a DDS topic: the parameters each suite node actually runs with
+#: (asked from the node's parameter services, its defaults included), as a ROS 2 parameter YAML
+#: ``{node: {ros__parameters: {...}}}`` (``std_msgs/String``), one message per node whenever they
+#: changed. The report takes its settings from these, not from copied node defaults.
+NODE_PARAMETERS_TOPIC = Topic('/mr_damper/node_parameters', STRING, 'latched')
+#: Nodes whose parameters the recorder asks for (names in the root namespace).
+PARAMETER_NODES = ('mr_damper_rig', 'mr_damper_identifier', 'quarter_car_node',
+                   'semi_active_controller')
+
 #: Status key of each node (``SUITE_TOPICS[key + '_status']``).
 STATUS_SOURCES = ('rig', 'identifier', 'quarter_car', 'controller', 'recorder')
 
