@@ -28,6 +28,7 @@ import json
 import os
 from pathlib import Path
 import random
+import shutil
 import signal
 import sys
 import threading
@@ -145,7 +146,6 @@ def main(argv=None):
     recording = out / RECORDING
     for old in (recording, out / f'{recording.stem}.recording'):   # a new run, a new file
         if old.is_dir():
-            import shutil
             shutil.rmtree(old)
         elif old.exists():
             old.unlink()

@@ -509,7 +509,7 @@ def measurement_to_parameters(meas, params_log):
     """
     Delays [s] from the newest measurement of each identified window to its parameters.
 
-    The newest sample's arrival (the launcher's recorder receives the measurement stream as the
+    The newest sample's arrival (``mr-damper-record`` receives the measurement stream as the
     identifier does) is found from its stamp ``window_end_s``; the delay runs to the arrival of
     the parameter message at the recorder (the quarter car subscribes to it the same way and
     uses it from its next 1 ms step on). Windows older than the record are ignored. The record
@@ -552,11 +552,11 @@ def messages_summary(rec, qc_status):
     """
     Measurements lost on their way to the identifier.
 
-    The launcher's recorder takes the same stream; the samples in its stamp span (received plus
-    stamp gaps) are what the rig published in that span (the rig waits for both subscribers
-    before its first sample and stops before the identifier), so the identifier lost
-    ``span - samples_received``. Gaps at the recorder itself are listed but are not losses of
-    the suite (the recorder is a monitor in the launcher process, not one of its nodes).
+    The recorder (``mr-damper-record``) takes the same stream; the samples in its stamp span
+    (received plus stamp gaps) are what the rig published in that span (the rig waits for both
+    subscribers before its first sample and stops before the identifier), so the identifier
+    lost ``span - samples_received``. Gaps at the recorder itself are listed but are not losses
+    of the suite (the recorder is a monitor, not part of the loop).
 
     Returns
     -------
