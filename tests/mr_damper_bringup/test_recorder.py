@@ -101,11 +101,13 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
                 for c, _, raw in reader.messages()}
     sample = topics.decode_measurement(msgs['/mr_damper/measurement'])
     assert sample == (1.5, 0.01, -0.2, 80.0, 0.5)
-    assert topics.decode_status(msgs['/mr_damper/identifier_status']) == status
+    assert topics.decode_status('identifier_status',
+                                msgs['/mr_damper/identifier_status']) == {'identifier': status}
     d = topics.decode_parameters(msgs['/mr_damper/kwok_parameters'])
     assert d['valid'] == 1.0 and all(d[n] == params[n] for n in mm.KWOK_CURRENT_NAMES)
     # the same decoder on the rclpy message (the launcher's monitor)
-    assert topics.decode_status(mm.status_msg(status)) == status
+    assert topics.decode_status('identifier_status', mm.status_msg(status)) == {
+        'identifier': status}
 
 
 def test_bad_arguments_are_refused(tmp_path):
@@ -122,12 +124,24 @@ def test_bad_arguments_are_refused(tmp_path):
     assert list(topics.topic_table(['measurement'])) == ['measurement']
 
 
-def test_status_keys_name_the_nodes():
-    assert topics.status_key('rig_status') == 'rig'
-    assert topics.status_key('quarter_car_status') == 'quarter_car'
-    assert topics.status_key('measurement') is None
-    statuses = [k for k in topics.SUITE_TOPICS if topics.status_key(k)]
-    assert sorted(topics.status_key(k) for k in statuses) == sorted(topics.STATUS_SOURCES)
+def test_status_decoder_takes_json_topics_and_diagnostics():
+    """One decoder for both status forms: ``{node: dict}`` from a JSON topic or /diagnostics."""
+    msg = TS.types[topics.STRING](data='{"samples_received": 5}')
+    assert topics.decode_status('identifier_status', msg) == {
+        'identifier': {'samples_received': 5}}
+    kv = TS.types['diagnostic_msgs/msg/KeyValue']
+    st = TS.types['diagnostic_msgs/msg/DiagnosticStatus']
+    arr = TS.types['diagnostic_msgs/msg/DiagnosticArray'](header=_stamp(1.0), status=[
+        st(level=0, name='mr_damper_identifier: fit', message='ok', hardware_id='',
+           values=[kv(key='samples_received', value='1200'), kv(key='mode', value='fit')]),
+        st(level=1, name='quarter_car_node: loop', message='fail-safe', hardware_id='',
+           values=[kv(key='failsafe_s', value='1.5')])])
+    assert topics.decode_status('diagnostics', arr) == {
+        'identifier': {'samples_received': 1200, 'mode': 'fit', 'level': 0, 'message': 'ok'},
+        'quarter_car': {'failsafe_s': 1.5, 'level': 1, 'message': 'fail-safe'}}
+    assert set(topics.STATUS_KEYS) <= set(topics.SUITE_TOPICS)
+    with pytest.raises(ValueError):
+        topics.decode_status('rig_status', TS.types[topics.STRING](data='[1, 2]'))
 
 
 def test_memory_stays_flat_while_recording(tmp_path):

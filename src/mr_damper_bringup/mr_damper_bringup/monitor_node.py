@@ -16,7 +16,7 @@ from rclpy.executors import ExternalShutdownException
 from mr_damper_model.node_utils import LATCHED_QOS, STATUS_QOS
 
 from .record_node import message_class
-from .topics import decode_json, decode_parameters, decode_status, status_key, SUITE_TOPICS
+from .topics import decode_json, decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS
 
 
 class Monitor:
@@ -44,15 +44,16 @@ class Monitor:
         self.n_valid = 0
         self.metrics = None
 
-    def on_status(self, node, msg):
-        """Store one status message of ``node`` (undecodable ones are ignored)."""
+    def on_status(self, key, msg):
+        """Store one status message of topic ``key`` (undecodable ones are ignored)."""
         try:
-            d = decode_status(msg)
+            statuses = decode_status(key, msg)
         except ValueError:
             return
         with self.lock:
-            self.status[node] = d
-            self.history[node] = (self.history.get(node, ())[-1:] + (d,))
+            for node, d in statuses.items():
+                self.status[node] = d
+                self.history[node] = (self.history.get(node, ())[-1:] + (d,))
 
     def on_parameters(self, msg):
         """Store one parameter message."""
@@ -94,12 +95,10 @@ def start_monitor(monitor):
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     node = rclpy.create_node('suite_monitor', context=ctx)
-    for key, row in SUITE_TOPICS.items():
-        who = status_key(key)
-        if who is not None:
-            node.create_subscription(message_class(row.type), row.name,
-                                     lambda msg, who=who: monitor.on_status(who, msg),
-                                     STATUS_QOS)
+    for key in STATUS_KEYS:
+        row = SUITE_TOPICS[key]
+        node.create_subscription(message_class(row.type), row.name,
+                                 lambda msg, key=key: monitor.on_status(key, msg), STATUS_QOS)
     params = SUITE_TOPICS['parameters']
     node.create_subscription(message_class(params.type), params.name, monitor.on_parameters,
                              LATCHED_QOS)

@@ -54,7 +54,7 @@ from mr_damper_model.models import get_model
 
 from .config import node_params, QC, RIG
 from .topics import (CONFIG_TOPIC, decode_json, decode_parameters, decode_status,
-                     NODE_PARAMETERS_TOPIC, status_key, SUITE_TOPICS)
+                     NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 #: file name of the run's recording in the output folder
@@ -113,8 +113,7 @@ def read_recording(path, work):
                     rec['start_epoch_s'] = t_rx
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
-                               'ride_metrics', 'config', 'node_parameters') \
-                        and status_key(key) is None:
+                               'ride_metrics', 'config', 'node_parameters', *STATUS_KEYS):
                     continue
                 msg = reader.deserialize(raw, conn.msgtype)
                 try:
@@ -133,9 +132,10 @@ def read_recording(path, work):
                     elif key in ('parameters', 'truth', 'truth_spencer'):
                         d = decode_parameters(msg)
                     else:
-                        node = status_key(key)
-                        rec['status'][node] = decode_status(msg)
-                        rec['status_messages'][node] = rec['status_messages'].get(node, 0) + 1
+                        for node, d in decode_status(key, msg).items():
+                            rec['status'][node] = d
+                            rec['status_messages'][node] = \
+                                rec['status_messages'].get(node, 0) + 1
                         continue
                 except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
                     rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1

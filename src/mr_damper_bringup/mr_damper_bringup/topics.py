@@ -27,8 +27,8 @@ ARRAY = 'std_msgs/msg/Float64MultiArray'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 CAR_STATE = 'mr_damper_interfaces/msg/QuarterCarState'
 
-#: Every topic of the suite (node defaults, root namespace), by key. ``*_status`` keys are the
-#: status topics (one per node), decoded with :func:`decode_status`.
+#: Every topic of the suite (node defaults, root namespace), by key. The :data:`STATUS_KEYS` rows
+#: are the status topics (one per node), decoded with :func:`decode_status`.
 SUITE_TOPICS = {
     'measurement': Topic('/mr_damper/measurement', JOINT_STATE, 'measurement'),
     'parameters': Topic('/mr_damper/kwok_parameters', ARRAY, 'latched'),
@@ -59,15 +59,14 @@ NODE_PARAMETERS_TOPIC = Topic('/mr_damper/node_parameters', STRING, 'latched')
 PARAMETER_NODES = ('mr_damper_rig', 'mr_damper_identifier', 'quarter_car_node',
                    'semi_active_controller')
 
-#: Status key of each node (``SUITE_TOPICS[key + '_status']``).
-STATUS_SOURCES = ('rig', 'identifier', 'quarter_car', 'controller', 'recorder')
-
-
-def status_key(topic_key):
-    """Return the node of a status topic key (``'rig_status'`` -> ``'rig'``), else None."""
-    if topic_key.endswith('_status') and topic_key[:-len('_status')] in STATUS_SOURCES:
-        return topic_key[:-len('_status')]
-    return None
+#: Keys of the table whose messages are node statuses (decoded by :func:`decode_status`). With
+#: ``/diagnostics`` this becomes the one key of that topic.
+STATUS_KEYS = ('rig_status', 'identifier_status', 'quarter_car_status', 'controller_status',
+               'recorder_status')
+#: Node name -> the short name the launcher and the report use for its status.
+NODE_KEYS = {'mr_damper_rig': 'rig', 'mr_damper_identifier': 'identifier',
+             'quarter_car_node': 'quarter_car', 'semi_active_controller': 'controller',
+             'mr_damper_record': 'recorder'}
 
 
 def topic_table(keys=None):
@@ -99,18 +98,25 @@ def topic_table(keys=None):
     return {k: SUITE_TOPICS[k] for k in keys}
 
 
-def decode_status(msg):
+def decode_status(key, msg):
     """
-    Decode one status message of a node into a dict (the only status decoder of the suite).
+    Decode one status message into ``{node: status dict}`` (the only status decoder of the suite).
 
     Parameters
     ----------
-    msg : std_msgs/String (rclpy or rosbags)
-        A node's JSON status.
+    key : str
+        Topic key of the message (one of :data:`STATUS_KEYS`).
+    msg : std_msgs/String or diagnostic_msgs/DiagnosticArray (rclpy or rosbags)
+        A node's JSON status (``*_status`` topics: the node is the key without ``_status``), or
+        a diagnostics array: one entry per ``DiagnosticStatus``, the node from its ``name``
+        (``'NODE: task'``, :data:`NODE_KEYS`), values parsed as JSON where they are (numbers,
+        booleans, objects), ``level`` and ``message`` added.
 
     Returns
     -------
     dict
+        Node short name (``rig``, ``identifier``, ``quarter_car``, ``controller``,
+        ``recorder``) -> status dict.
 
     Raises
     ------
@@ -118,8 +124,25 @@ def decode_status(msg):
         If the payload is not a status (``mr_damper_model.messages.MessageError`` or bad JSON).
 
     """
+    if hasattr(msg, 'status'):                  # diagnostic_msgs/DiagnosticArray
+        out = {}
+        for st in msg.status:
+            node = str(st.name).split(':')[0].strip()
+            d = {kv.key: _parse_value(kv.value) for kv in st.values}
+            level = st.level
+            d.update(level=int.from_bytes(level, 'little') if isinstance(level, bytes)
+                     else int(level), message=str(st.message))
+            out[NODE_KEYS.get(node, node)] = d
+        return out
     from mr_damper_model.messages import status_from_msg
-    return status_from_msg(msg)
+    return {key[:-len('_status')] if key.endswith('_status') else key: status_from_msg(msg)}
+
+
+def _parse_value(text):
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
 
 
 def decode_parameters(msg):
