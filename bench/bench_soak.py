@@ -3,10 +3,11 @@ Soak benchmark: the whole suite for an hour (or ``--duration``), memory per proc
 
     .venv/bin/python bench/bench_soak.py [--duration 3600] [--warmup 120] [--out runs/soak]
 
-Runs ``launch_scripts/run_suite.py`` (the main job: virtual rig -> identifier -> quarter car,
+Runs ``mr-damper-suite`` (the main job: virtual rig -> identifier -> quarter car,
 sim config, real time) and samples, every ``--sample-s`` seconds with psutil, the resident
-memory (RSS) of the launcher (which records every topic) and of each of its child processes:
-``rig_node``, ``identifier_node`` and its fit process, ``quarter_car_node``. It keeps sampling
+memory (RSS) of the launcher and of each of its child processes: ``mr-damper-record`` (which
+records every topic into ``suite.mcap``), ``rig_node``, ``identifier_node`` and its fit process,
+``quarter_car_node``. It keeps sampling
 while the launcher writes the summary (the report phase). Printed:
 
 - per process: RSS at the start (first sample after ``--warmup``) and at the end of the node
@@ -52,10 +53,10 @@ def classify(proc):
         return None
     if 'mr_damper_model.live' in cmd:
         return 'identifier_fit_process'
-    for name in ('rig_node', 'identifier_node', 'quarter_car_node'):
+    for name in ('rig_node', 'identifier_node', 'quarter_car_node', 'mr-damper-record'):
         if name in cmd:
             return name
-    if 'run_suite.py' in cmd:
+    if 'mr-damper-suite' in cmd:
         return 'launcher'
     return None
 
@@ -121,7 +122,7 @@ def main(argv=None):
     p.add_argument('--domain-id', type=int, default=None)
     args = p.parse_args(argv)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    cmd = [sys.executable, str(REPO / 'launch_scripts' / 'run_suite.py'), '--duration',
+    cmd = [str(Path(sys.executable).parent / 'mr-damper-suite'), '--duration',
            str(args.duration), '--out', args.out, '--progress-s', '300']
     if args.domain_id is not None:
         cmd += ['--domain-id', str(args.domain_id)]

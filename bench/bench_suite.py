@@ -3,11 +3,11 @@ Benchmark of the whole suite over ROS 2: 60 s at 1 kHz, real time (not collected
 
     .venv/bin/python bench/bench_suite.py [--duration 60] [--out runs/bench_suite]
 
-Runs ``launch_scripts/run_suite.py`` (virtual rig -> identifier -> quarter car, the shipped sim
+Runs ``mr-damper-suite`` (virtual rig -> identifier -> quarter car, the shipped sim
 configuration, seeds fixed in it) and prints:
 
-- messages lost (target 0): measurement stamp gaps at the launcher's recorder plus measurements
-  the identifier did not receive;
+- messages lost (target 0): measurements the identifier did not receive (against the samples in
+  the stamp span of ``mr-damper-record``'s copy, whose own gaps are listed too);
 - quarter-car control-loop period jitter p99 (target <= 2 ms) and lateness against the schedule;
 - time from measurement to current command: inside the car (state read -> command published)
   and through identification (newest sample of a window -> its parameters received; the car's
@@ -30,9 +30,9 @@ def main(argv=None):
     p.add_argument('--duration', type=float, default=60.0)
     p.add_argument('--out', default=str(REPO / 'runs' / 'bench_suite'))
     p.add_argument('--extra', nargs=argparse.REMAINDER, default=[],
-                   help='further run_suite.py options')
+                   help='further mr-damper-suite options')
     args = p.parse_args(argv)
-    cmd = [sys.executable, str(REPO / 'launch_scripts' / 'run_suite.py'), '--duration',
+    cmd = [str(Path(sys.executable).parent / 'mr-damper-suite'), '--duration',
            str(args.duration), '--out', args.out, '--no-plots', '--progress-s', '10',
            *args.extra]
     print('bench_suite:', ' '.join(cmd), flush=True)

@@ -28,7 +28,6 @@ setup(
     entry_points={
         'console_scripts': [
             'rig_node = mr_damper_rig.entry_points:rig_node',
-            'mr-damper-record = mr_damper_rig.entry_points:record',
             'mr-damper-rig-test = mr_damper_rig.rig_test_cli:main',
             'quarter-car-sim = mr_damper_rig.ride_study_cli:main',
         ],

@@ -12,7 +12,6 @@ Usage::
         status = lis.subscribe('/mr_damper/identifier_status', String)
         lis.wait_for(lambda: len(status) > 0, timeout=10)
 """
-import importlib.util
 import os
 from pathlib import Path
 import signal
@@ -21,18 +20,9 @@ import tempfile
 import threading
 import time
 
-from conftest import REPO, VENV_BIN
+from conftest import VENV_BIN
 
 DISCOVERY_TIMEOUT_S = 8.0
-
-
-def load_run_suite():
-    """Import ``launch_scripts/run_suite.py`` (a script, not a package module) as a module."""
-    spec = importlib.util.spec_from_file_location('run_suite',
-                                                  REPO / 'launch_scripts' / 'run_suite.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def ros_param(value):

@@ -22,7 +22,8 @@ from conftest import REPO, VENV_BIN
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
-         ('quarter_car_sim', 'quarter_car_node')]
+         ('quarter_car_sim', 'quarter_car_node'), ('mr_damper_bringup', 'mr-damper-suite'),
+         ('mr_damper_bringup', 'mr-damper-record')]
 
 
 @pytest.fixture(scope='module')
@@ -57,13 +58,37 @@ def test_executable_is_where_ros2_run_looks(install, pkg, exe):
 
 def test_packages_come_from_the_install(install):
     out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} -c "import mr_damper_rig, '
-                                    'mr_damper_model, quarter_car_sim as q; '
+                                    'mr_damper_model, quarter_car_sim as q, '
+                                    'mr_damper_bringup as b; '
                                     'print(mr_damper_rig.__file__, mr_damper_model.__file__, '
-                                    'q.__file__)"'),
+                                    'q.__file__, b.__file__)"'),
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     for path in out.stdout.split():
         assert Path(path).is_relative_to(install), path
+
+
+def test_bringup_launch_file_and_configs_come_from_the_install(install, tmp_path):
+    pkg = 'mr_damper_bringup'
+    share = install / pkg / 'share' / pkg
+    assert (share / 'launch' / 'suite.launch.py').is_file()
+    names = ('suite_sim.yaml', 'suite_replay.yaml', 'suite_hil.yaml')
+    for name in names:
+        assert (share / 'config' / name).read_text() == \
+            (REPO / 'src' / pkg / 'config' / name).read_text()
+    # the launcher finds the installed configs (ament index), not the checkout's
+    code = 'from mr_damper_bringup.config import CONFIG_DIR; print(CONFIG_DIR)'
+    out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} -c {shlex.quote(code)}'),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert Path(out.stdout.strip()) == share / 'config'
+    # both console scripts start from the install: a bad command line is refused (exit 2)
+    for exe, args in (('mr-damper-suite', '--duration -1'),
+                      ('mr-damper-record', f'--out {tmp_path / "not_mcap.txt"}')):
+        out = subprocess.run(in_install(install, f'{install / pkg / "lib" / pkg / exe} {args}'),
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2, (exe, out.stdout + out.stderr)
+        assert 'Traceback' not in out.stderr, out.stderr
 
 
 def test_interfaces_come_from_the_install(install):

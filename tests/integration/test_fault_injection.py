@@ -1,10 +1,10 @@
 """
 Fault injection on the running suite: SIGSTOP and SIGKILL each node in turn, bad commands.
 
-Real node processes (the console scripts), started by ``run_suite.Suite`` like the launcher
-does, in the private domain of tests/conftest.py. Every assertion is on the order of events and
-on counters in the nodes' status topics, never on how long something took; the waits are hang
-guards only. One run, about a minute and a half:
+Real node processes (the console scripts), started by ``mr_damper_bringup.processes.Suite`` like
+the launcher does, in the private domain of tests/conftest.py. Every assertion is on the order
+of events and on counters in the nodes' status topics, never on how long something took; the
+waits are hang guards only. One run, about a minute and a half:
 
 - identifier stopped (SIGSTOP) long enough for the rig's measurement writer to fill up with
   samples it never acknowledges (> 5,000 at 1 kHz): the rig keeps running and publishing (its
@@ -26,8 +26,10 @@ import signal
 
 import pytest
 
-from integration.ros_helpers import (latest_status as _latest, Listener, load_run_suite,
-                                     NodeProcess)
+from integration.ros_helpers import latest_status as _latest, Listener, NodeProcess
+from mr_damper_bringup.config import IDENT, NODES, QC, resolve_config, RIG, set_param
+from mr_damper_bringup.launcher import parse_args
+from mr_damper_bringup.processes import Suite
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -42,17 +44,16 @@ def listener():
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
-    rs = load_run_suite()
-    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
-    cfg = rs.resolve_config(args, tmp_path)
-    rs.set_param(cfg, rs.QC, 'param_timeout_s', 1.0)
-    rs.set_param(cfg, rs.QC, 'diagnostics_period_s', 0.1)
-    rs.set_param(cfg, rs.RIG, 'wait_for_subscribers', 1)
-    rs.set_param(cfg, rs.IDENT, 'save_period_s', 0.5)
+    args = parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
+    cfg = resolve_config(args, tmp_path)
+    set_param(cfg, QC, 'param_timeout_s', 1.0)
+    set_param(cfg, QC, 'diagnostics_period_s', 0.1)
+    set_param(cfg, RIG, 'wait_for_subscribers', 1)
+    set_param(cfg, IDENT, 'save_period_s', 0.5)
     params_file = tmp_path / 'suite_params.yaml'
     import yaml
     params_file.write_text(yaml.safe_dump(cfg))
-    suite = rs.Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    suite = Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
     diag = listener.diagnostics()
 
     def rig():
@@ -67,7 +68,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def car_st():
         """Return the car's newest /diagnostics values."""
-        return diag.values(rs.QC)
+        return diag.values(QC)
 
     def car_mode(expected, reason=None):
         def check():
@@ -89,18 +90,18 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
 
     def fresh_car(n=3):
         """Predicate: ``n`` more car statuses arrived (alive and publishing)."""
-        base = diag.count(rs.QC)
-        return lambda: diag.count(rs.QC) >= base + n
+        base = diag.count(QC)
+        return lambda: diag.count(QC) >= base + n
 
     def tails():
-        return {name: suite.log_tail(name) for name in rs.NODES}
+        return {name: suite.log_tail(name) for name in NODES}
 
     try:
         suite.start_all()
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
 
         # -- identifier stopped: its reader stops acknowledging the 1 kHz measurements
-        os.kill(suite.pid(rs.IDENT), signal.SIGSTOP)
+        os.kill(suite.pid(IDENT), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
             steps = car_st()['steps']
@@ -110,54 +111,54 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert wait(lambda: car_st()['steps'] > steps + 1000, GUARD_S)
             assert car_st()['mode'] == 'failsafe'
         finally:
-            os.kill(suite.pid(rs.IDENT), signal.SIGCONT)
+            os.kill(suite.pid(IDENT), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), ident(), tails())
-        assert suite.alive(rs.RIG) and suite.alive(rs.IDENT) and suite.alive(rs.QC)
+        assert suite.alive(RIG) and suite.alive(IDENT) and suite.alive(QC)
 
         # -- identifier killed, then restarted from its parameter file
         resets = rig()['writer_resets']
-        suite.kill(rs.IDENT, signal.SIGKILL)
+        suite.kill(IDENT, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
         assert wait(grows(rig, 'samples_published', 6000), GUARD_S), (rig(), tails())
-        assert rig()['writer_resets'] >= resets and suite.alive(rs.RIG)
-        suite.start(rs.IDENT)
+        assert rig()['writer_resets'] >= resets and suite.alive(RIG)
+        suite.start(IDENT)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
 
         # -- quarter car stopped, then killed and restarted: rig and identifier carry on
-        os.kill(suite.pid(rs.QC), signal.SIGSTOP)
+        os.kill(suite.pid(QC), signal.SIGSTOP)
         try:
             assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
             assert wait(grows(rig, 'samples_published', 2000), GUARD_S), rig()
         finally:
-            os.kill(suite.pid(rs.QC), signal.SIGCONT)
-        assert wait(fresh_car(), GUARD_S) and suite.alive(rs.QC)
-        suite.kill(rs.QC, signal.SIGKILL)
+            os.kill(suite.pid(QC), signal.SIGCONT)
+        assert wait(fresh_car(), GUARD_S) and suite.alive(QC)
+        suite.kill(QC, signal.SIGKILL)
         assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
-        n_car = diag.count(rs.QC)
-        suite.start(rs.QC)
-        assert wait(lambda: diag.count(rs.QC) > n_car and car_mode('normal')(), GUARD_S), \
+        n_car = diag.count(QC)
+        suite.start(QC)
+        assert wait(lambda: diag.count(QC) > n_car and car_mode('normal')(), GUARD_S), \
             (car_st(), tails())
 
         # -- rig stopped, then killed and restarted: identifier and car carry on
-        os.kill(suite.pid(rs.RIG), signal.SIGSTOP)
+        os.kill(suite.pid(RIG), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
             assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
         finally:
-            os.kill(suite.pid(rs.RIG), signal.SIGCONT)
+            os.kill(suite.pid(RIG), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
-        suite.kill(rs.RIG, signal.SIGKILL)
+        suite.kill(RIG, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
         assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
-        suite.start(rs.RIG)
+        suite.start(RIG)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
         assert suite.poll() == {}, tails()
 
         # -- SIGTERM and SIGINT: exit 0
-        assert suite.kill(rs.IDENT, signal.SIGTERM, wait_s=GUARD_S) == 0, tails()
+        assert suite.kill(IDENT, signal.SIGTERM, wait_s=GUARD_S) == 0, tails()
     finally:
         codes = suite.stop(timeout_s=GUARD_S)
-    assert codes[rs.QC] == 0 and codes[rs.RIG] == 0, (codes, tails())
+    assert codes[QC] == 0 and codes[RIG] == 0, (codes, tails())
 
 
 def test_rig_clamps_and_refuses_bad_current_commands(listener):

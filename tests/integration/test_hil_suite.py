@@ -7,9 +7,9 @@ tests/conftest.py. Order of events and counts only, no wall-clock thresholds:
 - the rig in commanded mode, fed by a test publisher: commands followed, out-of-stroke ones
   clamped, non-finite ones refused, a silent commander timed out back to neutral, all counted;
 - rig (commanded) + identifier + car (``plant:=rig``, probing) with the parameters of
-  ``launch_scripts/config/suite_hil.yaml``: the rig receives the car's commands and publishes
-  measurements, the car drives on them (tracking RMS finite and below the travel RMS), the
-  probe makes every current bin of the identifier hold data, the identifier publishes valid
+  ``src/mr_damper_bringup/config/suite_hil.yaml``: the rig receives the car's commands and
+  publishes measurements, the car drives on them (tracking RMS finite and below the travel RMS),
+  the probe makes every current bin of the identifier hold data, the identifier publishes valid
   parameters over the coil range and the car leaves fail-safe on them.
 """
 import math
@@ -29,7 +29,7 @@ HANG_S = 240.0
 
 def _suite_params(node, **overrides):
     """Parameters of ``node`` in suite_hil.yaml (``/**`` merged), plus ``overrides``."""
-    cfg = yaml.safe_load((REPO / 'launch_scripts/config/suite_hil.yaml').read_text())
+    cfg = yaml.safe_load((REPO / 'src/mr_damper_bringup/config/suite_hil.yaml').read_text())
     params = dict(cfg['/**']['ros__parameters'])
     params.update(cfg[node]['ros__parameters'])
     params.update(overrides)

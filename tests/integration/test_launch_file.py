@@ -18,10 +18,12 @@ import pytest
 import yaml
 
 from conftest import REPO, VENV_BIN
-from integration.ros_helpers import load_run_suite
+from mr_damper_bringup.config import IDENT, node_params, NODES, QC, resolve_config, RIG
+from mr_damper_bringup.launcher import main, parse_args
+from mr_damper_bringup.processes import wait_while_progressing
 
-LAUNCH_FILE = REPO / 'launch_scripts' / 'suite.launch.py'
-CONFIG_DIR = REPO / 'launch_scripts' / 'config'
+LAUNCH_FILE = REPO / 'src' / 'mr_damper_bringup' / 'launch' / 'suite.launch.py'
+CONFIG_DIR = REPO / 'src' / 'mr_damper_bringup' / 'config'
 
 
 class _Recorded:
@@ -137,8 +139,7 @@ def test_node_names_match_the_nodes_and_the_launcher(launch_description):
         module = _node_module(n['package'], n['executable'])
         text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
         assert f"super().__init__('{n['name']}'" in text
-    run_suite = load_run_suite()
-    assert run_suite.NODES == {n['name']: n['executable'] for n in nodes}
+    assert NODES == {n['name']: n['executable'] for n in nodes}
 
 
 @pytest.mark.parametrize('config', ['sim', 'replay', 'hil'])
@@ -162,35 +163,33 @@ def test_yaml_parameters_are_declared_by_the_nodes(config):
 
 
 def test_launcher_config_resolution(tmp_path):
-    rs = load_run_suite()
-    args = rs.parse_args(['--out', str(tmp_path), '--rate-factor', '3', '--duration', '40',
-                          '--set', 'quarter_car_node.safe_current_a=1.0',
-                          '--set', '/**.plant=kwok-current'])
-    cfg = rs.resolve_config(args, tmp_path)
-    qc = rs.node_params(cfg, rs.QC)
+    args = parse_args(['--out', str(tmp_path), '--rate-factor', '3', '--duration', '40',
+                       '--set', 'quarter_car_node.safe_current_a=1.0',
+                       '--set', '/**.plant=kwok-current'])
+    cfg = resolve_config(args, tmp_path)
+    qc = node_params(cfg, QC)
     assert qc['safe_current_a'] == 1.0 and isinstance(qc['safe_current_a'], float)
-    assert qc['real_time_factor'] == 3.0 and rs.node_params(cfg, rs.RIG)['rate_factor'] == 3.0
-    assert qc['plant'] == 'kwok-current' == rs.node_params(cfg, rs.RIG)['plant']
+    assert qc['real_time_factor'] == 3.0 and node_params(cfg, RIG)['rate_factor'] == 3.0
+    assert qc['plant'] == 'kwok-current' == node_params(cfg, RIG)['plant']
     # the road (default 300 s) outlasts the run (40 s at 3x): held, not repeated
     assert qc.get('road_duration_s', 300.0) >= 40 * 3.0 and not qc.get('road_repeat', False)
     assert qc['log_file'] == str(tmp_path / 'quarter_car_log')
-    assert rs.node_params(cfg, rs.IDENT)['params_file'] == str(tmp_path / 'identifier_params.json')
+    assert node_params(cfg, IDENT)['params_file'] == str(tmp_path / 'identifier_params.json')
     # a run longer than the road drives it again instead of a road as long as the run
-    long = rs.resolve_config(rs.parse_args(['--out', str(tmp_path), '--duration', '3600']),
-                             tmp_path)
-    assert rs.node_params(long, rs.QC)['road_repeat'] is True
-    assert rs.node_params(long, rs.QC).get('road_duration_s', 300.0) == 300.0
+    long = resolve_config(parse_args(['--out', str(tmp_path), '--duration', '3600']),
+                          tmp_path)
+    assert node_params(long, QC)['road_repeat'] is True
+    assert node_params(long, QC).get('road_duration_s', 300.0) == 300.0
 
 
 def test_launcher_replay_concatenates_csv_files(tmp_path):
     from conftest import QUIROZ_DIR
     from mr_damper_model.data import read_csv
-    rs = load_run_suite()
     files = sorted(QUIROZ_DIR.glob('quiroz_sine_10mm1Hz_*A_preproc.csv'))[:2]
-    args = rs.parse_args(['--out', str(tmp_path), '--config', 'replay']
-                         + [a for f in files for a in ('--file', str(f))])
-    cfg = rs.resolve_config(args, tmp_path)
-    rig = rs.node_params(cfg, rs.RIG)
+    args = parse_args(['--out', str(tmp_path), '--config', 'replay']
+                      + [a for f in files for a in ('--file', str(f))])
+    cfg = resolve_config(args, tmp_path)
+    rig = node_params(cfg, RIG)
     assert rig['mode'] == 'csv' and rig['file'] == str(tmp_path / 'replay_input.csv')
     joined = read_csv(rig['file'])
     parts = [read_csv(f) for f in files]
@@ -204,8 +203,7 @@ def test_launcher_replay_concatenates_csv_files(tmp_path):
     (['--set', 'no_equals_sign'], 'NODE.PARAM=VALUE'),
 ])
 def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
-    rs = load_run_suite()
-    assert rs.main(['--out', str(tmp_path), *argv]) == 2
+    assert main(['--out', str(tmp_path), *argv]) == 2
     assert message in capsys.readouterr().err
 
 
@@ -218,14 +216,13 @@ def test_node_default_yaml_lists_every_declared_parameter():
 
 def test_drain_waits_while_the_identifier_progresses_and_not_for_a_stuck_one():
     """The stop drains a slow identifier to the last sample; a stuck one cannot hold it."""
-    rs = load_run_suite()
     calls = []
 
     def slow():               # 1 sample more per look: done after 50 looks, however slow
         calls.append(1)
         return len(calls) >= 50, len(calls)
-    assert rs.wait_while_progressing(slow, stall_s=30.0, guard_s=300.0, poll_s=0.0)
+    assert wait_while_progressing(slow, stall_s=30.0, guard_s=300.0, poll_s=0.0)
     assert len(calls) == 50
-    assert not rs.wait_while_progressing(lambda: (False, 7), stall_s=0.05, guard_s=300.0,
-                                         poll_s=0.01)
-    assert rs.wait_while_progressing(lambda: (True, None), stall_s=0.0, guard_s=0.0)
+    assert not wait_while_progressing(lambda: (False, 7), stall_s=0.05, guard_s=300.0,
+                                      poll_s=0.01)
+    assert wait_while_progressing(lambda: (True, None), stall_s=0.0, guard_s=0.0)

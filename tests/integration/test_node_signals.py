@@ -25,7 +25,7 @@ SCRIPTS = {
     'rig_node': ['--ros-args', '-p', 'mode:=sim'],
     'identifier_node': [],
     'quarter_car_node': [],
-    'mr-damper-record': ['--out', '{tmp}/bag', '--storage', 'mcap'],
+    'mr-damper-record': ['--out', '{tmp}/run.mcap'],
 }
 
 

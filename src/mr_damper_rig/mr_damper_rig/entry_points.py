@@ -9,8 +9,3 @@ from mr_damper_model.stop_flag import early_main
 def rig_node():
     """``ros2 run mr_damper_rig rig_node``."""
     return early_main('mr_damper_rig.rig_node')
-
-
-def record():
-    """``mr-damper-record``."""
-    return early_main('mr_damper_rig.record')

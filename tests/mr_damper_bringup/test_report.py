@@ -1,4 +1,4 @@
-"""Tests of quarter_car_sim.suite_report (summary of a suite run) and suite_plots, without ROS."""
+"""Tests of mr_damper_bringup.report (summary of a suite run from its MCAP) and its plots."""
 import json
 import math
 import subprocess
@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 import yaml
 
-from mr_damper_model.columnlog import ColumnReader, ColumnWriter, JsonLines
-from quarter_car_sim import live_loop, suite_report
+from mr_damper_bringup import report
+from mr_damper_bringup.recorder import SuiteRecorder
+from mr_damper_model.columnlog import ColumnReader, ColumnWriter
+from mr_damper_model.models import get_model
+from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
@@ -25,31 +28,25 @@ def _truth_msg():
                         rmse_n=1.0, nrmse_percent=0.1, window_end_s=1.0)
 
 
+def _model_force(params, x, v, i):
+    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    return model.force(model.from_dict(params), x, v, i=i)
+
+
 def _measurements(params, n=4000, rng=0):
     gen = np.random.default_rng(rng)
     t = np.arange(n) * 1e-3
     x = 0.03 * np.sin(2 * np.pi * 1.1 * t)
     v = 0.03 * 2 * np.pi * 1.1 * np.cos(2 * np.pi * 1.1 * t)
     i = np.repeat([0.0, 0.5, 1.0, 2.0], n // 4)
-    f = suite_report.model_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
+    f = _model_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
     return {'t': t, 'x': x, 'v': v, 'f': f, 'i': i, 'recv_epoch_s': 1000.0 + t + 0.002}
 
 
-def test_model_force_is_the_kwok_current_model():
-    from mr_damper_model.models import get_model
-    params, _ = _truth_msg()
-    model = get_model('kwok-current', i_ref_a=2.0)
-    x = np.linspace(-0.03, 0.03, 50)
-    v = np.linspace(0.2, -0.2, 50)
-    i = np.linspace(0.0, 2.0, 50)
-    np.testing.assert_allclose(suite_report.model_force(params, x, v, i),
-                               model.force(model.from_dict(params), x, v, i), rtol=1e-12)
-
-
 def test_fit_error_known_values():
-    rmse, nrmse = suite_report.fit_error([0.0, 10.0, 0.0, 10.0], [1.0, 9.0, 1.0, 9.0])
+    rmse, nrmse = report.fit_error([0.0, 10.0, 0.0, 10.0], [1.0, 9.0, 1.0, 9.0])
     assert rmse == pytest.approx(1.0) and nrmse == pytest.approx(10.0)
-    assert all(math.isnan(v) for v in suite_report.fit_error([], []))
+    assert all(math.isnan(v) for v in report.fit_error([], []))
 
 
 def test_identification_summary_recovers_truth():
@@ -57,7 +54,7 @@ def test_identification_summary_recovers_truth():
     meas = _measurements(params)
     bad = dict(msg, valid=0.0, c1=0.0)
     log = [(1.0, bad), (2.5, msg), (3.0, msg)]
-    ident = suite_report.identification_summary(meas, log, truth=msg)
+    ident = report.identification_summary(meas, log, truth=msg)
     assert ident['updates'] == 3 and ident['valid_updates'] == 2
     assert ident['first_valid_s'] == 2.5
     assert all(abs(e) < 1e-9 for e in ident['parameter_error_percent'].values())
@@ -72,7 +69,7 @@ def test_measurement_to_parameters_delay():
     params, msg = _truth_msg()
     meas = _measurements(params)
     log = [(0.0, dict(msg, window_end_s=2.0, recv_epoch_s=1000.0 + 2.0 + 0.002 + 0.05))]
-    d = suite_report.measurement_to_parameters(meas, log)
+    d = report.measurement_to_parameters(meas, log)
     np.testing.assert_allclose(d, [0.05], atol=1e-9)
 
 
@@ -103,7 +100,7 @@ def _live_log(path, controller_offers=False, seconds=4.0, status=None):
 def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
     """Same road, seed, plant and timing: the offline passive run IS the fail-safe live run."""
     log = _live_log(tmp_path / 'log', controller_offers=False)
-    ride = suite_report.ride_summary(log, QC)
+    ride = report.ride_summary(log, QC)
     assert 'never left fail-safe' in ride['note']
     for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_tyre_load_ratio',
                 'rms_suspension_travel'):
@@ -113,49 +110,130 @@ def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
 
 def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     log = _live_log(tmp_path / 'log', controller_offers=True)
-    ride = suite_report.ride_summary(log, QC)
+    ride = report.ride_summary(log, QC)
     assert ride['window_s'][0] == pytest.approx(1.0, abs=2e-3)     # step 1500 of t0 = -0.5
     assert ride['skyhook']['rms_body_accel_wk'] < ride['passive']['rms_body_accel_wk']
     assert ride['wk_improvement_percent'] > 0
 
 
+def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None):
+    """
+    Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
+
+    ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
+    ``drop``: measurement indices not recorded (gaps); ``node_params``: {node: parameters} as
+    the recorder asks them from the nodes.
+    """
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_model import messages as mm
+    from mr_damper_bringup.topics import NODE_PARAMETERS_TOPIC
+    with SuiteRecorder(path, config_text=yaml.safe_dump(cfg), start_ns=999_000_000_000) as rec:
+        for node, p in (node_params or {}).items():
+            rec.write_text(NODE_PARAMETERS_TOPIC, yaml.safe_dump({node: {'ros__parameters': p}}),
+                           999_000_000_002)
+        rec.write('truth', serialize_message(mm.kwok_parameters_msg(truth)), 999_000_000_001)
+        for k in range(meas['t'].size):
+            if k in drop:
+                continue
+            msg = mm.measurement_to_msg(*(meas[c][k] for c in 'txvfi'))
+            rec.write('measurement', serialize_message(msg),
+                      int(round(meas['recv_epoch_s'][k] * 1e9)))
+        for t, d in params_msgs:
+            rec.write('parameters', serialize_message(mm.kwok_parameters_msg(d)),
+                      int(round(t * 1e9)))
+        for t, node, d in statuses:
+            rec.write(f'{node}_status', serialize_message(mm.status_msg(d)), int(round(t * 1e9)))
+    return path
+
+
+def _cfg():
+    return {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
+            'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
+            'quarter_car_node': {'ros__parameters': dict(QC)}}
+
+
+def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=500)
+    statuses = [(1000.2, 'rig', {'samples_published': 250}),
+                (1001.0, 'identifier', {'samples_received': 497}),
+                (1001.1, 'rig', {'samples_published': 500})]
+    _write_run(tmp_path / 'suite.mcap', meas, [(1000.3, dict(msg, valid=False))], statuses,
+               msg, _cfg(), drop=(100, 101, 300))
+    rec = report.read_recording(tmp_path / 'suite.mcap', tmp_path)
+    assert rec['config'] == _cfg()
+    assert rec['measurements_received'] == 497 and rec['measurement_gaps'] == 3
+    assert rec['status'] == {'rig': {'samples_published': 500},
+                             'identifier': {'samples_received': 497}}
+    assert rec['status_messages'] == {'rig': 2, 'identifier': 1}
+    assert rec['truth']['c0'] == params['c0'] and rec['truth']['valid'] == 1.0
+    assert rec['parameter_messages'] == 1
+    assert rec['topic_messages']['measurement'] == 497 and rec['undecodable'] == {}
+    got = ColumnReader(tmp_path / 'measurement').read()
+    keep = np.setdiff1d(np.arange(500), [100, 101, 300])
+    for c in ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s'):
+        np.testing.assert_allclose(got[c], meas[c][keep], rtol=0, atol=1e-9)
+    (line,) = (tmp_path / 'parameters.jsonl').read_text().splitlines()
+    t, d = json.loads(line)
+    assert t == pytest.approx(1.3) and d['valid'] == 0.0
+    assert d['recv_epoch_s'] == pytest.approx(1000.3)
+
+
 def test_make_report_end_to_end(tmp_path):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    cols = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
-    with ColumnWriter(tmp_path / 'measurement', cols, chunk_rows=1000) as w:
-        w.append_block(np.column_stack([meas[c] for c in cols]))
-    jl = JsonLines(tmp_path / 'parameters.jsonl')
-    jl.append([1.0, dict(msg, recv_epoch_s=1001.5)])
-    jl.append([1.2, dict(msg)])
-    jl.close()
-    rec = {'truth': msg, 'truth_spencer': None,
-           'status': {'rig': {'samples_published': 4000},
-                      'identifier': {'samples_received': 3990}},
-           'measurement_gaps': 0, 'measurements_received': 4000}
-    (tmp_path / 'recording.json').write_text(json.dumps(rec))
+    statuses = [(1004.5, 'rig', {'samples_published': 4000}),
+                (1004.6, 'identifier', {'samples_received': 3990})]
+    _write_run(tmp_path / 'suite.mcap', meas,
+               [(1000.0, dict(msg)), (1000.2, dict(msg))], statuses, msg, _cfg())
     status = {'failsafe_s': 1.5, 'mode': 'normal', 'params_rejected': {'stale': 0}}
     _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=3.0, status=status)
-    cfg = {'/**': {'ros__parameters': {'plant': 'kwok-current'}},
-           'mr_damper_rig': {'ros__parameters': {'mode': 'sim'}},
-           'quarter_car_node': {'ros__parameters': QC}}
-    (tmp_path / 'suite_params.yaml').write_text(yaml.safe_dump(cfg))
-    s = suite_report.make_report(tmp_path, duration_s=5.0)
+    s = report.make_report(tmp_path, duration_s=5.0)
     assert json.loads((tmp_path / 'summary.json').read_text()) == s
     assert s['duration_s'] == 5.0 and s['failsafe_s'] == 1.5
-    assert s['identification']['first_valid_s'] == 1.0
+    # receive time of the first valid parameters - the recorder's start (999 s)
+    assert s['identification']['first_valid_s'] == pytest.approx(1.0)
     assert s['identification']['truth_model'] == 'kwok-current'
+    assert s['identification']['updates'] == 2
     # 4000 samples in the recorded span, 3990 at the identifier
     assert s['messages_lost'] == 10
+    assert s['recording']['messages']['measurement'] == 4000
     assert set(s['ride']) >= {'skyhook', 'passive', 'window_s'}
     for png in ('hysteresis.png', 'convergence.png', 'ride.png'):
         assert (tmp_path / png).stat().st_size > 5000
-    text = suite_report.format_summary(s)
+    assert not list(tmp_path.glob('.report_*'))        # the extracts are gone
+    text = report.format_summary(s)
     assert 'parameter errors' in text and 'messages lost: 10' in text
 
 
+def test_settings_come_from_what_the_nodes_report(tmp_path):
+    """The car's reported parameters (its defaults included) win over the YAML section."""
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=1000)
+    cfg = _cfg()
+    del cfg['quarter_car_node']['ros__parameters']['safe_current_a']     # a node default
+    car = dict(QC, safe_current_a=0.25, use_sim_time=False)
+    _write_run(tmp_path / 'suite.mcap', meas, [(1000.0, dict(msg))], [], msg, cfg,
+               node_params={'quarter_car_node': car})
+    rec = report.read_recording(tmp_path / 'suite.mcap', tmp_path)
+    assert rec['node_parameters'] == {'quarter_car_node': car}
+    eff = report.effective_config(rec)
+    assert eff['quarter_car_node']['ros__parameters']['safe_current_a'] == 0.25
+    assert eff['mr_damper_rig'] == cfg['mr_damper_rig']
+    _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=2.0)
+    s = report.make_report(tmp_path, duration_s=3.0, plots=False)
+    assert s['ride']['passive_current_a'] == 0.25
+    assert s['recording']['node_parameters'] == ['quarter_car_node']
+
+
+def test_make_report_without_a_recording_says_so(tmp_path):
+    with pytest.raises(FileNotFoundError, match='suite.mcap'):
+        report.make_report(tmp_path)
+
+
 def test_module_does_not_import_rclpy():
-    code = ('import sys, quarter_car_sim.suite_report, quarter_car_sim.suite_plots; '
+    code = ('import sys, mr_damper_bringup.report, mr_damper_bringup.plots; '
             'print("rclpy" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
@@ -164,30 +242,30 @@ def test_module_does_not_import_rclpy():
 def test_messages_lost_counts_the_identifier_not_the_recorder():
     rec = {'status': {'identifier': {'samples_received': 1040}}, 'measurement_gaps': 40,
            'measurements_received': 1000}
-    lost, br = suite_report.messages_summary(rec, {})
+    lost, br = report.messages_summary(rec, {})
     assert lost == 0 and br['measurement_gaps_at_recorder'] == 40
     rec['status']['identifier']['samples_received'] = 1030
-    assert suite_report.messages_summary(rec, {})[0] == 10
-    lost, br = suite_report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
+    assert report.messages_summary(rec, {})[0] == 10
+    lost, br = report.messages_summary({'measurement_gaps': 3, 'status': {}}, {})
     assert lost == 3 and 'note' in br
 
 
 def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    whole = suite_report.fit_error(meas['f'], suite_report.model_force(msg, meas['x'],
-                                                                       meas['v'], meas['i']))
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 333)
-    assert suite_report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
+    force = _model_force(msg, meas['x'], meas['v'], meas['i'])
+    whole = report.fit_error(meas['f'], force)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 333)
+    assert report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
 
 
 def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
     from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
     log = _live_log(tmp_path / 'log', controller_offers=True)
-    big = suite_report.ride_summary(log, QC)
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 377)
-    small = suite_report.ride_summary(log, QC)
+    big = report.ride_summary(log, QC)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 377)
+    small = report.ride_summary(log, QC)
     for key in ('skyhook', 'passive', 'passive_0a'):
         for m, v in big[key].items():
             assert small[key][m] == pytest.approx(v, rel=1e-9, nan_ok=True), (key, m)
@@ -208,14 +286,14 @@ def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypa
     meas = _measurements(params)
     log = [(0.0, dict(msg, window_end_s=e, recv_epoch_s=1000.0 + e + 0.05))
            for e in (-1.0, 0.5, 0.9995, 1.0, 2.2, 3.999, 7.0)]
-    monkeypatch.setattr(suite_report, 'CHUNK_ROWS', 1000)
-    d = suite_report.measurement_to_parameters(meas, log)
+    monkeypatch.setattr(report, 'CHUNK_ROWS', 1000)
+    d = report.measurement_to_parameters(meas, log)
     # windows before / after the record are ignored; the rest arrive 50 ms - 2 ms later
     np.testing.assert_allclose(d, [0.048] * 5, atol=1e-9)
     trace = _live_log(tmp_path / 'log', seconds=1.0)
     a = trace.read()
     a['wall'] = np.cumsum(np.where(np.arange(a['t'].size) % 97 == 0, 3e-3, 1e-3))
-    fig = suite_report.loop_figures(dict(a, dt=1e-3))
+    fig = report.loop_figures(dict(a, dt=1e-3))
     per = live_loop.timing_stats(np.diff(a['wall']), float(np.median(np.diff(a['wall']))))
     for k in ('n', 'mean_ms', 'p50_ms', 'p99_ms', 'max_ms', 'jitter_max_ms', 'jitter_p99_ms'):
         assert fig['period'][k] == pytest.approx(per[k], rel=1e-9), k
@@ -237,8 +315,8 @@ def test_report_passes_keep_memory_bounded(tmp_path):
     meas = ColumnReader(tmp_path / 'm')
     log = [(1.0, dict(msg, window_end_s=500.0, recv_epoch_s=1500.05))]
     tracemalloc.start()
-    ident = suite_report.identification_summary(meas, log, truth=msg, offline_budget_s=0)
-    delays = suite_report.measurement_to_parameters(meas, log)
+    ident = report.identification_summary(meas, log, truth=msg, offline_budget_s=0)
+    delays = report.measurement_to_parameters(meas, log)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     assert ident['truth_nrmse_percent'] < 0.1 and ident['nrmse_percent'] < 0.1

@@ -1,11 +1,11 @@
 """
 ROS 2 launch file of the MR damper suite, for machines with a full ROS 2 install.
 
-    ros2 launch launch_scripts/suite.launch.py [config:=sim|replay] [params_file:=FILE]
+    ros2 launch mr_damper_bringup suite.launch.py [config:=sim|replay|hil] [params_file:=FILE]
         [file:=REPLAY.csv|BAG_DIR]
 
 Starts the three nodes, each with the same parameter YAML (default
-``launch_scripts/config/suite_<config>.yaml``):
+``config/suite_<config>.yaml`` of this package, installed to ``share/mr_damper_bringup``):
 
 - ``ros2 run mr_damper_rig rig_node``            (node name ``mr_damper_rig``)
 - ``ros2 run mr_damper_model identifier_node``   (node name ``mr_damper_identifier``)
@@ -13,7 +13,8 @@ Starts the three nodes, each with the same parameter YAML (default
 
 Set ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` of your own in the shell
 first when several people share the network. Where ``ros2 launch`` does not exist (pip-installed
-rclpy), ``launch_scripts/run_suite.py`` does the same and writes the run's summary.
+rclpy), ``mr-damper-suite`` does the same, records every topic into one MCAP file and writes the
+run's summary; here, record with ``ros2 run mr_damper_bringup mr-damper-record --out run.mcap``.
 """
 import os
 
@@ -23,6 +24,8 @@ from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+#: the package's config folder: next to launch/ in the source tree and in share/mr_damper_bringup
+CONFIG_DIR = os.path.join(os.path.dirname(HERE), 'config')
 
 #: (package, executable, node name): the console scripts of the three ament_python packages
 NODES = (
@@ -38,7 +41,7 @@ def generate_launch_description():
     params_file = LaunchConfiguration('params_file')
     replay_file = LaunchConfiguration('file')
     default_params = PythonExpression([
-        "'", os.path.join(HERE, 'config', 'suite_'), "' + '", config, "' + '.yaml'"])
+        "'", os.path.join(CONFIG_DIR, 'suite_'), "' + '", config, "' + '.yaml'"])
     actions = [
         DeclareLaunchArgument('config', default_value='sim',
                               description='sim (virtual rig) or replay (CSV / bag)'),

@@ -1,5 +1,5 @@
 """
-Plots of one suite run (matplotlib, Agg backend); called by :mod:`quarter_car_sim.suite_report`.
+Plots of one suite run (matplotlib, Agg backend); called by :mod:`mr_damper_bringup.report`.
 
 - ``hysteresis.png``: measured force against velocity and against displacement for the last
   cycles at each current level, with the final identified model on the same samples;
@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.models import get_model
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
@@ -36,7 +37,6 @@ def _save(plt, fig, axes, path):
 
 def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
     """Measured vs identified force loops per current level; return the path or None."""
-    from quarter_car_sim.suite_report import model_force
     t = np.asarray(meas.get('t', []), dtype=float)
     if t.size < 10:
         return None
@@ -57,7 +57,8 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
         axes[0].plot(v[idx], f[idx], '.', ms=1.5, color=col, label=f'{lev:.2f} A measured')
         axes[1].plot(x[idx] * 1e3, f[idx], '.', ms=1.5, color=col)
         if params:
-            fm = model_force(params, x[idx], v[idx], i[idx])
+            model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+            fm = model.force(model.from_dict(params), x[idx], v[idx], i=i[idx])
             order = np.argsort(t[idx])
             axes[0].plot(v[idx][order], fm[order], '-', lw=1.0, color='k', alpha=0.7)
             axes[1].plot(x[idx][order] * 1e3, fm[order], '-', lw=1.0, color='k', alpha=0.7)

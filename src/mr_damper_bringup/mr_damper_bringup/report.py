@@ -1,17 +1,21 @@
 """
-Summary and plots of one suite run (``launch_scripts/run_suite.py``), without ROS.
+Summary and plots of one suite run (``mr-damper-suite``), without ROS.
 
-Inputs, all in the run's output folder:
+Inputs, in the run's output folder:
 
-- ``suite_params.yaml``: the single parameter file the three nodes were started with;
-- ``measurement.f64/.json``: column log (``mr_damper_model.columnlog``) of t, x, v, f, i and
-  the receipt time of every measurement the launcher's recorder received, streamed as it came;
-- ``parameters.jsonl``: every ``/mr_damper/kwok_parameters`` message with its wall receipt time
-  (``[wall_s, dict]`` per line), streamed as it came;
-- ``recording.json``: counters, the true parameters, the last status of each node;
+- ``suite.mcap``: the run's one recording (``mr-damper-record``, :mod:`mr_damper_bringup.
+  recorder`): every suite topic with its receive time, and on ``/mr_damper/suite_config`` the
+  parameter YAML the nodes were started with, and on ``/mr_damper/node_parameters`` the
+  parameters each node reported running with (defaults included; :func:`effective_config`
+  merges both, so the settings are the nodes' own; the fallback values in this module only
+  matter for a recording without them). :func:`read_recording` reads it back in one streamed
+  pass (rosbags): measurements into a temporary column log (t, x, v, f, i and the
+  receive time), parameter messages into a temporary JSON-lines file, and the bounded rest
+  (counters, true parameters, the last status of each node, the last ride metrics);
 - ``quarter_car_log.f64/.json``: column log of every control step of the quarter-car node
   (``live_loop.TRACE_COLUMNS``), streamed by the node; its header holds ``dt`` and the final
-  status.
+  status;
+- ``process_stats.json`` (optional): CPU and memory of the processes (the launcher).
 
 Memory is bounded for runs of any length: every figure over the whole record is computed in
 streamed passes over the files (chunks of 65,536 rows); plots and the offline best fit use at
@@ -32,51 +36,134 @@ the same road, seed and plant, simulated offline here), ``passive_0a`` (the soft
 best for comfort), same metric keys, ``window_s``};
 ``failsafe_s``; ``messages_lost`` (total) and ``messages`` (breakdown); ``loop`` (timing).
 
-Command line (regenerate from a finished run): ``python -m quarter_car_sim.suite_report OUT``.
+Command line (regenerate from a finished run): ``python -m mr_damper_bringup.report OUT``.
 """
 from array import array
 import json
 import math
 from pathlib import Path
 import sys
+import tempfile
 
 import numpy as np
 
-from mr_damper_model.columnlog import ArrayLog, ColumnReader, exists, finite_or_none, open_log
+from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
+                                       finite_or_none, JsonLines, open_log)
+from mr_damper_model.kwok_current import KwokCurrent
 from mr_damper_model.models import get_model
 
-KWOK_CURRENT_NAMES = get_model('kwok-current').param_names
+from .config import node_params, QC, RIG
+from .topics import (CONFIG_TOPIC, decode_json, decode_parameters, decode_status,
+                     NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
+
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
+#: file name of the run's recording in the output folder
+RECORDING = 'suite.mcap'
+MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def _load_yaml(path):
-    import yaml
-    return yaml.safe_load(Path(path).read_text())
-
-
-def _node_params(cfg, node):
-    merged = dict((cfg or {}).get('/**', {}).get('ros__parameters', {}))
-    merged.update((cfg or {}).get(node, {}).get('ros__parameters', {}))
-    return merged
-
-
-def model_force(params, x, v, i):
+def read_recording(path, work):
     """
-    Force [N] of the kwok-current model with named parameters (``i_ref_a`` optional).
+    Read a suite recording back in one streamed pass (bounded memory).
 
     Parameters
     ----------
-    params : dict
-        Kwok-current parameters by name (and ``i_ref_a`` [A], default 2).
-    x, v, i : array_like with shape (n,)
-        Displacement [m], velocity [m/s], coil current [A].
+    path : str or Path
+        The ``suite.mcap`` file.
+    work : str or Path
+        Folder for the streamed extracts: column log ``measurement`` (:data:`MEAS_COLUMNS`,
+        ``recv_epoch_s`` = receive time [s]) and ``parameters.jsonl`` (``[t_s, dict]`` per
+        message, ``t_s`` seconds since the recording started, the dict with ``recv_epoch_s``).
 
     Returns
     -------
-    numpy.ndarray with shape (n,)
+    dict
+        ``config`` (the parameter dict the suite ran with, or None), ``node_parameters``
+        (node -> the parameters it reported running with, its defaults included), ``truth``,
+        ``truth_spencer`` (decoded true parameters), ``status`` (last status per node),
+        ``status_messages``, ``ride_metrics`` (last), ``topic_messages`` (messages per topic
+        key), ``parameter_messages``, ``measurements_received``, ``measurement_gaps`` (samples
+        missing between consecutive stamps), ``measurement_out_of_order``, ``undecodable``
+        (messages per key whose payload did not decode), ``start_epoch_s``.
 
     """
-    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
-    return model.force(model.from_dict(params), x, v, i=i)
+    import yaml
+    from rosbags.highlevel import AnyReader
+
+    from mr_damper_model.bag_types import suite_typestore
+    from .topics import decode_measurement
+    work = Path(work)
+    keys = {row.name: key for key, row in SUITE_TOPICS.items()}
+    keys[CONFIG_TOPIC.name] = 'config'
+    keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
+    rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
+           'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
+           'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
+           'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None}
+    meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
+    params = JsonLines(work / 'parameters.jsonl')
+    last_t, dt = None, None
+    try:
+        with AnyReader([Path(path)], default_typestore=suite_typestore()) as reader:
+            conns = [c for c in reader.connections if c.topic in keys]
+            for conn, t_ns, raw in reader.messages(connections=conns):
+                key = keys[conn.topic]
+                t_rx = t_ns * 1e-9
+                if rec['start_epoch_s'] is None:
+                    rec['start_epoch_s'] = t_rx
+                rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
+                if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
+                               'ride_metrics', 'config', 'node_parameters', *STATUS_KEYS):
+                    continue
+                msg = reader.deserialize(raw, conn.msgtype)
+                try:
+                    if key == 'measurement':
+                        sample = decode_measurement(msg)
+                    elif key == 'config':
+                        rec['config'] = yaml.safe_load(msg.data)
+                        continue
+                    elif key == 'node_parameters':
+                        for node, section in yaml.safe_load(msg.data).items():
+                            rec['node_parameters'][node] = section['ros__parameters']
+                        continue
+                    elif key == 'ride_metrics':
+                        rec['ride_metrics'] = decode_json(msg)
+                        continue
+                    elif key in ('parameters', 'truth', 'truth_spencer'):
+                        d = decode_parameters(msg)
+                    else:
+                        for node, d in decode_status(key, msg).items():
+                            rec['status'][node] = d
+                            rec['status_messages'][node] = \
+                                rec['status_messages'].get(node, 0) + 1
+                        continue
+                except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
+                    rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1
+                    continue
+                if key == 'parameters':
+                    d['recv_epoch_s'] = t_rx
+                    params.append([t_rx - rec['start_epoch_s'], d])
+                    rec['parameter_messages'] += 1
+                elif key != 'measurement':
+                    rec[key] = d
+                else:
+                    t = sample[0]
+                    if last_t is not None:
+                        step = t - last_t
+                        if step <= 0:
+                            rec['measurement_out_of_order'] += 1
+                            continue
+                        if dt is None or rec['measurements_received'] < 20:
+                            dt = step if dt is None else min(dt, step)
+                        elif step > 1.5 * dt:
+                            rec['measurement_gaps'] += int(round(step / dt)) - 1
+                    last_t = t
+                    meas.append(sample + (t_rx,))
+                    rec['measurements_received'] += 1
+    finally:
+        meas.close()
+        params.close()
+    return rec
 
 
 def fit_error(f_meas, f_model):
@@ -126,10 +213,12 @@ def record_error(meas, params):
     Same figures as :func:`fit_error` on the whole arrays (NRMSE by the measured force range).
     """
     meas = open_log(meas)
+    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    values = model.from_dict(params)
     n, se, fmin, fmax = 0, 0.0, math.inf, -math.inf
     for c in meas.chunks(CHUNK_ROWS, ('x', 'v', 'f', 'i')):
         with np.errstate(over='ignore', invalid='ignore'):
-            e = model_force(params, c['x'], c['v'], c['i']) - c['f']
+            e = model.force(values, c['x'], c['v'], i=c['i']) - c['f']
         se += float(e @ e)
         n += e.size
         fmin, fmax = min(fmin, float(c['f'].min())), max(fmax, float(c['f'].max()))
@@ -246,7 +335,8 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
                  'parameters': {n: p.get(n) for n in KWOK_CURRENT_NAMES}}
         if f.size and all(math.isfinite(p.get(n, math.nan)) for n in KWOK_CURRENT_NAMES):
             with np.errstate(over='ignore', invalid='ignore'):
-                fm = model_force(p, x, v, i)
+                model = get_model('kwok-current', i_ref_a=float(p.get('i_ref_a', 2.0)))
+                fm = model.force(model.from_dict(p), x, v, i=i)
             if np.all(np.isfinite(fm)):
                 entry['record_rmse_n'], entry['record_nrmse_percent'] = fit_error(f, fm)
         out['history'].append(entry)
@@ -421,7 +511,7 @@ def measurement_to_parameters(meas, params_log):
     """
     Delays [s] from the newest measurement of each identified window to its parameters.
 
-    The newest sample's arrival (the launcher's recorder receives the measurement stream as the
+    The newest sample's arrival (``mr-damper-record`` receives the measurement stream as the
     identifier does) is found from its stamp ``window_end_s``; the delay runs to the arrival of
     the parameter message at the recorder (the quarter car subscribes to it the same way and
     uses it from its next 1 ms step on). Windows older than the record are ignored. The record
@@ -464,11 +554,11 @@ def messages_summary(rec, qc_status):
     """
     Measurements lost on their way to the identifier.
 
-    The launcher's recorder takes the same stream; the samples in its stamp span (received plus
-    stamp gaps) are what the rig published in that span (the rig waits for both subscribers
-    before its first sample and stops before the identifier), so the identifier lost
-    ``span - samples_received``. Gaps at the recorder itself are listed but are not losses of
-    the suite (the recorder is a monitor in the launcher process, not one of its nodes).
+    The recorder (``mr-damper-record``) takes the same stream; the samples in its stamp span
+    (received plus stamp gaps) are what the rig published in that span (the rig waits for both
+    subscribers before its first sample and stops before the identifier), so the identifier
+    lost ``span - samples_received``. Gaps at the recorder itself are listed but are not losses
+    of the suite (the recorder is a monitor, not part of the loop).
 
     Returns
     -------
@@ -519,31 +609,61 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
     duration_s : float, optional
         Wall duration of the run [s] (default: from the quarter-car log).
     config : dict, optional
-        The parameter YAML as a dict (default: read ``suite_params.yaml``).
+        The parameter dict of the run (default: the one recorded in ``suite.mcap``).
     plots : bool
         Also write the PNG plots.
 
     Returns
     -------
     dict
-        The summary (as written to ``summary.json``).
+        The summary (as written to ``summary.json``); a HIL run (car plant ``rig``) also has
+        ``hil`` (tracking error and identification quality against the cam rig).
 
     """
     out = Path(out)
-    cfg = config if config is not None else _load_yaml(out / 'suite_params.yaml')
-    qc_params = _node_params(cfg, 'quarter_car_node')
-    rig_params = _node_params(cfg, 'mr_damper_rig')
-    rec = json.loads((out / 'recording.json').read_text())
-    meas = (ColumnReader(out / 'measurement') if exists(out / 'measurement')
-            else ArrayLog({k: [] for k in ('t', 'x', 'v', 'f', 'i')}))
-    params_log = ParamsLog(out / 'parameters.jsonl')
+    path = out / RECORDING
+    if not path.is_file():
+        raise FileNotFoundError(f'{path}: no recording of the run')
+    with tempfile.TemporaryDirectory(prefix='.report_', dir=out) as work:
+        rec = read_recording(path, work)
+        cfg = config if config is not None else effective_config(rec)
+        if cfg is None:
+            raise ValueError(f'{path}: no {CONFIG_TOPIC.name} message (the suite config)')
+        meas = (ColumnReader(Path(work) / 'measurement') if rec['measurements_received']
+                else ArrayLog({k: [] for k in ('t', 'x', 'v', 'f', 'i')}))
+        params_log = ParamsLog(Path(work) / 'parameters.jsonl')
+        return _report(out, rec, cfg, meas, params_log, duration_s, plots)
+
+
+def effective_config(rec):
+    """
+    Return the settings of a recorded run: the suite YAML with each node's own report on top.
+
+    The YAML (``/mr_damper/suite_config``) holds what was set; the node parameters
+    (``/mr_damper/node_parameters``) what each node ran with, its defaults included, so no node
+    default is copied here. None when the recording has neither.
+    """
+    import copy
+    if rec.get('config') is None and not rec.get('node_parameters'):
+        return None
+    cfg = copy.deepcopy(rec.get('config') or {})
+    for node, params in (rec.get('node_parameters') or {}).items():
+        cfg.setdefault(node, {}).setdefault('ros__parameters', {}).update(params)
+    return cfg
+
+
+def _report(out, rec, cfg, meas, params_log, duration_s, plots):
+    hil = node_params(cfg, QC).get('plant') == 'rig'
+    qc_params = node_params(hil_report_config(cfg) if hil else cfg, QC)
+    rig_params = node_params(cfg, RIG)
     truth = rec.get('truth')
     summary = {'duration_s': duration_s,
                'config': 'replay' if rig_params.get('mode', 'sim') != 'sim' else 'sim',
-               'plant': qc_params.get('plant', 'spencer')}
+               'plant': qc_params.get('plant', 'spencer'),
+               'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
+                             'undecodable': rec['undecodable'],
+                             'node_parameters': sorted(rec.get('node_parameters') or {})}}
     summary['identification'] = identification_summary(meas, params_log, truth)
-    if params_log.bad_lines:
-        summary['identification']['unreadable_parameter_lines'] = len(params_log.bad_lines)
     summary['identification']['truth_model'] = (
         'kwok-current' if summary['identification']['truth'] else
         ('spencer' if rec.get('truth_spencer') else None))
@@ -579,10 +699,17 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         summary['measurement_to_parameters_s'] = {
             'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
             'max': float(lat.max()), 'n': int(lat.size)}
+    if hil:
+        from quarter_car_sim.hil import hil_summary
+        status = rec.get('status', {})
+        summary['hil'] = hil_summary(status.get('quarter_car'), status.get('rig'),
+                                     (summary.get('identification') or {}).get('parameters'),
+                                     plant=rig_params.get('plant', 'spencer'),
+                                     truth_file=rig_params.get('truth_file', ''))
     summary = finite_or_none(summary)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, allow_nan=False))
     if plots:
-        from quarter_car_sim import suite_plots
+        from . import plots as suite_plots
         step = max(1, int(math.ceil(summary['identification']['updates'] / 5000)))
         params_plot = [tp for k, tp in enumerate(params_log) if k % step == 0]
         trace = None
@@ -591,6 +718,16 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         suite_plots.plot_all(out, meas.strided(200000), params_plot, summary, trace,
                              passive_trace)
     return summary
+
+
+def hil_report_config(cfg):
+    """Config for the report of a HIL run: the passive reference drives the rig's damper."""
+    import copy
+    from .config import set_param
+    report = copy.deepcopy(cfg)
+    set_param(report, QC, 'plant', node_params(cfg, RIG).get('plant', 'spencer'))
+    set_param(report, QC, 'truth_file', node_params(cfg, RIG).get('truth_file', ''))
+    return report
 
 
 #: periods kept for the timing percentiles (every period of a run up to ~33 min at 1 kHz)
@@ -729,14 +866,17 @@ def format_summary(s):
         lines.append(f'control loop: period p50 {p["p50_ms"]:.3f} ms, jitter p99 '
                      f'{p.get("jitter_p99_ms") or float("nan"):.3f} ms; state -> command '
                      f'p50 {lat["p50_ms"]:.3f} ms, p99 {lat["p99_ms"]:.3f} ms')
+    if s.get('hil'):
+        from quarter_car_sim.hil import format_hil_summary
+        lines.append(format_hil_summary(s['hil']))
     return '\n'.join(lines)
 
 
 def main(argv=None):
-    """Regenerate ``summary.json`` and the plots of a finished run: ``suite_report OUT``."""
+    """Regenerate ``summary.json`` and the plots of a finished run: ``report OUT``."""
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        print('usage: python -m quarter_car_sim.suite_report RUN_OUTPUT_FOLDER', file=sys.stderr)
+        print('usage: python -m mr_damper_bringup.report RUN_OUTPUT_FOLDER', file=sys.stderr)
         return 2
     summary = make_report(argv[0])
     print(format_summary(summary))

@@ -1,0 +1,1 @@
+"""Bring-up of the MR damper suite: launch file, configs, launcher, recorder, report and plots."""

@@ -1,0 +1,174 @@
+"""
+The suite's configuration: the parameter YAMLs, the nodes they configure, one run's parameters.
+
+The shipped configurations are ``config/suite_<sim|replay|hil>.yaml`` of this package (one ROS 2
+parameter file for every node: keys are the node names, ``/**`` is shared). :func:`resolve_config`
+turns a command line (:mod:`mr_damper_bringup.launcher`) into the single parameter dict of a run;
+:func:`node_params` is what one node sees of it.
+"""
+import math
+from pathlib import Path
+
+import yaml
+
+PACKAGE = 'mr_damper_bringup'
+#: the source tree (editable install, the repository's layout)
+REPO = Path(__file__).resolve().parents[3]
+
+
+def _config_dir():
+    """Return the folder of the shipped YAMLs: the source tree's, else the installed share."""
+    here = Path(__file__).resolve().parents[1] / 'config'
+    if here.is_dir():
+        return here
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory(PACKAGE)) / 'config'
+
+
+CONFIG_DIR = _config_dir()
+#: node name (the YAML key) -> console script (the ``ros2 run`` executable), in start order
+NODES = {'mr_damper_rig': 'rig_node', 'mr_damper_identifier': 'identifier_node',
+         'quarter_car_node': 'quarter_car_node'}
+RIG, IDENT, QC = NODES
+#: the recorder (``mr-damper-record``: every topic into ``OUT/suite.mcap``), started first
+RECORDER = 'mr_damper_record'
+RECORDER_NODE = {RECORDER: 'mr-damper-record'}
+#: the stand-alone controller node (started with ``--external-controller``)
+CTRL = 'semi_active_controller'
+CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
+#: car parameters the controller node takes over when the law moves out of the car
+CONTROLLER_PARAMS = ('controller', 'controller_options', 'safe_current_a', 'param_timeout_s',
+                     'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a',
+                     'params_topic', 'command_topic', 'car_state_topic')
+QUIROZ_DIR = REPO.parent / 'shared' / 'data' / 'quiroz_mr_damper'
+DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv'
+                       for c in ('0', '0p25', '0p5', '0p75', '1p0'))
+
+
+class SuiteError(Exception):
+    """A bad command line or configuration (exit status 2)."""
+
+
+def _parse_value(text):
+    """Parse a --set value with YAML rules (1.0 float, 1 int, true bool, else string)."""
+    value = yaml.safe_load(text)
+    return text if value is None else value
+
+
+def load_config(config='sim', params=None):
+    """
+    Load the suite parameter YAML.
+
+    Parameters
+    ----------
+    config : {'sim', 'replay', 'hil'}
+        Which shipped configuration (``config/suite_<config>.yaml`` of this package).
+    params : path, optional
+        A parameter YAML of your own instead (same layout).
+
+    Returns
+    -------
+    dict
+        ``{node_name_or_/**: {'ros__parameters': {...}}}``.
+
+    """
+    path = Path(params) if params else CONFIG_DIR / f'suite_{config}.yaml'
+    try:
+        cfg = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise SuiteError(f'cannot read parameter file {path}: {exc}') from None
+    if not isinstance(cfg, dict):
+        raise SuiteError(f'{path}: not a ROS 2 parameter file (top level is not a mapping)')
+    for node in NODES:
+        cfg.setdefault(node, {}).setdefault('ros__parameters', {})
+    return cfg
+
+
+def node_params(cfg, node):
+    """Return the merged parameters a node sees (``/**`` section, then its own)."""
+    merged = dict(cfg.get('/**', {}).get('ros__parameters', {}))
+    merged.update(cfg.get(node, {}).get('ros__parameters', {}))
+    return merged
+
+
+def set_param(cfg, node, name, value):
+    """Set ``node``'s parameter ``name`` (a node name or ``/**``) in the config dict."""
+    cfg.setdefault(node, {}).setdefault('ros__parameters', {})[name] = value
+
+
+def concatenate_csv(files, out_path):
+    """Concatenate DAQ CSV files (header t,x,v,f,i) into one with continuous time."""
+    from mr_damper_model.data import DamperData, read_csv, write_csv
+    data = DamperData.concatenate([read_csv(f) for f in files], restamp=True)
+    write_csv(out_path, data)
+    return out_path
+
+
+def resolve_config(args, out):
+    """Build the single parameter dict of this run from the command line; write nothing."""
+    cfg = load_config(args.config, args.params)
+    qc = QC
+    if args.rate_factor is not None:
+        set_param(cfg, RIG, 'rate_factor', float(args.rate_factor))
+        set_param(cfg, qc, 'real_time_factor', float(args.rate_factor))
+    set_param(cfg, qc, 'log_file', str(out / 'quarter_car_log'))
+    # the identifier saves its last good parameters here (and restarts from them); a new run
+    # starts without them so that the time to the first valid model is measured honestly
+    ident_file = out / 'identifier_params.json'
+    if ident_file.exists():
+        ident_file.unlink()
+    set_param(cfg, IDENT, 'params_file', str(ident_file))
+    # a run that outlasts the car's road drives it again (ISO 8608 roads repeat seamlessly):
+    # memory stays one road length however long the run (held flat otherwise)
+    factor = node_params(cfg, qc).get('real_time_factor', 1.0) or 20.0
+    need = float(args.duration) * float(factor) + 10.0 if args.duration else math.inf
+    if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
+        set_param(cfg, qc, 'road_repeat', True)
+    if args.config == 'replay' or args.file:
+        files = [Path(f) for f in (args.file or DEFAULT_REPLAY)]
+        for f in files:
+            if not f.exists():
+                raise SuiteError(f'--file {f}: no such file or directory')
+        if len(files) > 1:
+            for f in files:
+                if f.suffix.lower() != '.csv':
+                    raise SuiteError(f'--file {f}: several files can only be CSV files')
+            path = concatenate_csv(files, out / 'replay_input.csv')
+            mode = 'csv'
+        else:
+            path = files[0]
+            mode = 'csv' if path.suffix.lower() == '.csv' else 'bag'
+        set_param(cfg, RIG, 'mode', mode)
+        set_param(cfg, RIG, 'file', str(path.resolve()))
+    for item in args.set or ():
+        try:
+            key, text = item.split('=', 1)
+            node, name = key.rsplit('.', 1)
+        except ValueError:
+            raise SuiteError(f'--set {item!r}: expected NODE.PARAM=VALUE') from None
+        set_param(cfg, node, name, _parse_value(text))
+    if getattr(args, 'external_controller', False) or external_controller(cfg):
+        use_external_controller(cfg)
+    return cfg
+
+
+def external_controller(cfg):
+    """Return True when the car's law runs in the controller node (``controller: external``)."""
+    return str(node_params(cfg, QC).get('controller', '')).strip().lower() == 'external'
+
+
+def use_external_controller(cfg):
+    """Move the car's law into the controller node's section; the car becomes the plant."""
+    car = node_params(cfg, QC)
+    own = cfg.setdefault(CTRL, {}).setdefault('ros__parameters', {})
+    for name in CONTROLLER_PARAMS:
+        if name in car and not (name == 'controller' and external_controller(cfg)):
+            own.setdefault(name, car[name])
+    set_param(cfg, QC, 'controller', 'external')
+
+
+def suite_nodes(cfg):
+    """Return the nodes to start, in order (the controller before the car when external)."""
+    if not external_controller(cfg):
+        return dict(NODES)
+    return {RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}

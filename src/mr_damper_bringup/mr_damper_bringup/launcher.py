@@ -1,0 +1,239 @@
+"""
+``mr-damper-suite``: run the whole MR damper suite here, where ``ros2 launch`` does not exist.
+
+Starts ``mr-damper-record`` (every topic into ``OUT/suite.mcap``) and the console scripts
+``rig_node``, ``identifier_node`` and ``quarter_car_node`` of the venv with ONE parameter YAML
+(``--ros-args --params-file FILE``), on loopback-only discovery
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and a domain ID of its own; prints progress from
+the nodes' statuses, forwards Ctrl-C (SIGINT) to the children, shuts everything down in order
+(car, rig, then the identifier once it has drained the stream, the recorder last) and exits
+non-zero if a node died. At the end it computes ``summary.json`` and plots into ``--out`` from
+the recording (:mod:`mr_damper_bringup.report`).
+
+Usage::
+
+    .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
+        [--config sim|replay|hil] [--file PATH ...] [--real-time | --faster | --rate-factor F]
+        [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
+        [--external-controller]
+
+``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
+also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
+then the plant only and its law runs in the controller node (docs/controller-node.md).
+
+Exit status: 0 clean run, 1 a node died or failed to shut down, 2 bad command line / config.
+"""
+import argparse
+import json
+import os
+from pathlib import Path
+import random
+import shutil
+import signal
+import sys
+import threading
+import time
+
+import yaml
+
+from .config import RECORDER, RECORDER_NODE, REPO, resolve_config, suite_nodes, SuiteError
+from .processes import CLEAN_EXIT, ProcessStats, Suite
+from .report import RECORDING
+
+PROG = 'mr-damper-suite'
+
+
+def progress_line(monitor, elapsed):
+    """Return one progress line from the latest statuses (:class:`monitor_node.Monitor`)."""
+    status, _, params, n_params, n_valid, metrics = monitor.snapshot()
+    n_meas = (status.get('recorder') or {}).get('measurements', 0)
+    ident = f'identifier {n_params} updates ({n_valid} valid)'
+    if params is not None:
+        ident += f', nrmse {params.get("nrmse_percent", float("nan")):.1f} %'
+    car = 'quarter car: no status yet'
+    qc = status.get('quarter_car') or {}
+    if qc:
+        car = (f'quarter car {qc.get("mode", "?")}'
+               f'{" (" + str(qc.get("reason")) + ")" if qc.get("mode") == "failsafe" else ""}'
+               f', t_sim {_num(qc.get("t_sim")):.1f} s'
+               f', fail-safe {_num(qc.get("failsafe_s")):.1f} s'
+               f', i {_num(qc.get("current_a")):.2f} A')
+        wk = (metrics or {}).get('rms_body_accel_wk')
+        if wk is not None:
+            car += f', Wk {wk:.3f} m/s^2'
+    return f'[{elapsed:6.1f} s] recorded {n_meas} samples | {ident} | {car}'
+
+
+def _num(value):
+    return float('nan') if value is None else float(value)
+
+
+def identifier_drained(monitor):
+    """
+    Return ``(done, progress)``: has the identifier taken every sample the recorder took.
+
+    ``done`` once the recorder's measurement count stopped moving (its last two statuses agree)
+    and the identifier's ``samples_received`` reached it; ``progress`` is both counts (None
+    before the first statuses), so the wait goes on while either still moves.
+    """
+    status, history, *_ = monitor.snapshot()
+    got = (status.get('identifier') or {}).get('samples_received')
+    recs = [h.get('measurements') for h in history.get('recorder', ())]
+    seen = recs[-1] if recs else None
+    ok = isinstance(got, (int, float)) and isinstance(seen, (int, float))
+    stable = len(recs) == 2 and recs[0] == recs[1]
+    return ok and stable and got >= seen, (got, seen)
+
+
+def parse_args(argv):
+    """Parse the launcher's command line."""
+    p = argparse.ArgumentParser(
+        prog=PROG, description=__doc__.split('\n\n')[0].strip(),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--duration', type=float, default=30.0,
+                   help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
+    p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
+                   help='output folder (default runs/suite in the repository)')
+    p.add_argument('--config', choices=('sim', 'replay', 'hil'), default='sim',
+                   help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
+                        'hil: the rig follows the car (hardware in the loop, docs/hil.md)')
+    p.add_argument('--file', action='append',
+                   help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
+                        'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
+    p.add_argument('--params',
+                   help='your own parameter YAML instead of config/suite_<config>.yaml')
+    speed = p.add_mutually_exclusive_group()
+    speed.add_argument('--real-time', dest='rate_factor', action='store_const', const=1.0,
+                       help='rig and quarter car in real time (default of the YAML)')
+    speed.add_argument('--faster', dest='rate_factor', action='store_const', const=2.0,
+                       help='rig and quarter car at twice real time')
+    speed.add_argument('--rate-factor', dest='rate_factor', type=float,
+                       help='rig replay and quarter-car speed relative to real time')
+    p.add_argument('--domain-id', type=int,
+                   help='ROS_DOMAIN_ID of this run (default: random in 20..220)')
+    p.add_argument('--set', action='append', metavar='NODE.PARAM=VALUE',
+                   help='override one parameter (NODE is mr_damper_rig, mr_damper_identifier, '
+                        'quarter_car_node or /**), YAML-typed: 1.0 is a float, 1 an int')
+    p.add_argument('--bin-dir', help='folder of the node console scripts (default: the venv)')
+    p.add_argument('--progress-s', type=float, default=5.0, help='progress line period [s]')
+    p.add_argument('--external-controller', action='store_true',
+                   help='run the car\'s law in semi_active_controller_node (the car is the '
+                        'plant only, controller:=external)')
+    p.add_argument('--no-plots', action='store_true', help='summary.json only')
+    p.add_argument('--quiet', action='store_true', help='no progress lines')
+    args = p.parse_args(argv)
+    if args.duration < 0:
+        p.error('--duration must be >= 0')
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        p.error('--domain-id must be in 0..232')
+    if args.rate_factor is not None and not args.rate_factor > 0:
+        p.error('--rate-factor must be > 0')
+    return args
+
+
+def main(argv=None):
+    """Run the suite; return the exit status."""
+    args = parse_args(argv)
+    out = Path(args.out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        cfg = resolve_config(args, out)
+    except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
+        print(f'{PROG}: {exc}', file=sys.stderr)
+        return 2
+    params_file = out / 'suite_params.yaml'
+    params_file.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    recording = out / RECORDING
+    for old in (recording, out / f'{recording.stem}.recording'):   # a new run, a new file
+        if old.is_dir():
+            shutil.rmtree(old)
+        elif old.exists():
+            old.unlink()
+    domain_id = args.domain_id if args.domain_id is not None else random.randint(20, 220)
+    # the monitor node of this process must use the same discovery settings as the children
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ['ROS_DOMAIN_ID'] = str(domain_id)
+    os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
+    suite = Suite(params_file, out, domain_id, args.bin_dir,
+                  {**RECORDER_NODE, **suite_nodes(cfg)},
+                  args={RECORDER: ['--out', recording, '--suite-config', params_file]})
+    print(f'{PROG}: config {args.config}, domain {domain_id}, '
+          f'duration {args.duration:g} s, output {out}', flush=True)
+
+    interrupted = threading.Event()
+
+    def on_sigint(signum, frame):
+        if interrupted.is_set():       # second Ctrl-C: no more patience
+            for name in suite.nodes:
+                if suite.alive(name):
+                    suite.procs[name].kill()
+        interrupted.set()
+
+    old_int = signal.signal(signal.SIGINT, on_sigint)
+    old_term = signal.signal(signal.SIGTERM, on_sigint)
+    from .monitor_node import Monitor, start_monitor
+    monitor = Monitor()
+    stop_monitor = start_monitor(monitor)
+    status = 0
+    codes = {}
+    stats = None
+    elapsed = None
+    try:
+        try:
+            suite.start_all()
+        except SuiteError as exc:
+            print(f'{PROG}: {exc}', file=sys.stderr)
+            return 2
+        t_start = time.monotonic()
+        next_progress = args.progress_s
+        stats = ProcessStats(suite, out)
+        next_stats = 0.0
+        while not interrupted.is_set():
+            elapsed = time.monotonic() - t_start
+            if args.duration and elapsed >= args.duration:
+                break
+            dead = suite.poll()
+            if dead:
+                for name, rc in dead.items():
+                    print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
+                          f'{suite.log_tail(name)}', file=sys.stderr)
+                status = 1
+                break
+            if elapsed >= next_stats:
+                stats.sample()
+                next_stats += 1.0
+            if not args.quiet and elapsed >= next_progress:
+                print(progress_line(monitor, elapsed), flush=True)
+                next_progress += args.progress_s
+            interrupted.wait(0.1)
+        if interrupted.is_set():
+            print(f'{PROG}: interrupted, stopping the nodes', flush=True)
+        elapsed = time.monotonic() - t_start
+    finally:
+        codes = suite.stop(drained=lambda: identifier_drained(monitor))
+        stop_monitor()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    unclean = {n: rc for n, rc in codes.items() if rc not in CLEAN_EXIT}
+    if unclean:
+        for name, rc in unclean.items():
+            print(f'{PROG}: {name} exited with {rc}; last lines of its log:\n'
+                  f'{suite.log_tail(name)}', file=sys.stderr)
+        status = 1
+    if stats is not None:
+        stats.close()
+        (out / 'process_stats.json').write_text(json.dumps(stats.summary(), indent=2))
+    try:
+        from . import report
+        summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots)
+        print(report.format_summary(summary), flush=True)
+    except Exception as exc:  # noqa: B902 - the run itself succeeded; say why there is no summary
+        print(f'{PROG}: no summary: {type(exc).__name__}: {exc}', file=sys.stderr)
+        status = status or 1
+    print(f'{PROG}: outputs in {out} ({RECORDING}, summary.json, plots *.png, logs/)',
+          flush=True)
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

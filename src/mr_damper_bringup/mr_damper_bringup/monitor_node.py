@@ -1,0 +1,132 @@
+"""
+The launcher's monitor: the latest status of every node, in the launcher's process.
+
+A small rclpy node spun in a thread of ``mr-damper-suite``: it subscribes to the status topics,
+the parameters and the ride metrics of :data:`mr_damper_bringup.topics.SUITE_TOPICS` (low rate;
+never the measurement stream, which the recorder process takes) and keeps only the latest
+decoded message of each, for the progress lines and the drain at shutdown. Decoding goes
+through :mod:`mr_damper_bringup.topics` (one decoder per payload kind).
+"""
+import sys
+import threading
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+from mr_damper_model.node_utils import LATCHED_QOS, STATUS_QOS
+
+from .record_node import message_class
+from .topics import decode_json, decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS
+
+
+class Monitor:
+    """
+    Latest state of the suite as its topics tell it (thread-safe, bounded).
+
+    Attributes
+    ----------
+    status : dict
+        Node (``rig``, ``identifier``, ``quarter_car``, ``controller``, ``recorder``) -> its
+        latest status dict.
+    history : dict
+        Node -> the last two statuses (oldest first), to tell a count that stopped moving.
+    parameters, n_parameters, n_valid, metrics
+        Latest parameter dict, parameter messages, valid ones, latest ride metrics.
+
+    """
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.status = {}
+        self.history = {}
+        self.parameters = None
+        self.n_parameters = 0
+        self.n_valid = 0
+        self.metrics = None
+
+    def on_status(self, key, msg):
+        """Store one status message of topic ``key`` (undecodable ones are ignored)."""
+        try:
+            statuses = decode_status(key, msg)
+        except ValueError:
+            return
+        with self.lock:
+            for node, d in statuses.items():
+                self.status[node] = d
+                self.history[node] = (self.history.get(node, ())[-1:] + (d,))
+
+    def on_parameters(self, msg):
+        """Store one parameter message."""
+        try:
+            d = decode_parameters(msg)
+        except ValueError:
+            return
+        with self.lock:
+            self.parameters = d
+            self.n_parameters += 1
+            self.n_valid += d.get('valid') == 1.0
+
+    def on_metrics(self, msg):
+        """Store the latest ride metrics."""
+        try:
+            d = decode_json(msg)
+        except ValueError:
+            return
+        with self.lock:
+            self.metrics = d
+
+    def snapshot(self):
+        """Return a copy: ``(status, history, parameters, n_params, n_valid, metrics)``."""
+        with self.lock:
+            return (dict(self.status), dict(self.history), self.parameters, self.n_parameters,
+                    self.n_valid, self.metrics)
+
+
+def start_monitor(monitor):
+    """
+    Create the monitor node in this process and spin it in a thread.
+
+    Returns
+    -------
+    callable
+        Stops the monitor (destroys the node, shuts its context down, joins the thread).
+
+    """
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    node = rclpy.create_node('suite_monitor', context=ctx)
+    for key in STATUS_KEYS:
+        row = SUITE_TOPICS[key]
+        node.create_subscription(message_class(row.type), row.name,
+                                 lambda msg, key=key: monitor.on_status(key, msg), STATUS_QOS)
+    params = SUITE_TOPICS['parameters']
+    node.create_subscription(message_class(params.type), params.name, monitor.on_parameters,
+                             LATCHED_QOS)
+    metrics = SUITE_TOPICS['ride_metrics']
+    node.create_subscription(message_class(metrics.type), metrics.name, monitor.on_metrics,
+                             STATUS_QOS)
+    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    running = threading.Event()
+    running.set()
+
+    def spin():
+        try:
+            while running.is_set():
+                executor.spin_once(timeout_sec=0.1)
+        except (ExternalShutdownException, KeyboardInterrupt):
+            pass
+        except Exception as exc:  # noqa: B902 - report and stop monitoring, never kill the run
+            print(f'mr-damper-suite: monitor stopped: {exc}', file=sys.stderr)
+
+    thread = threading.Thread(target=spin, name='suite_monitor', daemon=True)
+    thread.start()
+
+    def stop():
+        running.clear()
+        thread.join(5.0)
+        executor.remove_node(node)
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+    return stop

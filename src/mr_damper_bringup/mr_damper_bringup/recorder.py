@@ -1,0 +1,150 @@
+"""
+One MCAP file of a suite run: the writer behind ``mr-damper-record``, without ROS.
+
+:class:`SuiteRecorder` writes messages still serialised (CDR, as the subscription delivers them)
+with the rosbags ``Writer`` into ONE ``.mcap`` file, one channel per row of the topic table
+(:data:`mr_damper_bringup.topics.SUITE_TOPICS`) with the full ``ros2msg`` schema of its type
+from ``mr_damper_model.bag_types.suite_typestore()`` (which knows the ``mr_damper_interfaces``
+messages), so Foxglove, PlotJuggler, ``ros2 bag`` and rosbags open it with named fields.
+
+Memory stays flat for runs of any length: rosbags streams 1 MiB chunks to the file and keeps
+only a chunk index (tens of bytes per MiB). While recording, the file is
+``<stem>.recording/<stem>.recording.mcap`` next to the target (a rosbag2 folder); :meth:`close`
+moves the finished file to the target path and removes the folder. A recorder killed before
+:meth:`close` leaves that folder with an MCAP file without its footer (``mcap recover`` repairs
+it).
+"""
+from pathlib import Path
+
+from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
+
+
+class SuiteRecorder:
+    """
+    Writer of one suite recording (context manager).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.mcap`` file to create (must not exist).
+    topics : dict, optional
+        ``key -> Topic`` rows to record (default: every topic of
+        :data:`~mr_damper_bringup.topics.SUITE_TOPICS`).
+    config_text : str, optional
+        The suite's parameter YAML, written once on :data:`~mr_damper_bringup.topics.
+        CONFIG_TOPIC` at the start (stamped ``start_ns``).
+    typestore : rosbags Typestore, optional
+        Default: ``mr_damper_model.bag_types.suite_typestore()``.
+    start_ns : int, optional
+        Log time [ns] of the config message (default: 0).
+
+    Attributes
+    ----------
+    counts : dict
+        Messages written per topic key.
+
+    """
+
+    def __init__(self, path, topics=None, *, config_text=None, typestore=None, start_ns=0):
+        self.path = Path(path)
+        if self.path.suffix != '.mcap':
+            raise ValueError(f'`path`: {self.path} must end in .mcap')
+        self.work = self.path.parent / f'{self.path.stem}.recording'
+        for p in (self.path, self.work):
+            if p.exists():
+                raise ValueError(f'`path`: {p} already exists')
+        self.topics = topic_table() if topics is None else dict(topics)
+        if typestore is None:
+            from mr_damper_model.bag_types import suite_typestore
+            typestore = suite_typestore()
+        self.typestore = typestore
+        for key, row in self.topics.items():
+            if row.type not in typestore.fielddefs:
+                raise ValueError(f'topic {key} ({row.name}): type {row.type} is not in the '
+                                 'type store')
+        self.config_text = config_text
+        self.start_ns = int(start_ns)
+        self.counts = {key: 0 for key in self.topics}
+        self._writer = None
+        self._conns = {}
+
+    def open(self):
+        """Create the file and one channel per topic; write the config message."""
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._writer = Writer(self.work, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        for key, row in self.topics.items():
+            self._conns[key] = self._writer.add_connection(row.name, row.type,
+                                                           typestore=self.typestore)
+        for row in (CONFIG_TOPIC, NODE_PARAMETERS_TOPIC):
+            self._conns[row.name] = self._writer.add_connection(row.name, row.type,
+                                                                typestore=self.typestore)
+        if self.config_text is not None:
+            self.write_text(CONFIG_TOPIC, self.config_text, self.start_ns)
+        return self
+
+    def write_text(self, row, text, log_time_ns):
+        """
+        Write a text record of the recorder itself (not from DDS) on ``row``.
+
+        Parameters
+        ----------
+        row : Topic
+            :data:`~mr_damper_bringup.topics.CONFIG_TOPIC` or
+            :data:`~mr_damper_bringup.topics.NODE_PARAMETERS_TOPIC`.
+        text : str
+            The YAML text (a ``std_msgs/String``).
+        log_time_ns : int
+            Record time [ns].
+
+        """
+        msg = self.typestore.types[row.type](data=str(text))
+        self._writer.write(self._conns[row.name], int(log_time_ns),
+                           self.typestore.serialize_cdr(msg, row.type))
+
+    def write(self, key, raw, log_time_ns):
+        """
+        Write one serialised message.
+
+        Parameters
+        ----------
+        key : str
+            Topic key (a key of ``topics``).
+        raw : bytes-like
+            The CDR payload as the subscription delivered it (``raw=True``).
+        log_time_ns : int
+            Receive time [ns] (the recorder's clock).
+
+        """
+        self._writer.write(self._conns[key], int(log_time_ns), bytes(raw))
+        self.counts[key] += 1
+
+    def write_message(self, key, msg, log_time_ns):
+        """Serialise a rosbags message of the topic's type and write it (tests, tools)."""
+        self.write(key, self.typestore.serialize_cdr(msg, self.topics[key].type), log_time_ns)
+
+    @property
+    def closed(self):
+        """True once the file is finished (or was never opened)."""
+        return self._writer is None
+
+    def close(self):
+        """Finish the file (footer, index), move it to ``path``; return ``path``."""
+        if self._writer is None:
+            return self.path
+        writer, self._writer = self._writer, None
+        writer.close()
+        inner = self.work / f'{self.work.name}.mcap'
+        inner.replace(self.path)
+        for leftover in self.work.iterdir():
+            leftover.unlink()
+        self.work.rmdir()
+        return self.path
+
+    def __enter__(self):
+        return self.open()
+
+    def __exit__(self, *exc):
+        self.close()
+        return False

@@ -1,0 +1,59 @@
+"""Tests of mr_damper_bringup.config (the suite's parameter YAMLs and one run's parameters)."""
+import pytest
+import yaml
+
+from mr_damper_bringup import config
+from mr_damper_bringup.launcher import parse_args
+
+
+@pytest.mark.parametrize('name', ['sim', 'replay', 'hil'])
+def test_shipped_configs_load_with_a_section_per_node(name):
+    cfg = config.load_config(name)
+    raw = yaml.safe_load((config.CONFIG_DIR / f'suite_{name}.yaml').read_text())
+    assert set(cfg) == set(raw) | set(config.NODES)
+    assert set(raw) <= {'/**', config.CTRL, *config.NODES}
+    for node in config.NODES:
+        assert isinstance(cfg[node]['ros__parameters'], dict)
+    # the true damper is shared by the rig and the car (honest loop); in HIL the car's damper
+    # IS the rig's
+    car = config.node_params(cfg, config.QC)['plant']
+    assert car == ('rig' if name == 'hil' else config.node_params(cfg, config.RIG)['plant'])
+
+
+def test_node_params_merge_shared_then_own():
+    cfg = {'/**': {'ros__parameters': {'plant': 'spencer', 'seed': 1}},
+           'quarter_car_node': {'ros__parameters': {'seed': 7}}}
+    assert config.node_params(cfg, config.QC) == {'plant': 'spencer', 'seed': 7}
+    assert config.node_params(cfg, config.RIG) == {'plant': 'spencer', 'seed': 1}
+    config.set_param(cfg, config.RIG, 'seed', 3)
+    assert config.node_params(cfg, config.RIG)['seed'] == 3
+
+
+def test_bad_parameter_files_are_refused(tmp_path):
+    with pytest.raises(config.SuiteError, match='cannot read parameter file'):
+        config.load_config(params=tmp_path / 'missing.yaml')
+    (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
+    with pytest.raises(config.SuiteError, match='top level is not a mapping'):
+        config.load_config(params=tmp_path / 'list.yaml')
+
+
+def test_set_values_are_yaml_typed(tmp_path):
+    args = parse_args(['--out', str(tmp_path), '--set', 'quarter_car_node.safe_current_a=1.0',
+                       '--set', 'mr_damper_rig.seed=4',
+                       '--set', 'quarter_car_node.road_repeat=true',
+                       '--set', 'quarter_car_node.road=bump', '--set', '/**.truth_file='])
+    cfg = config.resolve_config(args, tmp_path)
+    qc = config.node_params(cfg, config.QC)
+    assert qc['safe_current_a'] == 1.0 and isinstance(qc['safe_current_a'], float)
+    assert config.node_params(cfg, config.RIG)['seed'] == 4
+    assert qc['road_repeat'] is True and qc['road'] == 'bump' and qc['truth_file'] == ''
+    with pytest.raises(config.SuiteError, match='expected NODE.PARAM=VALUE'):
+        config.resolve_config(parse_args(['--out', str(tmp_path), '--set', 'noequals']),
+                              tmp_path)
+
+
+def test_replay_needs_existing_files(tmp_path):
+    args = parse_args(['--out', str(tmp_path), '--config', 'replay',
+                       '--file', str(tmp_path / 'gone.csv')])
+    with pytest.raises(config.SuiteError, match='no such file'):
+        config.resolve_config(args, tmp_path)

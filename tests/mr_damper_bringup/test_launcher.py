@@ -1,0 +1,60 @@
+"""Tests of mr_damper_bringup.launcher: the drain condition and the progress line, without ROS."""
+import pytest
+
+from mr_damper_bringup.launcher import identifier_drained, parse_args, progress_line
+
+
+class _Monitor:
+    """Stand-in of ``monitor_node.Monitor`` (same ``snapshot()``)."""
+
+    def __init__(self):
+        self.status, self.history = {}, {}
+        self.parameters, self.n_parameters, self.n_valid, self.metrics = None, 0, 0, None
+
+    def add(self, node, d):
+        self.status[node] = d
+        self.history[node] = self.history.get(node, ())[-1:] + (d,)
+
+    def snapshot(self):
+        return (dict(self.status), dict(self.history), self.parameters, self.n_parameters,
+                self.n_valid, self.metrics)
+
+
+def test_identifier_drained_waits_for_a_settled_recorder_count():
+    mon = _Monitor()
+    assert identifier_drained(mon) == (False, (None, None))
+    mon.add('identifier', {'samples_received': 900})
+    mon.add('recorder', {'measurements': 900})
+    assert identifier_drained(mon)[0] is False           # one recorder status: not settled
+    mon.add('recorder', {'measurements': 1000})
+    assert identifier_drained(mon) == (False, (900, 1000))
+    mon.add('recorder', {'measurements': 1000})          # settled at 1000
+    assert identifier_drained(mon)[0] is False           # identifier still behind
+    mon.add('identifier', {'samples_received': 1000})
+    assert identifier_drained(mon) == (True, (1000, 1000))
+
+
+def test_progress_line_from_the_statuses():
+    mon = _Monitor()
+    assert 'no status yet' in progress_line(mon, 1.0)
+    mon.add('recorder', {'measurements': 5000})
+    mon.add('quarter_car', {'mode': 'failsafe', 'reason': 'stale', 't_sim': 4.0,
+                            'failsafe_s': 1.5, 'current_a': 0.5})
+    mon.parameters, mon.n_parameters, mon.n_valid = {'nrmse_percent': 1.25}, 3, 2
+    mon.metrics = {'rms_body_accel_wk': 0.9}
+    line = progress_line(mon, 10.0)
+    assert 'recorded 5000 samples' in line and '3 updates (2 valid), nrmse 1.2 %' in line
+    assert 'failsafe (stale)' in line and 'Wk 0.900' in line
+
+
+@pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],
+                                 ['--rate-factor', '0'], ['--config', 'nope']])
+def test_command_line_refusals_exit_2(bad, capsys):
+    with pytest.raises(SystemExit) as exc:
+        parse_args(bad)
+    assert exc.value.code == 2 and 'mr-damper-suite' in capsys.readouterr().err
+
+
+def test_command_line_defaults():
+    args = parse_args([])
+    assert args.duration == 30.0 and args.config == 'sim' and args.rate_factor is None
