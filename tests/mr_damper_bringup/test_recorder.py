@@ -25,10 +25,33 @@ def _joint_state(k):
         effort=np.array([100.0 + k, 0.5]))
 
 
-def _array(k):
-    dim = TS.types['std_msgs/msg/MultiArrayDimension'](label='c0,k,valid', size=3, stride=3)
-    layout = TS.types['std_msgs/msg/MultiArrayLayout'](dim=[dim], data_offset=0)
-    return TS.types[topics.ARRAY](layout=layout, data=np.array([500.0 + k, 900.0, 1.0]))
+def _time(t):
+    sec, nsec = divmod(int(round(t * 1e9)), 1_000_000_000)
+    return TS.types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nsec)
+
+
+def _kwok(k):
+    cls = TS.types[topics.KWOK]
+    values = {name: float(j + k) for j, name in enumerate(cls.__dataclass_fields__)
+              if name not in ('header', 'window_start', 'window_end', 'valid', 'reason')
+              and name != '__msgtype__'}
+    return cls(header=_stamp(0.001 * k), window_start=_time(k), window_end=_time(k + 2.0),
+               valid=bool(k % 2), reason='' if k % 2 else 'nrmse_above_threshold', **values)
+
+
+def _damper_model(k):
+    return TS.types[topics.DAMPER_MODEL](
+        header=_stamp(0.001 * k), model='spencer', parameter_names=['c0a', 'gamma'],
+        parameter_values=np.array([784.0 + k, 136320.0]), option_names=[],
+        option_values=np.array([], dtype=float))
+
+
+def _diagnostics(k):
+    kv = TS.types['diagnostic_msgs/msg/KeyValue']
+    st = TS.types['diagnostic_msgs/msg/DiagnosticStatus']
+    return TS.types[topics.DIAGNOSTICS](header=_stamp(0.001 * k), status=[
+        st(level=k % 3, name='mr_damper_rig', message='running', hardware_id='mr_damper',
+           values=[kv(key='samples_published', value=str(100 * k))])])
 
 
 def _car_state(k):
@@ -42,8 +65,11 @@ def _car_state(k):
 #: a message builder for every type of the topic table (a new type needs one here)
 BUILDERS = {
     topics.JOINT_STATE: _joint_state,
-    topics.ARRAY: _array,
+    topics.KWOK: _kwok,
+    topics.DAMPER_MODEL: _damper_model,
+    topics.DIAGNOSTICS: _diagnostics,
     topics.FLOAT64: lambda k: TS.types[topics.FLOAT64](data=0.25 * k),
+    topics.UINT64: lambda k: TS.types[topics.UINT64](data=1000 * k),
     topics.STRING: lambda k: TS.types[topics.STRING](data=f'{{"n": {k}}}'),
     topics.CAR_STATE: _car_state,
 }
@@ -88,26 +114,35 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
     from rclpy.serialization import serialize_message
 
     from mr_damper_model import messages as mm
-    status = {'samples_received': 12, 'mode': 'normal'}
-    params = dict({n: float(k) for k, n in enumerate(mm.KWOK_CURRENT_NAMES)}, valid=True)
+    from mr_damper_model.health import Health, WARN
+    status = {'samples_received': 12, 'mode': 'normal', 'windows_skipped': {'gap': 2}}
+    diag = mm.diagnostic_array_msg([mm.diagnostic_status_msg(
+        'fl/mr_damper_identifier', Health(WARN, 'gap', status))], stamp_s=2.0)
+    params = dict({n: float(k) for k, n in enumerate(mm.KWOK_CURRENT_NAMES)}, valid=True,
+                  window_end_s=3.5)
+    truth = mm.damper_model_msg('spencer', {'c0a': 784.0, 'gamma': 136320.0})
     path = tmp_path / 'r.mcap'
     with SuiteRecorder(path, typestore=TS) as rec:
         sample = mm.measurement_to_msg(1.5, 0.01, -0.2, 80.0, 0.5)
         rec.write('measurement', serialize_message(sample), 5)
-        rec.write('identifier_status', serialize_message(mm.status_msg(status)), 6)
+        rec.write('diagnostics', serialize_message(diag), 6)
         rec.write('parameters', serialize_message(mm.kwok_parameters_msg(params)), 7)
+        rec.write('truth_spencer', serialize_message(truth), 8)
     with AnyReader([path], default_typestore=TS) as reader:
         msgs = {c.topic: reader.deserialize(raw, c.msgtype)
                 for c, _, raw in reader.messages()}
     sample = topics.decode_measurement(msgs['/mr_damper/measurement'])
     assert sample == (1.5, 0.01, -0.2, 80.0, 0.5)
-    assert topics.decode_status('identifier_status',
-                                msgs['/mr_damper/identifier_status']) == {'identifier': status}
+    expected = {'fl/identifier': dict(status, level=WARN, message='gap')}
+    assert topics.decode_status('diagnostics', msgs['/diagnostics']) == expected
     d = topics.decode_parameters(msgs['/mr_damper/kwok_parameters'])
     assert d['valid'] == 1.0 and all(d[n] == params[n] for n in mm.KWOK_CURRENT_NAMES)
-    # the same decoder on the rclpy message (the launcher's monitor)
-    assert topics.decode_status('identifier_status', mm.status_msg(status)) == {
-        'identifier': status}
+    assert d['window_end_s'] == 3.5
+    assert topics.decode_parameters(msgs['/mr_damper/true_spencer_parameters']) == {
+        'c0a': 784.0, 'gamma': 136320.0}
+    # the same decoders on the rclpy messages (the launcher's monitor)
+    assert topics.decode_status('diagnostics', diag) == expected
+    assert topics.decode_parameters(mm.kwok_parameters_msg(params))['window_end_s'] == 3.5
 
 
 def test_bad_arguments_are_refused(tmp_path):
@@ -124,24 +159,23 @@ def test_bad_arguments_are_refused(tmp_path):
     assert list(topics.topic_table(['measurement'])) == ['measurement']
 
 
-def test_status_decoder_takes_json_topics_and_diagnostics():
-    """One decoder for both status forms: ``{node: dict}`` from a JSON topic or /diagnostics."""
-    msg = TS.types[topics.STRING](data='{"samples_received": 5}')
-    assert topics.decode_status('identifier_status', msg) == {
-        'identifier': {'samples_received': 5}}
+def test_status_decoder_takes_diagnostics_by_node_and_namespace():
+    """``{node: dict}`` from /diagnostics; nested values from dotted keys; namespaces kept."""
     kv = TS.types['diagnostic_msgs/msg/KeyValue']
     st = TS.types['diagnostic_msgs/msg/DiagnosticStatus']
     arr = TS.types['diagnostic_msgs/msg/DiagnosticArray'](header=_stamp(1.0), status=[
-        st(level=0, name='mr_damper_identifier: fit', message='ok', hardware_id='',
+        st(level=0, name='mr_damper_identifier', message='ok', hardware_id='',
            values=[kv(key='samples_received', value='1200'), kv(key='mode', value='fit')]),
-        st(level=1, name='quarter_car_node: loop', message='fail-safe', hardware_id='',
-           values=[kv(key='failsafe_s', value='1.5')])])
+        st(level=1, name='rl/quarter_car_node', message='fail-safe', hardware_id='',
+           values=[kv(key='failsafe_s', value='1.5'),
+                   kv(key='ride_metrics.rms_body_accel_wk', value='0.93')])])
     assert topics.decode_status('diagnostics', arr) == {
         'identifier': {'samples_received': 1200, 'mode': 'fit', 'level': 0, 'message': 'ok'},
-        'quarter_car': {'failsafe_s': 1.5, 'level': 1, 'message': 'fail-safe'}}
+        'rl/quarter_car': {'failsafe_s': 1.5, 'ride_metrics': {'rms_body_accel_wk': 0.93},
+                           'level': 1, 'message': 'fail-safe'}}
     assert set(topics.STATUS_KEYS) <= set(topics.SUITE_TOPICS)
-    with pytest.raises(ValueError):
-        topics.decode_status('rig_status', TS.types[topics.STRING](data='[1, 2]'))
+    with pytest.raises(ValueError, match='DiagnosticArray'):
+        topics.decode_status('diagnostics', TS.types[topics.STRING](data='[1, 2]'))
 
 
 def test_memory_stays_flat_while_recording(tmp_path):

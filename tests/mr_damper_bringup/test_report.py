@@ -127,6 +127,7 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
     from rclpy.serialization import serialize_message
 
     from mr_damper_model import messages as mm
+    from mr_damper_model.health import Health, OK
     from mr_damper_bringup.topics import NODE_PARAMETERS_TOPIC
     with SuiteRecorder(path, config_text=yaml.safe_dump(cfg), start_ns=999_000_000_000) as rec:
         for node, p in (node_params or {}).items():
@@ -142,8 +143,13 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
         for t, d in params_msgs:
             rec.write('parameters', serialize_message(mm.kwok_parameters_msg(d)),
                       int(round(t * 1e9)))
+        names = {'rig': 'mr_damper_rig', 'identifier': 'mr_damper_identifier',
+                 'quarter_car': 'quarter_car_node', 'controller': 'semi_active_controller',
+                 'recorder': 'mr_damper_record'}
         for t, node, d in statuses:
-            rec.write(f'{node}_status', serialize_message(mm.status_msg(d)), int(round(t * 1e9)))
+            diag = mm.diagnostic_array_msg([mm.diagnostic_status_msg(names[node], Health(
+                OK, 'ok', d))], stamp_s=t)
+            rec.write('diagnostics', serialize_message(diag), int(round(t * 1e9)))
     return path
 
 
@@ -164,8 +170,9 @@ def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
     rec = report.read_recording(tmp_path / 'suite.mcap', tmp_path)
     assert rec['config'] == _cfg()
     assert rec['measurements_received'] == 497 and rec['measurement_gaps'] == 3
-    assert rec['status'] == {'rig': {'samples_published': 500},
-                             'identifier': {'samples_received': 497}}
+    ok = {'level': 0, 'message': 'ok'}
+    assert rec['status'] == {'rig': dict(ok, samples_published=500),
+                             'identifier': dict(ok, samples_received=497)}
     assert rec['status_messages'] == {'rig': 2, 'identifier': 1}
     assert rec['truth']['c0'] == params['c0'] and rec['truth']['valid'] == 1.0
     assert rec['parameter_messages'] == 1

@@ -1,9 +1,9 @@
 """
 The launcher's monitor: the latest status of every node, in the launcher's process.
 
-A small rclpy node spun in a thread of ``mr-damper-suite``: it subscribes to the status topics,
-the parameters and the ride metrics of :data:`mr_damper_bringup.topics.SUITE_TOPICS` (low rate;
-never the measurement stream, which the recorder process takes) and keeps only the latest
+A small rclpy node spun in a thread of ``mr-damper-suite``: it subscribes to ``/diagnostics``
+(every node's status; the car's carries the running ride metrics) and the parameters of
+:data:`mr_damper_bringup.topics.SUITE_TOPICS` (low rate; never the measurement stream, which the recorder process takes) and keeps only the latest
 decoded message of each, for the progress lines and the drain at shutdown. Decoding goes
 through :mod:`mr_damper_bringup.topics` (one decoder per payload kind).
 """
@@ -16,7 +16,7 @@ from rclpy.executors import ExternalShutdownException
 from mr_damper_model.node_utils import LATCHED_QOS, STATUS_QOS
 
 from .record_node import message_class
-from .topics import decode_json, decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS
+from .topics import decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS
 
 
 class Monitor:
@@ -54,6 +54,8 @@ class Monitor:
             for node, d in statuses.items():
                 self.status[node] = d
                 self.history[node] = (self.history.get(node, ())[-1:] + (d,))
+                if node == 'quarter_car' and d.get('ride_metrics'):
+                    self.metrics = d['ride_metrics']   # the car's running ride metrics
 
     def on_parameters(self, msg):
         """Store one parameter message."""
@@ -65,15 +67,6 @@ class Monitor:
             self.parameters = d
             self.n_parameters += 1
             self.n_valid += d.get('valid') == 1.0
-
-    def on_metrics(self, msg):
-        """Store the latest ride metrics."""
-        try:
-            d = decode_json(msg)
-        except ValueError:
-            return
-        with self.lock:
-            self.metrics = d
 
     def snapshot(self):
         """Return a copy: ``(status, history, parameters, n_params, n_valid, metrics)``."""
@@ -102,9 +95,6 @@ def start_monitor(monitor):
     params = SUITE_TOPICS['parameters']
     node.create_subscription(message_class(params.type), params.name, monitor.on_parameters,
                              LATCHED_QOS)
-    metrics = SUITE_TOPICS['ride_metrics']
-    node.create_subscription(message_class(metrics.type), metrics.name, monitor.on_metrics,
-                             STATUS_QOS)
     executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     running = threading.Event()

@@ -9,8 +9,8 @@ streamed to disk) until Ctrl-C (SIGINT) or SIGTERM, ``--duration`` seconds or ``
 measurements. The measurement topic is read with the rig's reliable KEEP_ALL QoS
 (``node_utils.MEASUREMENT_QOS``): nothing is lost. On a stop it keeps taking messages until none
 has arrived for ``--quiet-s`` (the stream in flight is drained), then closes the file properly
-and exits 0. It publishes its counts on ``/mr_damper/recorder_status`` (the launcher waits on
-them at shutdown). The file opens in Foxglove / PlotJuggler; its measurement topic replays with
+and exits 0. It publishes its counts on ``/diagnostics`` (status ``mr_damper_record``; the
+launcher waits on them at shutdown). The file opens in Foxglove / PlotJuggler; its measurement topic replays with
 ``rig_node --ros-args -p mode:=bag -p file:=FILE.mcap`` and feeds ``mr-damper-identify``.
 
 Example::
@@ -34,9 +34,10 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 import yaml
 
-from mr_damper_model.messages import status_msg
-from mr_damper_model.node_utils import (DropCounter, install_stop_handlers, LATCHED_QOS,
-                                        make_executor, MEASUREMENT_QOS, stop_requested)
+from mr_damper_model.health import Health, OK, WARN
+from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, install_stop_handlers,
+                                        LATCHED_QOS, make_executor, MEASUREMENT_QOS,
+                                        stop_requested)
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
@@ -46,7 +47,6 @@ from .topics import NODE_PARAMETERS_TOPIC, PARAMETER_NODES, SUITE_TOPICS, topic_
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': LATCHED_QOS,
        'default': QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE)}
-OWN_STATUS = 'recorder_status'
 
 
 def message_class(type_name):
@@ -162,22 +162,24 @@ def main(argv=None):
 
         for key, row in recorder.topics.items():
             subscribe(key, row)
-        status_pub = node.create_publisher(message_class(SUITE_TOPICS[OWN_STATUS].type),
-                                           SUITE_TOPICS[OWN_STATUS].name, QOS['default'])
 
-        def publish_status():
-            status_pub.publish(status_msg({
-                'messages': dict(recorder.counts),
-                'measurements': recorder.counts.get('measurement', 0),
-                'lost': drops.counts(), 'file': str(out)}))
+        def health():
+            lost = drops.counts()
+            return Health(WARN if lost else OK,
+                          f'{sum(lost.values())} message(s) lost before they were taken'
+                          if lost else 'recording',
+                          {'messages': dict(recorder.counts),
+                           'measurements': recorder.counts.get('measurement', 0),
+                           'lost': lost, 'file': str(out)})
 
-        timer = node.create_timer(args.status_period_s, publish_status)
+        diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,
+                                           drops=drops)
         poller = None
         if args.parameters_period_s > 0:
             poller = ParameterPoller(node, recorder, PARAMETER_NODES, args.parameters_period_s)
 
         def taken():
-            return sum(n for k, n in recorder.counts.items() if k != OWN_STATUS)
+            return sum(recorder.counts.values())
 
         # the suite's executor (EventsExecutor) in a spin_once loop: rclpy.spin_once(node)
         # adds and removes the node on every call, too slow for a few kHz of messages
@@ -196,10 +198,10 @@ def main(argv=None):
                     break
                 if args.count > 0 and recorder.counts.get('measurement', 0) >= args.count:
                     break
-            node.destroy_timer(timer)
+            diagnostics.close()
             if poller is not None:
                 node.destroy_timer(poller.timer)
-            publish_status()
+            diagnostics.publish()
             # drain: take what is still in flight until nothing came for --quiet-s
             wait_while_progressing(spin_and_count, args.quiet_s, 60.0, poll_s=0.0)
         except (KeyboardInterrupt, ExternalShutdownException):

@@ -53,7 +53,7 @@ from mr_damper_model.kwok_current import KwokCurrent
 from mr_damper_model.models import get_model
 
 from .config import node_params, QC, RIG
-from .topics import (CONFIG_TOPIC, decode_json, decode_parameters, decode_status,
+from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
                      NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
@@ -113,7 +113,7 @@ def read_recording(path, work):
                     rec['start_epoch_s'] = t_rx
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
-                               'ride_metrics', 'config', 'node_parameters', *STATUS_KEYS):
+                               'config', 'node_parameters', *STATUS_KEYS):
                     continue
                 msg = reader.deserialize(raw, conn.msgtype)
                 try:
@@ -126,9 +126,6 @@ def read_recording(path, work):
                         for node, section in yaml.safe_load(msg.data).items():
                             rec['node_parameters'][node] = section['ros__parameters']
                         continue
-                    elif key == 'ride_metrics':
-                        rec['ride_metrics'] = decode_json(msg)
-                        continue
                     elif key in ('parameters', 'truth', 'truth_spencer'):
                         d = decode_parameters(msg)
                     else:
@@ -136,6 +133,8 @@ def read_recording(path, work):
                             rec['status'][node] = d
                             rec['status_messages'][node] = \
                                 rec['status_messages'].get(node, 0) + 1
+                            if node == 'quarter_car' and d.get('ride_metrics'):
+                                rec['ride_metrics'] = d['ride_metrics']
                         continue
                 except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
                     rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1
@@ -661,6 +660,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                'config': 'replay' if rig_params.get('mode', 'sim') != 'sim' else 'sim',
                'plant': qc_params.get('plant', 'spencer'),
                'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
+                             'statuses': rec['status_messages'],
                              'undecodable': rec['undecodable'],
                              'node_parameters': sorted(rec.get('node_parameters') or {})}}
     summary['identification'] = identification_summary(meas, params_log, truth)
@@ -700,7 +700,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
             'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
             'max': float(lat.max()), 'n': int(lat.size)}
     if hil:
-        from quarter_car_sim.hil import hil_summary
+        from mr_damper_rig.car_in_the_loop import hil_summary
         status = rec.get('status', {})
         summary['hil'] = hil_summary(status.get('quarter_car'), status.get('rig'),
                                      (summary.get('identification') or {}).get('parameters'),
@@ -867,7 +867,7 @@ def format_summary(s):
                      f'{p.get("jitter_p99_ms") or float("nan"):.3f} ms; state -> command '
                      f'p50 {lat["p50_ms"]:.3f} ms, p99 {lat["p99_ms"]:.3f} ms')
     if s.get('hil'):
-        from quarter_car_sim.hil import format_hil_summary
+        from mr_damper_rig.car_in_the_loop import format_hil_summary
         lines.append(format_hil_summary(s['hil']))
     return '\n'.join(lines)
 

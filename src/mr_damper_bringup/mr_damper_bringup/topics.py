@@ -15,7 +15,6 @@ They import ``mr_damper_model.messages`` (message packages, no rclpy) when first
 importing this module stays ROS-free.
 """
 from collections import namedtuple
-import json
 
 #: One recorded topic: absolute name, ROS 2 type name, QoS kind
 #: (``'measurement'`` reliable KEEP_ALL, ``'latched'`` transient local, ``'default'`` depth 10).
@@ -23,27 +22,26 @@ Topic = namedtuple('Topic', 'name type qos')
 
 STRING = 'std_msgs/msg/String'
 FLOAT64 = 'std_msgs/msg/Float64'
-ARRAY = 'std_msgs/msg/Float64MultiArray'
+UINT64 = 'std_msgs/msg/UInt64'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
+DIAGNOSTICS = 'diagnostic_msgs/msg/DiagnosticArray'
+KWOK = 'mr_damper_interfaces/msg/KwokParameters'
+DAMPER_MODEL = 'mr_damper_interfaces/msg/DamperModel'
 CAR_STATE = 'mr_damper_interfaces/msg/QuarterCarState'
 
 #: Every topic of the suite (node defaults, root namespace), by key. The :data:`STATUS_KEYS` rows
 #: are the status topics (one per node), decoded with :func:`decode_status`.
 SUITE_TOPICS = {
     'measurement': Topic('/mr_damper/measurement', JOINT_STATE, 'measurement'),
-    'parameters': Topic('/mr_damper/kwok_parameters', ARRAY, 'latched'),
-    'truth': Topic('/mr_damper/true_parameters', ARRAY, 'latched'),
-    'truth_spencer': Topic('/mr_damper/true_spencer_parameters', ARRAY, 'latched'),
+    'parameters': Topic('/mr_damper/kwok_parameters', KWOK, 'latched'),
+    'truth': Topic('/mr_damper/true_parameters', KWOK, 'latched'),
+    'truth_spencer': Topic('/mr_damper/true_spencer_parameters', DAMPER_MODEL, 'latched'),
     'current_command': Topic('/mr_damper/current_command', FLOAT64, 'default'),
     'displacement_command': Topic('/mr_damper/displacement_command', FLOAT64, 'default'),
+    'samples_received': Topic('/mr_damper/samples_received', UINT64, 'default'),
     'car_joint_state': Topic('/quarter_car/state', JOINT_STATE, 'default'),
     'car_state': Topic('/quarter_car/car_state', CAR_STATE, 'default'),
-    'ride_metrics': Topic('/quarter_car/ride_metrics', STRING, 'default'),
-    'rig_status': Topic('/mr_damper/rig_status', STRING, 'default'),
-    'identifier_status': Topic('/mr_damper/identifier_status', STRING, 'default'),
-    'quarter_car_status': Topic('/quarter_car/status', STRING, 'default'),
-    'controller_status': Topic('/semi_active_controller/status', STRING, 'default'),
-    'recorder_status': Topic('/mr_damper/recorder_status', STRING, 'default'),
+    'diagnostics': Topic('/diagnostics', DIAGNOSTICS, 'default'),
 }
 
 #: Written once by the recorder at its start, not a DDS topic: the parameter YAML the suite's
@@ -59,10 +57,8 @@ NODE_PARAMETERS_TOPIC = Topic('/mr_damper/node_parameters', STRING, 'latched')
 PARAMETER_NODES = ('mr_damper_rig', 'mr_damper_identifier', 'quarter_car_node',
                    'semi_active_controller')
 
-#: Keys of the table whose messages are node statuses (decoded by :func:`decode_status`). With
-#: ``/diagnostics`` this becomes the one key of that topic.
-STATUS_KEYS = ('rig_status', 'identifier_status', 'quarter_car_status', 'controller_status',
-               'recorder_status')
+#: Keys of the table whose messages are node statuses (decoded by :func:`decode_status`).
+STATUS_KEYS = ('diagnostics',)
 #: Node name -> the short name the launcher and the report use for its status.
 NODE_KEYS = {'mr_damper_rig': 'rig', 'mr_damper_identifier': 'identifier',
              'quarter_car_node': 'quarter_car', 'semi_active_controller': 'controller',
@@ -106,17 +102,18 @@ def decode_status(key, msg):
     ----------
     key : str
         Topic key of the message (one of :data:`STATUS_KEYS`).
-    msg : std_msgs/String or diagnostic_msgs/DiagnosticArray (rclpy or rosbags)
-        A node's JSON status (``*_status`` topics: the node is the key without ``_status``), or
-        a diagnostics array: one entry per ``DiagnosticStatus``, the node from its ``name``
-        (``'NODE: task'``, :data:`NODE_KEYS`), values parsed as JSON where they are (numbers,
-        booleans, objects), ``level`` and ``message`` added.
+    msg : diagnostic_msgs/DiagnosticArray (rclpy or rosbags)
+        One entry per ``DiagnosticStatus``: the node from its ``name`` (the node's fully
+        qualified name without the leading slash, e.g. ``'fl/mr_damper_identifier'``;
+        :data:`NODE_KEYS`), nested values rebuilt from the dotted keys and parsed
+        (:func:`mr_damper_model.messages.health_from_diagnostic`), ``level`` and ``message``
+        added.
 
     Returns
     -------
     dict
         Node short name (``rig``, ``identifier``, ``quarter_car``, ``controller``,
-        ``recorder``) -> status dict.
+        ``recorder``; ``'fl/identifier'`` for a node in namespace ``fl``) -> status dict.
 
     Raises
     ------
@@ -124,25 +121,19 @@ def decode_status(key, msg):
         If the payload is not a status (``mr_damper_model.messages.MessageError`` or bad JSON).
 
     """
-    if hasattr(msg, 'status'):                  # diagnostic_msgs/DiagnosticArray
-        out = {}
-        for st in msg.status:
-            node = str(st.name).split(':')[0].strip()
-            d = {kv.key: _parse_value(kv.value) for kv in st.values}
-            level = st.level
-            d.update(level=int.from_bytes(level, 'little') if isinstance(level, bytes)
-                     else int(level), message=str(st.message))
-            out[NODE_KEYS.get(node, node)] = d
-        return out
-    from mr_damper_model.messages import status_from_msg
-    return {key[:-len('_status')] if key.endswith('_status') else key: status_from_msg(msg)}
-
-
-def _parse_value(text):
-    try:
-        return json.loads(text)
-    except ValueError:
-        return text
+    if not hasattr(msg, 'status'):
+        raise ValueError(f'{key}: not a diagnostic_msgs/DiagnosticArray')
+    from mr_damper_model.messages import health_from_diagnostic
+    out = {}
+    for st in msg.status:
+        full = str(st.name).split(':')[0].strip()
+        ns, _, node = full.rpartition('/')
+        short = NODE_KEYS.get(node, node)
+        health = health_from_diagnostic(st)
+        d = dict(health.values)
+        d.update(level=health.level, message=health.message)
+        out[f'{ns}/{short}' if ns else short] = d
+    return out
 
 
 def decode_parameters(msg):
@@ -151,23 +142,28 @@ def decode_parameters(msg):
 
     Parameters
     ----------
-    msg : std_msgs/Float64MultiArray (rclpy or rosbags)
-        Labelled array (``mr_damper_model.messages`` layout).
+    msg : mr_damper_interfaces/KwokParameters or DamperModel (rclpy or rosbags)
+        Identified (or kwok-current true) parameters, or a named-parameter true model.
 
     Returns
     -------
     dict
-        Coefficients by name, ``i_ref_a``, ``window_end_s``, ``rmse_n``, ``nrmse_percent``,
-        ``valid`` (1.0 or 0.0), ... as floats.
+        KwokParameters: coefficients by name, ``i_ref_a``, ``window_start_s``,
+        ``window_end_s``, ``current_min_a``, ``current_max_a``, ``rmse_n``, ``nrmse_percent``
+        as floats, ``valid`` 1.0 or 0.0 and ``reason``. DamperModel: its parameters by name.
 
     Raises
     ------
     ValueError
-        On a bad layout.
+        On a message no model can use (``mr_damper_model.messages.MessageError``).
 
     """
-    from mr_damper_model.messages import array_msg_to_dict
-    return array_msg_to_dict(msg)
+    from mr_damper_model.messages import damper_model_from_msg, kwok_parameters_flat
+    if hasattr(msg, 'parameter_names'):
+        return damper_model_from_msg(msg)['parameters']
+    d = kwok_parameters_flat(msg)
+    d['valid'] = 1.0 if d['valid'] else 0.0
+    return d
 
 
 def decode_measurement(msg):
@@ -183,19 +179,3 @@ def decode_measurement(msg):
     """
     from mr_damper_model.messages import measurement_from_msg
     return measurement_from_msg(msg)
-
-
-def decode_json(msg):
-    """
-    Decode a JSON object in a ``std_msgs/String`` (the ride metrics) into a dict.
-
-    Raises
-    ------
-    ValueError
-        If the payload is not a JSON object.
-
-    """
-    value = json.loads(msg.data)
-    if not isinstance(value, dict):
-        raise ValueError('not a JSON object')
-    return value

@@ -308,8 +308,9 @@ class DiagnosticsPublisher:
     """
     Publish a node's :class:`~mr_damper_model.health.Health` on ``/diagnostics`` periodically.
 
-    One ``DiagnosticStatus`` per period of wall time (steady clock), named ``'<fully qualified node name>'`` without the
-    leading slash (``'fl/mr_damper_identifier'`` under namespace ``fl``), stamped by the node's
+    One ``DiagnosticStatus`` per period of wall time (steady clock), named ``'<fully qualified
+    node name>'`` without the leading slash (``'fl/mr_damper_identifier'`` under namespace
+    ``fl``), stamped by the node's
     clock (ROS time under ``use_sim_time``). ``/diagnostics`` is absolute by convention: every
     corner's nodes publish to the same topic, told apart by the status name.
 
@@ -346,6 +347,12 @@ class DiagnosticsPublisher:
     def publisher(self):
         """Return the ``/diagnostics`` writer, e.g. to wait for its readers' acknowledgements."""
         return self._pub
+
+    def close(self):
+        """Stop the periodic publication (``publish()`` still works)."""
+        if self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
 
     def publish(self):
         """Build and publish the status now; return the :class:`Health` sent."""
