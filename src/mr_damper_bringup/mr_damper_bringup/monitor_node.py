@@ -4,7 +4,8 @@ The launcher's monitor: the latest status of every node, in the launcher's proce
 A small rclpy node spun in a thread of ``mr-damper-suite``: it subscribes to ``/diagnostics``
 (every node's status; the car's carries the running ride metrics) and the parameters of
 :data:`mr_damper_bringup.topics.SUITE_TOPICS` (low rate; never the measurement stream, which
-the recorder process takes) and keeps only the latest decoded message of each, for the progress lines and the drain at shutdown. Decoding goes
+the recorder process takes) and keeps only the latest decoded message of each, for the progress
+lines and the drain at shutdown. Decoding goes
 through :mod:`mr_damper_bringup.topics` (one decoder per payload kind).
 """
 import sys

@@ -11,7 +11,8 @@ measurements. The measurement topic is read with the rig's reliable KEEP_ALL QoS
 has arrived for ``--quiet-s`` (the stream in flight is drained), then closes the file properly
 and exits 0. It publishes its counts on ``/diagnostics`` (status ``mr_damper_record``; the
 launcher waits on them at shutdown). The file opens in Foxglove / PlotJuggler; its
-measurement topic replays with ``rig_node --ros-args -p mode:=bag -p file:=FILE.mcap`` and feeds ``mr-damper-identify``.
+measurement topic replays with ``rig_node --ros-args -p mode:=bag -p file:=FILE.mcap`` and feeds
+``mr-damper-identify``.
 
 Example::
 
