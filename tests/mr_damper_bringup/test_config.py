@@ -57,3 +57,30 @@ def test_replay_needs_existing_files(tmp_path):
                        '--file', str(tmp_path / 'gone.csv')])
     with pytest.raises(config.SuiteError, match='no such file'):
         config.resolve_config(args, tmp_path)
+
+
+def test_corner_configs_key_nodes_by_namespace_and_separate_what_must_differ(tmp_path):
+    from mr_damper_bringup.config import corner_configs, IDENT, QC, RIG, SuiteError
+    cfg = {'/**': {'ros__parameters': {'plant': 'spencer'}},
+           RIG: {'ros__parameters': {'seed': 3, 'mode': 'sim'}},
+           IDENT: {'ros__parameters': {'window_s': 2.0}},
+           QC: {'ros__parameters': {'road_seed': 7, 'safe_current_a': 0.5}}}
+    out = corner_configs(cfg, ['fl', 'fr'], tmp_path)
+    assert list(out) == ['fl', 'fr']
+    fl, fr = out['fl'], out['fr']
+    assert set(fl) == {'/**', f'/fl/{RIG}', f'/fl/{IDENT}', f'/fl/{QC}'}
+    assert fl['/**'] == cfg['/**'] and fl['/**'] is not cfg['/**']
+    # what differs between corners: rig seed, road seed, identifier file, car log
+    assert (fl[f'/fl/{RIG}']['ros__parameters']['seed'],
+            fr[f'/fr/{RIG}']['ros__parameters']['seed']) == (3, 4)
+    assert (fl[f'/fl/{QC}']['ros__parameters']['road_seed'],
+            fr[f'/fr/{QC}']['ros__parameters']['road_seed']) == (7, 8)
+    assert fl[f'/fl/{IDENT}']['ros__parameters']['params_file'] != \
+        fr[f'/fr/{IDENT}']['ros__parameters']['params_file']
+    assert fr[f'/fr/{QC}']['ros__parameters']['log_file'].endswith('quarter_car_log_fr')
+    # the rest is the same, and the input is untouched
+    assert fl[f'/fl/{QC}']['ros__parameters']['safe_current_a'] == 0.5
+    assert cfg[RIG]['ros__parameters']['seed'] == 3
+    for bad in (['fl', 'fl'], ['front'], []):
+        with pytest.raises(SuiteError, match='--corners'):
+            corner_configs(cfg, bad, tmp_path)

@@ -192,3 +192,17 @@ def test_memory_stays_flat_while_recording(tmp_path):
     size = (tmp_path / 'long.mcap').stat().st_size
     assert size > 60000 * len(raw)
     assert peak < 4 * 2 ** 20 < size / 2
+
+
+def test_namespaced_table_prefixes_every_topic_but_diagnostics():
+    table = topics.namespaced_table(topics.topic_table(['measurement', 'diagnostics']),
+                                    ['fl', 'fr'])
+    assert table == {
+        'fl/measurement': topics.SUITE_TOPICS['measurement']._replace(
+            name='/fl/mr_damper/measurement'),
+        'fr/measurement': topics.SUITE_TOPICS['measurement']._replace(
+            name='/fr/mr_damper/measurement'),
+        'diagnostics': topics.SUITE_TOPICS['diagnostics']}
+    assert topics.namespaced_table(topics.SUITE_TOPICS, []) == topics.SUITE_TOPICS
+    with pytest.raises(ValueError, match='plain name'):
+        topics.namespaced_table(topics.SUITE_TOPICS, ['/fl'])

@@ -171,3 +171,62 @@ def suite_nodes(cfg):
     if not external_controller(cfg):
         return dict(NODES)
     return {RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}
+
+
+#: Car corners the launcher can run side by side, each under its namespace.
+CORNERS = ('fl', 'fr', 'rl', 'rr')
+
+
+def corner_configs(cfg, corners, out):
+    """
+    Split one run's parameters into one parameter dict per car corner (namespace).
+
+    Each corner runs its own rig, identifier and car under ``/<corner>`` (topics
+    ``/<corner>/mr_damper/...``); its sections are keyed by the fully qualified node names
+    (``/fl/mr_damper_rig``), and what must differ between corners does: the rig's noise seed,
+    the car's road seed (left and right wheels see different roads), the identifier's parameter
+    file and the car's log file.
+
+    Parameters
+    ----------
+    cfg : dict
+        The run's parameters (:func:`resolve_config`).
+    corners : sequence of str
+        Corner names, a subset of :data:`CORNERS`, no repeats.
+    out : path
+        Output folder (per-corner files go there).
+
+    Returns
+    -------
+    dict
+        corner -> parameter dict (``{'/**': ..., '/fl/mr_damper_rig': ...}``).
+
+    Raises
+    ------
+    SuiteError
+        For an unknown or repeated corner.
+
+    """
+    corners = list(corners)
+    bad = [c for c in corners if c not in CORNERS]
+    if bad or len(set(corners)) != len(corners) or not corners:
+        raise SuiteError(f'--corners {",".join(corners)}: use distinct names of '
+                         f'{", ".join(CORNERS)}')
+    out = Path(out)
+    result = {}
+    for k, corner in enumerate(corners):
+        own = {'/**': {'ros__parameters': dict(cfg.get('/**', {}).get('ros__parameters', {}))}}
+        for node in cfg:
+            if node == '/**':
+                continue
+            params = dict(cfg[node].get('ros__parameters', {}))
+            if node == RIG:
+                params['seed'] = int(params.get('seed', 1)) + k
+            elif node == IDENT:
+                params['params_file'] = str(out / f'identifier_params_{corner}.json')
+            elif node == QC:
+                params['road_seed'] = int(params.get('road_seed', 1)) + k
+                params['log_file'] = str(out / f'quarter_car_log_{corner}')
+            own[f'/{corner}/{node}'] = {'ros__parameters': params}
+        result[corner] = own
+    return result

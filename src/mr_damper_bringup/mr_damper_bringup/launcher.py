@@ -15,11 +15,16 @@ Usage::
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
         [--config sim|replay|hil] [--file PATH ...] [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
-        [--external-controller]
+        [--external-controller] [--corners fl,fr,rl,rr]
 
 ``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
 also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
 then the plant only and its law runs in the controller node (docs/controller-node.md).
+
+``--corners fl,fr`` runs one rig + identifier + car per car corner, each under its namespace
+(``/fl/mr_damper/measurement``, status ``fl/mr_damper_identifier``, ...; :func:`~mr_damper_bringup.
+config.corner_configs`), recorded into the one ``suite.mcap``; the summary then lists each
+corner's figures from its nodes' diagnostics (no plots).
 
 Exit status: 0 clean run, 1 a node died or failed to shut down, 2 bad command line / config.
 """
@@ -36,7 +41,8 @@ import time
 
 import yaml
 
-from .config import RECORDER, RECORDER_NODE, REPO, resolve_config, suite_nodes, SuiteError
+from .config import (corner_configs, CTRL, IDENT, QC, RECORDER, RECORDER_NODE, REPO,
+                     resolve_config, RIG, suite_nodes, SuiteError)
 from .processes import CLEAN_EXIT, ProcessStats, Suite
 from .report import RECORDING
 
@@ -85,6 +91,62 @@ def identifier_drained(monitor):
     return ok and stable and got >= seen, (got, seen)
 
 
+def corners_drained(monitor, corners):
+    """
+    Return ``(done, progress)`` for car corners (counts per namespace).
+
+    ``done``: every corner's identifier took every sample the recorder took from that corner's
+    rig, see :func:`identifier_drained`.
+    """
+    status, history, *_ = monitor.snapshot()
+    recs = [h.get('measurements_by_namespace') or {} for h in history.get('recorder', ())]
+    got = {c: (status.get(f'{c}/identifier') or {}).get('samples_received') for c in corners}
+    seen = recs[-1] if recs else {}
+    stable = len(recs) == 2 and recs[0] == recs[1]
+    done = stable and all(isinstance(got[c], (int, float)) and got[c] >= seen.get(c, 0)
+                          for c in corners)
+    return done, (tuple(got.values()), tuple(sorted(seen.items())))
+
+
+def corner_progress_line(monitor, elapsed, corners):
+    """Return one progress line per run: each corner's samples, model and car mode."""
+    status = monitor.snapshot()[0]
+    parts = []
+    for c in corners:
+        ident = status.get(f'{c}/identifier') or {}
+        qc = status.get(f'{c}/quarter_car') or {}
+        parts.append(f'{c}: {ident.get("samples_received", 0)} samples, '
+                     f'{ident.get("windows_valid", 0)} valid, car {qc.get("mode", "?")}')
+    return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
+
+
+def corner_summary(monitor, corners):
+    """
+    Return each corner's figures from the last diagnostics of its recorder, identifier, car.
+
+    ``samples_lost``: measurements the recorder took from the corner's rig that its identifier
+    did not receive (0 when it received them all).
+    """
+    status = monitor.snapshot()[0]
+    recorded = (status.get('recorder') or {}).get('measurements_by_namespace') or {}
+    out = {}
+    for c in corners:
+        ident = status.get(f'{c}/identifier') or {}
+        qc = status.get(f'{c}/quarter_car') or {}
+        received = ident.get('samples_received')
+        seen = recorded.get(c)
+        out[c] = {
+            'samples_recorded': seen, 'samples_received': received,
+            'samples_lost': (max(seen - received, 0) if isinstance(seen, int)
+                             and isinstance(received, int) else None),
+            'windows_valid': ident.get('windows_valid'),
+            'last_nrmse_percent': ident.get('last_nrmse_percent'),
+            'car_mode': qc.get('mode'), 'failsafe_s': qc.get('failsafe_s'),
+            'params_accepted': qc.get('params_accepted'),
+            'rms_body_accel_wk': (qc.get('ride_metrics') or {}).get('rms_body_accel_wk')}
+    return out
+
+
 def parse_args(argv):
     """Parse the launcher's command line."""
     p = argparse.ArgumentParser(
@@ -119,6 +181,9 @@ def parse_args(argv):
     p.add_argument('--external-controller', action='store_true',
                    help='run the car\'s law in semi_active_controller_node (the car is the '
                         'plant only, controller:=external)')
+    p.add_argument('--corners', type=lambda s: [c.strip() for c in s.split(',') if c.strip()],
+                   help='run one rig + identifier + car per car corner, each in its namespace '
+                        '(comma-separated subset of fl,fr,rl,rr)')
     p.add_argument('--no-plots', action='store_true', help='summary.json only')
     p.add_argument('--quiet', action='store_true', help='no progress lines')
     args = p.parse_args(argv)
@@ -138,6 +203,7 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     try:
         cfg = resolve_config(args, out)
+        corners = corner_configs(cfg, args.corners, out) if args.corners else {}
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -154,9 +220,22 @@ def main(argv=None):
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
-    suite = Suite(params_file, out, domain_id, args.bin_dir,
-                  {**RECORDER_NODE, **suite_nodes(cfg)},
-                  args={RECORDER: ['--out', recording, '--suite-config', params_file]})
+    record_args = ['--out', recording, '--suite-config', params_file]
+    if corners:
+        nodes, node_args = dict(RECORDER_NODE), {}
+        for corner, corner_cfg in corners.items():
+            corner_file = out / f'suite_params_{corner}.yaml'
+            corner_file.write_text(yaml.safe_dump(corner_cfg, sort_keys=False))
+            record_args += ['--namespace', corner]
+            for name, exe in suite_nodes(cfg).items():
+                nodes[f'{corner}.{name}'] = exe
+                node_args[f'{corner}.{name}'] = ['--ros-args', '-r', f'__ns:=/{corner}',
+                                                 '--params-file', corner_file]
+        node_args[RECORDER] = record_args
+        suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
+    else:
+        suite = Suite(params_file, out, domain_id, args.bin_dir,
+                      {**RECORDER_NODE, **suite_nodes(cfg)}, args={RECORDER: record_args})
     print(f'{PROG}: config {args.config}, domain {domain_id}, '
           f'duration {args.duration:g} s, output {out}', flush=True)
 
@@ -203,14 +282,21 @@ def main(argv=None):
                 stats.sample()
                 next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
-                print(progress_line(monitor, elapsed), flush=True)
+                print(corner_progress_line(monitor, elapsed, list(corners)) if corners
+                      else progress_line(monitor, elapsed), flush=True)
                 next_progress += args.progress_s
             interrupted.wait(0.1)
         if interrupted.is_set():
             print(f'{PROG}: interrupted, stopping the nodes', flush=True)
         elapsed = time.monotonic() - t_start
     finally:
-        codes = suite.stop(drained=lambda: identifier_drained(monitor))
+        if corners:
+            order = [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
+            codes = suite.stop(order=order,
+                               drained=lambda: corners_drained(monitor, list(corners)))
+            summary = {'corners': corner_summary(monitor, list(corners))}
+        else:
+            codes = suite.stop(drained=lambda: identifier_drained(monitor))
         stop_monitor()
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
@@ -225,8 +311,15 @@ def main(argv=None):
         (out / 'process_stats.json').write_text(json.dumps(stats.summary(), indent=2))
     try:
         from . import report
-        summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots)
-        print(report.format_summary(summary), flush=True)
+        if corners:
+            summary.update(duration_s=elapsed, recording=RECORDING,
+                           exit_codes={n: c for n, c in codes.items()})
+            (out / 'summary.json').write_text(json.dumps(summary, indent=2))
+            for c, d in summary['corners'].items():
+                print(f'{c}: {d}', flush=True)
+        else:
+            summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots)
+            print(report.format_summary(summary), flush=True)
     except Exception as exc:  # noqa: B902 - the run itself succeeded; say why there is no summary
         print(f'{PROG}: no summary: {type(exc).__name__}: {exc}', file=sys.stderr)
         status = status or 1

@@ -154,7 +154,8 @@ class Suite:
         keeps moving: a slow identifier on a loaded machine still gets every sample, a stuck one
         holds the stop for ``stall_s`` at most (and everything for ``guard_s``). The nodes in
         ``last`` (the recorder) are stopped only once all the others have exited, so they take
-        every final message.
+        every final message. With car corners (node names ``<corner>.<node>``), ``order`` lists
+        every corner's nodes and the drain comes after the last rig.
 
         Returns
         -------
@@ -172,7 +173,9 @@ class Suite:
                 proc = self.procs[name]
                 if proc.poll() is None:
                     proc.send_signal(signal.SIGINT)
-                    if name == RIG and drain_s > 0:
+                    if (name == RIG or name.endswith('.' + RIG)) and drain_s > 0 \
+                            and not any(n == RIG or n.endswith('.' + RIG)
+                                        for n in group[group.index(name) + 1:]):
                         time.sleep(drain_s)
                         if drained is not None:
                             wait_while_progressing(drained, stall_s, guard_s)

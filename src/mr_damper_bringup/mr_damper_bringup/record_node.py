@@ -42,7 +42,8 @@ from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, insta
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
-from .topics import NODE_PARAMETERS_TOPIC, PARAMETER_NODES, SUITE_TOPICS, topic_table
+from .topics import (namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES, SUITE_TOPICS,
+                     topic_table)
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': LATCHED_QOS,
@@ -118,6 +119,9 @@ def _parser():
     p.add_argument('--out', required=True, help='MCAP file to create (must not exist)')
     p.add_argument('--only', action='append', metavar='KEY', choices=sorted(SUITE_TOPICS),
                    help='record only this topic key (repeat; default: every suite topic)')
+    p.add_argument('--namespace', action='append', default=[], metavar='NS',
+                   help='record the suite topics of the nodes in namespace NS (repeat for '
+                        'several car corners: fl, fr, rl, rr); default: the root namespace')
     p.add_argument('--suite-config', metavar='YAML',
                    help='parameter YAML of the suite, stored in the file (/mr_damper/'
                         'suite_config) for the report')
@@ -141,8 +145,8 @@ def main(argv=None):
     out = Path(args.out)
     try:
         config_text = Path(args.suite_config).read_text() if args.suite_config else None
-        recorder = SuiteRecorder(out, topic_table(args.only), config_text=config_text,
-                                 start_ns=time.time_ns())
+        recorder = SuiteRecorder(out, namespaced_table(topic_table(args.only), args.namespace),
+                                 config_text=config_text, start_ns=time.time_ns())
     except (OSError, ValueError, LookupError) as exc:
         print(f'mr-damper-record: error: {exc}', file=sys.stderr)
         return 2
@@ -170,14 +174,20 @@ def main(argv=None):
                           f'{sum(lost.values())} message(s) lost before they were taken'
                           if lost else 'recording',
                           {'messages': dict(recorder.counts),
-                           'measurements': recorder.counts.get('measurement', 0),
+                           'measurements': sum(n for k, n in recorder.counts.items()
+                                               if k.split('/')[-1] == 'measurement'),
+                           'measurements_by_namespace': {
+                               k.split('/')[0]: n for k, n in recorder.counts.items()
+                               if '/' in k and k.split('/')[-1] == 'measurement'},
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,
                                            drops=drops)
         poller = None
         if args.parameters_period_s > 0:
-            poller = ParameterPoller(node, recorder, PARAMETER_NODES, args.parameters_period_s)
+            names = ([f'{ns}/{n}' for ns in args.namespace for n in PARAMETER_NODES]
+                     or PARAMETER_NODES)
+            poller = ParameterPoller(node, recorder, names, args.parameters_period_s)
 
         def taken():
             return sum(recorder.counts.values())

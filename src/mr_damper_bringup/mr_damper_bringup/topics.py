@@ -179,3 +179,44 @@ def decode_measurement(msg):
     """
     from mr_damper_model.messages import measurement_from_msg
     return measurement_from_msg(msg)
+
+
+#: Topics that stay absolute in a namespace (by ROS convention).
+ABSOLUTE_KEYS = ('diagnostics',)
+
+
+def namespaced_table(table, namespaces):
+    """
+    Return ``table`` for the nodes of each namespace (one car corner per namespace).
+
+    Parameters
+    ----------
+    table : dict
+        ``key -> Topic`` (root-namespace names, :func:`topic_table`).
+    namespaces : sequence of str
+        Namespaces, e.g. ``('fl', 'fr')``; empty: ``table`` unchanged.
+
+    Returns
+    -------
+    dict
+        ``'fl/measurement' -> Topic('/fl/mr_damper/measurement', ...)`` for every row and
+        namespace, except :data:`ABSOLUTE_KEYS` (``/diagnostics``), kept once under their key.
+
+    Raises
+    ------
+    ValueError
+        For a namespace that is not a plain name (letters, digits, underscores).
+
+    """
+    if not namespaces:
+        return dict(table)
+    out = {}
+    for ns in namespaces:
+        if not ns or not ns.replace('_', '').isalnum() or ns[0].isdigit():
+            raise ValueError(f'namespace {ns!r}: use a plain name such as fl, fr, rl, rr')
+        for key, row in table.items():
+            if key in ABSOLUTE_KEYS:
+                out[key] = row
+            else:
+                out[f'{ns}/{key}'] = row._replace(name=f'/{ns}{row.name}')
+    return out

@@ -1,0 +1,58 @@
+"""
+Two car corners side by side, each stack under its own namespace.
+
+The launcher runs rig + identifier + car per corner on the same DDS domain; nothing crosses
+between corners.
+
+Checks order and counts only: each corner's car leaves fail-safe on its own identifier's model,
+every sample each rig published reached its own identifier (none lost, none from the other
+corner), each corner's topics and statuses are recorded under its namespace in the one MCAP, and
+the suite stops cleanly.
+"""
+import json
+import os
+import subprocess
+
+import pytest
+
+from conftest import VENV_BIN
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+
+def test_two_corners_run_in_their_namespaces(tmp_path):
+    from rosbags.highlevel import AnyReader
+    out = tmp_path / 'corners'
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--corners', 'fl,fr', '--duration', '20',
+           '--out', str(out), '--progress-s', '5', '--domain-id', env['ROS_DOMAIN_ID'],
+           '--set', 'quarter_car_node.param_timeout_s=3.0']
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    summary = json.loads((out / 'summary.json').read_text())
+    assert set(summary['corners']) == {'fl', 'fr'}
+    for corner, d in summary['corners'].items():
+        assert d['samples_recorded'] > 1000, (corner, d)
+        assert d['samples_lost'] == 0, (corner, d)
+        assert d['windows_valid'] > 0 and d['params_accepted'] > 0, (corner, d)
+    assert all(code == 0 for code in summary['exit_codes'].values()), summary['exit_codes']
+    # per-corner parameter files and logs; one recording with both corners' topics
+    assert (out / 'identifier_params_fl.json').is_file()
+    assert (out / 'identifier_params_fr.json').is_file()
+    with AnyReader([out / 'suite.mcap']) as reader:
+        counts = {}
+        for conn in reader.connections:
+            counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
+        names = set()
+        diag = [c for c in reader.connections if c.topic == '/diagnostics']
+        for conn, _, raw in reader.messages(connections=diag):
+            for st in reader.deserialize(raw, conn.msgtype).status:
+                names.add(st.name)
+    for corner in ('fl', 'fr'):
+        n = counts.get(f'/{corner}/mr_damper/measurement', 0)
+        assert 1000 < n <= summary['corners'][corner]['samples_received'], (corner, n, counts)
+        assert counts.get(f'/{corner}/mr_damper/kwok_parameters', 0) > 0, counts
+        assert counts.get(f'/{corner}/mr_damper/current_command', 0) > 0, counts
+        assert {f'{corner}/mr_damper_rig', f'{corner}/mr_damper_identifier',
+                f'{corner}/quarter_car_node'} <= names, names
+    assert '/mr_damper/measurement' not in counts          # nothing in the root namespace
