@@ -44,8 +44,12 @@ def _replay(listener, rate_factor):
             return (st.get('windows_due', 0) > 0 and st.get('windows_due') == st.get(
                 'windows_fitted', 0) + sum(st.get('windows_skipped', {}).values())
                 and len(params) >= st.get('parameters_published', 1))
+        keys = ('windows_due', 'windows_fitted', 'windows_skipped', 'windows_superseded',
+                'windows_overflow', 'parameters_published', 'samples_received',
+                'samples_accepted', 'processed_up_to_s')
         assert listener.wait_for(drained, HANG_GUARD_S, procs=[ident]), \
-            (diag.values(name), ident.output()[-3000:])
+            ({k: diag.values(name).get(k) for k in keys}, len(params),
+             ident.output()[-2000:])
         status = diag.values(name)
     assert status['use_sim_time'] is True
     assert status['windows_superseded'] == 0 and status['windows_overflow'] == 0

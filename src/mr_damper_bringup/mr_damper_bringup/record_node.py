@@ -37,7 +37,7 @@ import yaml
 
 from mr_damper_model.health import Health, OK, WARN
 from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, install_stop_handlers,
-                                        LATCHED_QOS, make_executor, MEASUREMENT_QOS,
+                                        make_executor, MEASUREMENT_QOS, PARAMETERS_QOS,
                                         stop_requested)
 
 from .processes import wait_while_progressing
@@ -46,7 +46,7 @@ from .topics import (namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES, S
                      topic_table)
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
-QOS = {'measurement': MEASUREMENT_QOS, 'latched': LATCHED_QOS,
+QOS = {'measurement': MEASUREMENT_QOS, 'latched': PARAMETERS_QOS,
        'default': QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE)}
 

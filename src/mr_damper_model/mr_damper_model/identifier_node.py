@@ -33,7 +33,7 @@ from .identify import identify  # noqa: F401  (imported before the first window:
 from .live import DYNAMIC_FIELDS, FitProcess, LiveConfig, LiveIdentifier
 from .live_worker import IdentifierRuntime
 from .messages import kwok_parameters_msg, measurement_from_msg, MessageError
-from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, LATCHED_QOS,
+from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, PARAMETERS_QOS,
                          MEASUREMENT_QOS, Param, run_node, set_realtime_priority)
 from .params_file import load_params, save_params
 
@@ -150,7 +150,7 @@ class IdentifierNode(Node):
             no_sample_timeout_s=p['no_sample_timeout_s'], initial_source=source)
         self.drops = DropCounter(self.get_logger())
         self._pub_params = self.create_publisher(KwokParameters, 'mr_damper/kwok_parameters',
-                                                 LATCHED_QOS)
+                                                 PARAMETERS_QOS)
         self._pub_received = self.create_publisher(UInt64, 'mr_damper/samples_received',
                                                    SAMPLES_RECEIVED_QOS)
         self._received_msg = UInt64()

@@ -44,11 +44,20 @@ from mr_damper_model.stop_flag import (  # noqa: F401 (re-exported for the nodes
 #: ``publish()`` (Fast DDS's max_blocking_time, 100 ms).
 MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                              reliability=ReliabilityPolicy.RELIABLE)
-#: Parameters: latched for late subscribers (KEEP_LAST 1: only the newest set matters).
+#: Latched readers (car, controller: KEEP_LAST 1, only the newest set matters) and latched
+#: writers of a value that changes once (the rig's true parameters).
 LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: JSON status topics (KEEP_LAST 10: a stalled reader costs the writer nothing).
+#: The identified parameters' writer, and readers that need every set (the recorder, tests):
+#: transient local so late subscribers get the newest, KEEP_LAST 100 so a burst of sets (in-order
+#: fits of a replay under sim time publish back to back) reaches every reliable reader instead of
+#: overwriting the writer's only slot before it was delivered (seen: 1 to 3 of 19 sets missing at
+#: a test listener with depth 1). A KEEP_LAST 1 reader (the car) still keeps the newest only.
+PARAMETERS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                            reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Status topics (KEEP_LAST 10: a stalled reader costs the writer nothing).
 STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE)
 
