@@ -188,7 +188,7 @@ class Listener:
 
 
 def status_qos():
-    """Return the QoS the tests subscribe to JSON status topics with (reliable, depth 100)."""
+    """Return the QoS the tests subscribe to ``/diagnostics`` with (reliable, depth 100)."""
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     return QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -247,9 +247,3 @@ class Diagnostics:
         """Return the status names seen so far."""
         with self._lock:
             return sorted(self._latest)
-
-
-def latest_status(received):
-    """Return the newest JSON status of a :meth:`Listener.subscribe` list ({} if none)."""
-    import json
-    return json.loads(received[-1][1].data) if received else {}

@@ -26,7 +26,7 @@ import signal
 
 import pytest
 
-from integration.ros_helpers import latest_status as _latest, Listener, NodeProcess
+from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_bringup.config import IDENT, NODES, QC, resolve_config, RIG, set_param
 from mr_damper_bringup.launcher import parse_args
 from mr_damper_bringup.processes import Suite
@@ -76,9 +76,8 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             return st.get('mode') == expected and (reason is None or st['reason'] == reason)
         return check
 
-    def grows(msgs, key, by=1):
-        """Predicate: the latest status's ``key`` exceeds its value now by ``by``."""
-        latest = msgs if callable(msgs) else (lambda: _latest(msgs))
+    def grows(latest, key, by=1):
+        """Predicate: ``latest()[key]`` exceeds its value now by ``by``."""
         base = latest().get(key, 0)
         return lambda: latest().get(key, 0) >= base + by
 

@@ -13,20 +13,15 @@ Topic payloads (see the README topic table):
   ``KwokParameters`` for a kwok-current truth.
 - health: ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (levels and flat key-values,
   see :mod:`mr_damper_model.health`).
-- status (being replaced by ``/diagnostics``): ``std_msgs/String`` holding one JSON object
-  (non-finite floats become ``null``).
 
 This module imports message types but not rclpy, so it works in any process.
 """
-import json
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mr_damper_interfaces.msg import DamperModel, KwokParameters
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
 
-from .columnlog import finite_or_none
 from .data import COIL_JOINT, PISTON_JOINT
 from .health import flatten, Health, unflatten
 from .kwok_current import KwokCurrent
@@ -420,42 +415,3 @@ def health_from_diagnostic(status):
     level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else status.level
     return Health(int(level), status.message,
                   unflatten((kv.key, kv.value) for kv in status.values))
-
-
-def status_msg(status):
-    """
-    Encode a status dict as ``std_msgs/String`` with one JSON object.
-
-    Parameters
-    ----------
-    status : dict
-        Counters and figures (nested dicts allowed); NaN/inf become ``null``.
-
-    Returns
-    -------
-    std_msgs.msg.String
-        The status message.
-
-    """
-    return String(data=json.dumps(finite_or_none(status), sort_keys=True, allow_nan=False))
-
-
-def status_from_msg(msg):
-    """
-    Decode a status ``std_msgs/String`` into a dict.
-
-    Parameters
-    ----------
-    msg : std_msgs.msg.String
-        Status message.
-
-    Returns
-    -------
-    dict
-        The JSON object.
-
-    """
-    d = json.loads(msg.data)
-    if not isinstance(d, dict):
-        raise MessageError('layout', 'status message is not a JSON object')
-    return d
