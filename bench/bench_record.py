@@ -46,7 +46,7 @@ def run_one(rate_hz, seconds, only, work, domain):
                            stderr=subprocess.DEVNULL, start_new_session=True)
     rig = subprocess.Popen([str(BIN / 'rig_node'), '--ros-args', '-p', 'mode:=sim',
                             '-p', f'rate_hz:={float(rate_hz)}', '-p', f'duration_s:={seconds:.1f}',
-                            '-p', 'wait_for_subscribers:=1', '-p', 'status_period_s:=0.2'],
+                            '-p', 'wait_for_subscribers:=1', '-p', 'diagnostics_period_s:=0.2'],
                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                            start_new_session=True)
     p = psutil.Process(rec.pid)
