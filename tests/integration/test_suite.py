@@ -159,7 +159,7 @@ def test_full_suite_short_run(tmp_path):
     assert (out / 'suite.mcap').is_file() and not (out / 'suite.recording').exists()
     recorded = summary['recording']['messages']
     for key in ('measurement', 'parameters', 'truth_spencer', 'current_command',
-                'samples_received', 'car_joint_state', 'diagnostics'):
+                'samples_received', 'car_joint_state', 'car_state', 'diagnostics'):
         assert recorded.get(key, 0) > 0, (key, recorded)
     # every node's /diagnostics status is in the recording
     statuses = summary['recording']['statuses']

@@ -31,6 +31,9 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
   tyre          road height z_r [m]     coil current [A]        tyre load (total, >= 0) [N]
   ============  ======================  ======================  ==============================
 
+- pub ``quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState, the same state with
+  named fields, current command and fail-safe mode and reason; at ``state_rate_hz``, every
+  control step with ``controller:=external``; reliable, depth 10);
 - pub ``/diagnostics`` (diagnostic_msgs/DiagnosticArray every ``diagnostics_period_s``, status
   name ``quarter_car_node`` or ``<ns>/quarter_car_node``): level and message from
   :class:`quarter_car_sim.health.CarHealth` (OK normal; WARN fail-safe and why, loop late,
@@ -77,7 +80,7 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from mr_damper_interfaces.msg import KwokParameters
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -235,6 +238,12 @@ class QuarterCarNode(Node):
                                 p['i_max_a'])
         else:
             self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', 10)
+            # the typed state at the state rate (controller:=external: every step, the
+            # controller's input, see _init_external)
+            self.car_state_msg = QuarterCarState()
+            self.car_state_msg.header.frame_id = 'quarter_car'
+            self.car_state_pub = self.create_publisher(QuarterCarState, 'quarter_car/car_state',
+                                                       10)
         self.state_pub = self.create_publisher(JointState, 'quarter_car/state', 10)
         if not self.external:
             self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters',
@@ -281,7 +290,6 @@ class QuarterCarNode(Node):
 
     def _init_external(self, timeout_s, safe_a, i_min_a, i_max_a):
         """Plant only: publish the typed state, take commands (``controller:=external``)."""
-        from mr_damper_interfaces.msg import QuarterCarState
         self.cmd_in = controller_core.CommandInput(timeout_s, safe_a, i_min_a, i_max_a)
         self.answered = threading.Event()
         self.lockstep_timeouts = 0
@@ -416,6 +424,9 @@ class QuarterCarNode(Node):
             messages.seconds_to_stamp(max(new.t, 0.0), self.state_msg.header.stamp)
             self.state_msg.position, self.state_msg.velocity, self.state_msg.effort = _fmt(new)
             self.drops.publish(self.state_pub, self.state_msg)
+            if not self.external:
+                self.drops.publish(self.car_state_pub, car_state_to_msg(
+                    new, cmd.data, normal, self.sup.reason, self.car_state_msg))
         self.normal, self.new_state = normal, new
 
     def _after_step(self, wall, latency, lateness):
