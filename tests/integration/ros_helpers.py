@@ -25,6 +25,30 @@ from conftest import VENV_BIN
 DISCOVERY_TIMEOUT_S = 8.0
 
 
+def fault_test_suite(out, duration_s):
+    """
+    Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
+
+    The main job's parameters at real time, with a 1 s parameter timeout, car diagnostics every
+    0.1 s, a rig that waits for one reader and an identifier that saves its parameters every
+    0.5 s (a restarted identifier starts from them); written to ``out/suite_params.yaml``.
+    """
+    import yaml
+    from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
+    from mr_damper_bringup.launcher import parse_args
+    from mr_damper_bringup.processes import Suite
+    args = parse_args(['--out', str(out), '--rate-factor', '1.0',
+                       '--duration', str(duration_s)])
+    cfg = resolve_config(args, out)
+    set_param(cfg, QC, 'param_timeout_s', 1.0)
+    set_param(cfg, QC, 'diagnostics_period_s', 0.1)
+    set_param(cfg, RIG, 'wait_for_subscribers', 1)
+    set_param(cfg, IDENT, 'save_period_s', 0.5)
+    params_file = Path(out) / 'suite_params.yaml'
+    params_file.write_text(yaml.safe_dump(cfg))
+    return Suite(params_file, out, int(os.environ['ROS_DOMAIN_ID']))
+
+
 def ros_param(value):
     """Format a Python value as a ``-p name:=value`` literal (types are strict in ROS)."""
     if isinstance(value, bool):

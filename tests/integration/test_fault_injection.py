@@ -26,10 +26,8 @@ import signal
 
 import pytest
 
-from integration.ros_helpers import Listener, NodeProcess
-from mr_damper_bringup.config import IDENT, NODES, QC, resolve_config, RIG, set_param
-from mr_damper_bringup.launcher import parse_args
-from mr_damper_bringup.processes import Suite
+from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
+from mr_damper_bringup.config import IDENT, NODES, QC, RIG
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -44,16 +42,7 @@ def listener():
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
-    args = parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '0'])
-    cfg = resolve_config(args, tmp_path)
-    set_param(cfg, QC, 'param_timeout_s', 1.0)
-    set_param(cfg, QC, 'diagnostics_period_s', 0.1)
-    set_param(cfg, RIG, 'wait_for_subscribers', 1)
-    set_param(cfg, IDENT, 'save_period_s', 0.5)
-    params_file = tmp_path / 'suite_params.yaml'
-    import yaml
-    params_file.write_text(yaml.safe_dump(cfg))
-    suite = Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    suite = fault_test_suite(tmp_path, 0)
     diag = listener.diagnostics()
 
     def rig():

@@ -7,8 +7,8 @@ Order of events and counts only; the waits are hang guards.
 - ``publish_clock`` on a CSV replay at ``rate_factor`` 4: a node started with
   ``use_sim_time`` sees ``/clock`` advance strictly, one message per tick that published
   samples, each the stamp of the newest sample of that tick, up to the last sample's stamp; its
-  ROS time at the end is that stamp exactly, and while it runs it is within one tick of
-  samples of the stamp of the measurement it receives;
+  ROS time at the end is that stamp exactly, and while it runs it is always a clock the rig
+  published;
 - ``rate_factor`` 0: the rig keeps exactly ``flow_window`` samples ahead of the count the
   consumer publishes on ``mr_damper/samples_received``; a count that goes down (a restarted
   consumer) is counted in ``flow_restarts`` and paced against; the replay ends (exit 0) with
@@ -126,18 +126,15 @@ def test_replay_clock_drives_a_sim_time_node_at_rate_factor_4(listener, tmp_path
             stamps_ns[-1] * 1e-9, abs=1e-9)
         # the sim-time node's ROS time is the recording's: at the end the last stamp exactly
         assert listener.wait_for(lambda: sim.now_ns() == stamps_ns[-1], GUARD_S)
-        # while it ran: within one tick of samples of the stamp received. The clock of tick j
-        # is published after its samples, so a sample of tick j is received at the clock of
-        # tick j - 1 or j. The two topics are not ordered against each other: a receiver that
-        # falls behind on one of them sees the other run ahead (checked: 82-96 % of the
-        # samples within one tick on a machine at load 8 on 2 cores), so this asserts most.
+        # while it ran: the node's ROS time at each sample was a clock the rig published (or 0
+        # before the first). How close it was to the sample's stamp is not asserted: /clock
+        # and the measurements are two topics, not ordered against each other, so a receiver
+        # that falls behind on one sees the other run ahead (82-96 % of the samples were
+        # within one tick at load 8 on 2 cores; a statistic of the machine, not a property)
         got = np.array([s for s, _ in sim.received])
         assert np.array_equal(got, stamps_ns)     # every sample, in order
         ros = np.array([r for _, r in sim.received])
-        tick = np.searchsorted(clocks, got, side='left')     # the tick that published it
-        prev_clock = np.where(tick > 0, clocks[np.maximum(tick - 1, 0)], 0)
-        within = (ros >= prev_clock) & (ros <= clocks[tick])
-        assert within.mean() > 0.5, (within.mean(), ros[:10], got[:10])
+        assert np.isin(ros, np.append(clocks, 0)).all()
         assert np.all(np.diff(ros) >= 0)           # ROS time never goes back
     finally:
         sim.close()

@@ -24,10 +24,9 @@ import numpy as np
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import Listener, NodeProcess
-from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
-from mr_damper_bringup.launcher import parse_args
-from mr_damper_bringup.processes import CLEAN_EXIT, Suite
+from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
+from mr_damper_bringup.config import IDENT, QC, RIG
+from mr_damper_bringup.processes import CLEAN_EXIT
 from mr_damper_model.columnlog import ColumnReader
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -183,16 +182,7 @@ def test_full_suite_short_run(tmp_path):
 
 
 def test_identifier_killed_then_restarted(listener, tmp_path):
-    args = parse_args(['--out', str(tmp_path), '--rate-factor', '1.0', '--duration', '60'])
-    cfg = resolve_config(args, tmp_path)
-    set_param(cfg, QC, 'param_timeout_s', 1.0)
-    set_param(cfg, QC, 'diagnostics_period_s', 0.1)
-    set_param(cfg, RIG, 'wait_for_subscribers', 1)
-    set_param(cfg, IDENT, 'save_period_s', 0.5)
-    params_file = tmp_path / 'suite_params.yaml'
-    import yaml
-    params_file.write_text(yaml.safe_dump(cfg))
-    suite = Suite(params_file, tmp_path, int(os.environ['ROS_DOMAIN_ID']))
+    suite = fault_test_suite(tmp_path, 60)
     diag = listener.diagnostics()
 
     def car():

@@ -5,6 +5,8 @@ import math
 import numpy as np
 import pytest
 
+from kwok_messages import thesis_parameters_msg
+
 
 @pytest.fixture
 def node_factory(tmp_path):
@@ -31,16 +33,6 @@ def node_factory(tmp_path):
     rclpy.try_shutdown(context=ctx)
 
 
-def _msg(**changes):
-    from mr_damper_model import presets
-    from mr_damper_model.messages import kwok_parameters_msg
-    model, params = presets.thesis_kwok_current()
-    values = dict(params, i_ref_a=2.0, window_end_s=1.0, current_min_a=0.0, current_max_a=2.0,
-                  rmse_n=1.0, nrmse_percent=0.5, valid=1.0)
-    values.update(changes)
-    return kwok_parameters_msg(values)
-
-
 def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     from mr_damper_interfaces.msg import KwokParameters
     from mr_damper_model.health import flatten, OK, unflatten, WARN
@@ -49,12 +41,12 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     h = node.health()
     # (the loop may also be late on a busy machine: another WARN, joined with '; ')
     assert h.level == WARN and 'fail-safe: no identified parameters yet' in h.message.split('; ')
-    node.on_params(_msg())
+    node.on_params(thesis_parameters_msg())
     assert node.sup.mode == 'normal'
     h = node.health()
     assert h.level in (OK, WARN) and 'fail-safe' not in h.message
     assert h.values['params_accepted'] == 1 and h.values['mode'] == 'normal'
-    node.on_params(_msg(valid=0.0))
+    node.on_params(thesis_parameters_msg(valid=0.0))
     node.on_params(KwokParameters())              # i_ref_a 0: undecodable
     h = node.health()
     assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (undecodable)')
@@ -68,9 +60,11 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     assert 0.0 <= st['current_a'] <= 2.0 and st['safe_current_a'] == 0.25
     assert 'saturated_steps' in st and 'param_age_s' in st
     json.dumps(node.status())                     # JSON-ready (the log file's header)
-    node.on_params(_msg())
+    node.on_params(thesis_parameters_msg())
     import time
-    time.sleep(0.3)                                  # ~1.5 s of simulated time at x5
+    deadline = time.monotonic() + 30.0               # hang guard only: count steps, not time
+    while node.status()['steps'] <= 200 and time.monotonic() < deadline:
+        time.sleep(0.01)
     st = node.status()
     assert st['steps'] > 200 and st['t_sim'] > -0.5 + 0.2
     assert st['loop']['steps'] == st['steps'] or st['loop']['steps'] >= st['steps'] - 1
@@ -149,7 +143,7 @@ def test_parameter_age_is_on_the_node_clock(node_factory):
     from rclpy.time import Time
     node = node_factory(real_time_factor=0.5)
     now = node.get_clock().now().nanoseconds * 1e-9
-    node.on_params(_msg())
+    node.on_params(thesis_parameters_msg())
     assert node.sup.accepted_at == pytest.approx(now, abs=5.0)    # ROS time, not monotonic
     assert node.get_clock().clock_type == ClockType.ROS_TIME
     assert Time(seconds=node.sup.accepted_at).nanoseconds > 0
@@ -181,7 +175,7 @@ def test_parameter_timeout_runs_on_ros_time_under_use_sim_time(node_factory):
     clock = node.get_clock()
     assert clock.ros_time_is_active
     clock.set_ros_time_override(Time(seconds=100.0))     # what a /clock message does
-    node.on_params(_msg())
+    node.on_params(thesis_parameters_msg())
     assert node.sup.accepted_at == pytest.approx(100.0)
     # the control thread steps on (wall-paced) while ROS time stands: the model stays fresh
     steps = node.loop.steps

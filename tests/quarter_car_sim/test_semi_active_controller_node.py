@@ -4,6 +4,8 @@ import time
 
 import pytest
 
+from kwok_messages import thesis_parameters_msg
+
 
 @pytest.fixture
 def ctx():
@@ -27,16 +29,6 @@ def _make(ctx, cls, **params):
                parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
     made.append(node)
     return node
-
-
-def _params_msg(**changes):
-    from mr_damper_model import presets
-    from mr_damper_model.messages import kwok_parameters_msg
-    model, params = presets.thesis_kwok_current()
-    values = dict(params, i_ref_a=2.0, window_end_s=1.0, current_min_a=0.0, current_max_a=2.0,
-                  rmse_n=1.0, nrmse_percent=0.5, valid=1.0)
-    values.update(changes)
-    return kwok_parameters_msg(values)
 
 
 def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
@@ -69,7 +61,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     node.cmd_pub.publish = lambda m: sent.append(m.data)
     node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
     assert sent == [0.25] and node.status()['reason'] == 'no_parameters_yet'
-    node.on_params(_params_msg())
+    node.on_params(thesis_parameters_msg())
     node.on_state(car_state_to_msg(_car_state(1.001), 0.0, True, 'ok'))
     assert node.core.sup.mode == 'normal' and 0.0 <= sent[-1] <= 2.0 and sent[-1] != 0.25
     bad = car_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
@@ -94,12 +86,26 @@ def test_controller_node_refuses_an_active_controller(ctx):
         _make(ctx, SemiActiveControllerNode, controller='skyhook-ideal')
 
 
+def _steps_later(node, n):
+    """Wait until the car's control thread made ``n`` more steps (hang guard only)."""
+    steps = node.status()['steps']
+    deadline = time.monotonic() + 30.0
+    while node.status()['steps'] < steps + n and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return node.status()
+
+
 def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
+    from rclpy.time import Time
     from std_msgs.msg import Float64
     from quarter_car_sim.quarter_car_node import QuarterCarNode
+    # the command timeout runs on the node clock: under use_sim_time the test sets the time,
+    # so a starved control thread cannot turn "fresh" into "timed out" between two checks
     node = _make(ctx, QuarterCarNode, controller='external', real_time_factor=2.0,
                  plant='kwok-current', road_duration_s=30.0, command_timeout_s=0.2,
-                 safe_current_a=0.5, log_file=str(tmp_path / 'log'))
+                 safe_current_a=0.5, log_file=str(tmp_path / 'log'), use_sim_time=True)
+    clock = node.get_clock()
+    clock.set_ros_time_override(Time(seconds=100.0))
     st = node.status()
     assert (st['mode'], st['reason'], st['controller']) == ('failsafe', 'no_command_yet',
                                                             'external')
@@ -109,21 +115,13 @@ def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
     st = node.status()
     assert st['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
                               'refused_non_finite': 1}
-    steps = st['steps']
-    deadline = time.monotonic() + 30.0            # hang guard: the loop applies the command
-    while node.status()['steps'] < steps + 20 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    st = node.status()
+    st = _steps_later(node, 20)                   # the loop applies the command
     assert st['mode'] == 'normal' and st['current_a'] == 2.0      # the clamped 5 A
-    deadline = time.monotonic() + 30.0            # no more commands: safe after the timeout
-    while node.status()['reason'] != 'command_timeout' and time.monotonic() < deadline:
-        time.sleep(0.01)
-    st = node.status()
-    assert st['mode'] == 'failsafe' and st['command_timeouts'] == 1
-    steps = st['steps']
-    while node.status()['steps'] < steps + 20 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert node.status()['current_a'] == 0.5
+    assert st['command_timeouts'] == 0
+    clock.set_ros_time_override(Time(seconds=100.5))   # no command for 0.5 s > 0.2 s
+    st = _steps_later(node, 20)
+    assert (st['mode'], st['reason']) == ('failsafe', 'command_timeout')
+    assert st['command_timeouts'] == 1 and st['current_a'] == 0.5
 
 
 def test_controller_node_dynamic_parameters(ctx):
@@ -169,7 +167,7 @@ def test_parameter_age_and_timeout_follow_ros_time_under_use_sim_time(ctx):
     clock = node.get_clock()
     assert clock.ros_time_is_active
     clock.set_ros_time_override(Time(seconds=100.0))      # what a /clock message does
-    node.on_params(_params_msg())
+    node.on_params(thesis_parameters_msg())
     assert node.core.sup.accepted_at == pytest.approx(100.0)
     clock.set_ros_time_override(Time(seconds=100.5))
     st = node.status()

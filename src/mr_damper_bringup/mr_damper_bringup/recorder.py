@@ -120,15 +120,6 @@ class SuiteRecorder:
         self._writer.write(self._conns[key], int(log_time_ns), bytes(raw))
         self.counts[key] += 1
 
-    def write_message(self, key, msg, log_time_ns):
-        """Serialise a rosbags message of the topic's type and write it (tests, tools)."""
-        self.write(key, self.typestore.serialize_cdr(msg, self.topics[key].type), log_time_ns)
-
-    @property
-    def closed(self):
-        """True once the file is finished (or was never opened)."""
-        return self._writer is None
-
     def close(self):
         """Finish the file (footer, index), move it to ``path``; return ``path``."""
         if self._writer is None:

@@ -65,11 +65,17 @@ def kwok_current_force_scalar(p, s, x, v):
     float
 
     """
-    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    c, alpha, beta, _ = _coefficients(p, s)
     sx = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-    beta = b0 * math.exp(max(-50.0, min(50.0, b1 * s)))
-    alpha = a0 + a1 * s * (2.0 - s) + a2 * s * s
-    return (c0 + c1 * s) * v + k * x + alpha * math.tanh(beta * v + delta * sx) + f0
+    return c * v + p[2] * x + alpha * math.tanh(beta * v + p[8] * sx) + p[9]
+
+
+def _coefficients(p, s):
+    """Return ``c(s)``, ``alpha(s)``, ``beta(s)`` and beta's exponent ``b1 s`` (one home)."""
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    bs = b1 * s
+    return (c0 + c1 * s, a0 + a1 * s * (2.0 - s) + a2 * s * s,
+            b0 * math.exp(max(-50.0, min(50.0, bs))), bs)
 
 
 def kwok_current_terms_scalar(p, s):
@@ -91,11 +97,10 @@ def kwok_current_terms_scalar(p, s):
         +-50); ``dc/ds`` is ``c1``.
 
     """
-    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
-    bs = b1 * s
-    beta = b0 * math.exp(max(-50.0, min(50.0, bs)))
-    return (c0 + c1 * s, a0 + a1 * s * (2.0 - s) + a2 * s * s, beta,
-            2.0 * (a1 * (1.0 - s) + a2 * s), b1 * beta if -50.0 < bs < 50.0 else 0.0)
+    c, alpha, beta, bs = _coefficients(p, s)
+    a1, a2, b1 = p[4], p[5], p[7]
+    return (c, alpha, beta, 2.0 * (a1 * (1.0 - s) + a2 * s),
+            b1 * beta if -50.0 < bs < 50.0 else 0.0)
 
 
 def kwok_current_force_slope_at(terms, p, x, v):

@@ -29,9 +29,6 @@ from .kwok_current import KwokCurrent
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
-KWOK_PARAMETER_LABELS = KWOK_CURRENT_NAMES + (
-    'i_ref_a', 'window_end_s', 'current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent',
-    'valid')
 
 _NAN = float('nan')
 
