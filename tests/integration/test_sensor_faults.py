@@ -12,6 +12,8 @@ the counters to it.  Checked: every valid set published reproduces the true forc
 on clean cycles at each current it covers and has no parameter pinned at a bound; each fault is
 counted under its reason; the identifier publishes valid sets again after the faults.
 """
+import math
+
 import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -82,8 +84,8 @@ class Stream:
 
     def judged_up_to(self):
         """Return the stamp up to which every sample was judged (-1 before any window)."""
-        value = self.last().get('processed_up_to_s')
-        return -1.0 if value is None else value
+        value = self.last().get('processed_up_to_s')   # NaN before the first window
+        return value if isinstance(value, float) and math.isfinite(value) else -1.0
 
     def may_send(self, t):
         # the first window is due once the stream spans window_s (2 s)
