@@ -119,3 +119,37 @@ def test_sim_time_fits_in_order_and_ages_are_ros_time(make_node):
     assert real.runtime.live.config.backlog_windows == 0
     assert real.diagnostics.publish().level == OK            # first report: the reference
     assert real.diagnostics.publish().level == ERROR         # then no sample for too long
+
+
+@pytest.mark.parametrize('content', ['kwok-current-lag', 'not json'])
+def test_a_parameter_file_it_cannot_resume_from_is_not_overwritten(
+        make_node, tmp_path, content):
+    from mr_damper_model.kwok_current_lag import KwokCurrentLag
+    from mr_damper_model.params_file import save_params
+    path = tmp_path / 'damper.json'
+    if content == 'not json':
+        path.write_text('{"model": ')
+    else:                           # an offline fit of the default multi-current model
+        m = KwokCurrentLag()
+        lo, hi = m.default_bounds()
+        save_params(path, {'model': m.name, 'parameters': m.to_dict((lo + hi) / 2)})
+    before = path.read_bytes()
+    node = make_node(Parameter('params_file', value=str(path)))
+    assert node.runtime.saver is None and node.runtime.live.estimate is None
+    assert node.diagnostics.publish().values['initial_source'] == 'file_error'
+    assert node.runtime.flush_saves() == ''
+    assert node.runtime.shutdown() == ''
+    assert path.read_bytes() == before
+
+
+def test_its_own_parameter_file_is_resumed_and_saved_to(make_node, tmp_path):
+    from mr_damper_model import presets
+    from mr_damper_model.params_file import save_params
+    _, truth = presets.thesis_kwok_current()
+    path = tmp_path / 'damper.json'
+    save_params(path, {'model': 'kwok-current', 'parameters': truth,
+                       'model_options': {'i_ref_a': 2.0}})
+    node = make_node(Parameter('params_file', value=str(path)))
+    assert node.runtime.saver is not None
+    assert node.diagnostics.publish().values['initial_source'] == 'file'
+    assert node.runtime.live.estimate.parameters == pytest.approx(truth)

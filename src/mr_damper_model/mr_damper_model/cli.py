@@ -3,7 +3,8 @@
 
 Usage::
 
-    mr-damper-identify FILE... [--model kwok|kwok-current|bingham|bouc-wen|spencer]
+    mr-damper-identify FILE... [--model kwok|kwok-current|kwok-current-lag|bingham|bouc-wen|
+                                spencer]
         [--per-current] [--method separable|full] [--unbounded] [--seed N] [--topic TOPIC]
         [--json] [--plot OUT.png] [--out PARAMS.json] [--compare]
     mr-damper-identify --validate PARAMS.json FILE... [--model NAME] [--topic TOPIC]
@@ -15,8 +16,9 @@ files are fitted as one record (each keeps its own time base; see ``DamperData.c
 and the metrics of the joint fit are printed per file too. ``--validate`` fits nothing: it
 prints the metrics of a saved parameter file on each file and over all files.
 
-Default model: ``kwok-current`` when the records hold several coil-current levels, ``kwok``
-otherwise (and with ``--per-current``). Bad input exits with code 2 and one line on stderr naming
+Default model: ``kwok-current-lag`` when the records hold several coil-current levels (the
+model that predicts held-out tests best, docs/cross-validation.md), ``kwok`` otherwise (and
+with ``--per-current``). Bad input exits with code 2 and one line on stderr naming
 the file and the problem.
 """
 import os
@@ -34,7 +36,10 @@ import sys  # noqa: E402
 import time  # noqa: E402
 
 PROG = 'mr-damper-identify'
-MODEL_CHOICES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer')
+MODEL_CHOICES = ('kwok', 'kwok-current', 'kwok-current-lag', 'bingham', 'bouc-wen', 'spencer')
+#: Default model for records at several coil-current levels: the best cross-validated model
+#: (bench/bench_crossval.py, docs/cross-validation.md).
+MULTI_CURRENT_MODEL = 'kwok-current-lag'
 METRIC_UNITS = (('rmse_n', 'RMSE [N]'), ('nrmse_percent', 'NRMSE [%]'),
                 ('mean_abs_error_n', 'mean |error| [N]'),
                 ('mean_percent_error', 'mean % error'), ('max_percent_error', 'max % error'))
@@ -62,8 +67,9 @@ def build_parser():
                    help='rig test record: CSV, rosbag2 directory, .mcap or .db3 bag, a '
                    'directory of them, or a glob (quote it)')
     p.add_argument('--model', default=None,
-                   help='kwok | kwok-current | bingham | bouc-wen | spencer (default: '
-                   'kwok-current if the records have several current levels, else kwok; '
+                   help='kwok | kwok-current | kwok-current-lag | bingham | bouc-wen | spencer '
+                   f'(default: {MULTI_CURRENT_MODEL} if the records have several current '
+                   'levels, else kwok; '
                    'with --validate: the model the parameter file must hold)')
     p.add_argument('--per-current', action='store_true',
                    help='one fit per current level (thesis Table 4.3 layout)')
@@ -318,7 +324,7 @@ def run(argv=None):
     # several files: one record, each part on its own time base (stateful models restart)
     data = parts[0] if len(parts) == 1 else DamperData.concatenate(parts, restamp=True)
     levels = [lv for lv, _ in current_groups(data)] or list(data.current_levels())
-    model = args.model or ('kwok-current' if len(levels) > 1 and not args.per_current
+    model = args.model or (MULTI_CURRENT_MODEL if len(levels) > 1 and not args.per_current
                            else 'kwok')
     kw = dict(method=args.method, unbounded=args.unbounded, seed=args.seed)
     t0 = time.perf_counter()

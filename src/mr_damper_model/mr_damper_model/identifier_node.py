@@ -135,16 +135,18 @@ class IdentifierNode(Node):
             try:
                 initial, source = load_params(params_file), 'file'
             except DataError as exc:
-                self.get_logger().error(f'ignoring parameter file: {exc}')
+                self._refuse_file(params_file, exc)
                 source = 'file_error'
         try:
             live = LiveIdentifier(config, initial=initial, fit=fit)
         except (ValueError, KeyError) as exc:
-            self.get_logger().error(f'ignoring parameter file {params_file}: {exc}')
+            self._refuse_file(params_file, exc)
             source = 'file_error'
             live = LiveIdentifier(config, fit=fit)
+        # a file it cannot resume from (e.g. an offline kwok-current-lag fit) is the user's:
+        # never overwritten
         save = ((lambda est: save_params(params_file, est.params_file_dict()))
-                if params_file else None)
+                if params_file and source != 'file_error' else None)
         self.runtime = IdentifierRuntime(
             live, self._now, save=save, save_period_s=p['save_period_s'], fit_process=fit,
             no_sample_timeout_s=p['no_sample_timeout_s'], initial_source=source)
@@ -181,6 +183,11 @@ class IdentifierNode(Node):
             f' every {config.hop_s} s, '
             + (f'every window in order (sim time), maxiter {config.maxiter}' if sim_time else
                f'budget {config.budget_s} s'))
+
+    def _refuse_file(self, params_file, exc):
+        self.get_logger().error(
+            f'parameter file {params_file} not resumed and not overwritten ({exc}); the '
+            'identifier fits kwok-current: set params_file to another path to save its sets')
 
     def _now(self):
         """ROS time [s] (sim time under ``use_sim_time``)."""

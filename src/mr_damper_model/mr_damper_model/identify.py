@@ -538,7 +538,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         analytic Jacobian; trust-region reflective for models without one) on all parameters
         and all samples. Default: on for ``separable`` with
         an algebraic model (the swarm then works on at most :data:`SWARM_SAMPLES` samples, every
-        k-th), off for ``full`` (the thesis method) and the stateful models.
+        k-th), off for ``full`` (the thesis method) and the stateful models, except where the
+        model says otherwise (``polish_by_default``: on for ``kwok-current-lag``).
 
     Returns
     -------
@@ -568,7 +569,8 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
     x0v = _param_vector(mdl, x0)
     budget = dict(DEFAULT_BUDGETS[method])
     if polish is None:
-        polish = method == 'separable' and not mdl.stateful
+        polish = method == 'separable' and (
+            not mdl.stateful if mdl.polish_by_default is None else bool(mdl.polish_by_default))
     if method == 'separable' and not polish:
         budget.update(maxiter=60, patience=20)      # no local polish: the swarm must converge
     if maxiter is not None:

@@ -18,18 +18,17 @@ Kwok's constant shift ``delta*sign(x)`` stays for the rate-independent part.
 ``tau0 = tau1 = 0`` gives ``kwok-current`` exactly.
 
 The lag is a state carried from sample to sample: the model is stateful (needs ``t``) and a
-record is filtered as one time series (records joined end to end with
-``DamperData.concatenate(..., restamp=True)`` carry the state across the joint; the shared
-files start and end at rest, so that costs nothing there). Discretisation: exact for a velocity
-held at its new value over each sample interval, ``u[n] = a*u[n-1] + (1 - a)*v[n]``,
-``a = exp(-dt/tau)``; stretches of equal sample interval (within 1 %) and current (within 1 %
-of i_ref_a, at the time constant of their mean current) are filtered in one
-``scipy.signal.lfilter`` call per parameter set: fast for test records at a few current
-levels, slow (a call per sample) for a current that changes at every sample.
+record is filtered as one time series per segment (``starts``: records joined with
+``DamperData.concatenate`` restart the lag at ``u = v`` at each record's first sample).
+Discretisation: exact for a velocity held at its new value over each sample interval,
+``u[n] = a*u[n-1] + (1 - a)*v[n]``, ``a = exp(-dt/tau)``; stretches of equal sample interval
+(within 1 %) and current (within 1 % of i_ref_a, at the time constant of their mean current)
+are filtered in one ``scipy.signal.lfilter`` call per parameter set: fast for test records at
+a few current levels, slow (a call per sample) for a current that changes at every sample.
 
-Identify it with ``identify(..., polish=True)``: the swarm then works on every k-th sample
-(where the lag is washed out: it settles the other parameters) and the bounded least-squares
-polish finds tau0 and tau1 on all samples; see docs/cross-validation.md.
+``identify`` polishes it by default (``polish_by_default``): the swarm works on every k-th
+sample (where the lag is washed out: it settles the other parameters) and the bounded
+least-squares polish finds tau0 and tau1 on all samples; see docs/cross-validation.md.
 
 The linear parameters (c0, c1, k, alpha0..2, f0) and the separable structure are those of
 ``kwok-current``; the swarm searches beta0, beta1, delta, tau0 and tau1.
@@ -148,6 +147,7 @@ class KwokCurrentLag(KwokCurrent):
     param_units = dict(KwokCurrent.param_units, tau0='s', tau1='s')
     linear_names = KwokCurrent.linear_names
     stateful = True
+    polish_by_default = True
     _bounds = dict(KwokCurrent._bounds, tau0=(0.0, 0.05), tau1=(0.0, 0.05))
     _bounds_unbounded = dict(KwokCurrent._bounds_unbounded, tau0=(0.0, 0.1),
                              tau1=(0.0, 0.1))

@@ -231,6 +231,11 @@ class HysteresisModel:
         True if the model integrates an internal state (needs ``t``).
     needs_current : bool
         True if ``force`` needs the coil current ``i``.
+    polish_by_default : bool or None
+        Whether ``identify``'s separable method polishes by default (the swarm on every k-th
+        sample, then bounded least squares on all samples). None: for the algebraic models
+        only; True for a stateful model whose state washes out on every k-th sample
+        (``kwok-current-lag``).
     options : dict
         Model constants.
 
@@ -242,6 +247,7 @@ class HysteresisModel:
     linear_names = ()
     stateful = False
     needs_current = False
+    polish_by_default = None
 
     def __init__(self, **options):
         if options:
