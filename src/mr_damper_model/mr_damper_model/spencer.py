@@ -530,10 +530,7 @@ class Spencer(HysteresisModel):
                              'c0a + c1a > 0')
 
     def for_identification(self, max_substep_s):
-        """
-        Return the model the identification evaluates: sub-steps of at most
-        ``max(max_substep_s, own)`` [s], otherwise this model.
-        """
+        """Return this model with sub-steps of at most ``max(max_substep_s, own)`` [s]."""
         return Spencer(max_substep_s=max(float(max_substep_s), self.options['max_substep_s']),
                        y0_m=self.options['y0_m'])
 
