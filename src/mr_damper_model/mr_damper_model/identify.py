@@ -503,8 +503,9 @@ def _policy_swarm(mdl, data, lo, hi, units, policy, x0v, common):
     Swarm of a model with an ``identification`` policy (Spencer); returns (result, candidate).
 
     The swarm searches the parameters that act on the states (log-scaled as in the other
-    fits) on the first ``swarm_span_s`` of the record (a contiguous stretch: a stateful model
-    cannot skip samples) with sub-steps of ``swarm_max_substep_s``; per particle the others
+    fits) on a contiguous stretch from the start of the record (a stateful model cannot skip
+    samples), up to ``swarm_span_s`` after the motion begins (speed above 5 % of its peak),
+    with sub-steps of ``swarm_max_substep_s``; per particle the others
     (``spring_names``) come from ``spring_fit`` of the force computed with them at zero. The
     best particle is completed by ``spring_fit`` on all samples with the polish sub-step.
     """
@@ -513,7 +514,9 @@ def _policy_swarm(mdl, data, lo, hi, units, policy, x0v, common):
     dyn = np.array([j for j in range(len(names)) if j not in spring], dtype=int)
     dt = np.diff(data.t)
     dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
-    n_span = max(2, int(math.ceil(policy['swarm_span_s'] / dt)) + 1)
+    speed = np.abs(data.v)
+    moving = int(np.argmax(speed > 0.05 * np.max(speed)))     # a rest at the start is kept
+    n_span = max(2, moving + int(math.ceil(policy['swarm_span_s'] / dt)) + 1)
     part = data if n_span >= data.n else data.select(slice(0, n_span))
     swarm_mdl = mdl.for_identification(policy['swarm_max_substep_s'])
     sig = swarm_mdl._signals(part.x, part.v, part.i, part.t, part.starts)

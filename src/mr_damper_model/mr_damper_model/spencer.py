@@ -500,13 +500,13 @@ class Spencer(HysteresisModel):
     spring_names = ('k1', 'x0')
     spring_fit = staticmethod(spring_fit)
     #: Policy of the default identification (``identify`` with method ``'separable'``): the
-    #: swarm searches the 11 state parameters on the first ``swarm_span_s`` of the record with
-    #: sub-steps of ``swarm_max_substep_s`` (k1, x0 by :func:`spring_fit`), for ``maxiter``
-    #: iterations (stagnation ``patience``); then at most ``polish_iterations`` bounded
-    #: Levenberg-Marquardt iterations on all samples with sub-steps of ``max_substep_s``
-    #: (Jacobian: one batch of 12 parameter sets). The reported metrics use the model's own
-    #: sub-step. A coarser sub-step of the model itself is kept.
-    identification = {'swarm_span_s': 6.0, 'swarm_max_substep_s': 1e-3, 'maxiter': 20,
+    #: swarm searches the 11 state parameters on the record from its start to ``swarm_span_s``
+    #: after the motion begins, with sub-steps of ``swarm_max_substep_s`` (k1, x0 by
+    #: :func:`spring_fit`), for ``maxiter`` iterations (stagnation ``patience``); then at most
+    #: ``polish_iterations`` bounded Levenberg-Marquardt iterations on all samples with
+    #: sub-steps of ``max_substep_s`` (Jacobian: one batch of 12 parameter sets). The reported
+    #: metrics use the model's own sub-step; a coarser one of the model itself is kept.
+    identification = {'swarm_span_s': 5.0, 'swarm_max_substep_s': 1e-3, 'maxiter': 20,
                       'patience': 10, 'max_substep_s': 5e-4, 'polish_iterations': 30}
 
     def __init__(self, n=2, max_substep_s=1e-4, y0_m=None):
