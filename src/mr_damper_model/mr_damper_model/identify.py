@@ -410,8 +410,9 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
     """
     Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS).
 
-    Models with an analytic Jacobian (the algebraic ones): box-bounded Levenberg-Marquardt on
-    the normal equations (:func:`_projected_lm`, one evaluation per Jacobian). Others:
+    Models with their own Jacobian (the algebraic ones: analytic; Spencer: one batch of
+    forward differences): box-bounded Levenberg-Marquardt on the normal equations
+    (:func:`_projected_lm`, one evaluation per Jacobian). Others:
     trust-region reflective Gauss-Newton (scipy ``least_squares``) with forward-difference
     Jacobians. The signals are validated once, not per evaluation.
     """
