@@ -8,17 +8,20 @@ shared Quiroz files. Each is run twice in the same process: with the compiled lo
 (``bouc_wen.bouc_wen_z``, ``spencer.spencer_force``) and with today's numpy references
 (``bouc_wen_z_numpy``, ``spencer_force_numpy``) patched in.
 
-Spencer with numpy takes minutes per swarm iteration, so for it (both ways) the time of one swarm
-evaluation (25 particles on the whole record) is measured, numpy on a 60-sample excerpt scaled to
-the record, and multiplied by the evaluation budget of the default identification (full PSO,
-25 particles, at most 400 iterations: at most 401 swarm evaluations, 10,025 particle
-evaluations; the stagnation patience may stop it earlier); the output says so.
+Spencer: the default identification (``identify(data, 'spencer')``: swarm on the state
+parameters over the first seconds at coarse sub-steps, spring by least squares, bounded
+Levenberg-Marquardt polish on all samples; see ``Spencer.identification``) is measured in full,
+median of the seeds, with the NRMSE of each seed. The default before it (the full PSO over all 13
+parameters without polish, 25 particles, 60 iterations: ``PREVIOUS_SPENCER``) is measured once
+(seed 1, several minutes at load) in the same run, with its NRMSE. The time of one swarm
+evaluation (25 particles, whole record, model sub-step) is printed for the compiled loop and
+numpy (60-sample excerpt scaled to the record).
 
 The first-call cost (numba import, then compile or cache load of each kernel) is measured in
 fresh interpreters with an empty ``NUMBA_CACHE_DIR`` (compile) and then the same one (load).
 
 Usage: ``python bench/bench_models.py [--seeds 5] [--numpy-seeds 5] [--skip-numpy]
-[--only bouc-wen compare spencer]``
+[--skip-previous] [--only bouc-wen compare spencer]``
 """
 import os
 
@@ -38,12 +41,16 @@ import numpy as np  # noqa: E402
 
 from mr_damper_model import bouc_wen, spencer  # noqa: E402
 from mr_damper_model.data import read_csv, validate  # noqa: E402
-from mr_damper_model.identify import compare_models, DEFAULT_BUDGETS, identify  # noqa: E402
+from mr_damper_model.identify import compare_models, identify  # noqa: E402
 
 QUIROZ = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'quiroz_mr_damper'
 FILES = ('quiroz_sine_25mm0x25Hz_1p0A.csv', 'quiroz_sine_10mm1Hz_1p0A_preproc.csv')
 TARGETS_S = {'bouc-wen': 0.3, 'spencer': 2.0, 'compare': 2.0}
 SWARM = 25
+#: The Spencer default before the identification policy: what ``identify(data, 'spencer')``
+#: ran then (method 'separable' fell back to the full PSO, without polish: maxiter 60,
+#: patience 20, tol 1e-6).
+PREVIOUS_SPENCER = {'method': 'full', 'maxiter': 60, 'patience': 20, 'tol': 1e-6}
 
 
 @contextlib.contextmanager
@@ -76,6 +83,17 @@ def time_identification(data, what, seeds):
             nfev.append(res.nfev)
         times.append(dt)
     return float(np.median(times)), int(np.median(nfev)), times
+
+
+def time_spencer(data, seeds, **kw):
+    """Wall times [s], NRMSE [%] and particle evaluations of ``identify(data, 'spencer')``."""
+    times, nrmse, nfev = [], [], []
+    for seed in seeds:
+        dt, res = _wall(lambda: identify(data, 'spencer', seed=seed, **kw))
+        times.append(dt)
+        nrmse.append(res.metrics['nrmse_percent'])
+        nfev.append(res.nfev)
+    return times, nrmse, nfev
 
 
 def spencer_swarm_eval(data, *, numpy_excerpt=None):
@@ -136,6 +154,8 @@ def main(argv=None):
     ap.add_argument('--seeds', type=int, default=5)
     ap.add_argument('--numpy-seeds', type=int, default=5)
     ap.add_argument('--skip-numpy', action='store_true')
+    ap.add_argument('--skip-previous', action='store_true',
+                    help='do not run the previous Spencer default (minutes)')
     ap.add_argument('--only', nargs='+', choices=('bouc-wen', 'compare', 'spencer'),
                     default=('bouc-wen', 'compare', 'spencer'))
     args = ap.parse_args(argv)
@@ -155,6 +175,7 @@ def main(argv=None):
     seeds = list(range(1, args.seeds + 1))
     np_seeds = list(range(1, args.numpy_seeds + 1))
     rows = []
+    spencer_rows = []
     for name in FILES:
         data = validate(read_csv(QUIROZ / name))
         print(f'\n{name}: {data.n} samples at {data.sample_rate_hz:.0f} Hz '
@@ -174,24 +195,40 @@ def main(argv=None):
                   f'load {_load()}', flush=True)
         if 'spencer' not in args.only:
             continue
-        budget = DEFAULT_BUDGETS['full']['maxiter']
-        evals = budget + 1
+        identify(data.select(slice(0, 50)), 'spencer', seed=0)         # warm the kernel
+        times, nrmse, nfev = time_spencer(data, seeds)
+        print(f'  spencer   default: median {np.median(times):.3f} s of seeds {seeds[0]}-'
+              f'{seeds[-1]} ({", ".join(f"{x:.2f}" for x in times)} s); NRMSE '
+              f'{", ".join(f"{x:.3f}" for x in nrmse)} %; particle evaluations '
+              f'{int(np.median(nfev))}; target <= 2 s   load {_load()}', flush=True)
+        if args.skip_previous:
+            t_prev, nr_prev = [float('nan')], [float('nan')]
+        else:
+            t_prev, nr_prev, nf_prev = time_spencer(data, seeds[:1], **PREVIOUS_SPENCER)
+            print(f'  spencer   previous default (full PSO, 13 parameters, {PREVIOUS_SPENCER}), '
+                  f'seed {seeds[0]}, measured once: {t_prev[0]:.1f} s, NRMSE {nr_prev[0]:.3f} %, '
+                  f'{nf_prev[0]} particle evaluations   load {_load()}', flush=True)
+        spencer_rows.append((name, data.n, float(np.median(times)), float(np.median(nrmse)),
+                             max(nrmse), t_prev[0], nr_prev[0]))
         tc_eval = spencer_swarm_eval(data)
         with numpy_loops():
             tn_eval = spencer_swarm_eval(data, numpy_excerpt=60)
-        rows.append((name, data.n, 'spencer', tc_eval * evals, tn_eval * evals, None, 2.0))
-        print(f'  spencer   one swarm evaluation ({SWARM} particles, whole record): compiled '
-              f'{tc_eval:.3f} s, numpy {tn_eval:.1f} s (60-sample excerpt scaled), ratio '
-              f'{tn_eval / tc_eval:.0f}x; EXTRAPOLATED to the default budget of {evals} swarm '
-              f'evaluations at most (full PSO, maxiter {budget}): compiled '
-              f'{tc_eval * evals:.0f} s, numpy {tn_eval * evals:.0f} s; target <= 2 s   '
-              f'load {_load()}', flush=True)
-    print('\n| file | samples | identification | compiled [s] | numpy [s] | ratio | target [s] |')
-    print('|---|---|---|---|---|---|---|')
+        print(f'  spencer   one swarm evaluation ({SWARM} particles, whole record, 0.1 ms '
+              f'sub-steps): compiled {tc_eval:.3f} s, numpy {tn_eval:.1f} s (60-sample excerpt '
+              f'scaled), ratio {tn_eval / tc_eval:.0f}x   load {_load()}', flush=True)
+    if rows:
+        print('\n| file | samples | identification | compiled [s] | numpy [s] | ratio | '
+              'target [s] |')
+        print('|---|---|---|---|---|---|---|')
     for name, n, what, tc, tn, nf, target in rows:
-        note = ' (extrapolated)' if what == 'spencer' else ''
-        print(f'| {name} | {n} | {what}{note} | {tc:.3g} | {tn:.3g} | {tn / tc:.0f}x | '
-              f'{target} |')
+        print(f'| {name} | {n} | {what} | {tc:.3g} | {tn:.3g} | {tn / tc:.0f}x | {target} |')
+    if spencer_rows:
+        print('\n| file | samples | Spencer default, median [s] | NRMSE median (worst) [%] | '
+              'previous default, seed 1 [s] | its NRMSE [%] | speed-up | target [s] |')
+        print('|---|---|---|---|---|---|---|---|')
+        for name, n, t_new, nr_new, nr_worst, t_prev, nr_prev in spencer_rows:
+            print(f'| {name} | {n} | {t_new:.3g} | {nr_new:.3f} ({nr_worst:.3f}) | '
+                  f'{t_prev:.3g} | {nr_prev:.3f} | {t_prev / t_new:.0f}x | 2.0 |')
     print(f'\nload average at end {_load()}')
 
 

@@ -138,15 +138,61 @@ def test_recover_bouc_wen_from_two_joined_records():
     assert p['alpha'] * zmax == pytest.approx(300.0, rel=0.1)
 
 
+def spencer_record(duration=2.0):
+    """Thesis cam at 1 kHz, coil current in four levels, Spencer thesis-like force + 1 % noise."""
+    from mr_damper_model.presets import spencer_thesis_like
+    m = get_model('spencer')
+    truth = spencer_thesis_like()
+    t, x, v, _ = cam(duration=duration)
+    i = np.repeat([0.0, 1.0, 2.0, 0.5], t.size // 4)
+    data, f_true, sigma = synth(m, truth, t, x, v, i)
+    return m, truth, data, f_true, sigma
+
+
+def test_recover_spencer_default():
+    """
+    Default Spencer identification (swarm on the state parameters, spring by least squares).
+
+    The Bouc-Wen part is known only up to the scale of z (alpha*s, A/s, beta*s**2, gamma*s**2
+    give the same force), so the hysteretic force at saturation, alpha(i)*sqrt(A/(beta +
+    gamma)), is checked instead of alpha, A, beta, gamma; k0 and k1 trade off on a 2 s record.
+    """
+    m, truth, data, f_true, sigma = spencer_record()
+    res = identify(data, 'spencer', seed=1)
+    assert res.method == 'separable'
+    lo, hi = m.default_bounds()
+    assert np.all(res.x >= lo) and np.all(res.x <= hi)
+    check_force(res, m, data, f_true, sigma)
+    p = res.parameters
+    for level in (0.0, 1.0, 2.0):
+        c0 = p['c0a'] + p['c0b'] * level
+        assert c0 == pytest.approx(truth['c0a'] + truth['c0b'] * level, rel=0.03)
+
+    def hysteretic(q, level):
+        return (q['alpha_a'] + q['alpha_b'] * level) * np.sqrt(q['A'] / (q['beta'] + q['gamma']))
+    for level in (0.0, 2.0):
+        assert hysteretic(p, level) == pytest.approx(hysteretic(truth, level), rel=0.1)
+    assert p['c1a'] == pytest.approx(truth['c1a'], rel=0.05)
+    assert p['eta'] == pytest.approx(truth['eta'], rel=0.02)
+
+
+def test_spencer_default_same_seed_same_answer():
+    _, _, data, _, _ = spencer_record(duration=0.5)
+    a = identify(data, 'spencer', seed=3)
+    b = identify(data, 'spencer', seed=3)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.nfev == b.nfev and a.nit == b.nit
+
+
 @pytest.mark.slow
-def test_spencer_short_record_small_budget():
+def test_spencer_short_record_small_budget_full_method():
     from mr_damper_model.presets import spencer_thesis_like
     m = get_model('spencer')
     truth = spencer_thesis_like()
     t, x, v, _ = cam(duration=0.25)
     data, f_true, sigma = synth(m, truth, t, x, v, np.full(t.size, 1.0))
-    res = identify(data, 'spencer', seed=0, swarm_size=12, maxiter=12)
-    assert res.method == 'full'             # no linear parameters: full PSO
+    res = identify(data, 'spencer', method='full', seed=0, swarm_size=12, maxiter=12)
+    assert res.method == 'full'             # the thesis method: PSO over all 13 parameters
     lo, hi = m.default_bounds()
     assert np.all(res.x >= lo) and np.all(res.x <= hi)
     # a 12-iteration swarm over 13 parameters only has to find the right force scale

@@ -11,8 +11,11 @@ Two methods, both minimising the RMSE of the force (thesis eq. 4.3):
     do not depend on the nonlinear parameters (v, x, 1, ...) are detected once per record and
     their Gram products precomputed; columns of the form h(nonlinear) * w (the current weights
     of kwok-current) are reduced to two matrix products per swarm. Models with no nonlinear
-    parameter (Bingham) are solved directly; models with no linear parameter (Spencer) use the
-    full PSO.
+    parameter (Bingham) are solved directly. Models with an ``identification`` policy (Spencer)
+    follow it: the swarm searches the parameters that act on the states, on a contiguous
+    stretch from the start of the record and with coarser sub-steps, the ones that do not
+    (``spring_names``) fitted per particle by the model's ``spring_fit``; then a bounded
+    least-squares polish on all samples (see :func:`_policy_swarm`).
 ``full``
     The swarm searches all parameters, as in the thesis.
 
@@ -407,8 +410,9 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
     """
     Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS).
 
-    Models with an analytic Jacobian (the algebraic ones): box-bounded Levenberg-Marquardt on
-    the normal equations (:func:`_projected_lm`, one evaluation per Jacobian). Others:
+    Models with their own Jacobian (the algebraic ones: analytic; Spencer: one batch of
+    forward differences): box-bounded Levenberg-Marquardt on the normal equations
+    (:func:`_projected_lm`, one evaluation per Jacobian). Others:
     trust-region reflective Gauss-Newton (scipy ``least_squares``) with forward-difference
     Jacobians. The signals are validated once, not per evaluation.
     """
@@ -495,6 +499,53 @@ def _full_cost(model, data):
     return cost
 
 
+def _policy_swarm(mdl, data, lo, hi, units, policy, x0v, common):
+    """
+    Swarm of a model with an ``identification`` policy (Spencer); returns (result, candidate).
+
+    The swarm searches the parameters that act on the states (log-scaled as in the other
+    fits) on a contiguous stretch from the start of the record (a stateful model cannot skip
+    samples), up to ``swarm_span_s`` after the motion begins (speed above 5 % of its peak),
+    with sub-steps of ``swarm_max_substep_s``; per particle the others
+    (``spring_names``) come from ``spring_fit`` of the force computed with them at zero. The
+    best particle is completed by ``spring_fit`` on all samples with the polish sub-step.
+    """
+    names = tuple(mdl.param_names)
+    spring = np.array([names.index(n) for n in mdl.spring_names], dtype=int)
+    dyn = np.array([j for j in range(len(names)) if j not in spring], dtype=int)
+    dt = np.diff(data.t)
+    dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    speed = np.abs(data.v)
+    moving = int(np.argmax(speed > 0.05 * np.max(speed)))     # a rest at the start is kept
+    n_span = max(2, moving + int(math.ceil(policy['swarm_span_s'] / dt)) + 1)
+    part = data if n_span >= data.n else data.select(slice(0, n_span))
+    swarm_mdl = mdl.for_identification(policy['swarm_max_substep_s'])
+    sig = swarm_mdl._signals(part.x, part.v, part.i, part.t, part.starts)
+    space = _Space(lo[dyn], hi[dyn], units[dyn])
+
+    def full_sets(u):
+        P = np.zeros((len(u), len(names)))
+        P[:, dyn] = space.to_p(u)
+        return P
+
+    def cost(u):
+        with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+            g = swarm_mdl._eval_force(full_sets(u), sig)
+            _, rss = mdl.spring_fit(g, part.x, part.f, lo[spring], hi[spring])
+            r = np.sqrt(np.maximum(rss, 0.0) / part.n)
+        return np.where(np.isfinite(r), r, np.inf)
+
+    u0 = None if x0v is None else space.to_u(np.clip(x0v[dyn], lo[dyn], hi[dyn]))
+    res = pso(cost, space.bounds(), x0=u0, **common)
+    best = full_sets(np.atleast_2d(res.x))
+    fit_mdl = mdl.for_identification(policy['max_substep_s'])
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+        g = fit_mdl.force(best, data.x, data.v, i=data.i, t=data.t, starts=data.starts)
+        theta, _ = mdl.spring_fit(g, data.x, data.f, lo[spring], hi[spring])
+    best[:, spring] = theta
+    return res, best[0]
+
+
 def identify(data, model='kwok-current', *, method='separable', unbounded=False, bounds=None,
              seed=None, x0=None, swarm_size=25, maxiter=None, tol=None, budget_s=None,
              callback=None, model_options=None, patience=None, polish=None, n_starts=None):
@@ -538,8 +589,9 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         analytic Jacobian; trust-region reflective for models without one) on all parameters
         and all samples. Default: on for ``separable`` with
         an algebraic model (the swarm then works on at most :data:`SWARM_SAMPLES` samples, every
-        k-th), off for ``full`` (the thesis method) and the stateful models, except where the
-        model says otherwise (``polish_by_default``: on for ``kwok-current-lag``).
+        k-th) or a model with an ``identification`` policy (Spencer: its swarm stretch,
+        sub-steps, budget and polish iterations) or ``polish_by_default`` (kwok-current-lag),
+        off for ``full`` (the thesis method) and the other stateful models.
 
     Returns
     -------
@@ -568,11 +620,20 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         raise ValueError(f'`bounds` must have {len(names)} entries {names}.')
     x0v = _param_vector(mdl, x0)
     budget = dict(DEFAULT_BUDGETS[method])
+    policy = getattr(mdl, 'identification', None) if method == 'separable' else None
     if polish is None:
         polish = method == 'separable' and (
-            not mdl.stateful if mdl.polish_by_default is None else bool(mdl.polish_by_default))
+            policy is not None
+            or (not mdl.stateful if mdl.polish_by_default is None
+                else bool(mdl.polish_by_default)))
     if method == 'separable' and not polish:
         budget.update(maxiter=60, patience=20)      # no local polish: the swarm must converge
+        policy = None
+    polish_mdl, polish_nfev = mdl, 50
+    if policy is not None:
+        budget.update(maxiter=policy['maxiter'], patience=policy['patience'])
+        polish_mdl = mdl.for_identification(policy['max_substep_s'])
+        polish_nfev = policy['polish_iterations']
     if maxiter is not None:
         budget['maxiter'] = int(maxiter)
     if tol is not None:
@@ -596,17 +657,20 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         used = 'linear'
         polish = False
     else:
-        if method == 'separable' and lin_idx.size == 0:
+        if method == 'separable' and lin_idx.size == 0 and policy is None:
             used = 'full'
         common = dict(swarm_size=swarm_size, rng=seed, callback=callback, budget_s=budget_s,
                       **budget)
         swarm_data = data
-        if polish and data.n > 2 * SWARM_SAMPLES:
+        if polish and policy is None and data.n > 2 * SWARM_SAMPLES:
             swarm_data = data.select(slice(None, None, int(math.ceil(data.n / SWARM_SAMPLES))))
         idx = nl_idx if used == 'separable' else np.arange(len(names))
         space = _Space(lo[idx], hi[idx], units[idx])
         u0 = None if x0v is None else space.to_u(np.clip(x0v[idx], lo[idx], hi[idx]))
-        if used == 'separable':
+        if policy is not None:
+            res, best = _policy_swarm(mdl, data, lo, hi, units, policy, x0v, common)
+            cands = best[None]
+        elif used == 'separable':
             nlo, nhi = lo[nl_idx], hi[nl_idx]
             probe = np.stack([nlo + 0.37 * (nhi - nlo), nlo + 0.71 * (nhi - nlo)])
             cost = SeparableCost(mdl, swarm_data, lo[lin_idx], hi[lin_idx], probe)
@@ -633,7 +697,7 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
     if polish:
         best = math.inf
         for cand in cands:
-            xc, extra, rss = _polish(mdl, data, cand, lo, hi)
+            xc, extra, rss = _polish(polish_mdl, data, cand, lo, hi, max_nfev=polish_nfev)
             res_info['nfev'] += extra
             if rss < best:
                 x, best = xc, rss

@@ -68,37 +68,69 @@ def z_step_scalar(z0, dr, A, beta, gamma):
     float
 
     """
+    b = beta + gamma
+    bp = beta - gamma
+    if bp == 0.0:
+        return z_step_from_roots(z0, dr, A, bp, math.sqrt(A / b), math.sqrt(A * b), 1.0, 1.0)
+    return z_step_from_roots(z0, dr, A, bp, math.sqrt(A / b), math.sqrt(A * b),
+                             math.sqrt(A / abs(bp)), math.sqrt(A * abs(bp)))
+
+
+def z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp):
+    """
+    Advance z exactly over dr (n = 2) given the square roots of the parameter set.
+
+    The solution of ``z_step_scalar`` (which calls this) in a form with one tanh (tan for
+    beta < gamma) per update: with ``a = tanh(a0)``, ``tanh(a0 + k*r) = (a + T)/(1 + a*T)``,
+    ``T = tanh(k*r)``; only the zero crossing of the opposite-direction branch (``T >= a``)
+    needs an atanh (atan); the formulae of ``z_step_array`` (the vectorised reference) within
+    round-off.
+
+    Parameters
+    ----------
+    z0, dr, A : float
+        As in ``z_step_scalar``.
+    bp : float
+        beta - gamma [1/m**2].
+    zs, k : float
+        sqrt(A/(beta + gamma)) [m] and sqrt(A*(beta + gamma)) [1/m].
+    zsp, kp : float
+        sqrt(A/|bp|) [m] and sqrt(A*|bp|) [1/m] (unused when bp == 0).
+
+    Returns
+    -------
+    float
+
+    """
     if dr == 0.0:
         return z0
     s = 1.0 if dr > 0.0 else -1.0
     q = s * z0
     r = abs(dr)
     if q < 0.0:
-        bp = beta - gamma
         if bp == 0.0:
             r0 = -q / A
             if r < r0:
                 return s * (q + A * r)
         elif bp > 0.0:
-            zsp = math.sqrt(A / bp)
-            kp = math.sqrt(A * bp)
-            a0 = math.atanh(min(-q / zsp, _EDGE))
-            r0 = a0 / kp
-            if r < r0:
-                return -s * zsp * math.tanh(a0 - kp * r)
+            a = min(-q / zsp, _EDGE)
+            tk = math.tanh(kp * r)
+            if tk < a:
+                return -s * zsp * (a - tk) / (1.0 - a * tk)
+            r0 = math.atanh(a) / kp
         else:
-            zsp = math.sqrt(-A / bp)
-            kp = math.sqrt(-A * bp)
-            a0 = math.atan(-q / zsp)
-            r0 = a0 / kp
-            if r < r0:
-                return -s * zsp * math.tan(a0 - kp * r)
+            a = -q / zsp
+            kr = kp * r
+            if kr < 0.5 * math.pi:
+                tk = math.tan(kr)
+                if tk < a:
+                    return -s * zsp * (a - tk) / (1.0 + a * tk)
+            r0 = math.atan(a) / kp
         q = 0.0
-        r -= r0
-    b = beta + gamma
-    zs = math.sqrt(A / b)
-    k = math.sqrt(A * b)
-    return s * zs * math.tanh(math.atanh(min(q / zs, _EDGE)) + k * r)
+        r = max(r - r0, 0.0)
+    a = min(q / zs, _EDGE)
+    tk = math.tanh(k * r)
+    return s * zs * (a + tk) / (1.0 + a * tk)
 
 
 def z_step_array(z0, dr, A, beta, gamma):
@@ -339,9 +371,57 @@ def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
     x, v, i, t = (np.ascontiguousarray(a, dtype=float) for a in (x, v, i, t))
     y0 = float(x[0] if y0_m is None else y0_m)
     out = np.empty((P.shape[0], x.size))
-    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_step_scalar')
+    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_step_scalar',
+               'z_step_from_roots')
     loop = compiled.kernel(_force_loop, helpers=helpers)
     return loop(P, x, v, i, t, y0, float(max_substep_s), out)
+
+
+def spring_fit(g, x, f, lo, hi):
+    """
+    Least-squares spring ``k1``, ``x0`` of spring-free Spencer forces, within bounds.
+
+    ``F = g + k1*(x - x0)``, where ``g`` is the force with k1 = x0 = 0 (``c1*ydot``): k1 and x0
+    do not act on the states, so given the trajectory they are a 2-column least-squares
+    problem in (k1, k1*x0). Bounds: the unconstrained optimum, k1 clipped to its box, then the
+    best offset for that k1 gives x0 (clipped), then the best k1 for that x0 (clipped). Exact
+    where no bound is active.
+
+    Parameters
+    ----------
+    g : numpy.ndarray with shape (p, n)
+        Spring-free force [N] of p parameter sets.
+    x : numpy.ndarray with shape (n,)
+        Displacement [m].
+    f : numpy.ndarray with shape (n,)
+        Measured force [N].
+    lo, hi : array_like with shape (2,)
+        Bounds of (k1 [N/m], x0 [m]).
+
+    Returns
+    -------
+    theta : numpy.ndarray with shape (p, 2)
+        (k1, x0) per parameter set.
+    rss : numpy.ndarray with shape (p,)
+        Residual sum of squares [N**2] with that (k1, x0).
+
+    """
+    r = f[None, :] - g
+    n = x.size
+    xx, sx = float(x @ x), float(np.sum(x))
+    xr, sr = r @ x, np.sum(r, axis=1)
+    rr = np.einsum('ij,ij->i', r, r)
+    det = n * xx - sx * sx
+    k1 = np.clip((n * xr - sx * sr) / det if det > 0 else np.zeros_like(sr), lo[0], hi[0])
+    b = (k1 * sx - sr) / n                          # best k1*x0 for this k1
+    pos = k1 > 0
+    x0 = np.clip(np.where(pos, b / np.where(pos, k1, 1.0), 0.0), lo[1], hi[1])
+    # best k1 for that x0: min over k1 of |r - k1*(x - x0)|**2
+    sxx = xx - 2.0 * x0 * sx + n * x0 * x0          # |x - x0|**2
+    sxr = xr - x0 * sr                              # (x - x0) . r
+    k1 = np.where(sxx > 0, np.clip(sxr / np.where(sxx > 0, sxx, 1.0), lo[0], hi[0]), k1)
+    rss = rr - 2.0 * k1 * sxr + k1 * k1 * sxx
+    return np.stack([k1, x0], axis=1), rss
 
 
 def spencer_force_numpy(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
@@ -384,8 +464,10 @@ class Spencer(HysteresisModel):
     Parameters and units: c0a [N s/m], c0b [N s/(m A)], k0 [N/m], c1a [N s/m],
     c1b [N s/(m A)], k1 [N/m], x0 [m], alpha_a [N/m], alpha_b [N/(m A)], gamma [1/m**2],
     beta [1/m**2], A [-], eta [1/s]. Options: ``n`` = 2 (fixed), ``max_substep_s`` = 1e-4.
-    Stateful (needs ``t``) and current-dependent (needs ``i``); no linear parameters (fit with
-    the full PSO; the time loop is compiled, see ``spencer_force``).
+    Stateful (needs ``t``) and current-dependent (needs ``i``); no linear parameters in the
+    ``regressors`` sense, but k1 and x0 do not act on the states (``spring_names``,
+    :func:`spring_fit`), which the default identification uses (``identification``); the time
+    loop is compiled, see ``spencer_force``.
 
     Default bounds (around Spencer's published damper, which is the scale of the thesis damper):
     c0a, c1a in [0, 1e5] (c0a, c1a >= 1 N s/m so c0 + c1 > 0), c0b, c1b in [0, 1e5],
@@ -414,6 +496,19 @@ class Spencer(HysteresisModel):
                          'gamma': (1e3, 1e8), 'beta': (0.0, 1e8), 'A': (1.0, 1e4),
                          'eta': (10.0, 1000.0)}
 
+    #: Parameters that do not act on the states (:func:`spring_fit`).
+    spring_names = ('k1', 'x0')
+    spring_fit = staticmethod(spring_fit)
+    #: Policy of the default identification (``identify`` with method ``'separable'``): the
+    #: swarm searches the 11 state parameters on the record from its start to ``swarm_span_s``
+    #: after the motion begins, with sub-steps of ``swarm_max_substep_s`` (k1, x0 by
+    #: :func:`spring_fit`), for ``maxiter`` iterations (stagnation ``patience``); then at most
+    #: ``polish_iterations`` bounded Levenberg-Marquardt iterations on all samples with
+    #: sub-steps of ``max_substep_s`` (Jacobian: one batch of 12 parameter sets). The reported
+    #: metrics use the model's own sub-step; a coarser one of the model itself is kept.
+    identification = {'swarm_span_s': 5.0, 'swarm_max_substep_s': 1e-3, 'maxiter': 20,
+                      'patience': 10, 'max_substep_s': 5e-4, 'polish_iterations': 30}
+
     def __init__(self, n=2, max_substep_s=1e-4, y0_m=None):
         if n != 2:
             raise ModelError('spencer: only n = 2 is implemented (exact z update)')
@@ -433,6 +528,32 @@ class Spencer(HysteresisModel):
         if np.any(bad):
             raise ModelError('spencer needs A > 0, gamma >= 0, beta + gamma > 0, eta > 0, '
                              'c0a + c1a > 0')
+
+    def for_identification(self, max_substep_s):
+        """Return this model with sub-steps of at most ``max(max_substep_s, own)`` [s]."""
+        return Spencer(max_substep_s=max(float(max_substep_s), self.options['max_substep_s']),
+                       y0_m=self.options['y0_m'])
+
+    def _jacobian(self, p, x, v, i, t):
+        """
+        Forward differences of the state parameters in one batch; k1, x0 analytic.
+
+        The base parameter set and the 11 perturbed ones (steps as the base class takes them)
+        are one call of the compiled loop.
+        """
+        names = self.param_names
+        ks, kx = names.index('k1'), names.index('x0')
+        dyn = np.array([j for j in range(len(names)) if j not in (ks, kx)])
+        lo, hi = self.default_bounds(unbounded=True)
+        h = 1e-7 * np.maximum(np.abs(p[dyn]), 1e-3 * (hi[dyn] - lo[dyn]))
+        P = np.repeat(p[None], dyn.size + 1, axis=0)
+        P[1 + np.arange(dyn.size), dyn] += h
+        F = self._force(P, x, v, i, t)
+        J = np.empty((x.size, len(names)))
+        J[:, dyn] = ((F[1:] - F[0]) / h[:, None]).T
+        J[:, ks] = x - p[kx]
+        J[:, kx] = -p[ks]
+        return J
 
     def _force(self, P, x, v, i, t):
         self._check(P)
