@@ -324,3 +324,16 @@ def test_error_paths_exit_2_with_one_line(joint_fit, tmp_path, capsys):
             assert len(err.strip().splitlines()) == 1, (msg, err)
             assert msg in err and 'Traceback' not in err, (msg, err)
     assert not (tmp_path / 'x.json').exists()
+
+
+def test_a_closed_output_pipe_ends_quietly():
+    """``mr-damper-identify ... | head -1``: no internal-error line when the reader is gone."""
+    import os
+    r, w = os.pipe()
+    os.close(r)                                    # the reader is gone before anything is written
+    try:
+        proc = subprocess.run([str(VENV_BIN / 'mr-damper-identify'), str(QFILE)], stdout=w,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert proc.returncode == 141 and proc.stderr == ''

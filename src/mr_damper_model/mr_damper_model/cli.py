@@ -506,6 +506,9 @@ def main(argv=None):
         code = run(argv)
     except KeyboardInterrupt:
         code = _fail('', 'interrupted', 130)
+    except BrokenPipeError:     # the reader went away (e.g. `| head`): stop quietly, as cat does
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = 141
     except Exception as exc:  # never a traceback for the user; say what failed
         code = _fail('', f'internal error: {type(exc).__name__}: {exc}', 1)
     sys.exit(code)
