@@ -1,7 +1,8 @@
 """
 Cross-validation of one-model-for-all-conditions damper models on the shared Quiroz files.
 
-    .venv/bin/python bench/bench_crossval.py [--models kwok-current kwok-current-lag ...]
+    .venv/bin/python bench/bench_crossval.py [--models kwok-current kwok-current-lag
+        kwok-current-amp ...]
         [--seed 1] [--workers 2] [--swarm-size 25] [--maxiter N] [--polish] [--inverse]
         [--splits N] [--data-dir DIR]
 
@@ -18,8 +19,11 @@ ratio over all 150 predictions (each file is held out in 5 splits), the per-seri
 fit time and the training NRMSE; then a summary of all models.
 
 A model is written ``name`` or ``name@key=value,key=value`` (numeric model options, e.g.
-``kwok-current@i_ref_a=1.0``). Seeded and deterministic: every fit uses ``--seed``, results
-do not depend on ``--workers`` (a process pool of at most 2 workers, single-threaded BLAS).
+``kwok-current@i_ref_a=1.0``, ``kwok-current-amp@tau_a=2``). Any registered model runs;
+the prototypes of docs/cross-validation.md that are not package models run through
+``bench/crossval_candidates.py`` (same arguments). Seeded and deterministic: every fit uses
+``--seed``, results do not depend on ``--workers`` (a process pool of at most 2 workers,
+single-threaded BLAS).
 The load average of the machine is printed before and after.
 """
 import os

@@ -21,7 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODEL_NAMES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer', 'kwok-current-lag')
+MODEL_NAMES = ('kwok', 'kwok-current', 'bingham', 'bouc-wen', 'spencer', 'kwok-current-lag',
+               'kwok-current-amp')
 
 _REGISTRY = {
     'kwok': ('mr_damper_model.kwok', 'Kwok'),
@@ -30,6 +31,7 @@ _REGISTRY = {
     'bouc-wen': ('mr_damper_model.bouc_wen', 'BoucWen'),
     'spencer': ('mr_damper_model.spencer', 'Spencer'),
     'kwok-current-lag': ('mr_damper_model.kwok_current_lag', 'KwokCurrentLag'),
+    'kwok-current-amp': ('mr_damper_model.kwok_current_amp', 'KwokCurrentAmp'),
 }
 
 
