@@ -92,7 +92,7 @@ def test_per_current_groups_and_default_model(tmp_path, capsys):
     assert all('parameters' in g and 'metrics' in g for g in doc['groups'])
     # several levels: the best cross-validated model (docs/cross-validation.md)
     assert run([str(path), '--json']) == 0
-    assert json.loads(capsys.readouterr().out)['model'] == 'kwok-current-lag'
+    assert json.loads(capsys.readouterr().out)['model'] == 'kwok-current-amp'
 
 
 def test_table_and_plot(tmp_path, capsys):
@@ -133,7 +133,7 @@ def _assert_metrics_equal(doc_metrics, ref):
 
 @pytest.fixture(scope='module')
 def joint_fit(tmp_path_factory):
-    """One kwok-current-lag model (the default) fitted to three files of three current levels."""
+    """One kwok-current-amp model (the default) fitted to three files of three current levels."""
     import contextlib
     import io
     out = tmp_path_factory.mktemp('joint') / 'joint.json'
@@ -146,7 +146,7 @@ def joint_fit(tmp_path_factory):
 
 def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
     doc, out = joint_fit
-    assert doc['model'] == 'kwok-current-lag'      # three current levels: the default
+    assert doc['model'] == 'kwok-current-amp'      # three current levels: the default
     from mr_damper_model.data import read_csv
     assert sorted(round(read_csv(p).sample_rate_hz) for p in TRIO) == [200, 200, 1000]
     assert [f['source'] for f in doc['files']] == [str(p) for p in TRIO]
@@ -199,7 +199,7 @@ def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, ca
                 '--plot', str(png)]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert set(doc) == {'model', 'params_file', 'files', 'metrics'}
-    assert doc['model'] == 'kwok-current-lag' and doc['params_file'] == str(params)
+    assert doc['model'] == 'kwok-current-amp' and doc['params_file'] == str(params)
     per, overall = _direct_metrics(params, held_out)
     assert [f['source'] for f in doc['files']] == [str(p) for p in held_out]
     for got, ref in zip(doc['files'], per):
@@ -209,7 +209,7 @@ def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, ca
     assert png.stat().st_size > 10000
     # the text form prints the same numbers
     assert run(['--validate', str(params), *map(str, held_out), '--model',
-                'kwok-current-lag']) == 0
+                'kwok-current-amp']) == 0
     text = capsys.readouterr().out
     assert f'{overall["rmse_n"]:.6g}' in text and held_out[1].name in text
 
@@ -306,7 +306,7 @@ def test_error_paths_exit_2_with_one_line(joint_fit, tmp_path, capsys):
         'cannot read parameter file': ['--validate', str(tmp_path / 'none.json'), str(QFILE)],
         'not valid JSON': ['--validate', str(notjson), str(QFILE)],
         'unknown model "magic"': ['--validate', str(strange), str(QFILE)],
-        'model is "kwok-current-lag", expected "bingham"': ['--validate', str(params),
+        'model is "kwok-current-amp", expected "bingham"': ['--validate', str(params),
                                                             str(QFILE), '--model', 'bingham'],
         'missing column(s) f': ['--validate', str(params), str(nof)],
         'no file matches this pattern': ['--validate', str(params),
@@ -337,3 +337,10 @@ def test_a_closed_output_pipe_ends_quietly():
     finally:
         os.close(w)
     assert proc.returncode == 141 and proc.stderr == ''
+
+
+def test_every_registered_model_can_be_chosen():
+    from mr_damper_model.cli import MODEL_CHOICES, MULTI_CURRENT_MODEL
+    from mr_damper_model.models import MODEL_NAMES
+    assert sorted(MODEL_CHOICES) == sorted(MODEL_NAMES)
+    assert MULTI_CURRENT_MODEL in MODEL_CHOICES

@@ -3,8 +3,8 @@
 
 Usage::
 
-    mr-damper-identify FILE... [--model kwok|kwok-current|kwok-current-lag|bingham|bouc-wen|
-                                spencer]
+    mr-damper-identify FILE... [--model kwok|kwok-current|kwok-current-lag|kwok-current-amp|
+                                bingham|bouc-wen|spencer]
         [--per-current] [--method separable|full] [--unbounded] [--seed N] [--topic TOPIC]
         [--json] [--plot OUT.png] [--out PARAMS.json] [--compare]
     mr-damper-identify --validate PARAMS.json FILE... [--model NAME] [--topic TOPIC]
@@ -16,7 +16,7 @@ files are fitted as one record (each keeps its own time base; see ``DamperData.c
 and the metrics of the joint fit are printed per file too. ``--validate`` fits nothing: it
 prints the metrics of a saved parameter file on each file and over all files.
 
-Default model: ``kwok-current-lag`` when the records hold several coil-current levels (the
+Default model: ``kwok-current-amp`` when the records hold several coil-current levels (the
 model that predicts held-out tests best, docs/cross-validation.md), ``kwok`` otherwise (and
 with ``--per-current``). Bad input exits with code 2 and one line on stderr naming
 the file and the problem.
@@ -36,10 +36,11 @@ import sys  # noqa: E402
 import time  # noqa: E402
 
 PROG = 'mr-damper-identify'
-MODEL_CHOICES = ('kwok', 'kwok-current', 'kwok-current-lag', 'bingham', 'bouc-wen', 'spencer')
+MODEL_CHOICES = ('kwok', 'kwok-current', 'kwok-current-lag', 'kwok-current-amp', 'bingham',
+                 'bouc-wen', 'spencer')
 #: Default model for records at several coil-current levels: the best cross-validated model
 #: (bench/bench_crossval.py, docs/cross-validation.md).
-MULTI_CURRENT_MODEL = 'kwok-current-lag'
+MULTI_CURRENT_MODEL = 'kwok-current-amp'
 METRIC_UNITS = (('rmse_n', 'RMSE [N]'), ('nrmse_percent', 'NRMSE [%]'),
                 ('mean_abs_error_n', 'mean |error| [N]'),
                 ('mean_percent_error', 'mean % error'), ('max_percent_error', 'max % error'))
@@ -67,7 +68,8 @@ def build_parser():
                    help='rig test record: CSV, rosbag2 directory, .mcap or .db3 bag, a '
                    'directory of them, or a glob (quote it)')
     p.add_argument('--model', default=None,
-                   help='kwok | kwok-current | kwok-current-lag | bingham | bouc-wen | spencer '
+                   help='kwok | kwok-current | kwok-current-lag | kwok-current-amp | bingham | '
+                   'bouc-wen | spencer '
                    f'(default: {MULTI_CURRENT_MODEL} if the records have several current '
                    'levels, else kwok; '
                    'with --validate: the model the parameter file must hold)')
