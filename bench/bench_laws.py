@@ -48,8 +48,8 @@ HYBRID = ((2000.0, (0.5, 0.75, 1.0)), (4000.0, (0.25, 0.5, 0.75, 1.0)))
 SHADD = ((2000.0, 2.0), (4000.0, 1.0), (4000.0, 2.0), (4000.0, 4.0), (8000.0, 2.0))
 CO_WEIGHTS = ({'q_tyre': 1e3}, {'q_tyre': 1e4}, {'q_tyre': 1e5}, {'q_tyre': 1e4, 'r_force': 1e-7},
               {'q_tyre': 1e4, 'r_force': 1e-5})
-COWK_WEIGHTS = ({}, {'r_force': 1e-6}, {'r_force': 1e-5}, {'q_tyre': 1e4},
-                {'q_accel': 0.0}, {'q_travel': 300.0})
+COWK_WEIGHTS = ({}, {'q_travel': 0.0}, {'q_travel': 1e3}, {'q_accel': 0.0}, {'r_force': 1e-6},
+                {'r_force': 1e-5}, {'q_tyre': 1e4})
 RHOS = (0.0, 0.5)
 
 

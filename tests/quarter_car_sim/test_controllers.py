@@ -252,7 +252,7 @@ def test_wk_state_space_is_the_metric_weighting():
     np.testing.assert_allclose(np.abs(resp.complex).ravel(), wk_gain(f), rtol=1e-9)
 
 
-@pytest.mark.parametrize('weights', [{'q_tyre': 1e3, 'r_force': 1e-5},
+@pytest.mark.parametrize('weights', [{'q_tyre': 1e3, 'r_force': 1e-5, 'q_travel': 0.0},
                                      {'q_tyre': 1e4, 'r_force': 1e-6, 'q_travel': 1e3}])
 def test_wk_design_without_filter_is_the_plain_clipped_optimal_design(weights):
     # an identity filter: a_wk = a_s, so q_wk + q_accel is the plain acceleration weight
