@@ -26,7 +26,8 @@ def test_compare_json(params_file, capsys):
     out = json.loads(capsys.readouterr().out)
     names = set(out['controllers'])
     assert {'passive@0.0A', 'passive@2.0A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid',
-            'sh-add', 'clipped-optimal', 'skyhook-ideal', 'lqr-active', 'bound'} <= names
+            'sh-add', 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal', 'lqr-active',
+            'bound'} <= names
     assert names == set(f'passive@{i:.1f}A' for i in cli.COMPARE_CURRENTS_A) | set(
         cli.COMPARE_NAMES) | {'bound'}
     assert 0.0 <= out['controllers']['bound']['mean_current_a'] <= 2.0

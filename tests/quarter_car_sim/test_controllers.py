@@ -123,6 +123,7 @@ def test_inverse_rejects_bad_params():
                                        ('skyhook-ideal', ctl.SkyhookIdeal),
                                        ('sh-add', ctl.ShAdd),
                                        ('clipped-optimal', ctl.ClippedOptimal),
+                                       ('clipped-optimal-wk', ctl.ClippedOptimalWk),
                                        ('lqr-active', ctl.LqrActive)])
 def test_make_controller_names(name, cls):
     c = ctl.make_controller(name)
@@ -228,3 +229,157 @@ def test_make_controller_clipped_optimal_uses_the_inverse_range():
     c = ctl.make_controller('clipped-optimal', inverse=inv)
     assert c.force_range == inv.body_force_range
     assert ctl.make_controller('clipped-optimal').force_range is None
+
+
+# frequency-shaped clipped-optimal (clipped-optimal-wk)
+
+def _body_accel_states(a, dt=1e-3, seed=0):
+    """States at t = k dt with body acceleration ``a`` and random other fields."""
+    g = np.random.default_rng(seed)
+    out = []
+    for k, ak in enumerate(a):
+        vs, vu = g.normal(0, 0.3, 2)
+        zs, zu, zr = g.normal(0, 0.02, 3)
+        out.append(CarState(k * dt, zs, vs, float(ak), zu, vu, 0.0, zr, zs - zu, vs - vu,
+                            3500.0, 0.0, 0.0))
+    return out
+
+
+def test_wk_state_space_is_the_metric_weighting():
+    from quarter_car_sim.ride_metrics import wk_gain
+    f = np.logspace(-1, 2.5, 60)
+    resp = ctl.wk_state_space().frequency_response(2.0 * np.pi * f)
+    np.testing.assert_allclose(np.abs(resp.complex).ravel(), wk_gain(f), rtol=1e-9)
+
+
+@pytest.mark.parametrize('weights', [{'q_tyre': 1e3, 'r_force': 1e-5, 'q_travel': 0.0},
+                                     {'q_tyre': 1e4, 'r_force': 1e-6, 'q_travel': 1e3}])
+def test_wk_design_without_filter_is_the_plain_clipped_optimal_design(weights):
+    # an identity filter: a_wk = a_s, so q_wk + q_accel is the plain acceleration weight
+    d = ctl.wk_lqr_design(weighting='none', q_wk=0.25, q_accel=0.75, **weights)
+    np.testing.assert_allclose(d.gain, ctl.clipped_optimal_gain(q_accel=1.0, **weights),
+                               rtol=1e-7)
+    law = ctl.ClippedOptimalWk(d)
+    ref = ctl.ClippedOptimal(ctl.clipped_optimal_gain(q_accel=1.0, **weights))
+    for s in _random_states(500, seed=5):
+        assert law.demand(s) == pytest.approx(ref.demand(s), rel=1e-6, abs=1e-9)
+
+
+def test_wk_design_is_optimal_among_gains_that_ignore_the_filter():
+    # LQR truth: with white road velocity into the augmented car, the expected cost of the
+    # optimal gain (trace(P B_r B_r')) is below that of any other stabilising gain, here the
+    # plain (a_s-weighted) clipped-optimal gain with zeros on the filter states, same weights
+    import control
+    from quarter_car_sim.linear_analysis import linear_model
+    from quarter_car_sim.params import QuarterCarParams
+    w = {'q_tyre': 1e3, 'r_force': 3e-6}
+    d = ctl.wk_lqr_design(**w)
+    car = linear_model(QuarterCarParams())
+    filt = d.filter
+    nw = filt.A.shape[0]
+    n = 4 + nw
+    Aa = np.zeros((n, n))
+    Aa[:4, :4] = car.A
+    Aa[4:, :4] = np.outer(filt.B.ravel(), car.C[0])
+    Aa[4:, 4:] = filt.A
+    Ba = np.concatenate([car.B[:, 1], filt.B.ravel() * car.D[0, 1]]).reshape(n, 1)
+    Br = np.concatenate([car.B[:, 0], np.zeros(nw)]).reshape(n, 1)
+
+    def cost(k):
+        k = k.reshape(1, n)
+        acl = Aa - Ba @ k
+        assert np.all(np.linalg.eigvals(acl).real < 0.0)
+        qk = d.Q - d.N @ k - k.T @ d.N.T + k.T @ d.R @ k
+        p = control.lyap(acl.T, 0.5 * (qk + qk.T))
+        return float(np.trace(Br.T @ p @ Br))
+
+    plain = np.concatenate([ctl.clipped_optimal_gain(q_accel=1.0, **w), np.zeros(nw)])
+    j_opt, j_plain = cost(d.gain), cost(plain)
+    assert j_opt < j_plain
+    # and it is a minimum: small changes of the gain do not lower the cost
+    g = np.random.default_rng(4)
+    for _ in range(5):
+        assert cost(d.gain * (1.0 + 0.02 * g.normal(size=n))) >= j_opt * (1.0 - 1e-9)
+
+
+def test_wk_filter_inside_the_law_is_the_metric_wk_filter():
+    from quarter_car_sim.ride_metrics import wk_filter
+    g = np.random.default_rng(6)
+    a = np.cumsum(g.normal(0.0, 0.5, 3000)) * 0.05 + g.normal(0.0, 1.0, 3000)
+    law = ctl.ClippedOptimalWk(ctl.wk_lqr_design(), dt=1e-3)
+    out = []
+    for s in _body_accel_states(a):
+        law.demand(s)
+        out.append(law.a_wk)
+    ref = wk_filter(a, 1000.0)
+    np.testing.assert_allclose(out, ref, atol=1e-9 * np.max(np.abs(ref)))
+    # a repeated state (same t) does not step the filter; reset() starts again from rest
+    law.demand(s)
+    assert law.a_wk == out[-1]
+    law.reset()
+    for s in _body_accel_states(a[:50]):
+        law.demand(s)
+    np.testing.assert_allclose(law.a_wk, ref[49], atol=1e-12)
+
+
+def test_clipped_optimal_wk_feeds_back_the_analog_filter_state():
+    # the law's force is -K [x, w] with w the analog Wk state: for a slow sine the bilinear
+    # filter's trapezoidal state estimate equals the exact analog response (lsim) closely
+    import control
+    d = ctl.wk_lqr_design()
+    dt = 1e-3
+    t = np.arange(4000) * dt
+    a = np.sin(2.0 * np.pi * 1.5 * t)
+    resp = control.forced_response(d.filter, t, a, return_x=True)
+    w_exact = resp.states.T
+    law = ctl.ClippedOptimalWk(d, dt=dt)
+    k = d.gain
+    f_law, f_exact = [], []
+    for j, s in enumerate(_body_accel_states(a, dt)):
+        x = np.array([s.travel, s.v_s, s.z_u - s.z_r, s.v_u])
+        f_law.append(law.desired(s))
+        f_exact.append(-(k[:4] @ x + k[4:] @ w_exact[j]))
+    err = np.array(f_law) - np.array(f_exact)
+    assert np.max(np.abs(err[2000:])) < 1e-3 * np.max(np.abs(f_exact))
+
+
+def test_clipped_optimal_wk_on_the_car_is_dissipative_and_within_the_damper_range():
+    from mr_damper_model.plant import KwokCurrentPlant
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.road import iso8608
+    from quarter_car_sim.simulate import simulate
+    model, truth = presets.thesis_kwok_current()
+    inv = KwokCurrentInverse(truth, i_ref_a=model.options['i_ref_a'], tol_a=1e-4,
+                             sign_convention='body')
+    plant = KwokCurrentPlant(truth, i_ref_a=model.options['i_ref_a'], coil_tau_s=0.0)
+    params = QuarterCarParams()
+    law = ctl.make_controller('clipped-optimal-wk', params=params, inverse=inv,
+                              damper_only=True)
+    road = iso8608('C', 20.0, 4.0, 1e-3, rng=3)
+    r = simulate(params, road, law, plant, inverse=inv)
+    assert np.all(r.demand * r.v_rel <= 0.0)
+    rng = np.array([inv.body_force_range(x, v) for x, v in zip(r.travel, r.v_rel)])
+    act = r.v_rel != 0.0
+    assert np.all(r.demand[act] >= np.minimum(rng[act, 0], 0.0) - 1e-9)
+    assert np.all(r.demand[act] <= np.maximum(rng[act, 1], 0.0) + 1e-9)
+    assert np.mean(r.demand != 0.0) > 0.5 and np.mean(r.saturated) < 0.9
+    # the same run again (simulate resets the law): the same demands
+    np.testing.assert_array_equal(simulate(params, road, law, plant, inverse=inv).demand,
+                                  r.demand)
+
+
+def test_clipped_optimal_wk_rejects_bad_input():
+    with pytest.raises(ValueError, match='unknown LQR weight'):
+        ctl.wk_lqr_design(q_magic=1.0)
+    with pytest.raises(ValueError, match='r_force'):
+        ctl.wk_lqr_design(r_force=0.0)
+    with pytest.raises(ValueError, match='q_tyre'):
+        ctl.wk_lqr_design(q_tyre=-1.0)
+    with pytest.raises(ValueError, match='weighting'):
+        ctl.wk_lqr_design(weighting='iso')
+    with pytest.raises(ValueError, match='dt'):
+        ctl.ClippedOptimalWk(ctl.wk_lqr_design(), dt=0.0)
+    d = ctl.wk_lqr_design()
+    d.gain = d.gain[:6]
+    with pytest.raises(ValueError, match='gain'):
+        ctl.ClippedOptimalWk(d)

@@ -25,7 +25,7 @@ import sys
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
 COMPARE_NAMES = ('skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add', 'sh-add',
-                 'clipped-optimal', 'skyhook-ideal', 'lqr-active')
+                 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal', 'lqr-active')
 TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'acc', '{:7.3f}'),
               ('rms_suspension_travel', 'travel mm', '{:9.1f}'),
               ('rms_tyre_load_ratio', 'tyre', '{:6.3f}'),
@@ -60,7 +60,8 @@ def build_parser():
         description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
     p.add_argument('--controller', default='skyhook',
                    help='passive@<I>A, skyhook, skyhook-onoff, groundhook, hybrid, add, sh-add, '
-                        'clipped-optimal, skyhook-ideal, lqr-active (default skyhook)')
+                        'clipped-optimal, clipped-optimal-wk, skyhook-ideal, lqr-active '
+                        '(default skyhook)')
     p.add_argument('--compare', action='store_true',
                    help='run every controller and the offline semi-active bound on the same road')
     p.add_argument('--road', default='iso8608-C',
@@ -112,10 +113,11 @@ def run(args):
     ident['parameters'] = inverse.params
     if args.compare:
         controllers = [Passive(i) for i in COMPARE_CURRENTS_A]
-        controllers += [make_controller(n, params=params, inverse=inverse)
+        controllers += [make_controller(n, params=params, inverse=inverse, dt=args.dt)
                         for n in COMPARE_NAMES]
     else:
-        controllers = [make_controller(args.controller, params=params, inverse=inverse)]
+        controllers = [make_controller(args.controller, params=params, inverse=inverse,
+                                       dt=args.dt)]
     results = compare(params, road, controllers, plant, dt=args.dt, damper_params=inverse)
     if args.compare:
         results[bound_name()] = semi_active_bound(params, road, KwokForceModel(inverse), plant,

@@ -5,7 +5,7 @@ A controller has ``name``, ``kind`` and ``demand(state) -> float``:
 
 - ``kind == 'current'`` (:class:`Passive`): ``demand`` returns a coil current [A];
 - ``kind == 'semi-active'`` (skyhook, on-off skyhook, groundhook, hybrid, ADD, SH-ADD,
-  clipped-optimal): ``demand``
+  clipped-optimal, frequency-shaped clipped-optimal): ``demand``
   returns the desired damper force **on the body** [N], positive up, always dissipative
   (``demand * v_rel <= 0``); it goes through an inverse damper model
   (:class:`mr_damper_model.inverse.KwokCurrentInverse` with ``sign_convention='body'``) to a
@@ -32,11 +32,15 @@ velocity ``v_rel = v_s - v_u``:
   the ADD choice (``c_max`` when ``a_s v_rel > 0``); ``F = -c v_rel`` with ``c`` the choice;
 - clipped-optimal (Dyke et al. 1996): the fully active LQR force ``-K x`` clipped to what the
   damper can give: dissipative, and within ``[F(i_min), F(i_max)]`` of the identified model at
-  the present travel and velocity.
+  the present travel and velocity;
+- frequency-shaped clipped-optimal (``clipped-optimal-wk``): the same with an LQR whose cost
+  weights the ISO 2631-1 Wk-weighted body acceleration (the comfort metric); the law runs the
+  Wk filter on the measured body acceleration and feeds its states back.
 
 See docs/control-laws.md for the laws, their gains and the offline semi-active bound
 (:mod:`quarter_car_sim.bound`).
 """
+import dataclasses
 import math
 
 import numpy as np
@@ -399,20 +403,255 @@ class ClippedOptimal(LqrActive):
 
     def demand(self, state):
         """Desired damper force on the body [N], clipped to the damper (dissipative)."""
-        f = self.desired(state)
-        vr = state.v_rel
-        if self.force_range is not None:
-            lo, hi = self.force_range(state.travel, vr)
-            f = min(max(f, lo), hi)
-        if vr > 0.0:
-            return min(f, 0.0)
-        if vr < 0.0:
-            return max(f, 0.0)
-        return 0.0
+        return clip_to_damper(self.desired(state), state, self.force_range)
+
+
+def clip_to_damper(force, state, force_range=None):
+    """
+    Clip a desired body force [N] to what a semi-active damper can give in this state.
+
+    First to ``force_range(travel, v_rel) -> (lo, hi)`` when given, then to the dissipative
+    half-line (``F v_rel <= 0``, 0 at ``v_rel = 0``).
+    """
+    f = force
+    vr = state.v_rel
+    if force_range is not None:
+        lo, hi = force_range(state.travel, vr)
+        f = min(max(f, lo), hi)
+    if vr > 0.0:
+        return min(f, 0.0)
+    if vr < 0.0:
+        return max(f, 0.0)
+    return 0.0
+
+
+DEFAULT_COWK_WEIGHTS = {'q_wk': 1.0, 'q_accel': 0.1, 'q_travel': 300.0, 'q_tyre': 1.0e3,
+                        'r_force': 3.0e-6}
+"""Default weights of the frequency-shaped clipped-optimal law (see :func:`wk_lqr_design`).
+
+SI units: ``q_wk`` on the ISO 2631-1 Wk-weighted body acceleration [m/s^2], ``q_accel`` on the
+plain one, ``q_travel`` and ``q_tyre`` on travel and tyre deflection [m], ``r_force`` on the
+force [N]. Tuned by simulation on training roads (ISO 8608 C, 20 m/s, seeds 11-13, Spencer
+plant), not on the bench roads; bench/bench_laws.py (seeds 1-3, 60 s): Wk RMS 0.931 m/s^2,
+-6.0 % against 0 A passive (clipped-optimal -4.6 %), tyre load -3.6 %, 2.0 % above the offline
+bound; see docs/control-laws.md."""
+
+
+def wk_state_space():
+    """
+    ISO 2631-1 Wk weighting as an 8-state ``control.StateSpace`` (analog, SI).
+
+    The series connection of the four sections of
+    :func:`quarter_car_sim.ride_metrics.wk_sections` (each a 2-state block, so the realisation
+    stays well scaled); its transfer function is :func:`~quarter_car_sim.ride_metrics.wk_analog`.
+    Input body acceleration [m/s^2], output Wk-weighted acceleration [m/s^2].
+    """
+    import control
+    from quarter_car_sim.ride_metrics import wk_sections
+    sys = None
+    for num, den in wk_sections():
+        sec = control.ss(control.tf(num, den))
+        sys = sec if sys is None else control.series(sys, sec)
+    return sys
+
+
+@dataclasses.dataclass
+class WkLqrDesign:
+    """
+    Result of :func:`wk_lqr_design`: LQR on the quarter car augmented with the Wk filter.
+
+    Attributes
+    ----------
+    gain : ndarray with shape (4 + n_w,)
+        ``F = -gain @ [travel, v_s, z_u - z_r, v_u, w]`` [N per state unit], ``w`` the states
+        of ``filter`` (body acceleration in).
+    filter : control.StateSpace
+        Frequency weighting on the body acceleration (``n_w`` states; Wk or none).
+    Q, R, N : ndarray
+        Weights of ``integral X'QX + F'RF + 2X'NF`` for the augmented state ``X``.
+    poles : ndarray
+        Closed-loop poles [rad/s] (fully active).
+    weights : dict
+        Output weights used.
+
+    """
+
+    gain: np.ndarray
+    filter: object
+    Q: np.ndarray
+    R: np.ndarray
+    N: np.ndarray
+    poles: np.ndarray
+    weights: dict
+
+
+def wk_lqr_design(params=None, *, weighting='wk', **weights):
+    """
+    Frequency-shaped LQR: active force on the linear quarter car, cost on Wk-weighted a_s.
+
+    The car of :func:`quarter_car_sim.linear_analysis.linear_model` (no damper, state
+    ``x = [travel, v_s, z_u - z_r, v_u]``, force ``F`` on the body) is augmented with the
+    states ``w`` of the weighting filter driven by the body acceleration
+    ``a_s = C_a x + D_a F``; :func:`control.lqr` minimises ::
+
+        integral( q_wk a_wk^2 + q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2
+                  + r_force F^2 ) dt
+
+    with ``a_wk = C_w w + D_w a_s`` (cross terms from the feedthroughs of ``F``).
+
+    Parameters
+    ----------
+    params : QuarterCarParams, optional
+        Car parameters (default car).
+    weighting : {'wk', 'none'} or control.StateSpace
+        Filter on a_s: ISO 2631-1 Wk (:func:`wk_state_space`), none (a static unit gain: the
+        design is then :func:`clipped_optimal_gain` with ``q_accel + q_wk``), or any SISO
+        stable state space.
+    **weights
+        Overrides of :data:`DEFAULT_COWK_WEIGHTS`.
+
+    Returns
+    -------
+    WkLqrDesign
+
+    """
+    import control
+    from quarter_car_sim.linear_analysis import linear_model
+    from quarter_car_sim.params import QuarterCarParams
+    unknown = sorted(set(weights) - set(DEFAULT_COWK_WEIGHTS))
+    if unknown:
+        raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
+    w = {**DEFAULT_COWK_WEIGHTS, **weights}
+    for k, v in w.items():
+        if not (math.isfinite(v) and v >= 0.0):
+            raise ValueError(f'`{k}` must be finite and >= 0, got {v}')
+    if not w['r_force'] > 0.0:
+        raise ValueError('`r_force` must be > 0')
+    if isinstance(weighting, str):
+        if weighting == 'wk':
+            filt = wk_state_space()
+        elif weighting == 'none':
+            filt = control.ss([], [], [], [[1.0]])
+        else:
+            raise ValueError("`weighting` must be 'wk', 'none' or a StateSpace, "
+                             f'got {weighting!r}')
+    else:
+        filt = weighting
+    car = linear_model(params or QuarterCarParams(), 0.0)
+    A, B = car.A, car.B[:, 1]
+    ca, da = car.C[0], car.D[0, 1]
+    aw, bw = np.asarray(filt.A, float), np.asarray(filt.B, float).ravel()
+    cw, dw = np.asarray(filt.C, float).ravel(), float(np.asarray(filt.D, float).ravel()[0])
+    nw = aw.shape[0]
+    n = 4 + nw
+    Aa = np.zeros((n, n))
+    Aa[:4, :4] = A
+    Aa[4:, :4] = np.outer(bw, ca)
+    Aa[4:, 4:] = aw
+    Ba = np.concatenate([B, bw * da])
+    # cost outputs z = Cz X + Dz F: a_wk, a_s, travel, tyre deflection, force
+    Cz = np.zeros((5, n))
+    Cz[0, :4], Cz[0, 4:] = dw * ca, cw
+    Cz[1, :4] = ca
+    Cz[2, 0] = 1.0
+    Cz[3, 2] = -1.0
+    Dz = np.array([dw * da, da, 0.0, 0.0, 1.0])
+    W = np.diag([w['q_wk'], w['q_accel'], w['q_travel'], w['q_tyre'], w['r_force']])
+    Q = Cz.T @ W @ Cz
+    R = np.array([[Dz @ W @ Dz]])
+    N = (Cz.T @ W @ Dz).reshape(n, 1)
+    K, _, E = control.lqr(Aa, Ba.reshape(n, 1), Q, R, N)
+    return WkLqrDesign(gain=np.asarray(K).ravel(), filter=filt, Q=Q, R=R, N=N,
+                       poles=np.asarray(E), weights=w)
+
+
+class ClippedOptimalWk(Controller):
+    """
+    Frequency-shaped clipped-optimal law: the Wk-weighted LQR force clipped to the damper.
+
+    The desired force is ``-K [travel, v_s, z_u - z_r, v_u, w]`` of :func:`wk_lqr_design`,
+    where ``w`` are the states of the Wk filter run inside the law on the measured body
+    acceleration ``a_s``; the demand is clipped as :class:`ClippedOptimal` does (damper range,
+    then dissipative). The filter is the design's analog filter made digital with the bilinear
+    transform at the control period ``dt``: its output is the metric's digital Wk filter
+    (:func:`quarter_car_sim.ride_metrics.wk_sos`) on the same samples. The analog filter state
+    at sample k is ``(I - A_w dt/2)^-1 (s_k + B_w a_s,k dt/2)`` with ``s_k`` the digital state
+    (the bilinear realisation), so the state fed back is the one the design assumed.
+
+    Stateful: :meth:`reset` clears the filter; a state whose time ``t`` does not advance does
+    not step the filter again.
+
+    Parameters
+    ----------
+    design : WkLqrDesign
+        Design (:func:`wk_lqr_design`).
+    force_range : callable, optional
+        ``force_range(travel, v_rel) -> (lo, hi)`` [N] (see :class:`ClippedOptimal`).
+    dt : float
+        Control period [s] (the law is called once per period).
+    name : str
+        Controller name.
+
+    """
+
+    def __init__(self, design, force_range=None, *, dt=1e-3, name='clipped-optimal-wk'):
+        from scipy.signal import cont2discrete
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f'`dt` must be > 0, got {dt}')
+        k = np.asarray(design.gain, dtype=float).ravel()
+        f = design.filter
+        aw, bw = np.asarray(f.A, float), np.asarray(f.B, float).reshape(-1, 1)
+        cw, dw = np.asarray(f.C, float).reshape(1, -1), np.asarray(f.D, float).reshape(1, 1)
+        nw = aw.shape[0]
+        if k.size != 4 + nw or not np.all(np.isfinite(k)):
+            raise ValueError(f'`design.gain` must be {4 + nw} finite numbers')
+        self.design, self.force_range, self.dt, self.name = design, force_range, dt, name
+        self.k_car = [float(v) for v in k[:4]]
+        if nw:
+            ad, bd, cd, dd, _ = cont2discrete((aw, bw, cw, dw), dt, method='bilinear')
+            m = np.linalg.inv(np.eye(nw) - aw * dt / 2.0)
+            kw = k[4:] @ m
+            self._ad, self._bd = ad, bd.ravel()
+            self._cd, self._dd = cd.ravel(), float(dd[0, 0])
+            self._g_s = kw                                   # on the digital state
+            self._g_a = float(kw @ bw.ravel()) * dt / 2.0    # on the present a_s
+        else:
+            self._ad = np.zeros((0, 0))
+            self._bd = self._cd = self._g_s = np.zeros(0)
+            self._dd, self._g_a = float(dw[0, 0]), 0.0
+        self.reset()
+
+    def reset(self):
+        """Clear the filter state."""
+        self._s = np.zeros(self._ad.shape[0])
+        self._t = -math.inf
+        self._a_prev = 0.0
+        self._fw = 0.0
+        self.a_wk = 0.0
+
+    def desired(self, state):
+        """Unclipped frequency-shaped LQR force on the body [N] (steps the filter)."""
+        a = state.a_s
+        if state.t != self._t:
+            if self._t != -math.inf:
+                self._s = self._ad @ self._s + self._bd * self._a_prev
+            self._t = state.t
+            self._a_prev = a
+            s = self._s
+            self.a_wk = float(self._cd @ s) + self._dd * a
+            self._fw = float(self._g_s @ s) + self._g_a * a
+        k = self.k_car
+        return -(k[0] * state.travel + k[1] * state.v_s + k[2] * (state.z_u - state.z_r)
+                 + k[3] * state.v_u + self._fw)
+
+    def demand(self, state):
+        """Desired damper force on the body [N], clipped to the damper (dissipative)."""
+        return clip_to_damper(self.desired(state), state, self.force_range)
 
 
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,
-                    params=None, inverse=None, damper_only=False):
+                    params=None, inverse=None, damper_only=False, dt=1e-3):
     """
     Build a controller from its name: the one controller factory (command line and nodes).
 
@@ -420,8 +659,8 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     ----------
     name : str
         ``passive@<I>A`` (or ``passive`` = 0 A), ``skyhook``, ``skyhook-onoff``, ``groundhook``,
-        ``hybrid``, ``add``, ``sh-add``, ``clipped-optimal``, ``skyhook-ideal``,
-        ``lqr-active``.
+        ``hybrid``, ``add``, ``sh-add``, ``clipped-optimal``, ``clipped-optimal-wk``,
+        ``skyhook-ideal``, ``lqr-active``.
     c_sky, c_p : float
         Skyhook gain and passive part [N s/m] (skyhook, hybrid, skyhook-ideal).
     lqr_gain : array_like, optional
@@ -433,11 +672,14 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     params : QuarterCarParams, optional
         Car parameters for the LQR design.
     inverse : mr_damper_model.inverse.KwokCurrentInverse, optional
-        Inverse model whose force range clips the clipped-optimal demand (else the inverse of
-        the loop saturates it, see :class:`ClippedOptimal`).
+        Inverse model whose force range clips the clipped-optimal demands (else the inverse of
+        the loop saturates them, see :class:`ClippedOptimal`).
     damper_only : bool
         Only controllers that drive an MR damper by its coil current (kinds ``'current'`` and
         ``'semi-active'``), as the car and controller nodes need.
+    dt : float
+        Control period [s]: the sample time of the Wk filter inside ``clipped-optimal-wk``
+        (called once per period).
 
     Returns
     -------
@@ -450,15 +692,15 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
         ``lqr-active``): it applies forces directly and cannot drive an MR damper.
 
     """
-    ctrl = _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse)
+    ctrl = _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt)
     if damper_only and ctrl.kind not in ('current', 'semi-active'):
         raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
                          'MR damper (use skyhook, groundhook, hybrid, add, sh-add, '
-                         'clipped-optimal or passive@<I>A)')
+                         'clipped-optimal, clipped-optimal-wk or passive@<I>A)')
     return ctrl
 
 
-def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse):
+def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt):
     n = str(name).strip().lower()
     if n == 'passive':
         return Passive(0.0)
@@ -483,6 +725,9 @@ def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse):
     if n == 'clipped-optimal':
         gain = clipped_optimal_gain(params) if lqr_gain is None else lqr_gain
         return ClippedOptimal(gain, None if inverse is None else inverse.body_force_range)
+    if n == 'clipped-optimal-wk':
+        return ClippedOptimalWk(wk_lqr_design(params),
+                                None if inverse is None else inverse.body_force_range, dt=dt)
     if n == 'skyhook-ideal':
         return SkyhookIdeal(c_sky, c_p)
     if n == 'lqr-active':
@@ -495,4 +740,5 @@ def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse):
 
 
 CONTROLLER_NAMES = ('passive@<I>A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add',
-                    'sh-add', 'clipped-optimal', 'skyhook-ideal', 'lqr-active')
+                    'sh-add', 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal',
+                    'lqr-active')

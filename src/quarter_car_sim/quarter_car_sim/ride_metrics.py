@@ -41,6 +41,31 @@ METRIC_KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
                'n_samples')
 
 
+def wk_sections():
+    """
+    Analog Wk weighting as its four second-order sections (rad/s).
+
+    Band limiting high pass (f1) and low pass (f2), acceleration-velocity transition and upward
+    step, each with a gain near 1 in its band (the product is :func:`wk_analog`).
+
+    Returns
+    -------
+    list of (num, den)
+        Polynomial coefficients in ``s`` [rad/s], highest power first, of each section.
+
+    """
+    c = WK_CONSTANTS
+    w = {n: 2.0 * math.pi * c[n] for n in ('f1', 'f2', 'f3', 'f4', 'f5', 'f6')}
+    return [
+        (np.array([1.0, 0.0, 0.0]), np.array([1.0, w['f1'] / c['q1'], w['f1'] ** 2])),
+        (np.array([w['f2'] ** 2]), np.array([1.0, w['f2'] / c['q1'], w['f2'] ** 2])),
+        (np.array([1.0, w['f3']]) * w['f4'] ** 2 / w['f3'],
+         np.array([1.0, w['f4'] / c['q4'], w['f4'] ** 2])),
+        (np.array([1.0, w['f5'] / c['q5'], w['f5'] ** 2]),
+         np.array([1.0, w['f6'] / c['q6'], w['f6'] ** 2])),
+    ]
+
+
 def wk_analog():
     """
     Analog Wk weighting as zeros, poles and gain (rad/s).
@@ -53,16 +78,9 @@ def wk_analog():
         Gain.
 
     """
-    c = WK_CONSTANTS
-    w = {n: 2.0 * math.pi * c[n] for n in ('f1', 'f2', 'f3', 'f4', 'f5', 'f6')}
-    num = np.array([1.0, 0.0, 0.0])                                    # high pass s^2
-    den = np.array([1.0, w['f1'] / c['q1'], w['f1'] ** 2])
-    num = np.polymul(num, [w['f2'] ** 2])                               # low pass
-    den = np.polymul(den, [1.0, w['f2'] / c['q1'], w['f2'] ** 2])
-    num = np.polymul(num, np.array([1.0, w['f3']]) * w['f4'] ** 2 / w['f3'])   # transition
-    den = np.polymul(den, [1.0, w['f4'] / c['q4'], w['f4'] ** 2])
-    num = np.polymul(num, [1.0, w['f5'] / c['q5'], w['f5'] ** 2])       # upward step
-    den = np.polymul(den, [1.0, w['f6'] / c['q6'], w['f6'] ** 2])
+    num, den = np.array([1.0]), np.array([1.0])
+    for b, a in wk_sections():
+        num, den = np.polymul(num, b), np.polymul(den, a)
     return signal.tf2zpk(num, den)
 
 
