@@ -38,8 +38,8 @@ def _states(n=2000, seed=4):
     return out
 
 
-def _vehicle(state):
-    return VehicleState(t=state.t, **{n: getattr(state, n) for n in LAW_FIELDS})
+def _vehicle(state, **extra):
+    return VehicleState(t=state.t, **{n: getattr(state, n) for n in LAW_FIELDS}, **extra)
 
 
 def test_no_model_then_model_then_stale_then_refused():
@@ -94,6 +94,35 @@ def test_vehicle_state_and_car_state_give_the_same_command():
     b.offer_parameters(msg, 0.0)
     for s in _states(300):
         assert a.command(s, 0.0) == b.command(_vehicle(s), 0.0)
+
+
+@pytest.mark.parametrize('name', ['clipped-optimal', 'clipped-optimal-wk'])
+def test_lqr_laws_read_the_tyre_deflection_and_refuse_a_state_without_it(name):
+    from quarter_car_sim.controllers import make_controller
+    _, msg = _truth()
+    laws = [make_controller(name, damper_only=True) for _ in range(2)]
+    assert laws[0].state_fields == ('z_u', 'z_r')
+    a = ControllerCore(laws[0], ModelSupervisor(safe_current_a=SAFE))
+    b = ControllerCore(laws[1], ModelSupervisor(safe_current_a=SAFE))
+    a.offer_parameters(msg, 0.0)
+    b.offer_parameters(msg, 0.0)
+    states = _states(300)
+    currents = []
+    for s in states:          # a vehicle state with z_u, z_r: the car state's command
+        want = a.command(s, 0.0)
+        assert b.command(_vehicle(s, z_u=s.z_u, z_r=s.z_r), 0.0) == want
+        currents.append(want)
+    assert len(set(currents)) > 10                   # the law works, not the safe current
+    # without the tyre deflection (a vehicle that does not measure it): refused, safe current
+    blind = _vehicle(states[-1])
+    assert math.isnan(blind.z_r)
+    assert b.command(dataclasses.replace(blind, t=blind.t + 1e-3), 0.0) == SAFE
+    assert b.state_rejected['non_finite'] == 1
+    # a law without them (skyhook) does not need them
+    sky = ControllerCore(Skyhook(), ModelSupervisor(safe_current_a=SAFE))
+    sky.offer_parameters(msg, 0.0)
+    sky.command(blind, 0.0)
+    assert sky.state_rejected['non_finite'] == 0
 
 
 def test_closed_loop_uses_the_core_step_for_step():

@@ -45,7 +45,7 @@ def test_state_message_round_trip_keeps_the_law_fields():
     msg = car_state_to_msg(s, 1.25, False, 'stale')
     v = vehicle_state_from_msg(msg)
     assert v.t == pytest.approx(2.5, abs=1e-9)
-    for name in LAW_FIELDS:
+    for name in LAW_FIELDS + ('z_u', 'z_r'):     # and the LQR laws' tyre deflection
         assert getattr(v, name) == getattr(s, name)
     assert msg.current_command_a == 1.25 and msg.fail_safe_reason == 'stale'
     assert msg.fail_safe_mode == msg.MODE_FAIL_SAFE

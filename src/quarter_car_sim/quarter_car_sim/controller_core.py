@@ -12,7 +12,8 @@ One step of :meth:`ControllerCore.command`:
 
 1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the
    caller's clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
-2. a state whose fields the laws use (:data:`LAW_FIELDS`) are not all finite is refused
+2. a state whose fields the laws use (:data:`LAW_FIELDS` and the law's own ``state_fields``,
+   e.g. the tyre deflection of the LQR laws) are not all finite is refused
    (counted ``state_rejected.non_finite``) and answered with the safe current; a state older
    than the previous one (``t`` decreasing) is counted ``state_rejected.out_of_order`` and
    answered with the safe current too;
@@ -59,6 +60,10 @@ class VehicleState:
         Suspension travel ``z_s - z_u`` [m], extension positive (inverse model).
     v_rel : float
         Suspension velocity ``v_s - v_u`` [m/s] (every law and the inverse model).
+    z_u, z_r : float
+        Wheel displacement and road height under the tyre [m]: only their difference, the tyre
+        deflection, is used, by the LQR laws (``clipped-optimal``, ``clipped-optimal-wk``;
+        their ``state_fields``). NaN when not measured: such a law then refuses the state.
 
     """
 
@@ -68,6 +73,8 @@ class VehicleState:
     v_u: float
     travel: float
     v_rel: float
+    z_u: float = math.nan
+    z_r: float = math.nan
 
 
 class ControllerCore:
@@ -108,6 +115,7 @@ class ControllerCore:
         self.sup = supervisor
         self.inverse_tol_a = float(inverse_tol_a)
         self.passive = getattr(controller, 'kind', '') == 'current'
+        self.extra_fields = tuple(getattr(controller, 'state_fields', ()))
         self.i_cmd = supervisor.safe_current_a
         self.f_demand = math.nan
         self.saturated = 0
@@ -134,7 +142,7 @@ class ControllerCore:
         return self._inverse
 
     def _state_refusal(self, state):
-        for name in LAW_FIELDS:
+        for name in LAW_FIELDS + self.extra_fields:
             if not math.isfinite(getattr(state, name)):
                 return 'non_finite'
         t = state.t
@@ -213,6 +221,7 @@ class ControllerCore:
                              f'{kind}: it cannot drive an MR damper')
         self.controller = controller
         self.passive = kind == 'current'
+        self.extra_fields = tuple(getattr(controller, 'state_fields', ()))
 
     def offer_parameters(self, values, t_clock):
         """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""

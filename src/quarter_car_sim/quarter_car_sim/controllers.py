@@ -312,6 +312,9 @@ class LqrActive(Controller):
     """
 
     kind = 'active'
+    #: State fields beyond the common ones (tyre deflection ``z_u - z_r``): a controller core
+    #: refuses a state where they are not finite (:mod:`quarter_car_sim.controller_core`).
+    state_fields = ('z_u', 'z_r')
 
     def __init__(self, gain, name='lqr-active'):
         k = np.asarray(gain, dtype=float).ravel()
@@ -593,6 +596,8 @@ class ClippedOptimalWk(Controller):
         Controller name.
 
     """
+
+    state_fields = LqrActive.state_fields
 
     def __init__(self, design, force_range=None, *, dt=1e-3, name='clipped-optimal-wk'):
         from scipy.signal import cont2discrete

@@ -87,7 +87,8 @@ def vehicle_state_from_msg(msg):
     return VehicleState(t=messages.stamp_to_seconds(msg.header.stamp),
                         v_s=msg.body_velocity_m_s, a_s=msg.body_acceleration_m_s2,
                         v_u=msg.wheel_velocity_m_s, travel=msg.suspension_travel_m,
-                        v_rel=msg.suspension_velocity_m_s)
+                        v_rel=msg.suspension_velocity_m_s, z_u=msg.wheel_displacement_m,
+                        z_r=msg.road_height_m)
 
 
 def car_state_to_msg(state, current_command_a, normal, reason, msg=None):
