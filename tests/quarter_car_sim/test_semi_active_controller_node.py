@@ -80,6 +80,38 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     assert h.values['commands'] == 3 and node.diagnostics.name == 'cnunit/semi_active_controller'
 
 
+@pytest.mark.parametrize('law', ['clipped-optimal', 'clipped-optimal-wk'])
+def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
+    """The LQR laws read the tyre deflection (wheel displacement - road height) of the state."""
+    from quarter_car_sim.controller_core import ControllerCore
+    from quarter_car_sim.controllers import make_controller
+    from quarter_car_sim.failsafe import ModelSupervisor
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
+                                                             SemiActiveControllerNode,
+                                                             vehicle_state_from_msg)
+    from mr_damper_model.messages import kwok_parameters_flat
+    node = _make(ctx, SemiActiveControllerNode, controller=law, safe_current_a=0.25)
+    sent = []
+    node.cmd_pub.publish = lambda m: sent.append(m.data)
+    ref = ControllerCore(make_controller(law, damper_only=True),
+                         ModelSupervisor(safe_current_a=0.25))
+    params = thesis_parameters_msg()
+    node.on_params(params)
+    ref.offer_parameters(kwok_parameters_flat(params), 0.0)
+    for k in range(5):
+        msg = car_state_to_msg(_car_state(1.0 + 1e-3 * k, v_s=-0.3, v_rel=0.2), 0.0, True, 'ok')
+        node.on_state(msg)
+        assert sent[-1] == ref.command(vehicle_state_from_msg(msg), 0.0)
+    st = node.status()
+    assert st['commands_normal'] == 5 and st['state_rejected']['non_finite'] == 0
+    assert sent[-1] != 0.25
+    # a vehicle that leaves the road height NaN: the LQR law cannot run, the safe current
+    blind = car_state_to_msg(_car_state(1.01), 0.0, True, 'ok')
+    blind.road_height_m = math.nan
+    node.on_state(blind)
+    assert sent[-1] == 0.25 and node.status()['state_rejected']['non_finite'] == 1
+
+
 def test_controller_node_refuses_an_active_controller(ctx):
     from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     with pytest.raises(ValueError, match='force actuator'):

@@ -747,3 +747,5 @@ def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt):
 CONTROLLER_NAMES = ('passive@<I>A', 'skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add',
                     'sh-add', 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal',
                     'lqr-active')
+#: The laws that drive an MR damper by its coil current (``damper_only=True``; the nodes).
+DAMPER_LAW_NAMES = tuple(n for n in CONTROLLER_NAMES if n not in ('skyhook-ideal', 'lqr-active'))

@@ -91,7 +91,7 @@ from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher
 from mr_damper_model.plant import make_plant
 from quarter_car_sim import controller_core, hil, live_loop
 from quarter_car_sim.control_thread import ControlThread
-from quarter_car_sim.controllers import make_controller
+from quarter_car_sim.controllers import DAMPER_LAW_NAMES, make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import CarHealth
@@ -108,9 +108,8 @@ PARAMETERS = (
     Param('rate_hz', 1000.0, 'Control rate [Hz]', 10.0, 10000.0),
     Param('real_time_factor', 1.0, 'Simulated seconds per wall second (0 = as fast as '
           'possible) [-]', 0.0, 1000.0),
-    Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
-          'hybrid, add, passive@<I>A; external = commands on mr_damper/current_command, e.g. '
-          'semi_active_controller_node)'),
+    Param('controller', 'skyhook', f'Controller name ({", ".join(DAMPER_LAW_NAMES)}; '
+          'external = commands on mr_damper/current_command, e.g. semi_active_controller_node)'),
 ) + SUPERVISED_LAW_PARAMETERS + (
     Param('road', 'iso8608', 'Road: iso8608, bump, sine, step or file'),
     Param('road_class', 'C', 'ISO 8608 class A..H'),
@@ -269,6 +268,8 @@ class QuarterCarNode(Node):
             f'{p["param_timeout_s"]:g} s')
 
     def _make_law(self, options):
+        # a law with a filter inside (clipped-optimal-wk) runs at the control period
+        options = {'dt': 1.0 / self.p['rate_hz'], **options}
         return make_controller(self.p['controller'], params=self.car_params, damper_only=True,
                                **options)
 

@@ -42,7 +42,7 @@ from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher
                                         spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
-from quarter_car_sim.controllers import make_controller
+from quarter_car_sim.controllers import DAMPER_LAW_NAMES, make_controller
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
 from quarter_car_sim.params import QuarterCarParams
@@ -65,8 +65,7 @@ SUPERVISED_LAW_PARAMETERS = (
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
-    Param('controller', 'skyhook', 'Controller name (skyhook, skyhook-onoff, groundhook, '
-          'hybrid, add, passive@<I>A)'),
+    Param('controller', 'skyhook', f'Controller name ({", ".join(DAMPER_LAW_NAMES)})'),
 ) + SUPERVISED_LAW_PARAMETERS + (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
