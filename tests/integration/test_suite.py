@@ -208,7 +208,11 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
         assert suite.alive(QC) and st['mode'] == 'failsafe'
         assert st['current_a'] == SAFE_A
         suite.start(IDENT)                      # restarts from its saved parameter file
-        assert listener.wait_for(mode('normal'), 30), \
+        # hang guard only: until the middleware drops the killed reader (its participant's
+        # lease, about 20 s) the rig's reliable writer keeps filling on it and is replaced every
+        # few seconds, so the new identifier's windows have gaps; it needs fresh sets over the
+        # whole current range after that (seen in CI: still narrow-range 30 s after the kill)
+        assert listener.wait_for(mode('normal'), 120), \
             (car(), suite.log_tail(IDENT))
         assert suite.poll() == {}
     finally:
