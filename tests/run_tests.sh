@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # The test command of README.md: set up .venv if needed, then run the whole pytest suite.
+# Usage: bash tests/run_tests.sh [PATH...] [pytest options]: with test paths (relative to the
+# repository root; FILE::TEST works too) only those run, else all of tests/.
 # ROS 2 nodes in the tests talk over loopback only: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a
 # private ROS_DOMAIN_ID are set in tests/conftest.py; where the machine allows it (root with
 # unshare), the whole run also happens in a private network namespace with only `lo` up.
@@ -10,7 +12,14 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 200) + 20 ))}"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$(mktemp -d)}"
 cd "$root"
-cmd=("$root/.venv/bin/python" -m pytest "$root/tests" "$@")
+targets=("$root/tests")
+for arg in "$@"; do
+  case "$arg" in
+    -*) ;;
+    *) if [ -e "${arg%%::*}" ]; then targets=(); break; fi ;;
+  esac
+done
+cmd=("$root/.venv/bin/python" -m pytest "${targets[@]}" "$@")
 if [ "$(id -u)" = 0 ] && command -v unshare >/dev/null && command -v ip >/dev/null \
    && unshare -n true 2>/dev/null; then
   exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
