@@ -589,9 +589,9 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         analytic Jacobian; trust-region reflective for models without one) on all parameters
         and all samples. Default: on for ``separable`` with
         an algebraic model (the swarm then works on at most :data:`SWARM_SAMPLES` samples, every
-        k-th) or a model with an ``identification`` policy (Spencer: its swarm stretch,
-        sub-steps, budget and polish iterations) or ``polish_by_default`` (kwok-current-lag),
-        off for ``full`` (the thesis method) and the other stateful models.
+        k-th) and the stateful models whose ``polish_by_default`` says so (kwok-current-lag,
+        kwok-current-amp; Spencer, with the swarm and polish of its ``identification``
+        policy), off for ``full`` (the thesis method) and the other stateful models.
 
     Returns
     -------
@@ -623,9 +623,7 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
     policy = getattr(mdl, 'identification', None) if method == 'separable' else None
     if polish is None:
         polish = method == 'separable' and (
-            policy is not None
-            or (not mdl.stateful if mdl.polish_by_default is None
-                else bool(mdl.polish_by_default)))
+            not mdl.stateful if mdl.polish_by_default is None else bool(mdl.polish_by_default))
     if method == 'separable' and not polish:
         budget.update(maxiter=60, patience=20)      # no local polish: the swarm must converge
         policy = None

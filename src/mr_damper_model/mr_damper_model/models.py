@@ -237,7 +237,8 @@ class HysteresisModel:
         Whether ``identify``'s separable method polishes by default (the swarm on every k-th
         sample, then bounded least squares on all samples). None: for the algebraic models
         only; True for a stateful model whose state washes out on every k-th sample
-        (``kwok-current-lag``).
+        (``kwok-current-lag``) or whose swarm works on a stretch of the record (Spencer's
+        ``identification`` policy).
     options : dict
         Model constants.
 

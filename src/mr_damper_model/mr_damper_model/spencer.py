@@ -498,6 +498,7 @@ class Spencer(HysteresisModel):
 
     #: Parameters that do not act on the states (:func:`spring_fit`).
     spring_names = ('k1', 'x0')
+    polish_by_default = True
     spring_fit = staticmethod(spring_fit)
     #: Policy of the default identification (``identify`` with method ``'separable'``): the
     #: swarm searches the 11 state parameters on the record from its start to ``swarm_span_s``

@@ -325,9 +325,13 @@ class LqrActive(Controller):
 
     def demand(self, state):
         """Active force on the body [N]."""
-        k = self.k
-        return -(k[0] * state.travel + k[1] * state.v_s + k[2] * (state.z_u - state.z_r)
-                 + k[3] * state.v_u)
+        return car_state_feedback(self.k, state)
+
+
+def car_state_feedback(k, state):
+    """Return ``-k @ [travel, v_s, z_u - z_r, v_u]`` [N]: the car part of an LQR law."""
+    return -(k[0] * state.travel + k[1] * state.v_s + k[2] * (state.z_u - state.z_r)
+             + k[3] * state.v_u)
 
 
 DEFAULT_CO_WEIGHTS = {'q_accel': 1.0, 'q_travel': 0.0, 'q_tyre': 1.0e3, 'r_force': 1.0e-5}
@@ -646,9 +650,7 @@ class ClippedOptimalWk(Controller):
             s = self._s
             self.a_wk = float(self._cd @ s) + self._dd * a
             self._fw = float(self._g_s @ s) + self._g_a * a
-        k = self.k_car
-        return -(k[0] * state.travel + k[1] * state.v_s + k[2] * (state.z_u - state.z_r)
-                 + k[3] * state.v_u + self._fw)
+        return car_state_feedback(self.k_car, state) - self._fw
 
     def demand(self, state):
         """Desired damper force on the body [N], clipped to the damper (dissipative)."""
@@ -700,8 +702,7 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     ctrl = _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt)
     if damper_only and ctrl.kind not in ('current', 'semi-active'):
         raise ValueError(f'controller {name!r} is {ctrl.kind}: it needs a force actuator, not an '
-                         'MR damper (use skyhook, groundhook, hybrid, add, sh-add, '
-                         'clipped-optimal, clipped-optimal-wk or passive@<I>A)')
+                         f'MR damper (use {", ".join(DAMPER_LAW_NAMES)})')
     return ctrl
 
 
