@@ -156,6 +156,18 @@ def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
     assert st['command_timeouts'] == 1 and st['current_a'] == 0.5
 
 
+def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
+    """plant:=rig with controller:=external (hil --external-controller): both waits work."""
+    from std_msgs.msg import Float64
+    from quarter_car_sim.quarter_car_node import QuarterCarNode
+    node = _make(ctx, QuarterCarNode, controller='external', plant='rig', real_time_factor=2.0,
+                 road_duration_s=30.0, safe_current_a=0.5, log_file=str(tmp_path / 'log'))
+    node.on_command(Float64(data=1.0))
+    st = _steps_later(node, 50)
+    assert node.failed is None and st['steps'] >= 50
+    assert st['commands']['accepted'] == 1
+
+
 def test_controller_node_dynamic_parameters(ctx):
     from rclpy.parameter import Parameter
     from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode

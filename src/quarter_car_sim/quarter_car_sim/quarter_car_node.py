@@ -292,7 +292,7 @@ class QuarterCarNode(Node):
     def _init_external(self, timeout_s, safe_a, i_min_a, i_max_a):
         """Plant only: publish the typed state, take commands (``controller:=external``)."""
         self.cmd_in = controller_core.CommandInput(timeout_s, safe_a, i_min_a, i_max_a)
-        self.answered = threading.Event()
+        self.command_answered = threading.Event()    # lock-step: the state's command came
         self.lockstep_timeouts = 0
         self.car_state_msg = QuarterCarState()
         self.car_state_msg.header.frame_id = 'quarter_car'
@@ -336,7 +336,7 @@ class QuarterCarNode(Node):
         now = self._now()
         with self.lock:
             outcome = self.cmd_in.offer(msg.data, now)
-        self.answered.set()
+        self.command_answered.set()
         if outcome != 'accepted':
             self.get_logger().warning(f'current command {msg.data!r} {outcome}',
                                       throttle_duration_sec=1.0)
@@ -347,10 +347,10 @@ class QuarterCarNode(Node):
         with self.lock:
             normal = not cmd_in.timed_out
             reason = self._external_reason()
-        self.answered.clear()
+        self.command_answered.clear()
         msg = car_state_to_msg(state, self.loop.i_cmd, normal, reason, self.car_state_msg)
         self.drops.publish(self.car_state_pub, msg)
-        if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
+        if self.lockstep and not self.command_answered.wait(self.lockstep_timeout_s):
             self.lockstep_timeouts += 1
             self.get_logger().warning(
                 f'no command within {self.lockstep_timeout_s:g} s of state t = {state.t:.3f} s '
