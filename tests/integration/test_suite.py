@@ -223,7 +223,9 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
 def test_launcher_exits_non_zero_when_a_node_dies(tmp_path):
     """A node that dies (here: the car on an unknown road class) ends the run with status 1."""
     out = tmp_path / 'dead'
-    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '60',
+    # --duration 0: run until stopped, so only noticing the death ends the run (the timeout
+    # below is a hang guard)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0',
            '--out', str(out), '--no-plots', '--set', 'quarter_car_node.road_class=Z',
            '--domain-id', os.environ['ROS_DOMAIN_ID']]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90)

@@ -91,6 +91,7 @@ def test_stop_ends_the_thread_and_an_error_after_stop_is_not_a_failure():
             raise RuntimeError('publish after shutdown')
     thread = ControlThread(step, Pacer(1e-3, 0.0, clock=clock), LoopTiming(None), clock=clock)
     thread.start()
+    thread._thread.join(30.0)            # hang guard: the third step ends the loop itself
     thread.stop(timeout_s=30.0)
     assert not thread.alive() and thread.failed is None and len(calls) == 3
 
