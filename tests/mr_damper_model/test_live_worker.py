@@ -192,3 +192,25 @@ def test_a_failing_fit_is_counted_and_the_worker_goes_on():
     assert rt.live.counters['fit_errors'] == 1
     h = rt.health()
     assert h.values['fit_errors'] == 1 and h.values['last_error'].startswith('RuntimeError')
+
+
+def test_a_failed_publish_is_not_a_lost_sample():
+    rules = IdentifierHealth(no_sample_timeout_s=0.0)
+    base = dict(samples_received=10, worker_alive=True, fit_process_alive=True)
+    rules(dict(base, dropped={}), 0.0)
+    h = rules(dict(base, dropped={'diagnostics_publish_failed': 2}), 1.0)
+    assert h.level == WARN and '2 publish(es) failed' in h.message
+    assert 'lost' not in h.message
+    h = rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3}), 2.0)
+    assert '3 sample(s) lost' in h.message and 'publish' not in h.message
+
+
+def test_save_throttle_flush_never_writes_an_older_set_over_a_newer_one():
+    written = []
+    now = [0.0]
+    throttle = SaveThrottle(written.append, 1.0, lambda: now[0])
+    throttle.offer('A')                     # written at once
+    throttle.offer('B')                     # within the period: pending
+    now[0] = 2.0
+    assert throttle.flush() == '' and written == ['A', 'B'] and throttle.pending is None
+    assert throttle.flush() == '' and written == ['A', 'B']

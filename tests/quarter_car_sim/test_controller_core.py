@@ -262,3 +262,26 @@ def test_set_controller_refuses_an_active_law():
         core.set_controller(SkyhookIdeal(3000.0))
     core.set_controller(Passive(1.2))
     assert core.passive and core.command(_vehicle(_states(5)[-1]), 0.0) == 1.2
+
+
+def test_a_stateful_law_follows_the_car_through_a_fail_safe_episode():
+    """The Wk filter of clipped-optimal-wk sees every state, with or without a model."""
+    from quarter_car_sim.controllers import make_controller
+    _, msg = _truth()
+    gap = ControllerCore(make_controller('clipped-optimal-wk', damper_only=True),
+                         ModelSupervisor(timeout_s=0.1, safe_current_a=SAFE))
+    ref = ControllerCore(make_controller('clipped-optimal-wk', damper_only=True),
+                         ModelSupervisor(timeout_s=1e9, safe_current_a=SAFE))
+    ref.offer_parameters(msg, 0.0)
+    gap.offer_parameters(msg, 0.0)
+    states = _states(600)
+    for k, s in enumerate(states):
+        t_clock = 0.0 if k < 200 or k >= 400 else 1.0      # stale from 200 to 399
+        if k == 400:
+            gap.offer_parameters(msg, 0.0)                 # a fresh set: normal again
+        want = ref.command(s, 0.0)
+        got = gap.command(s, t_clock)
+        if 200 <= k < 400:
+            assert got == SAFE
+        else:
+            assert got == want, k

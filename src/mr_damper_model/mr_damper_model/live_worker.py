@@ -107,27 +107,31 @@ class SaveThrottle:
 
         """
         with self._lock:
-            now = self._clock()
-            if (not force and self._last is not None and now >= self._last
-                    and now - self._last < self.period_s):
-                self.pending = estimate
-                return ''
-            try:
-                self._save(estimate)
-            except OSError as exc:
-                self.errors += 1
-                self.last_error = f'{type(exc).__name__}: {exc}'
-                self.pending = estimate
-                return self.last_error
-            self.writes += 1
-            self._last = now
-            self.pending = None
+            return self._offer_locked(estimate, force)
+
+    def _offer_locked(self, estimate, force=False):
+        now = self._clock()
+        if (not force and self._last is not None and now >= self._last
+                and now - self._last < self.period_s):
+            self.pending = estimate
             return ''
+        try:
+            self._save(estimate)
+        except OSError as exc:
+            self.errors += 1
+            self.last_error = f'{type(exc).__name__}: {exc}'
+            self.pending = estimate
+            return self.last_error
+        self.writes += 1
+        self._last = now
+        self.pending = None
+        return ''
 
     def flush(self):
         """Write the pending set if its period has passed; return '' or the write error."""
-        pending = self.pending
-        return self.offer(pending) if pending is not None else ''
+        with self._lock:        # taken and written in one step: a newer offer cannot interleave
+            pending = self.pending
+            return self._offer_locked(pending) if pending is not None else ''
 
 
 class WindowOutcome:
@@ -167,8 +171,8 @@ class IdentifierHealth:
       ever came).
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
-      the last report; samples lost or dropped (buffer, transport) since the last report;
-      windows passed over in in-order mode (``windows_overflow``); some fit errors; no valid
+      the last report; samples lost (buffer, transport) since the last report; failed
+      publishes of its own topics since the last report; windows passed over in in-order mode (``windows_overflow``); some fit errors; no valid
       model yet although windows were processed.
     - OK: fitting, last estimate valid; or waiting for samples / for the first window.
 
@@ -191,7 +195,11 @@ class IdentifierHealth:
             'received': v.get('samples_received', 0),
             'rejected': sum(v.get('rejected', {}).values())
             + sum(v.get('out_of_range', {}).values()),
-            'lost': v.get('samples_lost', 0) + sum(v.get('dropped', {}).values()),
+            # samples only: a failed publish of our own is not a lost sample (it is counted
+            # under its own reason in ``dropped``)
+            'lost': v.get('samples_lost', 0) + v.get('dropped', {}).get('message_lost', 0),
+            'publish_failed': sum(n for r, n in v.get('dropped', {}).items()
+                                  if r.endswith('_publish_failed')),
             'overflow': v.get('windows_overflow', 0),
             'due': v.get('windows_due', 0),
             'fitted': v.get('windows_fitted', 0),
@@ -218,7 +226,7 @@ class IdentifierHealth:
         """
         cur = self._counts(values)
         prev = self._prev if self._prev is not None else dict(
-            cur, rejected=0, lost=0, overflow=0, errors=0, due=0, fitted=0,
+            cur, rejected=0, lost=0, publish_failed=0, overflow=0, errors=0, due=0, fitted=0,
             skips={r: 0 for r in WARN_SKIPS})
         self._prev = cur
         if self._since is None or cur['received'] != self._received or now_s < self._since:
@@ -247,6 +255,7 @@ class IdentifierHealth:
             if n > 0:
                 found.append((WARN, f'{n} window(s) skipped: {reason}'))
         for key, what in (('rejected', 'sample(s) rejected'), ('lost', 'sample(s) lost'),
+                          ('publish_failed', 'publish(es) failed'),
                           ('overflow', 'window(s) passed over (backlog full)')):
             n = cur[key] - prev[key]
             if n > 0:

@@ -365,13 +365,14 @@ class DiagnosticsPublisher:
 
     def publish(self):
         """Build and publish the status now; return the :class:`Health` sent."""
-        try:
+        stamp = self._node.get_clock().now().nanoseconds * 1e-9
+        try:        # the values are written into the message too: both inside the guard
             health = self._health()
+            status = diagnostic_status_msg(self.name, health, self.hardware_id)
         except Exception as exc:  # noqa: B902 - a status bug must not kill the node
             health = Health(STALE, f'status unavailable: {type(exc).__name__}: {exc}')
-        stamp = self._node.get_clock().now().nanoseconds * 1e-9
-        msg = diagnostic_array_msg(
-            [diagnostic_status_msg(self.name, health, self.hardware_id)], stamp_s=stamp)
+            status = diagnostic_status_msg(self.name, health, self.hardware_id)
+        msg = diagnostic_array_msg([status], stamp_s=stamp)
         if self._drops is not None:
             if self._drops.publish(self._pub, msg, 'diagnostics_publish_failed'):
                 self.published += 1

@@ -256,8 +256,9 @@ class RigNode(Node):
                     self.pacer.rate_factor == 0):
                 return ('rate_factor cannot change to or from 0 while running (flow control '
                         'is chosen at start-up)')
-            if 'flow_window' in changes and self.pacer.rate_factor != 0:
-                return 'flow_window applies only with rate_factor 0'
+            if 'flow_window' in changes and (self.follower is not None
+                                             or self.pacer.rate_factor != 0):
+                return 'flow_window applies only with rate_factor 0 (not to a commanded rig)'
             CurrentCommandLimiter(new['current_min_a'], new['current_max_a'])   # check only
             if 'rate_factor' in changes:
                 self.pacer.set_rate_factor(changes['rate_factor'])

@@ -222,13 +222,8 @@ def build_virtual_rig(options):
     VirtualRig
 
     """
-    from mr_damper_model.params_file import load_params
-
     from . import excitation as exc_mod
-    params = None
-    if options['truth_file']:
-        params = load_params(options['truth_file'], model=options['plant']).parameters
-    plant = make_plant(options['plant'], params)
+    plant = make_plant(options['plant'], options['truth_file'])     # '' : the preset truth
     if options['excitation'] == 'commanded':
         from .actuator import CommandedMotion, ServoActuator
         excitation = CommandedMotion(ServoActuator(

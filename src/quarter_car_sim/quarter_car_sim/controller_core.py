@@ -115,7 +115,7 @@ class ControllerCore:
         self.sup = supervisor
         self.inverse_tol_a = float(inverse_tol_a)
         self.passive = getattr(controller, 'kind', '') == 'current'
-        self.extra_fields = tuple(getattr(controller, 'state_fields', ()))
+        self._fields = LAW_FIELDS + tuple(getattr(controller, 'state_fields', ()))
         self.i_cmd = supervisor.safe_current_a
         self.f_demand = math.nan
         self.saturated = 0
@@ -142,7 +142,7 @@ class ControllerCore:
         return self._inverse
 
     def _state_refusal(self, state):
-        for name in LAW_FIELDS + self.extra_fields:
+        for name in self._fields:
             if not math.isfinite(getattr(state, name)):
                 return 'non_finite'
         t = state.t
@@ -188,11 +188,14 @@ class ControllerCore:
             self.i_cmd = clip_current(self.controller.demand(state), sup.i_min_a, sup.i_max_a,
                                       sup.safe_current_a)
             return self.i_cmd
+        # the law sees every accepted state, also without a model: a law with a state of its
+        # own (the Wk filter of clipped-optimal-wk) then follows the car through a fail-safe
+        # episode instead of resuming from where it stopped
+        f_body = float(self.controller.demand(state))
         params = sup.active
         if params is None:
             return self._safe()
         self.n_normal += 1
-        f_body = float(self.controller.demand(state))
         self.f_demand = f_body
         current, saturated = self._inverse_for(params).current(f_body, state.travel, state.v_rel)
         self.saturated += bool(saturated)
@@ -221,7 +224,7 @@ class ControllerCore:
                              f'{kind}: it cannot drive an MR damper')
         self.controller = controller
         self.passive = kind == 'current'
-        self.extra_fields = tuple(getattr(controller, 'state_fields', ()))
+        self._fields = LAW_FIELDS + tuple(getattr(controller, 'state_fields', ()))
 
     def offer_parameters(self, values, t_clock):
         """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""

@@ -319,6 +319,7 @@ class QuarterCarNode(Node):
             else None,
             on_error=self._on_control_error,
             priority=int(self.rt_priority) if self.rtf > 0 else 0)
+        self._priority_error_logged = False
         self.control.start()
 
     def _wait_for_controller(self):
@@ -453,6 +454,10 @@ class QuarterCarNode(Node):
     def status(self):
         """Return the status dict (the values of the diagnostics, the log file's header)."""
         now = self._now()
+        priority_error = getattr(getattr(self, 'control', None), 'priority_error', None)
+        if priority_error and not self._priority_error_logged:
+            self._priority_error_logged = True
+            self.get_logger().warning(f'realtime_priority not applied: {priority_error}')
         with self.lock:
             st = self.sup.status()
             st['param_age_s'] = self.sup.age(now)
@@ -474,6 +479,7 @@ class QuarterCarNode(Node):
             'first_normal_t_sim': self.first_normal_t,
             'saturated_steps': self.loop.saturated,
             'rate_hz': self.rate_hz,
+            'realtime_priority_error': priority_error or '',
             'real_time_factor': self.rtf,
             'late_reanchors': loop.pop('late_reanchors'),
             'loop': loop,
