@@ -172,8 +172,9 @@ class IdentifierHealth:
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
       the last report; samples lost (buffer, transport) since the last report; failed
-      publishes of its own topics since the last report; windows passed over in in-order mode (``windows_overflow``); some fit errors; no valid
-      model yet although windows were processed.
+      publishes of its own topics since the last report; windows passed over in in-order mode
+      (``windows_overflow``); some fit errors; no valid model yet although windows were
+      processed.
     - OK: fitting, last estimate valid; or waiting for samples / for the first window.
 
     Parameters
