@@ -41,7 +41,7 @@ def run_one(rate_hz, seconds, only, work, domain):
     env = _env(domain)
     rec_cmd = [str(BIN / 'mr-damper-record'), '--out', str(out)]
     if only:
-        rec_cmd += ['--only', 'measurement', '--only', 'rig_status']
+        rec_cmd += ['--only', 'measurement', '--only', 'diagnostics']
     rec = subprocess.Popen(rec_cmd, env=env, stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL, start_new_session=True)
     rig = subprocess.Popen([str(BIN / 'rig_node'), '--ros-args', '-p', 'mode:=sim',

@@ -70,16 +70,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         base = latest().get(key, 0)
         return lambda: latest().get(key, 0) >= base + by
 
-    def fresh(msgs, n=3):
-        """Predicate: ``n`` more status messages arrived (the node is alive and publishing)."""
-        count = msgs if callable(msgs) else (lambda: len(msgs))
+    def fresh(count, n=3):
+        """Predicate: ``count()`` (a node's statuses) grew by ``n``: alive and publishing."""
         base = count()
         return lambda: count() >= base + n
 
-    def fresh_car(n=3):
-        """Predicate: ``n`` more car statuses arrived (alive and publishing)."""
-        base = diag.count(QC)
-        return lambda: diag.count(QC) >= base + n
+    def car_count():
+        return diag.count(QC)
 
     def tails():
         return {name: suite.log_tail(name) for name in NODES}
@@ -119,7 +116,7 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
             assert wait(grows(rig, 'samples_published', 2000), GUARD_S), rig()
         finally:
             os.kill(suite.pid(QC), signal.SIGCONT)
-        assert wait(fresh_car(), GUARD_S) and suite.alive(QC)
+        assert wait(fresh(car_count), GUARD_S) and suite.alive(QC)
         suite.kill(QC, signal.SIGKILL)
         assert wait(grows(ident, 'windows_fitted', 5), GUARD_S), ident()
         n_car = diag.count(QC)
@@ -131,13 +128,13 @@ def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
         os.kill(suite.pid(RIG), signal.SIGSTOP)
         try:
             assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
-            assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
+            assert wait(fresh(ident_count), GUARD_S) and wait(fresh(car_count), GUARD_S)
         finally:
             os.kill(suite.pid(RIG), signal.SIGCONT)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
         suite.kill(RIG, signal.SIGKILL)
         assert wait(car_mode('failsafe', 'stale'), GUARD_S), car_st()
-        assert wait(fresh(ident_count), GUARD_S) and wait(fresh_car(), GUARD_S)
+        assert wait(fresh(ident_count), GUARD_S) and wait(fresh(car_count), GUARD_S)
         suite.start(RIG)
         assert wait(car_mode('normal'), GUARD_S), (car_st(), tails())
         assert suite.poll() == {}, tails()
