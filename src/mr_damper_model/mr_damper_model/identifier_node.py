@@ -23,7 +23,6 @@ import time
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import KwokParameters
 from std_msgs.msg import UInt64
@@ -34,12 +33,9 @@ from .live import DYNAMIC_FIELDS, FitProcess, LiveConfig, LiveIdentifier
 from .live_worker import IdentifierRuntime
 from .messages import kwok_parameters_msg, measurement_from_msg, MessageError
 from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, PARAMETERS_QOS,
-                         MEASUREMENT_QOS, Param, run_node, set_realtime_priority)
+                         MEASUREMENT_QOS, Param, run_node, set_realtime_priority, STATUS_QOS)
 from .params_file import load_params, save_params
 
-#: ``mr_damper/samples_received``: reliable, KEEP_LAST 10 (the rig needs the newest count only).
-SAMPLES_RECEIVED_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                                  reliability=ReliabilityPolicy.RELIABLE)
 #: Period of ``mr_damper/samples_received`` [s, wall time: it paces the transport].
 SAMPLES_RECEIVED_PERIOD_S = 0.1
 
@@ -154,7 +150,7 @@ class IdentifierNode(Node):
         self._pub_params = self.create_publisher(KwokParameters, 'mr_damper/kwok_parameters',
                                                  PARAMETERS_QOS)
         self._pub_received = self.create_publisher(UInt64, 'mr_damper/samples_received',
-                                                   SAMPLES_RECEIVED_QOS)
+                                                   STATUS_QOS)
         self._received_msg = UInt64()
         if live.estimate is not None:   # latched at once: it needs no fit process
             est = live.estimate

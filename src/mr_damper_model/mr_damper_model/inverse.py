@@ -339,8 +339,8 @@ class KwokCurrentInverse:
             Smallest and largest of ``-force`` at ``i_min`` and ``i_max`` [N].
 
         """
-        a = -self.force(self.i_min, travel, v_rel)
-        b = -self.force(self.i_max, travel, v_rel)
+        f_lo, _, f_hi, _ = self._ends(travel, v_rel)   # the end terms cached at construction
+        a, b = -f_lo, -f_hi
         return (a, b) if a <= b else (b, a)
 
     def current(self, f_des, x, v):

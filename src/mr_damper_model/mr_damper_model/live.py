@@ -1114,7 +1114,9 @@ class LiveIdentifier:
         parts = self._catch_up_parts(clean, window.end_s)
         for part_end, part in parts[:-1]:
             if self._admit(part, part_end, data.n) and part.n >= cfg.min_window_samples:
-                self._fit_bins(part, data.n, t_start, catch_up=True)
+                t_catch = time.perf_counter()
+                self._fit_bins(part, data.n, t_catch, catch_up=True)
+                t_start += time.perf_counter() - t_catch    # the window's own time only
         if not self._admit(parts[-1][1], window.end_s, data.n):
             c['windows_skipped']['inconsistent'] += 1
             self.last_skip = 'inconsistent'

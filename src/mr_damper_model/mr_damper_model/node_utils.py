@@ -57,13 +57,13 @@ LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 PARAMETERS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                             reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Status topics (KEEP_LAST 10: a stalled reader costs the writer nothing).
+#: Status topics, e.g. ``mr_damper/samples_received`` (KEEP_LAST 10: a stalled reader costs the
+#: writer nothing, and the rig needs the newest count only).
 STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE)
 
 #: ``/diagnostics``: KEEP_LAST 10, reliable (as ROS 2's diagnostic_updater publishes it).
-DIAGNOSTICS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                             reliability=ReliabilityPolicy.RELIABLE)
+DIAGNOSTICS_QOS = STATUS_QOS
 
 #: What ``publish()`` raises when the middleware refuses a sample or the node is shutting down.
 PUBLISH_ERRORS = (_rclpy.RCLError, InvalidHandle)

@@ -22,10 +22,12 @@ import json
 import math
 import sys
 
+from quarter_car_sim.controllers import CONTROLLER_NAMES
+
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
-COMPARE_NAMES = ('skyhook', 'skyhook-onoff', 'groundhook', 'hybrid', 'add', 'sh-add',
-                 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal', 'lqr-active')
+#: Every law of the factory but the passive settings (those are run at COMPARE_CURRENTS_A).
+COMPARE_NAMES = tuple(n for n in CONTROLLER_NAMES if n != 'passive@<I>A')
 TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'acc', '{:7.3f}'),
               ('rms_suspension_travel', 'travel mm', '{:9.1f}'),
               ('rms_tyre_load_ratio', 'tyre', '{:6.3f}'),
@@ -59,9 +61,7 @@ def build_parser():
         prog='quarter-car-sim',
         description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
     p.add_argument('--controller', default='skyhook',
-                   help='passive@<I>A, skyhook, skyhook-onoff, groundhook, hybrid, add, sh-add, '
-                        'clipped-optimal, clipped-optimal-wk, skyhook-ideal, lqr-active '
-                        '(default skyhook)')
+                   help=f'{", ".join(CONTROLLER_NAMES)} (default skyhook)')
     p.add_argument('--compare', action='store_true',
                    help='run every controller and the offline semi-active bound on the same road')
     p.add_argument('--road', default='iso8608-C',
