@@ -451,6 +451,33 @@ SUPERVISOR_PARAMETERS = {'param_timeout_s': 'timeout_s', 'safe_current_a': 'safe
                          'min_current_span_a': 'min_current_span_a'}
 
 
+def make_node_law(name, car_params, rate_hz, options):
+    """
+    Build a node's control law: the one factory, damper laws only, at the node's control rate.
+
+    Parameters
+    ----------
+    name : str
+        Law name (:data:`quarter_car_sim.controllers.DAMPER_LAW_NAMES`).
+    car_params : QuarterCarParams
+        Car of the LQR-designed laws.
+    rate_hz : float
+        Control rate [Hz]: ``dt = 1/rate_hz`` is the sample time of a filter inside the law
+        (``clipped-optimal-wk``); an explicit ``dt`` in ``options`` wins.
+    options : dict
+        Keyword options (gains) of the law (``controller_options``).
+
+    Raises
+    ------
+    ValueError
+        Unknown or fully active law, bad options.
+
+    """
+    from quarter_car_sim.controllers import make_controller
+    return make_controller(name, params=car_params, damper_only=True,
+                           **{'dt': 1.0 / float(rate_hz), **options})
+
+
 def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=None):
     """
     Apply changed node parameters to the controller cores, all or nothing.

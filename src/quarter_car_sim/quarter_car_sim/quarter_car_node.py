@@ -91,7 +91,7 @@ from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher
 from mr_damper_model.plant import make_plant
 from quarter_car_sim import controller_core, hil, live_loop
 from quarter_car_sim.control_thread import ControlThread
-from quarter_car_sim.controllers import DAMPER_LAW_NAMES, make_controller
+from quarter_car_sim.controllers import DAMPER_LAW_NAMES
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import CarHealth
@@ -268,10 +268,8 @@ class QuarterCarNode(Node):
             f'{p["param_timeout_s"]:g} s')
 
     def _make_law(self, options):
-        # a law with a filter inside (clipped-optimal-wk) runs at the control period
-        options = {'dt': 1.0 / self.p['rate_hz'], **options}
-        return make_controller(self.p['controller'], params=self.car_params, damper_only=True,
-                               **options)
+        return controller_core.make_node_law(self.p['controller'], self.car_params,
+                                             self.p['rate_hz'], options)
 
     def _now(self):
         """Node clock [s] (ROS time), for message ages and timeouts."""

@@ -42,7 +42,7 @@ from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher
                                         spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
-from quarter_car_sim.controllers import DAMPER_LAW_NAMES, make_controller
+from quarter_car_sim.controllers import DAMPER_LAW_NAMES
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
 from quarter_car_sim.params import QuarterCarParams
@@ -66,6 +66,8 @@ SUPERVISED_LAW_PARAMETERS = (
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
     Param('controller', 'skyhook', f'Controller name ({", ".join(DAMPER_LAW_NAMES)})'),
+    Param('rate_hz', 1000.0, 'Rate of the vehicle states, one command each [Hz]: the sample '
+          'time of a filter inside the law (clipped-optimal-wk)', 10.0, 10000.0),
 ) + SUPERVISED_LAW_PARAMETERS + (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
@@ -194,8 +196,8 @@ class SemiActiveControllerNode(Node):
             f'{p["safe_current_a"]:g} A, parameter timeout {p["param_timeout_s"]:g} s')
 
     def _make_law(self, options):
-        return make_controller(self.p['controller'], params=self.car_params, damper_only=True,
-                               **options)
+        return controller_core.make_node_law(self.p['controller'], self.car_params,
+                                             self.p['rate_hz'], options)
 
     def _on_set(self, changes):
         """Apply changed dynamic parameters (validated by the cores); '' or the reason."""
