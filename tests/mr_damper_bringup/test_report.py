@@ -11,7 +11,7 @@ import yaml
 from mr_damper_bringup import report
 from mr_damper_bringup.recorder import SuiteRecorder
 from mr_damper_model.columnlog import ColumnReader, ColumnWriter
-from mr_damper_model.models import get_model
+from mr_damper_model.kwok_current import kwok_current_force
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -28,18 +28,13 @@ def _truth_msg():
                         rmse_n=1.0, nrmse_percent=0.1, window_end_s=1.0)
 
 
-def _model_force(params, x, v, i):
-    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
-    return model.force(model.from_dict(params), x, v, i=i)
-
-
 def _measurements(params, n=4000, rng=0):
     gen = np.random.default_rng(rng)
     t = np.arange(n) * 1e-3
     x = 0.03 * np.sin(2 * np.pi * 1.1 * t)
     v = 0.03 * 2 * np.pi * 1.1 * np.cos(2 * np.pi * 1.1 * t)
     i = np.repeat([0.0, 0.5, 1.0, 2.0], n // 4)
-    f = _model_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
+    f = kwok_current_force(dict(params, i_ref_a=2.0), x, v, i) + gen.normal(0, 1.0, n)
     return {'t': t, 'x': x, 'v': v, 'f': f, 'i': i, 'recv_epoch_s': 1000.0 + t + 0.002}
 
 
@@ -260,7 +255,7 @@ def test_messages_lost_counts_the_identifier_not_the_recorder():
 def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     params, msg = _truth_msg()
     meas = _measurements(params)
-    force = _model_force(msg, meas['x'], meas['v'], meas['i'])
+    force = kwok_current_force(msg, meas['x'], meas['v'], meas['i'])
     whole = report.fit_error(meas['f'], force)
     monkeypatch.setattr(report, 'CHUNK_ROWS', 333)
     assert report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)

@@ -66,3 +66,18 @@ def test_scalar_force_and_slope_match_the_model():
         fd = (kwok_current_force_scalar(vec, s + h, x[k], v[k])
               - kwok_current_force_scalar(vec, s - h, x[k], v[k])) / (2 * h)
         assert slope == pytest.approx(fd, rel=1e-5, abs=1e-4)
+
+
+def test_force_of_a_named_parameter_set():
+    from mr_damper_model import presets
+    from mr_damper_model.kwok_current import kwok_current_force
+    model, params = presets.thesis_kwok_current()
+    rng = np.random.default_rng(3)
+    x, v, i = rng.normal(0, 0.01, 50), rng.normal(0, 0.1, 50), rng.uniform(0, 2, 50)
+    want = model.force(model.from_dict(params), x, v, i=i)
+    got = kwok_current_force(dict(params, i_ref_a=model.options['i_ref_a'], rmse_n=3.0),
+                             x, v, i)
+    np.testing.assert_array_equal(got, want)
+    other = KwokCurrent(i_ref_a=1.0)           # i_ref_a is read from the dict
+    np.testing.assert_array_equal(kwok_current_force(dict(params, i_ref_a=1.0), x, v, i),
+                                  other.force(other.from_dict(params), x, v, i=i))

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mr_damper_model.kwok_current import KwokCurrent
-from mr_damper_model.models import get_model
+from mr_damper_model.kwok_current import kwok_current_force
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
@@ -57,8 +57,7 @@ def plot_hysteresis(path, meas, params, *, per_level_s=2.0, max_levels=6):
         axes[0].plot(v[idx], f[idx], '.', ms=1.5, color=col, label=f'{lev:.2f} A measured')
         axes[1].plot(x[idx] * 1e3, f[idx], '.', ms=1.5, color=col)
         if params:
-            model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
-            fm = model.force(model.from_dict(params), x[idx], v[idx], i=i[idx])
+            fm = kwok_current_force(params, x[idx], v[idx], i[idx])
             order = np.argsort(t[idx])
             axes[0].plot(v[idx][order], fm[order], '-', lw=1.0, color='k', alpha=0.7)
             axes[1].plot(x[idx][order] * 1e3, fm[order], '-', lw=1.0, color='k', alpha=0.7)

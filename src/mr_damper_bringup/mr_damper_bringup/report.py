@@ -50,6 +50,7 @@ import numpy as np
 from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
                                        finite_or_none, JsonLines, open_log)
 from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.kwok_current import kwok_current_force
 from mr_damper_model.models import get_model
 
 from .config import node_params, QC, RIG
@@ -334,8 +335,7 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
                  'parameters': {n: p.get(n) for n in KWOK_CURRENT_NAMES}}
         if f.size and all(math.isfinite(p.get(n, math.nan)) for n in KWOK_CURRENT_NAMES):
             with np.errstate(over='ignore', invalid='ignore'):
-                model = get_model('kwok-current', i_ref_a=float(p.get('i_ref_a', 2.0)))
-                fm = model.force(model.from_dict(p), x, v, i=i)
+                fm = kwok_current_force(p, x, v, i)
             if np.all(np.isfinite(fm)):
                 entry['record_rmse_n'], entry['record_nrmse_percent'] = fit_error(f, fm)
         out['history'].append(entry)

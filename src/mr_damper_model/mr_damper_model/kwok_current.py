@@ -70,6 +70,27 @@ def kwok_current_force_scalar(p, s, x, v):
     return c * v + p[2] * x + alpha * math.tanh(beta * v + p[8] * sx) + p[9]
 
 
+def kwok_current_force(params, x, v, i):
+    """
+    Kwok-current force [N] of a named parameter set on arrays of samples.
+
+    Parameters
+    ----------
+    params : dict
+        The ten parameters by name, and ``i_ref_a`` [A] (default 2.0); other keys (e.g. a
+        decoded parameters message's fit figures) are ignored.
+    x, v, i : numpy.ndarray with shape (n,)
+        Displacement [m], velocity [m/s], coil current [A].
+
+    Returns
+    -------
+    numpy.ndarray with shape (n,)
+
+    """
+    model = KwokCurrent(i_ref_a=float(params.get('i_ref_a', 2.0)))
+    return model.force(model.from_dict(params), x, v, i=i)
+
+
 def _coefficients(p, s):
     """Return ``c(s)``, ``alpha(s)``, ``beta(s)`` and beta's exponent ``b1 s`` (one home)."""
     c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p

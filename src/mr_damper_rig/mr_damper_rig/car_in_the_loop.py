@@ -255,10 +255,9 @@ def make_simulated_link(plant='kwok-current', *, actuator='first', compensation=
 
 def _nrmse_percent(params, data):
     """NRMSE [%] (by the measured force range) of kwok-current ``params`` on ``data``."""
-    from mr_damper_model.models import get_model
-    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
+    from mr_damper_model.kwok_current import kwok_current_force
     with np.errstate(over='ignore', invalid='ignore'):
-        f = model.force(model.from_dict(params), data.x, data.v, i=data.i)
+        f = kwok_current_force(params, data.x, data.v, data.i)
     rmse = float(np.sqrt(np.mean((f - data.f) ** 2)))
     return 100.0 * rmse / float(np.ptp(data.f)) if math.isfinite(rmse) else math.nan
 
