@@ -68,12 +68,38 @@ def z_step_scalar(z0, dr, A, beta, gamma):
     float
 
     """
+    return z_step_rooted(z0, dr, z_roots(A, beta, gamma))
+
+
+def z_roots(A, beta, gamma):
+    """
+    Constants of the exact z update of one parameter set, computed once: plain floats.
+
+    Returns
+    -------
+    tuple of float
+        ``(A, beta - gamma, sqrt(A/(beta + gamma)), sqrt(A*(beta + gamma)), sqrt(A/|bp|),
+        sqrt(A*|bp|))`` (the last two 1.0 when ``beta == gamma``), for :func:`z_step_rooted`.
+
+    """
     b = beta + gamma
     bp = beta - gamma
     if bp == 0.0:
-        return z_step_from_roots(z0, dr, A, bp, math.sqrt(A / b), math.sqrt(A * b), 1.0, 1.0)
-    return z_step_from_roots(z0, dr, A, bp, math.sqrt(A / b), math.sqrt(A * b),
-                             math.sqrt(A / abs(bp)), math.sqrt(A * abs(bp)))
+        return A, bp, math.sqrt(A / b), math.sqrt(A * b), 1.0, 1.0
+    return (A, bp, math.sqrt(A / b), math.sqrt(A * b), math.sqrt(A / abs(bp)),
+            math.sqrt(A * abs(bp)))
+
+
+def z_step_rooted(z0, dr, zc):
+    """``z_step_scalar`` with the constants ``zc`` of :func:`z_roots` (the loops' z step)."""
+    A, bp, zs, k, zsp, kp = zc
+    return z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp)
+
+
+def z_step_array_zc(z0, dr, zc):
+    """``z_step_array`` with ``zc = (A, beta, gamma)`` (the numpy reference's z step)."""
+    A, beta, gamma = zc
+    return z_step_array(z0, dr, A, beta, gamma)
 
 
 def z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp):
@@ -184,7 +210,7 @@ def substeps(dt, max_substep_s):
     return max(1, int(math.ceil(dt / max_substep_s - 1e-9)))
 
 
-def heun_substeps(z_step, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
+def heun_substeps(z_step, zc, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
     """
     Advance (y, z, u) over m Heun sub-steps with the exact z update.
 
@@ -194,7 +220,10 @@ def heun_substeps(z_step, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
     Parameters
     ----------
     z_step : callable
-        ``z_step_scalar`` for floats, ``z_step_array`` for arrays.
+        ``z_step(z, dr, zc)``: :func:`z_step_rooted` for floats, :func:`z_step_array_zc` for
+        arrays.
+    zc : tuple
+        Its constants of the parameter set(s): :func:`z_roots`, or ``(A, beta, gamma)``.
     p : sequence
         Parameters in ``SPENCER_PARAM_NAMES`` order (floats or arrays).
     y, z, u : float or ndarray
@@ -229,7 +258,7 @@ def heun_substeps(z_step, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
         den = c0 + c1a + c1b * u
         yd_a = (alpha * z + c0 * vs + k0 * (xs - y)) / den
         w_a = vs - yd_a
-        z_p = z_step(z, w_a * h, A, beta, gamma)
+        z_p = z_step(z, w_a * h, zc)
         u_e = i_drv + (u - i_drv) * decay
         alpha_e = aa + ab * u_e
         c0_e = c0a + c0b * u_e
@@ -237,7 +266,7 @@ def heun_substeps(z_step, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
         y_p = y + h * yd_a
         yd_p = (alpha_e * z_p + c0_e * ve + k0 * (xe - y_p)) / den_e
         w_p = ve - yd_p
-        z = z_step(z, 0.5 * (w_a + w_p) * h, A, beta, gamma)
+        z = z_step(z, 0.5 * (w_a + w_p) * h, zc)
         yd_e = (alpha_e * z + c0_e * ve + k0 * (xe - y_p)) / den_e
         y = y + 0.5 * h * (yd_a + yd_e)
         u = u_e
@@ -277,7 +306,8 @@ def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     decay = math.exp(-eta * h)
     dx = (x_b - x_a) / m
     dv = (v_b - v_a) / m
-    y, z, u = heun_substeps(z_step_scalar, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m)
+    y, z, u = heun_substeps(z_step_rooted, z_roots(A, beta, gamma), p, y, z, u, x_a, v_a, dx,
+                            dv, i_drv, h, decay, m)
     state[0] = y
     state[1] = z
     state[2] = u
@@ -300,7 +330,8 @@ def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
 
     Time outer, sub-steps, then the whole swarm innermost (independent particles in a row keep
     the processor busy while each one's transcendental functions complete); each particle's
-    sub-step is ``heun_substeps`` with ``z_step_scalar`` and one step, the sub-step positions
+    sub-step is ``heun_substeps`` with ``z_step_rooted`` (the constants of ``z_roots``
+    computed once per particle) and one step, the sub-step positions
     summed as ``heun_substeps`` sums them: the arithmetic of the streaming plant
     (``advance_scalar``), bit for bit.
     """
@@ -309,6 +340,7 @@ def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
     z = np.zeros(p)
     u = np.full(p, i[0])
     decay = np.empty(p)
+    zc = [z_roots(P[q, 11], P[q, 10], P[q, 9]) for q in range(p)]     # once per particle
     for q in range(p):
         out[q, 0] = _initial_force(_row(P, q), x[0], v[0], y0, u[q])
     for kk in range(1, x.shape[0]):
@@ -323,8 +355,8 @@ def _force_loop(P, x, v, i, t, y0, max_substep_s, out):
         vs = v[kk - 1]
         for _ in range(m):
             for q in range(p):
-                y[q], z[q], u[q] = heun_substeps(z_step_scalar, _row(P, q), y[q], z[q], u[q], xs,
-                                                 vs, dx, dv, i[kk], h, decay[q], 1)
+                y[q], z[q], u[q] = heun_substeps(z_step_rooted, zc[q], _row(P, q), y[q], z[q],
+                                                 u[q], xs, vs, dx, dv, i[kk], h, decay[q], 1)
             xs = xs + dx
             vs = vs + dv
         for q in range(p):
@@ -371,8 +403,8 @@ def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
     x, v, i, t = (np.ascontiguousarray(a, dtype=float) for a in (x, v, i, t))
     y0 = float(x[0] if y0_m is None else y0_m)
     out = np.empty((P.shape[0], x.size))
-    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_step_scalar',
-               'z_step_from_roots')
+    helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_roots',
+               'z_step_rooted', 'z_step_from_roots')
     loop = compiled.kernel(_force_loop, helpers=helpers)
     return loop(P, x, v, i, t, y0, float(max_substep_s), out)
 
@@ -440,7 +472,7 @@ def spencer_force_numpy(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
     z = np.zeros(p)
     u = np.full(p, i[0])
     out[:, 0] = _initial_force(pt, x[0], v[0], y0, u)
-    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab = pt[:9]
+    c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A = pt[:12]
     for kk in range(1, n):
         dt = t[kk] - t[kk - 1]
         m = substeps(dt, max_substep_s)
@@ -448,8 +480,8 @@ def spencer_force_numpy(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
         decay = np.exp(-eta * h)
         dx = (x[kk] - x[kk - 1]) / m
         dv = (v[kk] - v[kk - 1]) / m
-        y, z, u = heun_substeps(z_step_array, pt, y, z, u, x[kk - 1], v[kk - 1], dx, dv,
-                                i[kk], h, decay, m)
+        y, z, u = heun_substeps(z_step_array_zc, (A, beta, gamma), pt, y, z, u, x[kk - 1],
+                                v[kk - 1], dx, dv, i[kk], h, decay, m)
         c0 = c0a + c0b * u
         c1 = c1a + c1b * u
         yd = ((aa + ab * u) * z + c0 * v[kk] + k0 * (x[kk] - y)) / (c0 + c1)
