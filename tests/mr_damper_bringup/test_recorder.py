@@ -206,3 +206,14 @@ def test_namespaced_table_prefixes_every_topic_but_diagnostics():
     assert topics.namespaced_table(topics.SUITE_TOPICS, []) == topics.SUITE_TOPICS
     with pytest.raises(ValueError, match='plain name'):
         topics.namespaced_table(topics.SUITE_TOPICS, ['/fl'])
+
+
+def test_measurements_are_counted_in_every_namespace(tmp_path):
+    table = topics.namespaced_table(topics.topic_table(['measurement', 'diagnostics']),
+                                    ['fl', 'fr'])
+    raw = TS.serialize_cdr(BUILDERS[table['fl/measurement'].type](0),
+                           table['fl/measurement'].type)
+    with SuiteRecorder(tmp_path / 'c.mcap', table, typestore=TS) as rec:
+        for key in ('fl/measurement', 'fl/measurement', 'fr/measurement'):
+            rec.write(key, raw, 1_000)
+        assert rec.measurements() == 3

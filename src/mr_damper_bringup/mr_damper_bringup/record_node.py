@@ -207,7 +207,7 @@ def main(argv=None):
                 executor.spin_once(timeout_sec=0.1)
                 if args.duration > 0 and time.monotonic() - start >= args.duration:
                     break
-                if args.count > 0 and recorder.counts.get('measurement', 0) >= args.count:
+                if args.count > 0 and recorder.measurements() >= args.count:
                     break
             diagnostics.close()
             if poller is not None:

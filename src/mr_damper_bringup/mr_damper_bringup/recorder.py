@@ -103,6 +103,10 @@ class SuiteRecorder:
         self._writer.write(self._conns[row.name], int(log_time_ns),
                            self.typestore.serialize_cdr(msg, row.type))
 
+    def measurements(self):
+        """Return the measurements written, of every namespace (keys ``[NS/]measurement``)."""
+        return sum(n for key, n in self.counts.items() if key.rpartition('/')[2] == 'measurement')
+
     def write(self, key, raw, log_time_ns):
         """
         Write one serialised message.
