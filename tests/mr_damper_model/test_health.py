@@ -49,3 +49,13 @@ def test_flatten_refuses_dotted_keys_and_unflatten_a_value_with_children():
 def test_text_that_is_not_json_stays_text():
     assert h.text_value('no_parameters_yet') == 'no_parameters_yet'
     assert h.text_value('12') == 12
+
+
+def test_value_text_writes_arrays_and_nested_non_finite_values_as_json():
+    import json
+    import numpy as np
+    from mr_damper_model.health import value_text
+    assert json.loads(value_text(np.array([1.0, np.nan]))) == [1.0, None]
+    assert json.loads(value_text([[1.0, float('nan')], [np.float64(2.0)]])) == [[1.0, None],
+                                                                                [2.0]]
+    assert value_text(np.float64('inf')) == 'inf' and value_text(np.int64(3)) == '3'

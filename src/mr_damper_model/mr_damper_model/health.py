@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import json
 import math
 
+from mr_damper_model.columnlog import finite_or_none
+
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 
@@ -90,15 +92,11 @@ def value_text(value):
     """
     if isinstance(value, str):
         return value
-    if hasattr(value, 'item') and not isinstance(value, (list, tuple)):
-        return value_text(value.item())     # numpy scalars
+    if hasattr(value, 'tolist'):
+        value = value.tolist()              # numpy scalars and arrays
     if isinstance(value, float) and not math.isfinite(value):
         return 'nan' if math.isnan(value) else ('inf' if value > 0 else '-inf')
-    if isinstance(value, (list, tuple)):
-        items = [v.item() if hasattr(v, 'item') else v for v in value]
-        return json.dumps([None if isinstance(v, float) and not math.isfinite(v) else v
-                           for v in items])
-    return json.dumps(value)
+    return json.dumps(finite_or_none(value))     # nested non-finite values: null
 
 
 def text_value(text):
