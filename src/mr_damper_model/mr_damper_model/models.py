@@ -587,12 +587,24 @@ class HysteresisModel:
 
     def _jacobian(self, p, x, v, i, t):
         """Forward differences (models with an analytic form override this)."""
+        return self._fd_jacobian(p, x, v, i, t)
+
+    def _fd_jacobian(self, p, x, v, i, t, cols=None):
+        """
+        Forward differences of the force in the parameters ``cols`` (default all), one batch.
+
+        The base set and the perturbed ones are one ``_force`` call; the other columns are 0.
+        """
+        cols = np.arange(p.size) if cols is None else np.asarray(cols, dtype=int)
         lo, hi = self.default_bounds(unbounded=True)
         span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-        h = 1e-7 * np.maximum(np.abs(p), 1e-3 * span)
-        P = np.vstack([p[None], p + np.diag(h)])
+        h = 1e-7 * np.maximum(np.abs(p[cols]), 1e-3 * span[cols])
+        P = np.repeat(p[None], cols.size + 1, axis=0)
+        P[1 + np.arange(cols.size), cols] += h
         F = self._force(P, x, v, i, t)
-        return ((F[1:] - F[0]) / h[:, None]).T
+        J = np.zeros((x.size, p.size))
+        J[:, cols] = ((F[1:] - F[0]) / h[:, None]).T
+        return J
 
     def _split(self, P):
         """Columns of P as (p, 1) arrays keyed by name."""

@@ -576,14 +576,8 @@ class Spencer(HysteresisModel):
         """
         names = self.param_names
         ks, kx = names.index('k1'), names.index('x0')
-        dyn = np.array([j for j in range(len(names)) if j not in (ks, kx)])
-        lo, hi = self.default_bounds(unbounded=True)
-        h = 1e-7 * np.maximum(np.abs(p[dyn]), 1e-3 * (hi[dyn] - lo[dyn]))
-        P = np.repeat(p[None], dyn.size + 1, axis=0)
-        P[1 + np.arange(dyn.size), dyn] += h
-        F = self._force(P, x, v, i, t)
-        J = np.empty((x.size, len(names)))
-        J[:, dyn] = ((F[1:] - F[0]) / h[:, None]).T
+        J = self._fd_jacobian(p, x, v, i, t,
+                              cols=[j for j in range(len(names)) if j not in (ks, kx)])
         J[:, ks] = x - p[kx]
         J[:, kx] = -p[ks]
         return J
