@@ -33,7 +33,8 @@ from .live import DYNAMIC_FIELDS, FitProcess, LiveConfig, LiveIdentifier
 from .live_worker import IdentifierRuntime
 from .messages import kwok_parameters_msg, measurement_from_msg, MessageError
 from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, PARAMETERS_QOS,
-                         MEASUREMENT_QOS, Param, run_node, set_realtime_priority, STATUS_QOS)
+                         MEASUREMENT_QOS, node_time_s, Param, run_node, set_realtime_priority,
+                         STATUS_QOS)
 from .params_file import load_params, save_params
 
 #: Period of ``mr_damper/samples_received`` [s, wall time: it paces the transport].
@@ -187,7 +188,7 @@ class IdentifierNode(Node):
 
     def _now(self):
         """ROS time [s] (sim time under ``use_sim_time``)."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return node_time_s(self)
 
     def _warm_up(self, fit):
         """Start the fit process and import the fitting code in it; return True if ready."""

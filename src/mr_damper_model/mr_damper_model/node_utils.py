@@ -313,6 +313,11 @@ def declare_parameters(node, specs, on_set=None):
     return values
 
 
+def node_time_s(node):
+    """Return the node clock's now [s]: ROS time (``/clock`` under ``use_sim_time``)."""
+    return node.get_clock().now().nanoseconds * 1e-9
+
+
 class DiagnosticsPublisher:
     """
     Publish a node's :class:`~mr_damper_model.health.Health` on ``/diagnostics`` periodically.
@@ -365,7 +370,7 @@ class DiagnosticsPublisher:
 
     def publish(self):
         """Build and publish the status now; return the :class:`Health` sent."""
-        stamp = self._node.get_clock().now().nanoseconds * 1e-9
+        stamp = node_time_s(self._node)
         try:        # the values are written into the message too: both inside the guard
             health = self._health()
             status = diagnostic_status_msg(self.name, health, self.hardware_id)

@@ -59,7 +59,7 @@ from mr_damper_model.data import DataError
 from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg,
                                       measurement_to_msg, seconds_to_stamp)
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, MEASUREMENT_QOS, Param,
+                                        LATCHED_QOS, MEASUREMENT_QOS, node_time_s, Param,
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
@@ -235,7 +235,7 @@ class RigNode(Node):
 
     def _now_s(self):
         """Return the node clock's time [s] (ROS time under ``use_sim_time``)."""
-        return self.get_clock().now().nanoseconds * 1e-9
+        return node_time_s(self)
 
     def _on_set(self, changes):
         """Apply dynamic parameters to the core objects; return '' or why they are refused."""

@@ -86,8 +86,8 @@ from std_msgs.msg import Float64
 
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, Param, run_node, set_realtime_priority,
-                                        spin_node)
+                                        LATCHED_QOS, node_time_s, Param, run_node,
+                                        set_realtime_priority, spin_node)
 from mr_damper_model.plant import make_plant
 from quarter_car_sim import controller_core, hil, live_loop
 from quarter_car_sim.control_thread import ControlThread
@@ -99,7 +99,7 @@ from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
 from quarter_car_sim.road import make_road
 from quarter_car_sim.semi_active_controller_node import (
-    car_state_to_msg, CONTROL_QOS, node_time_s, offer_parameters, SUPERVISED_LAW_PARAMETERS)
+    car_state_to_msg, CONTROL_QOS, offer_parameters, SUPERVISED_LAW_PARAMETERS)
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 

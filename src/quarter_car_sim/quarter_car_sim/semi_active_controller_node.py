@@ -38,8 +38,8 @@ from std_msgs.msg import Float64
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, Param, run_node, set_realtime_priority,
-                                        spin_node)
+                                        LATCHED_QOS, node_time_s, Param, run_node,
+                                        set_realtime_priority, spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
@@ -134,11 +134,6 @@ def car_state_to_msg(state, current_command_a, normal, reason, msg=None):
     msg.fail_safe_mode = QuarterCarState.MODE_NORMAL if normal else QuarterCarState.MODE_FAIL_SAFE
     msg.fail_safe_reason = reason
     return msg
-
-
-def node_time_s(node):
-    """Return the node clock's now [s]: ROS time (``/clock`` under ``use_sim_time``)."""
-    return node.get_clock().now().nanoseconds * 1e-9
 
 
 def offer_parameters(supervisor, msg, now, logger):
