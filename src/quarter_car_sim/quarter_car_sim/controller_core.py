@@ -478,7 +478,8 @@ def make_node_law(name, car_params, rate_hz, options):
                            **{'dt': 1.0 / float(rate_hz), **options})
 
 
-def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=None):
+def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=None,
+                lock=None):
     """
     Apply changed node parameters to the controller cores, all or nothing.
 
@@ -500,6 +501,10 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
         ``make_law(options_dict)`` -> law; raises ValueError on bad options.
     command_input : CommandInput, optional
         Gets ``command_timeout_s`` and ``safe_current_a`` (external controller).
+    lock : context manager, optional
+        Held while the changes are applied only, not while the new law is built and the
+        settings checked (an LQR design takes milliseconds: a control loop that needs the
+        lock every step must not wait for it).
 
     Returns
     -------
@@ -507,6 +512,7 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
         ``''`` when applied, else the reason nothing was.
 
     """
+    import contextlib
     import json
     from quarter_car_sim.failsafe import SupervisorError
     unknown = sorted(set(changes) - set(SUPERVISOR_PARAMETERS)
@@ -538,11 +544,12 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
                          command_input.i_min_a, command_input.i_max_a)
     except (SupervisorError, ValueError) as exc:
         return str(exc)
-    if sup_changes:
-        supervisor.reconfigure(**sup_changes)
-    if command_input is not None:
-        command_input.reconfigure(timeout_s=changes.get('command_timeout_s'),
-                                  safe_current_a=changes.get('safe_current_a'))
-    if law is not None:
-        core.set_controller(law)
+    with lock if lock is not None else contextlib.nullcontext():
+        if sup_changes:
+            supervisor.reconfigure(**sup_changes)
+        if command_input is not None:
+            command_input.reconfigure(timeout_s=changes.get('command_timeout_s'),
+                                      safe_current_a=changes.get('safe_current_a'))
+        if law is not None:
+            core.set_controller(law)
     return ''

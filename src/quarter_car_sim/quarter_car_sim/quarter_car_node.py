@@ -277,14 +277,15 @@ class QuarterCarNode(Node):
 
     def _on_set(self, changes):
         """Apply changed dynamic parameters (validated by the cores); '' or the reason."""
-        with self.lock:
-            core_changes = {k: v for k, v in changes.items() if k not in _HEALTH_PARAMETERS}
-            reason = controller_core.reconfigure(
-                core_changes, self.sup, core=self.loop.core,
-                make_law=None if self.external else self._make_law,
-                command_input=self.cmd_in) if core_changes else ''
-            if not reason and 'lateness_warn_ms' in changes:
-                self.health_rules.lateness_warn_ms = float(changes['lateness_warn_ms'])
+        core_changes = {k: v for k, v in changes.items() if k not in _HEALTH_PARAMETERS}
+        # the new law is built and checked outside the lock the control thread takes every
+        # step; only applying it holds the lock
+        reason = controller_core.reconfigure(
+            core_changes, self.sup, core=self.loop.core,
+            make_law=None if self.external else self._make_law,
+            command_input=self.cmd_in, lock=self.lock) if core_changes else ''
+        if not reason and 'lateness_warn_ms' in changes:
+            self.health_rules.lateness_warn_ms = float(changes['lateness_warn_ms'])
         return reason
 
     def _init_external(self, timeout_s, safe_a, i_min_a, i_max_a):
