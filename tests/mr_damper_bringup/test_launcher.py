@@ -1,27 +1,19 @@
-"""Tests of mr_damper_bringup.launcher: the drain condition and the progress line, without ROS."""
+"""Tests of mr_damper_bringup.launcher: the drain condition and the progress line (no graph)."""
 import pytest
 
 from mr_damper_bringup.launcher import identifier_drained, parse_args, progress_line
 
 
-class _Monitor:
-    """Stand-in of ``monitor_node.Monitor`` (same ``snapshot()``)."""
-
-    def __init__(self):
-        self.status, self.history = {}, {}
-        self.parameters, self.n_parameters, self.n_valid, self.metrics = None, 0, 0, None
-
-    def add(self, node, d):
-        self.status[node] = d
-        self.history[node] = self.history.get(node, ())[-1:] + (d,)
-
-    def snapshot(self):
-        return (dict(self.status), dict(self.history), self.parameters, self.n_parameters,
-                self.n_valid, self.metrics)
+def _monitor():
+    """Return the launcher's real Monitor, fed decoded statuses with ``add(node, status)``."""
+    from mr_damper_bringup.monitor_node import Monitor
+    mon = Monitor()
+    mon.add = lambda node, d: mon.store({node: d})
+    return mon
 
 
 def test_identifier_drained_waits_for_a_settled_recorder_count():
-    mon = _Monitor()
+    mon = _monitor()
     assert identifier_drained(mon) == (False, (None, None))
     mon.add('identifier', {'samples_received': 900})
     mon.add('recorder', {'measurements': 900})
@@ -35,7 +27,7 @@ def test_identifier_drained_waits_for_a_settled_recorder_count():
 
 
 def test_progress_line_from_the_statuses():
-    mon = _Monitor()
+    mon = _monitor()
     assert 'no status yet' in progress_line(mon, 1.0)
     mon.add('recorder', {'measurements': 5000})
     mon.add('quarter_car', {'mode': 'failsafe', 'reason': 'stale', 't_sim': 4.0,

@@ -51,6 +51,10 @@ class Monitor:
             statuses = decode_status(key, msg)
         except ValueError:
             return
+        self.store(statuses)
+
+    def store(self, statuses):
+        """Store decoded statuses, ``{node: status dict}``."""
         with self.lock:
             for node, d in statuses.items():
                 self.status[node] = d
