@@ -75,6 +75,42 @@ def worst(problems, values=None):
                   dict(values or {}))
 
 
+class Rising:
+    """Counters seen at the previous check: how much each rose since (status rules)."""
+
+    def __init__(self):
+        self._last = {}
+
+    def rise(self, key, value):
+        """Return how much counter ``key`` rose since the last call (0 if it fell: a restart)."""
+        value = int(value or 0)
+        before = self._last.get(key, 0)
+        self._last[key] = value
+        return max(value - before, 0)
+
+
+def dropped_since(rising, dropped, label='dropped since the last check'):
+    """
+    Return the WARN finding of the drop counts that rose since the last check, or None.
+
+    Parameters
+    ----------
+    rising : Rising
+        The rule's counter memory.
+    dropped : dict or None
+        ``{reason: count}`` of a node's :class:`~mr_damper_model.node_utils.DropCounter`.
+    label : str
+        Start of the message.
+
+    """
+    n = {reason: rising.rise(f'dropped.{reason}', count)
+         for reason, count in sorted((dropped or {}).items())}
+    n = {k: v for k, v in n.items() if v}
+    if not n:
+        return None
+    return (WARN, f'{label}: ' + ', '.join(f'{v} {k}' for k, v in n.items()))
+
+
 def value_text(value):
     """
     Write one status value as key-value text.

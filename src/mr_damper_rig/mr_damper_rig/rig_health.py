@@ -21,13 +21,9 @@ Status values read (missing ones are skipped): ``started``, ``done``, ``samples_
 (dict), ``commands`` (dict of current-command outcomes), ``displacement_commands`` (dict),
 ``rate_factor``, ``flow`` (dict with ``received``).
 """
-from mr_damper_model.health import ERROR, OK, WARN, worst
+from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 _CLAMPED = ('clamped_low', 'clamped_high', 'refused_non_finite')
-
-
-def _rise(now, before, key):
-    return int(now.get(key) or 0) - int(before.get(key) or 0)
 
 
 class RigHealth:
@@ -39,39 +35,34 @@ class RigHealth:
     """
 
     def __init__(self):
-        self._prev = None
+        self._rising = Rising()
+        self._first = True
 
     def __call__(self, values):
         """Return the :class:`~mr_damper_model.health.Health` of ``values`` (dict)."""
-        prev = self._prev if self._prev is not None else {}
-        first = self._prev is None
-        self._prev = {k: (dict(v) if isinstance(v, dict) else v) for k, v in values.items()}
+        first, self._first = self._first, False
+        rise = self._rising.rise
         problems = []
         started, done = bool(values.get('started')), bool(values.get('done'))
         published = int(values.get('samples_published') or 0)
-        if (started and not done and not first and int(values.get('backlog_samples') or 0) > 0
-                and published == int(prev.get('samples_published') or 0)):
+        if (rise('samples_published', published) == 0 and started and not done and not first
+                and int(values.get('backlog_samples') or 0) > 0):
             problems.append((ERROR, f'publishing stalled: {values["backlog_samples"]} samples '
                                     'due, none published since the last status'))
-        resets = _rise(values, prev, 'writer_resets')
+        resets = rise('writer_resets', values.get('writer_resets'))
         if resets > 0:
             problems.append((WARN, f'measurement writer replaced {resets} time(s): a reader '
                                    f'stopped acknowledging ({values["writer_resets"]} in all)'))
-        dropped = values.get('dropped') or {}
-        rising = {k: n - int((prev.get('dropped') or {}).get(k, 0)) for k, n in dropped.items()}
-        rising = {k: n for k, n in rising.items() if n > 0}
-        if rising:
-            problems.append((WARN, 'dropped: ' + ', '.join(f'{n} {k}'
-                                                           for k, n in sorted(rising.items()))))
+        problems.append(dropped_since(self._rising, values.get('dropped'), 'dropped'))
         for key, what in (('commands', 'current'), ('displacement_commands', 'displacement')):
-            now, before = values.get(key) or {}, prev.get(key) or {}
-            bad = {k: _rise(now, before, k) for k in _CLAMPED}
+            now = values.get(key) or {}
+            bad = {k: rise(f'{key}.{k}', now.get(k)) for k in _CLAMPED}
             bad = {k: n for k, n in bad.items() if n > 0}
             if bad:
                 problems.append((WARN, f'{what} commands ' + ', '.join(
                     f'{k.replace("_", " ")}: {n}' for k, n in bad.items())))
-        stale = _rise(values.get('displacement_commands') or {},
-                      prev.get('displacement_commands') or {}, 'stale_samples')
+        stale = rise('displacement_commands.stale_samples',
+                     (values.get('displacement_commands') or {}).get('stale_samples'))
         if stale > 0:
             problems.append((WARN, f'commander silent: {stale} samples held or returning to '
                                    'neutral'))
@@ -79,7 +70,7 @@ class RigHealth:
         if started and not done and flow is not None and flow.get('received') is None:
             problems.append((WARN, 'no count from the consumer on samples_received: one sample '
                                    'per tick'))
-        health = worst(problems, values)
+        health = worst([p for p in problems if p], values)
         if health.level == OK:
             if done:
                 health.message = f'done: {published} samples published'

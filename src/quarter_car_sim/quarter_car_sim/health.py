@@ -20,7 +20,7 @@ running ride metrics (``ride_metrics``) of the car; the level and message say wh
 "Since the previous check" compares counters between calls, so the rules are stateful: one
 :class:`CarHealth` / :class:`ControllerHealth` per node, called once per diagnostics period.
 """
-from mr_damper_model.health import ERROR, OK, WARN, worst
+from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 #: Why the supervisor or the command input is in fail-safe, for a human.
 FAILSAFE_MESSAGES = {
@@ -55,29 +55,6 @@ def failsafe_message(reason, detail=''):
     return f'fail-safe: {text}'
 
 
-class _Rising:
-    """Counters seen at the previous check: how much each rose since."""
-
-    def __init__(self):
-        self._last = {}
-
-    def rise(self, key, value):
-        value = int(value or 0)
-        before = self._last.get(key, 0)
-        self._last[key] = value
-        return max(value - before, 0)
-
-
-def _dropped(rising, dropped):
-    n = {reason: rising.rise(f'dropped.{reason}', count)
-         for reason, count in sorted((dropped or {}).items())}
-    n = {k: v for k, v in n.items() if v}
-    if not n:
-        return None
-    return (WARN, 'dropped since the last check: '
-            + ', '.join(f'{v} {k}' for k, v in n.items()))
-
-
 class CarHealth:
     """
     Health of the quarter-car node from its status (see the module docstring).
@@ -94,7 +71,7 @@ class CarHealth:
     def __init__(self, lateness_warn_ms=5.0, persistent_checks=3):
         self.lateness_warn_ms = float(lateness_warn_ms)
         self.persistent_checks = int(persistent_checks)
-        self._rising = _Rising()
+        self._rising = Rising()
         self._refused_checks = 0
 
     def __call__(self, status, metrics=None, *, failed=None, alive=True):
@@ -138,7 +115,7 @@ class CarHealth:
         if n:
             problems.append((WARN, f'{n} lock-step timeout(s) since the last check'))
         problems.append(self._rig_link(status.get('hil')))
-        problems.append(_dropped(self._rising, status.get('dropped')))
+        problems.append(dropped_since(self._rising, status.get('dropped')))
         return worst([p for p in problems if p], values)
 
     def _rig_link(self, hil):
@@ -185,7 +162,7 @@ class ControllerHealth:
 
     def __init__(self, persistent_checks=3):
         self.persistent_checks = int(persistent_checks)
-        self._rising = _Rising()
+        self._rising = Rising()
         self._refused_checks = 0
 
     def __call__(self, status):
@@ -208,7 +185,7 @@ class ControllerHealth:
         elif n_refused:
             problems.append((WARN, 'states refused since the last check: ' + ', '.join(
                 f'{v} {k}' for k, v in refused.items() if v)))
-        problems.append(_dropped(self._rising, status.get('dropped')))
+        problems.append(dropped_since(self._rising, status.get('dropped')))
         return worst([p for p in problems if p], status)
 
 
