@@ -25,6 +25,15 @@ the prototypes of docs/cross-validation.md that are not package models run throu
 ``--seed``, results do not depend on ``--workers`` (a process pool of at most 2 workers,
 single-threaded BLAS).
 The load average of the machine is printed before and after.
+
+``--in-sample`` scores the fits on the very files they were fitted to instead (no file held
+out): each model once on all 30 files and once per current level on the six series at that
+level. A figure of this kind is what a single parameter set of the model family can reach when
+it has seen the answer; a held-out prediction is not expected to do better, so it tells
+whether a goal on the cross-validated ratios is within the family's reach at all.
+``--repeat R0,R1,R2,R3,R4`` repeats every training file at 0, 0.25, 0.5, 0.75 and 1.0 A that
+many times (integer weights in the least squares: e.g. ``8,4,2,1,1`` gives the small forces of
+the low currents a weight closer to the NRMSE's, which divides each file by its own range).
 """
 import os
 
@@ -96,21 +105,36 @@ def _fit_file(key, seed):
     return key, res.metrics['nrmse_percent']
 
 
-def _fit_split(spec, held, seed, fit_kw):
+def _fit(spec, train_keys, scored_keys, seed, fit_kw, repeat):
+    """Fit one set on ``train_keys`` (file k ``repeat[k[1]]`` times); score ``scored_keys``."""
     name, opts = parse_model(spec)
     train = DamperData.concatenate(
-        [_DATA[(s, c)] for s in SERIES if s not in held for c in CURRENTS], restamp=True)
+        [_DATA[k] for k in train_keys for _ in range(repeat.get(k[1], 1))], restamp=True)
     res = identify(train, name, seed=seed, model_options=opts, **fit_kw)
     model = get_model(name, **opts)
-    pred = {(s, c): _nrmse(model, res.x, _DATA[(s, c)]) for s in held for c in CURRENTS}
-    return spec, held, pred, res.metrics['nrmse_percent'], res.seconds, res.parameters
+    pred = {k: _nrmse(model, res.x, _DATA[k]) for k in scored_keys}
+    return pred, res.metrics['nrmse_percent'], res.seconds, res.parameters
+
+
+def _fit_split(spec, held, seed, fit_kw, repeat=None):
+    train = [(s, c) for s in SERIES if s not in held for c in CURRENTS]
+    pred, train_nrmse, seconds, params = _fit(
+        spec, train, [(s, c) for s in held for c in CURRENTS], seed, fit_kw, repeat or {})
+    return spec, held, pred, train_nrmse, seconds, params
+
+
+def _fit_in_sample(spec, current, seed, fit_kw, repeat=None):
+    """Fit on all 30 files (``current`` None) or the six of one current; score the same."""
+    keys = [(s, c) for s in SERIES for c in CURRENTS if current in (None, c)]
+    pred, train_nrmse, seconds, params = _fit(spec, keys, keys, seed, fit_kw, repeat or {})
+    return spec, current, pred, train_nrmse, seconds, params
 
 
 def _short(series):
     return series.replace('mm0x', 'mm0.').replace('25Hz', '25Hz')
 
 
-def report(spec, runs, best):
+def report(spec, runs, best, what='splits'):
     """Print one model's figures; return (median, worst, ratios, ratios of the raw files)."""
     ratios = {}
     for _, held, pred, _, _, _ in runs:
@@ -121,7 +145,7 @@ def report(spec, runs, best):
     worst_key = max(ratios, key=lambda k: max(ratios[k]))
     fit_s = np.median([r[4] for r in runs])
     train = np.median([r[3] for r in runs])
-    print(f'\n== {spec}: {len(runs)} splits, {flat.size} predictions; median fit {fit_s:.2f} s, '
+    print(f'\n== {spec}: {len(runs)} {what}, {flat.size} predictions; median fit {fit_s:.2f} s, '
           f'median training NRMSE {train:.2f} %')
     print(f'   ratio NRMSE / own-Kwok NRMSE: median {np.median(flat):.3f}, '
           f'90th pct {np.percentile(flat, 90):.3f}, worst {flat.max():.3f} '
@@ -129,8 +153,9 @@ def report(spec, runs, best):
     if raw.size:
         print(f'   raw files only (not {", ".join(PREPROC)}): median {np.median(raw):.3f}, '
               f'worst {raw.max():.3f} over {raw.size} predictions')
+    note = '(median over the 5 held-out splits)' if what == 'splits' else '(in-sample)'
     head = ' '.join(f'{c.replace("p", "."):>6s}' for c in CURRENTS)
-    print(f'   {"series":11s} {head}   median  worst   (median over the 5 held-out splits)')
+    print(f'   {"series":11s} {head}   median  worst   {note}')
     for s in SERIES:
         if (s, CURRENTS[0]) not in ratios:
             continue
@@ -139,6 +164,18 @@ def report(spec, runs, best):
         print(f'   {s:11s} ' + ' '.join(f'{q:6.3f}' for q in cells)
               + f'   {np.median(allq):6.3f} {np.max(allq):6.3f}')
     return float(np.median(flat)), float(flat.max()), flat, raw
+
+
+def print_force_levels(data, band=(0.03, 0.04)):
+    """Print each series' median force magnitude [N] with |v| in ``band`` [m/s], per current."""
+    print(f'median |f| [N] at {band[0]}-{band[1]} m/s (both directions), per series and current:')
+    for s in SERIES:
+        cells = []
+        for c in CURRENTS:
+            rec = data[(s, c)]
+            m = (np.abs(rec.v) >= band[0]) & (np.abs(rec.v) < band[1])
+            cells.append(f'{np.median(np.abs(rec.f[m])):7.1f}' if m.sum() >= 20 else '      -')
+        print(f'   {s:11s} ' + ' '.join(cells))
 
 
 def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
@@ -181,9 +218,24 @@ def main(argv=None):
                    'kwok-current-lag parameters of the first split')
     p.add_argument('--splits', type=int, default=None,
                    help='use only the first N of the 15 splits (quick runs)')
+    p.add_argument('--in-sample', action='store_true',
+                   help='score the fits on their own training files: each model on all 30 '
+                   'files, then per current level on the six series at that level')
+    p.add_argument('--repeat', default=None, metavar='R0,R1,R2,R3,R4',
+                   help='repeat each training file at 0..1 A that many times (integer '
+                   'weights; default 1 each)')
     args = p.parse_args(argv)
     if args.workers not in (1, 2):
         p.error('--workers must be 1 or 2 (two shared cores)')
+    repeat = {}
+    if args.repeat:
+        try:
+            counts = [int(r) for r in args.repeat.split(',')]
+        except ValueError:
+            counts = []
+        if len(counts) != len(CURRENTS) or min(counts) < 1:
+            p.error(f'--repeat needs {len(CURRENTS)} integers >= 1, got {args.repeat!r}')
+        repeat = dict(zip(CURRENTS, counts))
     for spec in args.models:
         name, opts = parse_model(spec)
         get_model(name, **opts)          # fail early on a bad name or option
@@ -203,15 +255,32 @@ def main(argv=None):
     with ProcessPoolExecutor(args.workers, initializer=_init,
                              initargs=(args.data_dir,)) as pool:
         best = dict(pool.map(_fit_file, keys, itertools.repeat(args.seed)))
-        jobs = [(spec, held) for spec in args.models for held in splits]
-        runs = list(pool.map(_fit_split, *zip(*jobs), itertools.repeat(args.seed),
-                             itertools.repeat(fit_kw)))
+        if args.in_sample:
+            jobs = [(spec, cur) for spec in args.models for cur in (None,) + CURRENTS]
+            fit_job = _fit_in_sample
+        else:
+            jobs = [(spec, held) for spec in args.models for held in splits]
+            fit_job = _fit_split
+        runs = list(pool.map(fit_job, *zip(*jobs), itertools.repeat(args.seed),
+                             itertools.repeat(fit_kw), itertools.repeat(repeat)))
     print(f'own Kwok fits (NRMSE %, per file): median {np.median(list(best.values())):.2f}, '
           f'range {min(best.values()):.2f}-{max(best.values()):.2f}')
+    if repeat:
+        print('training files repeated (integer weights): '
+              + ', '.join(f'{c.replace("p", ".")} A x{r}' for c, r in repeat.items()))
+    if args.in_sample:
+        print('IN-SAMPLE: every file is scored by the fit it was part of (no file held out)')
+        print_force_levels(_DATA)
     summary = []
-    for spec in args.models:
-        mine = [r for r in runs if r[0] == spec]
-        med, worst, flat, raw = report(spec, mine, best)
+    groups = [(spec, [r for r in runs if r[0] == spec], 'splits') for spec in args.models]
+    if args.in_sample:
+        groups = [(f'{spec} {label}', [r for r in runs if r[0] == spec and pick(r[1])], what)
+                  for spec in args.models
+                  for label, pick, what in (('all 30', lambda c: c is None, 'fit'),
+                                            ('per current', lambda c: c is not None,
+                                             'per-current fits'))]
+    for spec, mine, what in groups:
+        med, worst, flat, raw = report(spec, mine, best, what)
         summary.append((spec, med, float(np.percentile(flat, 90)), worst,
                         float(np.median(raw)) if raw.size else np.nan,
                         float(raw.max()) if raw.size else np.nan,

@@ -15,14 +15,20 @@ same splits, seed, score and figures as the package models.
   ``kwok-current-amp-quad-cubic``: an S-shaped alpha(i), one more linear parameter ``alpha3``
   multiplying ``s**2*(3 - 2*s)`` (smoothstep; with ``i_ref_a=1`` the four monotone terms of
   alpha(s) span every cubic on [0, 1 A]).
+* ``kwok-current-amp-level``: ``kwok-current-amp`` with the yield term ``alpha(i)*tanh(...)``
+  scaled by ``exp(-eta*V)`` (one more swarm parameter, eta [s/m]): a force level that changes
+  with the velocity amplitude (e.g. a fluid warmer in faster tests).
+* ``kwok-table-amp``: ``kwok-current-amp`` with c(i) and alpha(i) tabulated at the tested
+  currents 0, 0.25, 0.5, 0.75 and 1.0 A (ten linear parameters, interpolated linearly in i,
+  held outside): the most flexible current dependence of c and alpha.
 """
 import sys
 
 import numpy as np
 
 from mr_damper_model import models
-from mr_damper_model.kwok_current import KwokCurrent
-from mr_damper_model.kwok_current_amp import KwokCurrentAmp
+from mr_damper_model.kwok_current import KwokCurrent, kwok_current_coefficients
+from mr_damper_model.kwok_current_amp import KwokCurrentAmp, velocity_amplitude
 from mr_damper_model.kwok_current_lag import KwokCurrentLag
 from mr_damper_model.models import HysteresisModel, SeparableParts
 
@@ -49,6 +55,74 @@ class KwokCurrentAmpQuad(KwokCurrentAmp):
 
     def _scale_slope(self, a, extra, v, t):
         a /= 1.0 + extra[:, [0]] * sine_amplitude(self._x, v, t)
+
+
+class KwokCurrentAmpLevel(KwokCurrentAmp):
+    """``kwok-current-amp`` with the yield term scaled by ``exp(-eta*V)``."""
+
+    name = 'kwok-current-amp-level'
+    param_names = KwokCurrentAmp.param_names + ('eta',)
+    param_units = dict(KwokCurrentAmp.param_units, eta='s/m')
+    _bounds = dict(KwokCurrentAmp._bounds, eta=(-20.0, 20.0))
+    _bounds_unbounded = dict(KwokCurrentAmp._bounds_unbounded, eta=(-50.0, 50.0))
+
+    def _force(self, P, x, v, i, t):
+        s = i / self.options['i_ref_a']
+        c, alpha, _ = kwok_current_coefficients(P, s)
+        z = self._nonlinear_factor(P[:, [6, 7, 8, 10, 11, 12, 13]], x, v, i, t)
+        return c * v + P[:, [2]] * x + alpha * z + P[:, [9]]
+
+    def _nonlinear_factor(self, N, x, v, i, t):
+        z = super()._nonlinear_factor(N[:, :-1], x, v, i, t)
+        return z * np.exp(-N[:, [-1]] * velocity_amplitude(v, t, self.options['tau_a']))
+
+
+KNOTS_A = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def hat_weights(i, knots=KNOTS_A):
+    """Return (n, m) linear interpolation weights of currents ``i`` [A] on ``knots``."""
+    k = np.asarray(knots)
+    ic = np.clip(i, k[0], k[-1])
+    j = np.clip(np.searchsorted(k, ic, side='right') - 1, 0, k.size - 2)
+    w = (ic - k[j]) / (k[j + 1] - k[j])
+    W = np.zeros((np.size(i), k.size))
+    W[np.arange(W.shape[0]), j] = 1.0 - w
+    W[np.arange(W.shape[0]), j + 1] = w
+    return W
+
+
+class KwokTableAmp(KwokCurrentAmp):
+    """``kwok-current-amp`` with c(i), alpha(i) tabulated at the current knots."""
+
+    name = 'kwok-table-amp'
+    _nk = len(KNOTS_A)
+    _c = tuple(f'c_{j}' for j in range(_nk))
+    _a = tuple(f'alpha_{j}' for j in range(_nk))
+    param_names = _c + ('k',) + _a + ('f0', 'beta0', 'beta1', 'delta', 'tau0', 'tau1', 'kappa')
+    param_units = dict({n: 'N s/m' for n in _c}, **{n: 'N' for n in _a}, k='N/m', f0='N',
+                       beta0='s/m', beta1='-', delta='-', tau0='s', tau1='s', kappa='s/m')
+    linear_names = _c + ('k',) + _a + ('f0',)
+    _bounds = dict({n: (0.0, 1e5) for n in _c}, **{n: (0.0, 1e4) for n in _a},
+                   k=(0.0, 5e5), f0=(-500.0, 500.0), beta0=(0.1, 1000.0), beta1=(-3.0, 3.0),
+                   delta=(0.0, 3.0), tau0=(0.0, 0.05), tau1=(0.0, 0.05), kappa=(0.0, 1000.0))
+    _bounds_unbounded = _bounds
+
+    def _force(self, P, x, v, i, t):
+        W = hat_weights(i)
+        nk = self._nk
+        z = self._nonlinear_factor(P[:, 2 * nk + 2:], x, v, i, t)
+        c = P[:, :nk] @ W.T
+        alpha = P[:, nk + 1:2 * nk + 1] @ W.T
+        return c * v + P[:, [nk]] * x + alpha * z + P[:, [2 * nk + 1]]
+
+    def _separable_parts(self, x, v, i, t):
+        W = hat_weights(i)
+        nk = self._nk
+        return SeparableParts(
+            fixed_index=np.array(list(range(nk)) + [nk, 2 * nk + 1]),
+            fixed=np.column_stack([W * v[:, None], x, np.ones(x.size)]),
+            factor_index=np.arange(nk + 1, 2 * nk + 1), weights=W)
 
 
 def _smoothstep(s):
@@ -93,7 +167,7 @@ def _cubic(base, name):
     return type(name.title().replace('-', ''), (_Cubic, base), attrs)
 
 
-CANDIDATES = [KwokCurrentAmpQuad] + [
+CANDIDATES = [KwokCurrentAmpQuad, KwokCurrentAmpLevel, KwokTableAmp] + [
     _cubic(base, name) for base, name in (
         (KwokCurrent, 'kwok-current-cubic'), (KwokCurrentLag, 'kwok-current-lag-cubic'),
         (KwokCurrentAmp, 'kwok-current-amp-cubic'),
