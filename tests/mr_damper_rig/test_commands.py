@@ -84,8 +84,9 @@ def test_tracking_error_is_zero_for_an_ideal_actuator_and_the_lag_of_a_first_ord
     for x in (0.01, 0.02, -0.01):
         ideal.command(x)
         ideal.sample()
-    track = ideal.tracking.values()
-    assert track['samples'] == 3 and track['max_abs_m'] == pytest.approx(0.0, abs=1e-9)
+    track = ideal.tracking.as_dict()
+    assert track['n'] == 3 and track['peak_m'] == pytest.approx(0.0, abs=1e-9)
+    assert track['non_finite'] == 0
     # first-order lag, tau = 10 ms, step of 10 mm held: the error after k samples of 1 ms is
     # 10 mm * exp(-k dt / tau) (exact zero-order-hold discretisation)
     tau, dt = 0.01, 1e-3
@@ -96,9 +97,29 @@ def test_tracking_error_is_zero_for_an_ideal_actuator_and_the_lag_of_a_first_ord
     errors = [0.01 - lag.sample()[1] for _ in range(50)]
     expected = 0.01 * np.exp(-np.arange(1, 51) * dt / tau)
     np.testing.assert_allclose(errors, expected, rtol=1e-6, atol=1e-12)
-    assert lag.tracking.max_abs_m == pytest.approx(expected[0], rel=1e-6)
-    assert lag.tracking.rms_m == pytest.approx(np.sqrt(np.mean(expected ** 2)), rel=1e-6)
-    assert lag.tracking.last_m == pytest.approx(expected[-1], rel=1e-6)
+    track = lag.tracking.as_dict()
+    assert track['peak_m'] == pytest.approx(expected[0], rel=1e-6)
+    assert track['rms_m'] == pytest.approx(np.sqrt(np.mean(expected ** 2)), rel=1e-6)
+    assert track['last_m'] == pytest.approx(expected[-1], rel=1e-6)
+
+
+def test_tracking_of_a_delayed_actuator_estimates_its_delay():
+    from mr_damper_rig.actuator import CommandedMotion, ServoActuator
+    from mr_damper_rig.commands import CommandFollower
+    from mr_damper_rig.virtual_rig import VirtualRig
+    dt, delay = 1e-3, 0.005
+    fol = CommandFollower(VirtualRig(excitation=CommandedMotion(
+        ServoActuator('ideal', dt, delay_s=delay)), force_noise_n=0.0, daq_bits=32),
+        _guard(timeout_s=1.0))
+    for k in range(2000):        # 2 s of a 10 mm, 1 Hz sine command
+        fol.command(0.01 * np.sin(2 * np.pi * k * dt))
+        fol.sample()
+    track = fol.tracking.as_dict()
+    # a pure delay of 5 samples: the least-squares remaining delay is that delay (first-order
+    # in dt: the target's velocity is its one-sample difference)
+    assert track['delay_s'] == pytest.approx(delay, rel=0.02)
+    assert fol.tracking.recent_delay_s == pytest.approx(delay, rel=0.02)
+    assert track['n'] == 2000 and track['non_finite'] == 0
 
 
 def test_guard_settings_change_while_running_and_bad_ones_change_nothing():

@@ -75,7 +75,7 @@ def test_current_limits_and_guard_settings_reach_the_core(make_node):
     node._on_displacement(Float64(data=0.05))        # clamped to the new stroke
     assert node.follower.guard.counts['clamped_high'] == 1
     values = node.status_values()
-    assert values['samples_published'] == 1 and values['tracking_error']['samples'] == 1
+    assert values['samples_published'] == 1 and values['tracking_error']['n'] == 1
     node._on_command(Float64(data=3.0))
     assert node.status_values()['commands']['clamped_high'] == 1
     assert node.rig._command == 1.5                  # the coil follows the clamped command

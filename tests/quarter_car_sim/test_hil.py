@@ -30,6 +30,24 @@ def test_tracking_error_recovers_a_known_pure_delay():
     assert e['rms_m'] == pytest.approx(amp / math.sqrt(2), rel=1e-2)
 
 
+def test_tracking_monitor_counts_non_finite_errors_apart_and_keeps_the_last():
+    mon = hil.TrackingMonitor(DT)
+    assert math.isnan(mon.as_dict()['rms_m']) and math.isnan(mon.as_dict()['peak_m'])
+    mon.update(0.003, 0.1, 0.0)
+    mon.update(math.nan, 0.1, 0.0)            # a NaN target: left out, counted
+    mon.update(0.0, 0.1, math.inf)            # an infinite measurement: the same
+    mon.update(0.0, math.nan, 0.004)          # no desired velocity: out of the delay only
+    d = mon.as_dict()
+    assert d['n'] == 2 and d['non_finite'] == 2 and d['last_m'] == pytest.approx(-0.004)
+    assert d['peak_m'] == pytest.approx(0.004)
+    assert d['rms_m'] == pytest.approx(math.sqrt((0.003 ** 2 + 0.004 ** 2) / 2))
+    assert d['delay_s'] == pytest.approx(0.003 * 0.1 / 0.1 ** 2)
+    mon.update(math.nan, 0.0, 0.0)
+    assert math.isnan(mon.as_dict()['last_m']) and mon.as_dict()['n'] == 2
+    mon.reset()
+    assert mon.as_dict()['n'] == 0 and mon.as_dict()['non_finite'] == 0
+
+
 @pytest.mark.parametrize('kind', ['first', 'second'])
 def test_polynomial_compensation_cuts_tracking_error_on_a_sine(kind):
     act = ServoActuator(kind, DT, delay_s=0.002)

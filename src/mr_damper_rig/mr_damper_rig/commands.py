@@ -5,9 +5,12 @@ Coil current commands are checked by :class:`mr_damper_model.commands.CurrentCom
 (shared with the car). Displacement commands (hardware-in-the-loop, ``excitation:=commanded``)
 go through :class:`DisplacementCommandGuard`: clamped to the stroke, non-finite refused, and a
 silent commander makes the actuator hold, then return to neutral (all counted);
-:class:`CommandFollower` samples the rig with the guarded target.
+:class:`CommandFollower` samples the rig with the guarded target and keeps the tracking error
+(``quarter_car_sim.hil.TrackingMonitor``, the car's HIL monitor).
 """
 import math
+
+from quarter_car_sim.hil import TrackingMonitor
 
 #: Counter keys of :attr:`DisplacementCommandGuard.counts`.
 DISPLACEMENT_OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite',
@@ -149,9 +152,10 @@ class CommandFollower:
 
     Attributes
     ----------
-    tracking : TrackingError
+    tracking : quarter_car_sim.hil.TrackingMonitor
         Guarded target minus measured piston displacement of every sample (actuator lag and
-        delay, stroke clamps, return to neutral, DAQ quantisation and noise).
+        delay, stroke clamps, return to neutral, DAQ quantisation and noise); the target's
+        velocity (its difference over one sample) gives the remaining-delay estimate.
 
     """
 
@@ -162,7 +166,8 @@ class CommandFollower:
         self.rig = rig
         self.guard = guard
         self.samples = 0
-        self.tracking = TrackingError()
+        self.tracking = TrackingMonitor(rig.dt)
+        self._target_prev = None
 
     @property
     def t_next(self):
@@ -179,41 +184,8 @@ class CommandFollower:
         self.rig.excitation.command(target)
         self.samples += 1
         sample = self.rig.sample()
-        self.tracking.add(target - sample[1])
+        v_target = (0.0 if self._target_prev is None
+                    else (target - self._target_prev) / self.rig.dt)
+        self._target_prev = target
+        self.tracking.update(target, v_target, sample[1])
         return sample
-
-
-class TrackingError:
-    """
-    Running statistics of the displacement tracking error [m]: count, RMS, largest magnitude.
-
-    Non-finite errors are counted apart (``non_finite``) and left out of the statistics.
-    """
-
-    def __init__(self):
-        self.samples = 0
-        self.non_finite = 0
-        self._sum_sq = 0.0
-        self.max_abs_m = 0.0
-        self.last_m = math.nan
-
-    def add(self, error_m):
-        """Add one error [m] (target minus measured displacement)."""
-        error_m = float(error_m)
-        self.last_m = error_m
-        if not math.isfinite(error_m):
-            self.non_finite += 1
-            return
-        self.samples += 1
-        self._sum_sq += error_m * error_m
-        self.max_abs_m = max(self.max_abs_m, abs(error_m))
-
-    @property
-    def rms_m(self):
-        """Root mean square of the finite errors [m] (NaN before the first)."""
-        return math.sqrt(self._sum_sq / self.samples) if self.samples else math.nan
-
-    def values(self):
-        """Return ``{'samples', 'non_finite', 'rms_m', 'max_abs_m', 'last_m'}`` for the status."""
-        return {'samples': self.samples, 'non_finite': self.non_finite, 'rms_m': self.rms_m,
-                'max_abs_m': self.max_abs_m, 'last_m': self.last_m}

@@ -379,7 +379,7 @@ class RigNode(Node):
             values['displacement_commands'] = dict(self.follower.guard.counts)
             values['actuator'] = {'kind': actuator.kind,
                                   'equivalent_delay_s': actuator.equivalent_delay_s}
-            values['tracking_error'] = self.follower.tracking.values()
+            values['tracking_error'] = self.follower.tracking.as_dict()
         if self.rig is not None:
             values['coil_current_a'] = float(getattr(self.rig.plant, 'current', math.nan))
         if self._clock_pub is not None:
