@@ -4,12 +4,43 @@ Coil current commands checked before a coil takes them: clamped to the range, or
 A command below ``i_min_a`` or above ``i_max_a`` is clamped to the range and counted; a NaN or
 infinite command is refused (the coil keeps its current) and counted. Both the rig (its coil)
 and the car (an external controller's command, ``quarter_car_sim.controller_core``) check
-commands with :class:`CurrentCommandLimiter`; ``counts`` goes into their status.
+commands with :class:`CurrentCommandLimiter`; ``counts`` goes into their status. The rule itself,
+:func:`clamp_command`, is also the rig's for displacement commands
+(``mr_damper_rig.commands.DisplacementCommandGuard``).
 """
 import math
 
 #: Outcome keys of :attr:`CurrentCommandLimiter.counts`.
 OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite')
+
+
+def clamp_command(value, lo, hi):
+    """
+    Check one command against the range ``[lo, hi]``: the one rule of every command guard.
+
+    Parameters
+    ----------
+    value : float
+        Requested value (a coil current [A], a piston displacement [m], ...).
+    lo, hi : float
+        Range, ``lo < hi``.
+
+    Returns
+    -------
+    value : float or None
+        ``value`` within the range, or the range end it passed; None if not finite.
+    outcome : str
+        ``accepted``, ``clamped_low``, ``clamped_high`` or ``refused_non_finite``.
+
+    """
+    value = float(value)
+    if not math.isfinite(value):
+        return None, 'refused_non_finite'
+    if value < lo:
+        return lo, 'clamped_low'
+    if value > hi:
+        return hi, 'clamped_high'
+    return value, 'accepted'
 
 
 class CurrentCommandLimiter:
@@ -68,14 +99,6 @@ class CurrentCommandLimiter:
             One of :data:`OUTCOMES` (also counted).
 
         """
-        i_a = float(i_a)
-        if not math.isfinite(i_a):
-            outcome, current = 'refused_non_finite', None
-        elif i_a < self.i_min_a:
-            outcome, current = 'clamped_low', self.i_min_a
-        elif i_a > self.i_max_a:
-            outcome, current = 'clamped_high', self.i_max_a
-        else:
-            outcome, current = 'accepted', i_a
+        current, outcome = clamp_command(i_a, self.i_min_a, self.i_max_a)
         self.counts[outcome] += 1
         return current, outcome

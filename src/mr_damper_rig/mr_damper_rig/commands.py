@@ -10,11 +10,11 @@ silent commander makes the actuator hold, then return to neutral (all counted);
 """
 import math
 
+from mr_damper_model.commands import clamp_command, OUTCOMES
 from quarter_car_sim.hil import TrackingMonitor
 
 #: Counter keys of :attr:`DisplacementCommandGuard.counts`.
-DISPLACEMENT_OUTCOMES = ('accepted', 'clamped_low', 'clamped_high', 'refused_non_finite',
-                         'stale_timeouts', 'stale_samples')
+DISPLACEMENT_OUTCOMES = OUTCOMES + ('stale_timeouts', 'stale_samples')
 
 
 class DisplacementCommandGuard:
@@ -99,18 +99,11 @@ class DisplacementCommandGuard:
             (also counted).
 
         """
-        x_m = float(x_m)
-        lo, hi = self.center_m - self.stroke_m, self.center_m + self.stroke_m
-        if not math.isfinite(x_m):
-            self.counts['refused_non_finite'] += 1
-            return None, 'refused_non_finite'
-        if x_m < lo:
-            outcome, x_m = 'clamped_low', lo
-        elif x_m > hi:
-            outcome, x_m = 'clamped_high', hi
-        else:
-            outcome = 'accepted'
+        x_m, outcome = clamp_command(x_m, self.center_m - self.stroke_m,
+                                     self.center_m + self.stroke_m)
         self.counts[outcome] += 1
+        if x_m is None:
+            return None, outcome
         self.target_m = x_m
         self.last_command_t = float(t_s)
         self._stale = False
