@@ -69,7 +69,8 @@ class KwokCurrentAmpLevel(KwokCurrentAmp):
     def _force(self, P, x, v, i, t):
         s = i / self.options['i_ref_a']
         c, alpha, _ = kwok_current_coefficients(P, s)
-        z = self._nonlinear_factor(P[:, [6, 7, 8, 10, 11, 12, 13]], x, v, i, t)
+        N = P[:, [self.param_names.index(n) for n in self.nonlinear_names]]
+        z = self._nonlinear_factor(N, x, v, i, t)
         return c * v + P[:, [2]] * x + alpha * z + P[:, [9]]
 
     def _nonlinear_factor(self, N, x, v, i, t):
@@ -82,14 +83,8 @@ KNOTS_A = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 def hat_weights(i, knots=KNOTS_A):
     """Return (n, m) linear interpolation weights of currents ``i`` [A] on ``knots``."""
-    k = np.asarray(knots)
-    ic = np.clip(i, k[0], k[-1])
-    j = np.clip(np.searchsorted(k, ic, side='right') - 1, 0, k.size - 2)
-    w = (ic - k[j]) / (k[j + 1] - k[j])
-    W = np.zeros((np.size(i), k.size))
-    W[np.arange(W.shape[0]), j] = 1.0 - w
-    W[np.arange(W.shape[0]), j + 1] = w
-    return W
+    basis = np.eye(len(knots))
+    return np.column_stack([np.interp(i, knots, b) for b in basis])
 
 
 class KwokTableAmp(KwokCurrentAmp):
