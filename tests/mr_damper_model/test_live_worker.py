@@ -203,9 +203,17 @@ def test_a_failed_publish_is_not_a_lost_sample():
     assert 'lost' not in h.message
     h = rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3}), 2.0)
     assert '3 sample(s) lost' in h.message and 'publish' not in h.message
+    # any other drop reason is reported by name, once per rise
+    h = rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3,
+                                  'undecodable': 4}), 3.0)
+    assert h.level == WARN and '4 undecodable' in h.message and 'lost' not in h.message
+    assert rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3,
+                                     'undecodable': 4}), 4.0).level == OK
 
 
-def test_save_throttle_flush_never_writes_an_older_set_over_a_newer_one():
+def test_save_throttle_flush_writes_the_pending_set_once_and_clears_it():
+    # (the read and the write of the pending set share one lock hold; no hook reaches between
+    # them, so the race that this fixed is not reproduced here, only the single write)
     written = []
     now = [0.0]
     throttle = SaveThrottle(written.append, 1.0, lambda: now[0])

@@ -21,7 +21,7 @@ import threading
 
 import numpy as np
 
-from .health import ERROR, OK, WARN, worst
+from .health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 #: Window skips that point at the data or the sensors (WARN while they rise); the other skip
 #: reasons (few samples, no motion, no force, one direction) mean the rig is idle.
@@ -160,6 +160,11 @@ class WindowOutcome:
         self.error = error
 
 
+def _publish_failed(reason):
+    """Whether a drop reason is a failed publish of the identifier's own (not a lost sample)."""
+    return reason.endswith('_publish_failed')
+
+
 class IdentifierHealth:
     """
     Health rules of the identifier, judged on the change of its counters since the last call.
@@ -172,7 +177,8 @@ class IdentifierHealth:
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
       the last report; samples lost (buffer, transport) since the last report; failed
-      publishes of its own topics since the last report; windows passed over in in-order mode
+      publishes of its own topics since the last report; other drops since the last report
+      (by reason); windows passed over in in-order mode
       (``windows_overflow``); some fit errors; no valid model yet although windows were
       processed.
     - OK: fitting, last estimate valid; or waiting for samples / for the first window.
@@ -186,26 +192,24 @@ class IdentifierHealth:
 
     def __init__(self, no_sample_timeout_s=5.0):
         self.no_sample_timeout_s = float(no_sample_timeout_s)
-        self._prev = None
+        self._rising = Rising()
         self._received = None
         self._since = None      # time of the last change of samples_received (or first call)
 
     @staticmethod
     def _counts(v):
+        dropped = v.get('dropped', {})
         return {
-            'received': v.get('samples_received', 0),
             'rejected': sum(v.get('rejected', {}).values())
             + sum(v.get('out_of_range', {}).values()),
             # samples only: a failed publish of our own is not a lost sample (it is counted
             # under its own reason in ``dropped``)
-            'lost': v.get('samples_lost', 0) + v.get('dropped', {}).get('message_lost', 0),
-            'publish_failed': sum(n for r, n in v.get('dropped', {}).items()
-                                  if r.endswith('_publish_failed')),
+            'lost': v.get('samples_lost', 0) + dropped.get('message_lost', 0),
+            'publish_failed': sum(n for r, n in dropped.items() if _publish_failed(r)),
             'overflow': v.get('windows_overflow', 0),
-            'due': v.get('windows_due', 0),
             'fitted': v.get('windows_fitted', 0),
             'errors': v.get('fit_errors', 0),
-            'skips': {r: v.get('windows_skipped', {}).get(r, 0) for r in WARN_SKIPS}}
+            **{f'skips.{r}': v.get('windows_skipped', {}).get(r, 0) for r in WARN_SKIPS}}
 
     def __call__(self, values, now_s):
         """
@@ -225,48 +229,50 @@ class IdentifierHealth:
             Level, message and ``values`` (with ``last_sample_age_s`` added).
 
         """
-        cur = self._counts(values)
-        prev = self._prev if self._prev is not None else dict(
-            cur, rejected=0, lost=0, publish_failed=0, overflow=0, errors=0, due=0, fitted=0,
-            skips={r: 0 for r in WARN_SKIPS})
-        self._prev = cur
-        if self._since is None or cur['received'] != self._received or now_s < self._since:
+        rose = {key: self._rising.rise(key, n) for key, n in self._counts(values).items()}
+        received = values.get('samples_received', 0)
+        if self._since is None or received != self._received or now_s < self._since:
             self._since = now_s
-            self._received = cur['received']
+            self._received = received
         silent = now_s - self._since
-        values = dict(values, last_sample_age_s=silent if cur['received'] else math.nan)
+        values = dict(values, last_sample_age_s=silent if received else math.nan)
         found = []
         if not values.get('worker_alive', True):
             found.append((ERROR, 'fit worker dead'))
         if not values.get('fit_process_alive', True):
             found.append((ERROR, 'fit process dead'))
-        errors = cur['errors'] - prev['errors']
-        if errors > 0 and cur['fitted'] == prev['fitted']:
+        errors = rose['errors']
+        if errors > 0 and rose['fitted'] == 0:
             found.append((ERROR, f'fit errors on every window ({errors}): '
                                  f'{values.get("last_error", "")}'))
         elif errors > 0:
             found.append((WARN, f'{errors} fit error(s)'))
         if 0 < self.no_sample_timeout_s <= silent:
             found.append((ERROR, f'no samples for {silent:.1f} s'))
-        fitted = cur['fitted'] > 0
+        fitted = values.get('windows_fitted', 0) > 0
         if fitted and not values.get('last_valid', False):
             found.append((WARN, f'last estimate not valid: {values.get("last_reason", "")}'))
         for reason in WARN_SKIPS:
-            n = cur['skips'][reason] - prev['skips'][reason]
+            n = rose[f'skips.{reason}']
             if n > 0:
                 found.append((WARN, f'{n} window(s) skipped: {reason}'))
         for key, what in (('rejected', 'sample(s) rejected'), ('lost', 'sample(s) lost'),
                           ('publish_failed', 'publish(es) failed'),
                           ('overflow', 'window(s) passed over (backlog full)')):
-            n = cur[key] - prev[key]
+            n = rose[key]
             if n > 0:
                 found.append((WARN, f'{n} {what}'))
-        if cur['due'] > 0 and not values.get('has_valid', False):
+        other = dropped_since(self._rising, {
+            r: n for r, n in values.get('dropped', {}).items()
+            if r != 'message_lost' and not _publish_failed(r)})
+        if other:
+            found.append(other)
+        if values.get('windows_due', 0) > 0 and not values.get('has_valid', False):
             found.append((WARN, 'no valid model yet'))
         health = worst(found, values)
         if health.level == OK:
             health.message = ('fitting, last estimate valid' if fitted else
-                              'collecting the first window' if cur['received'] else
+                              'collecting the first window' if received else
                               'waiting for samples')
         return health
 
