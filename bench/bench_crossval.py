@@ -102,7 +102,7 @@ def _nrmse(model, x, rec):
 
 def _fit_file(key, seed):
     res = identify(_DATA[key], 'kwok', seed=seed)
-    return key, res.metrics['nrmse_percent']
+    return key, (res.metrics['nrmse_percent'], res.parameters)
 
 
 def _fit(spec, train_keys, scored_keys, seed, fit_kw, repeat):
@@ -176,6 +176,15 @@ def print_force_levels(data, band=(0.03, 0.04)):
             m = (np.abs(rec.v) >= band[0]) & (np.abs(rec.v) < band[1])
             cells.append(f'{np.median(np.abs(rec.f[m])):7.1f}' if m.sum() >= 20 else '      -')
         print(f'   {s:11s} ' + ' '.join(cells))
+
+
+def print_own_beta(data, own):
+    """Print each file's own Kwok beta [s/m] and its series' peak velocity V [m/s]."""
+    print('own Kwok beta [s/m] per current; V = 99th percentile of |v| [m/s]:')
+    for s in SERIES:
+        v99 = np.percentile(np.abs(data[(s, CURRENTS[0])].v), 99)
+        print(f'   {s:11s} V {v99:.3f} ' + ' '.join(
+            f'{own[(s, c)][1]["beta"]:6.0f}' for c in CURRENTS))
 
 
 def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
@@ -254,7 +263,8 @@ def main(argv=None):
     keys = list(itertools.product(SERIES, CURRENTS))
     with ProcessPoolExecutor(args.workers, initializer=_init,
                              initargs=(args.data_dir,)) as pool:
-        best = dict(pool.map(_fit_file, keys, itertools.repeat(args.seed)))
+        own = dict(pool.map(_fit_file, keys, itertools.repeat(args.seed)))
+        best = {k: nrmse for k, (nrmse, _) in own.items()}
         if args.in_sample:
             jobs = [(spec, cur) for spec in args.models for cur in (None,) + CURRENTS]
             fit_job = _fit_in_sample
@@ -271,6 +281,7 @@ def main(argv=None):
     if args.in_sample:
         print('IN-SAMPLE: every file is scored by the fit it was part of (no file held out)')
         print_force_levels(_DATA)
+        print_own_beta(_DATA, own)
     summary = []
     groups = [(spec, [r for r in runs if r[0] == spec], 'splits') for spec in args.models]
     if args.in_sample:
@@ -281,6 +292,8 @@ def main(argv=None):
                                              'per-current fits'))]
     for spec, mine, what in groups:
         med, worst, flat, raw = report(spec, mine, best, what)
+        if what == 'fit':
+            print('   parameters: ' + ', '.join(f'{n} {v:.4g}' for n, v in mine[0][5].items()))
         summary.append((spec, med, float(np.percentile(flat, 90)), worst,
                         float(np.median(raw)) if raw.size else np.nan,
                         float(raw.max()) if raw.size else np.nan,
