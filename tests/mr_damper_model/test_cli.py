@@ -332,8 +332,11 @@ def test_a_closed_output_pipe_ends_quietly():
     r, w = os.pipe()
     os.close(r)                                    # the reader is gone before anything is written
     try:
+        # without PYTHONUNBUFFERED (a user's shell): stdout to a pipe is block-buffered and
+        # written only at the flush
+        env = {k: v for k, v in os.environ.items() if k != 'PYTHONUNBUFFERED'}
         proc = subprocess.run([str(VENV_BIN / 'mr-damper-identify'), str(QFILE)], stdout=w,
-                              stderr=subprocess.PIPE, text=True, timeout=120)
+                              stderr=subprocess.PIPE, text=True, timeout=120, env=env)
     finally:
         os.close(w)
     assert proc.returncode == 141 and proc.stderr == ''

@@ -506,6 +506,7 @@ def main(argv=None):
     """Console-script entry point."""
     try:
         code = run(argv)
+        sys.stdout.flush()      # a block-buffered pipe is written here, inside the try
     except KeyboardInterrupt:
         code = _fail('', 'interrupted', 130)
     except BrokenPipeError:     # the reader went away (e.g. `| head`): stop quietly, as cat does
