@@ -84,3 +84,14 @@ def test_corner_configs_key_nodes_by_namespace_and_separate_what_must_differ(tmp
     for bad in (['fl', 'fl'], ['front'], []):
         with pytest.raises(SuiteError, match='--corners'):
             corner_configs(cfg, bad, tmp_path)
+
+
+def test_the_external_controller_takes_the_law_and_the_car_s_control_rate():
+    cfg = {'quarter_car_node': {'ros__parameters': {
+        'controller': 'clipped-optimal-wk', 'rate_hz': 500.0, 'safe_current_a': 0.4}}}
+    config.use_external_controller(cfg)
+    ctrl = config.node_params(cfg, config.CTRL)
+    # the law's Wk filter runs at the car's control period, not the node's 1 kHz default
+    assert ctrl == {'controller': 'clipped-optimal-wk', 'rate_hz': 500.0, 'safe_current_a': 0.4}
+    assert config.node_params(cfg, config.QC)['controller'] == 'external'
+    assert list(config.suite_nodes(cfg)) == [config.RIG, config.IDENT, config.CTRL, config.QC]

@@ -36,9 +36,10 @@ RECORDER_NODE = {RECORDER: 'mr-damper-record'}
 #: the stand-alone controller node (started with ``--external-controller``)
 CTRL = 'semi_active_controller'
 CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
-#: car parameters the controller node takes over when the law moves out of the car
+#: car parameters the controller node takes over when the law moves out of the car (``rate_hz``:
+#: the control period of a filter inside the law, e.g. clipped-optimal-wk's Wk filter)
 CONTROLLER_PARAMS = ('controller', 'controller_options', 'safe_current_a', 'param_timeout_s',
-                     'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a')
+                     'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a', 'rate_hz')
 QUIROZ_DIR = REPO.parent / 'shared' / 'data' / 'quiroz_mr_damper'
 DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv'
                        for c in ('0', '0p25', '0p5', '0p75', '1p0'))
