@@ -265,29 +265,42 @@ def test_wk_design_without_filter_is_the_plain_clipped_optimal_design(weights):
         assert law.demand(s) == pytest.approx(ref.demand(s), rel=1e-6, abs=1e-9)
 
 
+def test_wk_design_model_is_the_car_in_series_with_the_wk_filter():
+    # independent truth: python-control's series connection of the car (force -> a_s) and the
+    # Wk filter has the frequency response of the design model's force -> a_wk
+    import control
+    from quarter_car_sim.linear_analysis import linear_model
+    from quarter_car_sim.params import QuarterCarParams
+    d = ctl.wk_lqr_design()
+    car = linear_model(QuarterCarParams())
+    truth = control.series(control.ss(car.A, car.B[:, [1]], car.C[[0]], car.D[[0], [1]]),
+                           ctl.wk_state_space())
+    cw = np.concatenate([np.asarray(d.filter.D).ravel()[0] * car.C[0],
+                         np.asarray(d.filter.C).ravel()])
+    dw = float(np.asarray(d.filter.D).ravel()[0] * car.D[0, 1])
+    mine = control.ss(d.A, d.B, cw.reshape(1, -1), [[dw]])
+    w = 2 * np.pi * np.logspace(-1, 2, 40)          # 0.1 .. 100 Hz
+    np.testing.assert_allclose(mine(1j * w).ravel(), truth(1j * w).ravel(), rtol=1e-9)
+
+
 def test_wk_design_is_optimal_among_gains_that_ignore_the_filter():
-    # LQR truth: with white road velocity into the augmented car, the expected cost of the
-    # optimal gain (trace(P B_r B_r')) is below that of any other stabilising gain, here the
-    # plain (a_s-weighted) clipped-optimal gain with zeros on the filter states, same weights
+    # LQR truth: with white road velocity into the augmented car (its design model, checked
+    # above), the expected cost of the optimal gain (trace(P B_r B_r')) is below that of any
+    # other stabilising gain, here the plain (a_s-weighted) clipped-optimal gain with zeros on
+    # the filter states, same weights
     import control
     from quarter_car_sim.linear_analysis import linear_model
     from quarter_car_sim.params import QuarterCarParams
     w = {'q_tyre': 1e3, 'r_force': 3e-6}
     d = ctl.wk_lqr_design(**w)
     car = linear_model(QuarterCarParams())
-    filt = d.filter
-    nw = filt.A.shape[0]
-    n = 4 + nw
-    Aa = np.zeros((n, n))
-    Aa[:4, :4] = car.A
-    Aa[4:, :4] = np.outer(filt.B.ravel(), car.C[0])
-    Aa[4:, 4:] = filt.A
-    Ba = np.concatenate([car.B[:, 1], filt.B.ravel() * car.D[0, 1]]).reshape(n, 1)
+    n = d.A.shape[0]
+    nw = n - 4
     Br = np.concatenate([car.B[:, 0], np.zeros(nw)]).reshape(n, 1)
 
     def cost(k):
         k = k.reshape(1, n)
-        acl = Aa - Ba @ k
+        acl = d.A - d.B @ k
         assert np.all(np.linalg.eigvals(acl).real < 0.0)
         qk = d.Q - d.N @ k - k.T @ d.N.T + k.T @ d.R @ k
         p = control.lyap(acl.T, 0.5 * (qk + qk.T))
@@ -379,6 +392,8 @@ def test_clipped_optimal_wk_rejects_bad_input():
         ctl.wk_lqr_design(weighting='iso')
     with pytest.raises(ValueError, match='dt'):
         ctl.ClippedOptimalWk(ctl.wk_lqr_design(), dt=0.0)
+    with pytest.raises(ValueError, match='designs its own gain'):
+        ctl.make_controller('clipped-optimal-wk', lqr_gain=[1.0, 2.0, 3.0, 4.0])
     d = ctl.wk_lqr_design()
     d.gain = d.gain[:6]
     with pytest.raises(ValueError, match='gain'):

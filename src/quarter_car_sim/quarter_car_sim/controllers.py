@@ -40,7 +40,6 @@ velocity ``v_rel = v_s - v_u``:
 See docs/control-laws.md for the laws, their gains and the offline semi-active bound
 (:mod:`quarter_car_sim.bound`).
 """
-import dataclasses
 import math
 
 import numpy as np
@@ -367,11 +366,16 @@ def clipped_optimal_gain(params=None, **weights):
     """
     from quarter_car_sim.linear_analysis import lqr_design
     from quarter_car_sim.params import QuarterCarParams
-    unknown = sorted(set(weights) - set(DEFAULT_CO_WEIGHTS))
+    w = _lqr_weights(DEFAULT_CO_WEIGHTS, weights)
+    return lqr_design(params or QuarterCarParams(), **w).gain
+
+
+def _lqr_weights(defaults, overrides):
+    """Return ``defaults`` updated by ``overrides``; ValueError on a weight not in defaults."""
+    unknown = sorted(set(overrides) - set(defaults))
     if unknown:
         raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
-    w = {**DEFAULT_CO_WEIGHTS, **weights}
-    return lqr_design(params or QuarterCarParams(), **w).gain
+    return {**defaults, **overrides}
 
 
 class ClippedOptimal(LqrActive):
@@ -462,49 +466,16 @@ def wk_state_space():
     return sys
 
 
-@dataclasses.dataclass
-class WkLqrDesign:
-    """
-    Result of :func:`wk_lqr_design`: LQR on the quarter car augmented with the Wk filter.
-
-    Attributes
-    ----------
-    gain : ndarray with shape (4 + n_w,)
-        ``F = -gain @ [travel, v_s, z_u - z_r, v_u, w]`` [N per state unit], ``w`` the states
-        of ``filter`` (body acceleration in).
-    filter : control.StateSpace
-        Frequency weighting on the body acceleration (``n_w`` states; Wk or none).
-    Q, R, N : ndarray
-        Weights of ``integral X'QX + F'RF + 2X'NF`` for the augmented state ``X``.
-    poles : ndarray
-        Closed-loop poles [rad/s] (fully active).
-    weights : dict
-        Output weights used.
-
-    """
-
-    gain: np.ndarray
-    filter: object
-    Q: np.ndarray
-    R: np.ndarray
-    N: np.ndarray
-    poles: np.ndarray
-    weights: dict
-
-
 def wk_lqr_design(params=None, *, weighting='wk', **weights):
     """
     Frequency-shaped LQR: active force on the linear quarter car, cost on Wk-weighted a_s.
 
-    The car of :func:`quarter_car_sim.linear_analysis.linear_model` (no damper, state
-    ``x = [travel, v_s, z_u - z_r, v_u]``, force ``F`` on the body) is augmented with the
-    states ``w`` of the weighting filter driven by the body acceleration
-    ``a_s = C_a x + D_a F``; :func:`control.lqr` minimises ::
+    :func:`quarter_car_sim.linear_analysis.lqr_design` (the one LQR cost) with the car
+    (state ``x = [travel, v_s, z_u - z_r, v_u]``, force ``F`` on the body) augmented with the
+    states ``w`` of the weighting filter driven by the body acceleration; it minimises ::
 
         integral( q_wk a_wk^2 + q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2
                   + r_force F^2 ) dt
-
-    with ``a_wk = C_w w + D_w a_s`` (cross terms from the feedthroughs of ``F``).
 
     Parameters
     ----------
@@ -519,16 +490,14 @@ def wk_lqr_design(params=None, *, weighting='wk', **weights):
 
     Returns
     -------
-    WkLqrDesign
+    quarter_car_sim.linear_analysis.LqrDesign
+        With ``filter`` the weighting (gain ``4 + n_w`` long).
 
     """
     import control
-    from quarter_car_sim.linear_analysis import linear_model
+    from quarter_car_sim.linear_analysis import lqr_design
     from quarter_car_sim.params import QuarterCarParams
-    unknown = sorted(set(weights) - set(DEFAULT_COWK_WEIGHTS))
-    if unknown:
-        raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
-    w = {**DEFAULT_COWK_WEIGHTS, **weights}
+    w = _lqr_weights(DEFAULT_COWK_WEIGHTS, weights)
     for k, v in w.items():
         if not (math.isfinite(v) and v >= 0.0):
             raise ValueError(f'`{k}` must be finite and >= 0, got {v}')
@@ -544,32 +513,7 @@ def wk_lqr_design(params=None, *, weighting='wk', **weights):
                              f'got {weighting!r}')
     else:
         filt = weighting
-    car = linear_model(params or QuarterCarParams(), 0.0)
-    A, B = car.A, car.B[:, 1]
-    ca, da = car.C[0], car.D[0, 1]
-    aw, bw = np.asarray(filt.A, float), np.asarray(filt.B, float).ravel()
-    cw, dw = np.asarray(filt.C, float).ravel(), float(np.asarray(filt.D, float).ravel()[0])
-    nw = aw.shape[0]
-    n = 4 + nw
-    Aa = np.zeros((n, n))
-    Aa[:4, :4] = A
-    Aa[4:, :4] = np.outer(bw, ca)
-    Aa[4:, 4:] = aw
-    Ba = np.concatenate([B, bw * da])
-    # cost outputs z = Cz X + Dz F: a_wk, a_s, travel, tyre deflection, force
-    Cz = np.zeros((5, n))
-    Cz[0, :4], Cz[0, 4:] = dw * ca, cw
-    Cz[1, :4] = ca
-    Cz[2, 0] = 1.0
-    Cz[3, 2] = -1.0
-    Dz = np.array([dw * da, da, 0.0, 0.0, 1.0])
-    W = np.diag([w['q_wk'], w['q_accel'], w['q_travel'], w['q_tyre'], w['r_force']])
-    Q = Cz.T @ W @ Cz
-    R = np.array([[Dz @ W @ Dz]])
-    N = (Cz.T @ W @ Dz).reshape(n, 1)
-    K, _, E = control.lqr(Aa, Ba.reshape(n, 1), Q, R, N)
-    return WkLqrDesign(gain=np.asarray(K).ravel(), filter=filt, Q=Q, R=R, N=N,
-                       poles=np.asarray(E), weights=w)
+    return lqr_design(params or QuarterCarParams(), weighting=filt, **w)
 
 
 class ClippedOptimalWk(Controller):
@@ -590,8 +534,8 @@ class ClippedOptimalWk(Controller):
 
     Parameters
     ----------
-    design : WkLqrDesign
-        Design (:func:`wk_lqr_design`).
+    design : quarter_car_sim.linear_analysis.LqrDesign
+        Design with its weighting filter (:func:`wk_lqr_design`).
     force_range : callable, optional
         ``force_range(travel, v_rel) -> (lo, hi)`` [N] (see :class:`ClippedOptimal`).
     dt : float
@@ -637,7 +581,11 @@ class ClippedOptimalWk(Controller):
         self._t = -math.inf
         self._a_prev = 0.0
         self._fw = 0.0
-        self.a_wk = 0.0
+
+    @property
+    def a_wk(self):
+        """Wk-weighted body acceleration of the latest state [m/s^2] (the filter's output)."""
+        return float(self._cd @ self._s) + self._dd * self._a_prev
 
     def desired(self, state):
         """Unclipped frequency-shaped LQR force on the body [N] (steps the filter)."""
@@ -647,9 +595,7 @@ class ClippedOptimalWk(Controller):
                 self._s = self._ad @ self._s + self._bd * self._a_prev
             self._t = state.t
             self._a_prev = a
-            s = self._s
-            self.a_wk = float(self._cd @ s) + self._dd * a
-            self._fw = float(self._g_s @ s) + self._g_a * a
+            self._fw = float(self._g_s @ self._s) + self._g_a * a
         return car_state_feedback(self.k_car, state) - self._fw
 
     def demand(self, state):
@@ -671,7 +617,8 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     c_sky, c_p : float
         Skyhook gain and passive part [N s/m] (skyhook, hybrid, skyhook-ideal).
     lqr_gain : array_like, optional
-        LQR gain (lqr-active, clipped-optimal); default designed on ``params`` by
+        LQR gain (lqr-active, clipped-optimal; refused by clipped-optimal-wk, which designs
+        its own); default designed on ``params`` by
         :func:`quarter_car_sim.linear_analysis.lqr_design` (lqr-active) or
         :func:`clipped_optimal_gain` (clipped-optimal).
     alpha : float
@@ -732,6 +679,9 @@ def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt):
         gain = clipped_optimal_gain(params) if lqr_gain is None else lqr_gain
         return ClippedOptimal(gain, None if inverse is None else inverse.body_force_range)
     if n == 'clipped-optimal-wk':
+        if lqr_gain is not None:
+            raise ValueError('clipped-optimal-wk designs its own gain from its weights '
+                             '(wk_lqr_design); `lqr_gain` is for clipped-optimal and lqr-active')
         return ClippedOptimalWk(wk_lqr_design(params),
                                 None if inverse is None else inverse.body_force_range, dt=dt)
     if n == 'skyhook-ideal':

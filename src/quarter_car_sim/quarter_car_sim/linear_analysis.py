@@ -139,14 +139,21 @@ class LqrDesign:
 
     Attributes
     ----------
-    gain : ndarray (4,)
-        Feedback ``F = -gain @ [travel, v_s, z_u - z_r, v_u]`` [N per state unit].
+    gain : ndarray (4 + n_w,)
+        Feedback ``F = -gain @ [travel, v_s, z_u - z_r, v_u, w]`` [N per state unit], ``w``
+        the ``n_w`` states of ``filter`` (none without a weighting).
     Q, R, N : ndarray
-        Weights of ``integral x'Qx + u'Ru + 2x'Nu`` (from the output weights).
+        Weights of ``integral X'QX + F'RF + 2X'NF`` for the design state ``X`` (from the output
+        weights).
     poles : ndarray
-        Closed-loop poles [rad/s].
+        Closed-loop poles [rad/s] (fully active).
     weights : dict
         Output weights used.
+    filter : control.StateSpace or None
+        Frequency weighting on the body acceleration (None: none).
+    A, B : ndarray
+        Design model ``dX/dt = A X + B F``: the car without damper, then the filter states
+        driven by its body acceleration.
 
     """
 
@@ -156,18 +163,35 @@ class LqrDesign:
     N: np.ndarray
     poles: np.ndarray
     weights: dict
+    filter: object = None
+    A: np.ndarray = None
+    B: np.ndarray = None
 
 
-def lqr_design(params, *, q_accel=1.0, q_travel=1.0e3, q_tyre=1.0e4, r_force=1.0e-6):
+def lqr_design(params, *, q_accel=1.0, q_travel=1.0e3, q_tyre=1.0e4, r_force=1.0e-6,
+               weighting=None, q_wk=0.0):
     """
-    Fully active LQR on the linear model (``control.lqr``), for the active reference.
+    LQR on the linear model (``control.lqr``): the one quarter-car LQR cost.
 
-    Minimises ``integral( q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2 + r_force F^2 )``
-    with ``a_s = (-k_s travel + F)/m_s`` (so the cost has a cross term); the actuator replaces
-    the damper (spring kept). Weights in SI units (a_s in m/s^2, travel and tyre deflection in
-    m, F in N). The defaults were chosen on ISO 8608 class C at 20 m/s (bench/bench_ride.py) so
-    that the active car is better than the softest passive MR setting on all three of Wk body
-    acceleration, suspension travel and dynamic tyre load.
+    Minimises ``integral( q_wk a_wk^2 + q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2
+    + r_force F^2 )`` with ``a_s = (-k_s travel + F)/m_s`` (so the cost has a cross term); the
+    actuator replaces the damper (spring kept). With a ``weighting`` filter the car is augmented
+    with its states ``w``, driven by ``a_s``, and ``a_wk = C_w w + D_w a_s`` (cross terms from
+    the feedthroughs of ``F``); without one ``a_wk = a_s``. Weights in SI units (accelerations
+    in m/s^2, travel and tyre deflection in m, F in N). The defaults (fully active reference)
+    were chosen on ISO 8608 class C at 20 m/s (bench/bench_ride.py) so that the active car is
+    better than the softest passive MR setting on all three of Wk body acceleration, suspension
+    travel and dynamic tyre load.
+
+    Parameters
+    ----------
+    params : QuarterCarParams
+        Car parameters.
+    q_accel, q_travel, q_tyre, r_force, q_wk : float
+        Output weights (SI).
+    weighting : control.StateSpace, optional
+        SISO stable filter on the body acceleration (e.g.
+        ``quarter_car_sim.controllers.wk_state_space``).
 
     Returns
     -------
@@ -175,13 +199,35 @@ def lqr_design(params, *, q_accel=1.0, q_travel=1.0e3, q_tyre=1.0e4, r_force=1.0
 
     """
     sys = linear_model(params, 0.0)
-    A, B = sys.A, sys.B[:, [1]]
+    A, B = sys.A, sys.B[:, 1]
     ca, da = sys.C[0], sys.D[0, 1]
-    Q = (q_accel * np.outer(ca, ca) + q_travel * np.diag([1.0, 0, 0, 0])
-         + q_tyre * np.diag([0, 0, 1.0, 0]))
-    R = np.array([[q_accel * da * da + r_force]])
-    N = (q_accel * ca * da).reshape(4, 1)
-    K, _, E = control.lqr(A, B, Q, R, N)
+    if weighting is None:
+        aw, bw, cw, dw = np.zeros((0, 0)), np.zeros(0), np.zeros(0), 1.0
+    else:
+        aw, bw = np.asarray(weighting.A, float), np.asarray(weighting.B, float).ravel()
+        cw = np.asarray(weighting.C, float).ravel()
+        dw = float(np.asarray(weighting.D, float).ravel()[0])
+    nw = aw.shape[0]
+    n = 4 + nw
+    Aa = np.zeros((n, n))
+    Aa[:4, :4] = A
+    Aa[4:, :4] = np.outer(bw, ca)
+    Aa[4:, 4:] = aw
+    Ba = np.concatenate([B, bw * da]).reshape(n, 1)
+    # cost outputs z = Cz X + Dz F: a_wk, a_s, travel, tyre deflection, force
+    Cz = np.zeros((5, n))
+    Cz[0, :4], Cz[0, 4:] = dw * ca, cw
+    Cz[1, :4] = ca
+    Cz[2, 0] = 1.0
+    Cz[3, 2] = -1.0
+    Dz = np.array([dw * da, da, 0.0, 0.0, 1.0])
+    W = np.diag([q_wk, q_accel, q_travel, q_tyre, r_force])
+    Q = Cz.T @ W @ Cz
+    R = np.array([[Dz @ W @ Dz]])
+    N = (Cz.T @ W @ Dz).reshape(n, 1)
+    K, _, E = control.lqr(Aa, Ba, Q, R, N)
+    weights = {'q_accel': q_accel, 'q_travel': q_travel, 'q_tyre': q_tyre, 'r_force': r_force}
+    if weighting is not None or q_wk:
+        weights['q_wk'] = q_wk
     return LqrDesign(gain=np.asarray(K).ravel(), Q=Q, R=R, N=N, poles=np.asarray(E),
-                     weights={'q_accel': q_accel, 'q_travel': q_travel, 'q_tyre': q_tyre,
-                              'r_force': r_force})
+                     weights=weights, filter=weighting, A=Aa, B=Ba)
