@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
-from integration.test_suite import _good_params   # the valid thesis parameter set
+from kwok_messages import thesis_parameter_values
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -38,7 +38,7 @@ def listener():
     from mr_damper_model.node_utils import LATCHED_QOS
     lis = Listener('controller_node_test')
     pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
-    pub.publish(kwok_parameters_msg(_good_params()))   # latched
+    pub.publish(kwok_parameters_msg(thesis_parameter_values()))   # latched
     lis.params_pub = pub
     yield lis
     lis.close()
@@ -130,7 +130,7 @@ def _reference_ride(n_steps):
     sup = ModelSupervisor(timeout_s=3600.0, safe_current_a=SAFE_A)
     law = make_controller('skyhook', params=params, damper_only=True)
     loop = live_loop.ClosedLoop(car, law, sup, 1e-3)
-    sup.offer(_good_params(), 0.0)
+    sup.offer(thesis_parameter_values(), 0.0)
     states = [loop.step(0.0) for _ in range(n_steps)]
     return {c: np.array([getattr(s, c) for s in states]) for c in RIDE_COLUMNS}
 

@@ -25,6 +25,7 @@ import pytest
 
 from conftest import VENV_BIN
 from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
+from kwok_messages import thesis_parameter_values
 from mr_damper_bringup.config import IDENT, QC, RIG
 from mr_damper_bringup.processes import CLEAN_EXIT
 from mr_damper_model.columnlog import ColumnReader
@@ -32,21 +33,6 @@ from mr_damper_model.columnlog import ColumnReader
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 SAFE_A = 0.5
-
-
-def _good_params():
-    from mr_damper_model import presets
-    model, params = presets.thesis_kwok_current()
-    values = {k: float(v) for k, v in params.items()}
-    values.update(i_ref_a=float(model.options.get('i_ref_a', 2.0)), window_end_s=1.0,
-                  current_min_a=0.0, current_max_a=2.0, rmse_n=5.0, nrmse_percent=1.0,
-                  valid=1.0)
-    return values
-
-
-def _params_msg(values):
-    from mr_damper_model.messages import kwok_parameters_msg
-    return kwok_parameters_msg(values)
 
 
 @pytest.fixture(scope='module')
@@ -59,6 +45,7 @@ def listener():
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from mr_damper_interfaces.msg import KwokParameters
+    from mr_damper_model.messages import kwok_parameters_msg
     from std_msgs.msg import Float64
     topic = '/h5test/mr_damper/kwok_parameters'
     params = {'safe_current_a': SAFE_A, 'param_timeout_s': 30.0, 'diagnostics_period_s': 0.05,
@@ -80,7 +67,8 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
 
         def send(values, expect_mode, counter=None, count=None):
             n = diag.count(name)
-            pub.publish(values if isinstance(values, KwokParameters) else _params_msg(values))
+            pub.publish(values if isinstance(values, KwokParameters)
+                        else kwok_parameters_msg(values))
 
             def seen():
                 if diag.count(name) <= n + 1:
@@ -93,7 +81,7 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
             assert listener.wait_for(seen, 10, procs=[qc]), (values, diag.values(name))
             return diag.values(name)
 
-        good = _good_params()
+        good = thesis_parameter_values()
         st = send(good, 'normal')
         assert st['params_accepted'] == 1 and st['reason'] == 'ok'
         bad_sets = [
