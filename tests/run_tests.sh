@@ -12,14 +12,8 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 200) + 20 ))}"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$(mktemp -d)}"
 cd "$root"
-targets=("$root/tests")
-for arg in "$@"; do
-  case "$arg" in
-    -*) ;;
-    *) if [ -e "${arg%%::*}" ]; then targets=(); break; fi ;;
-  esac
-done
-cmd=("$root/.venv/bin/python" -m pytest "${targets[@]}" "$@")
+# without a test path pytest runs pytest.ini's `testpaths` (tests/) from the root
+cmd=("$root/.venv/bin/python" -m pytest "$@")
 if [ "$(id -u)" = 0 ] && command -v unshare >/dev/null && command -v ip >/dev/null \
    && unshare -n true 2>/dev/null; then
   exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&
