@@ -49,9 +49,7 @@ import numpy as np
 
 from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
                                        finite_or_none, JsonLines, open_log)
-from mr_damper_model.kwok_current import KwokCurrent
-from mr_damper_model.kwok_current import kwok_current_force
-from mr_damper_model.models import get_model
+from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
 
 from .config import node_params, QC, RIG
 from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
@@ -213,12 +211,10 @@ def record_error(meas, params):
     Same figures as :func:`fit_error` on the whole arrays (NRMSE by the measured force range).
     """
     meas = open_log(meas)
-    model = get_model('kwok-current', i_ref_a=float(params.get('i_ref_a', 2.0)))
-    values = model.from_dict(params)
     n, se, fmin, fmax = 0, 0.0, math.inf, -math.inf
     for c in meas.chunks(CHUNK_ROWS, ('x', 'v', 'f', 'i')):
         with np.errstate(over='ignore', invalid='ignore'):
-            e = model.force(values, c['x'], c['v'], i=c['i']) - c['f']
+            e = kwok_current_force(params, c['x'], c['v'], c['i']) - c['f']
         se += float(e @ e)
         n += e.size
         fmin, fmax = min(fmin, float(c['f'].min())), max(fmax, float(c['f'].max()))

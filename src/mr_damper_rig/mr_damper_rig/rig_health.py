@@ -21,9 +21,10 @@ Status values read (missing ones are skipped): ``started``, ``done``, ``samples_
 (dict), ``commands`` (dict of current-command outcomes), ``displacement_commands`` (dict),
 ``rate_factor``, ``flow`` (dict with ``received``).
 """
+from mr_damper_model.commands import OUTCOMES
 from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
-_CLAMPED = ('clamped_low', 'clamped_high', 'refused_non_finite')
+_CLAMPED = tuple(o for o in OUTCOMES if o != 'accepted')
 
 
 class RigHealth:
