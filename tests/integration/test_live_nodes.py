@@ -28,6 +28,7 @@ from mr_damper_interfaces.msg import KwokParameters
 from conftest import QUIROZ_DIR, VENV_BIN
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.data import DamperData
+from mr_damper_model.kwok_current import kwok_current_force
 from mr_damper_model.messages import (kwok_parameters_from_msg, measurement_from_msg,
                                       measurement_to_msg)
 from mr_damper_model.params_file import load_params
@@ -112,13 +113,6 @@ def run_summary(status, estimates, t0):
               e['valid']) for e in estimates])
 
 
-def kwok_current_force(params, data):
-    from mr_damper_model.models import get_model
-    model = get_model('kwok-current', i_ref_a=2.0)
-    p = np.array([params[k] for k in model.param_names])
-    return model.force(p, data.x, data.v, i=data.i)
-
-
 def received_data(meas):
     rows = np.array([measurement_from_msg(m) for _, m in meas])
     return DamperData(*rows.T)
@@ -171,13 +165,13 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     assert later and later[0]['current_min_a'] < 0.01 and later[0]['current_max_a'] > 1.99, why
     full = [e for e in topics.estimates() if e['valid'] and e['current_max_a'] > 1.99]
     assert full, why
-    f_est = kwok_current_force(final['parameters'], data)
+    f_est = kwok_current_force(final['parameters'], data.x, data.v, data.i)   # i_ref_a 2 A
     peak = np.max(np.abs(data.f))
     if plant == 'kwok-current':
         # converges to the truth: force error below 3 % of the peak force everywhere
         true = kwok_parameters_from_msg(truth[-1][1])
         assert true['valid'] and true['current_max_a'] == 2.0
-        f_true = kwok_current_force(true['parameters'], data)
+        f_true = kwok_current_force(true['parameters'], data.x, data.v, data.i)
         assert np.max(np.abs(f_est - f_true)) < 0.03 * peak
     else:
         # converges to the offline best fit of the same samples (kwok-current cannot be exact)

@@ -66,7 +66,7 @@ import time
 import numpy as np
 
 from .data import DamperData
-from .kwok_current import KwokCurrent, kwok_current_coefficients
+from .kwok_current import KwokCurrent, kwok_current_coefficients, kwok_current_force
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
@@ -1250,9 +1250,8 @@ class LiveIdentifier:
     # ---------------------------------------------------------------- validity
     def _force(self, params, data):
         """Kwok-current force [N] of a parameter dict on ``data``."""
-        model = KwokCurrent(i_ref_a=self.config.i_ref_a)
-        p = np.array([params[n] for n in KWOK_CURRENT_NAMES], dtype=float)
-        return model.force(p, data.x, data.v, i=data.i)
+        return kwok_current_force(dict(params, i_ref_a=self.config.i_ref_a), data.x, data.v,
+                                  data.i)
 
     def _covered(self, ref, data):
         """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
