@@ -157,7 +157,12 @@ def test_car_external_branch_counts_commands_and_times_out(ctx, tmp_path):
 
 
 def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
-    """plant:=rig with controller:=external (hil --external-controller): both waits work."""
+    """
+    plant:=rig with controller:=external (hil --external-controller) keeps stepping.
+
+    Lock-step is off here: the test is that the rig plant's wait and the external command
+    input coexist (their Condition and Event no longer share a name).
+    """
     from std_msgs.msg import Float64
     from quarter_car_sim.quarter_car_node import QuarterCarNode
     node = _make(ctx, QuarterCarNode, controller='external', plant='rig', real_time_factor=2.0,

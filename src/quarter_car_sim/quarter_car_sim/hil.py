@@ -208,7 +208,8 @@ def tracking_error(x_desired_m, x_measured_m, dt):
     Returns
     -------
     dict
-        ``rms_m``, ``peak_m``, ``delay_s`` (least-squares remaining delay), ``n``.
+        :meth:`TrackingMonitor.as_dict`: ``rms_m``, ``peak_m``, ``delay_s`` (least-squares
+        remaining delay), ``n``, ``non_finite``, ``last_m``.
 
     """
     xd = np.asarray(x_desired_m, dtype=float)
