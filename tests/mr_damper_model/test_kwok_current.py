@@ -74,10 +74,15 @@ def test_force_of_a_named_parameter_set():
     model, params = presets.thesis_kwok_current()
     rng = np.random.default_rng(3)
     x, v, i = rng.normal(0, 0.01, 50), rng.normal(0, 0.1, 50), rng.uniform(0, 2, 50)
-    want = model.force(model.from_dict(params), x, v, i=i)
+    # the model's definition written out (module docstring), s = i / i_ref_a
+    p, s = params, i / model.options['i_ref_a']
+    want = ((p['c0'] + p['c1'] * s) * v + p['k'] * x
+            + (p['alpha0'] + p['alpha1'] * s * (2 - s) + p['alpha2'] * s * s)
+            * np.tanh(p['beta0'] * np.exp(p['beta1'] * s) * v + p['delta'] * np.sign(x))
+            + p['f0'])
     got = kwok_current_force(dict(params, i_ref_a=model.options['i_ref_a'], rmse_n=3.0),
                              x, v, i)
-    np.testing.assert_array_equal(got, want)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
     other = KwokCurrent(i_ref_a=1.0)           # i_ref_a is read from the dict
     np.testing.assert_array_equal(kwok_current_force(dict(params, i_ref_a=1.0), x, v, i),
                                   other.force(other.from_dict(params), x, v, i=i))

@@ -68,9 +68,8 @@ def build_parser():
                    help='rig test record: CSV, rosbag2 directory, .mcap or .db3 bag, a '
                    'directory of them, or a glob (quote it)')
     p.add_argument('--model', default=None,
-                   help='kwok | kwok-current | kwok-current-lag | kwok-current-amp | bingham | '
-                   'bouc-wen | spencer '
-                   f'(default: {MULTI_CURRENT_MODEL} if the records have several current '
+                   help=' | '.join(MODEL_CHOICES)
+                   + f' (default: {MULTI_CURRENT_MODEL} if the records have several current '
                    'levels, else kwok; '
                    'with --validate: the model the parameter file must hold)')
     p.add_argument('--per-current', action='store_true',
