@@ -620,7 +620,7 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         raise ValueError(f'`bounds` must have {len(names)} entries {names}.')
     x0v = _param_vector(mdl, x0)
     budget = dict(DEFAULT_BUDGETS[method])
-    policy = getattr(mdl, 'identification', None) if method == 'separable' else None
+    policy = mdl.identification if method == 'separable' else None
     if polish is None:
         polish = method == 'separable' and (
             not mdl.stateful if mdl.polish_by_default is None else bool(mdl.polish_by_default))
@@ -662,9 +662,10 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
         swarm_data = data
         if polish and policy is None and data.n > 2 * SWARM_SAMPLES:
             swarm_data = data.select(slice(None, None, int(math.ceil(data.n / SWARM_SAMPLES))))
-        idx = nl_idx if used == 'separable' else np.arange(len(names))
-        space = _Space(lo[idx], hi[idx], units[idx])
-        u0 = None if x0v is None else space.to_u(np.clip(x0v[idx], lo[idx], hi[idx]))
+        if policy is None:
+            idx = nl_idx if used == 'separable' else np.arange(len(names))
+            space = _Space(lo[idx], hi[idx], units[idx])
+            u0 = None if x0v is None else space.to_u(np.clip(x0v[idx], lo[idx], hi[idx]))
         if policy is not None:
             res, best = _policy_swarm(mdl, data, lo, hi, units, policy, x0v, common)
             cands = best[None]

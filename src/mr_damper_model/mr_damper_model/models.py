@@ -239,6 +239,9 @@ class HysteresisModel:
         only; True for a stateful model whose state washes out on every k-th sample
         (``kwok-current-lag``) or whose swarm works on a stretch of the record (Spencer's
         ``identification`` policy).
+    identification : dict or None
+        A model's own policy for ``identify``'s separable method (swarm stretch, sub-steps,
+        budgets; see ``Spencer.identification``), None for the generic one.
     options : dict
         Model constants.
 
@@ -251,6 +254,7 @@ class HysteresisModel:
     stateful = False
     needs_current = False
     polish_by_default = None
+    identification = None
 
     def __init__(self, **options):
         if options:
