@@ -45,16 +45,8 @@ def sine_amplitude(x, v, t):
 class KwokCurrentAmpQuad(KwokCurrentAmp):
     name = 'kwok-current-amp-quad'
 
-    def _force(self, P, x, v, i, t):
-        self._x = x
-        return super()._force(P, x, v, i, t)
-
-    def _nonlinear_factor(self, N, x, v, i, t):
-        self._x = x
-        return super()._nonlinear_factor(N, x, v, i, t)
-
-    def _scale_slope(self, a, extra, v, t):
-        a /= 1.0 + extra[:, [0]] * sine_amplitude(self._x, v, t)
+    def _scale_slope(self, a, extra, x, v, t):
+        a /= 1.0 + extra[:, [0]] * sine_amplitude(x, v, t)
 
 
 class KwokCurrentAmpLevel(KwokCurrentAmp):

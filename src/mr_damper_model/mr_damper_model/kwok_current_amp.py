@@ -95,7 +95,7 @@ class KwokCurrentAmp(KwokCurrentLag):
             raise ModelError(f'`tau_a` must be a positive time constant [s], got {tau_a}')
         self.options['tau_a'] = tau_a
 
-    def _scale_slope(self, a, extra, v, t):
+    def _scale_slope(self, a, extra, x, v, t):
         """Divide the slope term ``a`` (p, n) by ``1 + kappa*V`` (kappa: ``extra[:, 0]``)."""
         kappa = extra[:, [0]]
         if np.any(kappa < 0):

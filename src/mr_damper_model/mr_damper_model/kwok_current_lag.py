@@ -160,7 +160,7 @@ class KwokCurrentLag(KwokCurrent):
             raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
         return first_order_lag(v, t, tau0, tau1, np.maximum(i, 0.0) / self.options['i_ref_a'])
 
-    def _scale_slope(self, a, extra, v, t):
+    def _scale_slope(self, a, extra, x, v, t):
         """Scale the tanh argument's slope term ``a`` in place (subclasses; here none)."""
 
     def _force(self, P, x, v, i, t):
@@ -168,7 +168,7 @@ class KwokCurrentLag(KwokCurrent):
         c, alpha, beta = kwok_current_coefficients(P, s)
         u = self._lagged(P[:, 10], P[:, 11], v, i, t)
         u *= beta
-        self._scale_slope(u, P[:, 12:], v, t)
+        self._scale_slope(u, P[:, 12:], x, v, t)
         z = np.tanh(u + P[:, [8]] * np.sign(x))
         return c * v + P[:, [2]] * x + alpha * z + P[:, [9]]
 
@@ -177,7 +177,7 @@ class KwokCurrentLag(KwokCurrent):
         beta = N[:, [0]] * np.exp(np.clip(N[:, [1]] * s, -50.0, 50.0))
         a = self._lagged(N[:, 3], N[:, 4], v, i, t)
         a *= beta
-        self._scale_slope(a, N[:, 5:], v, t)
+        self._scale_slope(a, N[:, 5:], x, v, t)
         a += N[:, [2]] * np.sign(x)
         return np.tanh(a, out=a)
 
