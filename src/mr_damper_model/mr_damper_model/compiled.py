@@ -5,7 +5,7 @@ The stateful models integrate an internal state sample by sample. numpy can vect
 over the particles of a swarm, paying a Python-level loop iteration and a dozen small array
 operations per time step and sub-step. The loops are therefore written once, as plain Python over
 scalars, in the model modules themselves (``bouc_wen._z_loop``, ``spencer._force_loop``, with
-the helpers they call, such as ``spencer.z_step_scalar``), and compiled here with numba on first
+the helpers they call, such as ``spencer.z_step_rooted``), and compiled here with numba on first
 use. The compiled loop keeps the order of the numpy code: time outer, the whole swarm inner.
 
 Cache. Kernels are compiled with ``cache=True``: numba stores the machine code in the

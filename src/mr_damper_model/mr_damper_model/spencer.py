@@ -90,21 +90,15 @@ def z_roots(A, beta, gamma):
             math.sqrt(A * abs(bp)))
 
 
-def z_step_rooted(z0, dr, zc):
-    """``z_step_scalar`` with the constants ``zc`` of :func:`z_roots` (the loops' z step)."""
-    A, bp, zs, k, zsp, kp = zc
-    return z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp)
-
-
 def z_step_array_zc(z0, dr, zc):
     """``z_step_array`` with ``zc = (A, beta, gamma)`` (the numpy reference's z step)."""
     A, beta, gamma = zc
     return z_step_array(z0, dr, A, beta, gamma)
 
 
-def z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp):
+def z_step_rooted(z0, dr, zc):
     """
-    Advance z exactly over dr (n = 2) given the square roots of the parameter set.
+    Advance z exactly over dr (n = 2) with the constants of the parameter set (the loops' step).
 
     The solution of ``z_step_scalar`` (which calls this) in a form with one tanh (tan for
     beta < gamma) per update: with ``a = tanh(a0)``, ``tanh(a0 + k*r) = (a + T)/(1 + a*T)``,
@@ -114,20 +108,19 @@ def z_step_from_roots(z0, dr, A, bp, zs, k, zsp, kp):
 
     Parameters
     ----------
-    z0, dr, A : float
+    z0, dr : float
         As in ``z_step_scalar``.
-    bp : float
-        beta - gamma [1/m**2].
-    zs, k : float
-        sqrt(A/(beta + gamma)) [m] and sqrt(A*(beta + gamma)) [1/m].
-    zsp, kp : float
-        sqrt(A/|bp|) [m] and sqrt(A*|bp|) [1/m] (unused when bp == 0).
+    zc : tuple of float
+        :func:`z_roots` of the parameter set: ``(A, bp, zs, k, zsp, kp)`` with bp = beta - gamma
+        [1/m**2], zs = sqrt(A/(beta + gamma)) [m], k = sqrt(A*(beta + gamma)) [1/m],
+        zsp = sqrt(A/|bp|) [m], kp = sqrt(A*|bp|) [1/m] (unused when bp == 0).
 
     Returns
     -------
     float
 
     """
+    A, bp, zs, k, zsp, kp = zc
     if dr == 0.0:
         return z0
     s = 1.0 if dr > 0.0 else -1.0
@@ -404,7 +397,7 @@ def spencer_force(P, x, v, i, t, *, y0_m=None, max_substep_s=1e-4):
     y0 = float(x[0] if y0_m is None else y0_m)
     out = np.empty((P.shape[0], x.size))
     helpers = ('_initial_force', '_row', 'substeps', 'heun_substeps', 'z_roots',
-               'z_step_rooted', 'z_step_from_roots')
+               'z_step_rooted')
     loop = compiled.kernel(_force_loop, helpers=helpers)
     return loop(P, x, v, i, t, y0, float(max_substep_s), out)
 
