@@ -111,11 +111,9 @@ class ControllerCore:
     """
 
     def __init__(self, controller, supervisor, *, inverse_tol_a=1e-4):
-        self.controller = controller
         self.sup = supervisor
         self.inverse_tol_a = float(inverse_tol_a)
-        self.passive = getattr(controller, 'kind', '') == 'current'
-        self._fields = LAW_FIELDS + tuple(getattr(controller, 'state_fields', ()))
+        self._use(controller)
         self.i_cmd = supervisor.safe_current_a
         self.f_demand = math.nan
         self.saturated = 0
@@ -222,8 +220,12 @@ class ControllerCore:
         if kind not in ('current', 'semi-active'):
             raise ValueError(f'controller {getattr(controller, "name", controller)!r} is '
                              f'{kind}: it cannot drive an MR damper')
+        self._use(controller)
+
+    def _use(self, controller):
+        """Take ``controller`` as the law (its kind and the state fields it reads)."""
         self.controller = controller
-        self.passive = kind == 'current'
+        self.passive = getattr(controller, 'kind', '') == 'current'
         self._fields = LAW_FIELDS + tuple(getattr(controller, 'state_fields', ()))
 
     def offer_parameters(self, values, t_clock):

@@ -397,6 +397,7 @@ class QuarterCarNode(Node):
             state = self.car.state
             cmd.data, normal = self._external_command(state)
             loop.i_cmd = cmd.data
+            reason = None       # the car state message is the controller's (not published)
         else:
             now = self._now()
             with self.lock:
@@ -405,6 +406,7 @@ class QuarterCarNode(Node):
                 if self.probe is not None:
                     cmd.data = loop.i_cmd = self.probe(cmd.data, state.t)
                 normal = self.sup.mode == 'normal'
+                reason = self.sup.reason        # read with the mode: one consistent pair
             self.drops.publish(self.cmd_pub, cmd)
         self.control.command_sent()
         if self.remote is None:
@@ -427,7 +429,7 @@ class QuarterCarNode(Node):
             self.drops.publish(self.state_pub, self.state_msg)
             if not self.external:
                 self.drops.publish(self.car_state_pub, car_state_to_msg(
-                    new, cmd.data, normal, self.sup.reason, self.car_state_msg))
+                    new, cmd.data, normal, reason, self.car_state_msg))
         self.normal, self.new_state = normal, new
 
     def _after_step(self, wall, latency, lateness):
