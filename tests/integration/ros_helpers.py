@@ -25,20 +25,20 @@ from conftest import VENV_BIN
 DISCOVERY_TIMEOUT_S = 8.0
 
 
-def fault_test_suite(out, duration_s):
+def fault_test_suite(out):
     """
     Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
 
     The main job's parameters at real time, with a 1 s parameter timeout, car diagnostics every
     0.1 s, a rig that waits for one reader and an identifier that saves its parameters every
-    0.5 s (a restarted identifier starts from them); written to ``out/suite_params.yaml``.
+    0.5 s (a restarted identifier starts from them); no end of its own (the test stops it; the
+    road repeats); written to ``out/suite_params.yaml``.
     """
     import yaml
     from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
     from mr_damper_bringup.launcher import parse_args
     from mr_damper_bringup.processes import Suite
-    args = parse_args(['--out', str(out), '--rate-factor', '1.0',
-                       '--duration', str(duration_s)])
+    args = parse_args(['--out', str(out), '--rate-factor', '1.0', '--duration', '0'])
     cfg = resolve_config(args, out)
     set_param(cfg, QC, 'param_timeout_s', 1.0)
     set_param(cfg, QC, 'diagnostics_period_s', 0.1)

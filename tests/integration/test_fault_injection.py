@@ -42,7 +42,7 @@ def listener():
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):
-    suite = fault_test_suite(tmp_path, 0)
+    suite = fault_test_suite(tmp_path)
     diag = listener.diagnostics()
 
     def rig():

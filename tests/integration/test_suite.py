@@ -170,7 +170,7 @@ def test_full_suite_short_run(tmp_path):
 
 
 def test_identifier_killed_then_restarted(listener, tmp_path):
-    suite = fault_test_suite(tmp_path, 60)
+    suite = fault_test_suite(tmp_path)
     diag = listener.diagnostics()
 
     def car():
