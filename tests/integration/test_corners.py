@@ -11,9 +11,11 @@ the suite stops cleanly.
 """
 import json
 import os
+import queue
 import re
 import signal
 import subprocess
+import threading
 import time
 
 import pytest
@@ -21,6 +23,13 @@ import pytest
 from conftest import VENV_BIN
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+
+def _pump(stream, lines):
+    """Put every line of ``stream`` on the queue ``lines``, then None at its end."""
+    for line in iter(stream.readline, ''):
+        lines.put(line)
+    lines.put(None)
 
 
 def test_two_corners_run_in_their_namespaces(tmp_path):
@@ -34,23 +43,33 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=env)
     seen, ready = [], False
-    deadline = time.monotonic() + 300.0                 # hang guard only
+    lines = queue.Queue()
+    reader = threading.Thread(target=_pump, args=(proc.stdout, lines), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + 300.0                 # hang guard only, also without output
     try:
-        for line in proc.stdout:
+        while not ready:
+            try:
+                line = lines.get(timeout=max(deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                break
+            if line is None:                            # the launcher ended
+                break
             seen.append(line)
             corners = dict(re.findall(r'(fl|fr): \d+ samples, [1-9]\d* valid, car (\w+)', line))
-            if corners.get('fl') == corners.get('fr') == 'normal':
-                ready = True
-                break
-            if time.monotonic() > deadline:
-                break
+            ready = corners.get('fl') == corners.get('fr') == 'normal'
         assert ready, ''.join(seen[-20:])
         proc.send_signal(signal.SIGINT)
-        rest, _ = proc.communicate(timeout=300)
+        reader.join(timeout=300)
+        rest = []
+        while not lines.empty():
+            rest.append(lines.get() or '')
+        rest = ''.join(rest)
+        proc.wait(timeout=300)
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.wait()
     assert proc.returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
     assert set(summary['corners']) == {'fl', 'fr'}
