@@ -30,6 +30,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')     # as the CLI does
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 from pathlib import Path  # noqa: E402
 import platform  # noqa: E402
 import subprocess  # noqa: E402
@@ -71,28 +72,24 @@ def _wall(fn):
     return time.perf_counter() - t0, out
 
 
-def time_identification(data, what, seeds):
-    """Median wall time [s] over seeds and the median number of particle evaluations."""
-    times, nfev = [], []
+def time_identification(data, what, seeds, **kw):
+    """
+    Wall times [s], NRMSE [%] and particle evaluations of one identification per seed.
+
+    ``what``: a model name (``identify(data, what, seed=seed, **kw)``) or ``'compare'``
+    (``compare_models``, all models; its NRMSE is NaN).
+    """
+    times, nrmse, nfev = [], [], []
     for seed in seeds:
         if what == 'compare':
             dt, res = _wall(lambda: compare_models(data, seed=seed, method='separable'))
             nfev.append(sum(r.nfev for r in res.values()))
+            nrmse.append(float('nan'))
         else:
-            dt, res = _wall(lambda: identify(data, what, seed=seed, method='separable'))
+            dt, res = _wall(lambda: identify(data, what, seed=seed, **kw))
             nfev.append(res.nfev)
+            nrmse.append(res.metrics['nrmse_percent'])
         times.append(dt)
-    return float(np.median(times)), int(np.median(nfev)), times
-
-
-def time_spencer(data, seeds, **kw):
-    """Wall times [s], NRMSE [%] and particle evaluations of ``identify(data, 'spencer')``."""
-    times, nrmse, nfev = [], [], []
-    for seed in seeds:
-        dt, res = _wall(lambda: identify(data, 'spencer', seed=seed, **kw))
-        times.append(dt)
-        nrmse.append(res.metrics['nrmse_percent'])
-        nfev.append(res.nfev)
     return times, nrmse, nfev
 
 
@@ -182,12 +179,13 @@ def main(argv=None):
               f'({data.duration:.1f} s)')
         for what in [w for w in ('bouc-wen', 'compare') if w in args.only]:
             identify(data.select(slice(0, 300)), 'bouc-wen', seed=0)     # warm the kernels
-            tc, nf, _ = time_identification(data, what, seeds)
+            times, _, nfev = time_identification(data, what, seeds)
+            tc, nf = float(np.median(times)), int(np.median(nfev))
             if args.skip_numpy:
                 tn = float('nan')
             else:
                 with numpy_loops():
-                    tn, _, _ = time_identification(data, what, np_seeds)
+                    tn = float(np.median(time_identification(data, what, np_seeds)[0]))
             rows.append((name, data.n, what, tc, tn, nf, TARGETS_S[what]))
             print(f'  {what:<9} compiled {tc:7.3f} s (median of {len(seeds)}; '
                   f'{nf} particle evaluations)   numpy {tn:7.2f} s (median of {len(np_seeds)})'
@@ -196,7 +194,7 @@ def main(argv=None):
         if 'spencer' not in args.only:
             continue
         identify(data.select(slice(0, 50)), 'spencer', seed=0)         # warm the kernel
-        times, nrmse, nfev = time_spencer(data, seeds)
+        times, nrmse, nfev = time_identification(data, 'spencer', seeds)
         print(f'  spencer   default: median {np.median(times):.3f} s of seeds {seeds[0]}-'
               f'{seeds[-1]} ({", ".join(f"{x:.2f}" for x in times)} s); NRMSE '
               f'{", ".join(f"{x:.3f}" for x in nrmse)} %; particle evaluations '
@@ -204,7 +202,8 @@ def main(argv=None):
         if args.skip_previous:
             t_prev, nr_prev = [float('nan')], [float('nan')]
         else:
-            t_prev, nr_prev, nf_prev = time_spencer(data, seeds[:1], **PREVIOUS_SPENCER)
+            t_prev, nr_prev, nf_prev = time_identification(data, 'spencer', seeds[:1],
+                                                           **PREVIOUS_SPENCER)
             print(f'  spencer   previous default (full PSO, 13 parameters, {PREVIOUS_SPENCER}), '
                   f'seed {seeds[0]}, measured once: {t_prev[0]:.1f} s, NRMSE {nr_prev[0]:.3f} %, '
                   f'{nf_prev[0]} particle evaluations   load {_load()}', flush=True)
@@ -221,14 +220,17 @@ def main(argv=None):
               'target [s] |')
         print('|---|---|---|---|---|---|---|')
     for name, n, what, tc, tn, nf, target in rows:
-        print(f'| {name} | {n} | {what} | {tc:.3g} | {tn:.3g} | {tn / tc:.0f}x | {target} |')
+        numpy = '- | -' if math.isnan(tn) else f'{tn:.3g} | {tn / tc:.0f}x'   # --skip-numpy
+        print(f'| {name} | {n} | {what} | {tc:.3g} | {numpy} | {target} |')
     if spencer_rows:
         print('\n| file | samples | Spencer default, median [s] | NRMSE median (worst) [%] | '
               'previous default, seed 1 [s] | its NRMSE [%] | speed-up | target [s] |')
         print('|---|---|---|---|---|---|---|---|')
         for name, n, t_new, nr_new, nr_worst, t_prev, nr_prev in spencer_rows:
-            print(f'| {name} | {n} | {t_new:.3g} | {nr_new:.3f} ({nr_worst:.3f}) | '
-                  f'{t_prev:.3g} | {nr_prev:.3f} | {t_prev / t_new:.0f}x | 2.0 |')
+            prev = ('- | - | -' if math.isnan(t_prev) else     # --skip-previous
+                    f'{t_prev:.3g} | {nr_prev:.3f} | {t_prev / t_new:.0f}x')
+            print(f'| {name} | {n} | {t_new:.3g} | {nr_new:.3f} ({nr_worst:.3f}) | {prev} '
+                  '| 2.0 |')
     print(f'\nload average at end {_load()}')
 
 
