@@ -142,6 +142,9 @@ class CanBridge:
         self._status_ids = {self.codec.message(status_name(c)).frame_id: c for c in corners}
         self._cyclic_rx = [status_name(c) for c in corners] + list(SENSOR_FRAMES)
         self._notifier = None
+        self._log = None
+        self._sensors = {c: dict.fromkeys(('body_accel', 'wheel_accel', 'susp_pos'), math.nan)
+                         for c in corners}
         for corner in corners:
             self.state[corner]._since = self.started_t
             self.state[corner].failsafe_entries = 1
@@ -224,9 +227,10 @@ class CanBridge:
                 callback, args = self.on_driver, (status,)
             elif dec.name in SENSOR_FRAMES:
                 quantity, prefix = SENSOR_FRAMES[dec.name]
-                args = (quantity, {c: float(dec.values[f'{prefix}_{c.upper()}'])
-                                   for c in self.corners}, now)
-                callback = self.on_sensors
+                values = {c: float(dec.values[f'{prefix}_{c.upper()}']) for c in self.corners}
+                for corner, value in values.items():
+                    self._sensors[corner][quantity] = value
+                args, callback = (quantity, values, now), self.on_sensors
             else:
                 return dec
         if callback is not None:
@@ -310,17 +314,41 @@ class CanBridge:
                 self.command_timeout_s = float(command_timeout_s)
             return ''
 
+    def latest(self, corner):
+        """
+        Return the latest bus values of ``corner``.
+
+        A dict: ``body_accel``, ``wheel_accel`` [m/s^2], ``susp_pos`` [m] (NaN before the
+        first sensor frame), ``sent_a`` (current sent), ``measured_a`` (driver) [A], ``mode``
+        and ``reason``.
+        """
+        with self.lock:
+            st = self.state[corner]
+            return dict(self._sensors[corner], sent_a=st.sent_a, mode=st.mode, reason=st.reason,
+                        measured_a=st.driver.current_a if st.driver else math.nan)
+
     # --- bus reader ----------------------------------------------------------------------------
-    def start(self):
-        """Read the bus in a python-can ``Notifier`` thread (frames go to :meth:`on_frame`)."""
+    def start(self, log_file=None):
+        """
+        Read the bus in a python-can ``Notifier`` thread (frames go to :meth:`on_frame`).
+
+        With ``log_file``, every received frame and every frame sent (it loops back on the
+        ``udp_loopback`` bus) is also written by ``can.Logger`` (``.blf``, ``.asc``, ``.log``
+        = candump format, ``.csv``, ...; the writer is chosen by the extension).
+        """
         if self._notifier is None and self.bus is not None:
-            self._notifier = can.Notifier(self.bus, [self.on_frame], timeout=0.1)
+            listeners = [self.on_frame]
+            if log_file:
+                self._log = can.Logger(log_file)
+                listeners.append(self._log)
+            self._notifier = can.Notifier(self.bus, listeners, timeout=0.1)
 
     def stop(self):
-        """Stop the reader thread (the bus stays open: its owner shuts it down)."""
+        """Stop the reader thread and close the log (the bus stays open for its owner)."""
         if self._notifier is not None:
-            self._notifier.stop()
+            self._notifier.stop()             # stops its listeners too: the log is closed
             self._notifier = None
+            self._log = None
 
     # --- status --------------------------------------------------------------------------------
     def status(self, now=None):
@@ -388,4 +416,3 @@ class BridgeHealth:
         if finding:
             problems.append(finding)
         return worst(problems or [(OK, 'ok')], status)
-

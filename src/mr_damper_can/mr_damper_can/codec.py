@@ -75,6 +75,15 @@ def load_database(path=None):
     return cantools.database.load_file(path or dbc_path(), strict=True)
 
 
+def parse_corners(text):
+    """Return the corners of a comma-separated list; ValueError names the bad ones."""
+    corners = tuple(c.strip() for c in str(text).split(',') if c.strip())
+    bad = [c for c in corners if c not in CORNERS]
+    if not corners or bad or len(set(corners)) != len(corners):
+        raise ValueError(f'corners must be distinct names of {", ".join(CORNERS)}, got {text!r}')
+    return corners
+
+
 def command_name(corner):
     """Return the command message name of ``corner`` (``'fl'`` -> ``'DAMPER_CMD_FL'``)."""
     return f'DAMPER_CMD_{corner.upper()}'

@@ -25,6 +25,7 @@ import can
 from mr_damper_can.codec import (CAN_ERR_BUSOFF, command_name, CORNERS, DRV_FAULT,
                                  DRV_FAILSAFE, DRV_NORMAL, FAULT_SIGNALS, FrameCodec,
                                  SENSOR_FRAMES, status_name)
+from mr_damper_model.health import ERROR, Rising, WARN, worst
 
 #: Driver faults that :meth:`SimulatedEcu.inject` can set (persistent until ``none``).
 DRIVER_FAULTS = ('open_load', 'short', 'overcurrent', 'overtemp', 'undervoltage')
@@ -330,3 +331,28 @@ class SimulatedEcu:
             return {'corners': corners, 'frames_sent': self.frames_sent,
                     'send_failed': self.send_failed, 'other_frames': self.other_frames,
                     'tau_s': self.tau_s, 'safe_current_a': self.safe_current_a}
+
+
+class EcuHealth:
+    """
+    Status rules of the simulated ECU.
+
+    WARN on bad command frames since the last status, ERROR while a driver fault is injected.
+    """
+
+    def __init__(self):
+        self._rising = Rising()
+
+    def __call__(self, status):
+        """Return the :class:`~mr_damper_model.health.Health` of :meth:`SimulatedEcu.status`."""
+        problems = []
+        for corner, cs in status['corners'].items():
+            if cs['fault']:
+                problems.append((ERROR, f'{corner}: {cs["fault"]} injected'))
+            bad = {k: self._rising.rise(f'{corner}.{k}', cs[k])
+                   for k in ('bad_checksum', 'counter_jumps', 'repeated')}
+            bad = {k: v for k, v in bad.items() if v}
+            if bad:
+                problems.append((WARN, f'{corner}: bad command frames since the last status: '
+                                 + ', '.join(f'{v} {k}' for k, v in sorted(bad.items()))))
+        return worst(problems, status)
