@@ -11,7 +11,7 @@ re-sends). See docs/can.md.
 
 Topics (relative; ``<c>/`` before each per-corner name with ``corner_namespaces:=true``)
 -----------------------------------------------------------------------------------------
-- sub ``mr_damper/current_command`` (std_msgs/Float64, A; reliable, depth 10);
+- sub ``mr_damper/current_command`` (std_msgs/Float64, A; reliable, depth 100);
 - pub ``mr_damper/measured_current`` (std_msgs/Float64, A): the driver's measured coil current,
   one per ``DAMPER_STATUS_<C>`` frame (500 Hz);
 - pub ``can/body_imu``, ``can/wheel_imu`` (sensor_msgs/Imu: vertical acceleration in
@@ -25,6 +25,7 @@ import math
 import sys
 
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
 
@@ -35,6 +36,10 @@ from mr_damper_interfaces.msg import QuarterCarState
 from mr_damper_model import messages
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
                                         node_time_s, Param, run_node, spin_node, STATUS_QOS)
+
+#: Command subscription: reliable, depth 100 (each command becomes a frame of its own, so a
+#: burst while the bridge's thread is busy is queued, not overwritten).
+COMMAND_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 #: The node's parameters (docs/nodes.md shows this table).
 PARAMETERS = (
@@ -98,8 +103,8 @@ class CanBridgeNode(Node):
         for c in corners:
             pre = self.prefix[c]
             self.drops.subscribe(self, Float64, f'{pre}mr_damper/current_command',
-                                 lambda msg, c=c: self.core.command(c, msg.data), STATUS_QOS,
-                                 'commands_lost')
+                                 lambda msg, c=c: self.core.command(c, msg.data),
+                                 COMMAND_QOS, 'commands_lost')
             self.measured_pub[c] = self.create_publisher(
                 Float64, f'{pre}mr_damper/measured_current', STATUS_QOS)
             if p['publish_sensors']:
