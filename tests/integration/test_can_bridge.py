@@ -33,7 +33,7 @@ BRIDGE, SIM = 'can_bridge', 'can_driver_sim'
 
 
 def _values(k):
-    """The k-th command [A]: a ramp over the DBC range, on its 10-mA grid."""
+    """Return the k-th command [A]: a ramp over the DBC range, on its 10-mA grid."""
     return round(0.01 * (k % 256), 2)
 
 

@@ -23,7 +23,8 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
          ('quarter_car_sim', 'quarter_car_node'), ('mr_damper_bringup', 'mr-damper-suite'),
-         ('mr_damper_bringup', 'mr-damper-record')]
+         ('mr_damper_bringup', 'mr-damper-record'), ('mr_damper_can', 'can_bridge_node'),
+         ('mr_damper_can', 'can_driver_sim')]
 
 
 @pytest.fixture(scope='module')

@@ -1,4 +1,4 @@
-"""The bridge core: commands encoded and clamped, frames checked, every fault counted, fail-safe."""
+"""The bridge core: commands encoded and clamped, frames checked, faults counted, fail-safe."""
 import math
 import time
 
@@ -29,7 +29,7 @@ def _msg(frame_id, data, **kw):
 
 
 def _pair(clock, corners=('fl',), **kw):
-    """A bridge and a simulated ECU without a bus: frames handed over by :func:`_pump`."""
+    """Return a bridge and a simulated ECU without a bus (frames handed over by `_pump`)."""
     bridge = CanBridge(None, corners, db=DB, clock=clock, **kw)
     ecu = SimulatedEcu(None, corners, db=DB, clock=clock, tau_s=0.01)
     return bridge, ecu
