@@ -119,7 +119,7 @@ def main():
         [str(VENV_BIN / 'can_bridge_node'), '--ros-args', '-p', 'interface:=udp_loopback',
          '-p', f'channel:={channel}', '-p', 'corners:=fl', '-p', 'publish_sensors:=false',
          '-p', 'resend_period_s:=10.0', '-p', 'command_timeout_s:=3600.0',
-         '-p', 'rx_timeout_s:=3600.0', '-p', f'log_file:={log}'],
+         '-p', 'rx_timeout_s:=3600.0'] + (['-p', f'log_file:={log}'] if log else []),
         stdout=open(tmp / 'bridge.log', 'w'), stderr=subprocess.STDOUT)
     direct_out = tmp / 'direct.npy'
     direct = subprocess.Popen([sys.executable, __file__, '--direct', str(direct_out)],
@@ -143,10 +143,12 @@ def main():
                                            reliability=ReliabilityPolicy.RELIABLE))
     try:
         end = time.monotonic() + 60.0
-        while pub.get_subscription_count() < 2 and time.monotonic() < end:
+        while (pub.get_subscription_count() < 2 and time.monotonic() < end
+               and bridge.poll() is None and direct.poll() is None):
             time.sleep(0.05)
         if pub.get_subscription_count() < 2:
-            raise RuntimeError('bridge or direct subscriber not matched within 60 s')
+            raise RuntimeError(f'bridge or direct subscriber not matched within 60 s (logs in '
+                               f'{tmp})')
         time.sleep(1.0)                  # both start-ups done
         n = int(args.duration * args.rate)
         pub_t, pub_v = np.empty(n), np.array([_value(k) for k in range(n)])
