@@ -177,8 +177,11 @@ class CanBridgeNode(Node):
 
     def destroy_node(self):
         """Stop the bus reader, close the log and the bus, then destroy the node."""
-        self.core.stop()
-        self.bus.shutdown()
+        if getattr(self, 'core', None) is not None:     # None: the constructor failed
+            self.core.stop()
+        if getattr(self, 'bus', None) is not None:
+            self.bus.shutdown()
+            self.bus = None
         return super().destroy_node()
 
 

@@ -109,8 +109,11 @@ class CanDriverSimNode(Node):
 
     def destroy_node(self):
         """Stop the ECU's threads and close the bus, then destroy the node."""
-        self.ecu.stop()
-        self.bus.shutdown()
+        if getattr(self, 'ecu', None) is not None:     # None: the constructor failed
+            self.ecu.stop()
+        if getattr(self, 'bus', None) is not None:
+            self.bus.shutdown()
+            self.bus = None
         return super().destroy_node()
 
 
