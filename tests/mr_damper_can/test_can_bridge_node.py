@@ -10,15 +10,15 @@ from mr_damper_can.driver_sim import SimulatedEcu
 
 @pytest.fixture
 def ctx():
+    """Return a context of its own and a list; shutting the context down destroys its nodes."""
     import rclpy
     from rclpy.context import Context
     context = Context()
     rclpy.init(context=context)
-    made = []
-    yield context, made
-    for node in made:
-        node.destroy_node()
-    rclpy.try_shutdown(context=context)
+    try:
+        yield context, []
+    finally:
+        rclpy.try_shutdown(context=context)
 
 
 def _make(ctx, **params):
