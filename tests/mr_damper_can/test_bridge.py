@@ -164,6 +164,21 @@ def test_driver_fault_puts_the_corner_in_fail_safe_until_cleared():
     assert _sent_values(bridge.sent)[-1]['CMD_CURRENT'] == pytest.approx(2.0)
 
 
+def test_link_flags_of_the_driver_are_counted_but_no_fail_safe():
+    clock = Clock()
+    bridge = CanBridge(None, ('fl',), db=DB, clock=clock, rx_timeout_s=10.0,
+                       command_timeout_s=10.0)
+    ecu = SimulatedEcu(None, ('fl',), db=DB, clock=clock, command_timeout_s=0.02)
+    bridge.command('fl', 1.0)
+    _pump(bridge, ecu)
+    clock.t += 0.03                          # the driver's own timeout, not the bridge's
+    ecu.step()
+    _pump(bridge, ecu)
+    st = bridge.status()['corners']['fl']
+    assert st['driver_faults'] == 'cmd_timeout' and st['driver_fault_edges'] == {'cmd_timeout': 1}
+    assert st['mode'] == 'normal'
+
+
 @pytest.mark.parametrize('fault, counter', [('bad_checksum', 'bad_checksum'),
                                             ('bad_counter', 'bad_counter'),
                                             ('unknown_id', 'unknown_id'),

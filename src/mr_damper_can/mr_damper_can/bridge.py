@@ -6,11 +6,12 @@ frame (clamped to the DBC range and quantised by cantools; a NaN is refused, the
 command stays; all counted), and checks and decodes every received frame (checksum, rolling
 counter, length, unknown ids, error frames, bus-off), counting each fault. A corner is in
 fail-safe - the bridge sends its ``safe_current_a`` with ``CMD_FAILSAFE`` set instead of the
-controller's command - while its driver reports a fault, while its driver status is missing
-for ``rx_timeout_s``, when no command came for ``command_timeout_s`` (or none yet), and while
-the bus is off. :meth:`CanBridge.tick`, called periodically, checks the timeouts and re-sends
-the command in force of every corner that sent nothing for ``resend_period_s`` (so the driver,
-which has a command timeout of its own, hears from the bridge also in fail-safe).
+controller's command - while its driver reports a hardware fault (or state FAULT), while its
+driver status is missing for ``rx_timeout_s``, when no command came for ``command_timeout_s``
+(or none yet), and while the bus is off. :meth:`CanBridge.tick`, called periodically, checks
+the timeouts and re-sends the command in force of every corner that sent nothing for
+``resend_period_s`` (so the driver, which has a command timeout of its own, hears from the
+bridge also in fail-safe).
 
 Threads: :meth:`command` and :meth:`tick` from the caller's thread, :meth:`on_frame` from the
 python-can ``Notifier`` thread (:meth:`start`); one lock guards the state. The decoded values
@@ -24,7 +25,7 @@ import time
 import can
 
 from mr_damper_can.codec import (command_name, CORNERS, DRV_FAULT, FAULT_SIGNALS, FrameCodec,
-                                 SENSOR_FRAMES, status_name)
+                                 HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
 from mr_damper_model.commands import CurrentCommandLimiter
 from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
@@ -255,7 +256,8 @@ class CanBridge:
         st = self.state[corner]
         if self.bus_off:
             return 'bus_off'
-        if st.driver is not None and (st.driver.faults or st.driver.state == DRV_FAULT):
+        if st.driver is not None and (set(st.driver.faults) & set(HARDWARE_FAULTS)
+                                      or st.driver.state == DRV_FAULT):
             return 'driver_fault'
         last_status = self.started_t if st.last_status_t is None else st.last_status_t
         if now - last_status > self.rx_timeout_s:

@@ -22,6 +22,9 @@ FAULT_SIGNALS = {'FLT_OPEN_LOAD': 'open_load', 'FLT_SHORT': 'short',
                  'FLT_OVERCURRENT': 'overcurrent', 'FLT_OVERTEMP': 'overtemp',
                  'FLT_UNDERVOLTAGE': 'undervoltage', 'FLT_CMD_TIMEOUT': 'cmd_timeout',
                  'FLT_CMD_INVALID': 'cmd_invalid'}
+#: Faults of the driver's hardware (the others, ``cmd_timeout`` and ``cmd_invalid``, report the
+#: link from the bridge: the bridge counts them but they are no reason for its fail-safe).
+HARDWARE_FAULTS = ('open_load', 'short', 'overcurrent', 'overtemp', 'undervoltage')
 #: ``DRV_STATE`` values of the driver.
 DRV_INIT, DRV_NORMAL, DRV_FAILSAFE, DRV_FAULT = 0, 1, 2, 3
 

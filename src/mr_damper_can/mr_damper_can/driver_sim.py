@@ -24,11 +24,11 @@ import can
 
 from mr_damper_can.codec import (CAN_ERR_BUSOFF, command_name, CORNERS, DRV_FAULT,
                                  DRV_FAILSAFE, DRV_NORMAL, FAULT_SIGNALS, FrameCodec,
-                                 SENSOR_FRAMES, status_name)
+                                 HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
 from mr_damper_model.health import ERROR, Rising, WARN, worst
 
 #: Driver faults that :meth:`SimulatedEcu.inject` can set (persistent until ``none``).
-DRIVER_FAULTS = ('open_load', 'short', 'overcurrent', 'overtemp', 'undervoltage')
+DRIVER_FAULTS = HARDWARE_FAULTS
 #: Bus faults injected into the next frame(s) of a corner.
 BUS_FAULTS = ('bad_checksum', 'bad_counter', 'unknown_id', 'error_frame', 'bus_off', 'silent')
 #: Id of the frame sent by ``unknown_id`` (not in the DBC).
