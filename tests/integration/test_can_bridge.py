@@ -14,7 +14,9 @@ test's own. Assertions are on counts and the order of events; the waits are hang
    go to ERROR with the corner in fail-safe (``driver_fault``), the next command reaches the
    driver as the bridge's safe current with the fail-safe bit; the fault cleared, the corner is
    normal again at the next command.
-3. Both processes exit 0 on SIGINT.
+3. Bus faults injected in the driver process (unknown id, bad checksum, counter jump, error
+   frame, bus-off): each counted by the bridge, and nothing else.
+4. Both processes exit 0 on SIGINT.
 """
 import os
 import time
@@ -121,7 +123,18 @@ def test_bridge_and_simulated_driver_across_processes(tmp_path):
                             and drv().get('target_a') == pytest.approx(2.0), GUARD_S,
                             procs=procs), (fl(), drv())
         assert fl()['failsafe_entries'] == 2
-    # 3. clean exits, and the frame log is readable
+
+        # 3. bus faults injected in the driver process, each counted once by the bridge
+        for fault in ('unknown_id', 'bad_checksum', 'bad_counter', 'error_frame', 'bus_off'):
+            faults.publish(String(data=f'fl:{fault}'))
+            assert lis.wait_for(lambda: br()['faults'][fault] >= 1, GUARD_S, procs=procs), \
+                (fault, br()['faults'])
+        # (the frame refused for its checksum shows as one frame missed at the next one)
+        expected = dict(br()['faults'], unknown_id=1, bad_checksum=1, bad_counter=2,
+                        frames_missed=3, error_frame=1, bus_off=1)
+        assert br()['faults'] == expected and sum(expected.values()) == 9
+        assert lis.wait_for(lambda: br().get('bus_off') is False, GUARD_S, procs=procs)
+    # 4. clean exits, and the frame log is readable
     assert bridge.proc.returncode == 0, bridge.output()
     assert sim.proc.returncode == 0, sim.output()
     import can
