@@ -142,6 +142,7 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     status = topics.last_status()
     assert status['samples_received'] == status['samples_accepted'] == n   # nothing lost
     # the test's own copy (hang guard only: a starved test process takes a while)
+
     def copied():
         return sum(len(m.x_m) for _, m in list(topics.meas))      # samples of the batches
     assert listener.wait_for(lambda: copied() >= n, 180.0)

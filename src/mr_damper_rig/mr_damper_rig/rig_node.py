@@ -32,13 +32,14 @@ current command is checked by :class:`mr_damper_model.commands.CurrentCommandLim
 with a throttled warning.
 
 Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
-displacement commands [m] through a servo-actuator model, in lockstep with the car: each
-command received steps the actuator and the damper by one DAQ period and publishes that sample
-at once, alone, on ``mr_damper/hil_measurement`` (DamperSamples of one sample, reliable depth
-10); ``mr_damper/measurement`` carries the same samples in batches. Commands beyond ``+-stroke_m`` are clamped, non-finite refused; a car silent for
-longer than ``command_timeout_s`` (wall time times ``rate_factor``) makes the rig run on its
-own clock, holding and then returning to neutral (:class:`mr_damper_rig.pacing.LockstepPacer`).
-The tracking error (guarded target minus measured displacement) is in the diagnostics.
+displacement commands [m] through a servo-actuator model, in lockstep with the car: each command
+received steps the actuator and the damper by one DAQ period and publishes that sample at once,
+alone, on ``mr_damper/hil_measurement`` (DamperSamples of one sample, reliable depth 10);
+``mr_damper/measurement`` carries the same samples in batches. Commands beyond ``+-stroke_m`` are
+clamped, non-finite refused; a car silent for longer than ``command_timeout_s`` (wall time times
+``rate_factor``) makes the rig run on its own clock, holding and then returning to neutral
+(:class:`mr_damper_rig.pacing.LockstepPacer`). The tracking error (guarded target minus measured
+displacement) is in the diagnostics.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
