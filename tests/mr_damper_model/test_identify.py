@@ -305,8 +305,8 @@ def test_chunked_polish_and_solve_equal_the_whole_record(monkeypatch, model_name
     from mr_damper_model import identify as idm
     m = get_model(model_name)
     t, x, v, _ = cam(6.0)
-    cur = np.full(t.size, i) if i is not None else np.repeat([0.0, 0.5, 1.0, 1.5, 2.0],
-                                                               t.size // 5)
+    levels = [0.0, 0.5, 1.0, 1.5, 2.0]
+    cur = np.full(t.size, i) if i is not None else np.repeat(levels, t.size // 5)
     truth = ({'c': 800.0, 'k': 150.0, 'alpha': 400.0, 'beta': 25.0, 'delta': 0.4, 'f0': 6.0}
              if model_name == 'kwok' else dict(thesis_kwok_current()[1]))
     data, _, _ = synth(m, truth, t, x, v, cur)
