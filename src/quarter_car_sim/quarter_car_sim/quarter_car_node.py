@@ -385,8 +385,9 @@ class QuarterCarNode(Node):
         except ValueError as exc:
             self.drops.count('undecodable_measurement', detail=str(exc))
             return
+        now = self._now()
         with self.answered:
-            self.remote.receive(*sample)
+            self.remote.receive(*sample, now=now)
             self.answered.notify()
 
     def _step(self, wall):
