@@ -58,7 +58,7 @@ SWARM_SAMPLES = 500
 #: normal equations (``J^T J``, ``J^T r``, the Gram matrix) are summed chunk by chunk, so the
 #: (n, n_params) Jacobian and the regressors are never formed whole (memory of a fit of a
 #: 3-million-sample record: ``bench/bench_csv_memory.py``).
-CHUNK_SAMPLES = 65536
+CHUNK_SAMPLES = 262144
 #: A current level needs at least this many samples to be fitted on its own; fewer are the coil
 #: transients between the levels of a step test (a few samples per step), left out of
 #: per-current fits.
@@ -410,7 +410,9 @@ class _ChunkedResidual:
     Sums of squares and normal equations are accumulated over :data:`CHUNK_SAMPLES` samples at
     a time: memory is bounded by the chunk, whatever the record's length (the whole (n, d)
     Jacobian, about 8 d bytes per sample, is never formed). Same sums as on the whole record,
-    up to the order of the floating-point additions.
+    up to the order of the floating-point additions. The residual of the last point whose sum
+    of squares was asked is kept (one float per sample), so the next Jacobian at that point
+    (the accepted step) does not evaluate the force again.
     """
 
     def __init__(self, model, sig, y, chunk=None):
@@ -421,6 +423,8 @@ class _ChunkedResidual:
         self.parts = [(Signals(x[a:b], v[a:b], None if i is None else i[a:b],
                                None if t is None else t[a:b], one), a, b)
                       for a in range(0, y.size, chunk) for b in [min(a + chunk, y.size)]]
+        self._r = np.empty(y.size)
+        self._p = None
 
     def _resid(self, p, sig, a, b):
         with np.errstate(over='ignore', invalid='ignore'):
@@ -429,22 +433,26 @@ class _ChunkedResidual:
     def rss(self, p):
         """Return the sum of squares at ``p`` (inf if not finite)."""
         total = 0.0
+        self._p = None
         for sig, a, b in self.parts:
-            r = self._resid(p, sig, a, b)
+            r = self._r[a:b]
+            r[:] = self._resid(p, sig, a, b)
             if not np.all(np.isfinite(r)):
                 return math.inf
             total += float(r @ r)
+        self._p = np.array(p, dtype=float)
         return total
 
     def normal(self, p):
         """Return ``(J^T J, J^T r)`` at ``p``, or None if the Jacobian is not finite."""
         A = g = 0.0
+        known = self._p is not None and np.array_equal(self._p, p)
         for sig, a, b in self.parts:
             with np.errstate(over='ignore', invalid='ignore'):
                 J = self.model._eval_jacobian(p, sig)
             if not np.all(np.isfinite(J)):
                 return None
-            r = self._resid(p, sig, a, b)
+            r = self._r[a:b] if known else self._resid(p, sig, a, b)
             A = A + J.T @ J
             g = g + J.T @ r
         return A, g
