@@ -282,7 +282,7 @@ def test_bad_messages_are_counted_and_harmless(listener):
         assert ident.alive()
     status = topics.last_status()
     assert status['samples_accepted'] == data.n
-    assert status['rejected'] == dict(sent, layout=1)
+    assert status['rejected'] == dict(sent, layout=1, future_stamp=0)
     final = topics.estimates()[-1]
     window = data.select((data.t >= status['last_window_start_s'] - 1e-6)
                          & (data.t <= status['last_window_end_s'] + 1e-6))
