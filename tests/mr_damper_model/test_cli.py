@@ -162,6 +162,7 @@ def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit)
     assert pf.current_min_a == 0.0 and pf.current_max_a == pytest.approx(1.0, abs=0.05)
 
 
+@pytest.mark.slow
 def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
     import shutil
     folder = tmp_path / 'tests'

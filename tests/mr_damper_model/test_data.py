@@ -186,6 +186,7 @@ def test_blank_line_inside_the_data_is_an_error_trailing_ones_are_not(tmp_path):
     assert read_csv(path).n == 2
 
 
+@pytest.mark.slow
 def test_large_csv_is_read_in_bounded_memory(tmp_path, monkeypatch):
     """Peak memory of read_csv stays within 3x the arrays it returns (several blocks)."""
     import tracemalloc

@@ -517,6 +517,7 @@ def stalled(arrays, first_s=2.0, **config):
     return li, out
 
 
+@pytest.mark.slow
 def test_stalled_fitter_does_not_turn_damper_memory_into_a_fault():
     """
     Flake seen under CPU load (first window fitted in 5 s, 48 windows superseded).
