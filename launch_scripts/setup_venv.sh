@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Create (or update) the project's virtual environment at .venv from pip only:
 # the pinned requirements.txt (ROS 2 kilted wheels, numpy, scipy, control, rosbags, ...), the
-# four ament_python packages of src/ in editable mode, so their console scripts are on .venv/bin,
+# five ament_python packages of src/ in editable mode, so their console scripts are on .venv/bin,
 # and the message package src/mr_damper_interfaces (ament_cmake + rosidl), built with cmake and
 # a C/C++ compiler (installed with apt-get if missing) and installed into the venv prefix itself:
 # the wheels' start-up hook (ros_wheels_bootstrapper.pth) puts <venv>/lib on LD_LIBRARY_PATH and
@@ -86,10 +86,10 @@ pip=("$venv/bin/python" -m pip install --disable-pip-version-check --no-input)
 say "installing the pinned requirements (ROS 2 kilted wheels, numpy, scipy, ...) with pip"
 run 'pip install --upgrade pip' "${pip[@]}" --upgrade pip
 run 'pip install -r requirements.txt' "${pip[@]}" -r "$root/requirements.txt"
-say "installing the four Python packages of src/ (editable)"
+say "installing the five Python packages of src/ (editable)"
 run 'pip install -e src/...' "${pip[@]}" --no-deps --no-build-isolation \
   -e "$root/src/mr_damper_model" -e "$root/src/mr_damper_rig" -e "$root/src/quarter_car_sim" \
-  -e "$root/src/mr_damper_bringup"
+  -e "$root/src/mr_damper_bringup" -e "$root/src/mr_damper_can"
 
 # --- mr_damper_interfaces: C/C++ toolchain, mended CMake exports, build, install into the venv
 missing=()
