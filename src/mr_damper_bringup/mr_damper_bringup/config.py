@@ -40,8 +40,9 @@ CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
 #: the control period of a filter inside the law, e.g. clipped-optimal-wk's Wk filter)
 CONTROLLER_PARAMS = ('controller', 'controller_options', 'safe_current_a', 'param_timeout_s',
                      'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a', 'rate_hz')
-QUIROZ_DIR = REPO.parent / 'shared' / 'data' / 'quiroz_mr_damper'
-DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv'
+#: the measured damper data shipped in the repository (gzip-compressed DAQ CSVs)
+QUIROZ_DIR = REPO / 'data' / 'quiroz_mr_damper'
+DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv.gz'
                        for c in ('0', '0p25', '0p5', '0p75', '1p0'))
 
 
@@ -125,19 +126,20 @@ def resolve_config(args, out):
     if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
         set_param(cfg, qc, 'road_repeat', True)
     if args.config == 'replay' or args.file:
+        from mr_damper_model.data import is_csv
         files = [Path(f) for f in (args.file or DEFAULT_REPLAY)]
         for f in files:
             if not f.exists():
                 raise SuiteError(f'--file {f}: no such file or directory')
         if len(files) > 1:
             for f in files:
-                if f.suffix.lower() != '.csv':
+                if not is_csv(f):
                     raise SuiteError(f'--file {f}: several files can only be CSV files')
             path = concatenate_csv(files, out / 'replay_input.csv')
             mode = 'csv'
         else:
             path = files[0]
-            mode = 'csv' if path.suffix.lower() == '.csv' else 'bag'
+            mode = 'csv' if is_csv(path) else 'bag'
         set_param(cfg, RIG, 'mode', mode)
         set_param(cfg, RIG, 'file', str(path.resolve()))
     for item in args.set or ():

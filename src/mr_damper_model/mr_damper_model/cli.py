@@ -10,11 +10,12 @@ Usage::
     mr-damper-identify --validate PARAMS.json FILE... [--model NAME] [--topic TOPIC]
         [--json] [--plot OUT.png]
 
-A FILE is a ``t,x,v,f,i`` CSV, a rosbag2 directory, a ``.mcap`` or ``.db3`` bag (measurement
-JointState topic), a directory (its CSV files, bags and rosbag2 directories) or a glob. Several
-files are fitted as one record (each keeps its own time base; see ``DamperData.concatenate``)
-and the metrics of the joint fit are printed per file too. ``--validate`` fits nothing: it
-prints the metrics of a saved parameter file on each file and over all files.
+A FILE is a ``t,x,v,f,i`` CSV (plain or ``.csv.gz``), a rosbag2 directory, a ``.mcap`` or
+``.db3`` bag (measurement JointState topic), a directory (its CSV files, bags and rosbag2
+directories) or a glob. Several files are fitted as one record (each keeps its own time base;
+see ``DamperData.concatenate``) and the metrics of the joint fit are printed per file too.
+``--validate`` fits nothing: it prints the metrics of a saved parameter file on each file and
+over all files.
 
 Default model: ``kwok-current-amp`` when the records hold several coil-current levels (the
 model that predicts held-out tests best, docs/cross-validation.md), ``kwok`` otherwise (and
@@ -98,14 +99,14 @@ def _measurement_topic():
     return MEASUREMENT_TOPIC
 
 
-RECORD_SUFFIXES = ('.csv', '.mcap', '.db3')
+RECORD_SUFFIXES = ('.csv', '.csv.gz', '.mcap', '.db3')
 
 
 def _directory_records(path):
     from .bag_io import is_bag
     return sorted(str(c) for c in path.iterdir()
                   if (c.is_dir() and is_bag(c))
-                  or (c.is_file() and c.suffix.lower() in RECORD_SUFFIXES))
+                  or (c.is_file() and c.name.lower().endswith(RECORD_SUFFIXES)))
 
 
 def expand_inputs(args):
@@ -143,13 +144,13 @@ def expand_inputs(args):
                 found.extend(_directory_records(mp) if mp.is_dir() and not is_bag(mp)
                              else [m])
             if not found:
-                raise _InputError(arg, 'the matching directories hold no .csv, .mcap or .db3 '
-                                  'file or rosbag2 directory')
+                raise _InputError(arg, 'the matching directories hold no .csv(.gz), .mcap or '
+                                  '.db3 file or rosbag2 directory')
         elif p.is_dir() and not is_bag(p):
             found = _directory_records(p)
             if not found:
-                raise _InputError(arg, 'directory holds no .csv, .mcap or .db3 file or rosbag2 '
-                                  'directory')
+                raise _InputError(arg, 'directory holds no .csv(.gz), .mcap or .db3 file or '
+                                  'rosbag2 directory')
         else:
             found = [arg]
         out.extend(found)
