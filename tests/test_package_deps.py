@@ -19,7 +19,8 @@ from conftest import REPO
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'control': 'python3-control',
                'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags',
                'matplotlib': 'python3-matplotlib', 'numba': 'python3-numba',
-               'psutil': 'python3-psutil', 'pytest': 'python3-pytest'}
+               'psutil': 'python3-psutil', 'pytest': 'python3-pytest', 'dask': 'python3-dask',
+               'distributed': 'python3-distributed'}
 
 PACKAGES = sorted(p.parent for p in (REPO / 'src').glob('*/package.xml')
                   if (p.parent / p.parent.name).is_dir())
