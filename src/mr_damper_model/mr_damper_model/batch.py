@@ -29,7 +29,8 @@ import tempfile
 import time
 
 __all__ = ['BatchSettings', 'DamperTask', 'discover', 'process_damper', 'force_envelope',
-           'envelope_columns', 'run_batch', 'read_table', 'trend', 'trend_figure',
+           'envelope_ratio', 'envelope_columns', 'run_batch', 'read_table', 'trend',
+           'write_trend', 'trend_figure', 'load_master', 'master_currents',
            'DEFAULT_VELOCITIES_MPS', 'DEFAULT_CURRENTS_A', 'DEFAULT_STROKE_M', 'DEFAULT_REL_TOL',
            'DEFAULT_ABS_TOL_N', 'DEFAULT_MAX_NRMSE_PERCENT', 'TABLE_COLUMNS']
 
@@ -231,6 +232,32 @@ def force_envelope(model, model_options, params, currents_a, velocities_mps, str
     out = np.stack([last.max(axis=1), last.min(axis=1)], axis=1)
     out[~np.all(np.isfinite(last), axis=1)] = np.nan
     return out.reshape(len(currents_a), len(velocities_mps), 2)
+
+
+def envelope_ratio(env, ref, rel_tol, abs_tol_n):
+    """
+    Deviation of envelope forces from the master's, in units of the tolerance.
+
+    Parameters
+    ----------
+    env, ref : array_like
+        Envelope forces of the damper and of the master [N] (same shape).
+    rel_tol, abs_tol_n : float
+        A point passes if abs(F - F_master) <= max(rel_tol * abs(F_master), abs_tol_n).
+
+    Returns
+    -------
+    ndarray with shape (n_points,)
+        abs(F - F_master) / allowed, flattened; a point passes if <= 1 (inf if not finite).
+
+    """
+    import numpy as np
+    env = np.ravel(np.asarray(env, dtype=float))
+    ref = np.ravel(np.asarray(ref, dtype=float))
+    allowed = np.maximum(rel_tol * np.abs(ref), abs_tol_n)
+    with np.errstate(invalid='ignore'):
+        ratio = np.abs(env - ref) / allowed
+    return np.where(np.isfinite(ratio), ratio, np.inf)
 
 
 def envelope_columns(currents_a, velocities_mps):
@@ -515,10 +542,7 @@ def _identify_damper(task, settings):
         reasons.append(f'fit: NRMSE {nrmse:.3g} % > {settings.max_nrmse_percent:g} %')
     if settings.master_envelope is not None:
         ref = np.asarray(settings.master_envelope, dtype=float).ravel()
-        allowed = np.maximum(settings.rel_tol * np.abs(ref), settings.abs_tol_n)
-        with np.errstate(invalid='ignore'):
-            ratio = np.abs(env.ravel() - ref) / allowed
-        ratio = np.where(np.isfinite(ratio), ratio, np.inf)
+        ratio = envelope_ratio(env, ref, settings.rel_tol, settings.abs_tol_n)
         worst = int(np.argmax(ratio))
         out['envelope_worst_ratio'] = _fmt(float(ratio[worst]))
         if ratio[worst] > 1.0:
