@@ -56,6 +56,8 @@ TABLE_COLUMNS = ('record', 'serial', 'test_time', 'status', 'reason', 'error', '
 METRIC_COLUMNS = ('rmse_n', 'nrmse_percent', 'mean_abs_error_n', 'mean_percent_error',
                   'max_percent_error')
 RECORD_SUFFIXES = ('.csv', '.mcap', '.db3')
+#: Seconds to wait for an existing Dask scheduler (``scheduler``) to answer.
+SCHEDULER_TIMEOUT_S = 30
 #: Default model for records at several current levels (as the single-record tool).
 MULTI_CURRENT_MODEL = 'kwok-current-amp'
 
@@ -704,7 +706,12 @@ def _run_dask(tasks, settings, on_row, *, workers, scheduler):
             fut.release()
 
     if scheduler is not None:
-        with Client(scheduler, timeout=60) as client:
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, ValueError) as exc:
+            raise ValueError(f'cannot reach the Dask scheduler {scheduler} '
+                             f'({type(exc).__name__}: {exc})') from None
+        with client:
             drain(client)
         return
     with tempfile.TemporaryDirectory(prefix='mr_damper_dask_') as scratch:
@@ -775,21 +782,25 @@ def run_batch(root, settings, *, table, per_file=False, pattern=None, workers=0,
     new_rows = []
     bar = None if progress is False else Progress(len(todo), progress)
     t0 = time.perf_counter()
-    with open(journal, 'a') as jf:
-        def on_row(row):
-            new_rows.append(row)
-            jf.write(json.dumps(row) + '\n')
-            jf.flush()
-            if bar is not None:
-                bar.update(row)
-            if callback is not None:
-                callback(row)
+    try:
+        with open(journal, 'a') as jf:
+            def on_row(row):
+                new_rows.append(row)
+                jf.write(json.dumps(row) + '\n')
+                jf.flush()
+                if bar is not None:
+                    bar.update(row)
+                if callback is not None:
+                    callback(row)
 
-        if todo and workers == 0 and scheduler is None:
-            _run_serial(todo, settings, on_row)
-        elif todo:
-            _run_dask(todo, settings, on_row, workers=min(workers, len(todo)),
-                      scheduler=scheduler)
+            if todo and workers == 0 and scheduler is None:
+                _run_serial(todo, settings, on_row)
+            elif todo:
+                _run_dask(todo, settings, on_row, workers=min(workers, len(todo)),
+                          scheduler=scheduler)
+    finally:
+        if journal.exists() and journal.stat().st_size == 0:
+            journal.unlink()
     wall = time.perf_counter() - t0
     rows = history + keep + new_rows
     _write_table(table, rows)

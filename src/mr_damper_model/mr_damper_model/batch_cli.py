@@ -164,8 +164,8 @@ def run(args, fail):
             trend_rows = batch.write_trend(
                 rows, table.with_name(f'{table.stem}_trend.csv'),
                 table.with_name(f'{table.stem}_trend.png'))
-    except ValueError as exc:
-        return fail(args.batch, exc)
+    except ValueError as exc:          # the message names the directory or the scheduler
+        return fail('', exc)
     except OSError as exc:
         return fail(args.table, f'cannot write output ({exc.strerror or exc})')
     if args.json:
