@@ -957,7 +957,15 @@ def trend_figure(rows, serials):
         for k in (recs[s][0] if recs[s] else {}):
             if k.startswith('env_'):
                 env_groups.setdefault(k.split('_')[1], []).append(k)
-    panels = [(k[2:], [k]) for k in keys] + \
+    units = {}
+    for s in serials:
+        if recs[s] and recs[s][0].get('model'):
+            from .models import get_model
+            try:
+                units.update(get_model(recs[s][0]['model']).param_units)
+            except (KeyError, ValueError):
+                pass
+    panels = [(f'{k[2:]} [{units.get(k[2:], "-")}]', [k]) for k in keys] + \
         [(f'envelope at {cur} [N]', sorted(set(ks), key=ks.index))
          for cur, ks in env_groups.items()]
     ncol = 4
