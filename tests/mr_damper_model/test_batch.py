@@ -94,8 +94,9 @@ def test_discover_folders_files_patterns_and_seeds(tmp_path):
     for rel in ('A1/x.csv', 'B2/y.csv', 'loose.csv'):
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text('t\n')
+    (tmp_path / '.git').mkdir()
     tasks, ignored = batch.discover(tmp_path, seed=3)
-    assert [t.record for t in tasks] == ['A1', 'B2'] and ignored == ['loose.csv']
+    assert [t.record for t in tasks] == ['A1', 'B2'] and ignored == ['.git', 'loose.csv']
     assert [t.serial for t in tasks] == ['A1', 'B2']
     # the seed depends on the base seed and the id only, not on which other dampers exist
     (tmp_path / 'A0').mkdir()

@@ -376,7 +376,7 @@ def discover(root, *, per_file=False, pattern=None, seed=1, exclude=()):
     seed : int
         Base seed (:func:`damper_seed`).
     exclude : sequence of path
-        Files to leave out (the batch's own outputs).
+        Files to leave out (the batch's own outputs). Hidden names (``.git``) are ignored.
 
     Returns
     -------
@@ -411,7 +411,9 @@ def discover(root, *, per_file=False, pattern=None, seed=1, exclude=()):
             for c in sorted(d.iterdir()):
                 if c.resolve() in skip:
                     continue
-                if c.is_dir() and is_bag(c):
+                if c.name.startswith('.'):
+                    ignored.append(c.relative_to(root).as_posix())
+                elif c.is_dir() and is_bag(c):
                     candidates.append(c)
                 elif c.is_dir():
                     stack.append(c)
@@ -421,7 +423,7 @@ def discover(root, *, per_file=False, pattern=None, seed=1, exclude=()):
                     ignored.append(c.relative_to(root).as_posix())
     else:
         for c in sorted(root.iterdir()):
-            if c.is_dir():
+            if c.is_dir() and not c.name.startswith('.'):
                 candidates.append(c)
             elif c.resolve() not in skip:
                 ignored.append(c.name)
@@ -763,7 +765,8 @@ def run_batch(root, settings, *, table, per_file=False, pattern=None, workers=0,
     summary = Path(summary) if summary is not None else table.with_suffix('.json')
     journal = table.with_name(table.name + '.journal')
     tasks, ignored = discover(root, per_file=per_file, pattern=pattern, seed=settings.seed,
-                              exclude=(table, summary, journal))
+                              exclude=(table, summary, journal,
+                                       table.with_name(f'{table.stem}_trend.csv')))
     config = settings.config_hash()
     old = read_table(table) if table.exists() else []
     old_by = {r['record']: r for r in old}
