@@ -119,6 +119,14 @@ def test_discover_folders_files_patterns_and_seeds(tmp_path):
         batch.discover(tmp_path, per_file=True, pattern='(')
 
 
+@pytest.mark.parametrize('n, workers', [(7, 2), (17, 2), (200, 2), (200, 1), (3, 8)])
+def test_dampers_go_to_the_cluster_in_chunks_of_every_task_once(n, workers):
+    chunks = batch._chunks(list(range(n)), workers)
+    assert [t for c in chunks for t in c] == list(range(n))
+    assert len(chunks) == min(n, batch.CHUNKS_PER_WORKER * workers)
+    assert max(map(len, chunks)) - min(map(len, chunks)) <= 1
+
+
 def test_batch_pass_fail_bad_files_and_resume(archive, tmp_path):
     root, master = archive
     s = settings_for(master)

@@ -28,8 +28,9 @@ import sys
 import tempfile
 import time
 
-__all__ = ['BatchSettings', 'DamperTask', 'discover', 'process_damper', 'force_envelope',
-           'envelope_ratio', 'envelope_columns', 'run_batch', 'read_table', 'trend',
+__all__ = ['BatchSettings', 'DamperTask', 'discover', 'process_damper', 'process_dampers',
+           'force_envelope', 'envelope_ratio', 'envelope_columns', 'run_batch', 'read_table',
+           'trend',
            'write_trend', 'trend_figure', 'load_master', 'master_currents',
            'DEFAULT_VELOCITIES_MPS', 'DEFAULT_CURRENTS_A', 'DEFAULT_STROKE_M', 'DEFAULT_REL_TOL',
            'DEFAULT_ABS_TOL_N', 'DEFAULT_MAX_NRMSE_PERCENT', 'TABLE_COLUMNS']
@@ -58,6 +59,10 @@ METRIC_COLUMNS = ('rmse_n', 'nrmse_percent', 'mean_abs_error_n', 'mean_percent_e
 RECORD_SUFFIXES = ('.csv', '.mcap', '.db3')
 #: Seconds to wait for an existing Dask scheduler (``scheduler``) to answer.
 SCHEDULER_TIMEOUT_S = 30
+#: Dampers go to the cluster in about this many tasks per worker (a task costs the scheduler,
+#: the worker and the client some milliseconds of CPU each; a damper of a short end-of-line
+#: test takes tens of milliseconds to fit).
+CHUNKS_PER_WORKER = 8
 #: Default model for records at several current levels (as the single-record tool).
 MULTI_CURRENT_MODEL = 'kwok-current-amp'
 
@@ -688,23 +693,42 @@ def _run_serial(tasks, settings, on_row):
         on_row(process_damper(task, settings))
 
 
+def process_dampers(tasks, settings):
+    """Run :func:`process_damper` on each task in turn; return the rows (one Dask task)."""
+    return [process_damper(t, settings) for t in tasks]
+
+
+def _chunks(tasks, n_workers):
+    """Split the tasks into :data:`CHUNKS_PER_WORKER` contiguous groups per worker (sizes +-1)."""
+    n = max(1, min(len(tasks), CHUNKS_PER_WORKER * max(1, n_workers)))
+    base, extra = divmod(len(tasks), n)
+    edges = [0]
+    for k in range(n):
+        edges.append(edges[-1] + base + (k < extra))
+    return [tasks[a:b] for a, b in zip(edges[:-1], edges[1:])]
+
+
 def _run_dask(tasks, settings, on_row, *, workers, scheduler):
-    """Run the tasks on Dask; a task lost with its worker gives an error row."""
+    """Run the tasks on Dask in chunks; a chunk lost with its worker gives error rows."""
     import logging
     from dask.distributed import as_completed, Client, LocalCluster
 
-    def drain(client):
-        futures = {client.submit(process_damper, t, settings, pure=False,
-                                 key=f'mr-damper-{t.seed}-{k}'): t
-                   for k, t in enumerate(tasks)}
+    def drain(client, n_workers):
+        futures = {client.submit(process_dampers, chunk, settings, pure=False,
+                                 key=f'mr-damper-{chunk[0].seed}-{k}'): chunk
+                   for k, chunk in enumerate(_chunks(tasks, n_workers))}
         for fut in as_completed(futures):
             try:
-                row = fut.result()
+                rows = fut.result()
             except Exception as exc:
-                row = _base_row(futures[fut], settings)
-                row['error'] = _one_line(f'task failed on the cluster: {type(exc).__name__}: '
-                                         f'{exc}')
-            on_row(row)
+                rows = []
+                for t in futures[fut]:
+                    row = _base_row(t, settings)
+                    row['error'] = _one_line(f'task failed on the cluster: '
+                                             f'{type(exc).__name__}: {exc}')
+                    rows.append(row)
+            for row in rows:
+                on_row(row)
             fut.release()
 
     if scheduler is not None:
@@ -714,7 +738,7 @@ def _run_dask(tasks, settings, on_row, *, workers, scheduler):
             raise ValueError(f'cannot reach the Dask scheduler {scheduler} '
                              f'({type(exc).__name__}: {exc})') from None
         with client:
-            drain(client)
+            drain(client, len(client.scheduler_info().get('workers', {})))
         return
     with tempfile.TemporaryDirectory(prefix='mr_damper_dask_') as scratch:
         # loopback only, no dashboards: nothing of the cluster is reachable off this machine
@@ -722,7 +746,7 @@ def _run_dask(tasks, settings, on_row, *, workers, scheduler):
                           host='127.0.0.1', dashboard_address=None,
                           worker_dashboard_address=None, silence_logs=logging.ERROR,
                           local_directory=scratch) as cluster, Client(cluster) as client:
-            drain(client)
+            drain(client, workers)
 
 
 def run_batch(root, settings, *, table, per_file=False, pattern=None, workers=0,
