@@ -160,6 +160,10 @@ def test_batch_pass_fail_bad_files_and_resume(archive, tmp_path):
     first = table.read_bytes()
     again = batch.run_batch(root, s, table=table, progress=False)
     assert again['processed'] == 0 and again['skipped'] == 7 and table.read_bytes() == first
+    moved = tmp_path / 'elsewhere' / 'master_copy.json'         # the same master elsewhere
+    moved.parent.mkdir()
+    moved.write_bytes(master.read_bytes())
+    assert settings_for(moved).config_hash() == s.config_hash()
     # a changed file is redone, the others are not; --force redoes all
     f = root / 'SN005' / 'eol_test.csv'
     st = f.stat()

@@ -149,9 +149,12 @@ class BatchSettings:
         return self.master is not None or bool(self.param_ranges)
 
     def config_hash(self):
-        """Short hash of the settings that change a row (a row with another one is redone)."""
+        """Return a short hash of the settings that change a row (other settings: redone)."""
         d = asdict(self)
         d.pop('master_envelope')
+        if d['master'] is not None:         # the master's content, not where it was read from
+            d['master'] = {k: d['master'].get(k) for k in ('model', 'parameters',
+                                                           'model_options')}
         text = json.dumps(d, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
