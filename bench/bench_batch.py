@@ -54,7 +54,7 @@ STROKE = 0.01
 
 
 def quiroz_motion():
-    """The three 10 mm / 1 Hz Quiroz records joined, every 4th sample."""
+    """Return the three 10 mm / 1 Hz Quiroz records joined, every 4th sample."""
     for d in QUIROZ_DIRS:
         found = [sorted(d.glob(f'quiroz_sine_10mm1Hz_{tag}_preproc.csv*')) for tag, _ in LEVELS]
         if all(found):
