@@ -132,7 +132,9 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
         for k in range(meas['t'].size):
             if k in drop:
                 continue
-            msg = mm.measurement_to_msg(*(meas[c][k] for c in 'txvfi'))
+            # one sample per batch: a dropped sample is a jump of the stream index
+            msg = mm.samples_to_msg(*([meas[c][k]] for c in 'txvfi'), sequence=k,
+                                    first_index=k)
             rec.write('measurement', serialize_message(msg),
                       int(round(meas['recv_epoch_s'][k] * 1e9)))
         for t, d in params_msgs:

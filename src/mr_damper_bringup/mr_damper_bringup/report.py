@@ -50,6 +50,7 @@ import numpy as np
 from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
                                        finite_or_none, JsonLines, open_log)
 from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
+from mr_damper_model.sample_stream import BatchIndex
 
 from .config import node_params, QC, RIG
 from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
@@ -101,7 +102,7 @@ def read_recording(path, work):
            'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
     params = JsonLines(work / 'parameters.jsonl')
-    last_t, dt = None, None
+    gaps = _Gaps()
     try:
         with AnyReader([Path(path)], default_typestore=suite_typestore()) as reader:
             conns = [c for c in reader.connections if c.topic in keys]
@@ -145,23 +146,52 @@ def read_recording(path, work):
                 elif key != 'measurement':
                     rec[key] = d
                 else:
-                    t = sample[0]
-                    if last_t is not None:
-                        step = t - last_t
-                        if step <= 0:
-                            rec['measurement_out_of_order'] += 1
-                            continue
-                        if dt is None or rec['measurements_received'] < 20:
-                            dt = step if dt is None else min(dt, step)
-                        elif step > 1.5 * dt:
-                            rec['measurement_gaps'] += int(round(step / dt)) - 1
-                    last_t = t
-                    meas.append(sample + (t_rx,))
-                    rec['measurements_received'] += 1
+                    _take_measurement(rec, gaps, sample, getattr(msg, 'first_index', None),
+                                      meas, t_rx)
     finally:
         meas.close()
         params.close()
     return rec
+
+
+class _Gaps:
+    """Samples missing from the recorded measurement stream (see :func:`_take_measurement`)."""
+
+    def __init__(self):
+        self.index = BatchIndex()
+        self.last_t = None
+        self.dt = None
+
+
+def _take_measurement(rec, gaps, cols, first_index, meas, t_rx):
+    """
+    Append one recorded measurement message (arrays ``t, x, v, f, i``) to the column log.
+
+    Samples not after the newest kept stamp are counted (``measurement_out_of_order``) and
+    left out. Missing samples (``measurement_gaps``) are counted exactly from the batches'
+    stream index (``first_index``); for single-sample JointState recordings, from stamp steps
+    longer than 1.5 sample periods (the period: the shortest step of the first 20 samples).
+    """
+    t = cols[0]
+    prev = -np.inf if gaps.last_t is None else gaps.last_t
+    keep = t > np.maximum.accumulate(np.concatenate(([prev], t)))[:-1]
+    rec['measurement_out_of_order'] += int(keep.size - np.count_nonzero(keep))
+    if not keep.any():
+        return
+    if first_index is not None:
+        rec['measurement_gaps'] += gaps.index.update(first_index, t.size)
+    else:
+        t0 = float(t[keep][0])
+        if gaps.last_t is not None:
+            step = t0 - gaps.last_t
+            if gaps.dt is None or rec['measurements_received'] < 20:
+                gaps.dt = step if gaps.dt is None else min(gaps.dt, step)
+            elif step > 1.5 * gaps.dt:
+                rec['measurement_gaps'] += int(round(step / gaps.dt)) - 1
+    gaps.last_t = float(t[keep][-1])
+    block = np.column_stack([c[keep] for c in cols] + [np.full(np.count_nonzero(keep), t_rx)])
+    meas.append_block(block)
+    rec['measurements_received'] += int(block.shape[0])
 
 
 def fit_error(f_meas, f_model):
@@ -682,6 +712,16 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
     summary['failsafe'] = {k: qc_status.get(k) for k in (
         'mode', 'reason', 'failsafe_entries', 'params_accepted', 'params_rejected',
         'safe_current_a')}
+    ctrl_status = rec.get('status', {}).get('controller')
+    if ctrl_status is not None or 'command_timeouts' in qc_status:
+        # --external-controller: the link car state -> controller -> current command
+        summary['controller_link'] = {
+            'command_timeouts': qc_status.get('command_timeouts'),
+            'command_timeout_s_total': qc_status.get('command_timeout_s_total'),
+            'commands_received': qc_status.get('commands_received'),
+            'controller_dropped': (ctrl_status or {}).get('dropped') or {},
+            'controller_mode': (ctrl_status or {}).get('mode'),
+            'controller_reason': (ctrl_status or {}).get('reason')}
     lost, breakdown = messages_summary(rec, qc_status)
     summary['messages_lost'] = lost
     summary['messages'] = breakdown
