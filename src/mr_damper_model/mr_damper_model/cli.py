@@ -9,6 +9,8 @@ Usage::
         [--json] [--plot OUT.png] [--out PARAMS.json] [--compare]
     mr-damper-identify --validate PARAMS.json FILE... [--model NAME] [--topic TOPIC]
         [--json] [--plot OUT.png]
+    mr-damper-identify --batch ROOT [--master PARAMS.json] [--workers N | --scheduler ADDR]
+        [--serial-pattern REGEX] [--table FILE.csv] [--force] [--trend] ...  (docs/batch.md)
 
 A FILE is a ``t,x,v,f,i`` CSV (plain or ``.csv.gz``), a rosbag2 directory, a ``.mcap`` or
 ``.db3`` bag (measurement JointState topic), a directory (its CSV files, bags and rosbag2
@@ -65,7 +67,7 @@ def build_parser():
     p = _Parser(prog=PROG, description='Identify MR damper model parameters (PSO) from rig '
                 'test records: CSV files with header t,x,v,f,i (s, m, m/s, N, A) or rosbag2 '
                 'bags of the measurement topic; several files give one model.')
-    p.add_argument('files', nargs='+', metavar='FILE',
+    p.add_argument('files', nargs='*', metavar='FILE',
                    help='rig test record: CSV, rosbag2 directory, .mcap or .db3 bag, a '
                    'directory of them, or a glob (quote it)')
     p.add_argument('--model', default=None,
@@ -91,6 +93,8 @@ def build_parser():
     p.add_argument('--topic', default=None,
                    help='measurement topic of bags (default: %s if present, else the '
                    "bag's only JointState topic)" % _measurement_topic())
+    from .batch_cli import add_arguments
+    add_arguments(p)
     return p
 
 
@@ -311,6 +315,11 @@ def run(argv=None):
         args = build_parser().parse_args(argv)
     except _UsageError as exc:
         return _fail('', f'{exc} (see --help)')
+    if args.batch is not None:
+        from .batch_cli import run as run_batch
+        return run_batch(args, _fail)
+    if not args.files:
+        return _fail('', 'the following arguments are required: FILE (see --help)')
     if args.validate is not None:
         return _run_validate(args)
     try:
