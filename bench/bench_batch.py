@@ -43,8 +43,7 @@ from mr_damper_model.models import get_model  # noqa: E402
 from mr_damper_model.params_file import save_params  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-QUIROZ_DIRS = (REPO / 'data' / 'quiroz_mr_damper', REPO.parent / 'shared' / 'data'
-               / 'quiroz_mr_damper')
+QUIROZ_DIRS = (REPO / 'data' / 'quiroz_mr_damper',)
 LEVELS = (('0A', 0.0), ('0p5A', 0.5), ('1p0A', 1.0))
 SCALED = ('c0', 'c1', 'alpha0', 'alpha1', 'alpha2')
 OPTIONS = {'i_ref_a': 1.0}
