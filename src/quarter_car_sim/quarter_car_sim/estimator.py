@@ -318,7 +318,14 @@ def design_estimator(params, dt, sensors, *, road_class='C', speed_m_s=20.0,
                            params=params)
 
 
-@dataclasses.dataclass(frozen=True, slots=True)
+def _std(P):
+    """Standard deviations of the car states and of ``v_rel`` from a covariance."""
+    var_rel = P[1, 1] + P[3, 3] - 2.0 * P[1, 3]
+    return tuple(math.sqrt(max(float(P[j, j]), 0.0)) for j in range(4)) + (
+        math.sqrt(max(float(var_rel), 0.0)),)
+
+
+@dataclasses.dataclass(slots=True)
 class Estimate:
     """
     Estimated state of a corner at one control step (SI, conventions of ``params``).
@@ -446,6 +453,12 @@ class QuarterCarEstimator:
         self._ms = p.m_s
         self._row_as = design.A[1]     # body acceleration from the base states (+ F / m_s)
         self._n0 = design.A.shape[0]
+        self._n_rows = len(self._rows)
+        S = design.H @ design.P @ design.H.T + design.R
+        self._s_diag = [float(S[r, r]) for r in range(self._n_rows)]
+        dp = np.sqrt(np.abs(np.diag(design.P_post)))
+        self._p_scale = np.maximum(np.outer(dp, dp), 1e-300)
+        self._std_post = _std(design.P_post)
         self.invalid_entries = dict.fromkeys(INVALID_REASONS, 0)
         self.reset()
 
@@ -454,6 +467,8 @@ class QuarterCarEstimator:
         n = len(self.d.states)
         self.x = np.zeros(n)
         self.P = self.d.P.copy()
+        self._steady = False
+        self._tv_steps = 0
         self._f = 0.0
         self._i_coil = math.nan
         self._started = False
@@ -501,13 +516,15 @@ class QuarterCarEstimator:
             self._i_coil = i + (self._i_coil - i) * self._coil_a
         if self._started:
             self.x = d.Ad @ self.x + d.Bd * self._f
-            self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
+            if not self._steady:
+                self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
         else:
             self._started = True
             self._last_seen = dict.fromkeys(d.sensors, t)
         f_prior = self._force()
-        faults = []
-        for s, h, dm, r, is_acc in self._rows:
+        # readings to use: (row, innovation) of each finite, not stuck sensor
+        used = []
+        for r, (s, h, dm, _, is_acc) in enumerate(self._rows):
             y = readings.get(s)
             if y is None:
                 continue
@@ -524,33 +541,59 @@ class QuarterCarEstimator:
                 continue                      # a stuck sensor is not used
             if is_acc:
                 y -= self.gravity
-            ph = self.P @ h
-            sv = float(h @ ph) + r
-            e = y - float(h @ self.x) - dm * f_prior
-            k = ph / sv
-            self.x = self.x + k * e
-            self.P = self.P - np.outer(k, ph)
-            nis = e * e / sv
+            used.append((r, y - float(h @ self.x) - dm * f_prior))
+        if self._steady and len(used) != self._n_rows:
+            self._steady = False              # P was the steady posterior: now the prior
+            self.P = d.P.copy()
+        if self._steady:
+            # every sensor read: the steady-state filter (the DARE's gain and covariance)
+            e = np.array([v for _, v in used])
+            self.x = self.x + d.M @ e
+            s_diag = self._s_diag
+        else:
+            s_diag = [float(self._rows[r][1] @ self.P @ self._rows[r][1]) + self._rows[r][3]
+                      for r, _ in used]
+            s_diag = dict(zip((r for r, _ in used), s_diag))
+            for r, _ in used:
+                s_name, h, dm, rr, is_acc = self._rows[r]
+                ph = self.P @ h
+                sv = float(h @ ph) + rr
+                y = readings[s_name] - (self.gravity if is_acc else 0.0)
+                k = ph / sv
+                self.x = self.x + k * (y - float(h @ self.x) - dm * f_prior)
+                self.P = self.P - np.outer(k, ph)
+            self.P = (self.P + self.P.T) * 0.5
+            self._tv_steps += 1
+            if self._tv_steps % 100 == 0 and len(used) == self._n_rows:
+                dev = np.abs(self.P - d.P_post) / self._p_scale
+                if float(dev.max()) < 1e-6:
+                    self._steady = True
+                    self.P = d.P_post.copy()
+        # normalised innovation squared of each sensor (innovation of the predicted state)
+        for r, e in used:
+            s = self._rows[r][0]
+            nis = e * e / s_diag[r]
             win = self._nis[s]
             win.append(nis)
             self._nis_sum[s] += nis
             if len(win) > self._nis_n:
                 self._nis_sum[s] -= win.popleft()
             self.nis_mean[s] = self._nis_sum[s] / len(win)
+        faults = []
         for s in d.sensors:
             if t - self._last_seen[s] > self.dropout_s:
                 faults.append(f'dropout_{s}')
             if self._same[s] + 1 >= self._stuck_n[s]:
                 faults.append(f'stuck_{s}')
-            win = self._nis[s]
-            if len(win) >= self._nis_n and self.nis_mean[s] > self.nis_threshold:
+            if len(self._nis[s]) >= self._nis_n and self.nis_mean[s] > self.nis_threshold:
                 faults.append(f'innovation_{s}')
-        if not np.all(np.isfinite(self.x)) or not np.all(np.isfinite(self.P)):
+        if not math.isfinite(float(self.x.sum())) or (
+                not self._steady and not math.isfinite(float(self.P.sum()))):
             faults.insert(0, 'diverged')
             self.restarts += 1
             self.x = np.zeros(len(d.states))
             self.P = d.P.copy()
-        self.P = (self.P + self.P.T) * 0.5
+            self._steady = False
         self._f = self._force()
         reason = faults[0] if faults else ''
         if reason and reason != self.reason:
@@ -562,16 +605,23 @@ class QuarterCarEstimator:
         self.steps += 1
         return self._estimate(t)
 
+    @property
+    def steady(self):
+        """Whether the filter runs on the steady-state gain (covariance = DARE posterior)."""
+        return self._steady
+
     def _estimate(self, t):
-        x, P = self.x, self.P
+        x = self.x
         fd = x[self._ifd] if self._ifd is not None else 0.0
-        a_s = float(self._row_as[:4] @ x[:4]) + (self._f + fd) / self._ms
-        var = np.diag(P)[:4]
-        var_rel = P[1, 1] + P[3, 3] - 2.0 * P[1, 3]
-        std = tuple(float(math.sqrt(max(v, 0.0))) for v in var) + (
-            math.sqrt(max(var_rel, 0.0)),)
-        return Estimate(t=float(t), travel=float(x[0]), v_s=float(x[1]), tyre_def=float(x[2]),
-                        v_u=float(x[3]), v_rel=float(x[1] - x[3]), a_s=a_s,
+        x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+        ra = self._row_as
+        a_s = float(ra[0] * x0 + ra[1] * x1 + ra[3] * x3 + (self._f + fd) / self._ms)
+        if self._steady:
+            std = self._std_post
+        else:
+            std = _std(self.P)
+        return Estimate(t=float(t), travel=float(x0), v_s=float(x1), tyre_def=float(x2),
+                        v_u=float(x3), v_rel=float(x1 - x3), a_s=a_s,
                         damper_force=self._f, force_error=float(fd), std=std,
                         valid=self.valid, reason=self.reason)
 

@@ -270,11 +270,24 @@ class Sensor:
         self._rw = 0.0
         self._t_last = None
         self._last = math.nan
+        self._normal, self._uniform = [], []
         self.bias_now = self._bias0
         self.n_samples = 0
         self.n_dropped = 0
 
+    def _draw_normal(self):
+        if not self._normal:
+            self._normal = self.rng.standard_normal(1024).tolist()
+        return self._normal.pop()
+
+    def _draw_uniform(self):
+        if not self._uniform:
+            self._uniform = self.rng.random(1024).tolist()
+        return self._uniform.pop()
+
     def _active(self, t, kind):
+        if not self.spec.faults:
+            return None
         for f in self.spec.faults:
             if f.kind == kind and f.t_start <= t < f.t_end:
                 return f
@@ -291,11 +304,11 @@ class Sensor:
         if self._t_last is not None and s.bias_rw:
             dt = t - self._t_last
             if dt > 0:
-                self._rw += s.bias_rw * math.sqrt(dt) * self.rng.standard_normal()
+                self._rw += s.bias_rw * math.sqrt(dt) * self._draw_normal()
         self._t_last = t
         self.bias_now = self._bias0 + s.bias_drift * t + self._rw
-        noise = s.noise_std * self.rng.standard_normal() if s.noise_std else 0.0
-        lost = s.dropout_prob > 0 and self.rng.random() < s.dropout_prob
+        noise = s.noise_std * self._draw_normal() if s.noise_std else 0.0
+        lost = s.dropout_prob > 0 and self._draw_uniform() < s.dropout_prob
         self.n_samples += 1
         y = (1.0 + s.scale_error) * (x + s.offset) + self.bias_now + noise
         step = self._active(t, 'bias_step')
