@@ -22,6 +22,7 @@ NODE_MODULES = (
     'mr_damper_model.identifier_node',
     'quarter_car_sim.quarter_car_node',
     'quarter_car_sim.semi_active_controller_node',
+    'quarter_car_sim.state_estimator_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

@@ -319,7 +319,7 @@ def design_estimator(params, dt, sensors, *, road_class='C', speed_m_s=20.0,
 
 
 def _std(P):
-    """Standard deviations of the car states and of ``v_rel`` from a covariance."""
+    """Return the standard deviations of the car states and of ``v_rel`` from a covariance."""
     var_rel = P[1, 1] + P[3, 3] - 2.0 * P[1, 3]
     return tuple(math.sqrt(max(float(P[j, j]), 0.0)) for j in range(4)) + (
         math.sqrt(max(float(var_rel), 0.0)),)
