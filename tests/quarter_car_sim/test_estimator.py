@@ -162,3 +162,29 @@ def test_bad_settings():
     d = design_estimator(p, DT, _specs())
     with pytest.raises(EstimatorError, match='coil_tau_s'):
         QuarterCarEstimator(d, _lin_force, coil_tau_s=-1.0)
+
+
+def test_single_spike_is_capped_and_travel_near_zero_gets_the_models_mean_sign():
+    p = QuarterCarParams()
+    seen = []
+
+    def force(i, x, v):
+        seen.append(x)
+        return -C_LIN * v
+    est = QuarterCarEstimator(design_estimator(p, DT, _specs()), force)
+    assert est.travel_deadband_m == pytest.approx(3.0 * est._std_post[0])
+    rng = np.random.default_rng(2)
+    acc, pos = accelerometer_spec(), ride_height_spec()
+
+    def good(k):
+        return {'body_accel': G0 + acc.noise_std * rng.standard_normal(),
+                'travel': pos.noise_std * rng.standard_normal()}
+    e = _feed(est, 600, 0.0, good)
+    # a car at rest: the travel estimate is noise around 0, inside the band: the model sees 0
+    assert e.valid and set(seen[-100:]) == {0.0}
+    # one reading 1000 standard deviations off: capped, the 0.5 s mean stays below 3
+    e = est.step(0.6, {**good(0), 'body_accel': G0 + 1000 * acc.noise_std}, 0.0)
+    e = _feed(est, 50, 0.601, good)
+    assert e.valid and est.invalid_entries['innovation_body_accel'] == 0
+    with pytest.raises(EstimatorError, match='travel_deadband_m'):
+        QuarterCarEstimator(est.d, force, travel_deadband_m=-1.0)

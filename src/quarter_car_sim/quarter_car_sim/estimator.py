@@ -28,8 +28,8 @@ sensors and dropouts only widen the covariance. Faults make the estimate invalid
 counted reason: a stuck sensor (``stuck_<sensor>``: the same reading for ``stuck_s``), a
 dropped-out sensor (``dropout_<sensor>``: no reading for ``dropout_s``), a diverging
 innovation (``innovation_<sensor>``: the mean normalised innovation squared over the last
-``nis_window_s`` above ``nis_threshold``, a chi-square test) and a non-finite estimate
-(``diverged``: the filter restarts).
+``nis_window_s`` above ``nis_threshold``, a chi-square test with each sample capped) and a
+non-finite estimate (``diverged``: the filter restarts).
 """
 from collections import deque
 import dataclasses
@@ -401,12 +401,22 @@ class QuarterCarEstimator:
         Limit on the window's mean NIS per sensor (about 1 when the filter is consistent; the
         default filter is deliberately loose on the accelerometer, whose mean NIS is about
         0.1-0.4 on the road, the travel sensor's 0.8-1).
+    nis_cap : float
+        Each sample's NIS enters the window mean capped at this value (a robust test: a
+        force jump of the damper model, e.g. the ``sign(x)`` term of Kwok's model when the
+        travel crosses zero a sample apart in the estimate and in the car, gives single-sample
+        spikes; a diverging filter keeps the mean high).
     gravity : float
         Gravity removed from accelerometer readings [m/s^2].
     coil_tau_s : float
         Time constant [s] of the coil's first-order lag between the current given to
         :meth:`step` (the command) and the current that makes the force (0: none). The
         simulated dampers lag by 1/190 s (``mr_damper_model.plant``).
+    travel_deadband_m : float or None
+        The force model gets travel 0 while the estimated travel is within this band [m]
+        (None: 3 steady-state standard deviations of the travel estimate): the sign of the
+        travel is not known there, and a model with a ``sign(x)`` term (Kwok's) would flip
+        its force with the noise of a car at rest; at 0 the term takes its mean, 0.
 
     Attributes
     ----------
@@ -423,12 +433,13 @@ class QuarterCarEstimator:
     """
 
     def __init__(self, design, force_model, *, stuck_s=None, dropout_s=0.02,
-                 nis_window_s=0.5, nis_threshold=3.0, gravity=G0, coil_tau_s=0.0):
+                 nis_window_s=0.5, nis_threshold=3.0, nis_cap=25.0, gravity=G0,
+                 coil_tau_s=0.0, travel_deadband_m=None):
         self.d = design
         self.force_model = force_model
         dt = design.dt
         for name, v in (('dropout_s', dropout_s), ('nis_window_s', nis_window_s),
-                        ('nis_threshold', nis_threshold)):
+                        ('nis_threshold', nis_threshold), ('nis_cap', nis_cap)):
             if not (math.isfinite(v) and v > 0):
                 raise EstimatorError(f'`{name}` must be > 0, got {v}')
         if not (math.isfinite(coil_tau_s) and coil_tau_s >= 0):
@@ -444,6 +455,7 @@ class QuarterCarEstimator:
         self.dropout_s = float(dropout_s)
         self._nis_n = max(1, int(round(nis_window_s / dt)))
         self.nis_threshold = float(nis_threshold)
+        self.nis_cap = float(nis_cap)
         self.gravity = float(gravity)
         self._rows = [(s, design.H[r].copy(), float(design.Dm[r]), float(design.R[r, r]),
                        s != 'travel') for r, s in enumerate(design.sensors)]
@@ -459,6 +471,11 @@ class QuarterCarEstimator:
         dp = np.sqrt(np.abs(np.diag(design.P_post)))
         self._p_scale = np.maximum(np.outer(dp, dp), 1e-300)
         self._std_post = _std(design.P_post)
+        if travel_deadband_m is None:
+            travel_deadband_m = 3.0 * self._std_post[0]
+        if not (math.isfinite(travel_deadband_m) and travel_deadband_m >= 0):
+            raise EstimatorError(f'`travel_deadband_m` must be >= 0, got {travel_deadband_m}')
+        self.travel_deadband_m = float(travel_deadband_m)
         self.invalid_entries = dict.fromkeys(INVALID_REASONS, 0)
         self.reset()
 
@@ -487,7 +504,8 @@ class QuarterCarEstimator:
 
     def _force(self):
         x = self.x
-        return float(self.force_model(self._i_coil, x[0], x[1] - x[3]))
+        travel = x[0] if abs(x[0]) > self.travel_deadband_m else 0.0
+        return float(self.force_model(self._i_coil, travel, x[1] - x[3]))
 
     def step(self, t, readings, current_a):
         """
@@ -572,7 +590,7 @@ class QuarterCarEstimator:
         # normalised innovation squared of each sensor (innovation of the predicted state)
         for r, e in used:
             s = self._rows[r][0]
-            nis = e * e / s_diag[r]
+            nis = min(e * e / s_diag[r], self.nis_cap)
             win = self._nis[s]
             win.append(nis)
             self._nis_sum[s] += nis

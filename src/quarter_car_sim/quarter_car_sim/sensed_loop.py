@@ -115,8 +115,8 @@ def make_estimator(car_params, dt, specs, inverse, **options):
         options of :class:`~quarter_car_sim.estimator.QuarterCarEstimator`.
 
     """
-    run_keys = ('stuck_s', 'dropout_s', 'nis_window_s', 'nis_threshold', 'gravity',
-                'coil_tau_s')
+    run_keys = ('stuck_s', 'dropout_s', 'nis_window_s', 'nis_threshold', 'nis_cap', 'gravity',
+                'coil_tau_s', 'travel_deadband_m')
     run = {k: options.pop(k) for k in run_keys if k in options}
     design = design_estimator(car_params, dt, specs, **options)
     force = inverse.force
