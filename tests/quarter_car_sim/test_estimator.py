@@ -119,15 +119,21 @@ def _feed(est, n, t0, make):
     return e
 
 
-def test_stuck_dropout_and_innovation_faults_are_named_and_counted():
-    p = QuarterCarParams()
-    est = QuarterCarEstimator(design_estimator(p, DT, _specs()), _lin_force, dropout_s=0.02)
-    rng = np.random.default_rng(1)
+def _at_rest(seed):
+    """Return ``good(k)``: noisy readings of the default sensors on a car at rest."""
+    rng = np.random.default_rng(seed)
     acc, pos = accelerometer_spec(), ride_height_spec()
 
     def good(k):
         return {'body_accel': G0 + acc.noise_std * rng.standard_normal(),
                 'travel': pos.noise_std * rng.standard_normal()}
+    return good
+
+
+def test_stuck_dropout_and_innovation_faults_are_named_and_counted():
+    p = QuarterCarParams()
+    est = QuarterCarEstimator(design_estimator(p, DT, _specs()), _lin_force, dropout_s=0.02)
+    good = _at_rest(1)
     e = _feed(est, 500, 0.0, good)
     assert e.valid
     # dropout of the accelerometer: NaN readings bridged for 20 ms, then invalid
@@ -173,12 +179,8 @@ def test_single_spike_is_capped_and_travel_near_zero_gets_the_models_mean_sign()
         return -C_LIN * v
     est = QuarterCarEstimator(design_estimator(p, DT, _specs()), force)
     assert est.travel_deadband_m == pytest.approx(3.0 * est._std_post[0])
-    rng = np.random.default_rng(2)
-    acc, pos = accelerometer_spec(), ride_height_spec()
-
-    def good(k):
-        return {'body_accel': G0 + acc.noise_std * rng.standard_normal(),
-                'travel': pos.noise_std * rng.standard_normal()}
+    good = _at_rest(2)
+    acc = accelerometer_spec()
     e = _feed(est, 600, 0.0, good)
     # a car at rest: the travel estimate is noise around 0, inside the band: the model sees 0
     assert e.valid and set(seen[-100:]) == {0.0}
