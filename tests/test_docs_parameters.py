@@ -24,6 +24,7 @@ NODE_MODULES = (
     'quarter_car_sim.semi_active_controller_node',
     'mr_damper_can.can_bridge_node',
     'mr_damper_can.can_driver_sim_node',
+    'quarter_car_sim.state_estimator_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

@@ -77,6 +77,10 @@ def build_parser():
                    help='true damper: thesis-like kwok-current or Spencer (default spencer)')
     p.add_argument('--seed', type=int, default=1, help='road (and identification) seed')
     p.add_argument('--dt', type=_positive('--dt'), default=1e-3, help='control period [s]')
+    p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
+                   help='ideal: the laws read the true car state; vehicle: they read the state '
+                        'a Kalman filter estimates from modelled automotive sensors (body '
+                        'accelerometer, ride-height sensor; docs/sensing.md)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.add_argument('--plot', metavar='OUT.png', help='write time traces, PSD, '
                    'transmissibility and current plots')
@@ -118,23 +122,42 @@ def run(args):
     else:
         controllers = [make_controller(args.controller, params=params, inverse=inverse,
                                        dt=args.dt)]
+    sensed = {}
+    if args.sensing == 'vehicle':
+        from quarter_car_sim.sensed_loop import simulate_sensed
+        damper_laws = [c for c in controllers if c.kind in ('current', 'semi-active')]
+        for c in damper_laws:
+            sensed[c.name] = simulate_sensed(params, road, c, plant, inverse, dt=args.dt,
+                                             rng=args.seed)
+        controllers = [c for c in controllers if c.name not in sensed]
     results = compare(params, road, controllers, plant, dt=args.dt, damper_params=inverse)
+    results.update({n: r.sim for n, r in sensed.items()})
     if args.compare:
         results[bound_name()] = semi_active_bound(params, road, KwokForceModel(inverse), plant,
                                                   dt=args.dt).replay
     out = {
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
         'seed': args.seed, 'plant': PLANTS[args.plant], 'dt_s': args.dt,
-        'damper_params': finite_or_none(ident),
-        'controllers': {n: finite_or_none(r.metrics()) for n, r in results.items()},
+        'sensing': args.sensing, 'damper_params': finite_or_none(ident),
+        'controllers': {n: finite_or_none(_metrics(n, r, sensed)) for n, r in results.items()},
     }
     return out, results
+
+
+def _metrics(name, result, sensed):
+    """Metrics of one run; on estimated states plus the estimation errors and counters."""
+    if name not in sensed:
+        return result.metrics()
+    m = sensed[name].metrics()
+    m['estimator'] = sensed[name].status
+    return m
 
 
 def _table(out):
     head = f'{"controller":16s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}'
                                            for _, h, fmt in TABLE_KEYS)
-    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, plant {out["plant"]}', head]
+    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, plant {out["plant"]}, '
+             f'sensing {out["sensing"]}', head]
     for name, m in out['controllers'].items():
         cells = []
         for key, _, fmt in TABLE_KEYS:
