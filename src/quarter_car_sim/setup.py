@@ -30,6 +30,7 @@ setup(
             'quarter_car_node = quarter_car_sim.entry_points:quarter_car_node',
             'semi_active_controller_node = '
             'quarter_car_sim.entry_points:semi_active_controller_node',
+            'full-car-sim = quarter_car_sim.full_car.cli:main',
         ],
     },
 )

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from quarter_car_sim.controller_core import VehicleState
 from quarter_car_sim.full_car.params import FullCarParams
 
 N_Q = 7
@@ -160,11 +161,9 @@ class FullCarState:
 
         ``v_s`` and ``a_s`` are those of the body point above the wheel.
         """
-        from quarter_car_sim.controller_core import VehicleState
-        return VehicleState(t=self.t, v_s=float(self.body_v[i]), a_s=float(self.body_a[i]),
-                            v_u=float(self.v[3 + i]), travel=float(self.travel[i]),
-                            v_rel=float(self.v_rel[i]), z_u=float(self.q[3 + i]),
-                            z_r=float(self.z_r[i]))
+        return VehicleState(self.t, self.body_v.item(i), self.body_a.item(i),
+                            self.v.item(3 + i), self.travel.item(i), self.v_rel.item(i),
+                            self.q.item(3 + i), self.z_r.item(i))
 
 
 class FullCar:
