@@ -27,7 +27,7 @@ from quarter_car_sim.controllers import clip_to_damper, Controller, make_control
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car.params import CORNERS
 
-DEFAULT_MODAL_ZETA = {'heave': 0.3, 'pitch': 0.3, 'roll': 0.3}
+DEFAULT_MODAL_ZETA = {'heave': 0.5, 'pitch': 1.0, 'roll': 1.0}
 """Default sky damping ratios of :meth:`ModalSkyhook.from_car` per body mode [-].
 
 Each gain is ``2 zeta sqrt(K M)`` with the mode's ride stiffness (springs and tyres in series,
