@@ -119,3 +119,17 @@ def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
     assert np.all(cur[500:, 1] == 1.0)
     assert all(np.ptp(cur[500:, i]) > 0.3 for i in (0, 2, 3))
     assert sups[1].rejected['invalid_flag'] == 1
+
+
+def test_corner_message_from_parameter_files(tmp_path):
+    from mr_damper_model.params_file import save_params
+    from quarter_car_sim.full_car.simulate import corner_message
+    d = {'model': 'kwok-current', 'parameters': KW, 'model_options': {'i_ref_a': 2.0},
+         'current_min_a': 0.0, 'current_max_a': 2.0}
+    save_params(tmp_path / 'fit.json', d)
+    for src in (KW, d, tmp_path / 'fit.json', str(tmp_path / 'fit.json')):
+        msg = corner_message(src)
+        assert ModelSupervisor().offer(msg, 0.0).accepted
+        assert {k: msg[k] for k in KW} == pytest.approx(KW)
+    narrow = corner_message({**d, 'current_min_a': 1.0, 'current_max_a': 1.0})
+    assert ModelSupervisor().offer(narrow, 0.0).reason == 'narrow_current_range'
