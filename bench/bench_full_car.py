@@ -10,8 +10,10 @@ through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on t
 
 1. Tuning on training roads (seeds 11 12 13, 20 s; not the bench roads): modal sky damping
    ratios (heave, pitch, roll) and the per-corner skyhook gain, each picked by median a_v.
+   The full-car clipped-optimal LQR's weights likewise.
 2. Bench roads: passive 0 / 0.5 / 1 / 2 A, per-corner skyhook (default and tuned gain),
-   SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios).
+   SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios), full-car
+   clipped-optimal (default and tuned weights). ``--only-lqr``: passive 0 A and the LQR only.
 
 Goals (issue 24): the best live law at least 10 % below passive 0 A in the ISO 2631-1
 vibration total value a_v with no worse RMS dynamic tyre load at any wheel; modal control
@@ -21,7 +23,7 @@ Usage::
 
     .venv/bin/python bench/bench_full_car.py [--seeds 1 2 3] [--duration 60]
                                              [--train-seeds 11 12 13] [--train-duration 20]
-                                             [--skip-tuning] [--json OUT.json]
+                                             [--skip-tuning] [--only-lqr] [--json OUT.json]
 """
 import argparse
 import json
@@ -36,11 +38,13 @@ from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,
                                       make_two_track_road, ModalSkyhook, PASSENGER_CAR,
                                       PerCornerLaws)
 from quarter_car_sim.full_car.control import DEFAULT_MODAL_ZETA
+from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
 
 PASSIVE_A = (0.0, 0.5, 1.0, 2.0)
 MODAL_GRID = ((0.3, 0.3, 0.3), (0.5, 0.5, 0.5), (0.5, 1.0, 1.0), (0.7, 1.0, 1.0),
               (0.5, 1.5, 1.5), (0.7, 1.5, 1.5), (0.5, 2.0, 2.0))
 SKY_GRID = (2000.0, 3000.0, 4000.0, 6000.0)
+LQR_GRID = ({}, {'r_force': 1e-6}, {'r_force': 3e-7}, {'q_tyre': 1e4, 'r_force': 1e-6})
 KEYS = ('a_v', 'a_wz', 'a_w_pitch', 'a_w_roll', 'vdv_total', 'crest_max')
 
 
@@ -53,6 +57,11 @@ def _modal(z, name=None):
 def _sky(c_sky):
     return PerCornerLaws([Skyhook(c_sky, DEFAULT_C_P) for _ in CORNERS],
                          name=f'per-corner-skyhook c={c_sky:g}')
+
+
+def _lqr(w, name=None):
+    txt = ','.join(f'{k}={v:g}' for k, v in w.items()) or 'default'
+    return FullCarClippedOptimal.from_car(PASSENGER_CAR, name=name or f'full-car-co {txt}', **w)
 
 
 def _median_runs(laws_fn, seeds, duration, plants, damper):
@@ -82,6 +91,8 @@ def main(argv=None):
     ap.add_argument('--train-seeds', type=int, nargs='+', default=[11, 12, 13])
     ap.add_argument('--train-duration', type=float, default=20.0)
     ap.add_argument('--skip-tuning', action='store_true')
+    ap.add_argument('--only-lqr', action='store_true',
+                    help='only the full-car clipped-optimal LQR (and passive 0 A)')
     ap.add_argument('--json', default='')
     args = ap.parse_args(argv)
     t0 = time.time()
@@ -95,20 +106,36 @@ def main(argv=None):
               f'{d["metrics"].get("nrmse_percent", float("nan")):.2f} %', flush=True)
 
     best_z, best_c = tuple(DEFAULT_MODAL_ZETA[k] for k in ('heave', 'pitch', 'roll')), 2000.0
+    best_w = {}
     if not args.skip_tuning:
         print(f'\ntuning on seeds {args.train_seeds}, {args.train_duration:g} s (median a_v, '
               'pitch, roll, worst-wheel tyre load)', flush=True)
-        runs = _median_runs(lambda: [_modal(z) for z in MODAL_GRID] + [_sky(c) for c in SKY_GRID],
-                            args.train_seeds, args.train_duration, plants, damper)
+
+        def grid():
+            out = [_lqr(w) for w in LQR_GRID]
+            if not args.only_lqr:
+                out += [_modal(z) for z in MODAL_GRID] + [_sky(c) for c in SKY_GRID]
+            return out
+
+        runs = _median_runs(grid, args.train_seeds, args.train_duration, plants, damper)
         for name, ms in runs.items():
             print(f'  {name:34s} a_v {_med(ms, "a_v"):.3f}  pitch {_med(ms, "a_w_pitch"):.3f}  '
                   f'roll {_med(ms, "a_w_roll"):.3f}  '
                   f'tyre {_med(ms, "max_rms_tyre_load_ratio"):.3f}', flush=True)
-        best_z = min(MODAL_GRID, key=lambda z: _med(runs[_modal(z).name], 'a_v'))
-        best_c = min(SKY_GRID, key=lambda c: _med(runs[_sky(c).name], 'a_v'))
-        print(f'  picked modal z={best_z}, per-corner skyhook c_sky={best_c:g}', flush=True)
+        best_w = min(LQR_GRID, key=lambda w: _med(runs[_lqr(w).name], 'a_v'))
+        print(f'  picked full-car clipped-optimal weights {best_w or "default"}', flush=True)
+        if not args.only_lqr:
+            best_z = min(MODAL_GRID, key=lambda z: _med(runs[_modal(z).name], 'a_v'))
+            best_c = min(SKY_GRID, key=lambda c: _med(runs[_sky(c).name], 'a_v'))
+            print(f'  picked modal z={best_z}, per-corner skyhook c_sky={best_c:g}', flush=True)
 
     def laws():
+        lqr = [make_full_car_law('full-car-clipped-optimal', PASSENGER_CAR)]
+        if best_w:
+            lqr.append(_lqr(best_w, name='full-car-clipped-optimal tuned '
+                            + ','.join(f'{k}={v:g}' for k, v in best_w.items())))
+        if args.only_lqr:
+            return [make_full_car_law('passive@0A', PASSENGER_CAR)] + lqr
         out = [make_full_car_law(f'passive@{i:g}A', PASSENGER_CAR) for i in PASSIVE_A]
         out += [make_full_car_law(f'per-corner-{n}', PASSENGER_CAR)
                 for n in ('skyhook', 'sh-add', 'clipped-optimal-wk')]
@@ -118,7 +145,7 @@ def main(argv=None):
         if best_z != tuple(DEFAULT_MODAL_ZETA[k] for k in ('heave', 'pitch', 'roll')):
             out.append(_modal(best_z, name='modal-skyhook tuned z=' +
                               '/'.join(f'{v:g}' for v in best_z)))
-        return out
+        return out + lqr
 
     runs = _median_runs(laws, args.seeds, args.duration, plants, damper)
     ref = runs['passive@0.0A']
@@ -167,7 +194,8 @@ def main(argv=None):
     print(f'total wall time {time.time() - t0:.0f} s; load average at end {os.getloadavg()}')
     if args.json:
         with open(args.json, 'w') as fh:
-            json.dump({'table': table, 'modal_zeta': best_z, 'sky_c': best_c}, fh, indent=1)
+            json.dump({'table': table, 'modal_zeta': best_z, 'sky_c': best_c,
+                       'lqr_weights': best_w}, fh, indent=1)
 
 
 if __name__ == '__main__':

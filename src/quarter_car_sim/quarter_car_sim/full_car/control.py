@@ -216,7 +216,9 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     Parameters
     ----------
     name : str
-        ``'modal-skyhook'``, ``'passive@<I>A'`` (the current at every corner) or
+        ``'modal-skyhook'``, ``'full-car-clipped-optimal'``
+        (:class:`quarter_car_sim.full_car.lqr.FullCarClippedOptimal`), ``'passive@<I>A'`` (the
+        current at every corner) or
         ``'per-corner-<law>'`` with a damper law of
         :data:`quarter_car_sim.controllers.DAMPER_LAW_NAMES` (e.g. ``per-corner-skyhook``),
         each corner's law designed on its quarter car (:meth:`FullCarParams.corner`).
@@ -235,6 +237,9 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     n = str(name).strip().lower()
     if n == 'modal-skyhook':
         return ModalSkyhook.from_car(params, zeta=zeta, c_p=c_p)
+    if n == 'full-car-clipped-optimal':
+        from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
+        return FullCarClippedOptimal.from_car(params)
     if n.startswith('passive'):
         laws = [make_controller(n, damper_only=True) for _ in range(4)]
         return PerCornerLaws(laws, name=laws[0].name)
@@ -242,8 +247,8 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
         law = n[len('per-corner-'):]
         return PerCornerLaws([make_controller(law, params=params.corner(i), damper_only=True,
                                               dt=dt) for i in range(4)])
-    raise ValueError(f'unknown full-car law {name!r} (use modal-skyhook, passive@<I>A or '
-                     'per-corner-<law>)')
+    raise ValueError(f'unknown full-car law {name!r} (use modal-skyhook, '
+                     'full-car-clipped-optimal, passive@<I>A or per-corner-<law>)')
 
 
 def supervisor_message(params, *, i_ref_a=2.0, current_min_a=0.0, current_max_a=2.0, valid=1):
