@@ -80,7 +80,65 @@ class PerCornerLaws:
             law.reset()
 
 
-class ModalSkyhook:
+class ForceLaw:
+    """
+    Base of the full-car laws that choose four body forces from the whole car's state.
+
+    A subclass sets ``name`` and implements :meth:`desired_forces`; :meth:`prepare` clips each
+    corner's force to what its damper can do (dissipative, else 0) and the four
+    ``corner_laws`` hand the forces to the corner cores.
+
+    Attributes
+    ----------
+    forces : list of float
+        Corner forces of the last :meth:`prepare` [N on the body] (clipped).
+    desired : ndarray with shape (4,)
+        Unclipped corner forces of the last :meth:`prepare` [N].
+
+    """
+
+    name = 'force-law'
+    #: Corner-state fields beyond the common ones that the law needs finite.
+    state_fields = ()
+
+    def __init__(self):
+        self.corner_laws = [_CornerForce(self, i) for i in range(4)]
+        for cl in self.corner_laws:
+            cl.state_fields = self.state_fields
+        self.reset()
+
+    def desired_forces(self, state):  # pragma: no cover - abstract
+        """Return the four unclipped corner forces [N] for a full-car state."""
+        raise NotImplementedError
+
+    def prepare(self, state):
+        """
+        Compute the four clipped corner forces for a full-car state.
+
+        Parameters
+        ----------
+        state : FullCarState
+            Measured state (``v_rel`` per corner and what the law reads).
+
+        Returns
+        -------
+        list of float
+            Corner forces on the body [N].
+
+        """
+        self.desired = np.asarray(self.desired_forces(state), dtype=float)
+        v_rel = state.v_rel
+        self.forces = [clip_to_damper(float(self.desired[i]), _Rel(float(v_rel[i])))
+                       for i in range(4)]
+        return self.forces
+
+    def reset(self):
+        """Clear the last forces."""
+        self.forces = [0.0] * 4
+        self.desired = np.zeros(4)
+
+
+class ModalSkyhook(ForceLaw):
     """
     Modal skyhook on heave, pitch and roll, mapped to four clipped corner forces.
 
@@ -97,13 +155,6 @@ class ModalSkyhook:
     name : str
         Law name.
 
-    Attributes
-    ----------
-    forces : list of float
-        Corner forces of the last :meth:`prepare` [N on the body] (clipped).
-    desired : ndarray with shape (4,)
-        Unclipped corner forces of the last :meth:`prepare` [N].
-
     """
 
     def __init__(self, geometry, c_heave, c_pitch, c_roll, c_p=DEFAULT_MODAL_C_P,
@@ -119,9 +170,7 @@ class ModalSkyhook:
         self.c_p = float(gains[3])
         self.name = name
         self._dist = T @ np.linalg.inv(T.T @ T)         # Q -> minimum-norm corner forces
-        self.corner_laws = [_CornerForce(self, i) for i in range(4)]
-        self.forces = [0.0] * 4
-        self.desired = np.zeros(4)
+        super().__init__()
 
     @classmethod
     def from_car(cls, params, zeta=None, c_p=DEFAULT_MODAL_C_P, name='modal-skyhook'):
@@ -156,32 +205,10 @@ class ModalSkyhook:
         """Return ``[zdot, thetadot, phidot]`` of the body [m/s, rad/s, rad/s]."""
         return np.asarray(state.v[:3], dtype=float)
 
-    def prepare(self, state):
-        """
-        Compute the four clipped corner forces for a full-car state.
-
-        Parameters
-        ----------
-        state : FullCarState
-            Needs ``v`` (body rates) and per corner ``v_rel`` (and ``travel``).
-
-        Returns
-        -------
-        list of float
-            Corner forces on the body [N].
-
-        """
+    def desired_forces(self, state):
+        """Return the modal sky forces distributed to the corners plus the passive part [N]."""
         q = -self.c_modal * self.modal_velocities(state)
-        v_rel = np.asarray(state.v_rel, dtype=float)
-        self.desired = self._dist @ q - self.c_p * v_rel
-        self.forces = [clip_to_damper(float(self.desired[i]), _Rel(float(v_rel[i])))
-                       for i in range(4)]
-        return self.forces
-
-    def reset(self):
-        """Clear the last forces."""
-        self.forces = [0.0] * 4
-        self.desired = np.zeros(4)
+        return self._dist @ q - self.c_p * np.asarray(state.v_rel, dtype=float)
 
 
 class _Rel:

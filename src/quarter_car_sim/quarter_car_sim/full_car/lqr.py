@@ -31,8 +31,7 @@ clipping is the corner inverse's saturation.
 import numpy as np
 from scipy.linalg import null_space
 
-from quarter_car_sim.full_car.control import _CornerForce, _Rel
-from quarter_car_sim.controllers import clip_to_damper
+from quarter_car_sim.full_car.control import ForceLaw
 
 DEFAULT_FULL_LQR_WEIGHTS = {'q_heave': 1.0, 'q_pitch': 0.16, 'q_roll': 0.3969,
                             'q_travel': 0.0, 'q_tyre': 1.0e3, 'r_force': 1.0e-5}
@@ -146,7 +145,7 @@ def full_car_lqr_design(params, **weights):
     return FullCarLqrDesign(np.asarray(K_r) @ V.T, np.asarray(E), w)
 
 
-class FullCarClippedOptimal:
+class FullCarClippedOptimal(ForceLaw):
     """
     Full-car clipped-optimal law: ``F = -K x`` of :func:`full_car_lqr_design`, clipped per damper.
 
@@ -157,13 +156,6 @@ class FullCarClippedOptimal:
     name : str
         Law name.
 
-    Attributes
-    ----------
-    forces : list of float
-        Clipped corner forces of the last :meth:`prepare` [N on the body].
-    desired : ndarray (4,)
-        Unclipped LQR forces [N].
-
     """
 
     #: Corner-state fields beyond the common ones (the tyre deflection needs the road height).
@@ -172,38 +164,13 @@ class FullCarClippedOptimal:
     def __init__(self, design, name='full-car-clipped-optimal'):
         self.design, self.name = design, name
         self.gain = np.asarray(design.gain, dtype=float)
-        self.corner_laws = [_CornerForce(self, i) for i in range(4)]
-        for cl in self.corner_laws:
-            cl.state_fields = self.state_fields
-        self.reset()
+        super().__init__()
 
     @classmethod
     def from_car(cls, params, name='full-car-clipped-optimal', **weights):
         """Design on ``params`` (weights: :data:`DEFAULT_FULL_LQR_WEIGHTS` overrides)."""
         return cls(full_car_lqr_design(params, **weights), name=name)
 
-    def prepare(self, state):
-        """
-        Compute the four clipped corner forces for a full-car state.
-
-        Parameters
-        ----------
-        state : FullCarState
-            Needs ``travel``, ``q`` (wheels), ``z_r``, ``v`` and ``v_rel``.
-
-        Returns
-        -------
-        list of float
-
-        """
-        x = np.concatenate([state.travel, state.q[3:] - state.z_r, state.v])
-        self.desired = -self.gain @ x
-        v_rel = state.v_rel
-        self.forces = [clip_to_damper(float(self.desired[i]), _Rel(float(v_rel[i])))
-                       for i in range(4)]
-        return self.forces
-
-    def reset(self):
-        """Clear the last forces."""
-        self.forces = [0.0] * 4
-        self.desired = np.zeros(4)
+    def desired_forces(self, state):
+        """Return the LQR forces ``-K [s, d, v_b, v_u]`` [N] (``d`` needs ``z_r``)."""
+        return -self.gain @ np.concatenate([state.travel, state.q[3:] - state.z_r, state.v])
