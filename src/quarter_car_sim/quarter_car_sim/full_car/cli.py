@@ -140,10 +140,10 @@ def _cell(v, fmt):
 
 def table(out):
     """Return the text table of a :func:`run` result."""
-    head = f'{"law":28s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}' for _, h, fmt in TABLE)
+    head = f'{"law":30s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}' for _, h, fmt in TABLE)
     lines = [f'road {out["road"]}, {out["duration_s"]:g} s', head]
     for name, m in out['laws'].items():
-        lines.append(f'{name:28s}' + ''.join(' ' + _cell(m.get(k), fmt) for k, _, fmt in TABLE))
+        lines.append(f'{name:30s}' + ''.join(' ' + _cell(m.get(k), fmt) for k, _, fmt in TABLE))
     lines.append('a_v: ISO 2631-1 vibration total value at the CG [m/s^2] (Wk vertical, We '
                  'pitch x 0.40, We roll x 0.63); a_wz [m/s^2], pitch, roll [rad/s^2]: weighted '
                  'RMS; VDV [m/s^1.75]; crest: largest crest factor; tyre max: largest RMS '
