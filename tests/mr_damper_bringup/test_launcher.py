@@ -40,7 +40,9 @@ def test_progress_line_from_the_statuses():
 
 
 @pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],
-                                 ['--rate-factor', '0'], ['--config', 'nope']])
+                                 ['--rate-factor', '0'], ['--config', 'nope'],
+                                 ['--max-restarts', '-1'], ['--restart-window-s', '-5'],
+                                 ['--restart-backoff-s', '4', '--restart-backoff-max-s', '2']])
 def test_command_line_refusals_exit_2(bad, capsys):
     with pytest.raises(SystemExit) as exc:
         parse_args(bad)
@@ -50,3 +52,13 @@ def test_command_line_refusals_exit_2(bad, capsys):
 def test_command_line_defaults():
     args = parse_args([])
     assert args.duration == 30.0 and args.config == 'sim' and args.rate_factor is None
+
+
+def test_restart_options_make_the_policy():
+    args = parse_args(['--max-restarts', '5', '--restart-window-s', '30',
+                       '--restart-backoff-s', '0.25', '--restart-backoff-max-s', '2'])
+    p = args.restart_policy
+    got = (p.max_restarts, p.restart_window_s, p.backoff_s, p.backoff_max_s)
+    assert got == (5, 30.0, 0.25, 2.0)
+    from mr_damper_bringup.supervisor import RestartPolicy
+    assert parse_args([]).restart_policy == RestartPolicy()

@@ -6,7 +6,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from mr_damper_bringup import topics
-from mr_damper_bringup.recorder import SuiteRecorder
+from mr_damper_bringup.recorder import (part_path, recording_parts, remove_recording,
+                                        SuiteRecorder, work_file)
 from mr_damper_model.bag_types import suite_typestore
 
 TS = suite_typestore()
@@ -217,3 +218,22 @@ def test_measurements_are_counted_in_every_namespace(tmp_path):
         for key in ('fl/measurement', 'fl/measurement', 'fr/measurement'):
             rec.write(key, raw, 1_000)
         assert rec.measurements() == 3
+
+
+def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path):
+    rec = tmp_path / 'suite.mcap'
+    assert part_path(rec, 0) == rec and part_path(rec, 2) == tmp_path / 'suite.2.mcap'
+    assert recording_parts(rec) == []
+    with SuiteRecorder(part_path(rec, 1), topics.topic_table(['measurement'])) as r:
+        r.write('measurement', TS.serialize_cdr(_joint_state(1), topics.JOINT_STATE), 1)
+    killed = SuiteRecorder(rec, topics.topic_table(['measurement'])).open()   # never closed
+    killed.write('measurement', TS.serialize_cdr(_joint_state(0), topics.JOINT_STATE), 0)
+    (tmp_path / 'suite.10.mcap').write_bytes(b'')          # an empty part (a recorder that
+    (tmp_path / 'suites.mcap').write_bytes(b'')            # wrote nothing), not another stem
+    assert recording_parts(rec) == [(0, work_file(rec)), (1, part_path(rec, 1)),
+                                    (10, tmp_path / 'suite.10.mcap')]
+    with pytest.raises(ValueError, match='already exists'):      # never over an earlier part
+        SuiteRecorder(part_path(rec, 1))
+    remove_recording(rec)
+    assert recording_parts(rec) == [] and sorted(p.name for p in tmp_path.iterdir()) == [
+        'suites.mcap']

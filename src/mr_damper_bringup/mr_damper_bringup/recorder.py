@@ -10,13 +10,77 @@ messages), so Foxglove, PlotJuggler, ``ros2 bag`` and rosbags open it with named
 Memory stays flat for runs of any length: rosbags streams 1 MiB chunks to the file and keeps
 only a chunk index (tens of bytes per MiB). While recording, the file is
 ``<stem>.recording/<stem>.recording.mcap`` next to the target (a rosbag2 folder); :meth:`close`
-moves the finished file to the target path and removes the folder. A recorder killed before
-:meth:`close` leaves that folder with an MCAP file without its footer (``mcap recover`` repairs
-it).
+moves the finished file to the target path and removes the folder.
+
+A recorder killed before :meth:`close` leaves that folder with an MCAP file without its footer;
+every chunk written before the kill is complete in it (rosbags writes each chunk whole when it
+exceeds 1 MiB, a fixed size: at most the last MiB, a few seconds of a suite run, is lost) and
+``mr_damper_model.mcap_scan`` reads them. A recorder restarted by the launcher writes a new
+part, ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (:func:`part_path`), never over an earlier one;
+:func:`recording_parts` lists the parts of a run in order, finished or left by a killed writer.
 """
 from pathlib import Path
+import re
 
 from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
+
+
+def part_path(path, k):
+    """Return the file of part ``k`` of recording ``path``: ``path``, then ``stem.k.mcap``."""
+    path = Path(path)
+    return path if k == 0 else path.with_name(f'{path.stem}.{int(k)}{path.suffix}')
+
+
+def work_file(path):
+    """Return the file a recorder writes into until it closes ``path`` (see the module doc)."""
+    path = Path(path)
+    work = path.parent / f'{path.stem}.recording'
+    return work / f'{work.name}.mcap'
+
+
+def _part_number(path, name):
+    """Return ``k`` if ``name`` names part ``k`` of recording ``path`` (file or work folder)."""
+    stem = re.escape(Path(path).stem)
+    m = re.fullmatch(rf'{stem}(?:\.(\d+))?(\.mcap|\.recording)', name)
+    return None if m is None else int(m.group(1) or 0)
+
+
+def recording_parts(path):
+    """
+    Return the parts of recording ``path`` in order, as ``[(k, file)]``.
+
+    Part ``k`` is :func:`part_path` if its recorder closed it, else the file its killed
+    recorder left (:func:`work_file` of it, no footer); parts with neither are left out.
+    """
+    path = Path(path)
+    found = set()
+    if path.parent.is_dir():
+        for entry in path.parent.iterdir():
+            k = _part_number(path, entry.name)
+            if k is not None:
+                found.add(k)
+    out = []
+    for k in sorted(found):
+        done, left = part_path(path, k), work_file(part_path(path, k))
+        if done.is_file():
+            out.append((k, done))
+        elif left.is_file():
+            out.append((k, left))
+    return out
+
+
+def remove_recording(path):
+    """Delete every part of recording ``path`` (a new run starts a new recording)."""
+    import shutil
+    path = Path(path)
+    if not path.parent.is_dir():
+        return
+    for entry in path.parent.iterdir():
+        if _part_number(path, entry.name) is not None:
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
 
 
 class SuiteRecorder:
