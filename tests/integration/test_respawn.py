@@ -19,7 +19,7 @@ import time
 import pytest
 
 from conftest import VENV_BIN
-from ros_helpers import pump_lines
+from integration.ros_helpers import pump_lines
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -214,7 +214,7 @@ def _count_lives(lives, t, count, starts=()):
 
 
 def _received_between(lives, a, b):
-    """Samples the identifier's lives counted in ``(a, b]`` (each life's count at b less at a)."""
+    """Return the samples the identifier's lives counted in ``(a, b]`` (count at b less at a)."""
     def at(life, t):
         got = [c for tc, c in life['counts'] if tc <= t]
         return got[-1] if got else 0
@@ -660,7 +660,7 @@ def messages_summary(rec, qc_status):
 
 def restart_figures(supervision, rec, meas):
     """
-    What each restart of a node cost, from the recording.
+    Return what each restart of a node cost, from the recording.
 
     Each restart's window runs from its node's death to the next death of any node (or the end
     of the recording): ``failsafe_s`` is the time the car state said fail-safe in it,
