@@ -38,6 +38,10 @@ def test_a_complete_file_reads_whole(tmp_path):
     assert scan.complete is True and scan.error is None and scan.count == N
     assert len(stamps) == N and stamps == sorted(stamps)
     assert scan.topics()[MEASUREMENT_TOPIC] == ('sensor_msgs/msg/JointState', N)
+    # the front-to-back reader (used for cut files) reads a complete file the same
+    stream = [(t, raw) for _, _, t, raw in scan._stream(None)]
+    assert scan.complete is True and scan.count == N
+    assert stream == [(t, raw) for _, _, t, raw in McapScan(path).messages()]
 
 
 @pytest.mark.parametrize('where', [0.5, 0.999])

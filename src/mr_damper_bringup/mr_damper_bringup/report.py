@@ -61,7 +61,7 @@ RECORDING = 'suite.mcap'
 MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def read_recording(path, work, *, identifier_starts=()):
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
@@ -81,6 +81,9 @@ def read_recording(path, work, *, identifier_starts=()):
     identifier_starts : sequence of float, optional
         Epoch times [s] the identifier was restarted at (the launcher's record): a count after
         one belongs to a new life, even when the recorder missed the new life's first counts.
+    car_modes_from : float, optional
+        Epoch time [s] from which the car states are decoded into ``car_modes`` (the first
+        death of a node; None: not at all, a 1 kHz topic the rest of the report does not need).
 
     Returns
     -------
@@ -132,7 +135,8 @@ def read_recording(path, work, *, identifier_starts=()):
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
                                'config', 'node_parameters', 'samples_received', 'car_state',
-                               *STATUS_KEYS):
+                               *STATUS_KEYS) or (key == 'car_state' and (
+                                   car_modes_from is None or t_rx < car_modes_from)):
                     continue
                 msg = reader.deserialize(raw, msgtype, typestore)
                 try:
@@ -802,7 +806,10 @@ def make_report(out, *, duration_s=None, config=None, plots=True, fallback=None)
     with tempfile.TemporaryDirectory(prefix='.report_', dir=out) as work:
         starts = [r['restart_epoch_s'] for r in supervision.get('restarts') or ()
                   if r['node'] == IDENT and r.get('restart_epoch_s') is not None]
-        rec = read_recording(parts, work, identifier_starts=starts)
+        deaths = [r['death_epoch_s'] for r in supervision.get('restarts') or ()
+                  if r.get('death_epoch_s') is not None]
+        rec = read_recording(parts, work, identifier_starts=starts,
+                             car_modes_from=min(deaths) - 1.0 if deaths else None)
         if not parts:
             rec['status'] = dict(fallback['status'])
         cfg = config if config is not None else effective_config(rec)

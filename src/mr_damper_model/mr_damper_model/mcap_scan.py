@@ -8,7 +8,9 @@ whole to the file as it fills, so every chunk written before the kill is complet
 :class:`McapScan` reads the records in file order with the ``mcap`` package's stream reader
 (each chunk only once it is complete) and stops cleanly at the first record that is cut or
 broken: it yields every message of the complete chunks and says whether the file was complete
-and, if not, where it ends (messages read, last log time, the reason).
+and, if not, where it ends (messages read, last log time, the reason). A complete file (one
+whose footer and index rosbags can read) is read with rosbags instead, in log-time order: about
+twice as fast as the stream reader on a suite recording.
 
 No ROS import; deserialisation with a rosbags type store (types named by the file's schemas are
 registered from them when the store does not know them).
@@ -60,7 +62,10 @@ class McapScan:
 
     def messages(self, topics=None):
         """
-        Yield ``(topic, msgtype, log_time_ns, data)`` for every message read, in file order.
+        Yield ``(topic, msgtype, log_time_ns, data)`` for every message read.
+
+        A complete file is read through its index (rosbags, log-time order), a cut one front to
+        back (file order). ``count`` and the log times cover every topic either way.
 
         Parameters
         ----------
@@ -68,6 +73,38 @@ class McapScan:
             Only these topics (default: all).
 
         """
+        reader = self._indexed()
+        if reader is None:
+            yield from self._stream(topics)
+            return
+        self.complete, self.error = True, None
+        try:
+            conns = reader.connections
+            self.channels = {k: Channel(c.topic, c.msgtype) for k, c in enumerate(conns)}
+            for c in conns:
+                self.schemas.setdefault(c.msgtype, (
+                    'ros2msg' if c.msgdef.format.name == 'MSG' else 'ros2idl', c.msgdef.data))
+            self.count = sum(c.msgcount for c in conns)
+            self.first_log_time_ns = reader.start_time if self.count else None
+            self.last_log_time_ns = reader.end_time - 1 if self.count else None
+            wanted = [c for c in conns if topics is None or c.topic in topics]
+            for conn, t_ns, raw in reader.messages(connections=wanted):
+                yield conn.topic, conn.msgtype, t_ns, raw
+        finally:
+            reader.close()
+
+    def _indexed(self):
+        """Return an opened rosbags reader if the file is complete (footer, index), else None."""
+        from rosbags.highlevel import AnyReader
+        reader = AnyReader([self.path])
+        try:
+            reader.open()
+        except Exception:  # noqa: B902 - any failure: read it front to back instead
+            return None
+        return reader
+
+    def _stream(self, topics):
+        """Yield the messages of :meth:`messages` front to back (the mcap stream reader)."""
         from mcap.exceptions import McapError
         from mcap.records import Channel as ChannelRecord, Footer, Message, Schema
         from mcap.stream_reader import StreamReader
