@@ -1108,10 +1108,13 @@ def restart_lines(s):
     rec = s.get('recording') or {}
     if rec.get('complete') is False:
         lines.append(f'recording INCOMPLETE: {rec.get("note")}')
-        for p in rec.get('parts') or ():
-            if not p['complete']:
-                lines.append(f'  {p["file"]}: truncated after {p["messages"]} messages '
-                             f'(last at {p.get("last_log_time_s") or float("nan"):.3f} s epoch)')
+        parts = rec.get('parts') or ()
+        t0 = parts[0].get('first_log_time_s') if parts else None
+        for p in parts:
+            if not p['complete'] and p.get('last_log_time_s') is not None and t0 is not None:
+                lines.append(f'  {p["file"]}: truncated after {p["messages"]} messages, the '
+                             f'last {p["last_log_time_s"] - t0:.1f} s after the recording\'s '
+                             'start')
     restarts = s.get('restarts') or []
     if restarts:
         lines.append(f'restarts: {len(restarts)} ' + '(' + ', '.join(
