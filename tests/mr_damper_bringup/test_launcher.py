@@ -26,6 +26,20 @@ def test_identifier_drained_waits_for_a_settled_recorder_count():
     assert identifier_drained(mon) == (True, (1000, 1000))
 
 
+def test_after_a_restart_the_drain_waits_for_both_counts_to_settle():
+    """A restarted identifier counts from 0: its count cannot reach the recorder's."""
+    mon = _monitor()
+    mon.add('identifier', {'samples_received': 300})
+    mon.add('recorder', {'measurements': 1000})
+    mon.add('recorder', {'measurements': 1000})
+    assert identifier_drained(mon, exact=False)[0] is False      # one identifier status
+    mon.add('identifier', {'samples_received': 400})
+    assert identifier_drained(mon, exact=False)[0] is False      # still moving
+    mon.add('identifier', {'samples_received': 400})
+    assert identifier_drained(mon, exact=False) == (True, (400, 1000))
+    assert identifier_drained(mon)[0] is False                  # the exact rule never would
+
+
 def test_progress_line_from_the_statuses():
     mon = _monitor()
     assert 'no status yet' in progress_line(mon, 1.0)

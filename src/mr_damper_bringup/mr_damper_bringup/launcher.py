@@ -86,13 +86,15 @@ def _num(value):
     return float('nan') if value is None else float(value)
 
 
-def identifier_drained(monitor):
+def identifier_drained(monitor, exact=True):
     """
     Return ``(done, progress)``: has the identifier taken every sample the recorder took.
 
     ``done`` once the recorder's measurement count stopped moving (its last two statuses agree)
     and the identifier's ``samples_received`` reached it; ``progress`` is both counts (None
-    before the first statuses), so the wait goes on while either still moves.
+    before the first statuses), so the wait goes on while either still moves. With ``exact``
+    False (the identifier or the recorder was restarted: their counts started anew at different
+    times and cannot be compared), ``done`` once both counts stopped moving.
     """
     status, history, *_ = monitor.snapshot()
     got = (status.get('identifier') or {}).get('samples_received')
@@ -100,6 +102,9 @@ def identifier_drained(monitor):
     seen = recs[-1] if recs else None
     ok = isinstance(got, (int, float)) and isinstance(seen, (int, float))
     stable = len(recs) == 2 and recs[0] == recs[1]
+    if not exact:
+        ids = [h.get('samples_received') for h in history.get('identifier', ())]
+        return ok and stable and len(ids) == 2 and ids[0] == ids[1], (got, seen)
     return ok and stable and got >= seen, (got, seen)
 
 
@@ -355,7 +360,9 @@ def main(argv=None):
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
         else:
-            codes = suite.stop(drained=lambda: identifier_drained(monitor))
+            exact = not any(r['node'] in (IDENT, RECORDER) for r in supervisor.restarts) \
+                if supervisor is not None else True
+            codes = suite.stop(drained=lambda: identifier_drained(monitor, exact))
         last_status = monitor.snapshot()[0]
         stop_monitor()
         signal.signal(signal.SIGINT, old_int)
