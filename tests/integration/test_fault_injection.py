@@ -178,14 +178,14 @@ def test_rig_clamps_and_refuses_bad_current_commands(listener):
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
-    """Signal sent while a 5,000-sample burst is being taken: exit 0, no traceback."""
+    """Signal sent while a 5,000-message burst (single-sample layout) is taken: exit 0."""
     from sensor_msgs.msg import JointState
     from mr_damper_model.messages import measurement_to_msg
     from mr_damper_model.node_utils import MEASUREMENT_QOS
     ns = f'fi_burst_{int(sig)}'
     diag = listener.diagnostics()
     name = f'{ns}/mr_damper_identifier'
-    pub = listener.publisher(f'/{ns}/mr_damper/measurement', JointState, MEASUREMENT_QOS)
+    pub = listener.publisher(f'/{ns}/mr_damper/joint_measurement', JointState, MEASUREMENT_QOS)
     params = {'diagnostics_period_s': 0.05}
     with NodeProcess('identifier_node', params=params, namespace=ns) as ident:
         assert listener.wait_for(lambda: pub.get_subscription_count() > 0 and diag.count(name),

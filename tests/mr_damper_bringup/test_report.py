@@ -111,13 +111,15 @@ def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     assert ride['wk_improvement_percent'] > 0
 
 
-def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None):
+def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None,
+               first_index=0):
     """
     Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
 
     ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
     ``drop``: measurement indices not recorded (gaps); ``node_params``: {node: parameters} as
-    the recorder asks them from the nodes.
+    the recorder asks them from the nodes; ``first_index``: the stream index of the first sample
+    (a later part of a recording goes on with the rig's index).
     """
     from rclpy.serialization import serialize_message
 
@@ -132,7 +134,9 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
         for k in range(meas['t'].size):
             if k in drop:
                 continue
-            msg = mm.measurement_to_msg(*(meas[c][k] for c in 'txvfi'))
+            # one sample per batch: a dropped sample is a jump of the stream index
+            msg = mm.samples_to_msg(*([meas[c][k]] for c in 'txvfi'), sequence=first_index + k,
+                                    first_index=first_index + k)
             rec.write('measurement', serialize_message(msg),
                       int(round(meas['recv_epoch_s'][k] * 1e9)))
         for t, d in params_msgs:
@@ -395,7 +399,8 @@ def test_a_cut_recording_and_a_second_part_make_one_incomplete_report(tmp_path):
     first = {k: v[:30000] for k, v in meas.items()}
     second = {k: v[32000:] for k, v in meas.items()}
     _write_run(tmp_path / 'suite.mcap', first, [(1000.0, dict(msg))], [], msg, _cfg())
-    _write_run(tmp_path / 'suite.1.mcap', second, [(1033.0, dict(msg))], [], msg, _cfg())
+    _write_run(tmp_path / 'suite.1.mcap', second, [(1033.0, dict(msg))], [], msg, _cfg(),
+               first_index=32000)
     # the first recorder was killed: its file stays in the work folder, without its end
     cut = work_file(tmp_path / 'suite.mcap')
     cut.parent.mkdir()

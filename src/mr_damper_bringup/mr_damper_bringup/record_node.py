@@ -174,11 +174,11 @@ def main(argv=None):
                           f'{sum(lost.values())} message(s) lost before they were taken'
                           if lost else 'recording',
                           {'messages': dict(recorder.counts),
-                           'measurements': sum(n for k, n in recorder.counts.items()
-                                               if k.split('/')[-1] == 'measurement'),
+                           # samples (a measurement message is a batch of them)
+                           'measurements': recorder.measurements(),
                            'measurements_by_namespace': {
-                               k.split('/')[0]: n for k, n in recorder.counts.items()
-                               if '/' in k and k.split('/')[-1] == 'measurement'},
+                               k.split('/')[0]: n for k, n in recorder.samples.items()
+                               if '/' in k},
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,
@@ -223,7 +223,7 @@ def main(argv=None):
             rclpy.try_shutdown()
     lost = sum(drops.counts().values())
     print(f'mr-damper-record: {sum(recorder.counts.values())} messages '
-          f'({recorder.counts.get("measurement", 0)} measurements) written to {out}'
+          f'({recorder.measurements()} measurement samples) written to {out}'
           f'{f", {lost} lost before they were taken" if lost else ""}', file=sys.stderr)
     return 0
 

@@ -83,6 +83,11 @@ def remove_recording(path):
                 entry.unlink()
 
 
+def _is_measurement(key):
+    """Tell whether ``key`` is the measurement topic of any namespace (``[NS/]measurement``)."""
+    return key.rpartition('/')[2] == 'measurement'
+
+
 class SuiteRecorder:
     """
     Writer of one suite recording (context manager).
@@ -129,6 +134,8 @@ class SuiteRecorder:
         self.config_text = config_text
         self.start_ns = int(start_ns)
         self.counts = {key: 0 for key in self.topics}
+        #: samples written per measurement key (a DamperSamples message holds many)
+        self.samples = {key: 0 for key in self.topics if _is_measurement(key)}
         self._writer = None
         self._conns = {}
 
@@ -168,8 +175,14 @@ class SuiteRecorder:
                            self.typestore.serialize_cdr(msg, row.type))
 
     def measurements(self):
-        """Return the measurements written, of every namespace (keys ``[NS/]measurement``)."""
-        return sum(n for key, n in self.counts.items() if key.rpartition('/')[2] == 'measurement')
+        """Return the measurement samples written, of every namespace (``[NS/]measurement``)."""
+        return sum(self.samples.values())
+
+    def _samples_in(self, key, raw):
+        """Count the samples of one serialised measurement message (1 for a JointState)."""
+        row = self.topics[key]
+        msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        return len(msg.t_offset_s) if hasattr(msg, 't_offset_s') else 1
 
     def write(self, key, raw, log_time_ns):
         """
@@ -185,8 +198,11 @@ class SuiteRecorder:
             Receive time [ns] (the recorder's clock).
 
         """
-        self._writer.write(self._conns[key], int(log_time_ns), bytes(raw))
+        raw = bytes(raw)
+        self._writer.write(self._conns[key], int(log_time_ns), raw)
         self.counts[key] += 1
+        if key in self.samples:
+            self.samples[key] += self._samples_in(key, raw)
 
     def close(self):
         """Finish the file (footer, index), move it to ``path``; return ``path``."""

@@ -50,6 +50,7 @@ import numpy as np
 from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
                                        finite_or_none, JsonLines, open_log)
 from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
+from mr_damper_model.sample_stream import BatchIndex
 
 from .config import IDENT, node_params, QC, RIG
 from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
@@ -121,7 +122,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
            'gap_events': []}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
     params = JsonLines(work / 'parameters.jsonl')
-    last_t, dt = None, None
+    gaps = _Gaps()
     typestore = suite_typestore()
     try:
         for part in (path if isinstance(path, (list, tuple)) else [path]):
@@ -176,20 +177,11 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
                 elif key != 'measurement':
                     rec[key] = d
                 else:
-                    t = sample[0]
-                    if last_t is not None:
-                        step = t - last_t
-                        if step <= 0:
-                            rec['measurement_out_of_order'] += 1
-                            continue
-                        if dt is None or rec['measurements_received'] < 20:
-                            dt = step if dt is None else min(dt, step)
-                        elif step > 1.5 * dt:
-                            rec['measurement_gaps'] += int(round(step / dt)) - 1
-                            rec['gap_events'].append((t_rx, int(round(step / dt)) - 1))
-                    last_t = t
-                    meas.append(sample + (t_rx,))
-                    rec['measurements_received'] += 1
+                    missing = rec['measurement_gaps']
+                    _take_measurement(rec, gaps, sample, getattr(msg, 'first_index', None),
+                                      meas, t_rx)
+                    if rec['measurement_gaps'] > missing:
+                        rec['gap_events'].append((t_rx, rec['measurement_gaps'] - missing))
             rec['parts'].append(reader.summary())
     finally:
         meas.close()
@@ -233,6 +225,46 @@ def _mode_runs(runs, t, mode):
             return
         runs[-1][1] = t                # contiguous: the previous mode lasted until now
     runs.append([t, t, mode])
+
+
+class _Gaps:
+    """Samples missing from the recorded measurement stream (see :func:`_take_measurement`)."""
+
+    def __init__(self):
+        self.index = BatchIndex()
+        self.last_t = None
+        self.dt = None
+
+
+def _take_measurement(rec, gaps, cols, first_index, meas, t_rx):
+    """
+    Append one recorded measurement message (arrays ``t, x, v, f, i``) to the column log.
+
+    Samples not after the newest kept stamp are counted (``measurement_out_of_order``) and
+    left out. Missing samples (``measurement_gaps``) are counted exactly from the batches'
+    stream index (``first_index``); for single-sample JointState recordings, from stamp steps
+    longer than 1.5 sample periods (the period: the shortest step of the first 20 samples).
+    """
+    t = cols[0]
+    prev = -np.inf if gaps.last_t is None else gaps.last_t
+    keep = t > np.maximum.accumulate(np.concatenate(([prev], t)))[:-1]
+    rec['measurement_out_of_order'] += int(keep.size - np.count_nonzero(keep))
+    if not keep.any():
+        return
+    if first_index is not None:
+        rec['measurement_gaps'] += gaps.index.update(first_index, t.size)
+    else:
+        t0 = float(t[keep][0])
+        if gaps.last_t is not None:
+            step = t0 - gaps.last_t
+            if gaps.dt is None or rec['measurements_received'] < 20:
+                gaps.dt = step if gaps.dt is None else min(gaps.dt, step)
+            elif step > 1.5 * gaps.dt:
+                rec['measurement_gaps'] += int(round(step / gaps.dt)) - 1
+    gaps.last_t = float(t[keep][-1])
+    block = np.column_stack([c[keep] for c in cols] + [np.full(np.count_nonzero(keep), t_rx)])
+    meas.append_block(block)
+    rec['measurements_received'] += int(block.shape[0])
 
 
 def fit_error(f_meas, f_model):

@@ -28,11 +28,12 @@ DIAGNOSTICS = 'diagnostic_msgs/msg/DiagnosticArray'
 KWOK = 'mr_damper_interfaces/msg/KwokParameters'
 DAMPER_MODEL = 'mr_damper_interfaces/msg/DamperModel'
 CAR_STATE = 'mr_damper_interfaces/msg/QuarterCarState'
+DAMPER_SAMPLES = 'mr_damper_interfaces/msg/DamperSamples'
 
 #: Every topic of the suite (node defaults, root namespace), by key. The :data:`STATUS_KEYS` rows
 #: are the status topics (one per node), decoded with :func:`decode_status`.
 SUITE_TOPICS = {
-    'measurement': Topic('/mr_damper/measurement', JOINT_STATE, 'measurement'),
+    'measurement': Topic('/mr_damper/measurement', DAMPER_SAMPLES, 'measurement'),
     'parameters': Topic('/mr_damper/kwok_parameters', KWOK, 'latched'),
     'truth': Topic('/mr_damper/true_parameters', KWOK, 'latched'),
     'truth_spencer': Topic('/mr_damper/true_spencer_parameters', DAMPER_MODEL, 'latched'),
@@ -168,17 +169,17 @@ def decode_parameters(msg):
 
 def decode_measurement(msg):
     """
-    Decode one measurement ``sensor_msgs/JointState`` (rclpy or rosbags).
+    Decode one measurement message (rclpy or rosbags): a ``DamperSamples`` batch or a JointState.
 
     Returns
     -------
-    tuple of float
-        ``(t, x, v, f, i)``: stamp [s], displacement [m], velocity [m/s], force [N], current
-        [A] (``mr_damper_model.messages.measurement_from_msg``).
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``: stamps [s], displacement [m], velocity [m/s], force [N], current
+        [A] (``mr_damper_model.messages.measurement_arrays``; one sample for a JointState).
 
     """
-    from mr_damper_model.messages import measurement_from_msg
-    return measurement_from_msg(msg)
+    from mr_damper_model.messages import measurement_arrays
+    return measurement_arrays(msg)
 
 
 #: Topics that stay absolute in a namespace (by ROS convention).

@@ -895,54 +895,139 @@ class LiveIdentifier:
             ``displacement`` or ``current``: counted in ``out_of_range[channel]``).
 
         """
+        with self._lock:
+            return self._add_one(float(t), float(x), float(v), float(f), float(i))
+
+    def add_samples(self, t, x, v, f, i):
+        """
+        Offer a batch of consecutive samples (one measurement message), in order.
+
+        The result is exactly that of :meth:`add_sample` called on each sample in turn; a batch
+        that is clean (finite, in range, stamps increasing past the newest accepted one) is
+        taken with array operations, others sample by sample.
+
+        Parameters
+        ----------
+        t, x, v, f, i : array_like with shape (n,)
+            Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
+
+        Returns
+        -------
+        list of (int, str)
+            ``(index in the batch, reason)`` of every rejected sample (empty if all accepted).
+
+        """
+        t, x, v, f, i = (np.asarray(a, dtype=float) for a in (t, x, v, f, i))
+        n = t.shape[0]
         cfg = self.config
         with self._lock:
-            c = self.counters
-            c['samples_received'] += 1
-            if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
-                    and math.isfinite(f) and math.isfinite(i)):
-                c['rejected']['nonfinite'] += 1
-                return 'nonfinite'
-            if t <= self._last_t:
-                reason = 'duplicate' if t == self._last_t else 'out_of_order'
-                if reason == 'out_of_order' and t > self._ooo_last:
-                    self._ooo_run += 1
-                else:
-                    self._ooo_run = 1 if reason == 'out_of_order' else 0
-                self._ooo_last = t
-                if self._ooo_run < self.config.restart_samples:
-                    c['rejected'][reason] += 1
-                    return reason
-                self._restart_stream()
-            self._ooo_run = 0
-            self._ooo_last = -math.inf
-            # range checks after the stamp checks: a sample is late before it is implausible
-            channel = ('force' if abs(f) > cfg.force_limit_n else
-                       'velocity' if abs(v) > cfg.velocity_limit_m_s else
-                       'displacement' if abs(x) > cfg.displacement_limit_m else
-                       'current' if not (cfg.current_limit_min_a <= i
-                                         <= cfg.current_limit_max_a) else '')
-            if channel:
-                c['out_of_range'][channel] += 1
-                return channel + '_range'
-            if self._t_origin is None:
-                self._t_origin = t
-            elif t - self._last_t > cfg.max_gap_s:
-                # counted once per gap, here: the windows across it may all be superseded
-                c['stamp_gaps'] += 1
-            row = self._buf[self._head]
-            row[0] = t
-            row[1] = x
-            row[2] = v
-            row[3] = f
-            row[4] = i
-            self._head = (self._head + 1) % self._cap
-            if self._count < self._cap:
-                self._count += 1
-            self._last_t = t
-            self._seq += 1
-            c['samples_accepted'] += 1
-            return ''
+            if n and self._clean_batch(t, x, v, f, i, cfg):
+                self._append_batch(t, x, v, f, i, cfg)
+                return []
+            rejected = []
+            for k in range(n):
+                reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
+                                       float(i[k]))
+                if reason:
+                    rejected.append((k, reason))
+            return rejected
+
+    def _clean_batch(self, t, x, v, f, i, cfg):
+        """Tell whether every sample of the batch would be accepted as it is (lock held)."""
+        if not t[0] > self._last_t:
+            return False
+        if t.shape[0] > 1 and not bool(np.all(np.diff(t) > 0.0)):
+            return False
+        with np.errstate(invalid='ignore'):
+            return bool(np.all(np.abs(f) <= cfg.force_limit_n)
+                        and np.all(np.abs(v) <= cfg.velocity_limit_m_s)
+                        and np.all(np.abs(x) <= cfg.displacement_limit_m)
+                        and np.all(i >= cfg.current_limit_min_a)
+                        and np.all(i <= cfg.current_limit_max_a)
+                        and np.all(np.isfinite(t)))
+
+    def _append_batch(self, t, x, v, f, i, cfg):
+        """Take a clean batch (see :meth:`_clean_batch`) into the buffer (lock held)."""
+        c = self.counters
+        n = t.shape[0]
+        c['samples_received'] += n
+        if self._t_origin is None:
+            self._t_origin = float(t[0])
+            steps = np.diff(t)
+        else:
+            steps = np.diff(t, prepend=self._last_t)
+        c['stamp_gaps'] += int(np.count_nonzero(steps > cfg.max_gap_s))
+        cap = self._cap
+        if n > cap:   # only the newest cap samples can stay (older ones are lost below)
+            keep = slice(n - cap, n)
+            skipped = n - cap
+        else:
+            keep, skipped = slice(0, n), 0
+        rows = np.column_stack((t[keep], x[keep], v[keep], f[keep], i[keep]))
+        if skipped:
+            self._seq += skipped   # passed through the buffer at once: never handed out
+        m = rows.shape[0]
+        first = min(m, cap - self._head)
+        self._buf[self._head:self._head + first] = rows[:first]
+        if m > first:
+            self._buf[:m - first] = rows[first:]
+        self._head = (self._head + m) % cap
+        self._count = min(self._count + m, cap)
+        self._last_t = float(t[-1])
+        self._seq += m
+        self._ooo_run = 0
+        self._ooo_last = -math.inf
+        c['samples_accepted'] += n
+
+    def _add_one(self, t, x, v, f, i):
+        """:meth:`add_sample` with the lock held."""
+        cfg = self.config
+        c = self.counters
+        c['samples_received'] += 1
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
+                and math.isfinite(f) and math.isfinite(i)):
+            c['rejected']['nonfinite'] += 1
+            return 'nonfinite'
+        if t <= self._last_t:
+            reason = 'duplicate' if t == self._last_t else 'out_of_order'
+            if reason == 'out_of_order' and t > self._ooo_last:
+                self._ooo_run += 1
+            else:
+                self._ooo_run = 1 if reason == 'out_of_order' else 0
+            self._ooo_last = t
+            if self._ooo_run < self.config.restart_samples:
+                c['rejected'][reason] += 1
+                return reason
+            self._restart_stream()
+        self._ooo_run = 0
+        self._ooo_last = -math.inf
+        # range checks after the stamp checks: a sample is late before it is implausible
+        channel = ('force' if abs(f) > cfg.force_limit_n else
+                   'velocity' if abs(v) > cfg.velocity_limit_m_s else
+                   'displacement' if abs(x) > cfg.displacement_limit_m else
+                   'current' if not (cfg.current_limit_min_a <= i
+                                     <= cfg.current_limit_max_a) else '')
+        if channel:
+            c['out_of_range'][channel] += 1
+            return channel + '_range'
+        if self._t_origin is None:
+            self._t_origin = t
+        elif t - self._last_t > cfg.max_gap_s:
+            # counted once per gap, here: the windows across it may all be superseded
+            c['stamp_gaps'] += 1
+        row = self._buf[self._head]
+        row[0] = t
+        row[1] = x
+        row[2] = v
+        row[3] = f
+        row[4] = i
+        self._head = (self._head + 1) % self._cap
+        if self._count < self._cap:
+            self._count += 1
+        self._last_t = t
+        self._seq += 1
+        c['samples_accepted'] += 1
+        return ''
 
     def _restart_stream(self):
         self.counters['stream_restarts'] += 1

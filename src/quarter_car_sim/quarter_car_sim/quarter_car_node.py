@@ -57,7 +57,7 @@ counted) and applies it to step k: the loop is then step for step the built-in o
 Hardware in the loop (``plant:=rig``, docs/hil.md): the car has no damper model of its own. Each
 control step it publishes the (delay-compensated) suspension travel as the displacement command
 on ``mr_damper/displacement_command`` (std_msgs/Float64 [m], reliable, depth 10) and uses the
-latest force of the rig's measurement stream (``mr_damper/measurement``, sensor_msgs/JointState
+latest force of the rig's measurement stream (``mr_damper/measurement``, DamperSamples batches
 as the rig publishes it; best effort, depth 10: only the newest matters) through
 :class:`quarter_car_sim.hil.RemoteRigPlant`; the diagnostics carry ``hil`` (tracking RMS / peak
 of desired vs measured displacement, link counts). With ``hil_wait_s > 0`` each step first waits
@@ -80,7 +80,7 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from mr_damper_interfaces.msg import DamperSamples, KwokParameters, QuarterCarState
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -249,7 +249,7 @@ class QuarterCarNode(Node):
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
         if self.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
-            self.drops.subscribe(self, JointState, 'mr_damper/measurement',
+            self.drops.subscribe(self, DamperSamples, 'mr_damper/measurement',
                                  self.on_measurement, QoSProfile(
                                      depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                                  'measurements_lost')
@@ -379,14 +379,15 @@ class QuarterCarNode(Node):
             offer_parameters(self.sup, msg, now, self.get_logger())
 
     def on_measurement(self, msg):
-        """Hand a rig measurement to the remote-rig plant (plant rig)."""
+        """Hand a rig measurement batch to the remote-rig plant (plant rig), in order."""
         try:
-            sample = messages.measurement_from_msg(msg)
+            columns = messages.samples_from_msg(msg)
         except ValueError as exc:
             self.drops.count('undecodable_measurement', detail=str(exc))
             return
         with self.answered:
-            self.remote.receive(*sample)
+            for sample in zip(*columns):   # lockstep: batches of one sample
+                self.remote.receive(*sample)
             self.answered.notify()
 
     def _step(self, wall):
