@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Create (or update) the project's virtual environment at .venv from pip only:
 # the pinned requirements.txt (ROS 2 kilted wheels, numpy, scipy, control, rosbags, ...), the
-# four ament_python packages of src/ in editable mode, so their console scripts are on .venv/bin,
+# five ament_python packages of src/ in editable mode, so their console scripts are on .venv/bin,
 # and the message package src/mr_damper_interfaces (ament_cmake + rosidl), built with cmake and
 # a C/C++ compiler (installed with apt-get if missing) and installed into the venv prefix itself:
 # the wheels' start-up hook (ros_wheels_bootstrapper.pth) puts <venv>/lib on LD_LIBRARY_PATH and
@@ -53,7 +53,7 @@ echo "setup_venv: installing pinned dependencies into $venv (about a minute on a
 "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$root/requirements.txt" 2> >(grep -v "^WARNING: Location" >&2)
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation \
   -e "$root/src/mr_damper_model" -e "$root/src/mr_damper_rig" -e "$root/src/quarter_car_sim" \
-  -e "$root/src/mr_damper_bringup"
+  -e "$root/src/mr_damper_bringup" -e "$root/src/mr_damper_can"
 
 # --- mr_damper_interfaces: C/C++ toolchain, mended CMake exports, build, install into the venv
 missing=()

@@ -56,7 +56,7 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
                            command_timeout_s=0.05, return_speed_m_s=0.2, stroke_m=0.05,
                            diagnostics_period_s=0.1, noise_n=0.0)
     diag = listener.diagnostics()
-    meas = listener.subscribe('/hilrig/mr_damper/measurement', DamperSamples, QoSProfile(
+    meas = listener.subscribe('/hilrig/mr_damper/hil_measurement', DamperSamples, QoSProfile(
         depth=10000, reliability=ReliabilityPolicy.RELIABLE))
     pub = listener.publisher('/hilrig/mr_damper/displacement_command', Float64,
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))

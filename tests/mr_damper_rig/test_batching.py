@@ -110,6 +110,24 @@ def test_lockstep_samples_go_one_per_message_and_a_refused_one_counts_as_lost():
     assert index.lost == 1
 
 
+def test_lockstep_samples_also_go_out_in_whole_batches_on_the_measurement_stream():
+    clock = FakeClock()
+    t = np.arange(10) * 1e-3
+    src = ArraySource(DamperData(t, 2 * t, t, t, t))
+    pacer = LockstepPacer(1000.0, 0.05, clock=clock)
+    stream = BatchStream(src, pacer, 4)
+    link, batches = Wire(), Wire()
+    for k in range(10):
+        pacer.command()
+        stream.publish_one(link)
+        stream.publish_full(batches)
+        assert len(batches.batches) == (k + 1) // 4       # a batch once 4 samples are there
+    assert [(b[0], b[1], b[2].size) for b in batches.batches] == [(0, 0, 4), (1, 4, 4)]
+    np.testing.assert_array_equal(np.concatenate([b[3] for b in batches.batches]), 2 * t[:8])
+    np.testing.assert_array_equal(np.concatenate([b[3] for b in link.batches]), 2 * t)
+    assert pacer.published == 10 and stream.pending == 2
+
+
 def test_samples_per_message_must_be_positive():
     with pytest.raises(ValueError, match='samples_per_message'):
         BatchStream(source(), Pacer(source(), 1.0), 0)

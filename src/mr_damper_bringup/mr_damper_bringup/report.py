@@ -924,6 +924,16 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
     summary['failsafe'] = {k: qc_status.get(k) for k in (
         'mode', 'reason', 'failsafe_entries', 'params_accepted', 'params_rejected',
         'safe_current_a')}
+    ctrl_status = rec.get('status', {}).get('controller')
+    if ctrl_status is not None or 'command_timeouts' in qc_status:
+        # --external-controller: the link car state -> controller -> current command
+        summary['controller_link'] = {
+            'command_timeouts': qc_status.get('command_timeouts'),
+            'command_timeout_s_total': qc_status.get('command_timeout_s_total'),
+            'commands_received': qc_status.get('commands_received'),
+            'controller_dropped': (ctrl_status or {}).get('dropped') or {},
+            'controller_mode': (ctrl_status or {}).get('mode'),
+            'controller_reason': (ctrl_status or {}).get('reason')}
     lost, breakdown = messages_summary(rec, qc_status)
     attribute_losses(breakdown, rec.get('restarts') or [])
     summary['messages_lost'] = lost

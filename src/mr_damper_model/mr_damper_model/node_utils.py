@@ -36,7 +36,8 @@ from mr_damper_model.stop_flag import (  # noqa: F401 (re-exported for the nodes
 #: reader asked to be resent (checked: 10,961 of 31,673 lost in a 22-s suite run at 2 kHz with
 #: KEEP_LAST 4,000; 0 with KEEP_ALL). The price of KEEP_ALL: a reader that died without leaving
 #: (SIGKILL) or is stopped (SIGSTOP) never acknowledges, the writer's history fills up (5,000
-#: samples, about 5 s at 1 kHz) and ``publish()`` raises ``cannot publish data``. The rig then
+#: messages: 100 s of a 1 kHz rig in 20-sample batches, 5 s with one sample per message) and
+#: ``publish()`` raises ``cannot publish data``. The rig then
 #: replaces its writer with :class:`ResettablePublisher` (the stuck history goes with the old
 #: one), waits until the new writer has matched its readers again and publishes the samples due
 #: meanwhile: healthy readers lose nothing, the dead or stopped reader loses what it missed

@@ -14,10 +14,15 @@ batch of ``samples_per_message`` is due, and hands each batch (arrays ``t, x, v,
 - flow control (``rate_factor`` 0): every sample due goes out at once, cut into batches;
 - a refused publish (the writer is being replaced) keeps the batch: it goes out again, with
   the same sequence and index, at the next tick, so a replaced writer loses nothing;
-- hardware in the loop: :meth:`BatchStream.publish_one` sends one sample at once (lockstep).
+- hardware in the loop: :meth:`BatchStream.publish_one` sends each sample at once, alone, on
+  the car's link (lockstep), and keeps it for the batches of the measurement stream, which
+  go out whole (:meth:`BatchStream.publish_full`), so the identifier and the recorder read
+  batches in HIL too.
 
 ``sequence`` counts messages and ``first_index`` samples, both from 0 at the start: a reader
-counts lost samples exactly (:class:`mr_damper_model.sample_stream.BatchIndex`).
+counts lost samples exactly (:class:`mr_damper_model.sample_stream.BatchIndex`). The batches'
+counters are the stream's own; the lockstep link has its own pair (:attr:`link_sequence`, and
+the pacer's ``published`` count as its index).
 """
 import numpy as np
 
@@ -55,6 +60,8 @@ class BatchStream:
         self.pacer = pacer
         self.samples_per_message = samples_per_message
         self.sequence = 0
+        self.first_index = 0
+        self.link_sequence = 0
         self.newest_s = float('nan')
         self._rows = np.empty((0, 5))
         self._pending = 0
@@ -68,7 +75,7 @@ class BatchStream:
         """Take the next ``n`` samples from the source into the pending rows."""
         if n <= 0:
             return
-        k = self.pacer.published + self._pending
+        k = self.first_index + self._pending
         if hasattr(self.source, 'samples'):
             new = np.column_stack(self.source.samples(k, n))
         else:
@@ -83,7 +90,7 @@ class BatchStream:
 
     def _end_reached(self):
         total = self.source.total()
-        return total is not None and self.pacer.published + self._pending >= total
+        return total is not None and self.first_index + self._pending >= total
 
     def tick(self, publish):
         """
@@ -103,38 +110,51 @@ class BatchStream:
         due = self.pacer.due()
         self._produce(due - self._pending)
         flush = self.pacer.rate_factor == 0 or self._end_reached()
+        sent = self._publish_batches(publish, flush, count=True)
+        return due, sent
+
+    def publish_full(self, publish):
+        """Publish every whole batch pending (lockstep: the pacer counted its samples); count."""
+        return self._publish_batches(publish, False, count=False)
+
+    def _publish_batches(self, publish, flush, count):
         sent = 0
         while self._pending >= self.samples_per_message or (flush and self._pending):
             n = min(self._pending, self.samples_per_message)
             if not self._send(publish, self._rows[:n]):
                 break
+            if count:
+                self.pacer.sent(n)
             self._rows[:self._pending - n] = self._rows[n:self._pending]
             self._pending -= n
             sent += n
-        return due, sent
+        return sent
 
     def publish_one(self, publish, free=False):
         """
-        Hardware in the loop: publish the next sample at once, as a batch of one.
+        Hardware in the loop: publish the next sample at once, alone, on the car's link.
 
+        The sample also stays pending for the measurement batches (:meth:`publish_full`).
         ``free``: the sample runs on the rig's own clock (``LockstepPacer.sent``). Returns True
         if it went out; the pacer counts it either way (a lockstep sample that could not be
-        published is not sent again, the car has moved on; readers count it lost).
+        published is not sent again, the car has moved on; the car counts it missing).
         """
+        first_index = self.pacer.published
         self._produce(1)
-        ok = self._send(publish, self._rows[:1], free=free)
-        self._pending = 0
-        if not ok:
-            self.pacer.sent(1, free=free)
+        row = self._rows[self._pending - 1]
+        t, x, v, f, i = (np.array([value]) for value in row)
+        ok = bool(publish(t, x, v, f, i, self.link_sequence, first_index))
+        if ok:
+            self.link_sequence += 1
+        self.pacer.sent(1, free=free)
         return ok
 
-    def _send(self, publish, rows, **sent_kwargs):
+    def _send(self, publish, rows):
         n = rows.shape[0]
-        first_index = self.pacer.published
         t, x, v, f, i = (rows[:, j].copy() for j in range(5))
-        if not publish(t, x, v, f, i, self.sequence, first_index):
+        if not publish(t, x, v, f, i, self.sequence, self.first_index):
             return False
         self.sequence += 1
+        self.first_index += n
         self.newest_s = float(t[-1])
-        self.pacer.sent(n, **sent_kwargs)
         return True

@@ -32,12 +32,14 @@ current command is checked by :class:`mr_damper_model.commands.CurrentCommandLim
 with a throttled warning.
 
 Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
-displacement commands [m] through a servo-actuator model, in lockstep with the car: each
-command received steps the actuator and the damper by one DAQ period and publishes that sample
-at once. Commands beyond ``+-stroke_m`` are clamped, non-finite refused; a car silent for
-longer than ``command_timeout_s`` (wall time times ``rate_factor``) makes the rig run on its
-own clock, holding and then returning to neutral (:class:`mr_damper_rig.pacing.LockstepPacer`).
-The tracking error (guarded target minus measured displacement) is in the diagnostics.
+displacement commands [m] through a servo-actuator model, in lockstep with the car: each command
+received steps the actuator and the damper by one DAQ period and publishes that sample at once,
+alone, on ``mr_damper/hil_measurement`` (DamperSamples of one sample, reliable depth 10);
+``mr_damper/measurement`` carries the same samples in batches. Commands beyond ``+-stroke_m`` are
+clamped, non-finite refused; a car silent for longer than ``command_timeout_s`` (wall time times
+``rate_factor``) makes the rig run on its own clock, holding and then returning to neutral
+(:class:`mr_damper_rig.pacing.LockstepPacer`). The tracking error (guarded target minus measured
+displacement) is in the diagnostics.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
@@ -86,6 +88,9 @@ TRUE_SPENCER = 'mr_damper/true_spencer_parameters'
 CURRENT_COMMAND = 'mr_damper/current_command'
 DISPLACEMENT_COMMAND = 'mr_damper/displacement_command'
 SAMPLES_RECEIVED = 'mr_damper/samples_received'
+#: Hardware in the loop: each lockstep sample at once, alone, for the car (the measurement
+#: stream still carries every sample, in batches, for the identifier and the recorder).
+HIL_MEASUREMENT = 'mr_damper/hil_measurement'
 
 #: Every parameter of the rig node (the one place they are declared).
 PARAMETERS = (
@@ -107,7 +112,8 @@ PARAMETERS = (
           'count', 1, 10_000_000, dynamic=True),
     Param('samples_per_message', 20, 'Samples per measurement message (DamperSamples batch): '
           'a batch goes out when its last sample is due, so it adds at most this many DAQ '
-          'periods of latency (hardware in the loop: always 1, lockstep)', 1, 100000),
+          'periods of latency (hardware in the loop: each sample also goes out at once, alone, '
+          'on mr_damper/hil_measurement)', 1, 100000),
     Param('tick_s', 0.002, 'Publishing timer period [s, wall time]: the samples due are '
           'published at every tick', 1e-4, 1.0),
     Param('publish_clock', False, 'csv / bag: publish /clock (one per tick) from the stamps '
@@ -226,7 +232,9 @@ class RigNode(Node):
             if p['current_source'] == 'command':
                 self.drops.subscribe(self, Float64, CURRENT_COMMAND, self._on_command,
                                      COMMAND_QOS, 'command_lost')
+        self._link_msg = None
         if self.follower is not None:
+            self._link_pub = self.create_publisher(DamperSamples, HIL_MEASUREMENT, COMMAND_QOS)
             self.drops.subscribe(self, Float64, DISPLACEMENT_COMMAND, self._on_displacement,
                                  COMMAND_QOS, 'displacement_command_lost')
         elif self.pacer.rate_factor == 0:
@@ -328,8 +336,17 @@ class RigNode(Node):
         self._publish_lockstep()   # lockstep: one rig sample per car step
 
     def _publish_lockstep(self, free=False):
-        if not self.stream.publish_one(self._publish_batch, free=free):
-            self.drops.count('measurement_not_published')
+        """Send the next sample alone on the car's link, then the measurement batches due."""
+        if not self.stream.publish_one(self._publish_link, free=free):
+            self.drops.count('hil_sample_not_published')
+        self.stream.publish_full(self._publish_batch)
+
+    def _publish_link(self, t, x, v, f, i, sequence, first_index):
+        """Hardware in the loop: one sample at once on ``mr_damper/hil_measurement``."""
+        self._link_msg = samples_to_msg(t, x, v, f, i, sequence=sequence,
+                                        first_index=first_index,
+                                        sample_period_s=self._period_s, msg=self._link_msg)
+        return self.drops.publish(self._link_pub, self._link_msg, 'hil_publish_failed')
 
     def _publish_batch(self, t, x, v, f, i, sequence, first_index):
         """Convert one batch to ``DamperSamples`` and publish it; True if it went out."""

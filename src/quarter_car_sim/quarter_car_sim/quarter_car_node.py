@@ -57,8 +57,8 @@ counted) and applies it to step k: the loop is then step for step the built-in o
 Hardware in the loop (``plant:=rig``, docs/hil.md): the car has no damper model of its own. Each
 control step it publishes the (delay-compensated) suspension travel as the displacement command
 on ``mr_damper/displacement_command`` (std_msgs/Float64 [m], reliable, depth 10) and uses the
-latest force of the rig's measurement stream (``mr_damper/measurement``, DamperSamples batches
-as the rig publishes it; best effort, depth 10: only the newest matters) through
+latest force of the rig's lockstep link (``mr_damper/hil_measurement``, one DamperSamples sample
+per command; best effort, depth 10: only the newest matters) through
 :class:`quarter_car_sim.hil.RemoteRigPlant`; the diagnostics carry ``hil`` (tracking RMS / peak
 of desired vs measured displacement, link counts). With ``hil_wait_s > 0`` each step first waits
 (at most that long, timeouts counted) for the rig's answer to the previous command, so an
@@ -249,7 +249,7 @@ class QuarterCarNode(Node):
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
         if self.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
-            self.drops.subscribe(self, DamperSamples, 'mr_damper/measurement',
+            self.drops.subscribe(self, DamperSamples, 'mr_damper/hil_measurement',
                                  self.on_measurement, QoSProfile(
                                      depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                                  'measurements_lost')
