@@ -5,8 +5,9 @@ Real nodes in separate processes (console scripts of the venv), LOCALHOST discov
 private domain of tests/conftest.py. Three runs, about 1.5 min together:
 
 - the quarter-car node alone, fed by a test publisher: no model -> fail-safe at the safe current;
-  a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and undecodable sets are
-  refused and counted by reason, each dropping to fail-safe; commands stay in the coil range;
+  a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and zero ``i_ref_a``
+  sets are refused and counted by reason, each dropping to fail-safe; commands stay in the coil
+  range;
 - the whole suite through ``mr-damper-suite`` (twice real time): the car leaves fail-safe after the
   first valid parameters, its currents stay in the coil range, the live skyhook beats the passive
   damper on Wk-weighted RMS body acceleration on the same road and seed, exit status 0;
@@ -96,8 +97,8 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
             assert st['reason'] == reason
             assert f'parameters refused ({reason})' in diag.latest(name).message
             send(good, 'normal')
-        undecodable = KwokParameters()           # i_ref_a 0: decode refuses
-        st = send(undecodable, 'failsafe', 'undecodable', 1)
+        no_i_ref = KwokParameters()              # i_ref_a 0: decode refuses, by its reason
+        st = send(no_i_ref, 'failsafe', 'bad_i_ref', 1)
         st = send(good, 'normal')
         assert st['params_accepted'] == 2 + len(bad_sets)
         assert sum(st['params_rejected'].values()) == len(bad_sets) + 1

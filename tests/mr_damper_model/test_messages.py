@@ -87,11 +87,15 @@ def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
         m.kwok_parameters_msg(dict(params, i_ref_a=0.0))
 
 
-def test_kwok_parameters_with_zero_reference_current_is_a_layout_error():
+def test_kwok_parameters_with_zero_reference_current_is_refused_as_bad_i_ref():
     msg = KwokParameters()           # every field 0: no model can use it
     with pytest.raises(m.MessageError, match='i_ref_a') as info:
         m.kwok_parameters_from_msg(msg)
-    assert info.value.reason == 'layout'
+    assert info.value.reason == 'bad_i_ref'
+    msg.i_ref_a = -1.0
+    with pytest.raises(m.MessageError, match='i_ref_a') as info:
+        m.kwok_parameters_flat(msg)
+    assert info.value.reason == 'bad_i_ref'
 
 
 def test_damper_model_round_trip_and_mismatch():

@@ -259,6 +259,8 @@ def _per_file(model, model_options, x, parts):
     import numpy as np
     forces = [_predict(model, model_options, x, p) for p in parts]
     rows = [(p.source, p.n, _safe_metrics(p.f, fm)) for p, fm in zip(parts, forces)]
+    if len(parts) == 1:             # the one record's (no copy of a large record's forces)
+        return forces, rows, dict(rows[0][2])
     overall = _safe_metrics(np.concatenate([p.f for p in parts]), np.concatenate(forces))
     return forces, rows, overall
 
@@ -302,7 +304,8 @@ def _suffix_path(path, level):
 def run(argv=None):
     """Run the tool; return the exit code."""
     from .data import DamperData, DataError
-    from .identify import compare_models, current_groups, identify, identify_per_current
+    from .identify import (compare_models, current_group_levels, current_groups, identify,
+                           identify_per_current)
     from .models import get_model
     from .params_file import save_params
 
@@ -327,7 +330,7 @@ def run(argv=None):
         return code
     # several files: one record, each part on its own time base (stateful models restart)
     data = parts[0] if len(parts) == 1 else DamperData.concatenate(parts, restamp=True)
-    levels = [lv for lv, _ in current_groups(data)] or list(data.current_levels())
+    levels = current_group_levels(data) or list(data.current_levels())
     model = args.model or (MULTI_CURRENT_MODEL if len(levels) > 1 and not args.per_current
                            else 'kwok')
     kw = dict(method=args.method, unbounded=args.unbounded, seed=args.seed)

@@ -331,9 +331,10 @@ def _parse_rows(rows, name):
     """
     Parse the header and the numeric rows of a ``t,x,v,f,i`` CSV as they are read.
 
-    Values go into float blocks of ``_CSV_BLOCK_ROWS`` rows, joined once at the end: the peak
-    memory is about twice the final arrays, whatever the file size (a list of the file's rows
-    as strings took about 8x the file). Trailing blank lines are ignored.
+    Values go into float blocks of ``_CSV_BLOCK_ROWS`` rows, moved into the final array at the
+    end one block at a time, each freed once copied: the peak memory is about the final arrays
+    plus one block, whatever the file size (joining all blocks at once took twice the arrays; a
+    list of the file's rows as strings about 8x the file). Trailing blank lines are ignored.
 
     Returns
     -------
@@ -401,9 +402,21 @@ def _parse_rows(rows, name):
     empties.append(empty[:k])
     if sum(len(b) for b in blocks) == 0:
         raise DataError(f'{name}: no data rows after the header')
-    values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
-    del blocks
+    values = blocks[0] if len(blocks) == 1 else _join_freeing(blocks)
     return values, np.concatenate(empties), first_line
+
+
+def _join_freeing(blocks):
+    """Concatenate 2-D ``blocks`` along rows, emptying the list (each freed once copied)."""
+    out = np.empty((sum(len(b) for b in blocks), blocks[0].shape[1]))
+    pos = 0
+    blocks.reverse()
+    while blocks:
+        block = blocks.pop()
+        out[pos:pos + len(block)] = block
+        pos += len(block)
+        del block
+    return out
 
 
 def write_csv(path, data):

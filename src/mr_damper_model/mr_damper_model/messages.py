@@ -45,7 +45,7 @@ class MessageError(ValueError):
     A message that cannot be converted.
 
     ``reason`` is a short machine-readable key used for the status counters
-    (``'joint_names'``, ``'layout'``).
+    (``'joint_names'``, ``'layout'``, ``'bad_i_ref'``).
 
     """
 
@@ -369,11 +369,12 @@ def kwok_parameters_from_msg(msg):
     Raises
     ------
     MessageError
-        ``reason='layout'`` if ``i_ref_a`` is not > 0 (a set no model can use).
+        ``reason='bad_i_ref'`` if ``i_ref_a`` is not > 0 (a set no model can use).
 
     """
     if not msg.i_ref_a > 0:
-        raise MessageError('layout', f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
+        raise MessageError('bad_i_ref',
+                           f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
     out = {'parameters': {n: float(getattr(msg, n)) for n in KWOK_CURRENT_NAMES},
            'valid': bool(msg.valid), 'reason': msg.reason,
            'stamp_s': stamp_to_seconds(msg.header.stamp),

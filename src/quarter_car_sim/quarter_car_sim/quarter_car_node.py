@@ -385,9 +385,10 @@ class QuarterCarNode(Node):
         except ValueError as exc:
             self.drops.count('undecodable_measurement', detail=str(exc))
             return
+        now = self._now()
         with self.answered:
             for sample in zip(*columns):   # lockstep: batches of one sample
-                self.remote.receive(*sample)
+                self.remote.receive(*sample, now=now)
             self.answered.notify()
 
     def _step(self, wall):
@@ -406,8 +407,9 @@ class QuarterCarNode(Node):
                 cmd.data = loop.command(state, now)
                 if self.probe is not None:
                     cmd.data = loop.i_cmd = self.probe(cmd.data, state.t)
-                normal = self.sup.mode == 'normal'
-                reason = self.sup.reason        # read with the mode: one consistent pair
+                # read with the mode: one consistent pair (a refused state wins)
+                mode, reason = loop.core.mode_reason()
+                normal = mode == 'normal'
             self.drops.publish(self.cmd_pub, cmd)
         self.control.command_sent()
         if self.remote is None:
@@ -471,6 +473,9 @@ class QuarterCarNode(Node):
                           failsafe_entries=self.cmd_in.timeouts, lockstep=self.lockstep,
                           lockstep_timeouts=self.lockstep_timeouts,
                           command_timeout_s=self.cmd_in.timeout_s)
+            else:
+                st['mode'], st['reason'] = self.loop.core.mode_reason()
+                st['state_rejected'] = dict(self.loop.core.state_rejected)
         loop = self.control.status()
         st.update({
             'controller': self.loop.controller.name if self.loop.controller else 'external',
