@@ -5,16 +5,17 @@ Generates a CSV of ``--rows`` samples (thesis cam, 1 kHz, the kwok-current truth
 2 N noise: ``mr-damper-identify``'s default fit is then Kwok) in a temporary folder and, each
 in a fresh process, reads it (``read_record``: read + validate) and reads and fits it (the
 whole ``mr-damper-identify FILE`` run), once with the package as it is in ``--before`` (a git
-revision, default ``main``: its ``src/mr_damper_model`` extracted with ``git archive``) and
-once with this tree. Prints the peak resident set size (``ru_maxrss``: what the issue's
-"833 MB RSS" measured; it includes the interpreter and its imports, printed as the baseline)
-as a ratio to the CSV size, the peak above the baseline as a ratio to the final arrays
-(5 columns x 8 bytes x rows), and how much the fit results differ.
+revision, default :data:`BEFORE`, the last commit before the issue-21 memory work: its
+``src/mr_damper_model`` extracted with ``git archive``) and once with this tree. Prints the
+peak resident set size (``ru_maxrss``: what the issue's "833 MB RSS" measured; it includes
+the interpreter and its imports, printed as the baseline) as a ratio to the CSV size, the peak
+above the baseline as a ratio to the final arrays (5 columns x 8 bytes x rows), how much the
+fit results differ, and the fit's wall time (``seconds``: noisy on a loaded machine).
 
 With ``--read-methods``: also the previous comparison of the reader against a list of the
 file's rows (tracemalloc, Python objects and numpy arrays; the list takes about 8x the file).
 
-    .venv/bin/python bench/bench_csv_memory.py [--rows 3000000] [--before main]
+    .venv/bin/python bench/bench_csv_memory.py [--rows 3000000] [--before REV]
 """
 import argparse
 import json
@@ -27,6 +28,9 @@ import tempfile
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+
+#: The "before" of the comparison: main before the chunked fit and reader of issue 21.
+BEFORE = '91a9a718356aa93d5ec2d80cc492daaa2e2af9ae'
 
 CHILD = r'''
 import json, resource, sys
@@ -109,7 +113,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--rows', type=int, default=3_000_000,
                     help='samples (3,000,000: a CSV of about 160 MB, the issue-21 file size)')
-    ap.add_argument('--before', default='main', help='git revision of the "before" package')
+    ap.add_argument('--before', default=BEFORE,
+                    help='git revision of the "before" package (default: before issue 21)')
     ap.add_argument('--read-methods', action='store_true',
                     help='also compare read_csv with a list of rows (tracemalloc)')
     args = ap.parse_args()
@@ -119,13 +124,14 @@ def main():
         write_record(path, args.rows)
         size_mb = path.stat().st_size / 1e6
         final_mb = 5 * 8 * args.rows / 1e6
-        print(f'CSV {size_mb:.0f} MB, {args.rows} rows, final arrays {final_mb:.0f} MB')
+        print(f'CSV {size_mb:.0f} MB, {args.rows} rows, final arrays {final_mb:.0f} MB; '
+              f'before = {args.before[:12]}, after = this tree')
         before_src = extract(args.before, Path(tmp) / 'before')
         results = {}
         print(f'{"":22s}{"peak RSS":>10s}{"/ CSV":>8s}{"baseline":>10s}'
               f'{"(peak-base)/arrays":>20s}')
         for what in ('read', 'read+fit'):
-            for label, pp in ((f'before ({args.before})', before_src), ('after', None)):
+            for label, pp in (('before', before_src), ('after', None)):
                 r = run_child(CHILD, [path, 'read' if what == 'read' else 'fit'], pp)
                 if pp is not None and not r['package'].startswith(str(before_src)):
                     raise SystemExit(f'the before child imported {r["package"]}')
@@ -133,7 +139,7 @@ def main():
                 print(f'{what + " " + label:22s}{r["peak_mb"]:8.0f}MB'
                       f'{r["peak_mb"] / size_mb:7.2f}x{r["baseline_mb"]:8.0f}MB'
                       f'{(r["peak_mb"] - r["baseline_mb"]) / final_mb:19.2f}x')
-        b, a = results['read+fit', f'before ({args.before})'], results['read+fit', 'after']
+        b, a = results['read+fit', 'before'], results['read+fit', 'after']
         pb, pa = b['parameters'], a['parameters']
         rel = max(abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-300) for k in pb)
         print(f'fit ({a["model"]}): before {b["fit_s"]:.2f} s, after {a["fit_s"]:.2f} s; '

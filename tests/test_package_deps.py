@@ -20,7 +20,8 @@ ROSDEP_KEYS = {'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'control': 'p
                'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags', 'mcap': 'python3-mcap',
                'matplotlib': 'python3-matplotlib', 'numba': 'python3-numba',
                'psutil': 'python3-psutil', 'pytest': 'python3-pytest', 'can': 'python3-can',
-               'cantools': 'python3-cantools'}
+               'cantools': 'python3-cantools', 'dask': 'python3-dask',
+               'distributed': 'python3-distributed'}
 
 PACKAGES = sorted(p.parent for p in (REPO / 'src').glob('*/package.xml')
                   if (p.parent / p.parent.name).is_dir())

@@ -26,7 +26,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
-from conftest import QUIROZ_DIR, VENV_BIN
+from conftest import csv_text, QUIROZ_DIR, VENV_BIN
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.data import DamperData
 from mr_damper_model.kwok_current import kwok_current_force
@@ -36,7 +36,7 @@ from mr_damper_model.params_file import load_params
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 KEEP_ALL = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.RELIABLE)
 #: identifier settings that make each window's fit exactly the offline tool's call
@@ -282,7 +282,7 @@ def test_bad_messages_are_counted_and_harmless(listener):
         assert ident.alive()
     status = topics.last_status()
     assert status['samples_accepted'] == data.n
-    assert status['rejected'] == dict(sent, layout=1)
+    assert status['rejected'] == dict(sent, layout=1, future_stamp=0)
     final = topics.estimates()[-1]
     window = data.select((data.t >= status['last_window_start_s'] - 1e-6)
                          & (data.t <= status['last_window_end_s'] + 1e-6))
@@ -293,7 +293,7 @@ def test_bad_messages_are_counted_and_harmless(listener):
 
 
 def test_bad_replay_file_exits_2_and_publishes_nothing(listener, tmp_path):
-    lines = QUIROZ.read_text().splitlines()
+    lines = csv_text(QUIROZ).splitlines()
     lines[len(lines) // 2] = lines[len(lines) // 2].rsplit(',', 1)[0] + ',nan'
     bad = tmp_path / 'half_bad.csv'
     bad.write_text('\n'.join(lines) + '\n')

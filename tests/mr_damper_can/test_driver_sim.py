@@ -105,3 +105,23 @@ def test_driver_faults_switch_the_channel_off_and_are_reported(fault):
         ecu.inject('fl', 'gremlins')
     with pytest.raises(ValueError, match='unknown corner'):
         ecu.inject('rr', 'none')
+
+
+def test_stop_with_drain_takes_the_frames_still_queued():
+    # frames sent before the stop but not yet read (no reader running) are counted by the stop
+    channel = 'driver_sim_drain_test'
+    with can.Bus(interface='virtual', channel=channel) as ecu_bus, \
+            can.Bus(interface='virtual', channel=channel) as bridge_bus:
+        ecu = SimulatedEcu(ecu_bus, ('fl',), db=DB, clock=Clock(), sensors=False)
+        enc = FrameCodec(DB)
+        for k in range(25):
+            frame_id, data = enc.encode(codec.command_name('fl'),
+                                        {'CMD_CURRENT': 0.01 * k, 'CMD_FAILSAFE': 0})
+            bridge_bus.send(can.Message(arbitration_id=frame_id, data=data,
+                                        is_extended_id=False))
+        ecu.stop()                                   # no drain: nothing taken
+        assert ecu.status()['corners']['fl']['received'] == 0
+        ecu.stop(drain=True)
+        st = ecu.status()['corners']['fl']
+        assert (st['received'], st['counter_jumps'], st['bad_checksum']) == (25, 0, 0)
+        assert st['target_a'] == pytest.approx(0.24)

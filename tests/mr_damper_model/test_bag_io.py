@@ -6,7 +6,7 @@ from conftest import QUIROZ_DIR
 from mr_damper_model import bag_io
 from mr_damper_model.data import COIL_JOINT, DamperData, DataError, PISTON_JOINT, read_csv
 
-QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv'
+QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
 PLUGINS = {'sqlite3': 'SQLITE3', 'mcap': 'MCAP'}
 
 

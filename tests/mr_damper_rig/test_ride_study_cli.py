@@ -19,6 +19,7 @@ def params_file(tmp_path):
     return p
 
 
+@pytest.mark.slow
 def test_compare_json(params_file, capsys):
     rc = cli.main(['--compare', '--json', '--duration', '3', '--plant', 'kwok',
                    '--damper-params', str(params_file)])
@@ -76,6 +77,7 @@ def test_bad_params_file_nan(tmp_path, capsys):
     assert len(err) == 1 and 'c0' in err[0]
 
 
+@pytest.mark.slow
 def test_console_script_negative_speed_and_missing_params(tmp_path):
     exe = str(VENV_BIN / 'quarter-car-sim')
     for args, match in ((['--speed', '-5'], 'speed'),

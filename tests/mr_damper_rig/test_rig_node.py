@@ -14,7 +14,7 @@ import pytest
 
 from conftest import QUIROZ_DIR
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ id of each node's latest start.
 Usage::
 
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
-        [--config sim|replay|hil] [--file PATH ...] [--real-time | --faster | --rate-factor F]
+        [--config sim|replay|hil|can] [--file PATH ...] [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
         [--external-controller] [--corners fl,fr,rl,rr]
         [--max-restarts 3] [--restart-window-s 60] [--restart-backoff-s 0.5]
@@ -51,8 +51,8 @@ import time
 
 import yaml
 
-from .config import (corner_configs, CTRL, IDENT, QC, RECORDER, RECORDER_NODE, REPO,
-                     resolve_config, RIG, suite_nodes, SuiteError)
+from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
+                     recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)
 from .processes import CLEAN_EXIT, ProcessStats, Suite
 from .recorder import part_path, remove_recording
 from .report import RECORDING
@@ -207,9 +207,11 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay', 'hil'), default='sim',
+    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can'), default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
-                        'hil: the rig follows the car (hardware in the loop, docs/hil.md)')
+                        'hil: the rig follows the car (hardware in the loop, docs/hil.md); '
+                        'can: sim with the damper current through a CAN bridge and a simulated '
+                        'driver (docs/can.md)')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -285,7 +287,7 @@ def main(argv=None):
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
-    record_args = ['--out', recording, '--suite-config', params_file]
+    record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
     if corners:
         nodes, node_args = dict(RECORDER_NODE), {}
         for corner, corner_cfg in corners.items():
@@ -300,7 +302,8 @@ def main(argv=None):
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
     else:
         suite = Suite(params_file, out, domain_id, args.bin_dir,
-                      {**RECORDER_NODE, **suite_nodes(cfg)}, args={RECORDER: record_args})
+                      {**RECORDER_NODE, **suite_nodes(cfg)},
+                      args={RECORDER: record_args, **node_arguments(cfg, params_file)})
     print(f'{PROG}: config {args.config}, domain {domain_id}, '
           f'duration {args.duration:g} s, output {out}', flush=True)
 

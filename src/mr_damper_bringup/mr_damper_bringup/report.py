@@ -53,7 +53,7 @@ from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
 from mr_damper_model.sample_stream import BatchIndex
 
 from .config import IDENT, node_params, QC, RIG
-from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
+from .topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
                      NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
@@ -111,7 +111,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     from mr_damper_model.mcap_scan import McapScan
     from .topics import decode_measurement
     work = Path(work)
-    keys = {row.name: key for key, row in SUITE_TOPICS.items()}
+    keys = {row.name: key for key, row in {**SUITE_TOPICS, **CAN_TOPICS}.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
     rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
@@ -779,6 +779,52 @@ def attribute_losses(breakdown, restarts):
         breakdown['measurements_lost_not_at_restarts'] = left
 
 
+def can_summary(status, corner='fl'):
+    """
+    Commands over CAN (``--config can``): frames the bridge sent vs frames the driver received.
+
+    Parameters
+    ----------
+    status : dict
+        The last status of each node (``read_recording(...)['status']``): ``can_bridge`` and
+        ``can_driver_sim`` (each node's final status, published as it stops; the driver stops
+        after the bridge).
+    corner : str
+        The bridged corner.
+
+    Returns
+    -------
+    dict or None
+        ``frames_sent`` (bridge, all command frames incl. keep-alive re-sends), ``received``
+        (driver, valid command frames), ``lost`` (their difference), ``counter_jumps``,
+        ``frames_missed``, ``bad_checksum`` (driver), ``commands`` (bridge: ROS commands
+        taken), ``resent``, ``failsafe_entries``, ``failsafe_s``, ``bridge_faults`` (the
+        bridge's fault counters that are not zero), ``zero_lost`` (frames_sent == received and
+        no counter jump); None when neither node reported.
+
+    """
+    bridge = status.get('can_bridge')
+    driver = status.get('can_driver_sim')
+    if bridge is None and driver is None:
+        return None
+    br = ((bridge or {}).get('corners') or {}).get(corner) or {}
+    drv = ((driver or {}).get('corners') or {}).get(corner) or {}
+    sent, received = br.get('frames_sent'), drv.get('received')
+    out = {'corner': corner, 'frames_sent': sent, 'received': received,
+           'lost': (sent - received if isinstance(sent, (int, float))
+                    and isinstance(received, (int, float)) else None),
+           'counter_jumps': drv.get('counter_jumps'), 'frames_missed': drv.get('frames_missed'),
+           'bad_checksum': drv.get('bad_checksum'), 'commands': br.get('commands'),
+           'resent': br.get('resent'), 'failsafe_entries': br.get('failsafe_entries'),
+           'failsafe_s': br.get('failsafe_s'), 'bridge_mode': br.get('mode'),
+           'bridge_reason': br.get('reason'),
+           'bridge_faults': {k: v for k, v in ((bridge or {}).get('faults') or {}).items()
+                             if v},
+           'bridge_dropped': (bridge or {}).get('dropped') or {}}
+    out['zero_lost'] = out['lost'] == 0 and out['counter_jumps'] == 0
+    return out
+
+
 def _first(d, keys):
     for k in keys:
         if isinstance(d.get(k), (int, float)):
@@ -934,6 +980,10 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
             'controller_dropped': (ctrl_status or {}).get('dropped') or {},
             'controller_mode': (ctrl_status or {}).get('mode'),
             'controller_reason': (ctrl_status or {}).get('reason')}
+    can = can_summary(rec.get('status', {}))
+    if can is not None:
+        summary['config'] = 'can'
+        summary['can'] = can
     lost, breakdown = messages_summary(rec, qc_status)
     attribute_losses(breakdown, rec.get('restarts') or [])
     summary['messages_lost'] = lost
@@ -1127,6 +1177,14 @@ def format_summary(s):
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
                  f'refused parameter sets: {(s.get("failsafe") or {}).get("params_rejected")}')
     lines.append(f'messages lost: {s.get("messages_lost")} ({s.get("messages")})')
+    can = s.get('can')
+    if can:
+        lines.append(f'CAN ({can["corner"]}): bridge sent {can["frames_sent"]} command frames '
+                     f'({can["resent"]} re-sends), driver received {can["received"]}: lost '
+                     f'{can["lost"]}, counter jumps {can["counter_jumps"]}, bad checksums '
+                     f'{can["bad_checksum"]}; bridge fail-safe entries '
+                     f'{can["failsafe_entries"]} ({can["failsafe_s"] or 0:.2f} s), faults '
+                     f'{can["bridge_faults"] or "none"}')
     lines.extend(restart_lines(s))
     loop = s.get('loop_full_run') or {}
     m2p = s.get('measurement_to_parameters_s')

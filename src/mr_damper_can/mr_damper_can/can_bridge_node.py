@@ -175,6 +175,11 @@ class CanBridgeNode(Node):
         """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
         return self.health_rules(self.status(), self.drops.counts())
 
+    def finish(self):
+        """At shutdown: stop the bus reader and the log, then publish the final status."""
+        self.core.stop()
+        self.diagnostics.publish_final()
+
     def destroy_node(self):
         """Stop the bus reader, close the log and the bus, then destroy the node."""
         if getattr(self, 'core', None) is not None:     # None: the constructor failed
@@ -189,7 +194,8 @@ def main(args=None):
     """Entry point of ``can_bridge_node``."""
     import can
     return run_node(CanBridgeNode, 'can_bridge_node', (ValueError, OSError, can.CanError),
-                    run=lambda node: spin_node(node, events=True), args=args)
+                    run=lambda node: spin_node(node, events=True),
+                    finish=lambda node: node.finish(), args=args)
 
 
 if __name__ == '__main__':

@@ -107,6 +107,11 @@ class CanDriverSimNode(Node):
         st['dropped'] = self.drops.counts()
         return self.health_rules(st)
 
+    def finish(self):
+        """At shutdown: stop the ECU (taking the frames still queued), publish the final status."""
+        self.ecu.stop(drain=True)
+        self.diagnostics.publish_final()
+
     def destroy_node(self):
         """Stop the ECU's threads and close the bus, then destroy the node."""
         if getattr(self, 'ecu', None) is not None:     # None: the constructor failed
@@ -121,7 +126,8 @@ def main(args=None):
     """Entry point of ``can_driver_sim``."""
     import can
     return run_node(CanDriverSimNode, 'can_driver_sim', (ValueError, OSError, can.CanError),
-                    run=lambda node: spin_node(node, events=True), args=args)
+                    run=lambda node: spin_node(node, events=True),
+                    finish=lambda node: node.finish(), args=args)
 
 
 if __name__ == '__main__':

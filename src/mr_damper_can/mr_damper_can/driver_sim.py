@@ -308,8 +308,13 @@ class SimulatedEcu:
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
 
-    def stop(self):
-        """Stop the cycle thread and the reader."""
+    def stop(self, drain=False):
+        """
+        Stop the cycle thread and the reader.
+
+        With ``drain``, the frames still queued on the bus are taken (:meth:`on_frame`) after
+        the reader stopped, so the counts hold every frame sent before the stop.
+        """
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
@@ -317,6 +322,11 @@ class SimulatedEcu:
         if self._notifier is not None:
             self._notifier.stop()
             self._notifier = None
+        while drain and self.bus is not None:
+            msg = self.bus.recv(timeout=0.0)
+            if msg is None:
+                break
+            self.on_frame(msg)
 
     def status(self):
         """Return the status dict: per corner counts, command, current, fault; frame counts."""

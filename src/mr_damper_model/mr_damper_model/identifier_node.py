@@ -76,6 +76,8 @@ _LIVE = (
      0.0, 0.5),
     ('restart_samples', 'Consecutive increasing out-of-order samples that restart the stream '
      '[samples]', 1, 10 ** 8),
+    ('max_future_s', 'Refuse samples stamped more than this ahead of the node clock [s] '
+     '(future_stamp; 0: no check, e.g. replays at rate_factor > 1 on wall time)', 0.0, _BIG),
     ('force_limit_n', 'Reject samples with a force magnitude above this [N]', 1e-6, _BIG),
     ('velocity_limit_m_s', 'Reject samples with a velocity magnitude above this [m/s]',
      1e-9, 1e6),

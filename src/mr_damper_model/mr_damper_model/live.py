@@ -67,11 +67,13 @@ import numpy as np
 
 from .data import DamperData
 from .kwok_current import KwokCurrent, kwok_current_coefficients, kwok_current_force
+from .stamps import ACCEPTED, REBASED, StampGuard
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Keys of the sample rejection counters.
-REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'joint_names', 'layout')
+REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'future_stamp', 'joint_names',
+                  'layout')
 #: Keys of the out-of-range sample counters (the channel whose range check failed).
 RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 #: Keys of the skipped-window counters.
@@ -136,6 +138,13 @@ class LiveConfig:
         Fraction of samples needed in each velocity direction (``one_direction``).
     restart_samples : int
         Consecutive increasing out-of-order samples that restart the stream.
+    max_future_s : float
+        Samples stamped more than this [s] ahead of the node clock (the stamps advancing this
+        much further than the clock, :class:`~mr_damper_model.stamps.StampGuard`) are
+        refused (``rejected['future_stamp']``) and never become the reference; 0: no such
+        check (the default: a replay at ``rate_factor`` > 1 on wall time stamps its samples
+        ahead of the clock by design). Set it when the samples are stamped on the node's clock
+        (a DAQ at real time, or a replay under ``use_sim_time``).
     force_limit_n : float
         Samples with ``|f|`` above this [N] are rejected (``out_of_range['force']``); dampers
         of this class make 1-2 kN (thesis damper about 850 N at 2 A, Quiroz damper 1.7 kN).
@@ -205,6 +214,7 @@ class LiveConfig:
     min_force_std_n: float = 2.0
     min_direction_fraction: float = 0.1
     restart_samples: int = 500
+    max_future_s: float = 0.0
     force_limit_n: float = 5000.0
     velocity_limit_m_s: float = 2.0
     displacement_limit_m: float = 0.15
@@ -232,7 +242,8 @@ class LiveConfig:
                 raise ValueError(f'`{name}` must be a positive finite number, got {value!r}')
         for name in ('budget_s', 'bin_max_age_s', 'min_velocity_rms_m_s', 'min_force_std_n',
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
-                     'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s'):
+                     'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
+                     'max_future_s'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -804,8 +815,9 @@ class LiveIdentifier:
         self._last_t = -math.inf
         self._t_origin = None      # first stamp of the current stream
         self._next_index = 0       # index m of the next due window end
-        self._ooo_run = 0
-        self._ooo_last = -math.inf
+        # stamp sanity (order, duplicates, future stamps, re-base after a clock jump)
+        self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
+                                  rebase_after=cfg.restart_samples)
         self._seq = 0              # samples accepted into the buffer so far (all streams)
         self._handed = 0           # sequence number of the first sample not yet handed out
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
@@ -876,7 +888,7 @@ class LiveIdentifier:
             rej = self.counters['rejected']
             rej[reason] = rej.get(reason, 0) + 1
 
-    def add_sample(self, t, x, v, f, i):
+    def add_sample(self, t, x, v, f, i, now=None):
         """
         Offer one sample.
 
@@ -886,19 +898,22 @@ class LiveIdentifier:
             Stamp [s].
         x, v, f, i : float
             Displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt [s] (``max_future_s``; None: no future check).
 
         Returns
         -------
         str
             '' if accepted, else the rejection reason (``'nonfinite'``, ``'out_of_order'``,
-            ``'duplicate'``, or ``'<channel>_range'`` with channel ``force``, ``velocity``,
+            ``'duplicate'``, ``'future_stamp'``, or ``'<channel>_range'`` with channel ``force``,
+            ``velocity``,
             ``displacement`` or ``current``: counted in ``out_of_range[channel]``).
 
         """
         with self._lock:
-            return self._add_one(float(t), float(x), float(v), float(f), float(i))
+            return self._add_one(float(t), float(x), float(v), float(f), float(i), now)
 
-    def add_samples(self, t, x, v, f, i):
+    def add_samples(self, t, x, v, f, i, now=None):
         """
         Offer a batch of consecutive samples (one measurement message), in order.
 
@@ -910,6 +925,8 @@ class LiveIdentifier:
         ----------
         t, x, v, f, i : array_like with shape (n,)
             Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt of the batch [s] (``max_future_s``).
 
         Returns
         -------
@@ -921,20 +938,21 @@ class LiveIdentifier:
         n = t.shape[0]
         cfg = self.config
         with self._lock:
-            if n and self._clean_batch(t, x, v, f, i, cfg):
+            if n and self._clean_batch(t, x, v, f, i, cfg, now):
                 self._append_batch(t, x, v, f, i, cfg)
+                self._stamps.take_clean(t, now)
                 return []
             rejected = []
             for k in range(n):
                 reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
-                                       float(i[k]))
+                                       float(i[k]), now)
                 if reason:
                     rejected.append((k, reason))
             return rejected
 
-    def _clean_batch(self, t, x, v, f, i, cfg):
+    def _clean_batch(self, t, x, v, f, i, cfg, now):
         """Tell whether every sample of the batch would be accepted as it is (lock held)."""
-        if not t[0] > self._last_t:
+        if not t[0] > self._last_t or not self._stamps.clean(t, now):
             return False
         if t.shape[0] > 1 and not bool(np.all(np.diff(t) > 0.0)):
             return False
@@ -975,11 +993,9 @@ class LiveIdentifier:
         self._count = min(self._count + m, cap)
         self._last_t = float(t[-1])
         self._seq += m
-        self._ooo_run = 0
-        self._ooo_last = -math.inf
         c['samples_accepted'] += n
 
-    def _add_one(self, t, x, v, f, i):
+    def _add_one(self, t, x, v, f, i, now=None):
         """:meth:`add_sample` with the lock held."""
         cfg = self.config
         c = self.counters
@@ -988,19 +1004,12 @@ class LiveIdentifier:
                 and math.isfinite(f) and math.isfinite(i)):
             c['rejected']['nonfinite'] += 1
             return 'nonfinite'
-        if t <= self._last_t:
-            reason = 'duplicate' if t == self._last_t else 'out_of_order'
-            if reason == 'out_of_order' and t > self._ooo_last:
-                self._ooo_run += 1
-            else:
-                self._ooo_run = 1 if reason == 'out_of_order' else 0
-            self._ooo_last = t
-            if self._ooo_run < self.config.restart_samples:
-                c['rejected'][reason] += 1
-                return reason
+        verdict = self._stamps.check(t, now)   # order, duplicates, future, clock jumps
+        if verdict == REBASED:
             self._restart_stream()
-        self._ooo_run = 0
-        self._ooo_last = -math.inf
+        elif verdict != ACCEPTED:
+            c['rejected'][verdict] += 1
+            return verdict
         # range checks after the stamp checks: a sample is late before it is implausible
         channel = ('force' if abs(f) > cfg.force_limit_n else
                    'velocity' if abs(v) > cfg.velocity_limit_m_s else
@@ -1025,6 +1034,7 @@ class LiveIdentifier:
         if self._count < self._cap:
             self._count += 1
         self._last_t = t
+        self._stamps.commit(t, now)
         self._seq += 1
         c['samples_accepted'] += 1
         return ''
@@ -1164,6 +1174,7 @@ class LiveIdentifier:
                 raise ValueError(f'`{name}` is read at start-up and cannot change while running')
         config = replace(self.config, **changes)
         self.config = config
+        self._stamps.rebase_after = int(config.restart_samples)
         return config
 
     def _process(self, window):

@@ -326,8 +326,9 @@ class IdentifierRuntime:
     # ---------------------------------------------------------------- samples (receiving thread)
     def receive(self, t, x, v, f, i):
         """Offer one sample (``LiveIdentifier.add_sample``), record its stamp age [s]."""
-        reason = self.live.add_sample(t, x, v, f, i)
-        self.ages.add(self.clock() - t)
+        now = self.clock()
+        reason = self.live.add_sample(t, x, v, f, i, now=now)
+        self.ages.add(now - t)
         return reason
 
     def receive_batch(self, t, x, v, f, i, first_index=None):
@@ -350,9 +351,10 @@ class IdentifierRuntime:
         """
         if first_index is not None:
             self.stream.update(first_index, len(t))
-        rejected = self.live.add_samples(t, x, v, f, i)
+        now = self.clock()
+        rejected = self.live.add_samples(t, x, v, f, i, now=now)
         if len(t):
-            self.ages.add(self.clock() - float(t[-1]))   # the batch's transport latency
+            self.ages.add(now - float(t[-1]))   # the batch's transport latency
         return rejected
 
     def reject(self, reason):

@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.exceptions import InvalidHandle, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -368,6 +369,19 @@ class DiagnosticsPublisher:
         if self._timer is not None:
             self._node.destroy_timer(self._timer)
             self._timer = None
+
+    def publish_final(self, timeout_s=1.0):
+        """
+        At shutdown: stop the timer, publish the last status, wait for its acknowledgements.
+
+        A node whose counts are compared with another's (e.g. frames sent and received) ends
+        with a status that holds its final counts; the wait (at most ``timeout_s``) lets the
+        readers (the suite's recorder) take it before the node goes.
+        """
+        self.close()
+        health = self.publish()
+        self._pub.wait_for_all_acked(Duration(seconds=float(timeout_s)))
+        return health
 
     def publish(self):
         """Build and publish the status now; return the :class:`Health` sent."""

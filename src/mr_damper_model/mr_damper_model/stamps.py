@@ -283,6 +283,29 @@ class StampGuard:
         return verdict
 
     # ---------------------------------------------------------------- a batch
+    def clean(self, t, now=None):
+        """
+        Tell whether a batch passes as a whole: increasing, after the reference, in the horizon.
+
+        The fast path of a caller that takes a clean batch with array operations (the
+        identifier): True means offering the stamps one by one would accept each; the caller
+        then takes them with :meth:`take_clean`. Nothing is counted here.
+        """
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or t.size == 0 or not np.isfinite(t).all():
+            return False
+        steps = np.diff(t)
+        first_ok = t[0] > self.last or (t[0] == self.last and self.accept_equal)
+        return bool(first_ok and t[0] <= self.limit(now) and (steps.size == 0 or (
+            (steps.min() > 0 or (self.accept_equal and steps.min() >= 0))
+            and steps.max() <= self.max_future_s)))
+
+    def take_clean(self, t, now=None):
+        """Take a batch that :meth:`clean` passed: count it accepted, its newest the reference."""
+        self._clear_runs()
+        self.n_accepted += len(t)
+        self.commit(t[-1], now)
+
     def screen(self, t, now=None, *, commit=None):
         """
         Judge a batch of stamps received together, in order; same verdicts as one by one.
@@ -322,17 +345,9 @@ class StampGuard:
             return out
         # fast path: finite, increasing, after the reference, each step within the horizon
         # (after a commit at the same now, the horizon of the next stamp is max_future_s)
-        steps = np.diff(t)
-        first_ok = t[0] > self.last or (t[0] == self.last and self.accept_equal)
-        if (first_ok and np.isfinite(t).all() and t[0] <= self.limit(now)
-                and (commit is None or commit.all())
-                and (steps.size == 0 or (
-                    (steps.min() > 0 or (self.accept_equal and steps.min() >= 0))
-                    and steps.max() <= self.max_future_s))):
+        if (commit is None or commit.all()) and self.clean(t, now):
             out.accepted[:] = True
-            self._clear_runs()
-            self.n_accepted += n
-            self.commit(t[-1], now)
+            self.take_clean(t, now)
             return out
         before = dict(self.counts)
         rebased = []
