@@ -17,7 +17,7 @@ from conftest import REPO
 
 #: rosdep key of each third-party Python module the suite uses (pip names in requirements.txt)
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'control': 'python3-control',
-               'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags',
+               'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags', 'mcap': 'python3-mcap',
                'matplotlib': 'python3-matplotlib', 'numba': 'python3-numba',
                'psutil': 'python3-psutil', 'pytest': 'python3-pytest', 'can': 'python3-can',
                'cantools': 'python3-cantools', 'dask': 'python3-dask',

@@ -274,3 +274,10 @@ class Diagnostics:
         """Return the status names seen so far."""
         with self._lock:
             return sorted(self._latest)
+
+
+def pump_lines(stream, lines):
+    """Put every line of ``stream`` on the queue ``lines``, then None at its end (a thread)."""
+    for line in iter(stream.readline, ''):
+        lines.put(line)
+    lines.put(None)

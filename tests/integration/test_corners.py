@@ -21,15 +21,9 @@ import time
 import pytest
 
 from conftest import VENV_BIN
+from integration.ros_helpers import pump_lines
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
-
-
-def _pump(stream, lines):
-    """Put every line of ``stream`` on the queue ``lines``, then None at its end."""
-    for line in iter(stream.readline, ''):
-        lines.put(line)
-    lines.put(None)
 
 
 def test_two_corners_run_in_their_namespaces(tmp_path):
@@ -44,7 +38,7 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
                             env=env)
     seen, ready = [], False
     lines = queue.Queue()
-    reader = threading.Thread(target=_pump, args=(proc.stdout, lines), daemon=True)
+    reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
     reader.start()
     deadline = time.monotonic() + 300.0                 # hang guard only, also without output
     try:

@@ -210,14 +210,20 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
 
 
 def test_launcher_exits_non_zero_when_a_node_dies(tmp_path):
-    """A node that dies (here: the car on an unknown road class) ends the run with status 1."""
+    """A node that dies at every start (the car on an unknown road class) ends the run: exit 1."""
     out = tmp_path / 'dead'
     # --duration 0: run until stopped, so only noticing the death ends the run (the timeout
     # below is a hang guard)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0',
            '--out', str(out), '--no-plots', '--set', 'quarter_car_node.road_class=Z',
-           '--domain-id', os.environ['ROS_DOMAIN_ID']]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+           '--domain-id', os.environ['ROS_DOMAIN_ID'], '--max-restarts', '2',
+           '--restart-backoff-s', '0.1']
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    assert 'quarter_car_node died (exit 2)' in proc.stderr
+    assert proc.stderr.count('quarter_car_node died (exit 2)') == 3     # restarted twice
+    assert proc.stderr.count('restarted quarter_car_node') == 2
+    assert 'quarter_car_node died 3 times within 60 s' in proc.stderr
     assert 'road' in proc.stderr.lower()              # its one-line error is shown
+    sup = json.loads((out / 'restarts.json').read_text())
+    assert [r['exit_code'] for r in sup['restarts']] == [2, 2]
+    assert sup['gave_up']['node'] == 'quarter_car_node' and sup['gave_up']['exit_code'] == 2

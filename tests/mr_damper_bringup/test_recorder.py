@@ -6,7 +6,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from mr_damper_bringup import topics
-from mr_damper_bringup.recorder import SuiteRecorder
+from mr_damper_bringup.recorder import (part_path, recording_parts, remove_recording,
+                                        SuiteRecorder, work_file)
 from mr_damper_model.bag_types import suite_typestore
 
 TS = suite_typestore()
@@ -232,3 +233,43 @@ def test_measurements_are_counted_in_every_namespace(tmp_path):
         for key in ('fl/measurement', 'fl/measurement', 'fr/measurement'):
             rec.write(key, raw, 1_000)
         assert rec.measurements() == 3 * 20          # samples: batches of 20
+
+
+def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path):
+    rec = tmp_path / 'suite.mcap'
+    assert part_path(rec, 0) == rec and part_path(rec, 2) == tmp_path / 'suite.2.mcap'
+    assert recording_parts(rec) == []
+    with SuiteRecorder(part_path(rec, 1), topics.topic_table(['measurement'])) as r:
+        r.write('measurement', TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES), 1)
+    killed = SuiteRecorder(rec, topics.topic_table(['measurement'])).open()   # never closed
+    killed.write('measurement', TS.serialize_cdr(_samples(0), topics.DAMPER_SAMPLES), 0)
+    (tmp_path / 'suite.10.mcap').write_bytes(b'')          # an empty part (a recorder that
+    (tmp_path / 'suites.mcap').write_bytes(b'')            # wrote nothing), not another stem
+    assert recording_parts(rec) == [(0, work_file(rec)), (1, part_path(rec, 1)),
+                                    (10, tmp_path / 'suite.10.mcap')]
+    with pytest.raises(ValueError, match='already exists'):      # never over an earlier part
+        SuiteRecorder(part_path(rec, 1))
+    remove_recording(rec)
+    assert recording_parts(rec) == [] and sorted(p.name for p in tmp_path.iterdir()) == [
+        'suites.mcap']
+
+
+@pytest.mark.parametrize('chunk_s', [1.0, 0.25])
+def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
+    """Chunks are closed every ``chunk_s`` of log time: a cut file holds all but the last one."""
+    from mr_damper_model.mcap_scan import McapScan
+    raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)
+    rec = SuiteRecorder(tmp_path / 'k.mcap', topics.topic_table(['measurement']), typestore=TS,
+                        chunk_s=chunk_s).open()
+    n = 1000                                    # 10 s at 100 messages/s: far below 1 MiB
+    for k in range(n):
+        rec.write('measurement', raw, 10_000_000 * k)
+    # killed here: nothing closes the file; read what is on disk
+    scan = McapScan(work_file(tmp_path / 'k.mcap'))
+    got = [t for _, _, t, _ in scan.messages()]
+    assert scan.complete is False
+    assert got == [10_000_000 * k for k in range(len(got))]      # the first ones, in order
+    per_chunk = int(round(chunk_s / 0.01)) + 1                   # a chunk ends with its span
+    assert n - per_chunk <= len(got) < n
+    with pytest.raises(ValueError, match='chunk_s'):
+        SuiteRecorder(tmp_path / 'x.mcap', chunk_s=-1.0)

@@ -348,3 +348,24 @@ def test_every_registered_model_can_be_chosen():
     from mr_damper_model.models import MODEL_NAMES
     assert sorted(MODEL_CHOICES) == sorted(MODEL_NAMES)
     assert MULTI_CURRENT_MODEL in MODEL_CHOICES
+
+
+def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path, capsys):
+    """mr-damper-identify reads a footer-less MCAP up to its last chunk and says where it ends."""
+    from mr_damper_model.bag_io import write_bag
+    from mr_damper_model.data import DamperData, read_csv
+    d = read_csv(QFILE)
+    reps = 30                                   # several 1 MiB chunks of measurements
+    n = d.t.size
+    t = np.concatenate([d.t + k * (d.t[-1] + d.t[1] - d.t[0]) for k in range(reps)])
+    data = DamperData(t, *(np.tile(getattr(d, c), reps) for c in 'xvfi'))
+    write_bag(tmp_path / 'bag', data, storage='mcap')
+    raw = (tmp_path / 'bag' / 'bag.mcap').read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(raw[:len(raw) // 2])
+    assert run([str(cut), '--json']) == 0
+    out = capsys.readouterr()
+    doc = json.loads(out.out)
+    got = doc['samples'] if 'samples' in doc else doc['files'][0]['samples']
+    assert n <= got < reps * n
+    assert f'warning: {cut}: truncated' in out.err and f'{got} messages read' in out.err

@@ -85,6 +85,8 @@ class Suite:
         exe = self.bin_dir / self.nodes[name]
         if not exe.exists():
             raise SuiteError(f'console script {exe} not found: run launch_scripts/setup_venv.sh')
+        if name in self.logs:
+            self.logs[name].close()         # the log of the previous (dead) process
         log = open(self.out / 'logs' / f'{name}.log', 'a')
         log.write(f'--- start {time.strftime("%H:%M:%S")}: {" ".join(self.command(name))}\n')
         log.flush()
@@ -96,7 +98,16 @@ class Suite:
         self.starts[name] = time.monotonic()
         self.stopping.discard(name)
         self.deaths.pop(name, None)
+        self.write_pids()
         return self.procs[name]
+
+    def write_pids(self):
+        """Write ``out/pids.json``, ``{node: process id}`` of the latest start of each node."""
+        import json
+        path = self.out / 'pids.json'
+        tmp = path.with_name(path.name + '.tmp')
+        tmp.write_text(json.dumps({name: proc.pid for name, proc in self.procs.items()}))
+        os.replace(tmp, path)
 
     def start_all(self):
         """Start every node, in order."""

@@ -133,9 +133,12 @@ def _choose_topic(connections, topic, name):
     return topic, conns
 
 
-def read_bag(path, topic=None):
+def read_bag(path, topic=None, *, recovery=None):
     """
     Read the measurement samples of a rosbag2.
+
+    A single ``.mcap`` file that rosbags cannot open (no footer: its writer was killed) is read
+    up to its last complete chunk (:class:`~mr_damper_model.mcap_scan.McapScan`).
 
     Parameters
     ----------
@@ -145,6 +148,10 @@ def read_bag(path, topic=None):
         Measurement topic (``DamperSamples`` batches or ``sensor_msgs/msg/JointState``, suite
         layout). Default: :data:`MEASUREMENT_TOPIC` if the bag has it, else the bag's only
         topic of either type.
+    recovery : dict, optional
+        Filled for a truncated MCAP file that was read in part: ``complete`` (False),
+        ``messages``, ``first_log_time_s``, ``last_log_time_s``, ``error`` and ``note`` (one
+        line saying where the file ends).
 
     Returns
     -------
@@ -166,17 +173,41 @@ def read_bag(path, topic=None):
         with _open(path) as reader:
             topic, conns = _choose_topic(reader.connections, topic, name)
             for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
-                msg = reader.deserialize(raw, conn.msgtype)
-                blocks.append(_batch(msg, k, name) if conn.msgtype == SAMPLES_TYPE
-                              else np.array([_row(msg, k, name)], dtype=float))
+                blocks.append(_block(reader.deserialize(raw, conn.msgtype), conn.msgtype, k,
+                                     name))
     except DataError:
         raise
     except Exception as exc:  # rosbags raises several unrelated types for broken bags
-        raise DataError(f'{name}: cannot read bag ({type(exc).__name__}: {exc})') from None
+        if path.suffix != '.mcap' or path.is_dir():
+            raise DataError(f'{name}: cannot read bag ({type(exc).__name__}: {exc})') from None
+        topic, blocks = _read_cut_mcap(path, topic, name, exc, recovery)
     if not blocks:
         raise DataError(f'{name}: topic {topic} has no messages')
     t, x, v, f, i = np.concatenate(blocks).T
     return DamperData(t, x, v, f, i, source=name)
+
+
+def _read_cut_mcap(path, topic, name, exc, recovery):
+    """Read the measurements of an MCAP file rosbags refused (``exc``) up to its last chunk."""
+    from .mcap_scan import Channel, McapScan
+    scan = McapScan(path)
+    conns = [Channel(t, m) for t, (m, _) in scan.topics().items()]
+    if scan.complete or not scan.count:
+        raise DataError(f'{name}: cannot read bag ({type(exc).__name__}: {exc}); '
+                        f'{scan.where()}') from None
+    topic, _ = _choose_topic(conns, topic, name)
+    ts = _typestore()
+    blocks = [_block(scan.deserialize(raw, msgtype, ts), msgtype, k, name)
+              for k, (_, msgtype, _, raw) in enumerate(scan.messages({topic}))]
+    if recovery is not None:
+        recovery.update(scan.summary(), note=scan.where())
+    return topic, blocks
+
+
+def _block(msg, msgtype, k, name):
+    """Rows ``(t, x, v, f, i)`` of one measurement message of either layout."""
+    return (_batch(msg, k, name) if msgtype == SAMPLES_TYPE
+            else np.array([_row(msg, k, name)], dtype=float))
 
 
 def _batch(msg, k, name):

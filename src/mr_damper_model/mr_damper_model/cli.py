@@ -185,7 +185,10 @@ def read_record(path, *, topic=None):
     """
     from .bag_io import is_bag, read_bag
     from .data import read_csv, validate
-    data = read_bag(path, topic) if is_bag(path) else read_csv(path)
+    recovery = {}
+    data = read_bag(path, topic, recovery=recovery) if is_bag(path) else read_csv(path)
+    if recovery:        # a recording whose writer was killed: say what is used of it
+        print(f'{PROG}: warning: {recovery["note"]}', file=sys.stderr)
     return validate(data, name=path)
 
 
