@@ -77,8 +77,9 @@ def load_config(config='sim', params=None):
 
     Parameters
     ----------
-    config : {'sim', 'replay', 'hil', 'can'}
-        Which shipped configuration (``config/suite_<config>.yaml`` of this package).
+    config : {'sim', 'replay', 'hil', 'can', 'full-car'}
+        Which shipped configuration (``config/suite_<config>.yaml`` of this package, ``-``
+        read as ``_``).
     params : path, optional
         A parameter YAML of your own instead (same layout).
 
@@ -88,7 +89,7 @@ def load_config(config='sim', params=None):
         ``{node_name_or_/**: {'ros__parameters': {...}}}``.
 
     """
-    path = Path(params) if params else CONFIG_DIR / f'suite_{config}.yaml'
+    path = Path(params) if params else CONFIG_DIR / f'suite_{config.replace("-", "_")}.yaml'
     try:
         cfg = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as exc:

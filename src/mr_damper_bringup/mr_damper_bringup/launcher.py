@@ -21,7 +21,8 @@ id of each node's latest start.
 Usage::
 
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
-        [--config sim|replay|hil|can] [--file PATH ...] [--real-time | --faster | --rate-factor F]
+        [--config sim|replay|hil|can|full-car] [--file PATH ...]
+        [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
         [--external-controller] [--corners fl,fr,rl,rr]
         [--max-restarts 3] [--restart-window-s 60] [--restart-backoff-s 0.5]
@@ -35,6 +36,10 @@ then the plant only and its law runs in the controller node (docs/controller-nod
 (``/fl/mr_damper/measurement``, status ``fl/mr_damper_identifier``, ...; :func:`~mr_damper_bringup.
 config.corner_configs`), recorded into the one ``suite.mcap``; the summary then lists each
 corner's figures from its nodes' diagnostics (no plots).
+
+``--config full-car`` runs four rig + identifier pairs in ``fl``, ``fr``, ``rl``, ``rr`` and one
+``full_car_node`` (the 7-DOF car on the four identified models, :mod:`mr_damper_bringup.
+full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``.
 
 Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
 down, or no summary could be made), 2 bad command line / config.
@@ -51,8 +56,12 @@ import time
 
 import yaml
 
+from mr_damper_model.columnlog import finite_or_none
+
 from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
                      recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)
+from .full_car_suite import (FULL_CAR, FULL_CAR_NODE, full_car_configs,
+                             full_car_progress_line, full_car_summary, start_full_car)
 from .processes import CLEAN_EXIT, ProcessStats, Suite
 from .recorder import part_path, remove_recording
 from .report import RECORDING
@@ -207,11 +216,13 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can'), default='sim',
+    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can', 'full-car'),
+                   default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
                         'hil: the rig follows the car (hardware in the loop, docs/hil.md); '
                         'can: sim with the damper current through a CAN bridge and a simulated '
-                        'driver (docs/can.md)')
+                        'driver (docs/can.md); full-car: four rig / identifier pairs (fl, fr, '
+                        'rl, rr) and the 7-DOF full_car_node (docs/full-car.md)')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -272,6 +283,9 @@ def main(argv=None):
     try:
         cfg = resolve_config(args, out)
         corners = corner_configs(cfg, args.corners, out) if args.corners else {}
+        full_car = args.config == 'full-car'
+        if full_car:
+            corners, car_cfg = full_car_configs(cfg, out, args.duration)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -295,10 +309,15 @@ def main(argv=None):
             corner_file.write_text(yaml.safe_dump(corner_cfg, sort_keys=False))
             record_args += ['--namespace', corner]
             for name, exe in suite_nodes(cfg).items():
+                if full_car and name not in (RIG, IDENT):
+                    continue
                 nodes[f'{corner}.{name}'] = exe
                 node_args[f'{corner}.{name}'] = ['--ros-args', '-r', f'__ns:=/{corner}',
                                                  '--params-file', corner_file]
         node_args[RECORDER] = record_args
+        if full_car:
+            nodes.update(FULL_CAR_NODE)
+            node_args[FULL_CAR] = start_full_car(car_cfg, out)
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
     else:
         suite = Suite(params_file, out, domain_id, args.bin_dir,
@@ -349,7 +368,8 @@ def main(argv=None):
                 stats.sample()
                 next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
-                print(corner_progress_line(monitor, elapsed, list(corners)) if corners
+                print(full_car_progress_line(monitor, elapsed) if full_car
+                      else corner_progress_line(monitor, elapsed, list(corners)) if corners
                       else progress_line(monitor, elapsed), flush=True)
                 next_progress += args.progress_s
             interrupted.wait(0.1)
@@ -358,7 +378,7 @@ def main(argv=None):
         elapsed = time.monotonic() - t_start
     finally:
         if corners:
-            order = [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
+            order = [FULL_CAR] + [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
             codes = suite.stop(order=order,
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
@@ -393,9 +413,14 @@ def main(argv=None):
                            exit_codes={n: c for n, c in codes.items()},
                            restarts=supervisor.restarts if supervisor else [],
                            gave_up=supervisor.gave_up if supervisor else None)
-            (out / 'summary.json').write_text(json.dumps(summary, indent=2))
+            if full_car:
+                summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
+                                                       out, plots=not args.no_plots)
+            (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
+            if full_car:
+                print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
         else:
             summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
                                          fallback={'config': cfg, 'status': last_status})

@@ -144,3 +144,26 @@ def plot_all(out, meas, params_log, summary, log, passive_trace):
              plot_ride(out / 'ride.png', log, passive_trace,
                        (summary.get('ride') or {}).get('controller', 'skyhook'))]
     return [p for p in paths if p is not None]
+
+
+def plot_body_modes(path, t, acc, t_passive, acc_passive, controller, t_normal=0.0):
+    """
+    Full car: body heave, pitch and roll accelerations, live against passive; return the path.
+
+    ``acc`` and ``acc_passive`` have columns heave [m/s^2], pitch and roll [rad/s^2]; the time
+    before every corner was first on its model (``t < t_normal``) is shaded.
+    """
+    plt = _plt()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    units = ('heave [m/s^2]', 'pitch [rad/s^2]', 'roll [rad/s^2]')
+    for k, ax in enumerate(axes):
+        ax.plot(t_passive, acc_passive[:, k], lw=0.6, color='0.6',
+                label='passive (safe current), same road')
+        ax.plot(t, acc[:, k], lw=0.6, color='C0', label=f'live {controller}')
+        ax.set_ylabel(units[k])
+        if t_normal > 0:
+            ax.axvspan(0.0, t_normal, color='red', alpha=0.08, lw=0,
+                       label='a corner in fail-safe')
+    axes[0].legend(fontsize=8)
+    axes[-1].set_xlabel('simulated time [s]')
+    return _save(plt, fig, axes, path)

@@ -19,3 +19,8 @@ def semi_active_controller_node():
 def state_estimator_node():
     """``ros2 run quarter_car_sim state_estimator_node``."""
     return early_main('quarter_car_sim.state_estimator_node')
+
+
+def full_car_node():
+    """``ros2 run quarter_car_sim full_car_node``."""
+    return early_main('quarter_car_sim.full_car_node')

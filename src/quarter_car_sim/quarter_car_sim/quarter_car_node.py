@@ -441,14 +441,7 @@ class QuarterCarNode(Node):
                               wall, latency, lateness)
 
     def _on_control_error(self, failed):
-        if rclpy.ok(context=self.context):
-            # a dead control loop must not leave a node that looks alive: say so on
-            # /diagnostics (ERROR), then end the process (exit status 1)
-            self.get_logger().error(f'control loop stopped: {failed}')
-            try:
-                self.diagnostics.publish()
-            finally:
-                rclpy.try_shutdown(context=self.context)
+        end_on_control_error(self, failed)
 
     @property
     def failed(self):
@@ -518,16 +511,39 @@ class QuarterCarNode(Node):
                 print(f'quarter_car_node: cannot write {self.log_file}: {exc}', file=sys.stderr)
 
 
+def end_on_control_error(node, failed):
+    """
+    Say on ``/diagnostics`` that a car node's control loop died, then shut its context down.
+
+    A dead control loop must not leave a node that looks alive: ERROR on ``/diagnostics``
+    (``node.diagnostics``), then the process ends (exit status 1, :func:`run_car_node`).
+    """
+    if rclpy.ok(context=node.context):
+        node.get_logger().error(f'control loop stopped: {failed}')
+        try:
+            node.diagnostics.publish()
+        finally:
+            rclpy.try_shutdown(context=node.context)
+
+
+def run_car_node(node_class, name, args=None):
+    """
+    Run a car node with a control thread (``stop()``, ``failed``); return the exit status.
+
+    A short GIL switch interval (the control thread waits at most ~0.5 ms for the executor);
+    ValueError, OSError: bad parameter, road or truth file (exit status 2). A
+    SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
+    sets and runs the diagnostics timer (with plant rig also the rig's measurements; with the
+    EventsExecutor here the rig received a fifth of the commands the control thread sent).
+    """
+    sys.setswitchinterval(0.0005)
+    return run_node(node_class, name, (ValueError, OSError),
+                    run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
+
+
 def main(args=None):
     """Entry point of ``quarter_car_node``."""
-    # short GIL switch interval: the control thread waits at most ~0.5 ms for the executor
-    sys.setswitchinterval(0.0005)
-    # ValueError, OSError: bad parameter, road or truth file
-    # SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
-    # sets and runs the diagnostics timer (with plant rig also the rig's measurements; with the
-    # EventsExecutor here the rig received a fifth of the commands the control thread sent)
-    return run_node(QuarterCarNode, 'quarter_car_node', (ValueError, OSError),
-                    run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
+    return run_car_node(QuarterCarNode, 'quarter_car_node', args)
 
 
 def _finish(node):

@@ -1,0 +1,205 @@
+"""
+The full-car run of ``mr-damper-suite --config full-car``: configuration, progress, summary.
+
+Four rig / identifier pairs run in the namespaces ``fl``, ``fr``, ``rl``, ``rr`` (as
+``--corners fl,fr,rl,rr`` does, :func:`mr_damper_bringup.config.corner_configs`) and one
+``full_car_node`` in the root namespace subscribes the four identified models and controls the
+7-DOF car. The summary's ``full_car`` section (:func:`full_car_summary`) takes the node's final
+status (``/diagnostics``) and its body log (``full_car_body.npz``), and compares the body's
+ISO 2631-1 figures with the same car on the same road at the safe current, simulated offline
+here with :func:`quarter_car_sim.full_car.simulate.simulate_full_car`.
+"""
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .config import IDENT, node_params, RIG, set_param
+
+#: The full-car node's section name, console script and status key.
+FULL_CAR = 'full_car_node'
+FULL_CAR_NODE = {FULL_CAR: 'full_car_node'}
+#: The body log the node writes at its end.
+BODY_LOG = 'full_car_body.npz'
+#: The four corner namespaces.
+FULL_CAR_CORNERS = ('fl', 'fr', 'rl', 'rr')
+
+
+def full_car_configs(cfg, out, duration_s):
+    """
+    Split a full-car run's parameters: one dict per corner (rig + identifier), one for the car.
+
+    Parameters
+    ----------
+    cfg : dict
+        The run's parameters (:func:`mr_damper_bringup.config.resolve_config` of
+        ``config/suite_full_car.yaml``).
+    out : path
+        Output folder.
+    duration_s : float
+        Run time [s, wall clock] (0 = until stopped): the car's road is made long enough.
+
+    Returns
+    -------
+    corners : dict
+        corner -> parameter dict of its rig and identifier (namespaced sections).
+    car : dict
+        The car node's parameter dict (``/**`` and ``full_car_node``).
+
+    """
+    from .config import corner_configs
+    stacks = {k: v for k, v in cfg.items() if k in ('/**', RIG, IDENT)}
+    corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
+    car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR)}
+    set_param(car, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
+    params = node_params(car, FULL_CAR)
+    rtf = float(params.get('real_time_factor', 1.0)) or 20.0
+    need = float(duration_s) * rtf + 30.0 if duration_s else 3600.0
+    if float(params.get('road_duration_s', 300.0)) < need:
+        set_param(car, FULL_CAR, 'road_duration_s', min(need, 3600.0))
+    set_param(car, FULL_CAR, 'log_max_s', min(need, 3600.0))
+    return corners, car
+
+
+def start_full_car(car_cfg, out):
+    """Write the car node's parameter file into ``out``; return its command-line arguments."""
+    import yaml
+    path = Path(out) / 'suite_params_full_car.yaml'
+    path.write_text(yaml.safe_dump(car_cfg, sort_keys=False))
+    return ['--ros-args', '--params-file', str(path)]
+
+
+def full_car_progress_line(monitor, elapsed):
+    """Return one progress line: each corner's samples, valid windows and its mode in the car."""
+    status = monitor.snapshot()[0]
+    car = (status.get(FULL_CAR) or {}).get('corners') or {}
+    parts = []
+    for c in FULL_CAR_CORNERS:
+        ident = status.get(f'{c}/identifier') or {}
+        parts.append(f'{c}: {ident.get("samples_received", 0)} samples, '
+                     f'{ident.get("windows_valid", 0)} valid, car '
+                     f'{(car.get(c) or {}).get("mode", "?")}')
+    return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
+
+
+def passive_body(car_params, t_end, dt):
+    """
+    Simulate the car at its safe current on the node's road and plants, offline.
+
+    Parameters
+    ----------
+    car_params : dict
+        The full-car node's parameters (road, speed_m_s, road_seed, road_duration_s, plant,
+        truth_file, safe_current_a, settle_s, rate_hz).
+    t_end : float
+        Last recorded time [s].
+    dt : float
+        Control period [s].
+
+    Returns
+    -------
+    t : ndarray (n,)
+    acc : ndarray (n, 3)
+        Body heave, pitch and roll accelerations.
+
+    """
+    from mr_damper_model.plant import make_plant
+    from quarter_car_sim.full_car import (FullCarController, make_full_car_law,
+                                          make_two_track_road, PASSENGER_CAR,
+                                          simulate_full_car)
+    from quarter_car_sim.full_car.simulate import OFFLINE_TIMEOUT_S
+    g = car_params.get
+    safe = float(g('safe_current_a', 0.5))
+    road = make_two_track_road(g('road', 'iso8608-C'), PASSENGER_CAR,
+                               speed_m_s=float(g('speed_m_s', 20.0)),
+                               duration_s=float(g('road_duration_s', 300.0)), dt=dt,
+                               rng=int(g('road_seed', 1)))
+    plants = [make_plant(g('plant', 'spencer'), g('truth_file', '')) for _ in range(4)]
+    ctrl = FullCarController(make_full_car_law(f'passive@{safe:g}A', PASSENGER_CAR),
+                             timeout_s=OFFLINE_TIMEOUT_S, safe_current_a=safe,
+                             i_min_a=PASSENGER_CAR.i_min, i_max_a=PASSENGER_CAR.i_max)
+    res = simulate_full_car(PASSENGER_CAR, road, None, plants, dt=dt,
+                            settle_s=float(g('settle_s', 0.5)), controller=ctrl,
+                            duration_s=t_end)
+    return res.t, res.acc[:, :3]
+
+
+def _iso(t, acc):
+    from quarter_car_sim.full_car.metrics import iso2631_seat
+    if len(t) < 2:
+        return None
+    m = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
+    m['duration_s'] = float(t[-1] - t[0])
+    return m
+
+
+def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
+    """
+    Return the summary's ``full_car`` section (and write ``body_modes.png`` with ``plots``).
+
+    Parameters
+    ----------
+    monitor : mr_damper_bringup.monitor_node.Monitor
+        The launcher's monitor (last statuses).
+    corners_summary : dict
+        :func:`mr_damper_bringup.launcher.corner_summary` of the four corners (identifier
+        counts, samples lost).
+    car_cfg : dict
+        The car node's parameter dict (:func:`full_car_configs`).
+    out : path
+        Output folder (``full_car_body.npz`` is read from there).
+    plots : bool
+        Also plot the body accelerations against passive.
+
+    Returns
+    -------
+    dict
+        ``corners`` {corner: ``windows_valid``, ``samples_lost``, ``params_accepted``,
+        ``params_rejected``, ``failsafe_s``, ``first_normal_t_sim``, ``mode``},
+        ``controller``, ``steps``, ``iso2631`` (the node's figures of the whole run, body
+        centre), ``live`` / ``passive`` (ISO 2631-1 of the body log and of the safe current
+        offline, on the window after all four corners were first normal, ``window_s``),
+        ``passive_current_a``, ``plot``.
+
+    """
+    out = Path(out)
+    st = monitor.snapshot()[0].get(FULL_CAR) or {}
+    car_corners = st.get('corners') or {}
+    section = {'controller': st.get('controller'), 'steps': st.get('steps'),
+               'corners_normal': st.get('corners_normal'), 'iso2631': st.get('iso2631'),
+               'dropped': st.get('dropped'), 'corners': {}}
+    for c in FULL_CAR_CORNERS:
+        d = car_corners.get(c) or {}
+        ident = corners_summary.get(c) or {}
+        section['corners'][c] = {
+            'windows_valid': ident.get('windows_valid'),
+            'samples_lost': ident.get('samples_lost'),
+            'params_accepted': d.get('params_accepted'),
+            'params_rejected': d.get('params_rejected'), 'failsafe_s': d.get('failsafe_s'),
+            'first_normal_t_sim': d.get('first_normal_t_sim'), 'mode': d.get('mode')}
+    path = out / BODY_LOG
+    if not path.is_file():
+        section['note'] = f'no {BODY_LOG}: no live / passive comparison'
+        return section
+    with np.load(path) as z:
+        t, acc = z['t'], z['acc']
+    if len(t) < 10:
+        section['note'] = f'{BODY_LOG} holds {len(t)} samples: no comparison'
+        return section
+    params = node_params(car_cfg, FULL_CAR)
+    dt = 1.0 / float(params.get('rate_hz', 1000.0))
+    t_p, acc_p = passive_body(params, float(t[-1]), dt)
+    firsts = [section['corners'][c]['first_normal_t_sim'] for c in FULL_CAR_CORNERS]
+    firsts = [f for f in firsts if isinstance(f, (int, float)) and math.isfinite(f)]
+    t0 = max(max(firsts), 0.0) if len(firsts) == 4 else 0.0
+    live_w, pas_w = t >= t0, t_p >= t0
+    section.update(window_s=[t0, float(t[-1])], live=_iso(t[live_w], acc[live_w]),
+                   passive=_iso(t_p[pas_w], acc_p[pas_w]),
+                   passive_current_a=float(params.get('safe_current_a', 0.5)))
+    if len(firsts) < 4:
+        section['note'] = 'not every corner left fail-safe: the whole run is compared'
+    if plots:
+        from .plots import plot_body_modes
+        section['plot'] = str(plot_body_modes(out / 'body_modes.png', t, acc, t_p, acc_p,
+                                              st.get('controller') or 'live', t0))
+    return section

@@ -1,0 +1,248 @@
+"""
+Full-car node: the 7-DOF car on four MR dampers it only knows through four identifiers.
+
+``ros2 run quarter_car_sim full_car_node --ros-args --params-file suite_full_car.yaml``
+
+A control thread (:class:`quarter_car_sim.control_thread.ControlThread`) steps the ROS-free
+:class:`quarter_car_sim.full_car.runtime.FullCarRuntime` at ``rate_hz``, paced against the
+monotonic wall clock (real time times ``real_time_factor``; 0 = as fast as possible): the
+full-car law (modal skyhook by default) chooses four corner forces, each corner's supervisor and
+the inverse of that corner's identified model turn them into four coil currents (a corner
+without a valid, fresh model gets ``safe_current_a``; the others go on controlling), and the car
+with its four "true" damper plants advances one period on the two-track road. Parameter
+messages and ``/diagnostics`` go through the executor in the main thread; ages and timeouts of
+parameter sets are on the node's clock (ROS time).
+
+Topics (relative; ``<c>`` is each of ``fl``, ``fr``, ``rl``, ``rr``, the namespaces of the four
+rig / identifier pairs of ``mr-damper-suite --config full-car``)
+-------------------------------------------------------------------------------------------
+- sub ``<c>/mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters; reliable,
+  transient local, depth 1): that corner's identified model;
+- pub ``<c>/quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState at
+  ``state_rate_hz``): the corner as a quarter car (body point above the wheel, wheel, travel,
+  damper force, tyre load, road, current command, that corner's fail-safe mode and reason);
+- pub ``<c>/mr_damper/current_command`` (std_msgs/Float64 [A] at ``state_rate_hz``): the
+  corner's current command (applied inside the node; published for the record);
+- pub ``full_car/body_state`` (sensor_msgs/JointState at ``state_rate_hz``; header.stamp =
+  sim time): joints ``heave``, ``pitch``, ``roll`` with position z [m], theta [rad], phi [rad],
+  velocity their rates and effort their accelerations [m/s^2, rad/s^2] (the quarter car's
+  JointState convention: a standard message of named generalised coordinates and their rates,
+  readable by any tool, no new interface type);
+- pub ``/diagnostics`` (status name ``full_car_node``): OK with four corners normal, WARN
+  naming the corners in fail-safe, ERROR when the control thread died; values: controller,
+  steps, t_sim, corners_normal, corners.<c>.* (mode, reason, failsafe_s, params_accepted,
+  params_rejected.<reason>, normal_steps, current_a, ...), iso2631.* (a_wz, a_w_pitch,
+  a_w_roll, a_v, VDVs, crest factors of the body centre since t = 0), loop.*,
+  late_reanchors, dropped.<reason>.
+
+At the end the node publishes a final status and, with ``log_file``, writes the body's
+recorded time and accelerations (``t``, ``acc`` with columns heave, pitch, roll) as a NumPy
+``.npz`` file for the suite's report.
+"""
+import sys
+import threading
+
+import numpy as np
+from rclpy.node import Node
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from mr_damper_model import messages
+from mr_damper_model.health import ERROR, WARN, worst
+from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                        LATCHED_QOS, node_time_s, Param)
+from mr_damper_model.plant import make_plant
+from quarter_car_sim import live_loop
+from quarter_car_sim.control_thread import ControlThread
+from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
+from quarter_car_sim.full_car.road import make_two_track_road
+from quarter_car_sim.full_car.runtime import BODY_JOINTS, corner_car_state, FullCarRuntime
+from quarter_car_sim.quarter_car_node import end_on_control_error, run_car_node
+from quarter_car_sim.semi_active_controller_node import car_state_to_msg, offer_parameters
+
+#: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
+PARAMETERS = (
+    Param('rate_hz', 1000.0, 'Control rate [Hz]', 10.0, 10000.0),
+    Param('real_time_factor', 1.0, 'Simulated seconds per wall second (0 = as fast as '
+          'possible) [-]', 0.0, 1000.0),
+    Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
+          'full-car-clipped-optimal, per-corner-<law> (e.g. per-corner-skyhook) or '
+          'passive@<I>A'),
+    Param('safe_current_a', 0.5, 'Coil current of a corner in fail-safe [A]', 0.0, 10.0),
+    Param('param_timeout_s', 1.0, 'A corner\'s identified parameters older than this are '
+          'stale [s, node clock]', 0.01, 3600.0),
+    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
+    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
+    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
+          '[A]', 0.0, 10.0),
+    Param('hold_on_reject', False, 'Keep a corner\'s model when a later message is refused '
+          '(until stale)'),
+    Param('road', 'iso8608-C', 'Two-track road: iso8608-<class> (A..H) or an event of '
+          'quarter_car_sim.full_car.road.EVENTS'),
+    Param('speed_m_s', 20.0, 'Vehicle speed [m/s]', 0.1, 100.0),
+    Param('road_seed', 1, 'Seed of the random road [-]', 0, 2 ** 31 - 1),
+    Param('road_duration_s', 300.0, 'Road length in time (then held flat) [s]', 1.0, 3600.0),
+    Param('settle_s', live_loop.SETTLE_S, 'Time run before the road starts (settling) [s]',
+          0.0, 60.0),
+    Param('plant', 'spencer', 'True damper plant of every corner (same as the rigs): spencer '
+          'or kwok-current'),
+    Param('truth_file', '', 'JSON parameter file of the true dampers, as the rigs (default: '
+          'preset)'),
+    Param('state_rate_hz', 100.0, 'Rate of the corner states, current commands and body state '
+          '(0 = none) [Hz]', 0.0, 10000.0),
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (1..99; 0 = normal '
+          'scheduling); only with real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
+    Param('log_max_s', 600.0, 'Longest body history kept for the ISO 2631-1 figures [s]',
+          0.0, 3600.0),
+    Param('log_file', '', 'At the end write the body accelerations (t, acc) to this .npz file '
+          '("" = none)'),
+)
+
+
+class FullCarNode(Node):
+    """
+    Thin ROS adapter over :class:`~quarter_car_sim.full_car.runtime.FullCarRuntime`.
+
+    Topics and status: see the module docstring. Keyword arguments (e.g. ``context``,
+    ``parameter_overrides``) go to ``rclpy.node.Node``.
+    """
+
+    def __init__(self, **node_kwargs):
+        super().__init__('full_car_node', **node_kwargs)
+        self.lock = threading.Lock()
+        p = self.p = declare_parameters(self, PARAMETERS)
+        self.rate_hz = p['rate_hz']
+        self.rtf = p['real_time_factor']
+        self.log_file = p['log_file']
+        dt = 1.0 / self.rate_hz
+        road = make_two_track_road(p['road'], PASSENGER_CAR, speed_m_s=p['speed_m_s'],
+                                   duration_s=p['road_duration_s'], dt=dt,
+                                   rng=int(p['road_seed']))
+        plants = [make_plant(p['plant'], p['truth_file']) for _ in CORNERS]
+        self.rt = FullCarRuntime(
+            PASSENGER_CAR, road, plants, p['controller'], dt=dt,
+            timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
+            i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
+            min_current_span_a=p['min_current_span_a'], hold_on_reject=p['hold_on_reject'],
+            settle_s=p['settle_s'], log_max_s=p['log_max_s'])
+        self.drops = DropCounter(self.get_logger())
+        self.state_pubs, self.cmd_pubs, self.state_msgs = [], [], []
+        for i, c in enumerate(CORNERS):
+            self.state_pubs.append(self.create_publisher(QuarterCarState,
+                                                         f'{c}/quarter_car/car_state', 10))
+            self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
+                                                       10))
+            msg = QuarterCarState()
+            msg.header.frame_id = f'{c}/quarter_car'
+            self.state_msgs.append(msg)
+            self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
+                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
+                                 'parameters_lost')
+        self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
+        self.body_msg = JointState()
+        self.body_msg.header.frame_id = 'full_car'
+        self.body_msg.name = list(BODY_JOINTS)
+        self.cmd_msg = Float64()
+        self.every = (max(1, int(round(self.rate_hz / p['state_rate_hz'])))
+                      if p['state_rate_hz'] > 0 else 0)
+        self.diagnostics = DiagnosticsPublisher(self, self.health,
+                                                period_s=p['diagnostics_period_s'],
+                                                hardware_id='full_car', drops=self.drops)
+        self.control = ControlThread(
+            self._step, live_loop.Pacer(dt, self.rtf),
+            live_loop.LoopTiming(dt / self.rtf if self.rtf > 0 else None),
+            on_error=lambda failed: end_on_control_error(self, failed),
+            priority=int(p['realtime_priority']) if self.rtf > 0 else 0)
+        self.control.start()
+        self.get_logger().info(
+            f'{self.rt.controller.name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
+            f'{road.name}, plants {p["plant"]}; fail-safe {p["safe_current_a"]:g} A, timeout '
+            f'{p["param_timeout_s"]:g} s')
+
+    def on_params(self, i, msg):
+        """Offer a parameter message to corner ``i``'s supervisor (at the node clock's now)."""
+        now = node_time_s(self)
+        with self.lock:
+            offer_parameters(self.rt.supervisor(i), msg, now, self.get_logger())
+
+    def _step(self, wall):
+        """One control step (control thread): command, advance, publish at the state rate."""
+        now = node_time_s(self)
+        with self.lock:
+            _, currents, new = self.rt.step(now)
+            modes = [core.mode_reason() for core in self.rt.controller.cores]
+        self.control.command_sent()
+        if not self.every or self.rt.steps % self.every:
+            return
+        for i in range(4):
+            mode, reason = modes[i]
+            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+                corner_car_state(new, i), currents[i], mode == 'normal', reason,
+                self.state_msgs[i]))
+            self.cmd_msg.data = float(currents[i])
+            self.drops.publish(self.cmd_pubs[i], self.cmd_msg)
+        messages.seconds_to_stamp(max(new.t, 0.0), self.body_msg.header.stamp)
+        self.body_msg.position = [float(x) for x in new.q[:3]]
+        self.body_msg.velocity = [float(x) for x in new.v[:3]]
+        self.body_msg.effort = [float(x) for x in new.acc[:3]]
+        self.drops.publish(self.body_pub, self.body_msg)
+
+    @property
+    def failed(self):
+        """Why the control thread died (None while it did not)."""
+        return self.control.failed
+
+    def status(self):
+        """Return the status dict (the values of the diagnostics)."""
+        with self.lock:
+            st = self.rt.status()
+            t, acc = self.rt.body_log()
+        if t.size >= 2:
+            from quarter_car_sim.full_car.metrics import iso2631_seat
+            st['iso2631'] = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
+            st['iso2631']['duration_s'] = float(t[-1] - t[0] + self.rt.dt)
+        loop = self.control.status()
+        st.update(rate_hz=self.rate_hz, real_time_factor=self.rtf,
+                  late_reanchors=loop.pop('late_reanchors'), loop=loop,
+                  dropped=self.drops.counts())
+        return st
+
+    def health(self):
+        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        st = self.status()
+        problems = []
+        if self.control.failed:
+            problems.append((ERROR, f'control loop stopped: {self.control.failed}'))
+        safe = [c for c, d in st['corners'].items() if d['mode'] != 'normal']
+        if safe:
+            problems.append((WARN, 'fail-safe at ' + ', '.join(
+                f'{c} ({st["corners"][c]["reason"]})' for c in safe)))
+        return worst(problems, st)
+
+    def stop(self):
+        """Stop the control thread, publish the final status, write the body log."""
+        self.control.stop(2.0)
+        try:
+            self.diagnostics.publish_final()
+        except Exception as exc:  # noqa: B902 - the context may be gone after Ctrl-C
+            print(f'full_car_node: no final status: {exc}', file=sys.stderr)
+        if self.log_file:
+            with self.lock:
+                t, acc = self.rt.body_log()
+            try:
+                np.savez(self.log_file, t=t, acc=acc, joints=np.array(BODY_JOINTS))
+                print(f'full_car_node: wrote {len(t)} body samples to {self.log_file}',
+                      file=sys.stderr)
+            except OSError as exc:
+                print(f'full_car_node: cannot write {self.log_file}: {exc}', file=sys.stderr)
+
+
+def main(args=None):
+    """Entry point of ``full_car_node``."""
+    return run_car_node(FullCarNode, 'full_car_node', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
