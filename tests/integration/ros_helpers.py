@@ -281,3 +281,44 @@ def pump_lines(stream, lines):
     for line in iter(stream.readline, ''):
         lines.put(line)
     lines.put(None)
+
+
+def run_until_ready(cmd, env, is_ready, guard_s=300.0):
+    """
+    Start ``cmd``, read its output until ``is_ready(line)``, then stop it with SIGINT (Ctrl-C).
+
+    ``guard_s`` is a hang guard only (also without output). Returns ``(ready, returncode,
+    seen, rest)``: whether a line made it ready (else the process is killed), the exit status,
+    the lines read before and the text after the SIGINT.
+    """
+    import queue
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=env)
+    seen, ready, rest = [], False, ''
+    lines = queue.Queue()
+    reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + guard_s
+    try:
+        while not ready:
+            try:
+                line = lines.get(timeout=max(deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                break
+            if line is None:                            # the process ended
+                break
+            seen.append(line)
+            ready = bool(is_ready(line))
+        if ready:
+            proc.send_signal(signal.SIGINT)
+            reader.join(timeout=guard_s)
+            parts = []
+            while not lines.empty():
+                parts.append(lines.get() or '')
+            rest = ''.join(parts)
+            proc.wait(timeout=guard_s)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return ready, proc.returncode, seen, rest

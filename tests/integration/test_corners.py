@@ -11,17 +11,12 @@ the suite stops cleanly.
 """
 import json
 import os
-import queue
 import re
-import signal
-import subprocess
-import threading
-import time
 
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import pump_lines
+from integration.ros_helpers import run_until_ready
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -34,37 +29,14 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--corners', 'fl,fr', '--duration', '0',
            '--out', str(out), '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
            '--set', 'quarter_car_node.param_timeout_s=3.0']
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=env)
-    seen, ready = [], False
-    lines = queue.Queue()
-    reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
-    reader.start()
-    deadline = time.monotonic() + 300.0                 # hang guard only, also without output
-    try:
-        while not ready:
-            try:
-                line = lines.get(timeout=max(deadline - time.monotonic(), 0.0))
-            except queue.Empty:
-                break
-            if line is None:                            # the launcher ended
-                break
-            seen.append(line)
-            corners = dict(re.findall(r'(fl|fr): \d+ samples, [1-9]\d* valid, car (\w+)', line))
-            ready = corners.get('fl') == corners.get('fr') == 'normal'
-        assert ready, ''.join(seen[-20:])
-        proc.send_signal(signal.SIGINT)
-        reader.join(timeout=300)
-        rest = []
-        while not lines.empty():
-            rest.append(lines.get() or '')
-        rest = ''.join(rest)
-        proc.wait(timeout=300)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
+
+    def ready(line):
+        corners = dict(re.findall(r'(fl|fr): \d+ samples, [1-9]\d* valid, car (\w+)', line))
+        return corners.get('fl') == corners.get('fr') == 'normal'
+
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    assert ok, ''.join(seen[-20:])
+    assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
     assert set(summary['corners']) == {'fl', 'fr'}
     for corner, d in summary['corners'].items():

@@ -37,7 +37,8 @@ def full_car_configs(cfg, out, duration_s):
     out : path
         Output folder.
     duration_s : float
-        Run time [s, wall clock] (0 = until stopped): the car's road is made long enough.
+        Run time [s, wall clock] (0 = until stopped: a 600 s road, then held flat): the car's
+        road and body log are made long enough.
 
     Returns
     -------
@@ -54,7 +55,7 @@ def full_car_configs(cfg, out, duration_s):
     set_param(car, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
     params = node_params(car, FULL_CAR)
     rtf = float(params.get('real_time_factor', 1.0)) or 20.0
-    need = float(duration_s) * rtf + 30.0 if duration_s else 3600.0
+    need = float(duration_s) * rtf + 30.0 if duration_s else 600.0
     if float(params.get('road_duration_s', 300.0)) < need:
         set_param(car, FULL_CAR, 'road_duration_s', min(need, 3600.0))
     set_param(car, FULL_CAR, 'log_max_s', min(need, 3600.0))
@@ -70,15 +71,18 @@ def start_full_car(car_cfg, out):
 
 
 def full_car_progress_line(monitor, elapsed):
-    """Return one progress line: each corner's samples, valid windows and its mode in the car."""
+    """Return one progress line: each corner's samples, valid sets, mode in the car; car time."""
     status = monitor.snapshot()[0]
-    car = (status.get(FULL_CAR) or {}).get('corners') or {}
+    st = status.get(FULL_CAR) or {}
+    car = st.get('corners') or {}
     parts = []
     for c in FULL_CAR_CORNERS:
         ident = status.get(f'{c}/identifier') or {}
         parts.append(f'{c}: {ident.get("samples_received", 0)} samples, '
                      f'{ident.get("windows_valid", 0)} valid, car '
                      f'{(car.get(c) or {}).get("mode", "?")}')
+    t_sim = st.get('t_sim')
+    parts.append(f'car t {t_sim:.2f} s' if isinstance(t_sim, (int, float)) else 'car t ?')
     return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
 
 

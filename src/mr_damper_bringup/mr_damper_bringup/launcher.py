@@ -303,7 +303,9 @@ def main(argv=None):
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
     record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
     if corners:
-        nodes, node_args = dict(RECORDER_NODE), {}
+        # the full car starts before the corners: on its safe currents until their models come
+        nodes = {**RECORDER_NODE, **(FULL_CAR_NODE if full_car else {})}
+        node_args = {}
         for corner, corner_cfg in corners.items():
             corner_file = out / f'suite_params_{corner}.yaml'
             corner_file.write_text(yaml.safe_dump(corner_cfg, sort_keys=False))
@@ -316,7 +318,6 @@ def main(argv=None):
                                                  '--params-file', corner_file]
         node_args[RECORDER] = record_args
         if full_car:
-            nodes.update(FULL_CAR_NODE)
             node_args[FULL_CAR] = start_full_car(car_cfg, out)
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
     else:
