@@ -1,0 +1,28 @@
+"""The full-car run's configuration: four rig / identifier stacks and one car, ROS-free."""
+from types import SimpleNamespace
+
+from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG
+from mr_damper_bringup.full_car_suite import (BODY_LOG, FULL_CAR, FULL_CAR_CORNERS,
+                                              full_car_configs)
+
+
+def _args(duration):
+    return SimpleNamespace(config='full-car', params=None, rate_factor=None, duration=duration,
+                           file=None, set=None, external_controller=False, corners=None)
+
+
+def test_four_stacks_without_cars_and_one_car_with_a_long_enough_road(tmp_path):
+    cfg = resolve_config(_args(600.0), tmp_path)
+    corners, car = full_car_configs(cfg, tmp_path, 600.0)   # > the node's 300 s road
+    assert tuple(corners) == FULL_CAR_CORNERS
+    seeds = []
+    for k, c in enumerate(FULL_CAR_CORNERS):
+        sections = set(corners[c]) - {'/**'}
+        assert sections == {f'/{c}/{RIG}', f'/{c}/{IDENT}'}            # no quarter car
+        seeds.append(corners[c][f'/{c}/{RIG}']['ros__parameters']['seed'])
+    assert len(set(seeds)) == 4                                        # rig noise differs
+    assert set(car) == {'/**', FULL_CAR} and QC not in car
+    p = car[FULL_CAR]['ros__parameters']
+    assert p['log_file'] == str(tmp_path / BODY_LOG)
+    assert p['road_duration_s'] >= 600.0 and p['log_max_s'] >= 600.0
+    assert car['/**']['ros__parameters']['plant'] == 'spencer'
