@@ -26,3 +26,10 @@ def test_four_stacks_without_cars_and_one_car_with_a_long_enough_road(tmp_path):
     assert p['log_file'] == str(tmp_path / BODY_LOG)
     assert p['road_duration_s'] >= 600.0 and p['log_max_s'] >= 600.0
     assert car['/**']['ros__parameters']['plant'] == 'spencer'
+
+
+def test_rate_factor_sets_the_cars_speed_too(tmp_path):
+    args = _args(30.0)
+    args.rate_factor = 2.0
+    _, car = full_car_configs(resolve_config(args, tmp_path), tmp_path, 30.0)
+    assert car[FULL_CAR]['ros__parameters']['real_time_factor'] == 2.0

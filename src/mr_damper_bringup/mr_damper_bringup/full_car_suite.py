@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import IDENT, node_params, RIG, set_param
+from .config import IDENT, node_params, QC, RIG, set_param
 
 #: The full-car node's section name, console script and status key.
 FULL_CAR = 'full_car_node'
@@ -53,6 +53,9 @@ def full_car_configs(cfg, out, duration_s):
     corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
     car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR)}
     set_param(car, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
+    qc_speed = node_params(cfg, QC).get('real_time_factor')   # set by --rate-factor
+    if qc_speed is not None:
+        set_param(car, FULL_CAR, 'real_time_factor', float(qc_speed))
     params = node_params(car, FULL_CAR)
     rtf = float(params.get('real_time_factor', 1.0)) or 20.0
     need = float(duration_s) * rtf + 30.0 if duration_s else 600.0
