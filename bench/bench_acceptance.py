@@ -30,124 +30,32 @@ import sys
 import time
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
-
-from mr_damper_model.data import DamperData, read_csv
-from mr_damper_model.identify import identify
-from mr_damper_model.kwok_current import kwok_current_force
-from mr_damper_model.live import LiveConfig, LiveIdentifier
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / 'tests'))
+from live_records import (held_at, inject_faults, replay_published,  # noqa: E402
+                          steady_errors, steady_mask)
+from mr_damper_model.data import read_csv  # noqa: E402
+from mr_damper_model.identify import identify  # noqa: E402
+from mr_damper_model.live import LiveConfig, LiveIdentifier  # noqa: E402
+
 #: the identifier node's defaults as a replay under use_sim_time runs them
 NODE = dict(backlog_windows=300)
 #: goals of issue 20
 GOAL_FINAL = 1.1
 GOAL_FAULT = 1.25
-FAULTS = ('spike', 'stuck', 'dropout', 'offset')
 
 
 def default_data_dir():
     """Return the directory of the Quiroz files the tests read (``tests/conftest.py``)."""
-    sys.path.insert(0, str(REPO / 'tests'))
     from conftest import QUIROZ_DIR
     return QUIROZ_DIR
 
 
-def excitation_period_s(data):
-    """Period of the strongest displacement harmonic [s]."""
-    x = data.x - np.mean(data.x)
-    dt = float(np.median(np.diff(data.t)))
-    spec = np.abs(np.fft.rfft(x * np.hanning(x.size)))
-    freq = np.fft.rfftfreq(x.size, dt)
-    k = 1 + int(np.argmax(spec[1:]))
-    return 1.0 / float(freq[k])
-
-
-def steady_mask(data):
-    """Mask of the steady part of a record (see the module docstring)."""
-    period = excitation_period_s(data)
-    dt = float(np.median(np.diff(data.t)))
-    n_period = max(int(round(period / dt)), 1)
-    amp = maximum_filter1d(np.abs(data.v), size=n_period, mode='nearest')
-    ok = np.abs(amp - np.median(amp)) <= 0.1 * np.median(amp)
-    # longest run
-    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-    starts, ends = edges[::2], edges[1::2]
-    k = int(np.argmax(ends - starts))
-    a, b = starts[k] + n_period, ends[k] - n_period
-    mask = np.zeros(data.n, dtype=bool)
-    mask[a:max(a, b)] = True
-    return mask
-
-
-def inject_faults(data, steady):
-    """Return the record with the four faults in its steady part and their spans [s]."""
-    t = data.t
-    ts = t[steady]
-    a, span = float(ts[0]), float(ts[-1] - ts[0])
-    f = data.f.copy()
-    spans = {}
-    k = int(np.searchsorted(t, a + 0.15 * span))
-    f[k] = 1e30
-    spans['spike'] = (t[k], t[k])
-    for name, frac, length in (('stuck', 0.3, 0.3), ('dropout', 0.45, 0.2),
-                               ('offset', 0.6, 1.0)):
-        t0 = a + frac * span
-        sel = (t >= t0) & (t < t0 + length)
-        idx = np.flatnonzero(sel)
-        if name == 'stuck':
-            f[idx] = f[idx[0]]
-        elif name == 'dropout':
-            f[idx] = 0.0
-        else:
-            f[idx] += 400.0
-        spans[name] = (float(t[idx[0]]), float(t[idx[-1]]))
-    return DamperData(t, data.x, data.v, f, data.i, source=data.source), spans
-
-
 def replay(data, config):
-    """Feed a record sample by sample; return [(window end [s], estimate)] and the status."""
+    """Replay a record through a new identifier; return [(window end, estimate)], status."""
     li = LiveIdentifier(config)
-    out = []
-    for row in zip(data.t, data.x, data.v, data.f, data.i):
-        li.add_sample(*row)
-        window = li.next_window()
-        if window is not None:
-            est = li.process(window)
-            if est is not None:
-                out.append((float(window.end_s), est))
-    return out, li.status()
-
-
-def steady_error(params, data, mask, i_ref_a):
-    """RMS error [N] of a kwok-current set on the masked samples."""
-    f = kwok_current_force(dict(params, i_ref_a=i_ref_a), data.x[mask], data.v[mask],
-                           data.i[mask])
-    return float(np.sqrt(np.mean((data.f[mask] - f) ** 2)))
-
-
-def valid_errors(published, data, mask, i_ref_a):
-    """[(window end, error of the valid set published then)] in order."""
-    cache = {}
-    out = []
-    for end, est in published:
-        if not est.valid:
-            continue
-        key = tuple(sorted(est.parameters.items()))
-        if key not in cache:
-            cache[key] = steady_error(est.parameters, data, mask, i_ref_a)
-        out.append((end, cache[key]))
-    return out
-
-
-def held_at(errors, end):
-    """Error of the valid set a replay held at window end ``end`` (None before its first)."""
-    held = None
-    for e, err in errors:
-        if e > end + 1e-9:
-            break
-        held = err
-    return held
+    return replay_published(li, data), li.status()
 
 
 def evaluate(path, config_changes):
@@ -163,8 +71,8 @@ def evaluate(path, config_changes):
         clean_pub, clean_status = replay(data, config)
         fault_pub, fault_status = replay(faulted, config)
         seconds = time.perf_counter() - t0
-        clean = valid_errors(clean_pub, data, steady, config.i_ref_a)
-        fault = valid_errors(fault_pub, data, steady, config.i_ref_a)
+        clean = steady_errors(clean_pub, data, steady, config.i_ref_a)
+        fault = steady_errors(fault_pub, data, steady, config.i_ref_a)
         row = {'seconds': seconds, 'n_valid_clean': len(clean), 'n_valid_fault': len(fault),
                'clean_status': clean_status, 'fault_status': fault_status}
         if clean:

@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pytest
 
+from live_records import alpha_scaled_fit
 from mr_damper_model.data import DamperData
 from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
                                   LiveConfig, LiveIdentifier, pinned_parameters, robust_range,
                                   running_median)
-from mr_damper_model.metrics import fit_metrics
 from mr_damper_model.presets import thesis_kwok_current
 
 RATE = 1000.0
@@ -325,30 +325,9 @@ def test_range_checks_count_by_channel(channel, index, value):
     assert li.counters['samples_accepted'] == 1 and li.counters['samples_received'] == 2
 
 
-def _perturbing_fit(scale_alpha_after):
-    """Return a fit that scales alpha by 0.85 from call ``scale_alpha_after`` on."""
-    calls = []
-
-    def fit(data, model, config, x0=None):
-        result = fit_data(data, model, config, x0=x0)
-        calls.append(model)
-        if len(calls) > scale_alpha_after:
-            params = dict(result.parameters)
-            for name in ('alpha', 'alpha0', 'alpha1', 'alpha2'):
-                if name in params:
-                    params[name] *= 0.85
-            from mr_damper_model.models import get_model
-            mdl = get_model(model, **({'i_ref_a': 2.0} if model == 'kwok-current' else {}))
-            p = np.array([params[n] for n in mdl.param_names])
-            result.parameters = params
-            result.metrics = fit_metrics(data.f, mdl.force(p, data.x, data.v, i=data.i))
-        return result
-    return fit
-
-
 def test_set_much_worse_than_last_valid_is_refused():
     arrays = stream(currents=(1.0, 1.0), hold_s=2.5)
-    li = LiveIdentifier(LiveConfig(**CFG), fit=_perturbing_fit(2))
+    li = LiveIdentifier(LiveConfig(**CFG), fit=alpha_scaled_fit(2, 0.85))
     ests = li.replay(DamperData(*arrays), 50)
     assert [e.valid for e in ests[:2]] == [True, True]
     bad = ests[2:]
