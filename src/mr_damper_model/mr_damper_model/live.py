@@ -49,6 +49,12 @@ the work, so it can be tested and benchmarked without ROS:
    ``max_nrmse_percent``; and, on the fitted samples of the current levels covered by the last
    valid set of this stream, an RMSE at most ``max_error_ratio`` times that set's plus
    ``error_floor_percent`` of the robust force range (``worse_than_last_valid``).
+8. **Acceptance** (``acceptance_checks``, :mod:`~mr_damper_model.acceptance`): a valid set
+   replaces the set in use only if its window excites what it claims (velocity amplitude,
+   velocity bins, condition number) and it predicts at least as well on the newest window and
+   on held-back recent data; otherwise the set in use is re-published (valid, ``held``) and the
+   reason counted in ``windows_refused``.  Admitted samples with a force offset against the set
+   in use are flagged ``offset``; the f0 trend of the sets taken is reported.
 
 Threading: ``add_sample`` and ``next_window`` may be called from one thread and ``process``
 (the fit) from another; the sample buffer is protected by a lock, the bins and the warm start
@@ -1530,7 +1536,10 @@ class LiveIdentifier:
         ``last_nrmse_percent``,
         ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
         ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
-        held), ``last_error``.
+        held), ``last_error``, ``last_held`` (why the last fitted window's set was refused and
+        the set in use re-published, '' if taken), ``held_age_s`` (newest window end minus the
+        set in use's [s]), ``last_condition_number``, ``offset`` and ``f0_trend``
+        (:class:`~mr_damper_model.acceptance.Acceptance`).
         """
         with self._lock:
             c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
