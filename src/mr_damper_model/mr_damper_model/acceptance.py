@@ -18,8 +18,8 @@ reviewed here before it replaces the set in use (the *current* set):
    transient in the newest window cannot win there), both at the current levels both sets
    cover, the new set's RMS error must be at most ``1 - replace_margin`` times the current
    set's (``replace_margin`` 0: at most :data:`TIE_FRACTION` above it: noise-level ties go to
-   the newer set).  With fewer than :data:`MIN_COMPARE_SAMPLES` held-back samples (start-up, after a
-   pause) only the window is compared.  A set that extends the current range is compared on
+   the newer set).  With fewer than :data:`MIN_COMPARE_SAMPLES` held-back samples (start-up,
+   after a pause) only the window is compared.  A set that extends the current range is compared on
    the common levels with the tolerance of ``max_error_ratio`` instead (the previous rule): it
    claims levels the current set does not describe.
 
