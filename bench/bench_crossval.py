@@ -1,5 +1,5 @@
 """
-Cross-validation of one-model-for-all-conditions damper models on the shared Quiroz files.
+Cross-validation of one-model-for-all-conditions damper models on the Quiroz files (data/).
 
     .venv/bin/python bench/bench_crossval.py [--models kwok-current kwok-current-lag
         kwok-current-amp ...]
@@ -54,10 +54,10 @@ from mr_damper_model.identify import identify  # noqa: E402
 from mr_damper_model.metrics import fit_metrics  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
 
-QUIROZ = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'quiroz_mr_damper'
+QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
 SERIES = ('25mm0x1Hz', '25mm0x25Hz', '25mm0x5Hz', '10mm1Hz', '5mm3Hz', '2mm5Hz')
 CURRENTS = ('0', '0p25', '0p5', '0p75', '1p0')
-_NAME = re.compile(r'quiroz_sine_(?P<series>\w+?Hz)_(?P<current>\w+?)A(_preproc)?\.csv$')
+_NAME = re.compile(r'quiroz_sine_(?P<series>\w+?Hz)_(?P<current>\w+?)A(_preproc)?\.csv(\.gz)?$')
 N_HELD_OUT = 2
 #: Series distributed as the authors' own filtered files (force and displacement averaged over a
 #: tenth of the period, v = diff(x)): their knee and loop are smoothed by the processing.
@@ -69,7 +69,7 @@ _DATA = {}          # per-process cache: (series, current) -> DamperData
 def load(data_dir):
     """Read and validate the 30 files; return {(series, current): DamperData}."""
     out = {}
-    for path in sorted(Path(data_dir).glob('quiroz_sine_*.csv')):
+    for path in sorted(Path(data_dir).glob('quiroz_sine_*.csv*')):
         m = _NAME.match(path.name)
         if m and m['series'] in SERIES and m['current'] in CURRENTS:
             out[(m['series'], m['current'])] = validate(read_csv(path), name=path.name)

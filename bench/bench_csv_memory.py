@@ -1,23 +1,62 @@
 """
-Peak memory of reading a large DAQ CSV: ``read_csv`` (block parser) vs a list of rows.
+Peak memory of reading and of fitting a large DAQ CSV, before and after, in the same run.
 
-The alternative is the previous reader's approach (``list(csv.reader(fh))`` then one float
-array). Generates a CSV of ``--rows`` samples in a temporary folder, reads it with each method
-in a fresh process and prints the peak of the memory it allocates (tracemalloc: Python objects
-and numpy arrays) and its ratio to the final arrays (5 columns x 8 bytes x rows).
+Generates a CSV of ``--rows`` samples (thesis cam, 1 kHz, the kwok-current truth at 0.5 A with
+2 N noise: ``mr-damper-identify``'s default fit is then Kwok) in a temporary folder and, each
+in a fresh process, reads it (``read_record``: read + validate) and reads and fits it (the
+whole ``mr-damper-identify FILE`` run), once with the package as it is in ``--before`` (a git
+revision, default :data:`BEFORE`, the last commit before the issue-21 memory work: its
+``src/mr_damper_model`` extracted with ``git archive``) and once with this tree. Prints the
+peak resident set size (``ru_maxrss``: what the issue's "833 MB RSS" measured; it includes
+the interpreter and its imports, printed as the baseline) as a ratio to the CSV size, the peak
+above the baseline as a ratio to the final arrays (5 columns x 8 bytes x rows), how much the
+fit results differ, and the fit's wall time (``seconds``: noisy on a loaded machine).
 
-    .venv/bin/python bench/bench_csv_memory.py [--rows 1000000]
+With ``--read-methods``: also the previous comparison of the reader against a list of the
+file's rows (tracemalloc, Python objects and numpy arrays; the list takes about 8x the file).
+
+    .venv/bin/python bench/bench_csv_memory.py [--rows 3000000] [--before REV]
 """
 import argparse
 import json
+import os
+from pathlib import Path
 import subprocess
 import sys
 import tempfile
-from pathlib import Path
 
 import numpy as np
 
+REPO = Path(__file__).resolve().parents[1]
+
+#: The "before" of the comparison: main before the chunked fit and reader of issue 21.
+BEFORE = '91a9a718356aa93d5ec2d80cc492daaa2e2af9ae'
+
 CHILD = r'''
+import json, resource, sys
+def rss_mb():
+    for line in open('/proc/self/status'):
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024
+path, what = sys.argv[1], sys.argv[2]
+import numpy, scipy.optimize, scipy.signal   # the imports of the fit, in the baseline
+from mr_damper_model import cli
+out = {'baseline_mb': rss_mb(), 'package': cli.__file__}
+if what == 'read':
+    out['n'] = cli.read_record(path).n
+else:
+    import contextlib, io
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli.run([path, '--json'])
+    res = json.loads(buf.getvalue())
+    out.update(code=code, parameters=res['parameters'], rmse_n=res['metrics']['rmse_n'],
+               model=res['model'], fit_s=res['seconds'])
+out['peak_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(json.dumps(out))
+'''
+
+CHILD_METHODS = r'''
 import csv, json, sys, tracemalloc
 import numpy as np
 from mr_damper_model.data import read_csv
@@ -35,29 +74,86 @@ print(json.dumps({'n': n, 'peak_kb': peak / 1e3}))
 '''
 
 
+def write_record(path, rows, seed=0):
+    """Write a cam record through the kwok-current truth at 0.5 A (2 N noise)."""
+    from mr_damper_model.presets import thesis_kwok_current
+    model, truth = thesis_kwok_current()
+    t = np.arange(rows) * 1e-3
+    w = 2 * np.pi * 1.1
+    x = 0.03 * np.sin(w * t)
+    v = 0.03 * w * np.cos(w * t)
+    i = np.full(rows, 0.5)
+    p = np.array([truth[k] for k in model.param_names])
+    f = model.force(p, x, v, i=i) + 2.0 * np.random.default_rng(seed).standard_normal(rows)
+    np.savetxt(path, np.column_stack([t, x, v, f, i]), delimiter=',', header='t,x,v,f,i',
+               comments='', fmt='%.10g')
+
+
+def extract(rev, dest):
+    """Extract ``src/mr_damper_model`` of git revision ``rev`` into ``dest``; return its path."""
+    archive = subprocess.run(['git', '-C', str(REPO), 'archive', rev, 'src/mr_damper_model'],
+                             capture_output=True, check=True).stdout
+    Path(dest).mkdir(parents=True, exist_ok=True)
+    subprocess.run(['tar', '-x', '-C', str(dest)], input=archive, check=True)
+    return Path(dest) / 'src' / 'mr_damper_model'
+
+
+def run_child(code, args, pythonpath=None):
+    env = dict(os.environ)
+    if pythonpath is not None:
+        env['PYTHONPATH'] = str(pythonpath) + os.pathsep + env.get('PYTHONPATH', '')
+    out = subprocess.run([sys.executable, '-c', code, *map(str, args)], capture_output=True,
+                         text=True, env=env)
+    if out.returncode != 0:
+        raise SystemExit(f'child failed ({args}):\n{out.stderr[-2000:]}')
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    ap.add_argument('--rows', type=int, default=1_000_000)
+    ap.add_argument('--rows', type=int, default=3_000_000,
+                    help='samples (3,000,000: a CSV of about 160 MB, the issue-21 file size)')
+    ap.add_argument('--before', default=BEFORE,
+                    help='git revision of the "before" package (default: before issue 21)')
+    ap.add_argument('--read-methods', action='store_true',
+                    help='also compare read_csv with a list of rows (tracemalloc)')
     args = ap.parse_args()
+    print(f'load average {os.getloadavg()[0]:.1f} (2 cores shared)')
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'large.csv'
-        t = np.arange(args.rows) * 1e-3
-        arr = np.column_stack([t, 0.01 * np.sin(t), 0.01 * np.cos(t), 500 * np.sin(t),
-                               0.5 + 0 * t])
-        np.savetxt(path, arr, delimiter=',', header='t,x,v,f,i', comments='', fmt='%.10g')
+        write_record(path, args.rows)
         size_mb = path.stat().st_size / 1e6
         final_mb = 5 * 8 * args.rows / 1e6
-        print(f'CSV {size_mb:.0f} MB, {args.rows} rows, final arrays {final_mb:.0f} MB')
+        print(f'CSV {size_mb:.0f} MB, {args.rows} rows, final arrays {final_mb:.0f} MB; '
+              f'before = {args.before[:12]}, after = this tree')
+        before_src = extract(args.before, Path(tmp) / 'before')
         results = {}
-        for method in ('read_csv', 'list_of_rows'):
-            out = subprocess.run([sys.executable, '-c', CHILD, str(path), method],
-                                 capture_output=True, text=True, check=True)
-            r = json.loads(out.stdout)
-            results[method] = r['peak_kb'] / 1e3
-            print(f'{method:14s} peak +{results[method]:7.0f} MB = '
-                  f'{results[method] / final_mb:4.1f}x the arrays')
-        print(f'ratio list_of_rows / read_csv: '
-              f'{results["list_of_rows"] / results["read_csv"]:.1f}x')
+        print(f'{"":22s}{"peak RSS":>10s}{"/ CSV":>8s}{"baseline":>10s}'
+              f'{"(peak-base)/arrays":>20s}')
+        for what in ('read', 'read+fit'):
+            for label, pp in (('before', before_src), ('after', None)):
+                r = run_child(CHILD, [path, 'read' if what == 'read' else 'fit'], pp)
+                if pp is not None and not r['package'].startswith(str(before_src)):
+                    raise SystemExit(f'the before child imported {r["package"]}')
+                results[what, label] = r
+                print(f'{what + " " + label:22s}{r["peak_mb"]:8.0f}MB'
+                      f'{r["peak_mb"] / size_mb:7.2f}x{r["baseline_mb"]:8.0f}MB'
+                      f'{(r["peak_mb"] - r["baseline_mb"]) / final_mb:19.2f}x')
+        b, a = results['read+fit', 'before'], results['read+fit', 'after']
+        pb, pa = b['parameters'], a['parameters']
+        rel = max(abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-300) for k in pb)
+        print(f'fit ({a["model"]}): before {b["fit_s"]:.2f} s, after {a["fit_s"]:.2f} s; '
+              f'largest relative parameter difference {rel:.1e}, RMSE {b["rmse_n"]:.6f} -> '
+              f'{a["rmse_n"]:.6f} N')
+        if args.read_methods:
+            methods = {}
+            for method in ('read_csv', 'list_of_rows'):
+                r = run_child(CHILD_METHODS, [path, method])
+                methods[method] = r['peak_kb'] / 1e3
+                print(f'{method:14s} peak +{methods[method]:7.0f} MB = '
+                      f'{methods[method] / final_mb:4.1f}x the arrays (tracemalloc)')
+            print(f'ratio list_of_rows / read_csv: '
+                  f'{methods["list_of_rows"] / methods["read_csv"]:.1f}x')
 
 
 if __name__ == '__main__':

@@ -44,8 +44,8 @@ from mr_damper_model import bouc_wen, spencer  # noqa: E402
 from mr_damper_model.data import read_csv, validate  # noqa: E402
 from mr_damper_model.identify import compare_models, identify  # noqa: E402
 
-QUIROZ = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'quiroz_mr_damper'
-FILES = ('quiroz_sine_25mm0x25Hz_1p0A.csv', 'quiroz_sine_10mm1Hz_1p0A_preproc.csv')
+QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
+FILES = ('quiroz_sine_25mm0x25Hz_1p0A.csv.gz', 'quiroz_sine_10mm1Hz_1p0A_preproc.csv.gz')
 TARGETS_S = {'bouc-wen': 0.3, 'spencer': 2.0, 'compare': 2.0}
 SWARM = 25
 #: The Spencer default before the identification policy: what ``identify(data, 'spencer')``

@@ -43,7 +43,7 @@ from mr_damper_model.identify import identify  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
 from mr_damper_model.presets import thesis_kwok_current  # noqa: E402
 
-QUIROZ = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'quiroz_mr_damper'
+QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
 SWARM = 25
 
 
@@ -254,7 +254,7 @@ def all_quiroz(seeds, budget):
     print('\n| file | default RMSE [N] | best other RMSE [N] | ratio | NRMSE [%] | mean % err |')
     print('|---|---:|---:|---:|---:|---:|')
     per_current = {}
-    for path in sorted(QUIROZ.glob('*.csv')):
+    for path in sorted(QUIROZ.glob('*.csv.gz')):
         d = validate(read_csv(path))
         m = get_model('kwok')
         lo, hi = m.default_bounds()
@@ -290,7 +290,7 @@ def main():
         return
     cases = [('2,000-sample window', window(), 'kwok-current'),
              ('Quiroz 5 mm 3 Hz 0.5 A',
-              validate(read_csv(QUIROZ / 'quiroz_sine_5mm3Hz_0p5A.csv')), 'kwok')]
+              validate(read_csv(QUIROZ / 'quiroz_sine_5mm3Hz_0p5A.csv.gz')), 'kwok')]
     for name, d, model in cases:
         rows = bench(name, d, model, seeds, a.budget)
         if not a.no_ttq:

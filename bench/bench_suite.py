@@ -14,9 +14,16 @@ configuration, seeds fixed in it) and prints:
   next 1 ms step uses them);
 - CPU (percent of one core, psutil, sampled every second) and peak memory per node (target: the
   three nodes together under 1.5 cores of this 2-core machine).
+
+With ``--rate-factors 1,2,4,8`` (and ``--samples-per-message 1,20``) it runs the suite once per
+combination, ``--duration`` record seconds each (the wall time is shorter at higher rate
+factors), and prints one table: samples lost, sample -> parameters at the car p50 / p99,
+fail-safe time, CPU per process. ``samples_per_message`` 1 sends one DDS message per DAQ sample,
+as the rig did before batching: the before / after of the batched measurement stream in one run.
 """
 import argparse
 import json
+import os
 from pathlib import Path
 import subprocess
 import sys
@@ -24,29 +31,29 @@ import sys
 REPO = Path(__file__).resolve().parents[1]
 
 
-def main(argv=None):
-    """Run the benchmark and print the figures; return 0."""
-    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    p.add_argument('--duration', type=float, default=60.0)
-    p.add_argument('--out', default=str(REPO / 'runs' / 'bench_suite'))
-    p.add_argument('--extra', nargs=argparse.REMAINDER, default=[],
-                   help='further mr-damper-suite options')
-    args = p.parse_args(argv)
+def run_suite(duration, out, extra):
+    """Run mr-damper-suite once; return (exit status, summary dict)."""
     cmd = [str(Path(sys.executable).parent / 'mr-damper-suite'), '--duration',
-           str(args.duration), '--out', args.out, '--no-plots', '--progress-s', '10',
-           *args.extra]
+           str(duration), '--out', str(out), '--no-plots', '--progress-s', '10', *extra]
     print('bench_suite:', ' '.join(cmd), flush=True)
-    rc = subprocess.call(cmd)
-    s = json.loads((Path(args.out) / 'summary.json').read_text())
+    rc = subprocess.call(cmd, stdout=subprocess.DEVNULL if '--quiet' in extra else None)
+    path = Path(out) / 'summary.json'
+    return rc, (json.loads(path.read_text()) if path.exists() else {})
+
+
+def _f(x, fmt='.3f'):
+    return 'n/a' if x is None else format(x, fmt)
+
+
+def print_one(rc, s):
+    """Print the figures of one run (the default single run)."""
+    f = _f
     loop = s.get('loop_full_run') or {}
     per, lat = loop.get('period', {}), loop.get('latency', {})
     procs = s.get('processes', {})
     m2p = s.get('measurement_to_parameters_s') or {}
     ident = s.get('identification', {})
     ride = s.get('ride', {})
-
-    def f(x, fmt='.3f'):
-        return 'n/a' if x is None else format(x, fmt)
     print('\n=== bench_suite: figures ===')
     print(f'run status {rc}; wall duration {f(s.get("duration_s"), ".1f")} s; '
           f'simulated {f(loop.get("sim_time_s"), ".1f")} s')
@@ -76,6 +83,54 @@ def main(argv=None):
                   f'{st["cpu_p95_percent"]:6.1f} %  RSS peak {st["rss_peak_mb"]:6.1f} MB')
     print(f'three nodes together: {f(procs.get("nodes_total_cpu_cores"), ".2f")} cores '
           '(target < 1.5)')
+
+
+def sweep(args):
+    """Run every (samples per message, rate factor) combination; print one table."""
+    rows = []
+    for spm in (int(k) for k in args.samples_per_message.split(',')):
+        for rf in (float(r) for r in args.rate_factors.split(',')):
+            out = Path(args.out) / f'spm{spm}_rf{rf:g}'
+            rc, s = run_suite(args.duration / rf, out,
+                              ['--rate-factor', str(rf), '--quiet',
+                               '--set', f'mr_damper_rig.samples_per_message={spm}',
+                               *args.extra])
+            rows.append((spm, rf, rc, s))
+    print('\n=== bench_suite: rate factors (record seconds '
+          f'{args.duration:g} each; load at the end {os.getloadavg()[0]:.2f}, '
+          f'{os.cpu_count()} cores) ===')
+    names = sorted({n for *_, s in rows for n, v in s.get('processes', {}).items()
+                    if isinstance(v, dict)})
+    print('samples/msg  rate  exit  lost  sample->params p50 / p99 s  fail-safe s  '
+          + '  '.join(f'{n[:12]:>12s}' for n in names) + '   (CPU % of one core)')
+    for spm, rf, rc, s in rows:
+        m2p = s.get('measurement_to_parameters_s') or {}
+        procs = s.get('processes', {})
+        cpu = '  '.join(f'{procs[n]["cpu_mean_percent"]:12.1f}' if isinstance(
+            procs.get(n), dict) else f'{"-":>12s}' for n in names)
+        print(f'{spm:11d}  {rf:4g}  {rc:4d}  {_f(s.get("messages_lost"), "d"):>4s}  '
+              f'{_f(m2p.get("p50")):>10s} / {_f(m2p.get("p99")):<10s}   '
+              f'{_f(s.get("failsafe_s"), ".2f"):>10s}  {cpu}')
+    return 0
+
+
+def main(argv=None):
+    """Run the benchmark and print the figures; return 0."""
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('--duration', type=float, default=60.0,
+                   help='record seconds of each run (wall: duration / rate factor)')
+    p.add_argument('--out', default=str(REPO / 'runs' / 'bench_suite'))
+    p.add_argument('--rate-factors', default='',
+                   help='e.g. 1,2,4,8: one run per rate factor (and batch size), one table')
+    p.add_argument('--samples-per-message', default='1,20',
+                   help='with --rate-factors: rig batch sizes to compare')
+    p.add_argument('--extra', nargs=argparse.REMAINDER, default=[],
+                   help='further mr-damper-suite options')
+    args = p.parse_args(argv)
+    if args.rate_factors:
+        return sweep(args)
+    rc, s = run_suite(args.duration, args.out, args.extra)
+    print_one(rc, s)
     return 0
 
 

@@ -39,7 +39,7 @@ from mr_damper_model.models import get_model  # noqa: E402
 from mr_damper_model.presets import THESIS_TABLE_4_3  # noqa: E402
 from mr_damper_rig import rig_test_cli  # noqa: E402
 
-QUIROZ = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'quiroz_mr_damper'
+QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
 #: Thesis Table 4.1: mean force error [N] per current: Bingham, Bouc-Wen, Kwok.
 THESIS_TABLE_4_1 = {0.0: (35.917, 20.094, 5.452), 0.5: (87.068, 30.752, 20.601),
                     1.0: (110.347, 75.829, 18.142), 1.5: (139.181, 119.175, 23.013),
@@ -124,7 +124,7 @@ def part_a(data, seed):
 def part_b(seed):
     t0 = time.perf_counter()
     series = {}
-    for path in sorted(QUIROZ.glob('*.csv')):
+    for path in sorted(QUIROZ.glob('*.csv.gz')):
         m = re.match(r'quiroz_sine_(.+?)_(\d+p?\d*)A', path.stem)
         if not m:
             continue

@@ -4,6 +4,7 @@ Test-wide set-up: keep ROS 2 discovery on loopback and on a domain of this run's
 This runs before any test module imports rclpy, so every node a test creates (in this process or
 in a subprocess that inherits the environment) uses LOCALHOST discovery and a private domain.
 """
+import gzip
 import os
 import random
 import sys
@@ -15,7 +16,15 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(20
 os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / 'shared'
-QUIROZ_DIR = SHARED / 'data' / 'quiroz_mr_damper'
+# measured Quiroz damper tests shipped in the repository, gzip-compressed DAQ CSVs
+QUIROZ_DIR = REPO / 'data' / 'quiroz_mr_damper'
 # console scripts of the editable installs live next to the interpreter running the tests
 VENV_BIN = Path(sys.executable).parent
+
+
+def csv_text(path):
+    """Return a DAQ CSV's text, decompressed for a ``.csv.gz`` (to build altered copies)."""
+    path = Path(path)
+    if path.name.endswith('.gz'):
+        return gzip.decompress(path.read_bytes()).decode('utf-8')
+    return path.read_text()

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The test command of README.md: set up .venv if needed, then run the whole pytest suite.
-# Usage: bash tests/run_tests.sh [PATH...] [pytest options]: with test paths (relative to the
-# repository root; FILE::TEST works too) only those run, else all of tests/.
+# Usage: bash tests/run_tests.sh [--fast] [PATH...] [pytest options]: with test paths (relative
+# to the repository root; FILE::TEST works too) only those run, else all of tests/. --fast: the
+# unit tests only, for the edit-test loop (not tests/integration, nothing marked `integration`
+# or `slow`); CI (.ci/run) runs everything.
 # ROS 2 nodes in the tests talk over loopback only: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a
 # private ROS_DOMAIN_ID are set in tests/conftest.py; where the machine allows it (root with
 # unshare), the whole run also happens in a private network namespace with only `lo` up.
@@ -12,8 +14,16 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 200) + 20 ))}"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$(mktemp -d)}"
 cd "$root"
+args=()
+for arg in "$@"; do
+  if [ "$arg" = --fast ]; then
+    args+=(--ignore=tests/integration -m 'not integration and not slow')
+  else
+    args+=("$arg")
+  fi
+done
 # without a test path pytest runs pytest.ini's `testpaths` (tests/) from the root
-cmd=("$root/.venv/bin/python" -m pytest "$@")
+cmd=("$root/.venv/bin/python" -m pytest ${args[@]+"${args[@]}"})
 if [ "$(id -u)" = 0 ] && command -v unshare >/dev/null && command -v ip >/dev/null \
    && unshare -n true 2>/dev/null; then
   exec unshare -n sh -c 'ip link set lo up && ip link set lo multicast on &&

@@ -15,16 +15,18 @@ import pytest
 from conftest import REPO
 
 ROS_MODULES = {'messages', 'node_utils'}
-PACKAGES = ('mr_damper_model', 'mr_damper_rig', 'quarter_car_sim', 'mr_damper_bringup')
+PACKAGES = ('mr_damper_model', 'mr_damper_rig', 'quarter_car_sim', 'mr_damper_bringup',
+            'mr_damper_can')
 
 
 def _core_modules():
     for pkg in PACKAGES:
-        for path in sorted((REPO / 'src' / pkg / pkg).glob('*.py')):
+        root = REPO / 'src' / pkg / pkg
+        for path in sorted(root.glob('*.py')) + sorted(root.glob('*/*.py')):
             stem = path.stem
             if stem == '__init__' or stem.endswith('_node') or stem in ROS_MODULES:
                 continue
-            yield f'{pkg}.{stem}'
+            yield '.'.join((pkg,) + path.relative_to(root).with_suffix('').parts)
 
 
 @pytest.mark.parametrize('module', list(_core_modules()))

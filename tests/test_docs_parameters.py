@@ -22,6 +22,9 @@ NODE_MODULES = (
     'mr_damper_model.identifier_node',
     'quarter_car_sim.quarter_car_node',
     'quarter_car_sim.semi_active_controller_node',
+    'mr_damper_can.can_bridge_node',
+    'mr_damper_can.can_driver_sim_node',
+    'quarter_car_sim.state_estimator_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

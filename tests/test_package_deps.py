@@ -17,9 +17,11 @@ from conftest import REPO
 
 #: rosdep key of each third-party Python module the suite uses (pip names in requirements.txt)
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'control': 'python3-control',
-               'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags',
+               'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags', 'mcap': 'python3-mcap',
                'matplotlib': 'python3-matplotlib', 'numba': 'python3-numba',
-               'psutil': 'python3-psutil', 'pytest': 'python3-pytest'}
+               'psutil': 'python3-psutil', 'pytest': 'python3-pytest', 'can': 'python3-can',
+               'cantools': 'python3-cantools', 'dask': 'python3-dask',
+               'distributed': 'python3-distributed'}
 
 PACKAGES = sorted(p.parent for p in (REPO / 'src').glob('*/package.xml')
                   if (p.parent / p.parent.name).is_dir())
@@ -51,7 +53,7 @@ def declared_dependencies(package_dir):
 
 def test_the_packages_are_found():
     names = {p.name for p in PACKAGES}
-    assert {'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim'} <= names
+    assert {'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim', 'mr_damper_can'} <= names
 
 
 @pytest.mark.parametrize('package_dir', PACKAGES, ids=lambda p: p.name)

@@ -25,14 +25,15 @@ from conftest import VENV_BIN
 DISCOVERY_TIMEOUT_S = 8.0
 
 
-def fault_test_suite(out):
+def fault_test_suite(out, samples_per_message=None):
     """
     Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
 
     The main job's parameters at real time, with a 1 s parameter timeout, car diagnostics every
     0.1 s, a rig that waits for one reader and an identifier that saves its parameters every
     0.5 s (a restarted identifier starts from them); no end of its own (the test stops it; the
-    road repeats); written to ``out/suite_params.yaml``.
+    road repeats); written to ``out/suite_params.yaml``. ``samples_per_message``: the rig's
+    batch size instead of the default.
     """
     import yaml
     from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
@@ -44,6 +45,8 @@ def fault_test_suite(out):
     set_param(cfg, QC, 'diagnostics_period_s', 0.1)
     set_param(cfg, RIG, 'wait_for_subscribers', 1)
     set_param(cfg, IDENT, 'save_period_s', 0.5)
+    if samples_per_message is not None:
+        set_param(cfg, RIG, 'samples_per_message', int(samples_per_message))
     params_file = Path(out) / 'suite_params.yaml'
     params_file.write_text(yaml.safe_dump(cfg))
     return Suite(params_file, out, int(os.environ['ROS_DOMAIN_ID']))
@@ -271,3 +274,10 @@ class Diagnostics:
         """Return the status names seen so far."""
         with self._lock:
             return sorted(self._latest)
+
+
+def pump_lines(stream, lines):
+    """Put every line of ``stream`` on the queue ``lines``, then None at its end (a thread)."""
+    for line in iter(stream.readline, ''):
+        lines.put(line)
+    lines.put(None)

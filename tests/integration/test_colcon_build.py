@@ -23,7 +23,8 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
          ('quarter_car_sim', 'quarter_car_node'), ('mr_damper_bringup', 'mr-damper-suite'),
-         ('mr_damper_bringup', 'mr-damper-record')]
+         ('mr_damper_bringup', 'mr-damper-record'), ('mr_damper_can', 'can_bridge_node'),
+         ('mr_damper_can', 'can_driver_sim')]
 
 
 @pytest.fixture(scope='module')
@@ -108,6 +109,20 @@ def test_interfaces_come_from_the_install(install):
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert Path(out.stdout.strip()).is_relative_to(install / pkg), out.stdout
+
+
+def test_can_dbc_comes_from_the_install(install):
+    pkg = 'mr_damper_can'
+    dbc = REPO / 'src' / pkg / pkg / 'dbc' / 'mr_damper.dbc'
+    assert (install / pkg / 'share' / pkg / 'dbc' / 'mr_damper.dbc').read_text() == \
+        dbc.read_text()
+    code = ('from mr_damper_can.codec import dbc_path, load_database; '
+            'print(dbc_path(), len(load_database().messages))')
+    out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} -c {shlex.quote(code)}'),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    path, n = out.stdout.split()
+    assert Path(path).is_relative_to(install / pkg) and int(n) == 11, out.stdout
 
 
 def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):

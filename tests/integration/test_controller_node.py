@@ -12,7 +12,9 @@ events and on counters only; the waits are hang guards.
 - lock-step, as fast as possible: the car waits for the command answering each state, so the
   external loop is step for step the built-in one; its ride figures (Wk RMS body acceleration,
   RMS dynamic tyre load) on the same road and seed are within 2 % of the built-in
-  ``ClosedLoop``'s (in fact equal: the same floats go through the same core).
+  ``ClosedLoop``'s (in fact equal: the same floats go through the same core);
+- one state stamped +1e6 s (issue 21): answered with the safe current once, the valid states
+  before and after it with the law's commands (state by state, lock-step from the test).
 """
 import os
 import signal
@@ -84,7 +86,8 @@ def test_commands_arrive_then_controller_killed_car_goes_safe(listener):
                         procs=[car, ctrl])
             cst = ctrl_status(listener)
             assert cst['params_accepted'] == 1 and cst['commands_normal'] > 0
-            assert cst['state_rejected'] == {'non_finite': 0, 'out_of_order': 0}
+            assert cst['state_rejected'] == {'non_finite': 0, 'future_stamp': 0,
+                                             'out_of_order': 0}
             # a loaded machine may delay a command past the timeout now and then: the car
             # then goes safe and comes back with the next command (not counted as a failure)
             assert wait(lambda: car_status(listener).get('reason') == 'ok', GUARD_S,
@@ -174,3 +177,73 @@ def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
     built_in = _ride_figures(_reference_ride(n))
     for key in ext:
         assert ext[key] == pytest.approx(built_in[key], rel=0.02), (key, ext, built_in)
+
+
+def _car_states(n):
+    """States of a passive ride (the law's inputs), stamped 1 ms apart from 1 s (car time)."""
+    from mr_damper_model.plant import make_plant
+    from quarter_car_sim.dynamics import QuarterCar
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.road import make_road
+    road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=5, duration_s=n * 1e-3 + 2)
+    car = QuarterCar(QuarterCarParams(), make_plant('kwok-current'), road, t0=1.0)
+    return [car.step(1e-3, 0.7) for _ in range(n)]
+
+
+def test_one_future_stamped_state_costs_one_safe_answer(listener):
+    from mr_damper_interfaces.msg import QuarterCarState
+    from quarter_car_sim.controller_core import ControllerCore, make_node_law
+    from quarter_car_sim.failsafe import ModelSupervisor
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
+                                                             vehicle_state_from_msg)
+    from std_msgs.msg import Float64
+    listener.diag = listener.diagnostics()       # this test's statuses only
+    wait = listener.wait_for
+    answers = listener.subscribe(f'/{NS}/mr_damper/current_command', Float64, CONTROL_QOS)
+    pub = listener.publisher(f'/{NS}/quarter_car/car_state', QuarterCarState, CONTROL_QOS)
+    # the reference: the same core on the same floats (stamps of the vehicle, in order)
+    ref = ControllerCore(make_node_law('skyhook', QuarterCarParams(), 1000.0, {}),
+                         ModelSupervisor(timeout_s=3600.0, safe_current_a=SAFE_A))
+    ref.offer_parameters(thesis_parameter_values(), 1.0)
+    states = _car_states(400)
+    with NodeProcess('semi_active_controller_node', params=CTRL, namespace=NS) as ctrl:
+        assert wait(lambda: ctrl_status(listener).get('mode') == 'normal', GUARD_S,
+                    procs=[ctrl]), ctrl.output()
+        # both topics matched both ways before the first state (reliable: nothing is lost)
+        sub = next(x for x in listener.node.subscriptions
+                   if x.topic_name == f'/{NS}/mr_damper/current_command')
+        assert wait(lambda: pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0,
+                    GUARD_S, procs=[ctrl]), ctrl.output()
+
+        def send(state, stamp_shift=0.0):
+            """Publish one state and wait for its answer (lock-step); return it."""
+            n = len(answers)
+            msg = car_state_to_msg(state, 0.0, True, 'ok')
+            msg.header.stamp.sec += int(stamp_shift)
+            pub.publish(msg)
+            assert wait(lambda: len(answers) > n, GUARD_S, poll=0.001, procs=[ctrl]), (
+                ctrl.output())
+            assert len(answers) == n + 1
+            return answers[n][1].data
+
+        ref.command(vehicle_state_from_msg(car_state_to_msg(states[0], 0.0, True, 'ok')), 1.0)
+        send(states[0])
+        got, want = [], []
+        for j, s in enumerate(states[1:301]):
+            future = j == 150
+            got.append(send(s, 1e6 if future else 0.0))
+            vs = vehicle_state_from_msg(car_state_to_msg(s, 0.0, True, 'ok'))
+            want.append(SAFE_A if future else ref.command(vs, 1.0))
+        n_sent = 1 + 300
+        assert got == pytest.approx(want, abs=1e-12)
+        assert len({round(c, 6) for c in want}) > 20          # the law, not the safe current
+        assert wait(lambda: ctrl_status(listener).get('commands') == n_sent, GUARD_S,
+                    procs=[ctrl]), ctrl_status(listener)
+        st = ctrl_status(listener)
+        assert st['state_rejected'] == {'non_finite': 0, 'future_stamp': 1, 'out_of_order': 0}
+        assert st['commands_normal'] == n_sent - 1 and st['stamp_rebases'] == 0
+        assert (st['mode'], st['reason']) == ('normal', 'ok')
+        assert len(answers) == n_sent
+        assert ctrl.stop() == 0, ctrl.output()
+    assert 'state refused (future_stamp' in ctrl.output()

@@ -21,15 +21,9 @@ import time
 import pytest
 
 from conftest import VENV_BIN
+from integration.ros_helpers import pump_lines
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
-
-
-def _pump(stream, lines):
-    """Put every line of ``stream`` on the queue ``lines``, then None at its end."""
-    for line in iter(stream.readline, ''):
-        lines.put(line)
-    lines.put(None)
 
 
 def test_two_corners_run_in_their_namespaces(tmp_path):
@@ -44,7 +38,7 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
                             env=env)
     seen, ready = [], False
     lines = queue.Queue()
-    reader = threading.Thread(target=_pump, args=(proc.stdout, lines), daemon=True)
+    reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
     reader.start()
     deadline = time.monotonic() + 300.0                 # hang guard only, also without output
     try:
@@ -90,8 +84,13 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
         for conn, _, raw in reader.messages(connections=diag):
             for st in reader.deserialize(raw, conn.msgtype).status:
                 names.add(st.name)
+        samples = {}                                   # measurement batches: count samples
+        meas = [c for c in reader.connections if c.topic.endswith('/mr_damper/measurement')]
+        for conn, _, raw in reader.messages(connections=meas):
+            n = len(reader.deserialize(raw, conn.msgtype).t_offset_s)
+            samples[conn.topic] = samples.get(conn.topic, 0) + n
     for corner in ('fl', 'fr'):
-        n = counts.get(f'/{corner}/mr_damper/measurement', 0)
+        n = samples.get(f'/{corner}/mr_damper/measurement', 0)
         assert 1000 < n <= summary['corners'][corner]['samples_received'], (corner, n, counts)
         assert counts.get(f'/{corner}/mr_damper/kwok_parameters', 0) > 0, counts
         assert counts.get(f'/{corner}/mr_damper/current_command', 0) > 0, counts

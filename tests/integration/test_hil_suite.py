@@ -48,16 +48,15 @@ def listener():
 
 def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener):
     from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
-    from mr_damper_model.messages import measurement_from_msg
+    from mr_damper_interfaces.msg import DamperSamples
     # the rig in namespace hilrig: its relative topics resolve to /hilrig/mr_damper/...
     params = _suite_params('mr_damper_rig', wait_for_subscribers=1,
                            realtime_priority=0, actuator='ideal', actuator_delay_s=0.0,
                            command_timeout_s=0.05, return_speed_m_s=0.2, stroke_m=0.05,
                            diagnostics_period_s=0.1, noise_n=0.0)
     diag = listener.diagnostics()
-    meas = listener.subscribe('/hilrig/mr_damper/measurement', JointState, QoSProfile(
+    meas = listener.subscribe('/hilrig/mr_damper/hil_measurement', DamperSamples, QoSProfile(
         depth=10000, reliability=ReliabilityPolicy.RELIABLE))
     pub = listener.publisher('/hilrig/mr_damper/displacement_command', Float64,
                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
@@ -80,7 +79,10 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
         assert listener.wait_for(lambda: status().get('refused_non_finite') == 2
                                  and status().get('accepted') == 3, HANG_S, procs=[rig])
         assert listener.wait_for(lambda: len(meas) >= 7, HANG_S, procs=[rig])
-        first = [measurement_from_msg(m)[1] for _, m in list(meas)[:7]]
+        # lockstep: one sample per message, in stream order
+        assert all(len(m.x_m) == 1 and m.first_index == k
+                   for k, (_, m) in enumerate(list(meas)[:7]))
+        first = [m.x_m[0] for _, m in list(meas)[:7]]
         # one sample per command (ideal actuator): the guarded targets, the last one held
         assert first == pytest.approx([0.01, 0.02, 0.03, 0.05, -0.05, -0.05, -0.05], abs=1e-4)
         st = status()
@@ -91,7 +93,7 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
                                  procs=[rig])
         n = len(meas)
         assert listener.wait_for(lambda: len(meas) > n + 300, HANG_S, procs=[rig])
-        xs = [measurement_from_msg(m)[1] for _, m in list(meas)]
+        xs = [x for _, m in list(meas) for x in m.x_m]
         assert min(xs) == pytest.approx(-0.05, abs=1e-4)      # clamped, held: the stroke end
         assert max(abs(x) for x in xs) <= 0.05 + 1e-4          # never beyond the stroke
         assert xs[-1] == pytest.approx(0.0, abs=1e-4)          # back to neutral

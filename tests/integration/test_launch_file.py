@@ -185,7 +185,7 @@ def test_launcher_config_resolution(tmp_path):
 def test_launcher_replay_concatenates_csv_files(tmp_path):
     from conftest import QUIROZ_DIR
     from mr_damper_model.data import read_csv
-    files = sorted(QUIROZ_DIR.glob('quiroz_sine_10mm1Hz_*A_preproc.csv'))[:2]
+    files = sorted(QUIROZ_DIR.glob('quiroz_sine_10mm1Hz_*A_preproc.csv.gz'))[:2]
     args = parse_args(['--out', str(tmp_path), '--config', 'replay']
                       + [a for f in files for a in ('--file', str(f))])
     cfg = resolve_config(args, tmp_path)

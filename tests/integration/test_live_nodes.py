@@ -15,6 +15,7 @@ Rig / replay node -> identifier node over real ROS 2 topics (separate processes)
 
 Rigs run faster than real time (rate_factor 2, or 0 = as fast as the identifier takes it).
 """
+import array
 import json
 import math
 import subprocess
@@ -23,19 +24,19 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from mr_damper_interfaces.msg import KwokParameters
+from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
-from conftest import QUIROZ_DIR, VENV_BIN
+from conftest import csv_text, QUIROZ_DIR, VENV_BIN
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.data import DamperData
 from mr_damper_model.kwok_current import kwok_current_force
-from mr_damper_model.messages import (kwok_parameters_from_msg, measurement_from_msg,
-                                      measurement_to_msg)
+from mr_damper_model.messages import (kwok_parameters_from_msg, measurement_arrays,
+                                      measurement_to_msg, samples_to_msg)
 from mr_damper_model.params_file import load_params
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 KEEP_ALL = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.RELIABLE)
 #: identifier settings that make each window's fit exactly the offline tool's call
@@ -57,13 +58,14 @@ class Topics:
 
     def __init__(self, lis, tag, measurement=False):
         self.names = {'measurement_topic': f'/{tag}/measurement',
+                      'joint_topic': f'/{tag}/joint_measurement',
                       'parameters_topic': f'/{tag}/kwok_parameters'}
         # the identifier runs in namespace `tag`: its diagnostics status is `tag/...`
         self.tag = tag
         self.diag_name = f'{tag}/mr_damper_identifier'
         self.params = lis.subscribe(self.names['parameters_topic'], KwokParameters)
         self.diag = lis.diagnostics()
-        self.meas = (lis.subscribe(self.names['measurement_topic'], JointState, KEEP_ALL)
+        self.meas = (lis.subscribe(self.names['measurement_topic'], DamperSamples, KEEP_ALL)
                      if measurement else None)
 
     def rig_remap(self, tag):
@@ -76,6 +78,7 @@ class Topics:
     def ident(self, params):
         """Start the identifier of this run (namespace `tag`, topics remapped onto its names)."""
         remap = {'mr_damper/measurement': self.names['measurement_topic'],
+                 'mr_damper/joint_measurement': self.names['joint_topic'],
                  'mr_damper/kwok_parameters': self.names['parameters_topic'],
                  'mr_damper/samples_received': f'/{self.tag}/samples_received'}
         return NodeProcess('identifier_node', dict(DIAG, **params), remap=remap,
@@ -114,8 +117,8 @@ def run_summary(status, estimates, t0):
 
 
 def received_data(meas):
-    rows = np.array([measurement_from_msg(m) for _, m in meas])
-    return DamperData(*rows.T)
+    cols = [measurement_arrays(m) for _, m in meas]
+    return DamperData(*(np.concatenate(c) for c in zip(*cols)))
 
 
 @pytest.mark.parametrize('plant', ['kwok-current', 'spencer'])
@@ -139,8 +142,11 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     status = topics.last_status()
     assert status['samples_received'] == status['samples_accepted'] == n   # nothing lost
     # the test's own copy (hang guard only: a starved test process takes a while)
-    assert listener.wait_for(lambda: len(topics.meas) >= n, 180.0)
-    assert len(topics.meas) == n
+
+    def copied():
+        return sum(len(m.x_m) for _, m in list(topics.meas))      # samples of the batches
+    assert listener.wait_for(lambda: copied() >= n, 180.0)
+    assert copied() == n
     final = topics.estimates()[-1]
     data = received_data(topics.meas)
     # what happened, should an assertion fail: counters and the published estimates
@@ -250,9 +256,16 @@ def test_bad_messages_are_counted_and_harmless(listener):
     from mr_damper_rig.replay import read_csv_stream
     data = read_csv_stream(QUIROZ).select(slice(0, 3000))
     topics = Topics(listener, 'badmsg')
-    pub = listener.publisher(topics.names['measurement_topic'], JointState, KEEP_ALL)
+    # the single-sample layout (a DAQ driver's JointState per sample) and one malformed batch
+    pub = listener.publisher(topics.names['joint_topic'], JointState, KEEP_ALL)
+    batches = listener.publisher(topics.names['measurement_topic'], DamperSamples, KEEP_ALL)
     with topics.ident(OFFLINE_SAME) as ident:
-        assert listener.wait_for(lambda: pub.get_subscription_count() > 0, 15.0, procs=[ident])
+        assert listener.wait_for(lambda: pub.get_subscription_count() > 0
+                                 and batches.get_subscription_count() > 0, 15.0, procs=[ident])
+        bad_batch = samples_to_msg([0.0, 1e-3], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0],
+                                   sequence=0, first_index=0)
+        bad_batch.f_n = array.array('d', [1.0])        # arrays of unequal length
+        batches.publish(bad_batch)
         sent = {'nonfinite': 0, 'out_of_order': 0, 'duplicate': 0, 'joint_names': 0}
         for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):
             pub.publish(measurement_to_msg(*row))
@@ -265,11 +278,11 @@ def test_bad_messages_are_counted_and_harmless(listener):
                 pub.publish(bad)
                 for key in sent:
                     sent[key] += 1
-        assert wait_identified(listener, topics, data.n + sum(sent.values()), [ident])
+        assert wait_identified(listener, topics, data.n + sum(sent.values()) + 1, [ident])
         assert ident.alive()
     status = topics.last_status()
     assert status['samples_accepted'] == data.n
-    assert status['rejected'] == dict(sent, layout=0)
+    assert status['rejected'] == dict(sent, layout=1, future_stamp=0)
     final = topics.estimates()[-1]
     window = data.select((data.t >= status['last_window_start_s'] - 1e-6)
                          & (data.t <= status['last_window_end_s'] + 1e-6))
@@ -280,11 +293,11 @@ def test_bad_messages_are_counted_and_harmless(listener):
 
 
 def test_bad_replay_file_exits_2_and_publishes_nothing(listener, tmp_path):
-    lines = QUIROZ.read_text().splitlines()
+    lines = csv_text(QUIROZ).splitlines()
     lines[len(lines) // 2] = lines[len(lines) // 2].rsplit(',', 1)[0] + ',nan'
     bad = tmp_path / 'half_bad.csv'
     bad.write_text('\n'.join(lines) + '\n')
-    meas = listener.subscribe('/badfile/measurement', JointState, KEEP_ALL)
+    meas = listener.subscribe('/badfile/measurement', DamperSamples, KEEP_ALL)
     remap = {'mr_damper/measurement': '/badfile/measurement'}
     rig = NodeProcess('rig_node', {'mode': 'csv', 'file': str(bad)}, remap=remap)
     assert rig.wait(60) == 2

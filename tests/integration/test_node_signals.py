@@ -26,6 +26,8 @@ SCRIPTS = {
     'identifier_node': [],
     'quarter_car_node': [],
     'mr-damper-record': ['--out', '{tmp}/run.mcap'],
+    'can_bridge_node': [],
+    'can_driver_sim': [],
 }
 
 

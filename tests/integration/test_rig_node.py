@@ -55,7 +55,7 @@ class SimTimeNode:
         from rclpy.parameter import Parameter
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
+        from mr_damper_interfaces.msg import DamperSamples
         self.node = rclpy.create_node('sim_time_listener', parameter_overrides=[
             Parameter('use_sim_time', value=True)])
         self.clocks = []
@@ -65,7 +65,7 @@ class SimTimeNode:
         self.clock_sub = self.node.create_subscription(
             Clock, '/clock', lambda m: self.clocks.append(
                 m.clock.sec * 1_000_000_000 + m.clock.nanosec), keep_all)
-        self._meas = (JointState, topic, keep_all)
+        self._meas = (DamperSamples, topic, keep_all)
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
         self._stop = threading.Event()
@@ -78,7 +78,9 @@ class SimTimeNode:
 
     def _on_measurement(self, msg):
         stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        self.received.append((stamp, self.node.get_clock().now().nanoseconds))
+        now = self.node.get_clock().now().nanoseconds
+        for offset in msg.t_offset_s:       # every sample of the batch, received now
+            self.received.append((stamp + round(offset * 1e9), now))
 
     def now_ns(self):
         return self.node.get_clock().now().nanoseconds
@@ -132,7 +134,8 @@ def test_replay_clock_drives_a_sim_time_node_at_rate_factor_4(listener, tmp_path
         # that falls behind on one sees the other run ahead (82-96 % of the samples were
         # within one tick at load 8 on 2 cores; a statistic of the machine, not a property)
         got = np.array([s for s, _ in sim.received])
-        assert np.array_equal(got, stamps_ns)     # every sample, in order
+        assert got.shape == stamps_ns.shape       # every sample, in order (ns stamp + offset)
+        assert np.abs(got - stamps_ns).max() <= 1
         ros = np.array([r for _, r in sim.received])
         assert np.isin(ros, np.append(clocks, 0)).all()
         assert np.all(np.diff(ros) >= 0)           # ROS time never goes back
@@ -142,13 +145,16 @@ def test_replay_clock_drives_a_sim_time_node_at_rate_factor_4(listener, tmp_path
 
 def test_flow_control_keeps_the_window_and_follows_a_restarted_consumer(listener, tmp_path):
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import JointState
     from std_msgs.msg import UInt64
+    from mr_damper_interfaces.msg import DamperSamples
     n, window = 700, 50
     _write_csv(tmp_path / 'rec.csv', n)
     diag = listener.diagnostics()
-    meas = listener.subscribe('/flow/mr_damper/measurement', JointState, QoSProfile(
+    batches = listener.subscribe('/flow/mr_damper/measurement', DamperSamples, QoSProfile(
         depth=1000, history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE))
+
+    def received():
+        return sum(len(m.x_m) for _, m in list(batches))
     counts = listener.publisher('/flow/mr_damper/samples_received', UInt64)
     name = 'flow/mr_damper_rig'
     params = {'mode': 'csv', 'file': str(tmp_path / 'rec.csv'), 'rate_factor': 0.0,
@@ -156,15 +162,15 @@ def test_flow_control_keeps_the_window_and_follows_a_restarted_consumer(listener
     with NodeProcess('rig_node', params, namespace='flow') as rig:
         assert listener.wait_for(lambda: counts.get_subscription_count() > 0 and diag.count(name),
                                  GUARD_S, procs=[rig]), rig.output()
-        assert not meas                           # waits for the consumer's first count
+        assert not batches                           # waits for the consumer's first count
         counts.publish(UInt64(data=0))
         # after each count the rig sends exactly up to one window beyond what the consumer
         # has: before a restart, base 0; a restarted consumer counts from 0 again and the rig
         # paces against its new count plus what it had published (the same target)
         offset, expected = 0, window
         for step in range(8):
-            assert listener.wait_for(lambda: len(meas) >= expected, GUARD_S, procs=[rig])
-            got = len(meas)
+            assert listener.wait_for(lambda: received() >= expected, GUARD_S, procs=[rig])
+            got = received()
             assert got == expected                # one window ahead, not more
             if step == 4:                         # the consumer restarts: its count is 0
                 offset = got
@@ -172,13 +178,16 @@ def test_flow_control_keeps_the_window_and_follows_a_restarted_consumer(listener
             expected = min(got + window, n)
         assert listener.wait_for(lambda: diag.values(name).get('flow_restarts') == 1, GUARD_S,
                                  procs=[rig]), diag.values(name)
-        while len(meas) < n:                      # the rest, count by count
-            got = len(meas)
+        while received() < n:                      # the rest, count by count
+            got = received()
             counts.publish(UInt64(data=got - offset))
-            assert listener.wait_for(lambda: len(meas) > got, GUARD_S, procs=[rig])
+            assert listener.wait_for(lambda: received() > got, GUARD_S, procs=[rig])
         assert rig.wait(GUARD_S) == 0, rig.output()
     values = diag.values(name)
-    assert values['done'] and values['samples_published'] == n == len(meas)
+    assert values['done'] and values['samples_published'] == n == received()
     assert values['flow_restarts'] == 1 and values['flow']['window'] == window
-    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m in meas]
+    stamps = np.concatenate([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                             + np.asarray(m.t_offset_s) for _, m in batches])
     assert np.all(np.diff(stamps) > 0)            # in order, none twice
+    firsts = [m.first_index for _, m in batches]  # the stream index: contiguous
+    assert firsts == list(np.cumsum([0] + [len(m.x_m) for _, m in batches][:-1]))

@@ -17,13 +17,12 @@ import math
 import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
-from mr_damper_interfaces.msg import KwokParameters
+from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_model.health import WARN
 from mr_damper_model.live import pinned_parameters
-from mr_damper_model.messages import kwok_parameters_from_msg, measurement_to_msg
+from mr_damper_model.messages import kwok_parameters_from_msg, samples_to_msg
 from mr_damper_model.presets import thesis_kwok_current
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -77,6 +76,7 @@ class Stream:
     def __init__(self, lis, pub, diag, ident):
         self.lis, self.pub, self.diag, self.ident = lis, pub, diag, ident
         self.sent = 0
+        self.batches = 0
         self.t_last = -1.0
 
     def last(self):
@@ -96,12 +96,16 @@ class Stream:
             (what, self.last(), self.ident.output()[-3000:])
 
     def publish(self, arrays):
+        """Publish the samples as the rig does: DamperSamples batches of 20."""
         t = arrays[0]
-        for k in range(t.size):
+        for k in range(0, t.size, 20):
             if k % 100 == 0 and not self.may_send(t[k]):
                 self.wait(lambda: self.may_send(t[k]), f'pace at {t[k]:.3f}')
-            self.pub.publish(measurement_to_msg(*(float(a[k]) for a in arrays)))
-            self.sent += 1
+            part = [a[k:k + 20] for a in arrays]
+            self.pub.publish(samples_to_msg(*part, sequence=self.batches,
+                                            first_index=self.sent))
+            self.sent += part[0].size
+            self.batches += 1
         self.t_last = float(t[-1])
 
     def snapshot(self, t_judged):
@@ -139,7 +143,7 @@ def test_sensor_faults_never_become_valid_models():
     lis = Listener('sensor_faults_test')
     params = lis.subscribe('/faults/mr_damper/kwok_parameters', KwokParameters)
     diag = lis.diagnostics()
-    pub = lis.publisher('/faults/mr_damper/measurement', JointState, KEEP_ALL)
+    pub = lis.publisher('/faults/mr_damper/measurement', DamperSamples, KEEP_ALL)
     ident = NodeProcess('identifier_node', DIAG, namespace='faults')
     try:
         with ident:

@@ -16,7 +16,7 @@ from mr_damper_model.messages import kwok_parameters_from_msg
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 HANG_GUARD_S = 180.0    # a guard against a hung node, not a time budget
 
 

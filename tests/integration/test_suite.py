@@ -5,8 +5,9 @@ Real nodes in separate processes (console scripts of the venv), LOCALHOST discov
 private domain of tests/conftest.py. Three runs, about 1.5 min together:
 
 - the quarter-car node alone, fed by a test publisher: no model -> fail-safe at the safe current;
-  a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and undecodable sets are
-  refused and counted by reason, each dropping to fail-safe; commands stay in the coil range;
+  a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and zero ``i_ref_a``
+  sets are refused and counted by reason, each dropping to fail-safe; commands stay in the coil
+  range;
 - the whole suite through ``mr-damper-suite`` (twice real time): the car leaves fail-safe after the
   first valid parameters, its currents stay in the coil range, the live skyhook beats the passive
   damper on Wk-weighted RMS body acceleration on the same road and seed, exit status 0;
@@ -96,8 +97,8 @@ def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
             assert st['reason'] == reason
             assert f'parameters refused ({reason})' in diag.latest(name).message
             send(good, 'normal')
-        undecodable = KwokParameters()           # i_ref_a 0: decode refuses
-        st = send(undecodable, 'failsafe', 'undecodable', 1)
+        no_i_ref = KwokParameters()              # i_ref_a 0: decode refuses, by its reason
+        st = send(no_i_ref, 'failsafe', 'bad_i_ref', 1)
         st = send(good, 'normal')
         assert st['params_accepted'] == 2 + len(bad_sets)
         assert sum(st['params_rejected'].values()) == len(bad_sets) + 1
@@ -209,14 +210,20 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
 
 
 def test_launcher_exits_non_zero_when_a_node_dies(tmp_path):
-    """A node that dies (here: the car on an unknown road class) ends the run with status 1."""
+    """A node that dies at every start (the car on an unknown road class) ends the run: exit 1."""
     out = tmp_path / 'dead'
     # --duration 0: run until stopped, so only noticing the death ends the run (the timeout
     # below is a hang guard)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0',
            '--out', str(out), '--no-plots', '--set', 'quarter_car_node.road_class=Z',
-           '--domain-id', os.environ['ROS_DOMAIN_ID']]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+           '--domain-id', os.environ['ROS_DOMAIN_ID'], '--max-restarts', '2',
+           '--restart-backoff-s', '0.1']
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    assert 'quarter_car_node died (exit 2)' in proc.stderr
+    assert proc.stderr.count('quarter_car_node died (exit 2)') == 3     # restarted twice
+    assert proc.stderr.count('restarted quarter_car_node') == 2
+    assert 'quarter_car_node died 3 times within 60 s' in proc.stderr
     assert 'road' in proc.stderr.lower()              # its one-line error is shown
+    sup = json.loads((out / 'restarts.json').read_text())
+    assert [r['exit_code'] for r in sup['restarts']] == [2, 2]
+    assert sup['gave_up']['node'] == 'quarter_car_node' and sup['gave_up']['exit_code'] == 2

@@ -59,6 +59,26 @@ def test_replay_needs_existing_files(tmp_path):
         config.resolve_config(args, tmp_path)
 
 
+def test_replay_default_input_is_the_data_shipped_in_the_repository(tmp_path):
+    import numpy as np
+    from mr_damper_model.data import read_csv
+    from conftest import REPO
+    assert len(config.DEFAULT_REPLAY) == 5
+    for f in config.DEFAULT_REPLAY:
+        assert f.is_file() and f.is_relative_to(REPO / 'data'), f
+    cfg = config.resolve_config(parse_args(['--out', str(tmp_path), '--config', 'replay']),
+                                tmp_path)
+    rig = config.node_params(cfg, config.RIG)
+    assert rig['mode'] == 'csv' and rig['file'] == str(tmp_path / 'replay_input.csv')
+    joined, parts = read_csv(rig['file']), [read_csv(f) for f in config.DEFAULT_REPLAY]
+    assert joined.n == sum(p.n for p in parts) and np.all(np.diff(joined.t) > 0)
+    np.testing.assert_array_equal(joined.i, np.concatenate([p.i for p in parts]))
+    # one compressed file is replayed as it is, as a CSV (not taken for a bag)
+    one = parse_args(['--out', str(tmp_path), '--file', str(config.DEFAULT_REPLAY[2])])
+    rig = config.node_params(config.resolve_config(one, tmp_path), config.RIG)
+    assert rig['mode'] == 'csv' and rig['file'] == str(config.DEFAULT_REPLAY[2])
+
+
 def test_corner_configs_key_nodes_by_namespace_and_separate_what_must_differ(tmp_path):
     from mr_damper_bringup.config import corner_configs, IDENT, QC, RIG, SuiteError
     cfg = {'/**': {'ros__parameters': {'plant': 'spencer'}},

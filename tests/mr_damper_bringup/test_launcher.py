@@ -26,6 +26,20 @@ def test_identifier_drained_waits_for_a_settled_recorder_count():
     assert identifier_drained(mon) == (True, (1000, 1000))
 
 
+def test_after_a_restart_the_drain_waits_for_both_counts_to_settle():
+    """A restarted identifier counts from 0: its count cannot reach the recorder's."""
+    mon = _monitor()
+    mon.add('identifier', {'samples_received': 300})
+    mon.add('recorder', {'measurements': 1000})
+    mon.add('recorder', {'measurements': 1000})
+    assert identifier_drained(mon, exact=False)[0] is False      # one identifier status
+    mon.add('identifier', {'samples_received': 400})
+    assert identifier_drained(mon, exact=False)[0] is False      # still moving
+    mon.add('identifier', {'samples_received': 400})
+    assert identifier_drained(mon, exact=False) == (True, (400, 1000))
+    assert identifier_drained(mon)[0] is False                  # the exact rule never would
+
+
 def test_progress_line_from_the_statuses():
     mon = _monitor()
     assert 'no status yet' in progress_line(mon, 1.0)
@@ -40,7 +54,9 @@ def test_progress_line_from_the_statuses():
 
 
 @pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],
-                                 ['--rate-factor', '0'], ['--config', 'nope']])
+                                 ['--rate-factor', '0'], ['--config', 'nope'],
+                                 ['--max-restarts', '-1'], ['--restart-window-s', '-5'],
+                                 ['--restart-backoff-s', '4', '--restart-backoff-max-s', '2']])
 def test_command_line_refusals_exit_2(bad, capsys):
     with pytest.raises(SystemExit) as exc:
         parse_args(bad)
@@ -50,3 +66,13 @@ def test_command_line_refusals_exit_2(bad, capsys):
 def test_command_line_defaults():
     args = parse_args([])
     assert args.duration == 30.0 and args.config == 'sim' and args.rate_factor is None
+
+
+def test_restart_options_make_the_policy():
+    args = parse_args(['--max-restarts', '5', '--restart-window-s', '30',
+                       '--restart-backoff-s', '0.25', '--restart-backoff-max-s', '2'])
+    p = args.restart_policy
+    got = (p.max_restarts, p.restart_window_s, p.backoff_s, p.backoff_max_s)
+    assert got == (5, 30.0, 0.25, 2.0)
+    from mr_damper_bringup.supervisor import RestartPolicy
+    assert parse_args([]).restart_policy == RestartPolicy()

@@ -6,7 +6,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from mr_damper_bringup import topics
-from mr_damper_bringup.recorder import SuiteRecorder
+from mr_damper_bringup.recorder import (part_path, recording_parts, remove_recording,
+                                        SuiteRecorder, work_file)
 from mr_damper_model.bag_types import suite_typestore
 
 TS = suite_typestore()
@@ -23,6 +24,15 @@ def _joint_state(k):
         header=_stamp(0.001 * k), name=['mr_damper_piston', 'mr_damper_coil'],
         position=np.array([0.01 * k, np.nan]), velocity=np.array([-0.2, np.nan]),
         effort=np.array([100.0 + k, 0.5]))
+
+
+def _samples(k, n=20):
+    """Batch ``k`` of ``n`` samples at 1 kHz, as the rig publishes them."""
+    offsets = np.arange(n) * 1e-3
+    return TS.types[topics.DAMPER_SAMPLES](
+        header=_stamp(0.001 * n * k), sequence=k, first_index=n * k, sample_period_s=1e-3,
+        t_offset_s=offsets, x_m=0.01 * np.sin(offsets + k), v_m_s=np.full(n, -0.2),
+        f_n=100.0 + offsets, i_a=np.full(n, 0.5))
 
 
 def _time(t):
@@ -65,6 +75,7 @@ def _car_state(k):
 #: a message builder for every type of the topic table (a new type needs one here)
 BUILDERS = {
     topics.JOINT_STATE: _joint_state,
+    topics.DAMPER_SAMPLES: _samples,
     topics.KWOK: _kwok,
     topics.DAMPER_MODEL: _damper_model,
     topics.DIAGNOSTICS: _diagnostics,
@@ -123,16 +134,20 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
     truth = mm.damper_model_msg('spencer', {'c0a': 784.0, 'gamma': 136320.0})
     path = tmp_path / 'r.mcap'
     with SuiteRecorder(path, typestore=TS) as rec:
-        sample = mm.measurement_to_msg(1.5, 0.01, -0.2, 80.0, 0.5)
-        rec.write('measurement', serialize_message(sample), 5)
+        batch = mm.samples_to_msg([1.5, 1.501], [0.01, 0.02], [-0.2, -0.1], [80.0, 81.0],
+                                  [0.5, 0.5], sequence=3, first_index=60)
+        rec.write('measurement', serialize_message(batch), 5)
         rec.write('diagnostics', serialize_message(diag), 6)
         rec.write('parameters', serialize_message(mm.kwok_parameters_msg(params)), 7)
         rec.write('truth_spencer', serialize_message(truth), 8)
     with AnyReader([path], default_typestore=TS) as reader:
         msgs = {c.topic: reader.deserialize(raw, c.msgtype)
                 for c, _, raw in reader.messages()}
-    sample = topics.decode_measurement(msgs['/mr_damper/measurement'])
-    assert sample == (1.5, 0.01, -0.2, 80.0, 0.5)
+    assert rec.counts['measurement'] == 1 and rec.measurements() == 2   # samples, not messages
+    t, x, v, f, i = topics.decode_measurement(msgs['/mr_damper/measurement'])
+    np.testing.assert_allclose(t, [1.5, 1.501], rtol=0, atol=1e-9)
+    assert [x.tolist(), v.tolist(), f.tolist(), i.tolist()] == [
+        [0.01, 0.02], [-0.2, -0.1], [80.0, 81.0], [0.5, 0.5]]
     expected = {'fl/identifier': dict(status, level=WARN, message='gap')}
     assert topics.decode_status('diagnostics', msgs['/diagnostics']) == expected
     d = topics.decode_parameters(msgs['/mr_damper/kwok_parameters'])
@@ -179,18 +194,19 @@ def test_status_decoder_takes_diagnostics_by_node_and_namespace():
 
 
 def test_memory_stays_flat_while_recording(tmp_path):
-    """60,000 measurements (~9 MB of file): the writer holds one 1-MiB chunk, not the run."""
-    raw = TS.serialize_cdr(_joint_state(1), topics.JOINT_STATE)
+    """20,000 batches of 20 samples (~20 MB of file): the writer holds one chunk, not the run."""
+    raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)
     with SuiteRecorder(tmp_path / 'long.mcap', typestore=TS) as rec:
-        for k in range(2000):                   # warm up (first chunk, caches)
+        for k in range(1000):                   # warm up (first chunk, caches)
             rec.write('measurement', raw, k)
         tracemalloc.start()
-        for k in range(2000, 62000):
+        for k in range(1000, 21000):
             rec.write('measurement', raw, k)
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
+        assert rec.measurements() == 21000 * 20
     size = (tmp_path / 'long.mcap').stat().st_size
-    assert size > 60000 * len(raw)
+    assert size > 20000 * len(raw)
     assert peak < 4 * 2 ** 20 < size / 2
 
 
@@ -216,4 +232,44 @@ def test_measurements_are_counted_in_every_namespace(tmp_path):
     with SuiteRecorder(tmp_path / 'c.mcap', table, typestore=TS) as rec:
         for key in ('fl/measurement', 'fl/measurement', 'fr/measurement'):
             rec.write(key, raw, 1_000)
-        assert rec.measurements() == 3
+        assert rec.measurements() == 3 * 20          # samples: batches of 20
+
+
+def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path):
+    rec = tmp_path / 'suite.mcap'
+    assert part_path(rec, 0) == rec and part_path(rec, 2) == tmp_path / 'suite.2.mcap'
+    assert recording_parts(rec) == []
+    with SuiteRecorder(part_path(rec, 1), topics.topic_table(['measurement'])) as r:
+        r.write('measurement', TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES), 1)
+    killed = SuiteRecorder(rec, topics.topic_table(['measurement'])).open()   # never closed
+    killed.write('measurement', TS.serialize_cdr(_samples(0), topics.DAMPER_SAMPLES), 0)
+    (tmp_path / 'suite.10.mcap').write_bytes(b'')          # an empty part (a recorder that
+    (tmp_path / 'suites.mcap').write_bytes(b'')            # wrote nothing), not another stem
+    assert recording_parts(rec) == [(0, work_file(rec)), (1, part_path(rec, 1)),
+                                    (10, tmp_path / 'suite.10.mcap')]
+    with pytest.raises(ValueError, match='already exists'):      # never over an earlier part
+        SuiteRecorder(part_path(rec, 1))
+    remove_recording(rec)
+    assert recording_parts(rec) == [] and sorted(p.name for p in tmp_path.iterdir()) == [
+        'suites.mcap']
+
+
+@pytest.mark.parametrize('chunk_s', [1.0, 0.25])
+def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
+    """Chunks are closed every ``chunk_s`` of log time: a cut file holds all but the last one."""
+    from mr_damper_model.mcap_scan import McapScan
+    raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)
+    rec = SuiteRecorder(tmp_path / 'k.mcap', topics.topic_table(['measurement']), typestore=TS,
+                        chunk_s=chunk_s).open()
+    n = 1000                                    # 10 s at 100 messages/s: far below 1 MiB
+    for k in range(n):
+        rec.write('measurement', raw, 10_000_000 * k)
+    # killed here: nothing closes the file; read what is on disk
+    scan = McapScan(work_file(tmp_path / 'k.mcap'))
+    got = [t for _, _, t, _ in scan.messages()]
+    assert scan.complete is False
+    assert got == [10_000_000 * k for k in range(len(got))]      # the first ones, in order
+    per_chunk = int(round(chunk_s / 0.01)) + 1                   # a chunk ends with its span
+    assert n - per_chunk <= len(got) < n
+    with pytest.raises(ValueError, match='chunk_s'):
+        SuiteRecorder(tmp_path / 'x.mcap', chunk_s=-1.0)

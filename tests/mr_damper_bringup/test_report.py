@@ -111,13 +111,15 @@ def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     assert ride['wk_improvement_percent'] > 0
 
 
-def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None):
+def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None,
+               first_index=0):
     """
     Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
 
     ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
     ``drop``: measurement indices not recorded (gaps); ``node_params``: {node: parameters} as
-    the recorder asks them from the nodes.
+    the recorder asks them from the nodes; ``first_index``: the stream index of the first sample
+    (a later part of a recording goes on with the rig's index).
     """
     from rclpy.serialization import serialize_message
 
@@ -132,7 +134,9 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
         for k in range(meas['t'].size):
             if k in drop:
                 continue
-            msg = mm.measurement_to_msg(*(meas[c][k] for c in 'txvfi'))
+            # one sample per batch: a dropped sample is a jump of the stream index
+            msg = mm.samples_to_msg(*([meas[c][k]] for c in 'txvfi'), sequence=first_index + k,
+                                    first_index=first_index + k)
             rec.write('measurement', serialize_message(msg),
                       int(round(meas['recv_epoch_s'][k] * 1e9)))
         for t, d in params_msgs:
@@ -324,3 +328,108 @@ def test_report_passes_keep_memory_bounded(tmp_path):
     assert ident['truth_nrmse_percent'] < 0.1 and ident['nrmse_percent'] < 0.1
     np.testing.assert_allclose(delays, [0.048], atol=1e-6)
     assert peak < 16 * 2 ** 20
+
+
+def test_restart_figures_from_car_modes_and_identifier_lives():
+    """Fail-safe and silence per restart window; samples lost between identifier lives."""
+    rec = {'end_epoch_s': 130.0, 'car_modes': [], 'identifier_lives': []}
+    # car states every 10 ms: normal to 105 s, fail-safe 105..108, normal to 112, silent to
+    # 114 (the car was down), fail-safe 114..115, normal to the end
+    for t in np.arange(100.0, 130.0, 0.01):
+        if 112.0 < t < 114.0:
+            continue
+        report._mode_runs(rec['car_modes'], float(t), int(105.0 <= t < 108.0
+                                                          or 114.0 <= t < 115.0))
+    # identifier counts every 0.1 s at 1 kHz; killed at 103 s, restarted at 104 s, counting
+    # from 0 on; the recorder missed its first counts (they arrive from 106 s on)
+    for k in range(300):
+        if 30 <= k < 60:
+            continue
+        t = 100.0 + 0.1 * k
+        count = 100 * k if k < 30 else 100 * k - 4500
+        report._count_lives(rec['identifier_lives'], float(t), count, starts=(104.0,))
+    assert len(rec['identifier_lives']) == 2
+    # every sample recorded (1 kHz) but for 500 missing around 120 s (a recorder gap)
+    recv = 100.0 + 1e-3 * np.arange(29901)
+    meas = {'recv_epoch_s': np.delete(recv, np.arange(20000, 20500))}
+    rec['gap_events'] = [(120.5, 500)]
+    supervision = {'restarts': [
+        {'node': 'mr_damper_identifier', 'death_s': 3.0, 'death_epoch_s': 103.0,
+         'restart_s': 4.0, 'restart_epoch_s': 104.0},
+        {'node': 'quarter_car_node', 'death_s': 12.0, 'death_epoch_s': 112.0,
+         'restart_s': 12.5, 'restart_epoch_s': 112.5}]}
+    ident, car = report.restart_figures(supervision, rec, meas)
+    assert ident['window_s'] == pytest.approx(9.0)
+    assert ident['failsafe_s'] == pytest.approx(3.0, abs=0.02)
+    assert ident['no_car_state_s'] == pytest.approx(0.0, abs=0.02)
+    # published from its last count (102.9 s) to the car's death (112 s): 9100; counted by the
+    # new life by then: 7500; lost: the samples between 102.9 s and its start at 104.5 s
+    assert ident['measurements_lost'] == pytest.approx(1600, abs=2)
+    assert car['window_s'] == pytest.approx(18.0)
+    assert car['no_car_state_s'] == pytest.approx(2.0, abs=0.02)
+    assert car['failsafe_s'] == pytest.approx(1.0, abs=0.02)
+    assert car['car_normal_at_end'] is True
+    assert car['measurements_lost'] == pytest.approx(0, abs=2)   # the gap was counted
+    # the restarts never claim more than the total loss; the rest is said apart
+    br = {'measurements_lost_to_identifier': 2000}
+    report.attribute_losses(br, [ident, car])
+    at_restarts = ident['measurements_lost'] + car['measurements_lost']
+    assert br == {'measurements_lost_to_identifier': 2000,
+                  'measurements_lost_at_restarts': at_restarts,
+                  'measurements_lost_not_at_restarts': 2000 - at_restarts}
+    br = {'measurements_lost_to_identifier': 100}
+    report.attribute_losses(br, [ident])
+    assert ident['measurements_lost'] == 100 and br['measurements_lost_not_at_restarts'] == 0
+
+
+def test_identifier_received_adds_up_its_lives():
+    rec = {'status': {'identifier': {'samples_received': 900}},
+           'measurements_received': 5000, 'measurement_gaps': 0,
+           'identifier_lives': [{'last_count': 3000}, {'last_count': 850}]}
+    lost, br = report.messages_summary(rec, {})
+    assert br['measurements_received_by_identifier'] == 3900 and lost == 1100
+    assert br['identifier_lives'] == 2
+
+
+def test_a_cut_recording_and_a_second_part_make_one_incomplete_report(tmp_path):
+    """A killed recorder's part (no footer) and its successor's: read both, marked incomplete."""
+    from mr_damper_bringup.recorder import recording_parts, work_file
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=40000)
+    first = {k: v[:30000] for k, v in meas.items()}
+    second = {k: v[32000:] for k, v in meas.items()}
+    _write_run(tmp_path / 'suite.mcap', first, [(1000.0, dict(msg))], [], msg, _cfg())
+    _write_run(tmp_path / 'suite.1.mcap', second, [(1033.0, dict(msg))], [], msg, _cfg(),
+               first_index=32000)
+    # the first recorder was killed: its file stays in the work folder, without its end
+    cut = work_file(tmp_path / 'suite.mcap')
+    cut.parent.mkdir()
+    raw = (tmp_path / 'suite.mcap').read_bytes()
+    cut.write_bytes(raw[:int(0.8 * len(raw))])
+    (tmp_path / 'suite.mcap').unlink()
+    assert recording_parts(tmp_path / 'suite.mcap') == [(0, cut), (1, tmp_path / 'suite.1.mcap')]
+    _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=2.0)
+    s = report.make_report(tmp_path, duration_s=40.0, plots=False)
+    rec = s['recording']
+    assert rec['complete'] is False and [p['complete'] for p in rec['parts']] == [False, True]
+    got = rec['parts'][0]['messages']
+    assert 0 < got < 30000 + 3 and rec['parts'][1]['messages'] == 8000 + 3
+    # every measurement of the complete chunks is there, the gap between the parts is counted
+    n0 = s['messages']['measurements_received_by_recorder'] - 8000
+    assert 0 < n0 < 30000
+    assert s['messages']['measurement_gaps_at_recorder'] == 32000 - n0
+    assert 'truncated' in rec['parts'][0]['error'] or 'EndOfFile' in rec['parts'][0]['error']
+    assert 'recording INCOMPLETE' in report.format_summary(s)
+
+
+def test_no_recording_gives_a_summary_from_the_statuses(tmp_path):
+    _live_log(tmp_path / 'quarter_car_log', controller_offers=True, seconds=2.0)
+    status = {'identifier': {'samples_received': 700}, 'rig': {'samples_published': 700},
+              'quarter_car': {'mode': 'normal', 'failsafe_s': 1.0}}
+    s = report.make_report(tmp_path, duration_s=3.0, fallback={'config': _cfg(),
+                                                               'status': status})
+    assert s['recording']['complete'] is False and s['recording']['parts'] == []
+    assert 'statuses' in s['recording']['note']
+    assert s['messages']['measurements_received_by_identifier'] == 700
+    assert json.loads((tmp_path / 'summary.json').read_text()) == s
+    assert not list(tmp_path.glob('*.png'))

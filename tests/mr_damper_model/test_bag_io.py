@@ -6,7 +6,7 @@ from conftest import QUIROZ_DIR
 from mr_damper_model import bag_io
 from mr_damper_model.data import COIL_JOINT, DamperData, DataError, PISTON_JOINT, read_csv
 
-QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv'
+QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
 PLUGINS = {'sqlite3': 'SQLITE3', 'mcap': 'MCAP'}
 
 
@@ -65,6 +65,20 @@ def test_write_bag_round_trip(tmp_path, storage):
         bag_io.write_bag(tmp_path / 'x', d, storage='wav')
 
 
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_batched_bags_as_the_rig_publishes_read_back_the_same_samples(tmp_path, storage):
+    d = read_csv(QFILE).select(slice(0, 1013))
+    assert d.n % 20                                   # a partial last batch
+    bag_io.write_bag(tmp_path / 'b', d, storage=storage, samples_per_message=20)
+    topics = bag_io.bag_topics(tmp_path / 'b')
+    assert topics == {bag_io.MEASUREMENT_TOPIC: (bag_io.SAMPLES_TYPE, -(-d.n // 20))}
+    back = bag_io.read_bag(tmp_path / 'b')
+    assert back.n == d.n
+    np.testing.assert_allclose(back.t, d.t, rtol=0, atol=2e-9)   # ns stamp + offset
+    for c in 'xvfi':
+        np.testing.assert_array_equal(getattr(back, c), getattr(d, c))
+
+
 def test_topic_choice(tmp_path):
     d = read_csv(QFILE).select(slice(0, 100))
     one = rosbags_write(tmp_path / 'one', d, storage='mcap', topic='/daq/joints')
@@ -74,7 +88,7 @@ def test_topic_choice(tmp_path):
         bag_io.read_bag(one, '/nope')
     two = rosbags_write(tmp_path / 'two', d, storage='sqlite3', topic='/a', extra_topics=['/b'])
     with pytest.raises(DataError, match='two: no topic /mr_damper/measurement and several '
-                       'JointState topics .*/a, /b.*--topic'):
+                       'measurement topics .*/a, /b.*--topic'):
         bag_io.read_bag(two)
     assert_same_samples(bag_io.read_bag(two, '/b'), d)
     # the rig's topic wins over other JointState topics
@@ -99,7 +113,7 @@ def test_wrong_joint_names_and_type(tmp_path):
     with Writer(tmp_path / 'empty', version=9, storage_plugin=StoragePlugin.MCAP):
         pass
     with pytest.raises(DataError, match=r'empty: no topic /mr_damper/measurement and no '
-                       r'JointState topic in the bag \(topics: none\)'):
+                       r'DamperSamples or JointState topic in the bag \(topics: none\)'):
         bag_io.read_bag(tmp_path / 'empty')
 
 

@@ -13,6 +13,7 @@ SRC_MSG = REPO / 'src' / 'mr_damper_interfaces' / 'msg'
 KWOK = 'mr_damper_interfaces/msg/KwokParameters'
 STATE = 'mr_damper_interfaces/msg/QuarterCarState'
 MODEL = 'mr_damper_interfaces/msg/DamperModel'
+SAMPLES = 'mr_damper_interfaces/msg/DamperSamples'
 
 
 def fake_prefix(root, definitions):
@@ -68,7 +69,7 @@ def test_empty_and_broken_definitions_are_errors(tmp_path):
 
 def test_source_definitions_parse_with_every_field_and_constant():
     types = bag_types.interface_types(SRC_MSG)
-    assert sorted(types) == [MODEL, KWOK, STATE]
+    assert sorted(types) == [MODEL, SAMPLES, KWOK, STATE]
     assert [name for name, _ in types[MODEL][1]] == [
         'header', 'model', 'parameter_names', 'parameter_values', 'option_names', 'option_values']
     consts, fields = types[STATE]
@@ -103,5 +104,5 @@ def test_suite_typestore_serialises_known_values():
 def test_register_adds_to_an_existing_store():
     store = get_typestore(Stores.ROS2_KILTED)
     assert KWOK not in store.types
-    assert bag_types.register_interface_types(store, SRC_MSG) == (MODEL, KWOK, STATE)
+    assert bag_types.register_interface_types(store, SRC_MSG) == (MODEL, SAMPLES, KWOK, STATE)
     assert STATE in store.types

@@ -69,7 +69,7 @@ def test_compiled_equals_numpy_reference_random_swarm(unbounded):
 
 
 def test_compiled_equals_numpy_reference_on_quiroz_record():
-    d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv')
+    d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz')
     N = _swarm(25, False, 6)
     z = bouc_wen_z(*N.T, d.v, d.t)
     ref = bouc_wen_z_numpy(*N.T, d.v, d.t)

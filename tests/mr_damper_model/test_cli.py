@@ -6,11 +6,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import QUIROZ_DIR, VENV_BIN
+from conftest import csv_text, QUIROZ_DIR, VENV_BIN
 from mr_damper_model.cli import run
 from mr_damper_model.params_file import load_params
 
-QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv'
+QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
 HEADER = 't,x,v,f,i\n'
 
 
@@ -36,7 +36,7 @@ def _bad_files(tmp_path):
     t_bad = t.copy()
     t_bad[50] = t_bad[49]
     trunc = tmp_path / 'trunc.csv'
-    trunc.write_text(QFILE.read_text()[:500])
+    trunc.write_text(csv_text(QFILE)[:500])
     return {
         'missing column': _write(tmp_path / 'nof.csv', _rows(), 't,x,v,i'),
         'NaN': _write(tmp_path / 'nan.csv', _rows(f=f_nan)),
@@ -81,8 +81,8 @@ def test_json_output_and_params_file(tmp_path, capsys):
 
 def test_per_current_groups_and_default_model(tmp_path, capsys):
     from mr_damper_model.data import DamperData, read_csv, write_csv
-    a = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0A.csv')
-    b = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_1p0A.csv')
+    a = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0A.csv.gz')
+    b = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_1p0A.csv.gz')
     both = DamperData.concatenate([a, b], restamp=True)
     path = tmp_path / 'two.csv'
     write_csv(path, both)
@@ -106,9 +106,9 @@ def test_table_and_plot(tmp_path, capsys):
 # --- many files, one model; validation; bags ------------------------------------------------
 
 # different current, amplitude, frequency and sample rate (1 kHz, 200 Hz); sorted by name
-TRIO = sorted(QUIROZ_DIR / name for name in ('quiroz_sine_2mm5Hz_0A.csv',
-                                             'quiroz_sine_25mm0x25Hz_0p5A.csv',
-                                             'quiroz_sine_5mm3Hz_1p0A.csv'))
+TRIO = sorted(QUIROZ_DIR / name for name in ('quiroz_sine_2mm5Hz_0A.csv.gz',
+                                             'quiroz_sine_25mm0x25Hz_0p5A.csv.gz',
+                                             'quiroz_sine_5mm3Hz_1p0A.csv.gz'))
 
 
 def _direct_metrics(params_path, paths):
@@ -162,6 +162,7 @@ def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit)
     assert pf.current_min_a == 0.0 and pf.current_max_a == pytest.approx(1.0, abs=0.05)
 
 
+@pytest.mark.slow
 def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
     import shutil
     folder = tmp_path / 'tests'
@@ -171,7 +172,7 @@ def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
     (folder / 'empty_subdir').mkdir()
     docs = {}
     for how, argv in {'list': [str(c) for c in copies], 'dir': [str(folder)],
-                      'glob': [str(folder / '*Hz_*A.csv')],
+                      'glob': [str(folder / '*Hz_*A.csv.gz')],
                       'dir+repeat': [str(folder), str(copies[0])]}.items():
         assert run([*argv, '--json', '--seed', '2']) == 0, how
         docs[how] = json.loads(capsys.readouterr().out)
@@ -192,8 +193,8 @@ def test_multi_file_table_and_plot(tmp_path, capsys):
 
 def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, capsys):
     _, params = joint_fit
-    held_out = [QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p25A.csv',
-                QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p75A.csv']
+    held_out = [QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p25A.csv.gz',
+                QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p75A.csv.gz']
     png = tmp_path / 'val.png'
     assert run(['--validate', str(params), *map(str, held_out), '--json',
                 '--plot', str(png)]) == 0
@@ -256,7 +257,7 @@ def test_bag_input_fits_and_validates_like_the_csv(joint_fit, tmp_path, capsys, 
     # a directory holding a bag and a CSV: both are read
     (tmp_path / 'mixed').mkdir()
     write_bag(tmp_path / 'mixed' / 'b_bag', read_csv(QFILE), storage=storage)
-    (tmp_path / 'mixed' / 'a.csv').write_text(QFILE.read_text())
+    (tmp_path / 'mixed' / 'a.csv').write_text(csv_text(QFILE))
     assert run(['--validate', str(params), str(tmp_path / 'mixed'), '--json']) == 0
     doc = json.loads(capsys.readouterr().out)
     assert [Path(f['source']).name for f in doc['files']] == ['a.csv', 'b_bag']
@@ -347,3 +348,24 @@ def test_every_registered_model_can_be_chosen():
     from mr_damper_model.models import MODEL_NAMES
     assert sorted(MODEL_CHOICES) == sorted(MODEL_NAMES)
     assert MULTI_CURRENT_MODEL in MODEL_CHOICES
+
+
+def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path, capsys):
+    """mr-damper-identify reads a footer-less MCAP up to its last chunk and says where it ends."""
+    from mr_damper_model.bag_io import write_bag
+    from mr_damper_model.data import DamperData, read_csv
+    d = read_csv(QFILE)
+    reps = 30                                   # several 1 MiB chunks of measurements
+    n = d.t.size
+    t = np.concatenate([d.t + k * (d.t[-1] + d.t[1] - d.t[0]) for k in range(reps)])
+    data = DamperData(t, *(np.tile(getattr(d, c), reps) for c in 'xvfi'))
+    write_bag(tmp_path / 'bag', data, storage='mcap')
+    raw = (tmp_path / 'bag' / 'bag.mcap').read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(raw[:len(raw) // 2])
+    assert run([str(cut), '--json']) == 0
+    out = capsys.readouterr()
+    doc = json.loads(out.out)
+    got = doc['samples'] if 'samples' in doc else doc['files'][0]['samples']
+    assert n <= got < reps * n
+    assert f'warning: {cut}: truncated' in out.err and f'{got} messages read' in out.err

@@ -59,6 +59,7 @@ def _run(patch='', **env):
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_second_process_loads_the_cache_beside_the_source():
     _run()                       # compiles, or loads what an earlier run stored
     second = _run()
@@ -73,6 +74,7 @@ def test_second_process_loads_the_cache_beside_the_source():
         assert list(cache.glob(f'{module}.*.nbi')) and list(cache.glob(f'{module}.*.nbc'))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('patch', [_READ_ONLY_TREE, _NO_CACHE_FOLDER],
                          ids=['user_cache_fallback', 'no_cache_at_all'])
 def test_read_only_package_folder_degrades_gracefully(patch, tmp_path):

@@ -1,9 +1,11 @@
 """Tests for mr_damper_model.data: CSV reading, validation, current splitting."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData, DataError, derive_velocity, read_csv, validate, \
-    write_csv
+from mr_damper_model.data import DamperData, DataError, derive_velocity, is_csv, read_csv, \
+    validate, write_csv
 
 
 def _record(n=2000, fs=1000.0, freq=1.1, amp=0.03, currents=(0.0,)):
@@ -126,6 +128,55 @@ def test_byte_order_mark_of_a_spreadsheet_csv_is_accepted(tmp_path):
     np.testing.assert_array_equal(d.t, [0.0, 0.001])
 
 
+def _gzip_copy(src, dst):
+    import gzip
+    dst.write_bytes(gzip.compress(src.read_bytes(), mtime=0))
+    return dst
+
+
+def test_gzip_csv_reads_the_same_arrays_as_the_plain_file(tmp_path):
+    from conftest import csv_text, QUIROZ_DIR
+    shipped = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
+    plain = tmp_path / 'q.csv'
+    plain.write_text(csv_text(shipped))
+    a, b = read_csv(plain), read_csv(shipped)
+    assert a.n > 500 and b.source == str(shipped)
+    for c in 'txvfi':
+        np.testing.assert_array_equal(getattr(b, c), getattr(a, c))
+    # a byte-order mark, a derived velocity and a missing .gz ending work the same compressed
+    bom = tmp_path / 'bom.csv'
+    bom.write_bytes('\ufefft,x,v,f,i\n0,0.001,,5,0.5\n0.001,0.002,,6,0.5\n0.002,0.003,,7,0.5\n'
+                    .encode('utf-8'))
+    for packed in (_gzip_copy(bom, tmp_path / 'bom.csv.gz'), _gzip_copy(bom, tmp_path / 'x.dat')):
+        got, want = read_csv(packed), read_csv(bom)
+        for c in 'txvfi':
+            np.testing.assert_array_equal(getattr(got, c), getattr(want, c))
+    # write_csv compresses for a .gz name (numpy.savetxt), and the reader takes it back
+    d = _record()
+    write_csv(tmp_path / 'rec.csv.gz', d)
+    np.testing.assert_allclose(read_csv(tmp_path / 'rec.csv.gz').f, d.f, rtol=1e-9)
+
+
+@pytest.mark.parametrize('cut', ['middle', 'header'])
+def test_truncated_or_corrupt_gzip_is_a_data_error_naming_the_file(tmp_path, cut):
+    from conftest import QUIROZ_DIR
+    raw = (QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz').read_bytes()
+    bad = tmp_path / 'cut.csv.gz'
+    bad.write_bytes(raw[:len(raw) // 2] if cut == 'middle' else raw[:5])
+    with pytest.raises(DataError, match='truncated or corrupt gzip file') as info:
+        read_csv(bad)
+    assert str(bad) in str(info.value) and '\n' not in str(info.value)
+    junk = tmp_path / 'junk.csv.gz'
+    junk.write_bytes(raw[:20] + bytes(200))     # a gzip header followed by garbage
+    with pytest.raises(DataError, match=f'{junk}: truncated or corrupt gzip file'):
+        read_csv(junk)
+
+
+def test_is_csv_knows_plain_and_compressed_names():
+    assert is_csv('a.csv') and is_csv('dir/A.CSV.GZ') and is_csv(Path('x.csv.gz'))
+    assert not is_csv('a.mcap') and not is_csv('a.gz') and not is_csv('bag_dir')
+
+
 def test_blank_line_inside_the_data_is_an_error_trailing_ones_are_not(tmp_path):
     path = tmp_path / 'blank.csv'
     path.write_text('t,x,v,f,i\n0,0,0,1,0\n\n0.001,0,0,1,0\n')
@@ -135,6 +186,7 @@ def test_blank_line_inside_the_data_is_an_error_trailing_ones_are_not(tmp_path):
     assert read_csv(path).n == 2
 
 
+@pytest.mark.slow
 def test_large_csv_is_read_in_bounded_memory(tmp_path, monkeypatch):
     """Peak memory of read_csv stays within 3x the arrays it returns (several blocks)."""
     import tracemalloc

@@ -4,18 +4,20 @@ Identifier node in-process: dynamic parameters reach the core, the rest is refus
 Also: relative topic names under a namespace, the ``samples_received`` count, the diagnostics
 values of received and rejected samples, and ROS time under ``use_sim_time``.
 """
+import array
 import time
 
+import numpy as np
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from std_msgs.msg import UInt64
 
-from mr_damper_model.health import ERROR, OK
+from mr_damper_model.health import ERROR, OK, WARN
 from mr_damper_model.identifier_node import IdentifierNode, PARAMETERS
 from mr_damper_model.live import DYNAMIC_FIELDS
-from mr_damper_model.messages import measurement_to_msg
+from mr_damper_model.messages import measurement_to_msg, samples_to_msg
 
 
 @pytest.fixture(scope='module')
@@ -106,6 +108,27 @@ def test_relative_names_samples_received_and_diagnostics(make_node):
     ex.remove_node(node)
     sub_node.destroy_node()
     assert got and got[-1] == 6
+
+
+def test_measurement_batches_are_taken_whole_and_lost_samples_counted_exactly(make_node):
+    node = make_node(Parameter('no_sample_timeout_s', value=0.0))
+    node.diagnostics.publish()
+    t = 1.0 + np.arange(100) * 1e-3
+    z, f = np.zeros(100), np.linspace(-100.0, 100.0, 100)
+    for k, first in enumerate((0, 20, 60, 80)):          # batch 40..59 never arrived
+        part = slice(first, first + 20)
+        node._on_samples(samples_to_msg(t[part], z[part], z[part] + 0.01, f[part],
+                                        z[part] + 0.5, sequence=k, first_index=first))
+    bad = samples_to_msg(t[:2] + 1.0, z[:2], z[:2], z[:2], z[:2], sequence=4, first_index=100)
+    bad.i_a = array.array('d', [0.5])                      # unequal arrays: one rejection
+    node._on_samples(bad)
+    h = node.diagnostics.publish()
+    v = h.values
+    assert v['samples_accepted'] == 80 and v['rejected']['layout'] == 1
+    assert v['stream'] == {'batches': 4, 'samples': 80, 'lost': 20, 'restarts': 0,
+                           'skipped_at_start': 0}
+    assert h.level == WARN and '20 sample(s) lost' in h.message
+    assert v['stamp_age_ms']['n'] == 4                    # one transport age per batch
 
 
 def test_sim_time_fits_in_order_and_ages_are_ros_time(make_node):

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from mr_damper_model.kwok import Kwok
-from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_force_scalar,
+from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_coefficients,
+                                          kwok_current_force_scalar,
                                           kwok_current_force_slope_at,
                                           kwok_current_terms_scalar)
 from mr_damper_model.presets import thesis_kwok_current
@@ -14,31 +15,86 @@ def _p():
             'alpha2': 200.0, 'beta0': 7.0, 'beta1': -0.3, 'delta': 0.5, 'f0': 5.0}
 
 
-@pytest.mark.parametrize('current', [0.0, 0.7, 2.0, 2.5])
-def test_equals_kwok_at_fixed_current(current):
+def _xv(n=50, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-0.03, 0.03, n), rng.uniform(-0.3, 0.3, n)
+
+
+@pytest.mark.parametrize('i_ref', [1.0, 2.0])
+def test_limits_at_zero_and_reference_current_are_the_plain_kwok_model(i_ref):
+    """At i = 0 only the 0-coefficients act; at i = i_ref_a every current term is fully on."""
     q = _p()
-    s = current / 2.0
-    kw = {'c': q['c0'] + q['c1'] * s, 'k': q['k'],
-          'alpha': q['alpha0'] + q['alpha1'] * s * (2 - s) + q['alpha2'] * s * s,
-          'beta': q['beta0'] * np.exp(q['beta1'] * s), 'delta': q['delta'], 'f0': q['f0']}
-    rng = np.random.default_rng(0)
-    x = rng.uniform(-0.03, 0.03, 50)
-    v = rng.uniform(-0.3, 0.3, 50)
-    m = KwokCurrent(i_ref_a=2.0)
-    np.testing.assert_allclose(m.force(m.from_dict(q), x, v, np.full(50, current)),
-                               Kwok().force(Kwok().from_dict(kw), x, v), rtol=1e-12)
+    x, v = _xv()
+    m = KwokCurrent(i_ref_a=i_ref)
+    vec = m.from_dict(q)
+    kwok = Kwok()
+    off = {'c': q['c0'], 'k': q['k'], 'alpha': q['alpha0'], 'beta': q['beta0'],
+           'delta': q['delta'], 'f0': q['f0']}
+    full = dict(off, c=q['c0'] + q['c1'], alpha=q['alpha0'] + q['alpha1'] + q['alpha2'],
+                beta=q['beta0'] * np.exp(q['beta1']))
+    for current, kw in ((0.0, off), (i_ref, full)):
+        np.testing.assert_allclose(m.force(vec, x, v, np.full(x.size, current)),
+                                   kwok.force(kwok.from_dict(kw), x, v), rtol=1e-12, atol=1e-9)
 
 
-def test_monotone_in_current_within_default_bounds():
+def test_without_current_terms_the_force_does_not_depend_on_current():
+    q = dict(_p(), c1=0.0, alpha1=0.0, alpha2=0.0, beta1=0.0)
+    x, v = _xv(seed=2)
+    m = KwokCurrent()
+    want = m.force(m.from_dict(q), x, v, np.zeros(x.size))
+    for current in (0.3, 1.0, 2.0, 2.7):
+        np.testing.assert_allclose(m.force(m.from_dict(q), x, v, np.full(x.size, current)),
+                                   want, rtol=1e-12)
+
+
+def test_more_current_never_softens_the_damper_within_default_bounds():
+    """
+    Physical check: with the default bounds a higher current gives at least as much force.
+
+    Piston moving outwards (x, v > 0) the force grows with current, moving inwards (x, v < 0)
+    it grows in magnitude, for random parameter sets in the default box whose beta does not
+    fall with current (beta1 >= 0: with beta1 < 0 the knee widens and the hysteretic term can
+    shrink at low velocity, which the model allows on purpose).
+    """
     m = KwokCurrent()
     lo, hi = m.default_bounds()
+    lo[m.param_names.index('beta1')] = 0.0
     rng = np.random.default_rng(1)
+    currents = np.linspace(0.0, 2.0, 21)
+    x = np.repeat(rng.uniform(1e-3, 0.03, 20), currents.size)
+    v = np.repeat(rng.uniform(1e-3, 0.5, 20), currents.size)
+    i = np.tile(currents, 20)
+    for row in lo + (hi - lo) * rng.uniform(size=(100, lo.size)):
+        out = m.force(row, x, v, i).reshape(20, currents.size)
+        inw = m.force(row, -x, -v, i).reshape(20, currents.size)
+        assert np.all(np.diff(out, axis=1) >= -1e-9 * np.abs(out).max())
+        assert np.all(np.diff(inw, axis=1) <= 1e-9 * np.abs(inw).max())
+
+
+def test_coefficients_are_monotone_beta_log_linear_alpha1_saturates_alpha2_is_convex():
+    m = KwokCurrent()
+    lo, hi = m.default_bounds()
+    rng = np.random.default_rng(4)
     P = lo + (hi - lo) * rng.uniform(size=(200, lo.size))
     s = np.linspace(0, 1, 41)
-    c = P[:, [0]] + P[:, [1]] * s
-    alpha = P[:, [3]] + P[:, [4]] * s * (2 - s) + P[:, [5]] * s * s
-    assert np.all(np.diff(c, axis=1) >= 0)
-    assert np.all(np.diff(alpha, axis=1) >= -1e-9)
+    c, alpha, beta = kwok_current_coefficients(P, s)
+    assert np.all(np.diff(c, axis=1) >= 0) and np.all(np.diff(alpha, axis=1) >= -1e-9)
+    # c is linear in the current and beta1 is the log-slope of beta (beta > 0 for every beta1)
+    assert np.all(beta > 0)
+    np.testing.assert_allclose(np.diff(c, 2, axis=1), 0.0, atol=1e-9 * np.abs(c).max())
+    log_slope = np.broadcast_to(P[:, [7]] * (s[1] - s[0]), (P.shape[0], s.size - 1))
+    np.testing.assert_allclose(np.diff(np.log(beta), axis=1), log_slope, rtol=0, atol=1e-9)
+    # alpha1 alone: saturating (concave, flat at the reference current); alpha2 alone: convex
+    only1 = np.zeros((1, 10))
+    only1[0, 4] = 100.0
+    only2 = np.zeros((1, 10))
+    only2[0, 5] = 100.0
+    a1 = kwok_current_coefficients(only1, s)[1][0]
+    a2 = kwok_current_coefficients(only2, s)[1][0]
+    assert a1[-1] == pytest.approx(100.0) and a2[-1] == pytest.approx(100.0)
+    assert np.all(np.diff(a1, 2) < 0) and np.all(np.diff(a2, 2) > 0)
+    assert (a1[-1] - a1[-2]) < 0.02 * (a1[1] - a1[0])      # flat at s = 1
+    assert a2[1] - a2[0] < 0.02 * (a2[-1] - a2[-2])         # flat at s = 0
 
 
 def test_i_ref_validation():
@@ -69,20 +125,19 @@ def test_scalar_force_and_slope_match_the_model():
 
 
 def test_force_of_a_named_parameter_set():
+    """``kwok_current_force`` on a saved-parameter dict (with ``i_ref_a``) is the model's force."""
     from mr_damper_model import presets
     from mr_damper_model.kwok_current import kwok_current_force
     model, params = presets.thesis_kwok_current()
     rng = np.random.default_rng(3)
     x, v, i = rng.normal(0, 0.01, 50), rng.normal(0, 0.1, 50), rng.uniform(0, 2, 50)
-    # the model's definition written out (module docstring), s = i / i_ref_a
-    p, s = params, i / model.options['i_ref_a']
-    want = ((p['c0'] + p['c1'] * s) * v + p['k'] * x
-            + (p['alpha0'] + p['alpha1'] * s * (2 - s) + p['alpha2'] * s * s)
-            * np.tanh(p['beta0'] * np.exp(p['beta1'] * s) * v + p['delta'] * np.sign(x))
-            + p['f0'])
     got = kwok_current_force(dict(params, i_ref_a=model.options['i_ref_a'], rmse_n=3.0),
                              x, v, i)
-    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+    np.testing.assert_array_equal(got, model.force(model.from_dict(params), x, v, i=i))
     other = KwokCurrent(i_ref_a=1.0)           # i_ref_a is read from the dict
     np.testing.assert_array_equal(kwok_current_force(dict(params, i_ref_a=1.0), x, v, i),
                                   other.force(other.from_dict(params), x, v, i=i))
+    # at 0 A no current term acts, whatever i_ref_a
+    zero = np.zeros(50)
+    np.testing.assert_array_equal(kwok_current_force(dict(params, i_ref_a=1.0), x, v, zero),
+                                  kwok_current_force(dict(params, i_ref_a=2.0), x, v, zero))

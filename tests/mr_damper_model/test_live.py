@@ -88,7 +88,7 @@ def test_bad_samples_are_counted_and_do_not_change_the_estimate():
     n_nan = sum(1 for k in range(data.n) if k % 97 == 5)
     n_dup = sum(1 for k in range(data.n) if k % 89 == 7 and k > 10)
     assert rej == {'nonfinite': 2 * n_nan, 'out_of_order': n_dup, 'duplicate': n_dup,
-                   'joint_names': n_dup, 'layout': 0}
+                   'future_stamp': 0, 'joint_names': n_dup, 'layout': 0}
     assert dirty.counters['samples_accepted'] == data.n
     assert dirty.counters['samples_received'] == data.n + 2 * n_nan + 3 * n_dup
     assert last.parameters == ref.parameters
@@ -170,7 +170,7 @@ def test_config_validation_names_the_setting(bad):
 def test_warm_started_windows_reach_the_offline_optimum_on_measured_data():
     from conftest import QUIROZ_DIR
     from mr_damper_model.data import read_csv
-    data = read_csv(QUIROZ_DIR / 'quiroz_sine_10mm1Hz_0p75A_preproc.csv')
+    data = read_csv(QUIROZ_DIR / 'quiroz_sine_10mm1Hz_0p75A_preproc.csv.gz')
     cfg = LiveConfig(budget_s=0.0, hop_s=0.5)          # warm start, 30 iterations per window
     est = feed(LiveIdentifier(cfg), data, every=100)[-1]
     window = data.select((data.t >= est.window_start_s) & (data.t <= est.window_end_s))

@@ -453,7 +453,7 @@ def test_measured_record_raises_no_fault():
     """A real damper record (Quiroz, 0.5 Hz): the model error depends on the stroke, no fault."""
     from conftest import QUIROZ_DIR
     from mr_damper_model.data import read_csv
-    data = read_csv(QUIROZ_DIR / 'quiroz_sine_25mm0x5Hz_0A.csv')
+    data = read_csv(QUIROZ_DIR / 'quiroz_sine_25mm0x5Hz_0A.csv.gz')
     li = LiveIdentifier(LiveConfig(budget_s=0.0, hop_s=1.0, maxiter=20))
     ests = li.replay(data, 50)
     c = li.counters
@@ -504,6 +504,7 @@ def stalled(arrays, first_s=2.0, **config):
     return li, out
 
 
+@pytest.mark.slow
 def test_stalled_fitter_does_not_turn_damper_memory_into_a_fault():
     """
     Flake seen under CPU load (first window fitted in 5 s, 48 windows superseded).

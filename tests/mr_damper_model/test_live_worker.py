@@ -12,13 +12,7 @@ from mr_damper_model.live_worker import (IdentifierHealth, IdentifierRuntime, Sa
 
 from live_records import cam_record, FAST, sequence
 
-
-class FakeClock:
-    def __init__(self, now=100.0):
-        self.now = now
-
-    def __call__(self):
-        return self.now
+from fake_clock import FakeClock
 
 
 def test_stamp_ages_percentiles_of_the_newest_ages():
@@ -102,12 +96,15 @@ def test_health_warns_while_problems_rise_and_recovers():
     h = rules(status(**skipped), 3.0)
     assert (h.level, h.message) == (WARN, '2 window(s) skipped: inconsistent')
     h = rules(status(**dict(skipped, last_valid=False, last_reason='pinned:f0',
-                            dropped={'message_lost': 7}, windows_overflow=1)), 4.0)
+                            stream={'lost': 70}, dropped={'message_lost': 7},
+                            windows_overflow=1)), 4.0)
     assert h.level == WARN
-    assert h.message == ('last estimate not valid: pinned:f0; 7 sample(s) lost; '
+    assert h.message == ('last estimate not valid: pinned:f0; 70 sample(s) lost; '
+                         '7 message(s) lost (middleware report); '
                          '1 window(s) passed over (backlog full)')
     # rig at rest (no_motion skips only), nothing else rising: no warning
-    idle = dict(skipped, windows_due=9, dropped={'message_lost': 7}, windows_overflow=1)
+    idle = dict(skipped, windows_due=9, stream={'lost': 70}, dropped={'message_lost': 7},
+                windows_overflow=1)
     assert rules(status(**idle), 5.0).level == OK
 
 
@@ -201,14 +198,17 @@ def test_a_failed_publish_is_not_a_lost_sample():
     h = rules(dict(base, dropped={'diagnostics_publish_failed': 2}), 1.0)
     assert h.level == WARN and '2 publish(es) failed' in h.message
     assert 'lost' not in h.message
-    h = rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3}), 2.0)
-    assert '3 sample(s) lost' in h.message and 'publish' not in h.message
+    h = rules(dict(base, stream={'lost': 30},
+                   dropped={'diagnostics_publish_failed': 2, 'message_lost': 3}), 2.0)
+    assert '30 sample(s) lost' in h.message and 'publish' not in h.message
+    assert '3 message(s) lost' in h.message
     # any other drop reason is reported by name, once per rise
-    h = rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3,
-                                  'undecodable': 4}), 3.0)
+    h = rules(dict(base, stream={'lost': 30}, dropped={'diagnostics_publish_failed': 2,
+                                                       'message_lost': 3, 'undecodable': 4}),
+              3.0)
     assert h.level == WARN and '4 undecodable' in h.message and 'lost' not in h.message
-    assert rules(dict(base, dropped={'diagnostics_publish_failed': 2, 'message_lost': 3,
-                                     'undecodable': 4}), 4.0).level == OK
+    assert rules(dict(base, stream={'lost': 30}, dropped={
+        'diagnostics_publish_failed': 2, 'message_lost': 3, 'undecodable': 4}), 4.0).level == OK
 
 
 def test_save_throttle_flush_writes_the_pending_set_once_and_clears_it():

@@ -1,4 +1,5 @@
 """Message conversions: measurement JointState, typed parameters, diagnostics, JSON status."""
+import array
 import math
 
 import numpy as np
@@ -86,11 +87,15 @@ def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
         m.kwok_parameters_msg(dict(params, i_ref_a=0.0))
 
 
-def test_kwok_parameters_with_zero_reference_current_is_a_layout_error():
+def test_kwok_parameters_with_zero_reference_current_is_refused_as_bad_i_ref():
     msg = KwokParameters()           # every field 0: no model can use it
     with pytest.raises(m.MessageError, match='i_ref_a') as info:
         m.kwok_parameters_from_msg(msg)
-    assert info.value.reason == 'layout'
+    assert info.value.reason == 'bad_i_ref'
+    msg.i_ref_a = -1.0
+    with pytest.raises(m.MessageError, match='i_ref_a') as info:
+        m.kwok_parameters_flat(msg)
+    assert info.value.reason == 'bad_i_ref'
 
 
 def test_damper_model_round_trip_and_mismatch():
@@ -123,3 +128,43 @@ def test_diagnostic_status_round_trip_with_nesting_non_finite_and_numpy():
     assert back.values['bins_a'] == [0.0, 2.0]
     array = m.diagnostic_array_msg([status], stamp_s=3.0)
     assert isinstance(array, DiagnosticArray) and array.header.stamp.sec == 3
+
+
+def test_samples_batch_round_trip_keeps_values_and_stamps():
+    t = 1795315554.25 + np.arange(20) * 1e-3
+    ends = ((0.0, 0.01), (-0.2, 0.2), (-500, 500), (0.0, 2.0))
+    x, v, f, i = (np.linspace(a, b, 20) for a, b in ends)
+    msg = m.samples_to_msg(t, x, v, f, i, sequence=7, first_index=140, sample_period_s=1e-3)
+    assert (msg.sequence, msg.first_index, msg.sample_period_s) == (7, 140, 1e-3)
+    assert msg.t_offset_s[0] == 0.0
+    back = m.samples_from_msg(msg)
+    np.testing.assert_allclose(back[0], t, rtol=0, atol=1e-6)   # ns stamp of the first sample
+    for got, want in zip(back[1:], (x, v, f, i)):
+        np.testing.assert_array_equal(got, want)
+    # the message filled again in place carries only the new batch
+    msg = m.samples_to_msg(t[:3], x[:3], v[:3], f[:3], i[:3], sequence=8, first_index=160,
+                           msg=msg)
+    assert len(msg.x_m) == 3 and msg.first_index == 160
+
+
+def test_samples_batch_refuses_bad_layouts():
+    with pytest.raises(ValueError, match='one length'):
+        m.samples_to_msg([0.0, 1.0], [0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], sequence=0,
+                         first_index=0)
+    with pytest.raises(ValueError, match='one length'):
+        m.samples_to_msg([], [], [], [], [], sequence=0, first_index=0)
+    msg = m.samples_to_msg([1.0, 2.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0],
+                           sequence=0, first_index=0)
+    msg.f_n = array.array('d', [1.0])            # a sender with unequal arrays
+    with pytest.raises(m.MessageError) as info:
+        m.samples_from_msg(msg)
+    assert info.value.reason == 'layout'
+
+
+def test_measurement_arrays_reads_both_layouts():
+    single = m.measurement_to_msg(3.5, 0.01, 0.1, 300.0, 2.0)
+    t, x, v, f, i = m.measurement_arrays(single)
+    assert [a.tolist() for a in (t, x, v, f, i)] == [[3.5], [0.01], [0.1], [300.0], [2.0]]
+    batch = m.samples_to_msg([3.5, 3.501], [0.01, 0.02], [0.1, 0.2], [300.0, 301.0],
+                             [2.0, 2.0], sequence=0, first_index=0)
+    assert [len(a) for a in m.measurement_arrays(batch)] == [2] * 5

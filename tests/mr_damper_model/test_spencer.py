@@ -91,7 +91,7 @@ def test_compiled_equals_numpy_reference_random_swarm():
 
 
 def test_compiled_equals_numpy_reference_on_quiroz_record():
-    d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv').select(slice(0, 120))
+    d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz').select(slice(0, 120))
     P = _swarm(6, 9)
     f = Spencer().force(P, d.x, d.v, d.i, d.t)      # 200 Hz: 50 sub-steps per sample
     ref = spencer_force_numpy(P, d.x, d.v, d.i, d.t)

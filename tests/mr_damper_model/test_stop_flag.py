@@ -18,7 +18,10 @@ from mr_damper_model import stop_flag
 
 def _run(tmp_path, module_text, call):
     (tmp_path / 'fake_node.py').write_text(textwrap.dedent(module_text))
-    code = f'import sys\nfrom mr_damper_model import stop_flag\nsys.exit({call})\n'
+    # Python's own SIGINT handler, as in a terminal: a suite started in the background (or
+    # under nohup) passes SIGINT ignored to its children, which then never see a Ctrl-C
+    code = ('import signal, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n'
+            f'from mr_damper_model import stop_flag\nsys.exit({call})\n')
     return subprocess.run([sys.executable, '-c', code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=120, env={'PYTHONPATH': str(tmp_path),
                                                        'PATH': '/usr/bin:/bin'})

@@ -13,15 +13,7 @@ from mr_damper_model.data import DamperData
 from mr_damper_rig.pacing import LockstepPacer, Pacer
 from mr_damper_rig.replay import ArraySource
 
-
-class FakeClock:
-    """A clock the test moves by hand [s]."""
-
-    def __init__(self, t=100.0):
-        self.t = t
-
-    def __call__(self):
-        return self.t
+from fake_clock import FakeClock
 
 
 def record(n=1000, rate_hz=1000.0):

@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from conftest import QUIROZ_DIR
+from conftest import csv_text, QUIROZ_DIR
 from mr_damper_model.data import DamperData, DataError
 from mr_damper_rig import replay
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 
 
 def small(n=200, t0=5.0):
@@ -17,10 +17,22 @@ def small(n=200, t0=5.0):
                       np.full(n, 0.5))
 
 
-def test_csv_stream_reads_the_shared_quiroz_file():
+def test_csv_stream_reads_the_shipped_quiroz_file():
     d = replay.read_csv_stream(QUIROZ)
     assert d.n > 1000 and d.sample_rate_hz == pytest.approx(1000.0, rel=1e-6)
     assert np.all(d.i == 0.5) and np.all(np.diff(d.t) > 0)
+
+
+def test_csv_stream_of_a_gzip_file_equals_the_plain_one_and_a_cut_one_fails(tmp_path):
+    plain = tmp_path / 'q.csv'
+    plain.write_text(csv_text(QUIROZ))
+    a, b = replay.read_stream('csv', plain), replay.read_stream('csv', QUIROZ)
+    for c in 'txvfi':
+        np.testing.assert_array_equal(getattr(b, c), getattr(a, c))
+    cut = tmp_path / 'cut.csv.gz'
+    cut.write_bytes(QUIROZ.read_bytes()[:-100])
+    with pytest.raises(DataError, match=f'{cut}: truncated or corrupt gzip file'):
+        replay.read_csv_stream(cut)
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])

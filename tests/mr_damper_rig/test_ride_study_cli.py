@@ -19,6 +19,7 @@ def params_file(tmp_path):
     return p
 
 
+@pytest.mark.slow
 def test_compare_json(params_file, capsys):
     rc = cli.main(['--compare', '--json', '--duration', '3', '--plant', 'kwok',
                    '--damper-params', str(params_file)])
@@ -76,6 +77,7 @@ def test_bad_params_file_nan(tmp_path, capsys):
     assert len(err) == 1 and 'c0' in err[0]
 
 
+@pytest.mark.slow
 def test_console_script_negative_speed_and_missing_params(tmp_path):
     exe = str(VENV_BIN / 'quarter-car-sim')
     for args, match in ((['--speed', '-5'], 'speed'),
@@ -84,3 +86,21 @@ def test_console_script_negative_speed_and_missing_params(tmp_path):
         assert r.returncode == 2
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and match in lines[0], r.stderr
+
+
+def test_sensing_vehicle_json_reports_estimation_errors(params_file, capsys):
+    args = ['--controller', 'clipped-optimal-wk', '--json', '--duration', '3', '--plant',
+            'kwok', '--damper-params', str(params_file)]
+    assert cli.main(args + ['--sensing', 'ideal']) == 0
+    ideal = json.loads(capsys.readouterr().out)
+    assert cli.main(args + ['--sensing', 'vehicle']) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert ideal['sensing'] == 'ideal' and out['sensing'] == 'vehicle'
+    m, m0 = out['controllers']['clipped-optimal-wk'], ideal['controllers']['clipped-optimal-wk']
+    for state in ('travel', 'v_s', 'tyre_def', 'v_u', 'v_rel', 'a_s'):
+        assert m[f'est_rms_error_{state}'] > 0
+    assert m['est_rel_error_travel'] < 0.02
+    assert m['estimator']['steps'] > 3000 and m['estimator']['failsafe_steps'] == 0
+    assert 'est_rms_error_travel' not in m0
+    # the same road and law on estimated states: Wk within 5 % of the ideal-state run
+    assert abs(m['rms_body_accel_wk'] / m0['rms_body_accel_wk'] - 1.0) < 0.05

@@ -14,7 +14,7 @@ import pytest
 
 from conftest import QUIROZ_DIR
 
-QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv'
+QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 
 
 @pytest.fixture
@@ -90,20 +90,25 @@ def test_current_limits_refused_without_current_commands(make_node):
 def test_tick_publishes_the_due_samples_and_the_clock_of_the_newest(make_node):
     from mr_damper_model.data import read_csv
     data = read_csv(QUIROZ)
-    node = make_node(mode='csv', file=str(QUIROZ), rate_factor=1.0, publish_clock=True)
+    node = make_node(mode='csv', file=str(QUIROZ), rate_factor=1.0, publish_clock=True,
+                     samples_per_message=20)
     clock = [1000.0]
     node.pacer._clock = lambda: clock[0]             # a fake wall clock for the pacer
     node.pacer.created_s = clock[0]
-    node._tick()                                     # starts: the first sample is due
-    assert node.pacer.published == 1 and node.clock_last_s == data.t[0]
+    node._tick()                 # starts: the first sample is due, no whole batch yet
+    assert node.pacer.published == 0 and node.stream.pending == 1
+    assert node.clock_published == 0 and math.isnan(node.clock_last_s)
     clock[0] += 0.5
     node._tick()
-    n = int(np.searchsorted(data.t - data.t[0], 0.5, side='right'))
-    assert node.pacer.published == n
-    assert node.clock_published == 2 and node.clock_last_s == pytest.approx(data.t[n - 1])
+    due = int(np.searchsorted(data.t - data.t[0], 0.5, side='right'))
+    n = due // 20 * 20                               # the whole batches of the samples due
+    assert node.pacer.published == n and node.stream.pending == due - n
+    assert node.stream.sequence == n // 20
+    assert node.clock_published == 1 and node.clock_last_s == pytest.approx(data.t[n - 1])
     values = node.status_values()
-    assert values['clock'] == {'published': 2, 'last_s': node.clock_last_s}
+    assert values['clock'] == {'published': 1, 'last_s': node.clock_last_s}
     assert values['samples_published'] == n and values['started'] and not values['done']
+    assert values['messages_published'] == n // 20
     health = node.health()
     assert health.level == 0 and health.values['mode'] == 'csv'
 

@@ -56,6 +56,7 @@ def _run_forces(road, dt, u):
     return a, ft
 
 
+@pytest.mark.slow
 def test_wide_linear_damper_reproduces_the_unconstrained_optimum():
     # analytic limit: with no binding limit the bound is the least-squares optimum of the
     # quadratic cost over the force sequence, built here column by column from the car itself

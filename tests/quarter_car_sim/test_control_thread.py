@@ -4,15 +4,7 @@ import pytest
 from quarter_car_sim.control_thread import ControlThread
 from quarter_car_sim.live_loop import LoopTiming, Pacer
 
-
-class FakeClock:
-    """A clock that advances only when told (no wall time anywhere)."""
-
-    def __init__(self, t=100.0):
-        self.t = t
-
-    def __call__(self):
-        return self.t
+from fake_clock import FakeClock
 
 
 def test_steps_are_booked_with_latency_step_time_and_lateness():

@@ -156,10 +156,85 @@ def test_non_finite_and_out_of_order_states_get_the_safe_current():
             assert core.state_rejected['non_finite'] == n
     older = dataclasses.replace(good, t=good.t - 0.01)
     assert core.command(older, 0.0) == SAFE
-    assert core.state_rejected == {'non_finite': n, 'out_of_order': 1}
+    assert core.state_rejected == {'non_finite': n, 'future_stamp': 0, 'out_of_order': 1}
+    assert core.status()['reason'] == 'state_out_of_order'
     core.command(good, 0.0)                          # the same stamp again is in order
-    assert core.state_rejected == {'non_finite': n, 'out_of_order': 1}
+    assert core.state_rejected == {'non_finite': n, 'future_stamp': 0, 'out_of_order': 1}
     assert core.last_state_t == good.t and core.n_commands == n + 3
+
+
+def _normal_core(**kwargs):
+    _, msg = _truth()
+    core = ControllerCore(Skyhook(), ModelSupervisor(timeout_s=1e3, safe_current_a=SAFE),
+                          **kwargs)
+    core.offer_parameters(msg, 1.7e9)
+    return core
+
+
+def _stamped(states, t0):
+    """Vehicle states stamped ``t0 + 1 ms * k`` (a vehicle clock)."""
+    return [_vehicle(dataclasses.replace(s, t=t0 + 1e-3 * k)) for k, s in enumerate(states)]
+
+
+@pytest.mark.parametrize('t0', [0.0, 1.7e9])
+def test_one_future_stamped_state_costs_one_safe_answer(t0):
+    """Issue 21: a state stamped +1e6 s once; every later valid state is answered normally."""
+    core = _normal_core(max_future_s=1.0, rebase_after=20)
+    ref = _normal_core()
+    states = _stamped(_states(300), t0)
+    clock = 1.7e9 + 1e-3 * np.arange(300)           # the node clock (ROS time)
+    modes = []
+    for k, s in enumerate(states):
+        want = ref.command(s, clock[k])
+        if k == 150:
+            assert core.command(dataclasses.replace(s, t=s.t + 1e6), clock[k]) == SAFE
+            assert core.status()['mode'] == 'failsafe'
+            assert core.status()['reason'] == 'state_future_stamp'
+        else:
+            assert core.command(s, clock[k]) == want
+        modes.append(core.mode_reason())
+    assert core.state_rejected == {'non_finite': 0, 'future_stamp': 1, 'out_of_order': 0}
+    assert core.n_commands == 300 and core.n_normal == 299
+    assert modes.count(('failsafe', 'state_future_stamp')) == 1
+    assert modes[151:] == [('normal', 'ok')] * 149
+    assert core.status()['stamp_rebases'] == 0 and core.last_state_t == states[-1].t
+
+
+def test_backward_clock_jump_is_re_based_after_a_run():
+    core = _normal_core(rebase_after=10)
+    states = _states(200)
+    before = _stamped(states[:100], 500.0)
+    after = _stamped(states[100:], 20.0)           # the vehicle clock jumped back 480 s
+    clock = 1.7e9 + 1e-3 * np.arange(200)
+    out = [core.command(s, c) for s, c in zip(before + after, clock)]
+    assert core.state_rejected['out_of_order'] == 9           # the run, less the re-base
+    assert core.stamps.rebases_backward == 1 and core.status()['stamp_rebases'] == 1
+    assert core.status()['last_stamp_rebase'] == {'direction': 'backward',
+                                                  'from_s': before[-1].t, 'to_s': after[9].t}
+    assert out[100:109] == [SAFE] * 9 and core.n_normal == 200 - 9
+    assert core.mode_reason() == ('normal', 'ok') and core.last_state_t == after[-1].t
+
+
+def test_forward_clock_jump_within_the_horizon_is_accepted():
+    core = _normal_core(max_future_s=1.0)
+    states = _states(200)
+    seq = _stamped(states[:100], 500.0) + _stamped(states[100:], 500.9)   # +0.8 s at once
+    clock = 1.7e9 + 1e-3 * np.arange(200)
+    for s, c in zip(seq, clock):
+        core.command(s, c)
+    assert sum(core.state_rejected.values()) == 0 and core.n_normal == 200
+    assert core.stamps.rebases == 0
+
+
+def test_forward_clock_jump_beyond_the_horizon_is_re_based_after_a_run():
+    core = _normal_core(max_future_s=1.0, rebase_after=10)
+    states = _states(200)
+    seq = _stamped(states[:100], 500.0) + _stamped(states[100:], 4100.0)  # +1 h
+    clock = 1.7e9 + 1e-3 * np.arange(200)
+    for s, c in zip(seq, clock):
+        core.command(s, c)
+    assert core.state_rejected == {'non_finite': 0, 'future_stamp': 9, 'out_of_order': 0}
+    assert core.stamps.rebases_forward == 1 and core.n_normal == 191
 
 
 def test_passive_law_ignores_the_model():

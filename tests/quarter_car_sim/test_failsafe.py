@@ -6,6 +6,7 @@ import sys
 import numpy as np
 import pytest
 
+from mr_damper_model.models import get_model
 from quarter_car_sim.failsafe import (
     clip_current, KWOK_CURRENT_NAMES, ModelSupervisor, SupervisorError)
 
@@ -73,7 +74,8 @@ def test_goes_stale_after_timeout_and_recovers():
     ({'f0': math.inf}, 'non_finite'),
     ({'c1': -1.0}, 'out_of_bounds'),
     ({'beta0': 5e3}, 'out_of_bounds'),
-    ({'i_ref_a': 0.0}, 'bad_current_range'),
+    ({'i_ref_a': 0.0}, 'bad_i_ref'),
+    ({'i_ref_a': -2.0}, 'bad_i_ref'),
     ({'current_min_a': 1.5, 'current_max_a': 0.5}, 'bad_current_range'),
     ({'current_max_a': 5.0}, 'bad_current_range'),
     ({'current_min_a': 0.0, 'current_max_a': 0.0}, 'narrow_current_range'),
@@ -112,8 +114,7 @@ def test_zero_bounds_are_not_pinned_and_detail_names_the_pinned():
 def test_issue_set_pinned_at_bounds_but_marked_valid_is_refused():
     # the set the identifier published as valid after a 1e30 N sample (issue 8): the linear
     # parameters at their upper bounds; the supervisor refuses it even though valid == 1
-    models = pytest.importorskip('mr_damper_model.models')
-    lo, hi = models.get_model('kwok-current').default_bounds()
+    lo, hi = get_model('kwok-current').default_bounds()
     sup = ModelSupervisor(timeout_s=1.0, safe_current_a=0.0)
     msg = dict(GOOD, **{n: float(b) for n, b in zip(KWOK_CURRENT_NAMES, hi)
                         if n in ('c0', 'c1', 'k', 'alpha0', 'alpha1', 'alpha2', 'f0')})
@@ -187,8 +188,7 @@ def test_clip_current():
 
 
 def test_default_bounds_are_the_kwok_current_model_bounds():
-    models = pytest.importorskip('mr_damper_model.models')
-    model = models.get_model('kwok-current')
+    model = get_model('kwok-current')
     lo, hi = model.default_bounds()
     sup = ModelSupervisor(timeout_s=1.0, safe_current_a=0.0)
     assert tuple(model.param_names) == KWOK_CURRENT_NAMES

@@ -107,6 +107,22 @@ def test_controller_rules():
     assert h.values['commands'] == 40
 
 
+def test_controller_state_reasons_and_stamp_rebases():
+    rules = ControllerHealth(persistent_checks=2)
+    rej = {'non_finite': 0, 'future_stamp': 1, 'out_of_order': 0}
+    h = rules(_ctrl_status(commands=10, mode='failsafe', reason='state_future_stamp',
+                           state_rejected=rej))
+    assert h.level == WARN
+    assert failsafe_message('state_future_stamp') in h.message
+    assert 'beyond max_future_s' in h.message and '1 future_stamp' in h.message
+    for reason in ('state_non_finite', 'state_out_of_order'):
+        assert 'parameters' not in failsafe_message(reason)
+    h = rules(_ctrl_status(commands=20, state_rejected=rej, stamp_rebases=1))
+    assert h.level == WARN and h.message == ('vehicle clock jumped: state stamps re-based 1 '
+                                             'time(s) since the last check')
+    assert rules(_ctrl_status(commands=30, state_rejected=rej, stamp_rebases=1)).level == OK
+
+
 def test_rig_link_faults_warn_with_their_counts():
     rules = CarHealth()
     counts = {'measurements': 100, 'stale_steps': 0, 'wait_timeouts': 0}

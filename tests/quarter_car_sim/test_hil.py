@@ -83,6 +83,24 @@ def test_compensator_refuses_bad_settings():
         hil.DelayCompensator(DT, -0.01)
 
 
+def test_remote_plant_refuses_a_future_stamp_and_follows_a_rig_clock_jump():
+    """One measurement stamped +1e6 s costs that measurement; a jump back re-bases."""
+    plant = hil.make_remote_plant(DT, compensation='none')
+    now = 1.7e9                                                # the car's clock (ROS time)
+    for k in range(10):
+        assert plant.receive(5.0 + k * DT, 0.0, 0.0, 10.0 * k, 1.0, now=now + k * DT)
+    assert not plant.receive(5.0 + 10 * DT + 1e6, 0.0, 0.0, 999.0, 1.0, now=now + 10 * DT)
+    assert plant.receive(5.0 + 10 * DT, 0.0, 0.0, 100.0, 1.0, now=now + 10 * DT)
+    assert plant.force_n == 100.0 and plant.counts['future_stamp'] == 1
+    assert plant.counts['gaps'] == 0
+    # the rig's clock jumps back 4 s: refused until the run re-bases, then taken again
+    taken = [plant.receive(1.0 + k * DT, 0.0, 0.0, 7.0, 1.0, now=now + (11 + k) * DT)
+             for k in range(60)]
+    assert taken == [False] * 49 + [True] * 11
+    assert plant.counts['out_of_order'] == 49 and plant.counts['stamp_rebases'] == 1
+    assert plant.counts['gaps'] == 0 and plant.counts['measurements'] == 11 + 11
+
+
 def test_remote_plant_counts_refused_gapped_and_stale_measurements():
     plant = hil.make_remote_plant(DT, compensation='none', stale_after_s=0.005)
     assert plant.step(DT, 0.01, 0.0, 1.0) == 0.0              # nothing measured yet
@@ -95,12 +113,14 @@ def test_remote_plant_counts_refused_gapped_and_stale_measurements():
     plant.count_wait(True)
     assert not plant.receive(math.nan, 0.0, 0.0, 0.0, 0.0)     # non-finite: refused
     assert not plant.receive(0.0, 0.0, 0.0, 0.0, 0.0)          # same stamp: refused
+    assert not plant.receive(-0.5, 0.0, 0.0, 0.0, 0.0)         # older: refused
     assert plant.receive(0.004, 0.002, 0.0, 50.0, 1.5)         # 3 samples missing
     for _ in range(10):                                        # no new measurement: stale
         assert plant.step(DT, 0.01, 0.0, 1.0) == 50.0
     assert plant.current == 1.5 and plant.last_command_m == 0.01
     st = plant.as_dict()
-    assert st['counts'] == {'measurements': 2, 'gaps': 3, 'out_of_order': 1, 'non_finite': 1,
+    assert st['counts'] == {'measurements': 2, 'gaps': 3, 'out_of_order': 1, 'duplicate': 1,
+                            'future_stamp': 0, 'stamp_rebases': 0, 'non_finite': 1,
                             'no_measurement_steps': 1, 'stale_steps': 5, 'wait_timeouts': 1}
     assert st['tracking']['n'] == 11
     assert st['tracking']['peak_m'] == pytest.approx(0.009)

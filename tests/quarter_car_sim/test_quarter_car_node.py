@@ -47,13 +47,14 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     assert h.level in (OK, WARN) and 'fail-safe' not in h.message
     assert h.values['params_accepted'] == 1 and h.values['mode'] == 'normal'
     node.on_params(thesis_parameters_msg(valid=0.0))
-    node.on_params(KwokParameters())              # i_ref_a 0: undecodable
+    node.on_params(KwokParameters())              # i_ref_a 0: refused by its own reason
     h = node.health()
-    assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (undecodable)')
+    assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (bad_i_ref)')
     st = unflatten(flatten(h.values))             # what /diagnostics carries
-    assert st['mode'] == 'failsafe' and st['reason'] == 'undecodable'
+    assert st['mode'] == 'failsafe' and st['reason'] == 'bad_i_ref'
     assert st['params_accepted'] == 1
-    assert st['params_rejected']['invalid_flag'] == 1 and st['params_rejected']['undecodable'] == 1
+    assert st['params_rejected']['invalid_flag'] == 1 and st['params_rejected']['bad_i_ref'] == 1
+    assert st['params_rejected']['undecodable'] == 0
     assert set(st['ride_metrics']) >= {'rms_body_accel_wk', 'rms_tyre_load_ratio',
                                        'rms_suspension_travel'}
     assert set(st['loop']) >= {'period', 'lateness', 'latency', 'step'}

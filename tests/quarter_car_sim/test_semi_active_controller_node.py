@@ -67,17 +67,26 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     bad = car_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
     node.on_state(bad)
     assert sent[-1] == 0.25
-    node.on_params(KwokParameters())               # i_ref_a 0: undecodable
+    # the safe current for a state reason: the status says so, with the model still in use
     st = node.status()
-    assert st['mode'] == 'failsafe' and st['reason'] == 'undecodable'
-    assert st['commands'] == 3 and st['commands_normal'] == 1
-    assert st['state_rejected'] == {'non_finite': 1, 'out_of_order': 0}
-    assert st['params_accepted'] == 1 and st['params_rejected']['undecodable'] == 1
+    assert (st['mode'], st['reason']) == ('failsafe', 'state_non_finite')
+    assert node.core.sup.mode == 'normal'
     from mr_damper_model.health import WARN
     h = node.health()                               # what /diagnostics carries
-    assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (undecodable)')
+    assert h.level == WARN and 'fail-safe: vehicle state refused' in h.message
     assert 'states refused since the last check: 1 non_finite' in h.message
-    assert h.values['commands'] == 3 and node.diagnostics.name == 'cnunit/semi_active_controller'
+    node.on_params(KwokParameters())               # i_ref_a 0: refused by its own reason
+    node.on_state(car_state_to_msg(_car_state(1.003), 0.0, True, 'ok'))
+    assert sent[-1] == 0.25
+    st = node.status()
+    assert st['mode'] == 'failsafe' and st['reason'] == 'bad_i_ref'
+    assert st['commands'] == 4 and st['commands_normal'] == 1
+    assert st['state_rejected'] == {'non_finite': 1, 'future_stamp': 0, 'out_of_order': 0}
+    assert st['params_accepted'] == 1 and st['params_rejected']['bad_i_ref'] == 1
+    assert st['params_rejected']['undecodable'] == 0
+    h = node.health()
+    assert h.level == WARN and h.message.startswith('fail-safe: parameters refused (bad_i_ref)')
+    assert h.values['commands'] == 4 and node.diagnostics.name == 'cnunit/semi_active_controller'
 
 
 @pytest.mark.parametrize('law', ['clipped-optimal', 'clipped-optimal-wk'])

@@ -1,13 +1,14 @@
 """
 The suite's configuration: the parameter YAMLs, the nodes they configure, one run's parameters.
 
-The shipped configurations are ``config/suite_<sim|replay|hil>.yaml`` of this package (one ROS 2
-parameter file for every node: keys are the node names, ``/**`` is shared). :func:`resolve_config`
-turns a command line (:mod:`mr_damper_bringup.launcher`) into the single parameter dict of a run;
-:func:`node_params` is what one node sees of it.
+The shipped configurations are ``config/suite_<sim|replay|hil|can>.yaml`` of this package (one
+ROS 2 parameter file for every node: keys are the node names, ``/**`` is shared).
+:func:`resolve_config` turns a command line (:mod:`mr_damper_bringup.launcher`) into the single
+parameter dict of a run; :func:`node_params` is what one node sees of it.
 """
 import math
 from pathlib import Path
+import random
 
 import yaml
 
@@ -36,12 +37,27 @@ RECORDER_NODE = {RECORDER: 'mr-damper-record'}
 #: the stand-alone controller node (started with ``--external-controller``)
 CTRL = 'semi_active_controller'
 CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
+#: ``--config can``: the simulated damper driver (started first) and the CAN bridge (second)
+CAN_DRIVER = 'can_driver_sim'
+CAN_BRIDGE = 'can_bridge'
+CAN_NODES = {CAN_DRIVER: 'can_driver_sim', CAN_BRIDGE: 'can_bridge_node'}
+#: the bus of a CAN run: ``udp_loopback`` group and port ``CAN_PORT_BASE + domain id`` (one bus
+#: per suite run, as one domain per run)
+CAN_GROUP = '239.74.163.2'
+CAN_PORT_BASE = 43300
+#: the bridge's frame log of a CAN run, next to the recording
+CAN_LOG = 'can.blf'
+#: remaps of a CAN run: the car takes the driver's measured current as its command
+CAN_REMAPS = {QC: ('mr_damper/current_command:=mr_damper/measured_current',)}
+#: domain IDs drawn for a run without ``--domain-id`` (as the launcher draws them)
+DOMAIN_IDS = (20, 220)
 #: car parameters the controller node takes over when the law moves out of the car (``rate_hz``:
 #: the control period of a filter inside the law, e.g. clipped-optimal-wk's Wk filter)
 CONTROLLER_PARAMS = ('controller', 'controller_options', 'safe_current_a', 'param_timeout_s',
                      'min_current_span_a', 'hold_on_reject', 'i_min_a', 'i_max_a', 'rate_hz')
-QUIROZ_DIR = REPO.parent / 'shared' / 'data' / 'quiroz_mr_damper'
-DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv'
+#: the measured damper data shipped in the repository (gzip-compressed DAQ CSVs)
+QUIROZ_DIR = REPO / 'data' / 'quiroz_mr_damper'
+DEFAULT_REPLAY = tuple(QUIROZ_DIR / f'quiroz_sine_10mm1Hz_{c}A_preproc.csv.gz'
                        for c in ('0', '0p25', '0p5', '0p75', '1p0'))
 
 
@@ -61,7 +77,7 @@ def load_config(config='sim', params=None):
 
     Parameters
     ----------
-    config : {'sim', 'replay', 'hil'}
+    config : {'sim', 'replay', 'hil', 'can'}
         Which shipped configuration (``config/suite_<config>.yaml`` of this package).
     params : path, optional
         A parameter YAML of your own instead (same layout).
@@ -125,19 +141,20 @@ def resolve_config(args, out):
     if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
         set_param(cfg, qc, 'road_repeat', True)
     if args.config == 'replay' or args.file:
+        from mr_damper_model.data import is_csv
         files = [Path(f) for f in (args.file or DEFAULT_REPLAY)]
         for f in files:
             if not f.exists():
                 raise SuiteError(f'--file {f}: no such file or directory')
         if len(files) > 1:
             for f in files:
-                if f.suffix.lower() != '.csv':
+                if not is_csv(f):
                     raise SuiteError(f'--file {f}: several files can only be CSV files')
             path = concatenate_csv(files, out / 'replay_input.csv')
             mode = 'csv'
         else:
             path = files[0]
-            mode = 'csv' if path.suffix.lower() == '.csv' else 'bag'
+            mode = 'csv' if is_csv(path) else 'bag'
         set_param(cfg, RIG, 'mode', mode)
         set_param(cfg, RIG, 'file', str(path.resolve()))
     for item in args.set or ():
@@ -149,6 +166,8 @@ def resolve_config(args, out):
         set_param(cfg, node, name, _parse_value(text))
     if getattr(args, 'external_controller', False) or external_controller(cfg):
         use_external_controller(cfg)
+    if args.config == 'can' or can_config(cfg):
+        use_can(cfg, args, out)
     return cfg
 
 
@@ -168,10 +187,80 @@ def use_external_controller(cfg):
 
 
 def suite_nodes(cfg):
-    """Return the nodes to start, in order (the controller before the car when external)."""
+    """
+    Return the nodes to start, in order.
+
+    The controller before the car when external; with CAN (:func:`can_config`) the simulated
+    driver and the bridge before all of them (the stop goes the other way round,
+    :meth:`mr_damper_bringup.processes.Suite.stop`).
+    """
+    first = dict(CAN_NODES) if can_config(cfg) else {}
     if not external_controller(cfg):
-        return dict(NODES)
-    return {RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}
+        return {**first, **NODES}
+    return {**first, RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}
+
+
+def can_config(cfg):
+    """Return True when the run goes through the CAN bridge (a ``can_bridge`` section)."""
+    return CAN_BRIDGE in cfg
+
+
+def use_can(cfg, args, out):
+    """
+    Wire a run through CAN: controller -> bridge -> bus -> simulated driver -> car.
+
+    The controller runs as its own node (:func:`use_external_controller`) and publishes
+    ``mr_damper/current_command``, which the bridge sends as frames; the car applies the
+    driver's measured current (``mr_damper/measured_current``, remapped by
+    :func:`node_arguments`). Bridge and driver share one ``udp_loopback`` bus per run (port
+    ``CAN_PORT_BASE`` + the domain ID, drawn here when ``--domain-id`` was not given), the
+    bridge's fail-safe current is the car's, and the bridge logs every frame into
+    ``OUT/can.blf``.
+
+    Raises
+    ------
+    SuiteError
+        With ``--corners`` (the CAN run has one corner, fl, in the root namespace).
+
+    """
+    if getattr(args, 'corners', None):
+        raise SuiteError('--config can runs one corner (fl); --corners is not supported')
+    if getattr(args, 'domain_id', None) is None:
+        args.domain_id = random.randint(*DOMAIN_IDS)
+    cfg.setdefault(CAN_BRIDGE, {}).setdefault('ros__parameters', {})
+    use_external_controller(cfg)
+    bus = {'interface': node_params(cfg, CAN_BRIDGE).get('interface', 'udp_loopback'),
+           'channel': f'{CAN_GROUP}:{CAN_PORT_BASE + int(args.domain_id)}', 'corners': 'fl'}
+    for node in CAN_NODES:
+        for name, value in bus.items():
+            set_param(cfg, node, name, value)
+    set_param(cfg, CAN_DRIVER, 'sensor_source', 'car_state')
+    set_param(cfg, CAN_BRIDGE, 'safe_current_a',
+              float(node_params(cfg, QC).get('safe_current_a', 0.5)))
+    set_param(cfg, CAN_BRIDGE, 'log_file', str(Path(out) / CAN_LOG))
+
+
+def node_arguments(cfg, params_file):
+    """
+    Return the command lines of the nodes that need more than the parameter file.
+
+    Returns
+    -------
+    dict
+        node name -> arguments (``--ros-args --params-file FILE -r FROM:=TO ...``) of the nodes
+        with remaps (a CAN run: the car, :data:`CAN_REMAPS`); the others get the default of
+        :class:`mr_damper_bringup.processes.Suite`.
+
+    """
+    remaps = CAN_REMAPS if can_config(cfg) else {}
+    return {node: ['--ros-args', '--params-file', str(params_file),
+                   *[a for rule in rules for a in ('-r', rule)]]
+            for node, rules in remaps.items()}
+
+
+def recorder_arguments(cfg):
+    """Return the recorder's extra options of a run (a CAN run: ``--can``, the bus topics)."""
+    return ['--can'] if can_config(cfg) else []
 
 
 #: Car corners the launcher can run side by side, each under its namespace.

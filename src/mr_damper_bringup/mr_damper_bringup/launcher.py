@@ -6,16 +6,26 @@ Starts ``mr-damper-record`` (every topic into ``OUT/suite.mcap``) and the consol
 (``--ros-args --params-file FILE``), on loopback-only discovery
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and a domain ID of its own; prints progress from
 the nodes' statuses, forwards Ctrl-C (SIGINT) to the children, shuts everything down in order
-(car, rig, then the identifier once it has drained the stream, the recorder last) and exits
-non-zero if a node died. At the end it computes ``summary.json`` and plots into ``--out`` from
-the recording (:mod:`mr_damper_bringup.report`).
+(car, rig, then the identifier once it has drained the stream, the recorder last). At the end
+it computes ``summary.json`` and plots into ``--out`` from the recording
+(:mod:`mr_damper_bringup.report`).
+
+A node that dies is restarted (:mod:`mr_damper_bringup.supervisor`) after a back-off that
+starts at ``--restart-backoff-s`` and doubles with each further death of that node within
+``--restart-window-s`` (at most ``--restart-backoff-max-s``); a node that dies more than
+``--max-restarts`` times within the window ends the run (exit 1). Every restart is printed, kept
+in ``restarts.json`` and listed in the summary with what it cost; a restarted recorder writes a
+new part (``suite.1.mcap``, ...) and the report reads them all. ``pids.json`` holds the process
+id of each node's latest start.
 
 Usage::
 
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
-        [--config sim|replay|hil] [--file PATH ...] [--real-time | --faster | --rate-factor F]
+        [--config sim|replay|hil|can] [--file PATH ...] [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
         [--external-controller] [--corners fl,fr,rl,rr]
+        [--max-restarts 3] [--restart-window-s 60] [--restart-backoff-s 0.5]
+        [--restart-backoff-max-s 8]
 
 ``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
 also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
@@ -26,14 +36,14 @@ then the plant only and its law runs in the controller node (docs/controller-nod
 config.corner_configs`), recorded into the one ``suite.mcap``; the summary then lists each
 corner's figures from its nodes' diagnostics (no plots).
 
-Exit status: 0 clean run, 1 a node died or failed to shut down, 2 bad command line / config.
+Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
+down, or no summary could be made), 2 bad command line / config.
 """
 import argparse
 import json
 import os
 from pathlib import Path
 import random
-import shutil
 import signal
 import sys
 import threading
@@ -41,10 +51,12 @@ import time
 
 import yaml
 
-from .config import (corner_configs, CTRL, IDENT, QC, RECORDER, RECORDER_NODE, REPO,
-                     resolve_config, RIG, suite_nodes, SuiteError)
+from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
+                     recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)
 from .processes import CLEAN_EXIT, ProcessStats, Suite
+from .recorder import part_path, remove_recording
 from .report import RECORDING
+from .supervisor import RestartPolicy, Supervisor
 
 PROG = 'mr-damper-suite'
 
@@ -74,13 +86,15 @@ def _num(value):
     return float('nan') if value is None else float(value)
 
 
-def identifier_drained(monitor):
+def identifier_drained(monitor, exact=True):
     """
     Return ``(done, progress)``: has the identifier taken every sample the recorder took.
 
     ``done`` once the recorder's measurement count stopped moving (its last two statuses agree)
     and the identifier's ``samples_received`` reached it; ``progress`` is both counts (None
-    before the first statuses), so the wait goes on while either still moves.
+    before the first statuses), so the wait goes on while either still moves. With ``exact``
+    False (the identifier or the recorder was restarted: their counts started anew at different
+    times and cannot be compared), ``done`` once both counts stopped moving.
     """
     status, history, *_ = monitor.snapshot()
     got = (status.get('identifier') or {}).get('samples_received')
@@ -88,6 +102,9 @@ def identifier_drained(monitor):
     seen = recs[-1] if recs else None
     ok = isinstance(got, (int, float)) and isinstance(seen, (int, float))
     stable = len(recs) == 2 and recs[0] == recs[1]
+    if not exact:
+        ids = [h.get('samples_received') for h in history.get('identifier', ())]
+        return ok and stable and len(ids) == 2 and ids[0] == ids[1], (got, seen)
     return ok and stable and got >= seen, (got, seen)
 
 
@@ -147,6 +164,40 @@ def corner_summary(monitor, corners):
     return out
 
 
+def supervise(suite, supervisor, recording):
+    """
+    Restart the dead nodes of ``suite`` as ``supervisor`` decides; return False to end the run.
+
+    A death is printed with the end of the node's log; a restart is done once its back-off is
+    over. A restarted recorder gets the next part of ``recording`` (never an earlier file).
+    """
+    now = time.monotonic()
+    for name, rc in suite.poll().items():
+        if supervisor.pending(name):
+            continue
+        print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
+              f'{suite.log_tail(name)}', file=sys.stderr)
+        if not supervisor.died(name, rc, now, epoch_s=time.time()):
+            gave = supervisor.gave_up
+            print(f'{PROG}: {name} died {gave["deaths_in_window"]} times within '
+                  f'{gave["restart_window_s"]:g} s: stopping the run', file=sys.stderr)
+            return False
+        print(f'{PROG}: restarting {name} in {supervisor.restarts[-1]["backoff_s"]:g} s',
+              file=sys.stderr, flush=True)
+    for name in supervisor.due(now):
+        if name == RECORDER:
+            args = [str(a) for a in suite.args[name]]
+            k = 1 + sum(1 for r in supervisor.restarts
+                        if r['node'] == name and r['restart_s'] is not None)
+            args[args.index('--out') + 1] = str(part_path(recording, k))
+            suite.args[name] = args
+        suite.start(name)
+        r = supervisor.restarted(name, time.monotonic(), epoch_s=time.time())
+        print(f'{PROG}: restarted {name} (restart {r["count"]}, pid {suite.pid(name)})',
+              file=sys.stderr, flush=True)
+    return True
+
+
 def parse_args(argv):
     """Parse the launcher's command line."""
     p = argparse.ArgumentParser(
@@ -156,9 +207,11 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay', 'hil'), default='sim',
+    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can'), default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
-                        'hil: the rig follows the car (hardware in the loop, docs/hil.md)')
+                        'hil: the rig follows the car (hardware in the loop, docs/hil.md); '
+                        'can: sim with the damper current through a CAN bridge and a simulated '
+                        'driver (docs/can.md)')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -184,6 +237,16 @@ def parse_args(argv):
     p.add_argument('--corners', type=lambda s: [c.strip() for c in s.split(',') if c.strip()],
                    help='run one rig + identifier + car per car corner, each in its namespace '
                         '(comma-separated subset of fl,fr,rl,rr)')
+    for flag, kind, text in (
+            ('--max-restarts', int, 'restarts of one node allowed within --restart-window-s; '
+                                    'the next death ends the run (0: a death ends the run)'),
+            ('--restart-window-s', float, 'window over which a node\'s deaths are counted [s]'),
+            ('--restart-backoff-s', float, 'wait before restarting a dead node [s], doubled for '
+                                           'each further death within the window'),
+            ('--restart-backoff-max-s', float, 'longest wait before a restart [s]')):
+        field = flag[2:].replace('-', '_').replace('restart_backoff', 'backoff')
+        p.add_argument(flag, type=kind, default=getattr(RestartPolicy, field),
+                       help=f'{text} (default %(default)s)')
     p.add_argument('--no-plots', action='store_true', help='summary.json only')
     p.add_argument('--quiet', action='store_true', help='no progress lines')
     args = p.parse_args(argv)
@@ -193,6 +256,11 @@ def parse_args(argv):
         p.error('--domain-id must be in 0..232')
     if args.rate_factor is not None and not args.rate_factor > 0:
         p.error('--rate-factor must be > 0')
+    try:
+        args.restart_policy = RestartPolicy(args.max_restarts, args.restart_window_s,
+                                            args.restart_backoff_s, args.restart_backoff_max_s)
+    except ValueError as exc:
+        p.error(str(exc).replace('`', ''))
     return args
 
 
@@ -210,17 +278,16 @@ def main(argv=None):
     params_file = out / 'suite_params.yaml'
     params_file.write_text(yaml.safe_dump(cfg, sort_keys=False))
     recording = out / RECORDING
-    for old in (recording, out / f'{recording.stem}.recording'):   # a new run, a new file
-        if old.is_dir():
-            shutil.rmtree(old)
-        elif old.exists():
-            old.unlink()
+    remove_recording(recording)                 # a new run, a new recording (every part)
+    for old in ('restarts.json', 'pids.json'):
+        if (out / old).exists():
+            (out / old).unlink()
     domain_id = args.domain_id if args.domain_id is not None else random.randint(20, 220)
     # the monitor node of this process must use the same discovery settings as the children
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
-    record_args = ['--out', recording, '--suite-config', params_file]
+    record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
     if corners:
         nodes, node_args = dict(RECORDER_NODE), {}
         for corner, corner_cfg in corners.items():
@@ -235,7 +302,8 @@ def main(argv=None):
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
     else:
         suite = Suite(params_file, out, domain_id, args.bin_dir,
-                      {**RECORDER_NODE, **suite_nodes(cfg)}, args={RECORDER: record_args})
+                      {**RECORDER_NODE, **suite_nodes(cfg)},
+                      args={RECORDER: record_args, **node_arguments(cfg, params_file)})
     print(f'{PROG}: config {args.config}, domain {domain_id}, '
           f'duration {args.duration:g} s, output {out}', flush=True)
 
@@ -257,6 +325,8 @@ def main(argv=None):
     codes = {}
     stats = None
     elapsed = None
+    supervisor = None
+    last_status = {}
     try:
         try:
             suite.start_all()
@@ -264,6 +334,7 @@ def main(argv=None):
             print(f'{PROG}: {exc}', file=sys.stderr)
             return 2
         t_start = time.monotonic()
+        supervisor = Supervisor(args.restart_policy, t_start)
         next_progress = args.progress_s
         stats = ProcessStats(suite, out)
         next_stats = 0.0
@@ -271,11 +342,7 @@ def main(argv=None):
             elapsed = time.monotonic() - t_start
             if args.duration and elapsed >= args.duration:
                 break
-            dead = suite.poll()
-            if dead:
-                for name, rc in dead.items():
-                    print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
-                          f'{suite.log_tail(name)}', file=sys.stderr)
+            if not supervise(suite, supervisor, recording):
                 status = 1
                 break
             if elapsed >= next_stats:
@@ -296,11 +363,17 @@ def main(argv=None):
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
         else:
-            codes = suite.stop(drained=lambda: identifier_drained(monitor))
+            exact = not any(r['node'] in (IDENT, RECORDER) for r in supervisor.restarts) \
+                if supervisor is not None else True
+            codes = suite.stop(drained=lambda: identifier_drained(monitor, exact))
+        last_status = monitor.snapshot()[0]
         stop_monitor()
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
-    unclean = {n: rc for n, rc in codes.items() if rc not in CLEAN_EXIT}
+    waiting = [n for n in codes if supervisor is not None and supervisor.pending(n)]
+    for name in waiting:
+        print(f'{PROG}: {name} was dead at the stop (its restart was pending)', file=sys.stderr)
+    unclean = {n: rc for n, rc in codes.items() if rc not in CLEAN_EXIT and n not in waiting}
     if unclean:
         for name, rc in unclean.items():
             print(f'{PROG}: {name} exited with {rc}; last lines of its log:\n'
@@ -309,16 +382,23 @@ def main(argv=None):
     if stats is not None:
         stats.close()
         (out / 'process_stats.json').write_text(json.dumps(stats.summary(), indent=2))
+    if supervisor is not None:
+        (out / 'restarts.json').write_text(json.dumps(
+            {'policy': vars(args.restart_policy), 'restarts': supervisor.restarts,
+             'gave_up': supervisor.gave_up, 'exit_codes': codes}, indent=2))
     try:
         from . import report
         if corners:
             summary.update(duration_s=elapsed, recording=RECORDING,
-                           exit_codes={n: c for n, c in codes.items()})
+                           exit_codes={n: c for n, c in codes.items()},
+                           restarts=supervisor.restarts if supervisor else [],
+                           gave_up=supervisor.gave_up if supervisor else None)
             (out / 'summary.json').write_text(json.dumps(summary, indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
         else:
-            summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots)
+            summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
+                                         fallback={'config': cfg, 'status': last_status})
             print(report.format_summary(summary), flush=True)
     except Exception as exc:  # noqa: B902 - the run itself succeeded; say why there is no summary
         print(f'{PROG}: no summary: {type(exc).__name__}: {exc}', file=sys.stderr)

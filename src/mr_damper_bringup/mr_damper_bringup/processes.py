@@ -13,7 +13,7 @@ import subprocess
 import sys
 import time
 
-from .config import CTRL, IDENT, NODES, QC, RECORDER, RIG, SuiteError
+from .config import CAN_BRIDGE, CAN_DRIVER, CTRL, IDENT, NODES, QC, RECORDER, RIG, SuiteError
 
 #: Exit statuses of a clean stop: every node handles SIGINT and SIGTERM (node_utils.run_node)
 #: and exits 0, so death by a signal or a traceback on the way out is an unclean shutdown.
@@ -85,6 +85,8 @@ class Suite:
         exe = self.bin_dir / self.nodes[name]
         if not exe.exists():
             raise SuiteError(f'console script {exe} not found: run launch_scripts/setup_venv.sh')
+        if name in self.logs:
+            self.logs[name].close()         # the log of the previous (dead) process
         log = open(self.out / 'logs' / f'{name}.log', 'a')
         log.write(f'--- start {time.strftime("%H:%M:%S")}: {" ".join(self.command(name))}\n')
         log.flush()
@@ -96,7 +98,16 @@ class Suite:
         self.starts[name] = time.monotonic()
         self.stopping.discard(name)
         self.deaths.pop(name, None)
+        self.write_pids()
         return self.procs[name]
+
+    def write_pids(self):
+        """Write ``out/pids.json``, ``{node: process id}`` of the latest start of each node."""
+        import json
+        path = self.out / 'pids.json'
+        tmp = path.with_name(path.name + '.tmp')
+        tmp.write_text(json.dumps({name: proc.pid for name, proc in self.procs.items()}))
+        os.replace(tmp, path)
 
     def start_all(self):
         """Start every node, in order."""
@@ -142,8 +153,8 @@ class Suite:
                 self.deaths[name] = rc
         return dict(self.deaths)
 
-    def stop(self, order=(QC, CTRL, RIG, IDENT), last=(RECORDER,), drain_s=1.0, timeout_s=10.0,
-             drained=None, stall_s=3.0, guard_s=60.0):
+    def stop(self, order=(QC, CTRL, RIG, IDENT, CAN_BRIDGE), last=(RECORDER,), drain_s=1.0,
+             timeout_s=10.0, drained=None, stall_s=3.0, guard_s=60.0, then=(CAN_DRIVER,)):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).
 
@@ -154,7 +165,10 @@ class Suite:
         keeps moving: a slow identifier on a loaded machine still gets every sample, a stuck one
         holds the stop for ``stall_s`` at most (and everything for ``guard_s``). The nodes in
         ``last`` (the recorder) are stopped only once all the others have exited, so they take
-        every final message. With car corners (node names ``<corner>.<node>``), ``order`` lists
+        every final message; the nodes in ``then`` (the simulated CAN driver of a CAN run) are
+        stopped after ``order`` and before ``last``, so the driver hears every frame the bridge
+        sent and reports it before the recorder stops (the reverse of the start order). With
+        car corners (node names ``<corner>.<node>``), ``order`` lists
         every corner's nodes and the drain comes after the last rig.
 
         Returns
@@ -165,7 +179,7 @@ class Suite:
         """
         self.poll()
         codes = {}
-        for group in (order, last):
+        for group in (order, then, last):
             for name in group:
                 if name not in self.procs:
                     continue

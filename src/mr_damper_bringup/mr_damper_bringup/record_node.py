@@ -42,8 +42,8 @@ from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, insta
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
-from .topics import (namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES, SUITE_TOPICS,
-                     topic_table)
+from .topics import (CAN_TOPICS, namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES,
+                     SUITE_TOPICS, topic_table)
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': PARAMETERS_QOS,
@@ -117,8 +117,12 @@ class ParameterPoller:
 def _parser():
     p = argparse.ArgumentParser(prog='mr-damper-record', description=__doc__.split('\n')[1])
     p.add_argument('--out', required=True, help='MCAP file to create (must not exist)')
-    p.add_argument('--only', action='append', metavar='KEY', choices=sorted(SUITE_TOPICS),
+    p.add_argument('--only', action='append', metavar='KEY',
+                   choices=sorted({**SUITE_TOPICS, **CAN_TOPICS}),
                    help='record only this topic key (repeat; default: every suite topic)')
+    p.add_argument('--can', action='store_true',
+                   help='also the CAN bridge\'s topics (measured current, can/car_state, '
+                        'can/body_imu, can/wheel_imu)')
     p.add_argument('--namespace', action='append', default=[], metavar='NS',
                    help='record the suite topics of the nodes in namespace NS (repeat for '
                         'several car corners: fl, fr, rl, rr); default: the root namespace')
@@ -145,7 +149,8 @@ def main(argv=None):
     out = Path(args.out)
     try:
         config_text = Path(args.suite_config).read_text() if args.suite_config else None
-        recorder = SuiteRecorder(out, namespaced_table(topic_table(args.only), args.namespace),
+        table = namespaced_table(topic_table(args.only, can=args.can), args.namespace)
+        recorder = SuiteRecorder(out, table,
                                  config_text=config_text, start_ns=time.time_ns())
     except (OSError, ValueError, LookupError) as exc:
         print(f'mr-damper-record: error: {exc}', file=sys.stderr)
@@ -174,11 +179,11 @@ def main(argv=None):
                           f'{sum(lost.values())} message(s) lost before they were taken'
                           if lost else 'recording',
                           {'messages': dict(recorder.counts),
-                           'measurements': sum(n for k, n in recorder.counts.items()
-                                               if k.split('/')[-1] == 'measurement'),
+                           # samples (a measurement message is a batch of them)
+                           'measurements': recorder.measurements(),
                            'measurements_by_namespace': {
-                               k.split('/')[0]: n for k, n in recorder.counts.items()
-                               if '/' in k and k.split('/')[-1] == 'measurement'},
+                               k.split('/')[0]: n for k, n in recorder.samples.items()
+                               if '/' in k},
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,
@@ -223,7 +228,7 @@ def main(argv=None):
             rclpy.try_shutdown()
     lost = sum(drops.counts().values())
     print(f'mr-damper-record: {sum(recorder.counts.values())} messages '
-          f'({recorder.counts.get("measurement", 0)} measurements) written to {out}'
+          f'({recorder.measurements()} measurement samples) written to {out}'
           f'{f", {lost} lost before they were taken" if lost else ""}', file=sys.stderr)
     return 0
 

@@ -7,16 +7,87 @@ with the rosbags ``Writer`` into ONE ``.mcap`` file, one channel per row of the 
 from ``mr_damper_model.bag_types.suite_typestore()`` (which knows the ``mr_damper_interfaces``
 messages), so Foxglove, PlotJuggler, ``ros2 bag`` and rosbags open it with named fields.
 
-Memory stays flat for runs of any length: rosbags streams 1 MiB chunks to the file and keeps
-only a chunk index (tens of bytes per MiB). While recording, the file is
+Memory stays flat for runs of any length: rosbags streams chunks of at most 1 MiB to the file
+and keeps only a chunk index (tens of bytes per chunk). While recording, the file is
 ``<stem>.recording/<stem>.recording.mcap`` next to the target (a rosbag2 folder); :meth:`close`
-moves the finished file to the target path and removes the folder. A recorder killed before
-:meth:`close` leaves that folder with an MCAP file without its footer (``mcap recover`` repairs
-it).
+moves the finished file to the target path and removes the folder.
+
+A recorder killed before :meth:`close` leaves that folder with an MCAP file without its footer;
+every chunk written before the kill is complete in it and ``mr_damper_model.mcap_scan`` reads
+them. rosbags writes a chunk whole once it exceeds 1 MiB (a size it does not let you set: many
+seconds of a batched measurement stream); the recorder also closes and flushes the open chunk
+once it spans ``chunk_s`` of log time (1 s), so a kill loses about the last second. A
+recorder restarted by the launcher writes a new part, ``<stem>.1.mcap``, ``<stem>.2.mcap``, ...
+(:func:`part_path`), never over an earlier one; :func:`recording_parts` lists the parts of a
+run in order, finished or left by a killed writer.
 """
 from pathlib import Path
+import re
 
 from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
+
+
+def part_path(path, k):
+    """Return the file of part ``k`` of recording ``path``: ``path``, then ``stem.k.mcap``."""
+    path = Path(path)
+    return path if k == 0 else path.with_name(f'{path.stem}.{int(k)}{path.suffix}')
+
+
+def work_file(path):
+    """Return the file a recorder writes into until it closes ``path`` (see the module doc)."""
+    path = Path(path)
+    work = path.parent / f'{path.stem}.recording'
+    return work / f'{work.name}.mcap'
+
+
+def _part_number(path, name):
+    """Return ``k`` if ``name`` names part ``k`` of recording ``path`` (file or work folder)."""
+    stem = re.escape(Path(path).stem)
+    m = re.fullmatch(rf'{stem}(?:\.(\d+))?(\.mcap|\.recording)', name)
+    return None if m is None else int(m.group(1) or 0)
+
+
+def recording_parts(path):
+    """
+    Return the parts of recording ``path`` in order, as ``[(k, file)]``.
+
+    Part ``k`` is :func:`part_path` if its recorder closed it, else the file its killed
+    recorder left (:func:`work_file` of it, no footer); parts with neither are left out.
+    """
+    path = Path(path)
+    found = set()
+    if path.parent.is_dir():
+        for entry in path.parent.iterdir():
+            k = _part_number(path, entry.name)
+            if k is not None:
+                found.add(k)
+    out = []
+    for k in sorted(found):
+        done, left = part_path(path, k), work_file(part_path(path, k))
+        if done.is_file():
+            out.append((k, done))
+        elif left.is_file():
+            out.append((k, left))
+    return out
+
+
+def remove_recording(path):
+    """Delete every part of recording ``path`` (a new run starts a new recording)."""
+    import shutil
+    path = Path(path)
+    if not path.parent.is_dir():
+        return
+    for entry in path.parent.iterdir():
+        if _part_number(path, entry.name) is not None:
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+
+
+def _is_measurement(key):
+    """Tell whether ``key`` is the measurement topic of any namespace (``[NS/]measurement``)."""
+    return key.rpartition('/')[2] == 'measurement'
 
 
 class SuiteRecorder:
@@ -37,6 +108,11 @@ class SuiteRecorder:
         Default: ``mr_damper_model.bag_types.suite_typestore()``.
     start_ns : int, optional
         Log time [ns] of the config message (default: 0).
+    chunk_s : float, optional
+        Close the open chunk (and flush it to the file) after a message logged this long [s]
+        after the chunk's first one (default 1; 0: only when rosbags closes it at 1 MiB): a
+        killed recorder loses about this much, not a whole MiB (many seconds of a batched
+        measurement stream).
 
     Attributes
     ----------
@@ -45,7 +121,8 @@ class SuiteRecorder:
 
     """
 
-    def __init__(self, path, topics=None, *, config_text=None, typestore=None, start_ns=0):
+    def __init__(self, path, topics=None, *, config_text=None, typestore=None, start_ns=0,
+                 chunk_s=1.0):
         self.path = Path(path)
         if self.path.suffix != '.mcap':
             raise ValueError(f'`path`: {self.path} must end in .mcap')
@@ -65,8 +142,14 @@ class SuiteRecorder:
         self.config_text = config_text
         self.start_ns = int(start_ns)
         self.counts = {key: 0 for key in self.topics}
+        #: samples written per measurement key (a DamperSamples message holds many)
+        self.samples = {key: 0 for key in self.topics if _is_measurement(key)}
         self._writer = None
         self._conns = {}
+        if not chunk_s >= 0:
+            raise ValueError(f'`chunk_s` must be >= 0, got {chunk_s}')
+        self.chunk_ns = int(round(chunk_s * 1e9))
+        self._chunk_t0 = None
 
     def open(self):
         """Create the file and one channel per topic; write the config message."""
@@ -104,8 +187,14 @@ class SuiteRecorder:
                            self.typestore.serialize_cdr(msg, row.type))
 
     def measurements(self):
-        """Return the measurements written, of every namespace (keys ``[NS/]measurement``)."""
-        return sum(n for key, n in self.counts.items() if key.rpartition('/')[2] == 'measurement')
+        """Return the measurement samples written, of every namespace (``[NS/]measurement``)."""
+        return sum(self.samples.values())
+
+    def _samples_in(self, key, raw):
+        """Count the samples of one serialised measurement message (1 for a JointState)."""
+        row = self.topics[key]
+        msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        return len(msg.t_offset_s) if hasattr(msg, 't_offset_s') else 1
 
     def write(self, key, raw, log_time_ns):
         """
@@ -121,8 +210,25 @@ class SuiteRecorder:
             Receive time [ns] (the recorder's clock).
 
         """
-        self._writer.write(self._conns[key], int(log_time_ns), bytes(raw))
+        raw = bytes(raw)
+        self._writer.write(self._conns[key], int(log_time_ns), raw)
+        self._end_chunk_after(int(log_time_ns))
         self.counts[key] += 1
+        if key in self.samples:
+            self.samples[key] += self._samples_in(key, raw)
+
+    def _end_chunk_after(self, log_time_ns):
+        """Close and flush the open chunk once it spans ``chunk_s`` (rosbags 0.11.9 MCAP)."""
+        if not self.chunk_ns:
+            return
+        if self._chunk_t0 is None:
+            self._chunk_t0 = log_time_ns
+        elif log_time_ns - self._chunk_t0 >= self.chunk_ns:
+            storage = self._writer.storage       # rosbags' McapWriter (pinned version)
+            if storage.chunk.bio.tell():
+                storage.close_chunk()
+                storage.bio.flush()
+            self._chunk_t0 = None
 
     def close(self):
         """Finish the file (footer, index), move it to ``path``; return ``path``."""

@@ -50,9 +50,10 @@ import numpy as np
 from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
                                        finite_or_none, JsonLines, open_log)
 from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
+from mr_damper_model.sample_stream import BatchIndex
 
-from .config import node_params, QC, RIG
-from .topics import (CONFIG_TOPIC, decode_parameters, decode_status,
+from .config import IDENT, node_params, QC, RIG
+from .topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
                      NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
@@ -61,18 +62,29 @@ RECORDING = 'suite.mcap'
 MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def read_recording(path, work):
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
+    Each file is read front to back (``mr_damper_model.mcap_scan.McapScan``, messages in the
+    order the recorder wrote them), a file whose recorder was killed up to its last complete
+    chunk.
+
     Parameters
     ----------
-    path : str or Path
-        The ``suite.mcap`` file.
+    path : str or Path, or a list of them
+        The ``suite.mcap`` file, or the parts of a recording (a restarted recorder writes a new
+        part, ``recorder.recording_parts``), read one after the other.
     work : str or Path
         Folder for the streamed extracts: column log ``measurement`` (:data:`MEAS_COLUMNS`,
         ``recv_epoch_s`` = receive time [s]) and ``parameters.jsonl`` (``[t_s, dict]`` per
         message, ``t_s`` seconds since the recording started, the dict with ``recv_epoch_s``).
+    identifier_starts : sequence of float, optional
+        Epoch times [s] the identifier was restarted at (the launcher's record): a count after
+        one belongs to a new life, even when the recorder missed the new life's first counts.
+    car_modes_from : float, optional
+        Epoch time [s] from which the car states are decoded into ``car_modes`` (the first
+        death of a node; None: not at all, a 1 kHz topic the rest of the report does not need).
 
     Returns
     -------
@@ -83,41 +95,61 @@ def read_recording(path, work):
         ``status_messages``, ``ride_metrics`` (last), ``topic_messages`` (messages per topic
         key), ``parameter_messages``, ``measurements_received``, ``measurement_gaps`` (samples
         missing between consecutive stamps), ``measurement_out_of_order``, ``undecodable``
-        (messages per key whose payload did not decode), ``start_epoch_s``.
+        (messages per key whose payload did not decode), ``start_epoch_s``, ``end_epoch_s``,
+        ``parts`` (per file: ``complete``, ``messages``, first and last log time, ``error``;
+        ``McapScan.summary``), ``identifier_lives`` (the identifier's ``samples_received``
+        counts, one entry per process life: a count after a restart in ``identifier_starts``
+        or one that goes down starts a life; ``counts``: its ``(t, count)`` series),
+        ``gap_events`` (``(receive time, samples missing)`` of each stamp gap) and
+        ``car_modes`` (runs ``[first_s, last_s, fail_safe_mode]`` of the car state, split at a
+        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]).
 
     """
     import yaml
-    from rosbags.highlevel import AnyReader
 
     from mr_damper_model.bag_types import suite_typestore
+    from mr_damper_model.mcap_scan import McapScan
     from .topics import decode_measurement
     work = Path(work)
-    keys = {row.name: key for key, row in SUITE_TOPICS.items()}
+    keys = {row.name: key for key, row in {**SUITE_TOPICS, **CAN_TOPICS}.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
     rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
            'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
            'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
-           'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None}
+           'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None,
+           'end_epoch_s': None, 'parts': [], 'identifier_lives': [], 'car_modes': [],
+           'gap_events': []}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
     params = JsonLines(work / 'parameters.jsonl')
-    last_t, dt = None, None
+    gaps = _Gaps()
+    typestore = suite_typestore()
     try:
-        with AnyReader([Path(path)], default_typestore=suite_typestore()) as reader:
-            conns = [c for c in reader.connections if c.topic in keys]
-            for conn, t_ns, raw in reader.messages(connections=conns):
-                key = keys[conn.topic]
+        for part in (path if isinstance(path, (list, tuple)) else [path]):
+            reader = McapScan(part)
+            for topic, msgtype, t_ns, raw in reader.messages(keys):
+                key = keys[topic]
                 t_rx = t_ns * 1e-9
                 if rec['start_epoch_s'] is None:
                     rec['start_epoch_s'] = t_rx
+                rec['end_epoch_s'] = t_rx
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
-                               'config', 'node_parameters', *STATUS_KEYS):
+                               'config', 'node_parameters', 'samples_received', 'car_state',
+                               *STATUS_KEYS) or (key == 'car_state' and (
+                                   car_modes_from is None or t_rx < car_modes_from)):
                     continue
-                msg = reader.deserialize(raw, conn.msgtype)
+                msg = reader.deserialize(raw, msgtype, typestore)
                 try:
                     if key == 'measurement':
                         sample = decode_measurement(msg)
+                    elif key == 'samples_received':
+                        _count_lives(rec['identifier_lives'], t_rx, int(msg.data),
+                                     identifier_starts)
+                        continue
+                    elif key == 'car_state':
+                        _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
+                        continue
                     elif key == 'config':
                         rec['config'] = yaml.safe_load(msg.data)
                         continue
@@ -145,23 +177,94 @@ def read_recording(path, work):
                 elif key != 'measurement':
                     rec[key] = d
                 else:
-                    t = sample[0]
-                    if last_t is not None:
-                        step = t - last_t
-                        if step <= 0:
-                            rec['measurement_out_of_order'] += 1
-                            continue
-                        if dt is None or rec['measurements_received'] < 20:
-                            dt = step if dt is None else min(dt, step)
-                        elif step > 1.5 * dt:
-                            rec['measurement_gaps'] += int(round(step / dt)) - 1
-                    last_t = t
-                    meas.append(sample + (t_rx,))
-                    rec['measurements_received'] += 1
+                    missing = rec['measurement_gaps']
+                    _take_measurement(rec, gaps, sample, getattr(msg, 'first_index', None),
+                                      meas, t_rx)
+                    if rec['measurement_gaps'] > missing:
+                        rec['gap_events'].append((t_rx, rec['measurement_gaps'] - missing))
+            rec['parts'].append(reader.summary())
     finally:
         meas.close()
         params.close()
     return rec
+
+
+#: a silence of the car state longer than this [s] ends a run of its mode (the car was down)
+CAR_STATE_GAP_S = 0.5
+
+
+def _count_lives(lives, t, count, starts=()):
+    """
+    Add one count of a process's counter at ``t`` to its ``lives``.
+
+    A count that goes down, or the first count after a (re)start time in ``starts``, starts a
+    new life.
+    """
+    if (not lives or count < lives[-1]['last_count']
+            or any(lives[-1]['last_s'] < t0 <= t for t0 in starts)):
+        lives.append({'first_s': t, 'first_count': count, 'last_s': t, 'last_count': count,
+                      'counts': [(t, count)]})
+    else:
+        lives[-1].update(last_s=t, last_count=count)
+        lives[-1]['counts'].append((t, count))
+
+
+def _received_between(lives, a, b):
+    """Return the samples the identifier's lives counted in ``(a, b]`` (count at b less at a)."""
+    def at(life, t):
+        got = [c for tc, c in life['counts'] if tc <= t]
+        return got[-1] if got else 0
+    return sum(at(life, b) - at(life, a) for life in lives)
+
+
+def _mode_runs(runs, t, mode):
+    """Add one car state's mode at ``t`` to the runs ``[first_s, last_s, mode]``."""
+    if runs and t - runs[-1][1] <= CAR_STATE_GAP_S:
+        if runs[-1][2] == mode:
+            runs[-1][1] = t
+            return
+        runs[-1][1] = t                # contiguous: the previous mode lasted until now
+    runs.append([t, t, mode])
+
+
+class _Gaps:
+    """Samples missing from the recorded measurement stream (see :func:`_take_measurement`)."""
+
+    def __init__(self):
+        self.index = BatchIndex()
+        self.last_t = None
+        self.dt = None
+
+
+def _take_measurement(rec, gaps, cols, first_index, meas, t_rx):
+    """
+    Append one recorded measurement message (arrays ``t, x, v, f, i``) to the column log.
+
+    Samples not after the newest kept stamp are counted (``measurement_out_of_order``) and
+    left out. Missing samples (``measurement_gaps``) are counted exactly from the batches'
+    stream index (``first_index``); for single-sample JointState recordings, from stamp steps
+    longer than 1.5 sample periods (the period: the shortest step of the first 20 samples).
+    """
+    t = cols[0]
+    prev = -np.inf if gaps.last_t is None else gaps.last_t
+    keep = t > np.maximum.accumulate(np.concatenate(([prev], t)))[:-1]
+    rec['measurement_out_of_order'] += int(keep.size - np.count_nonzero(keep))
+    if not keep.any():
+        return
+    if first_index is not None:
+        rec['measurement_gaps'] += gaps.index.update(first_index, t.size)
+    else:
+        t0 = float(t[keep][0])
+        if gaps.last_t is not None:
+            step = t0 - gaps.last_t
+            if gaps.dt is None or rec['measurements_received'] < 20:
+                gaps.dt = step if gaps.dt is None else min(gaps.dt, step)
+            elif step > 1.5 * gaps.dt:
+                rec['measurement_gaps'] += int(round(step / gaps.dt)) - 1
+    gaps.last_t = float(t[keep][-1])
+    block = np.column_stack([c[keep] for c in cols] + [np.full(np.count_nonzero(keep), t_rx)])
+    meas.append_block(block)
+    rec['measurements_received'] += int(block.shape[0])
 
 
 def fit_error(f_meas, f_model):
@@ -568,6 +671,11 @@ def messages_summary(rec, qc_status):
           'measurements_received_by_recorder': int(rec.get('measurements_received', 0))}
     published = _first(rig, ('samples_published', 'published'))
     received = _first(ident, ('samples_received', 'received'))
+    lives = rec.get('identifier_lives') or []
+    if len(lives) > 1:      # a restarted identifier counts from 0: add up its lives
+        received = (sum(life['last_count'] for life in lives[:-1])
+                    + max(lives[-1]['last_count'], received or 0))
+        br['identifier_lives'] = len(lives)
     if published is not None:
         br['measurements_published_by_rig_last_status'] = published
     lost_ident = None
@@ -586,6 +694,137 @@ def messages_summary(rec, qc_status):
     return lost_ident, br
 
 
+def restart_figures(supervision, rec, meas):
+    """
+    Return what each restart of a node cost, from the recording.
+
+    Each restart's window runs from its node's death to the next death of any node (or the end
+    of the recording): ``failsafe_s`` is the time the car state said fail-safe in it,
+    ``no_car_state_s`` the time without any car state (the car or the recorder was down),
+    ``car_normal_at_end`` whether the car was back to normal at its end.
+    ``measurements_lost``: the samples the rig published in the window (recorded, or missing
+    between recorded stamps) that no life of the identifier counted (``samples_received``),
+    the window starting at the identifier's last count before the death (what a killed
+    identifier took after its last count is lost with it).
+
+    Parameters
+    ----------
+    supervision : dict
+        The launcher's record (``restarts.json``): ``restarts`` (entries of
+        ``supervisor.Supervisor.restarts``), ``gave_up``, ``policy``.
+    rec : dict
+        :func:`read_recording` (``car_modes``, ``identifier_lives``, ``gap_events``,
+        ``end_epoch_s``).
+    meas : column log
+        The recorded measurements (``recv_epoch_s``).
+
+    Returns
+    -------
+    list of dict
+        One per restart: its record plus the figures above.
+
+    """
+    restarts = [dict(r) for r in supervision.get('restarts') or ()]
+    deaths = sorted(r['death_epoch_s'] for r in restarts if r.get('death_epoch_s') is not None)
+    end = rec.get('end_epoch_s')
+    runs = rec.get('car_modes') or []
+    lives = rec.get('identifier_lives') or []
+    counted = sorted(t for life in lives for t, _ in life['counts'])
+    windows = []
+    for r in restarts:
+        a = r.get('death_epoch_s')
+        if a is None or end is None:
+            continue
+        later = [d for d in deaths if d > a]
+        b = max(min(later) if later else end, a)
+        fs = sum(max(0.0, min(b, hi) - max(a, lo)) for lo, hi, mode in runs if mode)
+        seen = sum(max(0.0, min(b, hi) - max(a, lo)) for lo, hi, _ in runs)
+        last = [mode for lo, hi, mode in runs if lo < b and hi > a]
+        r.update(failsafe_s=fs, no_car_state_s=max(b - a - seen, 0.0),
+                 car_normal_at_end=(not last[-1]) if last else None, window_s=b - a)
+        before = [t for t in counted if t <= a]
+        if before:
+            lo = before[-1]
+            missing = sum(n for t, n in rec.get('gap_events') or () if lo < t <= b)
+            windows.append((r, lo, b, missing - _received_between(lives, lo, b)))
+    if windows:
+        n = [0] * len(windows)
+        for c in open_log(meas).chunks(CHUNK_ROWS, ('recv_epoch_s',)):
+            t = c['recv_epoch_s']
+            for k, (_, lo, hi, _) in enumerate(windows):
+                n[k] += int(np.count_nonzero((t > lo) & (t <= hi)))
+        for k, (r, _, _, rest) in enumerate(windows):
+            r['measurements_lost'] = max(0, n[k] + int(rest))
+    return restarts
+
+
+def attribute_losses(breakdown, restarts):
+    """
+    Split the measurements lost to the identifier between the restarts of nodes and the rest.
+
+    Each restart keeps its estimate (:func:`restart_figures`), capped so that the restarts
+    together never claim more than ``measurements_lost_to_identifier``; the remainder is
+    ``measurements_lost_not_at_restarts``. Updates both in place.
+    """
+    total = breakdown.get('measurements_lost_to_identifier')
+    if total is None:
+        return
+    left = int(total)
+    for r in restarts:
+        if r.get('measurements_lost') is not None:
+            r['measurements_lost'] = min(int(r['measurements_lost']), left)
+            left -= r['measurements_lost']
+    if any(r.get('measurements_lost') is not None for r in restarts):
+        breakdown['measurements_lost_at_restarts'] = int(total) - left
+        breakdown['measurements_lost_not_at_restarts'] = left
+
+
+def can_summary(status, corner='fl'):
+    """
+    Commands over CAN (``--config can``): frames the bridge sent vs frames the driver received.
+
+    Parameters
+    ----------
+    status : dict
+        The last status of each node (``read_recording(...)['status']``): ``can_bridge`` and
+        ``can_driver_sim`` (each node's final status, published as it stops; the driver stops
+        after the bridge).
+    corner : str
+        The bridged corner.
+
+    Returns
+    -------
+    dict or None
+        ``frames_sent`` (bridge, all command frames incl. keep-alive re-sends), ``received``
+        (driver, valid command frames), ``lost`` (their difference), ``counter_jumps``,
+        ``frames_missed``, ``bad_checksum`` (driver), ``commands`` (bridge: ROS commands
+        taken), ``resent``, ``failsafe_entries``, ``failsafe_s``, ``bridge_faults`` (the
+        bridge's fault counters that are not zero), ``zero_lost`` (frames_sent == received and
+        no counter jump); None when neither node reported.
+
+    """
+    bridge = status.get('can_bridge')
+    driver = status.get('can_driver_sim')
+    if bridge is None and driver is None:
+        return None
+    br = ((bridge or {}).get('corners') or {}).get(corner) or {}
+    drv = ((driver or {}).get('corners') or {}).get(corner) or {}
+    sent, received = br.get('frames_sent'), drv.get('received')
+    out = {'corner': corner, 'frames_sent': sent, 'received': received,
+           'lost': (sent - received if isinstance(sent, (int, float))
+                    and isinstance(received, (int, float)) else None),
+           'counter_jumps': drv.get('counter_jumps'), 'frames_missed': drv.get('frames_missed'),
+           'bad_checksum': drv.get('bad_checksum'), 'commands': br.get('commands'),
+           'resent': br.get('resent'), 'failsafe_entries': br.get('failsafe_entries'),
+           'failsafe_s': br.get('failsafe_s'), 'bridge_mode': br.get('mode'),
+           'bridge_reason': br.get('reason'),
+           'bridge_faults': {k: v for k, v in ((bridge or {}).get('faults') or {}).items()
+                             if v},
+           'bridge_dropped': (bridge or {}).get('dropped') or {}}
+    out['zero_lost'] = out['lost'] == 0 and out['counter_jumps'] == 0
+    return out
+
+
 def _first(d, keys):
     for k in keys:
         if isinstance(d.get(k), (int, float)):
@@ -593,9 +832,16 @@ def _first(d, keys):
     return None
 
 
-def make_report(out, *, duration_s=None, config=None, plots=True):
+def make_report(out, *, duration_s=None, config=None, plots=True, fallback=None):
     """
     Build ``summary.json`` (and plots) for the run in folder ``out``, with bounded memory.
+
+    The recording may be in parts (a restarted recorder) and a part may be cut (a killed
+    recorder): the summary is made from what exists, and ``recording.complete`` is False unless
+    one part holds the whole run, closed properly. With no recording at all, the summary comes
+    from the statuses in ``fallback`` (no plots). ``restarts.json`` (written by the launcher),
+    if present, lists the restarts of nodes: ``restarts`` in the summary, each with what it cost
+    (:func:`restart_figures`).
 
     Parameters
     ----------
@@ -607,6 +853,9 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         The parameter dict of the run (default: the one recorded in ``suite.mcap``).
     plots : bool
         Also write the PNG plots.
+    fallback : dict, optional
+        What the launcher knows, used when the recording lacks it: ``config`` (the run's
+        parameter dict) and ``status`` (the last status of each node, by short name).
 
     Returns
     -------
@@ -614,20 +863,44 @@ def make_report(out, *, duration_s=None, config=None, plots=True):
         The summary (as written to ``summary.json``); a HIL run (car plant ``rig``) also has
         ``hil`` (tracking error and identification quality against the cam rig).
 
+    Raises
+    ------
+    FileNotFoundError
+        No recording and no ``fallback`` statuses.
+    ValueError
+        No suite configuration, neither recorded nor in ``fallback``.
+
     """
+    from .recorder import recording_parts
     out = Path(out)
     path = out / RECORDING
-    if not path.is_file():
+    fallback = fallback or {}
+    parts = [f for _, f in recording_parts(path)]
+    if not parts and not fallback.get('status'):
         raise FileNotFoundError(f'{path}: no recording of the run')
+    supervision = {}
+    if (out / 'restarts.json').is_file():
+        supervision = json.loads((out / 'restarts.json').read_text())
     with tempfile.TemporaryDirectory(prefix='.report_', dir=out) as work:
-        rec = read_recording(path, work)
+        starts = [r['restart_epoch_s'] for r in supervision.get('restarts') or ()
+                  if r['node'] == IDENT and r.get('restart_epoch_s') is not None]
+        deaths = [r['death_epoch_s'] for r in supervision.get('restarts') or ()
+                  if r.get('death_epoch_s') is not None]
+        rec = read_recording(parts, work, identifier_starts=starts,
+                             car_modes_from=min(deaths) - 1.0 if deaths else None)
+        if not parts:
+            rec['status'] = dict(fallback['status'])
         cfg = config if config is not None else effective_config(rec)
+        cfg = cfg if cfg is not None else fallback.get('config')
         if cfg is None:
             raise ValueError(f'{path}: no {CONFIG_TOPIC.name} message (the suite config)')
         meas = (ColumnReader(Path(work) / 'measurement') if rec['measurements_received']
-                else ArrayLog({k: [] for k in ('t', 'x', 'v', 'f', 'i')}))
+                else ArrayLog({k: [] for k in MEAS_COLUMNS}))
         params_log = ParamsLog(Path(work) / 'parameters.jsonl')
-        return _report(out, rec, cfg, meas, params_log, duration_s, plots)
+        rec['restarts'] = restart_figures(supervision, rec, meas)
+        rec['gave_up'] = supervision.get('gave_up')
+        rec['exit_codes'] = supervision.get('exit_codes')
+        return _report(out, rec, cfg, meas, params_log, duration_s, plots and bool(parts))
 
 
 def effective_config(rec):
@@ -658,7 +931,17 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
                              'statuses': rec['status_messages'],
                              'undecodable': rec['undecodable'],
-                             'node_parameters': sorted(rec.get('node_parameters') or {})}}
+                             'node_parameters': sorted(rec.get('node_parameters') or {}),
+                             **recording_state(rec)}}
+    if rec.get('restarts') or rec.get('gave_up'):
+        summary['restarts'] = rec.get('restarts') or []
+        counts = {}
+        for r in summary['restarts']:
+            counts[r['node']] = counts.get(r['node'], 0) + (r.get('restart_s') is not None)
+        summary['restart_counts'] = counts
+        summary['gave_up'] = rec.get('gave_up')
+    if rec.get('exit_codes') is not None:
+        summary['exit_codes'] = rec['exit_codes']
     summary['identification'] = identification_summary(meas, params_log, truth)
     summary['identification']['truth_model'] = (
         'kwok-current' if summary['identification']['truth'] else
@@ -678,11 +961,31 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
             summary['duration_s'] = float(ends[-1] - ends[0])
     else:
         summary['ride'] = {'skyhook': None, 'passive': None, 'note': 'no quarter-car log'}
+    car_restarts = [r for r in rec.get('restarts') or () if r['node'] == QC]
+    if car_restarts and summary['ride'].get('skyhook'):
+        summary['ride']['note_restart'] = (
+            f'the car was restarted at {car_restarts[-1]["restart_s"]:.1f} s: the ride, loop '
+            'and fail-safe totals cover its last life only (its log starts anew)')
     summary['failsafe_s'] = qc_status.get('failsafe_s')
     summary['failsafe'] = {k: qc_status.get(k) for k in (
         'mode', 'reason', 'failsafe_entries', 'params_accepted', 'params_rejected',
         'safe_current_a')}
+    ctrl_status = rec.get('status', {}).get('controller')
+    if ctrl_status is not None or 'command_timeouts' in qc_status:
+        # --external-controller: the link car state -> controller -> current command
+        summary['controller_link'] = {
+            'command_timeouts': qc_status.get('command_timeouts'),
+            'command_timeout_s_total': qc_status.get('command_timeout_s_total'),
+            'commands_received': qc_status.get('commands_received'),
+            'controller_dropped': (ctrl_status or {}).get('dropped') or {},
+            'controller_mode': (ctrl_status or {}).get('mode'),
+            'controller_reason': (ctrl_status or {}).get('reason')}
+    can = can_summary(rec.get('status', {}))
+    if can is not None:
+        summary['config'] = 'can'
+        summary['can'] = can
     lost, breakdown = messages_summary(rec, qc_status)
+    attribute_losses(breakdown, rec.get('restarts') or [])
     summary['messages_lost'] = lost
     summary['messages'] = breakdown
     summary['loop'] = qc_status.get('loop')
@@ -714,6 +1017,27 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         suite_plots.plot_all(out, meas.strided(200000), params_plot, summary, trace,
                              passive_trace)
     return summary
+
+
+def recording_state(rec):
+    """
+    Return how complete the recording is: ``complete``, ``parts``, ``note``.
+
+    ``complete`` is True only for one part closed properly (a restarted recorder leaves parts
+    with a gap between them; a killed one a part without its footer, read up to its last
+    complete chunk); ``parts`` lists each file read (``McapScan.summary``).
+    """
+    parts = rec.get('parts') or []
+    complete = len(parts) == 1 and parts[0]['complete']
+    out = {'complete': complete, 'parts': parts}
+    if not parts:
+        out['note'] = 'no recording: the summary comes from the nodes\' last statuses'
+    elif not complete:
+        cut = [p for p in parts if not p['complete']]
+        out['note'] = (f'{len(parts)} part(s), {len(cut)} cut short by a killed recorder '
+                       '(read up to the last complete chunk); messages between the parts were '
+                       'not recorded')
+    return out
 
 
 def hil_report_config(cfg):
@@ -842,7 +1166,8 @@ def format_summary(s):
                 lines.append(f'  {key:24s} live {a:8.4f}  passive {b:8.4f} {unit}'
                              f'  ({100 * (a - b) / b:+.1f} %)')
         soft = ride.get('passive_0a')
-        if soft:
+        if soft and None not in (soft.get('rms_body_accel_wk'), soft.get('rms_tyre_load_ratio'),
+                                 sk.get('rms_body_accel_wk'), sk.get('rms_tyre_load_ratio')):
             wk0, ty0 = soft['rms_body_accel_wk'], soft['rms_tyre_load_ratio']
             lines.append(f'  vs passive@0 A (softest, best comfort): Wk {wk0:.4f} m/s^2 '
                          f'({100 * (sk["rms_body_accel_wk"] / wk0 - 1):+.1f} %), tyre load '
@@ -852,6 +1177,15 @@ def format_summary(s):
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
                  f'refused parameter sets: {(s.get("failsafe") or {}).get("params_rejected")}')
     lines.append(f'messages lost: {s.get("messages_lost")} ({s.get("messages")})')
+    can = s.get('can')
+    if can:
+        lines.append(f'CAN ({can["corner"]}): bridge sent {can["frames_sent"]} command frames '
+                     f'({can["resent"]} re-sends), driver received {can["received"]}: lost '
+                     f'{can["lost"]}, counter jumps {can["counter_jumps"]}, bad checksums '
+                     f'{can["bad_checksum"]}; bridge fail-safe entries '
+                     f'{can["failsafe_entries"]} ({can["failsafe_s"] or 0:.2f} s), faults '
+                     f'{can["bridge_faults"] or "none"}')
+    lines.extend(restart_lines(s))
     loop = s.get('loop_full_run') or {}
     m2p = s.get('measurement_to_parameters_s')
     if m2p:
@@ -866,6 +1200,41 @@ def format_summary(s):
         from mr_damper_rig.car_in_the_loop import format_hil_summary
         lines.append(format_hil_summary(s['hil']))
     return '\n'.join(lines)
+
+
+def restart_lines(s):
+    """Return the summary lines on the recording's completeness and the restarts of nodes."""
+    lines = []
+    rec = s.get('recording') or {}
+    if rec.get('complete') is False:
+        lines.append(f'recording INCOMPLETE: {rec.get("note")}')
+        parts = rec.get('parts') or ()
+        t0 = parts[0].get('first_log_time_s') if parts else None
+        for p in parts:
+            if not p['complete'] and p.get('last_log_time_s') is not None and t0 is not None:
+                lines.append(f'  {p["file"]}: truncated after {p["messages"]} messages, the '
+                             f'last {p["last_log_time_s"] - t0:.1f} s after the recording\'s '
+                             'start')
+    restarts = s.get('restarts') or []
+    if restarts:
+        lines.append(f'restarts: {len(restarts)} ' + '(' + ', '.join(
+            f'{n} {c}' for n, c in (s.get('restart_counts') or {}).items()) + ')')
+    for r in restarts:
+        how = r.get('signal') or f'exit {r.get("exit_code")}'
+        line = f'  {r["node"]} died at {r["death_s"]:.1f} s ({how}), '
+        line += ('not restarted before the end' if r.get('restart_s') is None
+                 else f'restarted at {r["restart_s"]:.1f} s')
+        if r.get('failsafe_s') is not None:
+            line += (f'; car in fail-safe {r["failsafe_s"]:.1f} s of the '
+                     f'{r["window_s"]:.1f} s after it, without state {r["no_car_state_s"]:.1f} s')
+        if r.get('measurements_lost') is not None:
+            line += f'; {r["measurements_lost"]} measurements lost to the identifier'
+        lines.append(line)
+    gave = s.get('gave_up')
+    if gave:
+        lines.append(f'gave up: {gave["node"]} died {gave["deaths_in_window"]} times within '
+                     f'{gave["restart_window_s"]:g} s (last at {gave["death_s"]:.1f} s)')
+    return lines
 
 
 def main(argv=None):

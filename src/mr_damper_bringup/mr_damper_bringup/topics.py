@@ -28,11 +28,13 @@ DIAGNOSTICS = 'diagnostic_msgs/msg/DiagnosticArray'
 KWOK = 'mr_damper_interfaces/msg/KwokParameters'
 DAMPER_MODEL = 'mr_damper_interfaces/msg/DamperModel'
 CAR_STATE = 'mr_damper_interfaces/msg/QuarterCarState'
+DAMPER_SAMPLES = 'mr_damper_interfaces/msg/DamperSamples'
+IMU = 'sensor_msgs/msg/Imu'
 
 #: Every topic of the suite (node defaults, root namespace), by key. The :data:`STATUS_KEYS` rows
 #: are the status topics (one per node), decoded with :func:`decode_status`.
 SUITE_TOPICS = {
-    'measurement': Topic('/mr_damper/measurement', JOINT_STATE, 'measurement'),
+    'measurement': Topic('/mr_damper/measurement', DAMPER_SAMPLES, 'measurement'),
     'parameters': Topic('/mr_damper/kwok_parameters', KWOK, 'latched'),
     'truth': Topic('/mr_damper/true_parameters', KWOK, 'latched'),
     'truth_spencer': Topic('/mr_damper/true_spencer_parameters', DAMPER_MODEL, 'latched'),
@@ -42,6 +44,15 @@ SUITE_TOPICS = {
     'car_joint_state': Topic('/quarter_car/state', JOINT_STATE, 'default'),
     'car_state': Topic('/quarter_car/car_state', CAR_STATE, 'default'),
     'diagnostics': Topic('/diagnostics', DIAGNOSTICS, 'default'),
+}
+
+#: The CAN bridge's topics (``mr-damper-suite --config can``; ``mr-damper-record --can``): the
+#: driver's measured coil current (the car's command in that run) and the chassis sensor frames.
+CAN_TOPICS = {
+    'measured_current': Topic('/mr_damper/measured_current', FLOAT64, 'default'),
+    'can_car_state': Topic('/can/car_state', CAR_STATE, 'default'),
+    'can_body_imu': Topic('/can/body_imu', IMU, 'default'),
+    'can_wheel_imu': Topic('/can/wheel_imu', IMU, 'default'),
 }
 
 #: Written once by the recorder at its start, not a DDS topic: the parameter YAML the suite's
@@ -55,7 +66,7 @@ CONFIG_TOPIC = Topic('/mr_damper/suite_config', STRING, 'latched')
 NODE_PARAMETERS_TOPIC = Topic('/mr_damper/node_parameters', STRING, 'latched')
 #: Nodes whose parameters the recorder asks for (names in the root namespace).
 PARAMETER_NODES = ('mr_damper_rig', 'mr_damper_identifier', 'quarter_car_node',
-                   'semi_active_controller')
+                   'semi_active_controller', 'can_bridge', 'can_driver_sim')
 
 #: Keys of the table whose messages are node statuses (decoded by :func:`decode_status`).
 STATUS_KEYS = ('diagnostics',)
@@ -65,14 +76,17 @@ NODE_KEYS = {'mr_damper_rig': 'rig', 'mr_damper_identifier': 'identifier',
              'mr_damper_record': 'recorder'}
 
 
-def topic_table(keys=None):
+def topic_table(keys=None, can=False):
     """
     Return the rows to record, by key.
 
     Parameters
     ----------
     keys : iterable of str or None
-        Keys of :data:`SUITE_TOPICS` (None: all of them).
+        Keys of :data:`SUITE_TOPICS` or :data:`CAN_TOPICS` (None: every row of
+        :data:`SUITE_TOPICS`, and of :data:`CAN_TOPICS` with ``can``).
+    can : bool
+        Also the CAN bridge's rows (when ``keys`` is None).
 
     Returns
     -------
@@ -86,12 +100,13 @@ def topic_table(keys=None):
 
     """
     if keys is None:
-        return dict(SUITE_TOPICS)
+        return {**SUITE_TOPICS, **(CAN_TOPICS if can else {})}
+    known = {**SUITE_TOPICS, **CAN_TOPICS}
     keys = list(keys)
-    unknown = [k for k in keys if k not in SUITE_TOPICS]
+    unknown = [k for k in keys if k not in known]
     if unknown:
-        raise ValueError(f'unknown topic keys {unknown}; known: {sorted(SUITE_TOPICS)}')
-    return {k: SUITE_TOPICS[k] for k in keys}
+        raise ValueError(f'unknown topic keys {unknown}; known: {sorted(known)}')
+    return {k: known[k] for k in keys}
 
 
 def decode_status(key, msg):
@@ -168,17 +183,17 @@ def decode_parameters(msg):
 
 def decode_measurement(msg):
     """
-    Decode one measurement ``sensor_msgs/JointState`` (rclpy or rosbags).
+    Decode one measurement message (rclpy or rosbags): a ``DamperSamples`` batch or a JointState.
 
     Returns
     -------
-    tuple of float
-        ``(t, x, v, f, i)``: stamp [s], displacement [m], velocity [m/s], force [N], current
-        [A] (``mr_damper_model.messages.measurement_from_msg``).
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``: stamps [s], displacement [m], velocity [m/s], force [N], current
+        [A] (``mr_damper_model.messages.measurement_arrays``; one sample for a JointState).
 
     """
-    from mr_damper_model.messages import measurement_from_msg
-    return measurement_from_msg(msg)
+    from mr_damper_model.messages import measurement_arrays
+    return measurement_arrays(msg)
 
 
 #: Topics that stay absolute in a namespace (by ROS convention).

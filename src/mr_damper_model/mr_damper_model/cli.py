@@ -9,12 +9,15 @@ Usage::
         [--json] [--plot OUT.png] [--out PARAMS.json] [--compare]
     mr-damper-identify --validate PARAMS.json FILE... [--model NAME] [--topic TOPIC]
         [--json] [--plot OUT.png]
+    mr-damper-identify --batch ROOT [--master PARAMS.json] [--workers N | --scheduler ADDR]
+        [--serial-pattern REGEX] [--table FILE.csv] [--force] [--trend] ...  (docs/batch.md)
 
-A FILE is a ``t,x,v,f,i`` CSV, a rosbag2 directory, a ``.mcap`` or ``.db3`` bag (measurement
-JointState topic), a directory (its CSV files, bags and rosbag2 directories) or a glob. Several
-files are fitted as one record (each keeps its own time base; see ``DamperData.concatenate``)
-and the metrics of the joint fit are printed per file too. ``--validate`` fits nothing: it
-prints the metrics of a saved parameter file on each file and over all files.
+A FILE is a ``t,x,v,f,i`` CSV (plain or ``.csv.gz``), a rosbag2 directory, a ``.mcap`` or
+``.db3`` bag (measurement JointState topic), a directory (its CSV files, bags and rosbag2
+directories) or a glob. Several files are fitted as one record (each keeps its own time base;
+see ``DamperData.concatenate``) and the metrics of the joint fit are printed per file too.
+``--validate`` fits nothing: it prints the metrics of a saved parameter file on each file and
+over all files.
 
 Default model: ``kwok-current-amp`` when the records hold several coil-current levels (the
 model that predicts held-out tests best, docs/cross-validation.md), ``kwok`` otherwise (and
@@ -64,7 +67,7 @@ def build_parser():
     p = _Parser(prog=PROG, description='Identify MR damper model parameters (PSO) from rig '
                 'test records: CSV files with header t,x,v,f,i (s, m, m/s, N, A) or rosbag2 '
                 'bags of the measurement topic; several files give one model.')
-    p.add_argument('files', nargs='+', metavar='FILE',
+    p.add_argument('files', nargs='*', metavar='FILE',
                    help='rig test record: CSV, rosbag2 directory, .mcap or .db3 bag, a '
                    'directory of them, or a glob (quote it)')
     p.add_argument('--model', default=None,
@@ -90,6 +93,8 @@ def build_parser():
     p.add_argument('--topic', default=None,
                    help='measurement topic of bags (default: %s if present, else the '
                    "bag's only JointState topic)" % _measurement_topic())
+    from .batch_cli import add_arguments
+    add_arguments(p)
     return p
 
 
@@ -98,14 +103,14 @@ def _measurement_topic():
     return MEASUREMENT_TOPIC
 
 
-RECORD_SUFFIXES = ('.csv', '.mcap', '.db3')
+RECORD_SUFFIXES = ('.csv', '.csv.gz', '.mcap', '.db3')
 
 
 def _directory_records(path):
     from .bag_io import is_bag
     return sorted(str(c) for c in path.iterdir()
                   if (c.is_dir() and is_bag(c))
-                  or (c.is_file() and c.suffix.lower() in RECORD_SUFFIXES))
+                  or (c.is_file() and c.name.lower().endswith(RECORD_SUFFIXES)))
 
 
 def expand_inputs(args):
@@ -143,13 +148,13 @@ def expand_inputs(args):
                 found.extend(_directory_records(mp) if mp.is_dir() and not is_bag(mp)
                              else [m])
             if not found:
-                raise _InputError(arg, 'the matching directories hold no .csv, .mcap or .db3 '
-                                  'file or rosbag2 directory')
+                raise _InputError(arg, 'the matching directories hold no .csv(.gz), .mcap or '
+                                  '.db3 file or rosbag2 directory')
         elif p.is_dir() and not is_bag(p):
             found = _directory_records(p)
             if not found:
-                raise _InputError(arg, 'directory holds no .csv, .mcap or .db3 file or rosbag2 '
-                                  'directory')
+                raise _InputError(arg, 'directory holds no .csv(.gz), .mcap or .db3 file or '
+                                  'rosbag2 directory')
         else:
             found = [arg]
         out.extend(found)
@@ -180,7 +185,10 @@ def read_record(path, *, topic=None):
     """
     from .bag_io import is_bag, read_bag
     from .data import read_csv, validate
-    data = read_bag(path, topic) if is_bag(path) else read_csv(path)
+    recovery = {}
+    data = read_bag(path, topic, recovery=recovery) if is_bag(path) else read_csv(path)
+    if recovery:        # a recording whose writer was killed: say what is used of it
+        print(f'{PROG}: warning: {recovery["note"]}', file=sys.stderr)
     return validate(data, name=path)
 
 
@@ -256,6 +264,8 @@ def _per_file(model, model_options, x, parts):
     import numpy as np
     forces = [_predict(model, model_options, x, p) for p in parts]
     rows = [(p.source, p.n, _safe_metrics(p.f, fm)) for p, fm in zip(parts, forces)]
+    if len(parts) == 1:             # the one record's (no copy of a large record's forces)
+        return forces, rows, dict(rows[0][2])
     overall = _safe_metrics(np.concatenate([p.f for p in parts]), np.concatenate(forces))
     return forces, rows, overall
 
@@ -299,7 +309,8 @@ def _suffix_path(path, level):
 def run(argv=None):
     """Run the tool; return the exit code."""
     from .data import DamperData, DataError
-    from .identify import compare_models, current_groups, identify, identify_per_current
+    from .identify import (compare_models, current_group_levels, current_groups, identify,
+                           identify_per_current)
     from .models import get_model
     from .params_file import save_params
 
@@ -307,6 +318,11 @@ def run(argv=None):
         args = build_parser().parse_args(argv)
     except _UsageError as exc:
         return _fail('', f'{exc} (see --help)')
+    if args.batch is not None:
+        from .batch_cli import run as run_batch
+        return run_batch(args, _fail)
+    if not args.files:
+        return _fail('', 'the following arguments are required: FILE (see --help)')
     if args.validate is not None:
         return _run_validate(args)
     try:
@@ -324,7 +340,7 @@ def run(argv=None):
         return code
     # several files: one record, each part on its own time base (stateful models restart)
     data = parts[0] if len(parts) == 1 else DamperData.concatenate(parts, restamp=True)
-    levels = [lv for lv, _ in current_groups(data)] or list(data.current_levels())
+    levels = current_group_levels(data) or list(data.current_levels())
     model = args.model or (MULTI_CURRENT_MODEL if len(levels) > 1 and not args.per_current
                            else 'kwok')
     kw = dict(method=args.method, unbounded=args.unbounded, seed=args.seed)

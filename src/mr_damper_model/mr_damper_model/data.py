@@ -14,14 +14,17 @@ i     coil current                A
 ====  ==========================  =====
 
 CSV files have the header ``t,x,v,f,i`` (any column order; extra columns are ignored). The ``v``
-column may be left empty: it is then derived from ``x`` (see :func:`derive_velocity`).
+column may be left empty: it is then derived from ``x`` (see :func:`derive_velocity`). A gzip
+compressed CSV (``.csv.gz``, recognised by its content) reads the same as the plain file.
 Every problem found in a file raises :class:`DataError` with one line naming the file and the
 problem, so command-line tools can print it and exit with status 2.
 """
 import csv
 from dataclasses import dataclass
+import gzip
 import math
 from pathlib import Path
+import zlib
 
 import numpy as np
 
@@ -30,6 +33,9 @@ COLUMNS = ('t', 'x', 'v', 'f', 'i')
 #: carries x, v and the force, the coil carries the current (as its effort).
 PISTON_JOINT = 'mr_damper_piston'
 COIL_JOINT = 'mr_damper_coil'
+#: File name endings of DAQ CSV files (plain, gzip-compressed).
+CSV_SUFFIXES = ('.csv', '.csv.gz')
+_GZIP_MAGIC = b'\x1f\x8b'
 
 
 class DataError(ValueError):
@@ -273,6 +279,21 @@ def derive_velocity(t, x):
     return np.gradient(x, t)
 
 
+def is_csv(path):
+    """Tell whether ``path`` names a DAQ CSV file by its ending (``.csv`` or ``.csv.gz``)."""
+    return str(path).lower().endswith(CSV_SUFFIXES)
+
+
+def _open_text(path):
+    """Open a CSV for reading as text, decompressing it when it starts like a gzip file."""
+    with open(path, 'rb') as fh:
+        gz = fh.read(2) == _GZIP_MAGIC
+    # utf-8-sig: a spreadsheet's "CSV UTF-8" starts with a byte-order mark
+    if gz:
+        return gzip.open(path, 'rt', newline='', encoding='utf-8-sig')
+    return open(path, newline='', encoding='utf-8-sig')
+
+
 def read_csv(path):
     """
     Read a DAQ CSV file with header ``t,x,v,f,i`` into a :class:`DamperData`.
@@ -280,7 +301,8 @@ def read_csv(path):
     Parameters
     ----------
     path : str or Path
-        CSV file; columns in any order, extra columns ignored, ``v`` may be empty.
+        CSV file; columns in any order, extra columns ignored, ``v`` may be empty. A gzip
+        compressed file (``.csv.gz``; recognised by its first bytes) is decompressed while read.
 
     Returns
     -------
@@ -289,16 +311,18 @@ def read_csv(path):
     Raises
     ------
     DataError
-        Unreadable file, missing column, truncated or non-numeric row, NaN/inf values.
-        Use :func:`validate` for the checks that need the whole record (time order, motion).
+        Unreadable file, truncated or corrupt gzip stream, missing column, truncated or
+        non-numeric row, NaN/inf values. Use :func:`validate` for the checks that need the
+        whole record (time order, motion).
 
     """
     path = Path(path)
     name = str(path)
     try:
-        # utf-8-sig: a spreadsheet's "CSV UTF-8" starts with a byte-order mark
-        with open(path, newline='', encoding='utf-8-sig') as fh:
+        with _open_text(path) as fh:
             values, v_empty, first_line = _parse_rows(csv.reader(fh), name)
+    except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+        raise DataError(f'{name}: truncated or corrupt gzip file ({exc})') from None
     except OSError as exc:
         raise DataError(f'{name}: cannot read file ({exc.strerror or exc})') from None
     except (UnicodeDecodeError, csv.Error) as exc:
@@ -331,9 +355,10 @@ def _parse_rows(rows, name):
     """
     Parse the header and the numeric rows of a ``t,x,v,f,i`` CSV as they are read.
 
-    Values go into float blocks of ``_CSV_BLOCK_ROWS`` rows, joined once at the end: the peak
-    memory is about twice the final arrays, whatever the file size (a list of the file's rows
-    as strings took about 8x the file). Trailing blank lines are ignored.
+    Values go into float blocks of ``_CSV_BLOCK_ROWS`` rows, moved into the final array at the
+    end one block at a time, each freed once copied: the peak memory is about the final arrays
+    plus one block, whatever the file size (joining all blocks at once took twice the arrays; a
+    list of the file's rows as strings about 8x the file). Trailing blank lines are ignored.
 
     Returns
     -------
@@ -401,13 +426,25 @@ def _parse_rows(rows, name):
     empties.append(empty[:k])
     if sum(len(b) for b in blocks) == 0:
         raise DataError(f'{name}: no data rows after the header')
-    values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
-    del blocks
+    values = blocks[0] if len(blocks) == 1 else _join_freeing(blocks)
     return values, np.concatenate(empties), first_line
 
 
+def _join_freeing(blocks):
+    """Concatenate 2-D ``blocks`` along rows, emptying the list (each freed once copied)."""
+    out = np.empty((sum(len(b) for b in blocks), blocks[0].shape[1]))
+    pos = 0
+    blocks.reverse()
+    while blocks:
+        block = blocks.pop()
+        out[pos:pos + len(block)] = block
+        pos += len(block)
+        del block
+    return out
+
+
 def write_csv(path, data):
-    """Write a :class:`DamperData` as a ``t,x,v,f,i`` CSV file (SI units)."""
+    """Write a :class:`DamperData` as a ``t,x,v,f,i`` CSV file (SI units; gzip for ``.gz``)."""
     arr = np.column_stack([getattr(data, c) for c in COLUMNS])
     np.savetxt(path, arr, delimiter=',', header=','.join(COLUMNS), comments='', fmt='%.10g')
 

@@ -3,14 +3,16 @@ Identifier node: live current-dependent Kwok identification of the measured MR d
 
 ``ros2 run mr_damper_model identifier_node`` (console script ``identifier_node``).
 
-Subscribes to ``mr_damper/measurement`` (``sensor_msgs/JointState``, one message per DAQ sample)
-and publishes the kwok-current estimate on ``mr_damper/kwok_parameters``
-(``mr_damper_interfaces/KwokParameters``, latched), the count of samples received on
-``mr_damper/samples_received`` (``std_msgs/UInt64``, every 0.1 s: the rig's flow control reads
-it) and its health on ``/diagnostics``.  Topic names are relative: remap them
-(``-r mr_damper/measurement:=/fl/measurement``) or give the node a namespace
-(``-r __ns:=/fl``).  The work is done by :class:`mr_damper_model.live_worker.IdentifierRuntime`
-over :class:`mr_damper_model.live.LiveIdentifier`; this file converts messages.
+Subscribes to ``mr_damper/measurement`` (``mr_damper_interfaces/DamperSamples``, batches of DAQ
+samples taken as arrays; samples missing between batches are counted exactly from their stream
+index, ``stream.lost``) and ``mr_damper/joint_measurement`` (``sensor_msgs/JointState``, one
+message per sample, for DAQ drivers that publish that layout) and publishes the kwok-current
+estimate on ``mr_damper/kwok_parameters`` (``mr_damper_interfaces/KwokParameters``, latched), the
+count of samples received on ``mr_damper/samples_received`` (``std_msgs/UInt64``, every 0.1 s: the
+rig's flow control reads it) and its health on ``/diagnostics``. Topic names are relative: remap
+them (``-r mr_damper/measurement:=/fl/measurement``) or give the node a namespace (``-r
+__ns:=/fl``). The work is done by :class:`mr_damper_model.live_worker.IdentifierRuntime` over
+:class:`mr_damper_model.live.LiveIdentifier`; this file converts messages.
 
 With ``use_sim_time:=true`` (a replay publishing ``/clock``) every time the node uses is ROS
 time and every due window is fitted in order with an iteration-count stop (``backlog_windows``
@@ -24,18 +26,24 @@ import time
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from mr_damper_interfaces.msg import KwokParameters
+from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 from std_msgs.msg import UInt64
 
 from .data import DataError
 from .identify import identify  # noqa: F401  (imported before the first window: no import stall)
 from .live import DYNAMIC_FIELDS, FitProcess, LiveConfig, LiveIdentifier
 from .live_worker import IdentifierRuntime
-from .messages import kwok_parameters_msg, measurement_from_msg, MessageError
+from .messages import (kwok_parameters_msg, measurement_from_msg, MessageError,
+                       samples_from_msg)
 from .node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter, PARAMETERS_QOS,
                          MEASUREMENT_QOS, node_time_s, Param, run_node, set_realtime_priority,
                          STATUS_QOS)
 from .params_file import load_params, save_params
+
+#: Relative topic names: the rig's batches (``mr_damper_interfaces/DamperSamples``) and, for DAQ
+#: drivers that publish one ``sensor_msgs/JointState`` per sample, the single-sample layout.
+MEASUREMENT = 'mr_damper/measurement'
+JOINT_MEASUREMENT = 'mr_damper/joint_measurement'
 
 #: Period of ``mr_damper/samples_received`` [s, wall time: it paces the transport].
 SAMPLES_RECEIVED_PERIOD_S = 0.1
@@ -68,6 +76,8 @@ _LIVE = (
      0.0, 0.5),
     ('restart_samples', 'Consecutive increasing out-of-order samples that restart the stream '
      '[samples]', 1, 10 ** 8),
+    ('max_future_s', 'Refuse samples stamped more than this ahead of the node clock [s] '
+     '(future_stamp; 0: no check, e.g. replays at rate_factor > 1 on wall time)', 0.0, _BIG),
     ('force_limit_n', 'Reject samples with a force magnitude above this [N]', 1e-6, _BIG),
     ('velocity_limit_m_s', 'Reject samples with a velocity magnitude above this [m/s]',
      1e-9, 1e6),
@@ -183,8 +193,11 @@ class IdentifierNode(Node):
         self.runtime.fit_ready = self._warm_up(fit)
         # samples the rig's bounded history dropped before this node took them (stalled or
         # restarted identifier) are reported by the middleware and counted as `message_lost`
-        self.drops.subscribe(self, JointState, 'mr_damper/measurement', self._on_measurement,
+        self.drops.subscribe(self, DamperSamples, MEASUREMENT, self._on_samples,
                              MEASUREMENT_QOS, 'message_lost')
+        # a DAQ driver that publishes one sensor_msgs/JointState per sample (suite layout)
+        self.drops.subscribe(self, JointState, JOINT_MEASUREMENT, self._on_measurement,
+                             MEASUREMENT_QOS, 'joint_message_lost')
         # wall-time timer: the count paces the rig's transport (a stopped /clock must not stop
         # it, or a rig waiting for the count before it advances the clock would wait forever)
         self.create_timer(SAMPLES_RECEIVED_PERIOD_S, self._publish_received,
@@ -195,7 +208,7 @@ class IdentifierNode(Node):
         self._realtime = set_realtime_priority(p['realtime_priority'], self.get_logger())
         self.runtime.start(self._on_outcome, normal_priority=self._realtime)
         self.get_logger().info(
-            f'identifying {self.resolve_topic_name("mr_damper/measurement")} -> '
+            f'identifying {self.resolve_topic_name(MEASUREMENT)} -> '
             f'{self.resolve_topic_name("mr_damper/kwok_parameters")}: window {config.window_s} s'
             f' every {config.hop_s} s, '
             + (f'every window in order (sim time), maxiter {config.maxiter}' if sim_time else
@@ -236,7 +249,22 @@ class IdentifierNode(Node):
             self.runtime.saver.period_s = float(changes['save_period_s'])
         return ''
 
-    # measurement callback: conversion only (the fit runs in the runtime's worker thread)
+    # measurement callbacks: conversion only (the fit runs in the runtime's worker thread)
+    def _on_samples(self, msg):
+        try:
+            t, x, v, f, i = samples_from_msg(msg)
+        except MessageError as exc:
+            self.runtime.reject(exc.reason)
+            self.get_logger().warning(f'rejected measurement batch: {exc}',
+                                      throttle_duration_sec=1.0)
+            return
+        rejected = self.runtime.receive_batch(t, x, v, f, i, first_index=msg.first_index)
+        if rejected:
+            k, reason = rejected[0]
+            self.get_logger().warning(
+                f'rejected {len(rejected)} of {len(t)} samples of batch {msg.sequence}, first '
+                f'at t={t[k]:.6f} s: {reason}', throttle_duration_sec=1.0)
+
     def _on_measurement(self, msg):
         try:
             sample = measurement_from_msg(msg)

@@ -37,11 +37,12 @@ from scipy.optimize import least_squares
 from .data import DamperData
 from .lsq import box_qp, gram, sum_squares
 from .metrics import fit_metrics
-from .models import HysteresisModel, get_model
+from .models import HysteresisModel, get_model, Signals
 from .pso import as_bounds, pso
 
 __all__ = ['IdentificationResult', 'identify', 'identify_per_current', 'compare_models',
-           'current_groups', 'METHODS', 'DEFAULT_BUDGETS', 'MIN_LEVEL_SAMPLES']
+           'current_groups', 'current_group_levels', 'METHODS', 'DEFAULT_BUDGETS',
+           'MIN_LEVEL_SAMPLES']
 
 METHODS = ('separable', 'full')
 
@@ -53,6 +54,11 @@ DEFAULT_BUDGETS = {
 }
 #: Separable swarm works on at most this many samples (every k-th) before the polish on all.
 SWARM_SAMPLES = 500
+#: Samples per chunk of a memoryless model's polish and final linear solve on all samples: their
+#: normal equations (``J^T J``, ``J^T r``, the Gram matrix) are summed chunk by chunk, so the
+#: (n, n_params) Jacobian and the regressors are never formed whole (memory of a fit of a
+#: 3-million-sample record: ``bench/bench_csv_memory.py``).
+CHUNK_SAMPLES = 262144
 #: A current level needs at least this many samples to be fitted on its own; fewer are the coil
 #: transients between the levels of a step test (a few samples per step), left out of
 #: per-current fits.
@@ -351,25 +357,127 @@ class SeparableCost:
 
 def _projected_lm(resid, jac, x, r, lo, hi, *, max_iter=30, ftol=1e-10):
     """
-    Box-bounded Levenberg-Marquardt on the normal equations; returns (x, r, evaluations).
+    Box-bounded Levenberg-Marquardt of a residual and its Jacobian; returns (x, r, evaluations).
 
-    For a few parameters and many samples: per iteration one Jacobian, the d x d products
-    ``J^T J``, ``J^T r`` and a d x d solve (no factorisation of the n x d Jacobian). A parameter
-    at a bound whose gradient points out of the box is held; the step of the others (Marquardt's
-    diagonal damping, lambda divided by 10 after a success, multiplied by 10 after a failure) is
-    clipped to the box and accepted only if it lowers the sum of squares. Stops when the
+    :func:`_projected_lm_normal` on the normal equations of ``resid`` and ``jac`` (the residual
+    of the accepted point is reused for the next Jacobian).
+    """
+    ls = _Residual(resid, jac)
+    ls.rss(x, r)
+    x, _, evals = _projected_lm_normal(ls.normal, ls.rss, x, float(r @ r), lo, hi,
+                                       max_iter=max_iter, ftol=ftol)
+    return x, ls.residual(x), evals
+
+
+class _Residual:
+    """
+    Sum of squares and normal equations of one residual function and its Jacobian.
+
+    The residual of the last point whose sum of squares was asked is kept: the next Jacobian at
+    that point (the accepted step of :func:`_projected_lm_normal`) reuses it.
+    """
+
+    def __init__(self, resid, jac):
+        self.resid, self.jac = resid, jac
+        self._p = self._r = None
+
+    def residual(self, p):
+        """Return the residual at ``p`` (kept from the last :meth:`rss` if at the same point)."""
+        if self._p is None or not np.array_equal(self._p, p):
+            self._p, self._r = np.array(p, dtype=float), self.resid(p)
+        return self._r
+
+    def rss(self, p, r=None):
+        """Return the sum of squares at ``p`` (inf if not finite); ``r``: known residual."""
+        if r is not None:
+            self._p, self._r = np.array(p, dtype=float), r
+        r = self.residual(p)
+        return float(r @ r) if np.all(np.isfinite(r)) else math.inf
+
+    def normal(self, p):
+        """Return ``(J^T J, J^T r)`` at ``p``, or None if the Jacobian is not finite."""
+        J = self.jac(p)
+        if not np.all(np.isfinite(J)):
+            return None
+        r = self.residual(p)
+        return J.T @ J, J.T @ r
+
+
+class _ChunkedResidual:
+    """
+    The force residual ``model(p) - f`` of a memoryless model, evaluated chunk by chunk.
+
+    Sums of squares and normal equations are accumulated over :data:`CHUNK_SAMPLES` samples at
+    a time: memory is bounded by the chunk, whatever the record's length (the whole (n, d)
+    Jacobian, about 8 d bytes per sample, is never formed). Same sums as on the whole record,
+    up to the order of the floating-point additions. The residual of the last point whose sum
+    of squares was asked is kept (one float per sample), so the next Jacobian at that point
+    (the accepted step) does not evaluate the force again.
+    """
+
+    def __init__(self, model, sig, y, chunk=None):
+        chunk = CHUNK_SAMPLES if chunk is None else int(chunk)
+        self.model, self.y = model, y
+        x, v, i, t, _ = sig
+        one = np.zeros(1, dtype=sig.starts.dtype)
+        self.parts = [(Signals(x[a:b], v[a:b], None if i is None else i[a:b],
+                               None if t is None else t[a:b], one), a, b)
+                      for a in range(0, y.size, chunk) for b in [min(a + chunk, y.size)]]
+        self._r = np.empty(y.size)
+        self._p = None
+
+    def _resid(self, p, sig, a, b):
+        with np.errstate(over='ignore', invalid='ignore'):
+            return self.model._eval_force(p[None], sig)[0] - self.y[a:b]
+
+    def rss(self, p):
+        """Return the sum of squares at ``p`` (inf if not finite)."""
+        total = 0.0
+        self._p = None
+        for sig, a, b in self.parts:
+            r = self._r[a:b]
+            r[:] = self._resid(p, sig, a, b)
+            if not np.all(np.isfinite(r)):
+                return math.inf
+            total += float(r @ r)
+        self._p = np.array(p, dtype=float)
+        return total
+
+    def normal(self, p):
+        """Return ``(J^T J, J^T r)`` at ``p``, or None if the Jacobian is not finite."""
+        A = g = 0.0
+        known = self._p is not None and np.array_equal(self._p, p)
+        for sig, a, b in self.parts:
+            with np.errstate(over='ignore', invalid='ignore'):
+                J = self.model._eval_jacobian(p, sig)
+            if not np.all(np.isfinite(J)):
+                return None
+            r = self._r[a:b] if known else self._resid(p, sig, a, b)
+            A = A + J.T @ J
+            g = g + J.T @ r
+        return A, g
+
+
+def _projected_lm_normal(normal, rss, x, cost, lo, hi, *, max_iter=30, ftol=1e-10):
+    """
+    Box-bounded Levenberg-Marquardt on the normal equations; returns (x, RSS, evaluations).
+
+    For a few parameters and many samples: per iteration the d x d products ``J^T J``,
+    ``J^T r`` (``normal(x)``, None when the Jacobian is not finite) and a d x d solve (no
+    factorisation of the n x d Jacobian). A parameter at a bound whose gradient points out of
+    the box is held; the step of the others (Marquardt's diagonal damping, lambda divided by
+    10 after a success, multiplied by 10 after a failure) is clipped to the box and accepted
+    only if it lowers the sum of squares (``rss(x)``, inf when not finite). Stops when the
     relative decrease falls below ``ftol``, no step helps, or after ``max_iter`` iterations.
     """
-    cost = float(r @ r)
     lam = 1e-3
     evals = 0
     for _ in range(max_iter):
-        J = jac(x)
+        ne = normal(x)
         evals += 1
-        if not np.all(np.isfinite(J)):
+        if ne is None:
             break
-        g = J.T @ r
-        A = J.T @ J
+        A, g = ne
         diag = np.diag(A).copy()
         edge = 1e-12 * (1.0 + np.abs(x))
         held = ((x <= lo + edge) & (g > 0)) | ((x >= hi - edge) & (g < 0)) | (diag <= 0)
@@ -389,9 +497,8 @@ def _projected_lm(resid, jac, x, r, lo, hi, *, max_iter=30, ftol=1e-10):
             xn = x.copy()
             xn[free] += step
             np.clip(xn, lo, hi, out=xn)
-            rn = resid(xn)
+            cn = rss(xn)
             evals += 1
-            cn = float(rn @ rn) if np.all(np.isfinite(rn)) else math.inf
             if cn < cost:
                 accepted = True
                 break
@@ -399,11 +506,11 @@ def _projected_lm(resid, jac, x, r, lo, hi, *, max_iter=30, ftol=1e-10):
         if not accepted:
             break
         small = cost - cn <= ftol * cost
-        x, r, cost = xn, rn, cn
+        x, cost = xn, cn
         lam = max(0.1 * lam, 1e-12)
         if small:
             break
-    return x, r, evals
+    return x, cost, evals
 
 
 def _polish(model, data, x, lo, hi, max_nfev=50):
@@ -412,7 +519,8 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
 
     Models with their own Jacobian (the algebraic ones: analytic; Spencer: one batch of
     forward differences): box-bounded Levenberg-Marquardt on the normal equations
-    (:func:`_projected_lm`, one evaluation per Jacobian). Others:
+    (:func:`_projected_lm_normal`, one evaluation per Jacobian; memoryless models sum them
+    over chunks of :data:`CHUNK_SAMPLES` samples). Others:
     trust-region reflective Gauss-Newton (scipy ``least_squares``) with forward-difference
     Jacobians. The signals are validated once, not per evaluation.
     """
@@ -430,14 +538,20 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
             return model._eval_jacobian(p, sig)
 
     start = np.clip(x, lo, hi)
+    if analytic:
+        # memoryless: chunk by chunk (bounded memory); stateful: the state runs through all
+        ls = (_ChunkedResidual(model, sig, y) if not model.stateful and y.size > CHUNK_SAMPLES
+              else _Residual(resid, jac))
+        rss0 = ls.rss(start)
+        if not math.isfinite(rss0):
+            return x, 1, math.inf
+        xn, rss, evals = _projected_lm_normal(ls.normal, ls.rss, start, rss0, lo, hi,
+                                              max_iter=max_nfev)
+        return (xn, 1 + evals, rss) if rss < rss0 else (x, 1 + evals, rss0)
     r0 = resid(start)
     if not np.all(np.isfinite(r0)):
         return x, 1, math.inf
     rss0 = float(r0 @ r0)
-    if analytic:
-        xn, rn, evals = _projected_lm(resid, jac, start, r0, lo, hi, max_iter=max_nfev)
-        rss = float(rn @ rn)
-        return (xn, 1 + evals, rss) if rss < rss0 else (x, 1 + evals, rss0)
     try:
         res = least_squares(resid, start, jac=jac, bounds=(lo, hi), method='trf',
                             x_scale='jac', max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
@@ -447,6 +561,28 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
     if np.all(np.isfinite(res.fun)) and res.fun @ res.fun < rss0:
         return res.x, evals, float(res.fun @ res.fun)
     return x, evals, rss0
+
+
+def _gram_all(model, nonlinear, data, chunk=None):
+    """
+    Gram matrices and right-hand sides of the regressors of ``nonlinear`` on all samples.
+
+    A memoryless model's are summed over chunks of ``chunk`` samples (the (p, n, m) regressors
+    are never formed whole; default :data:`CHUNK_SAMPLES`); a stateful model's are evaluated
+    on the whole record.
+    """
+    chunk = CHUNK_SAMPLES if chunk is None else int(chunk)
+    if model.stateful or data.n <= chunk:
+        return gram(model.regressors(nonlinear, data.x, data.v, i=data.i, t=data.t,
+                                     starts=data.starts), data.f)
+    G = b = 0.0
+    for a in range(0, data.n, chunk):
+        part = slice(a, a + chunk)
+        Gc, bc = gram(model.regressors(nonlinear, data.x[part], data.v[part],
+                                       i=None if data.i is None else data.i[part],
+                                       t=data.t[part]), data.f[part])
+        G, b = G + Gc, b + bc
+    return G, b
 
 
 def _starts(res, n):
@@ -680,8 +816,7 @@ def identify(data, model='kwok-current', *, method='separable', unbounded=False,
                 if swarm_data is data:
                     theta, _ = cost.solve(nl)
                 else:       # a few candidates on all samples: direct regressors
-                    G, b = gram(mdl.regressors(nl, data.x, data.v, i=data.i, t=data.t,
-                                               starts=data.starts), data.f)
+                    G, b = _gram_all(mdl, nl, data)
                     theta = box_qp(G, b, lo[lin_idx], hi[lin_idx])
             cands = np.empty((len(nl), len(names)))
             cands[:, nl_idx] = nl
@@ -734,8 +869,23 @@ def current_groups(data, *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES):
 
     """
     data = _as_data(data)
-    return [(lv, part) for lv, part in data.split_by_current(tol_a=tol_a)
-            if part.n >= min_samples]
+    return [(lv, data.select(mask, split_gaps=True))
+            for lv, mask in _level_masks(data, tol_a, min_samples)]
+
+
+def current_group_levels(data, *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES):
+    """
+    Return the levels [A] of :func:`current_groups`, without copying the record into groups.
+
+    Parameters and rule as :func:`current_groups`.
+    """
+    return [lv for lv, _ in _level_masks(_as_data(data), tol_a, min_samples)]
+
+
+def _level_masks(data, tol_a, min_samples):
+    """``(level_a, mask)`` of the levels with at least ``min_samples`` samples."""
+    return [(lv, mask) for lv, mask in data._clusters(tol_a)
+            if int(np.count_nonzero(mask)) >= min_samples]
 
 
 def identify_per_current(data, model='kwok', *, tol_a=0.05, min_samples=MIN_LEVEL_SAMPLES,

@@ -74,11 +74,13 @@ import numpy as np
 from .acceptance import Acceptance
 from .data import DamperData
 from .kwok_current import KwokCurrent, kwok_current_coefficients, kwok_current_force
+from .stamps import ACCEPTED, REBASED, StampGuard
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Keys of the sample rejection counters.
-REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'joint_names', 'layout')
+REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'future_stamp', 'joint_names',
+                  'layout')
 #: Keys of the out-of-range sample counters (the channel whose range check failed).
 RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 #: Keys of the skipped-window counters.
@@ -143,6 +145,13 @@ class LiveConfig:
         Fraction of samples needed in each velocity direction (``one_direction``).
     restart_samples : int
         Consecutive increasing out-of-order samples that restart the stream.
+    max_future_s : float
+        Samples stamped more than this [s] ahead of the node clock (the stamps advancing this
+        much further than the clock, :class:`~mr_damper_model.stamps.StampGuard`) are
+        refused (``rejected['future_stamp']``) and never become the reference; 0: no such
+        check (the default: a replay at ``rate_factor`` > 1 on wall time stamps its samples
+        ahead of the clock by design). Set it when the samples are stamped on the node's clock
+        (a DAQ at real time, or a replay under ``use_sim_time``).
     force_limit_n : float
         Samples with ``|f|`` above this [N] are rejected (``out_of_range['force']``); dampers
         of this class make 1-2 kN (thesis damper about 850 N at 2 A, Quiroz damper 1.7 kN).
@@ -242,6 +251,7 @@ class LiveConfig:
     min_force_std_n: float = 2.0
     min_direction_fraction: float = 0.1
     restart_samples: int = 500
+    max_future_s: float = 0.0
     force_limit_n: float = 5000.0
     velocity_limit_m_s: float = 2.0
     displacement_limit_m: float = 0.15
@@ -281,7 +291,8 @@ class LiveConfig:
         for name in ('budget_s', 'bin_max_age_s', 'min_velocity_rms_m_s', 'min_force_std_n',
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
                      'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
-                     'min_amplitude_ratio', 'min_velocity_bin_share', 'replace_margin'):
+                     'max_future_s', 'min_amplitude_ratio', 'min_velocity_bin_share',
+                     'replace_margin'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -866,8 +877,9 @@ class LiveIdentifier:
         self._last_t = -math.inf
         self._t_origin = None      # first stamp of the current stream
         self._next_index = 0       # index m of the next due window end
-        self._ooo_run = 0
-        self._ooo_last = -math.inf
+        # stamp sanity (order, duplicates, future stamps, re-base after a clock jump)
+        self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
+                                  rebase_after=cfg.restart_samples)
         self._seq = 0              # samples accepted into the buffer so far (all streams)
         self._handed = 0           # sequence number of the first sample not yet handed out
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
@@ -942,7 +954,7 @@ class LiveIdentifier:
             rej = self.counters['rejected']
             rej[reason] = rej.get(reason, 0) + 1
 
-    def add_sample(self, t, x, v, f, i):
+    def add_sample(self, t, x, v, f, i, now=None):
         """
         Offer one sample.
 
@@ -952,63 +964,146 @@ class LiveIdentifier:
             Stamp [s].
         x, v, f, i : float
             Displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt [s] (``max_future_s``; None: no future check).
 
         Returns
         -------
         str
             '' if accepted, else the rejection reason (``'nonfinite'``, ``'out_of_order'``,
-            ``'duplicate'``, or ``'<channel>_range'`` with channel ``force``, ``velocity``,
+            ``'duplicate'``, ``'future_stamp'``, or ``'<channel>_range'`` with channel ``force``,
+            ``velocity``,
             ``displacement`` or ``current``: counted in ``out_of_range[channel]``).
 
         """
+        with self._lock:
+            return self._add_one(float(t), float(x), float(v), float(f), float(i), now)
+
+    def add_samples(self, t, x, v, f, i, now=None):
+        """
+        Offer a batch of consecutive samples (one measurement message), in order.
+
+        The result is exactly that of :meth:`add_sample` called on each sample in turn; a batch
+        that is clean (finite, in range, stamps increasing past the newest accepted one) is
+        taken with array operations, others sample by sample.
+
+        Parameters
+        ----------
+        t, x, v, f, i : array_like with shape (n,)
+            Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt of the batch [s] (``max_future_s``).
+
+        Returns
+        -------
+        list of (int, str)
+            ``(index in the batch, reason)`` of every rejected sample (empty if all accepted).
+
+        """
+        t, x, v, f, i = (np.asarray(a, dtype=float) for a in (t, x, v, f, i))
+        n = t.shape[0]
         cfg = self.config
         with self._lock:
-            c = self.counters
-            c['samples_received'] += 1
-            if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
-                    and math.isfinite(f) and math.isfinite(i)):
-                c['rejected']['nonfinite'] += 1
-                return 'nonfinite'
-            if t <= self._last_t:
-                reason = 'duplicate' if t == self._last_t else 'out_of_order'
-                if reason == 'out_of_order' and t > self._ooo_last:
-                    self._ooo_run += 1
-                else:
-                    self._ooo_run = 1 if reason == 'out_of_order' else 0
-                self._ooo_last = t
-                if self._ooo_run < self.config.restart_samples:
-                    c['rejected'][reason] += 1
-                    return reason
-                self._restart_stream()
-            self._ooo_run = 0
-            self._ooo_last = -math.inf
-            # range checks after the stamp checks: a sample is late before it is implausible
-            channel = ('force' if abs(f) > cfg.force_limit_n else
-                       'velocity' if abs(v) > cfg.velocity_limit_m_s else
-                       'displacement' if abs(x) > cfg.displacement_limit_m else
-                       'current' if not (cfg.current_limit_min_a <= i
-                                         <= cfg.current_limit_max_a) else '')
-            if channel:
-                c['out_of_range'][channel] += 1
-                return channel + '_range'
-            if self._t_origin is None:
-                self._t_origin = t
-            elif t - self._last_t > cfg.max_gap_s:
-                # counted once per gap, here: the windows across it may all be superseded
-                c['stamp_gaps'] += 1
-            row = self._buf[self._head]
-            row[0] = t
-            row[1] = x
-            row[2] = v
-            row[3] = f
-            row[4] = i
-            self._head = (self._head + 1) % self._cap
-            if self._count < self._cap:
-                self._count += 1
-            self._last_t = t
-            self._seq += 1
-            c['samples_accepted'] += 1
-            return ''
+            if n and self._clean_batch(t, x, v, f, i, cfg, now):
+                self._append_batch(t, x, v, f, i, cfg)
+                self._stamps.take_clean(t, now)
+                return []
+            rejected = []
+            for k in range(n):
+                reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
+                                       float(i[k]), now)
+                if reason:
+                    rejected.append((k, reason))
+            return rejected
+
+    def _clean_batch(self, t, x, v, f, i, cfg, now):
+        """Tell whether every sample of the batch would be accepted as it is (lock held)."""
+        if not t[0] > self._last_t or not self._stamps.clean(t, now):
+            return False
+        if t.shape[0] > 1 and not bool(np.all(np.diff(t) > 0.0)):
+            return False
+        with np.errstate(invalid='ignore'):
+            return bool(np.all(np.abs(f) <= cfg.force_limit_n)
+                        and np.all(np.abs(v) <= cfg.velocity_limit_m_s)
+                        and np.all(np.abs(x) <= cfg.displacement_limit_m)
+                        and np.all(i >= cfg.current_limit_min_a)
+                        and np.all(i <= cfg.current_limit_max_a)
+                        and np.all(np.isfinite(t)))
+
+    def _append_batch(self, t, x, v, f, i, cfg):
+        """Take a clean batch (see :meth:`_clean_batch`) into the buffer (lock held)."""
+        c = self.counters
+        n = t.shape[0]
+        c['samples_received'] += n
+        if self._t_origin is None:
+            self._t_origin = float(t[0])
+            steps = np.diff(t)
+        else:
+            steps = np.diff(t, prepend=self._last_t)
+        c['stamp_gaps'] += int(np.count_nonzero(steps > cfg.max_gap_s))
+        cap = self._cap
+        if n > cap:   # only the newest cap samples can stay (older ones are lost below)
+            keep = slice(n - cap, n)
+            skipped = n - cap
+        else:
+            keep, skipped = slice(0, n), 0
+        rows = np.column_stack((t[keep], x[keep], v[keep], f[keep], i[keep]))
+        if skipped:
+            self._seq += skipped   # passed through the buffer at once: never handed out
+        m = rows.shape[0]
+        first = min(m, cap - self._head)
+        self._buf[self._head:self._head + first] = rows[:first]
+        if m > first:
+            self._buf[:m - first] = rows[first:]
+        self._head = (self._head + m) % cap
+        self._count = min(self._count + m, cap)
+        self._last_t = float(t[-1])
+        self._seq += m
+        c['samples_accepted'] += n
+
+    def _add_one(self, t, x, v, f, i, now=None):
+        """:meth:`add_sample` with the lock held."""
+        cfg = self.config
+        c = self.counters
+        c['samples_received'] += 1
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
+                and math.isfinite(f) and math.isfinite(i)):
+            c['rejected']['nonfinite'] += 1
+            return 'nonfinite'
+        verdict = self._stamps.check(t, now)   # order, duplicates, future, clock jumps
+        if verdict == REBASED:
+            self._restart_stream()
+        elif verdict != ACCEPTED:
+            c['rejected'][verdict] += 1
+            return verdict
+        # range checks after the stamp checks: a sample is late before it is implausible
+        channel = ('force' if abs(f) > cfg.force_limit_n else
+                   'velocity' if abs(v) > cfg.velocity_limit_m_s else
+                   'displacement' if abs(x) > cfg.displacement_limit_m else
+                   'current' if not (cfg.current_limit_min_a <= i
+                                     <= cfg.current_limit_max_a) else '')
+        if channel:
+            c['out_of_range'][channel] += 1
+            return channel + '_range'
+        if self._t_origin is None:
+            self._t_origin = t
+        elif t - self._last_t > cfg.max_gap_s:
+            # counted once per gap, here: the windows across it may all be superseded
+            c['stamp_gaps'] += 1
+        row = self._buf[self._head]
+        row[0] = t
+        row[1] = x
+        row[2] = v
+        row[3] = f
+        row[4] = i
+        self._head = (self._head + 1) % self._cap
+        if self._count < self._cap:
+            self._count += 1
+        self._last_t = t
+        self._stamps.commit(t, now)
+        self._seq += 1
+        c['samples_accepted'] += 1
+        return ''
 
     def _restart_stream(self):
         self.counters['stream_restarts'] += 1
@@ -1145,6 +1240,7 @@ class LiveIdentifier:
                 raise ValueError(f'`{name}` is read at start-up and cannot change while running')
         config = replace(self.config, **changes)
         self.config = config
+        self._stamps.rebase_after = int(config.restart_samples)
         return config
 
     def _process(self, window):

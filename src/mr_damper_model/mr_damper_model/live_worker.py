@@ -21,6 +21,7 @@ import threading
 
 import numpy as np
 
+from .sample_stream import BatchIndex
 from .health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 #: Window skips that point at the data or the sensors (WARN while they rise); the other skip
@@ -176,7 +177,8 @@ class IdentifierHealth:
       ever came).
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
-      the last report; samples lost (buffer, transport) since the last report; failed
+      the last report; samples lost (buffer, transport: exact, from the batches' stream index)
+      since the last report; measurement messages the middleware reports lost; failed
       publishes of its own topics since the last report; other drops since the last report
       (by reason); windows passed over in in-order mode
       (``windows_overflow``); some fit errors; no valid model yet although windows were
@@ -203,8 +205,11 @@ class IdentifierHealth:
             'rejected': sum(v.get('rejected', {}).values())
             + sum(v.get('out_of_range', {}).values()),
             # samples only: a failed publish of our own is not a lost sample (it is counted
-            # under its own reason in ``dropped``)
-            'lost': v.get('samples_lost', 0) + dropped.get('message_lost', 0),
+            # under its own reason in ``dropped``); the transport's losses are counted exactly
+            # in samples from the batches' stream index (the middleware's ``message_lost``
+            # counts messages of any size: it stays in ``dropped``)
+            'lost': v.get('samples_lost', 0) + v.get('stream', {}).get('lost', 0),
+            'messages_lost': dropped.get('message_lost', 0),
             'publish_failed': sum(n for r, n in dropped.items() if _publish_failed(r)),
             'overflow': v.get('windows_overflow', 0),
             'fitted': v.get('windows_fitted', 0),
@@ -257,6 +262,7 @@ class IdentifierHealth:
             if n > 0:
                 found.append((WARN, f'{n} window(s) skipped: {reason}'))
         for key, what in (('rejected', 'sample(s) rejected'), ('lost', 'sample(s) lost'),
+                          ('messages_lost', 'message(s) lost (middleware report)'),
                           ('publish_failed', 'publish(es) failed'),
                           ('overflow', 'window(s) passed over (backlog full)')):
             n = rose[key]
@@ -309,6 +315,7 @@ class IdentifierRuntime:
         self.saver = SaveThrottle(save, save_period_s, clock) if save is not None else None
         self.fit_process = fit_process
         self.ages = StampAges(ages)
+        self.stream = BatchIndex()
         self.health_rules = IdentifierHealth(no_sample_timeout_s)
         self.initial_source = initial_source
         self.parameters_published = 0
@@ -319,9 +326,36 @@ class IdentifierRuntime:
     # ---------------------------------------------------------------- samples (receiving thread)
     def receive(self, t, x, v, f, i):
         """Offer one sample (``LiveIdentifier.add_sample``), record its stamp age [s]."""
-        reason = self.live.add_sample(t, x, v, f, i)
-        self.ages.add(self.clock() - t)
+        now = self.clock()
+        reason = self.live.add_sample(t, x, v, f, i, now=now)
+        self.ages.add(now - t)
         return reason
+
+    def receive_batch(self, t, x, v, f, i, first_index=None):
+        """
+        Offer a batch of samples (``LiveIdentifier.add_samples``); return the rejected ones.
+
+        Parameters
+        ----------
+        t, x, v, f, i : numpy.ndarray with shape (n,)
+            Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
+        first_index : int, optional
+            Stream index of the first sample (``DamperSamples.first_index``): samples missing
+            before it are counted in :attr:`stream` (``lost``).
+
+        Returns
+        -------
+        list of (int, str)
+            ``(index in the batch, reason)`` of each rejected sample.
+
+        """
+        if first_index is not None:
+            self.stream.update(first_index, len(t))
+        now = self.clock()
+        rejected = self.live.add_samples(t, x, v, f, i, now=now)
+        if len(t):
+            self.ages.add(now - float(t[-1]))   # the batch's transport latency
+        return rejected
 
     def reject(self, reason):
         """Count a message that did not convert to a sample (e.g. ``'joint_names'``)."""
@@ -426,7 +460,9 @@ class IdentifierRuntime:
         Return every status value: ``LiveIdentifier.status()`` plus the runtime's.
 
         Added keys: ``last_rmse_n`` (RMSE of the last estimate [N]), ``stamp_age_ms``
-        {p50, p99, max, n}, ``parameters_published``, ``params_file_writes``,
+        {p50, p99, max, n} (receipt minus the newest stamp of each batch), ``stream`` (the
+        measurement batches: :meth:`BatchIndex.as_dict`, ``lost`` samples exactly),
+        ``parameters_published``, ``params_file_writes``,
         ``params_file_errors``, ``initial_source``, ``worker_alive``, ``fit_process_alive``,
         ``fit_ready_at_subscribe``, ``has_valid`` (a valid set exists, fitted or loaded), then
         ``extra`` (e.g. the node's ``dropped`` counts).
@@ -434,7 +470,7 @@ class IdentifierRuntime:
         v = self.live.status()
         est = self.live.estimate
         v.update(last_rmse_n=est.rmse_n if est is not None else math.nan,
-                 stamp_age_ms=self.ages.summary(),
+                 stamp_age_ms=self.ages.summary(), stream=self.stream.as_dict(),
                  parameters_published=self.parameters_published,
                  params_file_writes=self.saver.writes if self.saver else 0,
                  params_file_errors=self.saver.errors if self.saver else 0,

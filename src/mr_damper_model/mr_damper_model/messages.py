@@ -3,10 +3,15 @@ ROS 2 message conversions of the MR damper suite (the only model module that imp
 
 Topic payloads (see the README topic table):
 
-- measurement: ``sensor_msgs/JointState`` per DAQ sample; ``header.stamp`` is the sample time,
+- measurement: ``mr_damper_interfaces/DamperSamples``, a batch of consecutive DAQ samples
+  (arrays ``t_offset_s, x_m, v_m_s, f_n, i_a`` from ``header.stamp``, with a message
+  ``sequence`` and the stream index ``first_index`` of its first sample, so a reader counts lost
+  samples exactly): :func:`samples_to_msg`, :func:`samples_from_msg`.
+- single-sample measurement (the layout of earlier recordings and of DAQ drivers that publish
+  one message per sample): ``sensor_msgs/JointState``; ``header.stamp`` is the sample time,
   joints ``('mr_damper_piston', 'mr_damper_coil')``; piston position = displacement [m],
   velocity [m/s], effort = damper force [N]; coil effort = coil current [A], coil position and
-  velocity NaN.
+  velocity NaN. :func:`measurement_arrays` reads either kind into arrays.
 - parameters: ``mr_damper_interfaces/KwokParameters`` (one field per coefficient, window times,
   current range, fit quality, ``valid`` and ``reason``).
 - true damper of a simulation: ``mr_damper_interfaces/DamperModel`` (named parameters) or
@@ -16,10 +21,12 @@ Topic payloads (see the README topic table):
 
 This module imports message types but not rclpy, so it works in any process.
 """
+import array
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mr_damper_interfaces.msg import DamperModel, KwokParameters
+from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
+import numpy as np
 from sensor_msgs.msg import JointState
 
 from .data import COIL_JOINT, PISTON_JOINT
@@ -38,7 +45,7 @@ class MessageError(ValueError):
     A message that cannot be converted.
 
     ``reason`` is a short machine-readable key used for the status counters
-    (``'joint_names'``, ``'layout'``).
+    (``'joint_names'``, ``'layout'``, ``'bad_i_ref'``).
 
     """
 
@@ -161,6 +168,122 @@ def measurement_from_msg(msg):
             float(eff[ip]), float(eff[ic]))
 
 
+def _doubles(values):
+    """Return ``values`` as an ``array.array('d')`` (the generated setter takes it as is)."""
+    return array.array('d', np.ascontiguousarray(values, dtype=float).tobytes())
+
+
+def samples_to_msg(t, x, v, f, i, *, sequence, first_index, sample_period_s=0.0, msg=None,
+                   frame_id='mr_damper'):
+    """
+    Build one ``DamperSamples`` message from a batch of consecutive DAQ samples.
+
+    Parameters
+    ----------
+    t, x, v, f, i : array_like with shape (n,)
+        Sample times [s] (increasing, ``t[0]`` >= 0), displacement [m], velocity [m/s],
+        force [N], coil current [A]; n >= 1.
+    sequence : int
+        Message number of this publisher's stream (+1 per message).
+    first_index : int
+        Stream index of the first sample (+n per message).
+    sample_period_s : float
+        Nominal DAQ period [s] (0: irregular).
+    msg : DamperSamples, optional
+        Message to fill (new one if None).
+    frame_id : str
+        ``header.frame_id``: the damper.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.DamperSamples
+        The message; ``header.stamp`` is ``t[0]``, ``t_offset_s`` is ``t - t[0]``.
+
+    Raises
+    ------
+    ValueError
+        Arrays of different lengths or empty, a negative first stamp.
+
+    """
+    t = np.asarray(t, dtype=float)
+    n = t.shape[0] if t.ndim == 1 else 0
+    if n == 0 or any(np.shape(a) != (n,) for a in (x, v, f, i)):
+        raise ValueError('`t`, `x`, `v`, `f`, `i` must be 1-D arrays of one length >= 1, got '
+                         f'shapes {[np.shape(a) for a in (t, x, v, f, i)]}')
+    if msg is None:
+        msg = DamperSamples()
+        msg.header.frame_id = frame_id
+    seconds_to_stamp(float(t[0]), msg.header.stamp)
+    msg.sequence = int(sequence)
+    msg.first_index = int(first_index)
+    msg.sample_period_s = float(sample_period_s)
+    msg.t_offset_s = _doubles(t - t[0])
+    msg.x_m = _doubles(x)
+    msg.v_m_s = _doubles(v)
+    msg.f_n = _doubles(f)
+    msg.i_a = _doubles(i)
+    return msg
+
+
+def samples_from_msg(msg):
+    """
+    Read the samples of one ``DamperSamples`` message (rclpy class or rosbags dataclass).
+
+    Values are returned as they are (non-finite values are for the caller to count and reject).
+
+    Parameters
+    ----------
+    msg : DamperSamples
+        Measurement batch.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``, each of shape (n,): stamps [s] (``header.stamp`` +
+        ``t_offset_s``), displacement [m], velocity [m/s], force [N], current [A].
+
+    Raises
+    ------
+    MessageError
+        ``reason='layout'`` if the arrays are empty or of different lengths.
+
+    """
+    cols = [np.asarray(a, dtype=float) for a in (msg.t_offset_s, msg.x_m, msg.v_m_s, msg.f_n,
+                                                 msg.i_a)]
+    n = cols[0].shape[0]
+    if n == 0 or any(c.shape[0] != n for c in cols):
+        raise MessageError('layout', 'measurement batch arrays empty or of different lengths '
+                           f'({[c.shape[0] for c in cols]})')
+    cols[0] = stamp_to_seconds(msg.header.stamp) + cols[0]
+    return tuple(cols)
+
+
+def measurement_arrays(msg):
+    """
+    Read a measurement message of either layout into arrays.
+
+    Parameters
+    ----------
+    msg : DamperSamples or sensor_msgs/JointState
+        A batch (:func:`samples_from_msg`) or one single-sample JointState
+        (:func:`measurement_from_msg`), rclpy class or rosbags dataclass.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``, each of shape (n,) (n = 1 for a JointState).
+
+    Raises
+    ------
+    MessageError
+        As :func:`samples_from_msg` / :func:`measurement_from_msg`.
+
+    """
+    if hasattr(msg, 't_offset_s'):
+        return samples_from_msg(msg)
+    return tuple(np.array([value]) for value in measurement_from_msg(msg))
+
+
 def _time_or_zero(t, stamp):
     """Write ``t`` [s] into ``stamp``; a NaN or negative time (unknown) becomes 0."""
     if t is None or not math.isfinite(t) or t < 0:
@@ -246,11 +369,12 @@ def kwok_parameters_from_msg(msg):
     Raises
     ------
     MessageError
-        ``reason='layout'`` if ``i_ref_a`` is not > 0 (a set no model can use).
+        ``reason='bad_i_ref'`` if ``i_ref_a`` is not > 0 (a set no model can use).
 
     """
     if not msg.i_ref_a > 0:
-        raise MessageError('layout', f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
+        raise MessageError('bad_i_ref',
+                           f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
     out = {'parameters': {n: float(getattr(msg, n)) for n in KWOK_CURRENT_NAMES},
            'valid': bool(msg.valid), 'reason': msg.reason,
            'stamp_s': stamp_to_seconds(msg.header.stamp),

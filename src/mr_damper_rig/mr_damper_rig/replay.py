@@ -161,6 +161,12 @@ class ArraySource:
         x, v, f, i = self.cols[j]
         return self.t[j] + lap * self.period, x, v, f, i
 
+    def samples(self, k, n):
+        """Return samples ``k .. k+n-1`` as five arrays ``t, x, v, f, i``."""
+        lap, j = np.divmod(np.arange(k, k + n), self.n)
+        cols = self.cols[j]
+        return (self.t[j] + lap * self.period, cols[:, 0], cols[:, 1], cols[:, 2], cols[:, 3])
+
 
 class SimSource:
     """Samples of the virtual rig, stamped ``t0 + t_sim``."""

@@ -17,11 +17,10 @@ It lives in ``mr_damper_rig`` because it needs both the rig (the simulated ident
 :func:`mr_damper_rig.virtual_rig.simulated_rig_data`) and the car: the dependencies point one
 way, ``mr_damper_model <- quarter_car_sim <- mr_damper_rig``.
 """
-import argparse
 import json
-import math
 import sys
 
+from quarter_car_sim.cli_args import OneLineParser, positive
 from quarter_car_sim.controllers import CONTROLLER_NAMES
 
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
@@ -35,29 +34,9 @@ TABLE_KEYS = (('rms_body_accel_wk', 'Wk acc', '{:8.3f}'), ('rms_body_accel', 'ac
               ('saturated_fraction', 'sat', '{:5.2f}'))
 
 
-class _Parser(argparse.ArgumentParser):
-    """Argument parser whose errors are one line on stderr and exit status 2."""
-
-    def error(self, message):
-        """Print one line and exit 2."""
-        self.exit(2, f'{self.prog}: error: {message}\n')
-
-
-def _positive(name):
-    def conv(text):
-        try:
-            val = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f'{name} must be a number, got {text!r}') from None
-        if not (math.isfinite(val) and val > 0):
-            raise argparse.ArgumentTypeError(f'{name} must be > 0, got {text}')
-        return val
-    return conv
-
-
 def build_parser():
     """Return the argument parser."""
-    p = _Parser(
+    p = OneLineParser(
         prog='quarter-car-sim',
         description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
     p.add_argument('--controller', default='skyhook',
@@ -66,9 +45,9 @@ def build_parser():
                    help='run every controller and the offline semi-active bound on the same road')
     p.add_argument('--road', default='iso8608-C',
                    help='iso8608-A..H, bump, sine, step or FILE.csv (default iso8608-C)')
-    p.add_argument('--speed', type=_positive('--speed'), default=20.0, metavar='M_PER_S',
+    p.add_argument('--speed', type=positive('--speed'), default=20.0, metavar='M_PER_S',
                    help='vehicle speed [m/s] (default 20)')
-    p.add_argument('--duration', type=_positive('--duration'), default=30.0, metavar='S',
+    p.add_argument('--duration', type=positive('--duration'), default=30.0, metavar='S',
                    help='simulated time [s] (default 30)')
     p.add_argument('--damper-params', metavar='PARAMS.json',
                    help='identified kwok-current parameter file (default: identify the plant '
@@ -76,7 +55,11 @@ def build_parser():
     p.add_argument('--plant', choices=('kwok', 'spencer'), default='spencer',
                    help='true damper: thesis-like kwok-current or Spencer (default spencer)')
     p.add_argument('--seed', type=int, default=1, help='road (and identification) seed')
-    p.add_argument('--dt', type=_positive('--dt'), default=1e-3, help='control period [s]')
+    p.add_argument('--dt', type=positive('--dt'), default=1e-3, help='control period [s]')
+    p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
+                   help='ideal: the laws read the true car state; vehicle: they read the state '
+                        'a Kalman filter estimates from modelled automotive sensors (body '
+                        'accelerometer, ride-height sensor; docs/sensing.md)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.add_argument('--plot', metavar='OUT.png', help='write time traces, PSD, '
                    'transmissibility and current plots')
@@ -118,23 +101,42 @@ def run(args):
     else:
         controllers = [make_controller(args.controller, params=params, inverse=inverse,
                                        dt=args.dt)]
+    sensed = {}
+    if args.sensing == 'vehicle':
+        from quarter_car_sim.sensed_loop import simulate_sensed
+        damper_laws = [c for c in controllers if c.kind in ('current', 'semi-active')]
+        for c in damper_laws:
+            sensed[c.name] = simulate_sensed(params, road, c, plant, inverse, dt=args.dt,
+                                             rng=args.seed)
+        controllers = [c for c in controllers if c.name not in sensed]
     results = compare(params, road, controllers, plant, dt=args.dt, damper_params=inverse)
+    results.update({n: r.sim for n, r in sensed.items()})
     if args.compare:
         results[bound_name()] = semi_active_bound(params, road, KwokForceModel(inverse), plant,
                                                   dt=args.dt).replay
     out = {
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
         'seed': args.seed, 'plant': PLANTS[args.plant], 'dt_s': args.dt,
-        'damper_params': finite_or_none(ident),
-        'controllers': {n: finite_or_none(r.metrics()) for n, r in results.items()},
+        'sensing': args.sensing, 'damper_params': finite_or_none(ident),
+        'controllers': {n: finite_or_none(_metrics(n, r, sensed)) for n, r in results.items()},
     }
     return out, results
+
+
+def _metrics(name, result, sensed):
+    """Metrics of one run; on estimated states plus the estimation errors and counters."""
+    if name not in sensed:
+        return result.metrics()
+    m = sensed[name].metrics()
+    m['estimator'] = sensed[name].status
+    return m
 
 
 def _table(out):
     head = f'{"controller":16s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}'
                                            for _, h, fmt in TABLE_KEYS)
-    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, plant {out["plant"]}', head]
+    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, plant {out["plant"]}, '
+             f'sensing {out["sensing"]}', head]
     for name, m in out['controllers'].items():
         cells = []
         for key, _, fmt in TABLE_KEYS:

@@ -9,9 +9,10 @@ the consumer's count on ``mr_damper/samples_received``), the sources of
 and :class:`mr_damper_rig.rig_health.RigHealth` turns the counters into ``/diagnostics``.
 
 Topics (relative names: remap them with ``--ros-args -r old:=new`` or start the node in a
-namespace, ``-r __ns:=/fl``): publishes ``mr_damper/measurement`` (sensor_msgs/JointState, one
-per DAQ sample, reliable keep-all), in ``sim`` mode the latched truth on
-``mr_damper/true_parameters`` (KwokParameters, kwok-current plant) or
+namespace, ``-r __ns:=/fl``): publishes ``mr_damper/measurement``
+(mr_damper_interfaces/DamperSamples: ``samples_per_message`` consecutive DAQ samples per
+message, cut by :class:`mr_damper_rig.batching.BatchStream`; reliable keep-all), in ``sim``
+mode the latched truth on ``mr_damper/true_parameters`` (KwokParameters, kwok-current plant) or
 ``mr_damper/true_spencer_parameters`` (DamperModel, Spencer plant), ``/diagnostics``, and with
 ``publish_clock`` (csv / bag replays) ``/clock``: one rosgraph_msgs/Clock per timer tick in
 which samples went out, carrying the stamp of the newest of them, so nodes started with
@@ -31,12 +32,14 @@ current command is checked by :class:`mr_damper_model.commands.CurrentCommandLim
 with a throttled warning.
 
 Hardware-in-the-loop (``excitation:=commanded``, see docs/hil.md): the piston follows the
-displacement commands [m] through a servo-actuator model, in lockstep with the car: each
-command received steps the actuator and the damper by one DAQ period and publishes that sample
-at once. Commands beyond ``+-stroke_m`` are clamped, non-finite refused; a car silent for
-longer than ``command_timeout_s`` (wall time times ``rate_factor``) makes the rig run on its
-own clock, holding and then returning to neutral (:class:`mr_damper_rig.pacing.LockstepPacer`).
-The tracking error (guarded target minus measured displacement) is in the diagnostics.
+displacement commands [m] through a servo-actuator model, in lockstep with the car: each command
+received steps the actuator and the damper by one DAQ period and publishes that sample at once,
+alone, on ``mr_damper/hil_measurement`` (DamperSamples of one sample, reliable depth 10);
+``mr_damper/measurement`` carries the same samples in batches. Commands beyond ``+-stroke_m`` are
+clamped, non-finite refused; a car silent for longer than ``command_timeout_s`` (wall time times
+``rate_factor``) makes the rig run on its own clock, holding and then returning to neutral
+(:class:`mr_damper_rig.pacing.LockstepPacer`). The tracking error (guarded target minus measured
+displacement) is in the diagnostics.
 
 Replay files are read and checked completely before the first sample is published; a bad file
 ends the node with exit status 2 and one error line naming the file and the problem.
@@ -45,24 +48,26 @@ import math
 import sys
 import time
 
+import numpy as np
+
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import JointState
-from mr_damper_interfaces.msg import DamperModel, KwokParameters
+from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
 from std_msgs.msg import Float64, UInt64
 
 from mr_damper_model.commands import CurrentCommandLimiter
 from mr_damper_model.data import DataError
-from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg,
-                                      measurement_to_msg, seconds_to_stamp)
+from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg, samples_to_msg,
+                                      seconds_to_stamp)
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
                                         LATCHED_QOS, MEASUREMENT_QOS, node_time_s, Param,
                                         ResettablePublisher, run_node, set_realtime_priority,
                                         spin_node, STATUS_QOS, stop_requested)
 
+from .batching import BatchStream
 from .commands import CommandFollower, DisplacementCommandGuard
 from .pacing import LockstepPacer, Pacer
 from .replay import ArraySource, MEASUREMENT_TOPIC, read_stream, SimSource
@@ -83,13 +88,16 @@ TRUE_SPENCER = 'mr_damper/true_spencer_parameters'
 CURRENT_COMMAND = 'mr_damper/current_command'
 DISPLACEMENT_COMMAND = 'mr_damper/displacement_command'
 SAMPLES_RECEIVED = 'mr_damper/samples_received'
+#: Hardware in the loop: each lockstep sample at once, alone, for the car (the measurement
+#: stream still carries every sample, in batches, for the identifier and the recorder).
+HIL_MEASUREMENT = 'mr_damper/hil_measurement'
 
 #: Every parameter of the rig node (the one place they are declared).
 PARAMETERS = (
     Param('mode', 'sim', 'Source: sim (virtual rig) or csv / bag (replay of a file)'),
     Param('file', '', 'CSV file (csv) or rosbag2 directory / .db3 / .mcap (bag)'),
     Param('bag_topic', MEASUREMENT_TOPIC,
-          'bag: measurement topic inside the bag (sensor_msgs/JointState)'),
+          'bag: measurement topic inside the bag (DamperSamples or sensor_msgs/JointState)'),
     Param('rate_factor', 1.0, 'Speed relative to real time [-]; 0: as fast as the consumer '
           'takes the samples (flow control on mr_damper/samples_received); changes between '
           'values > 0 while running', 0.0, 1000.0, dynamic=True),
@@ -102,6 +110,10 @@ PARAMETERS = (
           '(at most 30 s) before the first sample', 0, 1000),
     Param('flow_window', 1000, 'rate_factor 0: samples allowed ahead of the consumer\'s '
           'count', 1, 10_000_000, dynamic=True),
+    Param('samples_per_message', 20, 'Samples per measurement message (DamperSamples batch): '
+          'a batch goes out when its last sample is due, so it adds at most this many DAQ '
+          'periods of latency (hardware in the loop: each sample also goes out at once, alone, '
+          'on mr_damper/hil_measurement)', 1, 100000),
     Param('tick_s', 0.002, 'Publishing timer period [s, wall time]: the samples due are '
           'published at every tick', 1e-4, 1.0),
     Param('publish_clock', False, 'csv / bag: publish /clock (one per tick) from the stamps '
@@ -206,7 +218,10 @@ class RigNode(Node):
         self.limiter = CurrentCommandLimiter(p['current_min_a'], p['current_max_a'])
         self._health = RigHealth()
         self._wait_subs = int(p['wait_for_subscribers'])
-        self._meas = ResettablePublisher(self, JointState, MEASUREMENT, MEASUREMENT_QOS)
+        self._meas = ResettablePublisher(self, DamperSamples, MEASUREMENT, MEASUREMENT_QOS)
+        self.stream = BatchStream(self.source, self.pacer, int(p['samples_per_message']))
+        self._period_s = (1.0 / float(p['rate_hz']) if self.mode == 'sim'
+                          else self._median_period(self.source))
         self._clock_pub = (self.create_publisher(ClockMsg, '/clock', CLOCK_QOS)
                            if publish_clock else None)
         self._clock_msg = ClockMsg()
@@ -217,13 +232,14 @@ class RigNode(Node):
             if p['current_source'] == 'command':
                 self.drops.subscribe(self, Float64, CURRENT_COMMAND, self._on_command,
                                      COMMAND_QOS, 'command_lost')
+        self._link_msg = None
         if self.follower is not None:
+            self._link_pub = self.create_publisher(DamperSamples, HIL_MEASUREMENT, COMMAND_QOS)
             self.drops.subscribe(self, Float64, DISPLACEMENT_COMMAND, self._on_displacement,
                                  COMMAND_QOS, 'displacement_command_lost')
         elif self.pacer.rate_factor == 0:
             self.create_subscription(UInt64, SAMPLES_RECEIVED, self._on_flow, STATUS_QOS)
         self._msg = None
-        self._held = None       # (index, sample) built but refused by the writer
         self.backlog = 0
         self.commands = 0
         self.finished = False
@@ -320,10 +336,32 @@ class RigNode(Node):
         self._publish_lockstep()   # lockstep: one rig sample per car step
 
     def _publish_lockstep(self, free=False):
-        self._msg = measurement_to_msg(*self.source.sample(self.pacer.published), msg=self._msg)
-        self.pacer.sent(free=free)
-        if not self._meas.publish(self._msg):
-            self.drops.count('measurement_not_published')
+        """Send the next sample alone on the car's link, then the measurement batches due."""
+        if not self.stream.publish_one(self._publish_link, free=free):
+            self.drops.count('hil_sample_not_published')
+        self.stream.publish_full(self._publish_batch)
+
+    def _publish_link(self, t, x, v, f, i, sequence, first_index):
+        """Hardware in the loop: one sample at once on ``mr_damper/hil_measurement``."""
+        self._link_msg = samples_to_msg(t, x, v, f, i, sequence=sequence,
+                                        first_index=first_index,
+                                        sample_period_s=self._period_s, msg=self._link_msg)
+        return self.drops.publish(self._link_pub, self._link_msg, 'hil_publish_failed')
+
+    def _publish_batch(self, t, x, v, f, i, sequence, first_index):
+        """Convert one batch to ``DamperSamples`` and publish it; True if it went out."""
+        self._msg = samples_to_msg(t, x, v, f, i, sequence=sequence, first_index=first_index,
+                                   sample_period_s=self._period_s, msg=self._msg)
+        return self._meas.publish(self._msg)
+
+    @staticmethod
+    def _median_period(source):
+        """Nominal DAQ period of a replay [s] (median stamp step; 0 if irregular)."""
+        steps = source.rel[1:] - source.rel[:-1]
+        if not steps.size:
+            return 0.0
+        period = float(np.median(steps))
+        return period if np.allclose(steps, period, rtol=0.01, atol=0.0) else 0.0
 
     def _on_flow(self, msg):
         self.pacer.on_flow(msg.data)
@@ -340,23 +378,11 @@ class RigNode(Node):
                 return
             if self.rig is not None:   # stamps: ROS time at the first sample + sim time
                 self.source.t0 = self._now_s()
-        due = self.pacer.due()
-        sent = 0
-        for _ in range(due):
-            k = self.pacer.published
-            row = self._held[1] if self._held and self._held[0] == k else self.source.sample(k)
-            self._msg = measurement_to_msg(*row, msg=self._msg)
-            if not self._meas.publish(self._msg):
-                self._held = (k, row)   # writer replaced: sent again once it is ready
-                break
-            self._held = None
-            self.pacer.sent()
-            sent += 1
-            newest_s = row[0]
+        due, sent = self.stream.tick(self._publish_batch)
         self.backlog = due - sent
         if sent and self._clock_pub is not None:
-            self.clock_last_s = newest_s
-            seconds_to_stamp(newest_s, self._clock_msg.clock)
+            self.clock_last_s = self.stream.newest_s
+            seconds_to_stamp(self.clock_last_s, self._clock_msg.clock)
             if self.drops.publish(self._clock_pub, self._clock_msg, 'clock_publish_failed'):
                 self.clock_published += 1
         if self.pacer.finished:
@@ -369,6 +395,8 @@ class RigNode(Node):
     def status_values(self):
         """Return the rig's status values (what ``/diagnostics`` carries)."""
         values = {'mode': self.mode, **self.pacer.values(), 'backlog_samples': self.backlog,
+                  'messages_published': self.stream.sequence,
+                  'samples_per_message': self.stream.samples_per_message,
                   'subscribers': self._meas.get_subscription_count(),
                   'wait_for_subscribers': self._wait_subs, 'writer_resets': self._meas.resets,
                   'current_commands': self.commands, 'commands': dict(self.limiter.counts),

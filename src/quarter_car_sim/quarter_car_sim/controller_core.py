@@ -14,9 +14,15 @@ One step of :meth:`ControllerCore.command`:
    caller's clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
 2. a state whose fields the laws use (:data:`LAW_FIELDS` and the law's own ``state_fields``,
    e.g. the tyre deflection of the LQR laws) are not all finite is refused
-   (counted ``state_rejected.non_finite``) and answered with the safe current; a state older
-   than the previous one (``t`` decreasing) is counted ``state_rejected.out_of_order`` and
-   answered with the safe current too;
+   (counted ``state_rejected.non_finite``) and answered with the safe current; so is a state
+   whose stamp :class:`mr_damper_model.stamps.StampGuard` refuses (the one home of stamp
+   sanity): one older than the newest state taken (``out_of_order``), or stamped more than
+   ``max_future_s`` ahead of the caller's clock (``future_stamp``). A refused stamp never
+   becomes the reference, so one bad stamp costs one safe-current answer; after
+   ``rebase_after`` consecutive out-of-order (or future) states increasing among themselves
+   (a vehicle clock that jumped) the stamps are re-based (counted ``stamp_rebases``). While
+   the last answer was the safe current for a state reason, :meth:`ControllerCore.status`
+   says ``mode`` failsafe with ``reason`` ``state_<reason>``;
 3. with a model: the law's demanded body force (positive up) goes through the inverse of the
    identified model (kept inside the identified current range) to a coil current, saturated to
    the coil range; without one: the safe current. A passive law (``passive@<I>A``) gives its
@@ -28,6 +34,7 @@ from dataclasses import dataclass
 import math
 
 from mr_damper_model.commands import CurrentCommandLimiter, OUTCOMES
+from mr_damper_model.stamps import StampGuard
 from quarter_car_sim.failsafe import clip_current
 
 #: Fields of the state the control laws read (see :mod:`quarter_car_sim.controllers`):
@@ -35,7 +42,13 @@ from quarter_car_sim.failsafe import clip_current
 LAW_FIELDS = ('v_s', 'a_s', 'v_u', 'travel', 'v_rel')
 
 #: Reasons a state is refused (counted in :attr:`ControllerCore.state_rejected`).
-STATE_REJECTIONS = ('non_finite', 'out_of_order')
+STATE_REJECTIONS = ('non_finite', 'future_stamp', 'out_of_order')
+
+#: Default horizon [s]: a state stamped further ahead of the caller's clock is refused.
+MAX_FUTURE_S = 1.0
+
+#: Default run of consecutive out-of-order (or future) states that re-bases the stamps.
+REBASE_AFTER = 50
 
 #: Outcomes of a current command offered to :class:`CommandInput` (the limiter's).
 COMMAND_OUTCOMES = OUTCOMES
@@ -90,6 +103,12 @@ class ControllerCore:
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     inverse_tol_a : float
         Current tolerance [A] of the inverse model.
+    max_future_s : float
+        A state stamped more than this [s] ahead of the caller's clock is refused
+        (``future_stamp``; :class:`mr_damper_model.stamps.StampGuard`).
+    rebase_after : int
+        Consecutive out-of-order (or future) states, increasing among themselves, after which
+        the stamps are re-based on the last of them (a vehicle clock jump).
 
     Attributes
     ----------
@@ -105,12 +124,15 @@ class ControllerCore:
         Commands computed, and those computed with a model in use.
     state_rejected : dict
         ``{reason: count}`` of :data:`STATE_REJECTIONS`.
-    last_state_t : float
-        Stamp [s] of the last state answered (NaN before the first).
+    last_refusal : str or None
+        Why the last state was answered with the safe current (None: it was taken).
+    stamps : mr_damper_model.stamps.StampGuard
+        The stamp checks (re-bases in ``stamps.rebases``).
 
     """
 
-    def __init__(self, controller, supervisor, *, inverse_tol_a=1e-4):
+    def __init__(self, controller, supervisor, *, inverse_tol_a=1e-4,
+                 max_future_s=MAX_FUTURE_S, rebase_after=REBASE_AFTER):
         self.sup = supervisor
         self.inverse_tol_a = float(inverse_tol_a)
         self._use(controller)
@@ -121,7 +143,10 @@ class ControllerCore:
         self.n_commands = 0
         self.n_normal = 0
         self.state_rejected = dict.fromkeys(STATE_REJECTIONS, 0)
-        self.last_state_t = math.nan
+        self.last_refusal = None
+        # equal stamps are in order: a car publishes its settling states all stamped 0 s
+        self.stamps = StampGuard(max_future_s=max_future_s, rebase_after=rebase_after,
+                                 accept_equal=True)
         self._inverse = None
         self._inverse_of = None
 
@@ -139,16 +164,18 @@ class ControllerCore:
             self._inverse_of = params
         return self._inverse
 
-    def _state_refusal(self, state):
+    @property
+    def last_state_t(self):
+        """Stamp [s] of the newest state taken (NaN before the first and after a re-base)."""
+        last = self.stamps.last
+        return last if math.isfinite(last) else math.nan
+
+    def _state_refusal(self, state, t_clock):
         for name in self._fields:
             if not math.isfinite(getattr(state, name)):
                 return 'non_finite'
-        t = state.t
-        if not math.isfinite(t):
-            return 'non_finite'
-        if t < self.last_state_t:
-            return 'out_of_order'
-        return None
+        verdict = self.stamps.offer(state.t, t_clock)
+        return verdict if verdict in STATE_REJECTIONS else None
 
     def _safe(self):
         self.f_demand = math.nan
@@ -165,7 +192,8 @@ class ControllerCore:
         state : VehicleState or quarter_car_sim.dynamics.CarState
             Anything with ``t`` and the :data:`LAW_FIELDS` attributes.
         t_clock : float
-            Caller's clock [s] (used for the parameter timeout).
+            Caller's clock [s] (the parameter timeout and the stamp horizon; <= 0: no
+            stamp horizon, a clock not started).
 
         Returns
         -------
@@ -176,11 +204,11 @@ class ControllerCore:
         sup = self.sup
         sup.update(t_clock)
         self.n_commands += 1
-        refusal = self._state_refusal(state)
+        refusal = self._state_refusal(state, t_clock)
+        self.last_refusal = refusal
         if refusal is not None:
             self.state_rejected[refusal] += 1
             return self._safe()
-        self.last_state_t = state.t
         if self.passive:
             self.f_demand = math.nan
             self.i_cmd = clip_current(self.controller.demand(state), sup.i_min_a, sup.i_max_a,
@@ -228,6 +256,22 @@ class ControllerCore:
         self.passive = getattr(controller, 'kind', '') == 'current'
         self._fields = LAW_FIELDS + tuple(getattr(controller, 'state_fields', ()))
 
+    def mode_reason(self):
+        """
+        Return ``(mode, reason)`` of the last answer: a state refusal wins over the supervisor.
+
+        Returns
+        -------
+        tuple of str
+            ``('failsafe', 'state_<reason>')`` when the last state was answered with the safe
+            current because it was refused (:data:`STATE_REJECTIONS`), else the supervisor's
+            ``(mode, reason)``.
+
+        """
+        if self.last_refusal is not None:
+            return 'failsafe', f'state_{self.last_refusal}'
+        return self.sup.mode, self.sup.reason
+
     def offer_parameters(self, values, t_clock):
         """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
         return self.sup.offer(values, t_clock)
@@ -239,17 +283,21 @@ class ControllerCore:
         Returns
         -------
         dict
-            The supervisor's status (``mode``, ``reason``, ``failsafe_s``, ...) plus
-            ``controller``, ``current_a``, ``commands``, ``commands_normal``,
-            ``saturated_steps``, ``state_rejected`` and ``last_state_t``.
+            The supervisor's status (``failsafe_s``, ``params_rejected``, ...) with ``mode``
+            and ``reason`` of :meth:`mode_reason`, plus ``controller``, ``current_a``,
+            ``commands``, ``commands_normal``, ``saturated_steps``, ``state_rejected``,
+            ``last_state_t``, ``stamp_rebases`` and ``last_stamp_rebase`` (``{direction,
+            from_s, to_s}`` or None).
 
         """
         st = self.sup.status()
+        st['mode'], st['reason'] = self.mode_reason()
         st.update({'controller': getattr(self.controller, 'name', str(self.controller)),
                    'current_a': self.i_cmd, 'commands': self.n_commands,
                    'commands_normal': self.n_normal, 'saturated_steps': self.saturated,
                    'state_rejected': dict(self.state_rejected),
-                   'last_state_t': self.last_state_t})
+                   'last_state_t': self.last_state_t, 'stamp_rebases': self.stamps.rebases,
+                   'last_stamp_rebase': self.stamps.last_rebase})
         return st
 
 

@@ -14,3 +14,8 @@ def quarter_car_node():
 def semi_active_controller_node():
     """``ros2 run quarter_car_sim semi_active_controller_node``."""
     return early_main('quarter_car_sim.semi_active_controller_node')
+
+
+def state_estimator_node():
+    """``ros2 run quarter_car_sim state_estimator_node``."""
+    return early_main('quarter_car_sim.state_estimator_node')

@@ -48,7 +48,8 @@ REASONS = (
     'missing',            # an element the inverse model needs is absent
     'non_finite',         # NaN or inf in a needed element
     'out_of_bounds',      # a parameter outside the physical box bounds
-    'bad_current_range',  # i_ref_a <= 0, or current_min_a/current_max_a disordered / off-range
+    'bad_i_ref',          # i_ref_a <= 0 (checked, or refused when the message is decoded)
+    'bad_current_range',  # current_min_a/current_max_a disordered / off-range
     'narrow_current_range',  # identified over less than min_current_span_a
     'pinned_at_bound',    # a parameter at a non-zero bound of the box (fit pushed off range)
     'undecodable',        # the message could not be decoded (bad layout); see :meth:`refuse`
@@ -255,7 +256,7 @@ class ModelSupervisor:
         lo_a, hi_a = values['current_min_a'], values['current_max_a']
         tol = self.current_tol_a
         if values['i_ref_a'] <= 0:
-            return Verdict(False, 'bad_current_range', f'i_ref_a = {values["i_ref_a"]:g} <= 0')
+            return Verdict(False, 'bad_i_ref', f'i_ref_a = {values["i_ref_a"]:g} <= 0')
         if not (self.i_min_a - tol <= lo_a <= hi_a <= self.i_max_a + tol):
             return Verdict(False, 'bad_current_range',
                            f'identified current range [{lo_a:g}, {hi_a:g}] A not ordered inside '
@@ -300,7 +301,8 @@ class ModelSupervisor:
         Parameters
         ----------
         reason : str
-            One of the rejection :data:`REASONS` (usually ``'undecodable'``).
+            One of the rejection :data:`REASONS` (``'undecodable'``, or the decoder's own
+            reason when it names one of them, e.g. ``'bad_i_ref'``).
         detail : str
             Human-readable detail.
         t_now : float

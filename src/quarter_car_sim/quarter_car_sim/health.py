@@ -10,7 +10,8 @@ running ride metrics (``ride_metrics``) of the car; the level and message say wh
 - OK: running in normal mode;
 - WARN: fail-safe, with why (no parameters yet, stale, refused and the reason, no command yet,
   command timeout); the control loop late (pacer re-anchored, or lateness p99 above
-  ``lateness_warn_ms``); samples dropped, states refused, lock-step timeouts or rig-link faults
+  ``lateness_warn_ms``); samples dropped, states refused, state stamps re-based (a vehicle
+  clock jump), lock-step timeouts or rig-link faults
   (``plant:=rig``: stale or missing measurements, wait timeouts, bad samples) since the previous
   check;
 - ERROR: the control thread died or stopped; the command (car, ``controller:=external``) or
@@ -28,6 +29,10 @@ FAILSAFE_MESSAGES = {
     'stale': 'identified parameters stale (older than param_timeout_s)',
     'no_command_yet': 'no current command yet',
     'command_timeout': 'no current command for command_timeout_s',
+    'state_non_finite': 'vehicle state refused (a field the law reads is not finite)',
+    'state_out_of_order': 'vehicle state refused (stamp older than the newest taken)',
+    'state_future_stamp': 'vehicle state refused (stamped beyond max_future_s ahead of the '
+                          'node clock)',
 }
 
 
@@ -185,6 +190,10 @@ class ControllerHealth:
         elif n_refused:
             problems.append((WARN, 'states refused since the last check: ' + ', '.join(
                 f'{v} {k}' for k, v in refused.items() if v)))
+        rebased = self._rising.rise('stamp_rebases', status.get('stamp_rebases', 0))
+        if rebased:
+            problems.append((WARN, f'vehicle clock jumped: state stamps re-based {rebased} '
+                                   'time(s) since the last check'))
         problems.append(dropped_since(self._rising, status.get('dropped')))
         return worst([p for p in problems if p], status)
 

@@ -37,6 +37,8 @@ import math
 
 import numpy as np
 
+from mr_damper_model.stamps import REBASED, STAMP_REFUSALS, StampGuard
+
 
 class HilError(ValueError):
     """Invalid hybrid-simulation settings."""
@@ -274,8 +276,9 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
 
 
 #: Counter keys of :attr:`RemoteRigPlant.counts`.
-REMOTE_COUNTS = ('measurements', 'gaps', 'out_of_order', 'non_finite', 'no_measurement_steps',
-                 'stale_steps', 'wait_timeouts')
+REMOTE_COUNTS = ('measurements', 'gaps', 'out_of_order', 'duplicate', 'future_stamp',
+                 'stamp_rebases', 'non_finite', 'no_measurement_steps', 'stale_steps',
+                 'wait_timeouts')
 
 
 class RemoteRigPlant:
@@ -295,6 +298,11 @@ class RemoteRigPlant:
         Car steps between horizon adaptations of the compensator.
     forgetting_s : float
         Time constant [s] of the tracking monitor's recent-delay estimate.
+    max_future_s, rebase_after :
+        Stamp checks of the measurements (:class:`mr_damper_model.stamps.StampGuard`): a
+        measurement stamped more than ``max_future_s`` [s] ahead of the car's clock is refused
+        (``future_stamp``); ``rebase_after`` consecutive out-of-order (or future) ones
+        increasing among themselves re-base the stamps (a rig clock jump, ``stamp_rebases``).
 
     Attributes
     ----------
@@ -306,8 +314,9 @@ class RemoteRigPlant:
         Desired displacement (the car's travel) vs the latest measured one, every step after
         the first measurement.
     counts : dict
-        :data:`REMOTE_COUNTS`: measurements taken, stamp gaps (missing samples), out-of-order
-        and non-finite measurements refused, steps without any measurement yet (force 0 N),
+        :data:`REMOTE_COUNTS`: measurements taken, stamp gaps (missing samples), measurements
+        refused for their stamp (out of order, duplicate, in the future) or a non-finite value,
+        stamp re-bases, steps without any measurement yet (force 0 N),
         steps with a stale one, and waits for the rig that timed out (:meth:`count_wait`).
 
     """
@@ -317,7 +326,7 @@ class RemoteRigPlant:
     model_options = {}
 
     def __init__(self, dt, compensator=None, *, stale_after_s=0.05, adapt_every=100,
-                 forgetting_s=1.0):
+                 forgetting_s=1.0, max_future_s=1.0, rebase_after=50):
         if not (math.isfinite(dt) and dt > 0):
             raise HilError(f'`dt` must be > 0 s, got {dt}')
         if not (math.isfinite(stale_after_s) and stale_after_s > 0):
@@ -329,6 +338,8 @@ class RemoteRigPlant:
         self.stale_steps = max(1, int(round(stale_after_s / self.dt)))
         self.adapt_every = int(adapt_every)
         self.monitor = TrackingMonitor(self.dt, forgetting_s)
+        self._stamp_settings = dict(max_future_s=max_future_s, rebase_after=rebase_after)
+        StampGuard(**self._stamp_settings)          # validates
         self.reset()
 
     def reset(self):
@@ -337,6 +348,7 @@ class RemoteRigPlant:
             self.compensator.reset()
         self.monitor.reset()
         self.counts = dict.fromkeys(REMOTE_COUNTS, 0)
+        self.stamps = StampGuard(**self._stamp_settings)
         self.current = 0.0
         self.last_command_m = 0.0
         self.measured_m = math.nan
@@ -345,25 +357,31 @@ class RemoteRigPlant:
         self._age = 0
         self._travel2 = 0.0
 
-    def receive(self, t_s, x_m, v_m_s, f_n, i_a):
+    def receive(self, t_s, x_m, v_m_s, f_n, i_a, now=None):
         """
         Take one rig measurement (stamp [s], displacement [m], velocity [m/s], force [N], A).
+
+        ``now``: the car's clock [s] at receipt (the stamp horizon; None: no horizon).
 
         Returns
         -------
         bool
-            False if refused (non-finite value or stamp not after the last; counted).
+            False if refused (a non-finite value, or the stamp: out of order, duplicate, in
+            the future; counted by reason).
 
         """
         if not all(math.isfinite(float(a)) for a in (t_s, x_m, v_m_s, f_n, i_a)):
             self.counts['non_finite'] += 1
             return False
         t_s = float(t_s)
-        if self.stamp_s is not None:
+        verdict = self.stamps.offer(t_s, now)
+        if verdict in STAMP_REFUSALS:
+            self.counts[verdict] += 1
+            return False
+        if verdict == REBASED:
+            self.counts['stamp_rebases'] += 1
+        elif self.stamp_s is not None:
             step = t_s - self.stamp_s
-            if step <= 0:
-                self.counts['out_of_order'] += 1
-                return False
             missing = int(round(step / self.dt)) - 1
             if missing > 0:
                 self.counts['gaps'] += missing

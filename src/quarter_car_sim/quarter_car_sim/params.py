@@ -25,6 +25,40 @@ class ParamsError(ValueError):
     """Invalid quarter-car parameter (the message names the parameter)."""
 
 
+def check_fields(params, *, positive=(), non_negative=()):
+    """
+    Coerce every field of a frozen parameter dataclass to a finite float and check signs.
+
+    Parameters
+    ----------
+    params : dataclass instance
+        Parameters (changed in place with ``object.__setattr__``).
+    positive, non_negative : sequence of str
+        Fields that must be > 0 and >= 0.
+
+    Raises
+    ------
+    ParamsError
+        Naming the first bad field.
+
+    """
+    for f in dataclasses.fields(params):
+        val = getattr(params, f.name)
+        try:
+            val = float(val)
+        except (TypeError, ValueError):
+            raise ParamsError(f'`{f.name}` must be a number, got {val!r}') from None
+        if not math.isfinite(val):
+            raise ParamsError(f'`{f.name}` must be finite, got {val}')
+        object.__setattr__(params, f.name, val)
+    for name in positive:
+        if getattr(params, name) <= 0.0:
+            raise ParamsError(f'`{name}` must be > 0, got {getattr(params, name)}')
+    for name in non_negative:
+        if getattr(params, name) < 0.0:
+            raise ParamsError(f'`{name}` must be >= 0, got {getattr(params, name)}')
+
+
 @dataclasses.dataclass(frozen=True)
 class QuarterCarParams:
     """
@@ -63,21 +97,8 @@ class QuarterCarParams:
     i_max: float = 2.0
 
     def __post_init__(self):
-        for f in dataclasses.fields(self):
-            val = getattr(self, f.name)
-            try:
-                val = float(val)
-            except (TypeError, ValueError):
-                raise ParamsError(f'`{f.name}` must be a number, got {val!r}') from None
-            if not math.isfinite(val):
-                raise ParamsError(f'`{f.name}` must be finite, got {val}')
-            object.__setattr__(self, f.name, val)
-        for name in ('m_s', 'm_u', 'k_s', 'k_t'):
-            if getattr(self, name) <= 0.0:
-                raise ParamsError(f'`{name}` must be > 0, got {getattr(self, name)}')
-        for name in ('c_t', 'c_s', 'g', 'i_min'):
-            if getattr(self, name) < 0.0:
-                raise ParamsError(f'`{name}` must be >= 0, got {getattr(self, name)}')
+        check_fields(self, positive=('m_s', 'm_u', 'k_s', 'k_t'),
+                     non_negative=('c_t', 'c_s', 'g', 'i_min'))
         if self.i_max <= self.i_min:
             raise ParamsError(f'`i_max` ({self.i_max}) must be > `i_min` ({self.i_min})')
 

@@ -57,8 +57,8 @@ counted) and applies it to step k: the loop is then step for step the built-in o
 Hardware in the loop (``plant:=rig``, docs/hil.md): the car has no damper model of its own. Each
 control step it publishes the (delay-compensated) suspension travel as the displacement command
 on ``mr_damper/displacement_command`` (std_msgs/Float64 [m], reliable, depth 10) and uses the
-latest force of the rig's measurement stream (``mr_damper/measurement``, sensor_msgs/JointState
-as the rig publishes it; best effort, depth 10: only the newest matters) through
+latest force of the rig's lockstep link (``mr_damper/hil_measurement``, one DamperSamples sample
+per command; best effort, depth 10: only the newest matters) through
 :class:`quarter_car_sim.hil.RemoteRigPlant`; the diagnostics carry ``hil`` (tracking RMS / peak
 of desired vs measured displacement, link counts). With ``hil_wait_s > 0`` each step first waits
 (at most that long, timeouts counted) for the rig's answer to the previous command, so an
@@ -80,7 +80,7 @@ import time
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from mr_damper_interfaces.msg import DamperSamples, KwokParameters, QuarterCarState
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -249,7 +249,7 @@ class QuarterCarNode(Node):
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
         if self.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
-            self.drops.subscribe(self, JointState, 'mr_damper/measurement',
+            self.drops.subscribe(self, DamperSamples, 'mr_damper/hil_measurement',
                                  self.on_measurement, QoSProfile(
                                      depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                                  'measurements_lost')
@@ -379,14 +379,16 @@ class QuarterCarNode(Node):
             offer_parameters(self.sup, msg, now, self.get_logger())
 
     def on_measurement(self, msg):
-        """Hand a rig measurement to the remote-rig plant (plant rig)."""
+        """Hand a rig measurement batch to the remote-rig plant (plant rig), in order."""
         try:
-            sample = messages.measurement_from_msg(msg)
+            columns = messages.samples_from_msg(msg)
         except ValueError as exc:
             self.drops.count('undecodable_measurement', detail=str(exc))
             return
+        now = self._now()
         with self.answered:
-            self.remote.receive(*sample)
+            for sample in zip(*columns):   # lockstep: batches of one sample
+                self.remote.receive(*sample, now=now)
             self.answered.notify()
 
     def _step(self, wall):
@@ -405,8 +407,9 @@ class QuarterCarNode(Node):
                 cmd.data = loop.command(state, now)
                 if self.probe is not None:
                     cmd.data = loop.i_cmd = self.probe(cmd.data, state.t)
-                normal = self.sup.mode == 'normal'
-                reason = self.sup.reason        # read with the mode: one consistent pair
+                # read with the mode: one consistent pair (a refused state wins)
+                mode, reason = loop.core.mode_reason()
+                normal = mode == 'normal'
             self.drops.publish(self.cmd_pub, cmd)
         self.control.command_sent()
         if self.remote is None:
@@ -470,6 +473,9 @@ class QuarterCarNode(Node):
                           failsafe_entries=self.cmd_in.timeouts, lockstep=self.lockstep,
                           lockstep_timeouts=self.lockstep_timeouts,
                           command_timeout_s=self.cmd_in.timeout_s)
+            else:
+                st['mode'], st['reason'] = self.loop.core.mode_reason()
+                st['state_rejected'] = dict(self.loop.core.state_rejected)
         loop = self.control.status()
         st.update({
             'controller': self.loop.controller.name if self.loop.controller else 'external',

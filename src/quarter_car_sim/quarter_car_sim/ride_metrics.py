@@ -41,12 +41,24 @@ METRIC_KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
                'n_samples')
 
 
-def wk_sections():
-    """
-    Analog Wk weighting as its four second-order sections (rad/s).
+WE_CONSTANTS = {'f1': 0.4, 'f2': 100.0, 'q1': 1.0 / math.sqrt(2.0), 'f3': 1.0, 'f4': 1.0,
+                'q4': 0.63, 'f5': math.inf, 'q5': 1.0, 'f6': math.inf, 'q6': 1.0}
+"""ISO 2631-1 Table A.2 (= ISO 8041) constants of the rotational We weighting (no upward step)."""
 
-    Band limiting high pass (f1) and low pass (f2), acceleration-velocity transition and upward
-    step, each with a gain near 1 in its band (the product is :func:`wk_analog`).
+
+def weighting_sections(constants):
+    """
+    Analog ISO 2631-1 frequency weighting as second-order sections (rad/s).
+
+    Band limiting high pass (f1) and low pass (f2), acceleration-velocity transition (f3, f4,
+    Q4) and upward step (f5, Q5, f6, Q6; left out when f5 and f6 are infinite, as for We),
+    each with a gain near 1 in its band (ISO 2631-1:1997 Annex A, ISO 8041).
+
+    Parameters
+    ----------
+    constants : dict
+        ``f1`` ... ``f6`` [Hz], ``q1``, ``q4``, ``q5``, ``q6`` [-] (:data:`WK_CONSTANTS`,
+        :data:`WE_CONSTANTS`).
 
     Returns
     -------
@@ -54,16 +66,53 @@ def wk_sections():
         Polynomial coefficients in ``s`` [rad/s], highest power first, of each section.
 
     """
-    c = WK_CONSTANTS
+    c = constants
     w = {n: 2.0 * math.pi * c[n] for n in ('f1', 'f2', 'f3', 'f4', 'f5', 'f6')}
-    return [
+    out = [
         (np.array([1.0, 0.0, 0.0]), np.array([1.0, w['f1'] / c['q1'], w['f1'] ** 2])),
         (np.array([w['f2'] ** 2]), np.array([1.0, w['f2'] / c['q1'], w['f2'] ** 2])),
         (np.array([1.0, w['f3']]) * w['f4'] ** 2 / w['f3'],
          np.array([1.0, w['f4'] / c['q4'], w['f4'] ** 2])),
-        (np.array([1.0, w['f5'] / c['q5'], w['f5'] ** 2]),
-         np.array([1.0, w['f6'] / c['q6'], w['f6'] ** 2])),
     ]
+    if math.isfinite(w['f5']) and math.isfinite(w['f6']):
+        out.append((np.array([1.0, w['f5'] / c['q5'], w['f5'] ** 2]),
+                    np.array([1.0, w['f6'] / c['q6'], w['f6'] ** 2])))
+    return out
+
+
+def weighting_sos(constants, fs):
+    """
+    Digital ISO 2631-1 weighting at sample rate ``fs`` [Hz] (bilinear) as second-order sections.
+
+    Returns
+    -------
+    ndarray with shape (n_sections, 6)
+
+    """
+    if not fs > 250.0:
+        raise ValueError(f'`fs` must be > 250 Hz for the ISO 2631-1 weightings (f2 = 100 Hz), '
+                         f'got {fs}')
+    num, den = np.array([1.0]), np.array([1.0])
+    for b, a in weighting_sections(constants):
+        num, den = np.polymul(num, b), np.polymul(den, a)
+    z, p, k = signal.tf2zpk(num, den)
+    zd, pd, kd = signal.bilinear_zpk(z, p, k, fs)
+    return signal.zpk2sos(zd, pd, kd)
+
+
+def wk_sections():
+    """
+    Analog Wk weighting as its four second-order sections (rad/s).
+
+    :func:`weighting_sections` of :data:`WK_CONSTANTS` (the product is :func:`wk_analog`).
+
+    Returns
+    -------
+    list of (num, den)
+        Polynomial coefficients in ``s`` [rad/s], highest power first, of each section.
+
+    """
+    return weighting_sections(WK_CONSTANTS)
 
 
 def wk_analog():
@@ -100,11 +149,7 @@ def wk_sos(fs):
     ndarray with shape (n_sections, 6)
 
     """
-    if not fs > 250.0:
-        raise ValueError(f'`fs` must be > 250 Hz for the Wk filter (f2 = 100 Hz), got {fs}')
-    z, p, k = wk_analog()
-    zd, pd, kd = signal.bilinear_zpk(z, p, k, fs)
-    return signal.zpk2sos(zd, pd, kd)
+    return weighting_sos(WK_CONSTANTS, fs)
 
 
 def wk_filter(a, fs):

@@ -21,9 +21,17 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 - pub ``/diagnostics`` (diagnostic_msgs/DiagnosticArray every ``diagnostics_period_s``, status
   name ``semi_active_controller`` or ``<ns>/semi_active_controller``): level and message from
   :class:`quarter_car_sim.health.ControllerHealth` (OK normal; WARN fail-safe and why, states
-  refused, drops; ERROR states refused persistently); values: mode, reason, failsafe_s,
+  refused, state stamps re-based, drops; ERROR states refused persistently); values: mode,
+  reason (``state_<reason>`` while the last state was refused), failsafe_s,
   failsafe_entries, params_accepted, params_rejected.<reason>, param_age_s, current_a,
-  commands, commands_normal, saturated_steps, state_rejected.<reason>, dropped.<reason>.
+  commands, commands_normal, saturated_steps, state_rejected.<reason>, stamp_rebases,
+  dropped.<reason>.
+
+Stamps (:class:`mr_damper_model.stamps.StampGuard`): a state stamped more than
+``max_future_s`` ahead of the node clock, or older than the newest state taken, is answered
+with the safe current and counted; it never becomes the reference. ``rebase_after``
+consecutive out-of-order (or future) states increasing among themselves re-base the stamps (a
+vehicle clock jump: counted, warned).
 
 Parameter age and timeout are on the node's clock (ROS time: ``/clock`` under
 ``use_sim_time``).
@@ -69,6 +77,11 @@ PARAMETERS = (
     Param('rate_hz', 1000.0, 'Rate of the vehicle states, one command each [Hz]: the sample '
           'time of a filter inside the law (clipped-optimal-wk)', 10.0, 10000.0),
 ) + SUPERVISED_LAW_PARAMETERS + (
+    Param('max_future_s', controller_core.MAX_FUTURE_S, 'A state stamped further ahead of '
+          'the node clock than this is refused (future_stamp) [s]', 0.001, 3600.0),
+    Param('rebase_after', controller_core.REBASE_AFTER, 'Consecutive out-of-order (or future) '
+          'states, increasing among themselves, that re-base the stamps: a vehicle clock '
+          'jump [-]', 1, 100000),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
           'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
@@ -140,13 +153,16 @@ def offer_parameters(supervisor, msg, now, logger):
     """
     Offer a ``KwokParameters`` message received at ``now`` [s, node clock] to ``supervisor``.
 
-    An undecodable message is refused as ``'undecodable'``; refusals are logged (throttled).
+    A message the decoder refuses is refused by the decoder's reason when the supervisor
+    knows it (``'bad_i_ref'``), else as ``'undecodable'``; refusals are logged (throttled).
     The caller holds the supervisor's lock if it has one. Returns the ``Verdict``.
     """
     try:
         values = messages.kwok_parameters_flat(msg)
     except ValueError as exc:
-        verdict = supervisor.refuse('undecodable', str(exc), now)
+        reason = getattr(exc, 'reason', None)
+        reason = reason if reason in supervisor.rejected else 'undecodable'
+        verdict = supervisor.refuse(reason, str(exc), now)
     else:
         verdict = supervisor.offer(values, now)
     if not verdict.accepted:
@@ -171,7 +187,8 @@ class SemiActiveControllerNode(Node):
                               hold_on_reject=p['hold_on_reject'],
                               min_current_span_a=p['min_current_span_a'])
         law = self._make_law(json.loads(p['controller_options'] or '{}'))
-        self.core = ControllerCore(law, sup)
+        self.core = ControllerCore(law, sup, max_future_s=p['max_future_s'],
+                                   rebase_after=int(p['rebase_after']))
         self.health_rules = ControllerHealth()
         self.drops = DropCounter(self.get_logger())
         self.cmd = Float64()
@@ -201,13 +218,19 @@ class SemiActiveControllerNode(Node):
 
     def on_state(self, msg):
         """Answer one state with one current command."""
-        rejected = sum(self.core.state_rejected.values())
-        self.cmd.data = self.core.command(vehicle_state_from_msg(msg), node_time_s(self))
+        core = self.core
+        rebases = core.stamps.rebases
+        self.cmd.data = core.command(vehicle_state_from_msg(msg), node_time_s(self))
         self.drops.publish(self.cmd_pub, self.cmd)
-        if sum(self.core.state_rejected.values()) > rejected:
+        if core.last_refusal is not None:
             self.get_logger().warning(
-                f'state refused ({self.core.state_rejected}): safe current commanded',
-                throttle_duration_sec=1.0)
+                f'state refused ({core.last_refusal}; {core.state_rejected}): safe current '
+                'commanded', throttle_duration_sec=1.0)
+        if core.stamps.rebases > rebases:
+            jump = core.stamps.last_rebase
+            self.get_logger().warning(
+                f'vehicle clock jumped {jump["direction"]}: state stamps re-based from '
+                f'{jump["from_s"]:.6f} s to {jump["to_s"]:.6f} s ({core.stamps.rebases} in all)')
 
     def on_params(self, msg):
         """Offer a parameter message to the supervisor (received at the node clock's now)."""

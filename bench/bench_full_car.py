@@ -1,0 +1,202 @@
+#!/usr/bin/env python3
+"""
+Full car (7 DOF, issue 24): modal skyhook against per-corner laws and passive settings.
+
+Passenger car of ``quarter_car_sim.full_car.params`` with a Spencer damper (the "true" plant)
+at each corner, each corner's kwok-current model identified on the simulated rig
+(``mr_damper_rig.virtual_rig.identify_damper``, a different noise seed per corner) and used
+through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on two tracks
+(isotropic coherence, rear delayed by wheelbase / speed), 60 s, seeds 1 2 3; medians over seeds.
+
+1. Tuning on training roads (seeds 11 12 13, 20 s; not the bench roads): modal sky damping
+   ratios (heave, pitch, roll) and the per-corner skyhook gain, each picked by median a_v.
+   The full-car clipped-optimal LQR's weights likewise.
+2. Bench roads: passive 0 / 0.5 / 1 / 2 A, per-corner skyhook (default and tuned gain),
+   SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios), full-car
+   clipped-optimal (default and tuned weights). ``--only-lqr``: passive 0 A and the LQR only.
+
+Goals (issue 24): the best live law at least 10 % below passive 0 A in the ISO 2631-1
+vibration total value a_v with no worse RMS dynamic tyre load at any wheel; modal control
+better than four independent per-corner laws in pitch and roll (We-weighted RMS).
+
+Usage::
+
+    .venv/bin/python bench/bench_full_car.py [--seeds 1 2 3] [--duration 60]
+                                             [--train-seeds 11 12 13] [--train-duration 20]
+                                             [--skip-tuning] [--only-lqr] [--json OUT.json]
+"""
+import argparse
+import json
+import os
+import statistics
+import time
+
+from mr_damper_model.plant import make_plant
+from mr_damper_rig.virtual_rig import identify_damper
+from quarter_car_sim.controllers import DEFAULT_C_P, Skyhook
+from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,
+                                      make_two_track_road, ModalSkyhook, PASSENGER_CAR,
+                                      PerCornerLaws)
+from quarter_car_sim.full_car.control import DEFAULT_MODAL_ZETA
+from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
+
+PASSIVE_A = (0.0, 0.5, 1.0, 2.0)
+MODAL_GRID = ((0.3, 0.3, 0.3), (0.5, 0.5, 0.5), (0.5, 1.0, 1.0), (0.7, 1.0, 1.0),
+              (0.5, 1.5, 1.5), (0.7, 1.5, 1.5), (0.5, 2.0, 2.0))
+SKY_GRID = (2000.0, 3000.0, 4000.0, 6000.0)
+LQR_GRID = ({}, {'r_force': 1e-6}, {'r_force': 3e-7}, {'q_tyre': 1e4, 'r_force': 1e-6})
+KEYS = ('a_v', 'a_wz', 'a_w_pitch', 'a_w_roll', 'vdv_total', 'crest_max')
+
+
+def _modal(z, name=None):
+    zeta = dict(zip(('heave', 'pitch', 'roll'), z))
+    return ModalSkyhook.from_car(PASSENGER_CAR, zeta=zeta,
+                                 name=name or 'modal-skyhook z=' + '/'.join(f'{v:g}' for v in z))
+
+
+def _sky(c_sky):
+    return PerCornerLaws([Skyhook(c_sky, DEFAULT_C_P) for _ in CORNERS],
+                         name=f'per-corner-skyhook c={c_sky:g}')
+
+
+def _lqr(w, name=None):
+    txt = ','.join(f'{k}={v:g}' for k, v in w.items()) or 'default'
+    return FullCarClippedOptimal.from_car(PASSENGER_CAR, name=name or f'full-car-co {txt}', **w)
+
+
+def _median_runs(laws_fn, seeds, duration, plants, damper):
+    """Run fresh laws (``laws_fn()``) on each seed's road; return {name: [metrics per seed]}."""
+    runs = {}
+    for seed in seeds:
+        road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
+                                   duration_s=duration, rng=seed)
+        for name, m in compare_laws(PASSENGER_CAR, road, laws_fn(), plants, damper).items():
+            runs.setdefault(name, []).append(m)
+    return runs
+
+
+def _med(ms, key):
+    return statistics.median(m[key] for m in ms)
+
+
+def _wheel_med(ms, corner):
+    return statistics.median(m['rms_tyre_load_ratio'][corner] for m in ms)
+
+
+def main(argv=None):
+    """Run the bench and print the tables."""
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
+    ap.add_argument('--duration', type=float, default=60.0)
+    ap.add_argument('--train-seeds', type=int, nargs='+', default=[11, 12, 13])
+    ap.add_argument('--train-duration', type=float, default=20.0)
+    ap.add_argument('--skip-tuning', action='store_true')
+    ap.add_argument('--only-lqr', action='store_true',
+                    help='only the full-car clipped-optimal LQR (and passive 0 A)')
+    ap.add_argument('--json', default='')
+    args = ap.parse_args(argv)
+    t0 = time.time()
+    print(f'load average at start {os.getloadavg()}', flush=True)
+    plants = [make_plant('spencer') for _ in CORNERS]
+    damper = []
+    for i, pl in enumerate(plants):
+        d = identify_damper(pl, seed=i + 1)
+        damper.append(d)
+        print(f'{CORNERS[i]}: identified kwok-current nrmse '
+              f'{d["metrics"].get("nrmse_percent", float("nan")):.2f} %', flush=True)
+
+    best_z, best_c = tuple(DEFAULT_MODAL_ZETA[k] for k in ('heave', 'pitch', 'roll')), 2000.0
+    best_w = {}
+    if not args.skip_tuning:
+        print(f'\ntuning on seeds {args.train_seeds}, {args.train_duration:g} s (median a_v, '
+              'pitch, roll, worst-wheel tyre load)', flush=True)
+
+        def grid():
+            out = [_lqr(w) for w in LQR_GRID]
+            if not args.only_lqr:
+                out += [_modal(z) for z in MODAL_GRID] + [_sky(c) for c in SKY_GRID]
+            return out
+
+        runs = _median_runs(grid, args.train_seeds, args.train_duration, plants, damper)
+        for name, ms in runs.items():
+            print(f'  {name:34s} a_v {_med(ms, "a_v"):.3f}  pitch {_med(ms, "a_w_pitch"):.3f}  '
+                  f'roll {_med(ms, "a_w_roll"):.3f}  '
+                  f'tyre {_med(ms, "max_rms_tyre_load_ratio"):.3f}', flush=True)
+        best_w = min(LQR_GRID, key=lambda w: _med(runs[_lqr(w).name], 'a_v'))
+        print(f'  picked full-car clipped-optimal weights {best_w or "default"}', flush=True)
+        if not args.only_lqr:
+            best_z = min(MODAL_GRID, key=lambda z: _med(runs[_modal(z).name], 'a_v'))
+            best_c = min(SKY_GRID, key=lambda c: _med(runs[_sky(c).name], 'a_v'))
+            print(f'  picked modal z={best_z}, per-corner skyhook c_sky={best_c:g}', flush=True)
+
+    def laws():
+        lqr = [make_full_car_law('full-car-clipped-optimal', PASSENGER_CAR)]
+        if best_w:
+            lqr.append(_lqr(best_w, name='full-car-clipped-optimal tuned '
+                            + ','.join(f'{k}={v:g}' for k, v in best_w.items())))
+        if args.only_lqr:
+            return [make_full_car_law('passive@0A', PASSENGER_CAR)] + lqr
+        out = [make_full_car_law(f'passive@{i:g}A', PASSENGER_CAR) for i in PASSIVE_A]
+        out += [make_full_car_law(f'per-corner-{n}', PASSENGER_CAR)
+                for n in ('skyhook', 'sh-add', 'clipped-optimal-wk')]
+        if best_c != 2000.0:
+            out.append(_sky(best_c))
+        out.append(make_full_car_law('modal-skyhook', PASSENGER_CAR))
+        if best_z != tuple(DEFAULT_MODAL_ZETA[k] for k in ('heave', 'pitch', 'roll')):
+            out.append(_modal(best_z, name='modal-skyhook tuned z=' +
+                              '/'.join(f'{v:g}' for v in best_z)))
+        return out + lqr
+
+    runs = _median_runs(laws, args.seeds, args.duration, plants, damper)
+    ref = runs['passive@0.0A']
+    av0 = _med(ref, 'a_v')
+    print(f'\nISO 8608 C, 20 m/s, {args.duration:g} s, seeds {args.seeds}, Spencer plants, '
+          f'medians; load average {os.getloadavg()}')
+    head = (f'{"law":36s} {"a_v":>6s} {"dav%":>6s} {"a_wz":>6s} {"pitch":>6s} {"roll":>6s} '
+            f'{"VDV":>5s} {"crest":>5s} ' + ' '.join(f'{"tyre " + c:>8s}' for c in CORNERS)
+            + f' {"trav mm":>7s} {"wall s":>6s}')
+    print(head)
+    table = {}
+    for name, ms in runs.items():
+        row = {k: _med(ms, k) for k in KEYS}
+        row['tyre'] = {c: _wheel_med(ms, c) for c in CORNERS}
+        row['travel_mm'] = 1e3 * max(statistics.median(m['rms_suspension_travel'][c] for m in ms)
+                                     for c in CORNERS)
+        row['dav_pct'] = 100.0 * (row['a_v'] / av0 - 1.0)
+        row['wall_s'] = statistics.median(m['wall_time_s'] for m in ms)
+        row['tyre_no_worse'] = all(row['tyre'][c] <= _wheel_med(ref, c) for c in CORNERS)
+        table[name] = row
+        print(f'{name:36s} {row["a_v"]:6.3f} {row["dav_pct"]:6.1f} {row["a_wz"]:6.3f} '
+              f'{row["a_w_pitch"]:6.3f} {row["a_w_roll"]:6.3f} {row["vdv_total"]:5.2f} '
+              f'{row["crest_max"]:5.1f} '
+              + ' '.join(f'{row["tyre"][c]:8.3f}' for c in CORNERS)
+              + f' {row["travel_mm"]:7.1f} {row["wall_s"]:6.1f}')
+    print('a_v: ISO 2631-1 vibration total value at the CG [m/s^2]; a_wz Wk [m/s^2]; pitch, '
+          'roll: We-weighted RMS [rad/s^2]; VDV [m/s^1.75]; tyre: RMS dynamic / static load per '
+          'wheel; trav: largest corner RMS travel; wall: loop wall time per run')
+
+    live = {n: r for n, r in table.items() if not n.startswith('passive')}
+    ok = {n: r for n, r in live.items() if r['tyre_no_worse']}
+    best = min(ok or live, key=lambda n: table[n]['a_v'])
+    b = table[best]
+    goal1 = b['dav_pct'] <= -10.0 and b['tyre_no_worse']
+    print(f'\ngoal 1: best live law with no worse tyre load at any wheel: {best}, a_v '
+          f'{b["dav_pct"]:+.1f} % against passive 0 A -> {"met" if goal1 else "NOT met"}')
+    corner_laws = [n for n in live if n.startswith('per-corner')]
+    modal = [n for n in live if n.startswith('modal')]
+    for m in modal:
+        beat = [c for c in corner_laws if table[m]['a_w_pitch'] < table[c]['a_w_pitch']
+                and table[m]['a_w_roll'] < table[c]['a_w_roll']]
+        print(f'goal 2: {m} (pitch {table[m]["a_w_pitch"]:.3f}, roll {table[m]["a_w_roll"]:.3f})'
+              f' below in both pitch and roll: {len(beat)} of {len(corner_laws)} per-corner laws'
+              + (f' (not: {", ".join(c for c in corner_laws if c not in beat)})'
+                 if len(beat) < len(corner_laws) else ''))
+    print(f'total wall time {time.time() - t0:.0f} s; load average at end {os.getloadavg()}')
+    if args.json:
+        with open(args.json, 'w') as fh:
+            json.dump({'table': table, 'modal_zeta': best_z, 'sky_c': best_c,
+                       'lqr_weights': best_w}, fh, indent=1)
+
+
+if __name__ == '__main__':
+    main()

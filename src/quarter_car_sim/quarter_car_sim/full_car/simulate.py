@@ -1,0 +1,219 @@
+"""
+Closed-loop full-car simulation: car + four plants + full-car law + four supervised inverses.
+
+Timing of one control period ``dt`` (as the quarter car's loop): the law and the four corner
+cores read the state at ``t_k``, and the car advances to ``t_k + dt`` with the four currents
+held. Each corner's supervisor is offered that corner's identified Kwok-current parameters at
+the start (a corner given none stays in fail-safe on its safe current). Offline the model
+timeout is longer than the run (:data:`OFFLINE_TIMEOUT_S`): nothing re-publishes the models.
+"""
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from quarter_car_sim.full_car.control import (FullCarController, make_full_car_law,
+                                              supervisor_message)
+from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.full_car.metrics import full_car_metrics
+
+#: Model timeout [s] of the offline supervisors (the models are offered once).
+OFFLINE_TIMEOUT_S = 1.0e9
+
+_SERIES = ('q', 'v', 'acc', 'z_r', 'travel', 'v_rel', 'tyre_force', 'damper_force',
+           'coil_current')
+
+
+@dataclasses.dataclass
+class FullCarResult:
+    """
+    Time series of a full-car run (SI; corner columns in the order ``fl, fr, rl, rr``).
+
+    Attributes
+    ----------
+    t : ndarray (n,)
+        Time [s].
+    q, v, acc : ndarray (n, 7)
+        Coordinates ``[z, theta, phi, z_u x4]``, rates and accelerations.
+    z_r, travel, v_rel, tyre_force, damper_force, coil_current : ndarray (n, 4)
+        Road under each wheel [m], travel [m], travel rate [m/s], tyre force [N], damper
+        force on the body [N], actual coil current [A].
+    current_cmd : ndarray (n, 4)
+        Current commands [A].
+    demand : ndarray (n, 4)
+        Demanded body force per corner [N] (NaN in fail-safe or with a passive law).
+    normal : ndarray of bool (n, 4)
+        Corner supervisor in normal mode.
+    law : str
+        Law name.
+    status : dict
+        Corner cores' status at the end.
+    wall_time_s : float
+        Wall time of the loop [s].
+
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    acc: np.ndarray
+    travel: np.ndarray
+    v_rel: np.ndarray
+    z_r: np.ndarray
+    tyre_force: np.ndarray
+    coil_current: np.ndarray
+    damper_force: np.ndarray
+    current_cmd: np.ndarray
+    demand: np.ndarray
+    normal: np.ndarray
+    law: str = ''
+    status: dict = dataclasses.field(default_factory=dict)
+    wall_time_s: float = float('nan')
+
+    def metrics(self, params, *, seat=(0.0, 0.0)):
+        """Return :func:`quarter_car_sim.full_car.metrics.full_car_metrics` of this run."""
+        return full_car_metrics(self, params, seat=seat)
+
+
+def corner_message(damper_params):
+    """
+    One corner's identified Kwok-current parameters as a supervisor message.
+
+    Parameters
+    ----------
+    damper_params : dict, ParamsFile or path
+        ``{name: value}`` of the ten parameters (``i_ref_a`` 2 A, range 0-2 A), a parameter
+        file dict / ``ParamsFile`` (``parameters``, ``model_options``, ``current_min_a``,
+        ``current_max_a``) or a JSON parameter file.
+
+    Returns
+    -------
+    dict
+
+    """
+    d = damper_params
+    if isinstance(d, (str, bytes)) or hasattr(d, '__fspath__'):
+        from mr_damper_model.params_file import load_params
+        d = load_params(d, model='kwok-current')
+    if hasattr(d, 'parameters'):
+        d = {'parameters': d.parameters, 'model_options': d.model_options,
+             'current_min_a': d.current_min_a, 'current_max_a': d.current_max_a}
+    if 'parameters' in d:
+        opts = dict(d.get('model_options') or {})
+        lo = d.get('current_min_a', 0.0)
+        hi = d.get('current_max_a', 2.0)
+        lo = 0.0 if lo is None or not math.isfinite(float(lo)) else float(lo)
+        hi = 2.0 if hi is None or not math.isfinite(float(hi)) else float(hi)
+        return supervisor_message(d['parameters'], i_ref_a=float(opts.get('i_ref_a', 2.0)),
+                                  current_min_a=lo, current_max_a=hi)
+    return supervisor_message(d)
+
+
+def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3, settle_s=0.5,
+                      substeps=1, controller=None, duration_s=None):
+    """
+    Simulate the full car on a two-track road under a full-car law.
+
+    Parameters
+    ----------
+    params : FullCarParams
+        Car.
+    road : TwoTrackRoad
+        Road (the run covers ``road.duration`` unless ``duration_s`` is given).
+    law : str, PerCornerLaws or ModalSkyhook
+        Law (a name goes through :func:`make_full_car_law`).
+    plants : sequence of 4 DamperPlant
+        The "true" dampers of ``fl, fr, rl, rr`` (reset before the run).
+    damper_params : sequence of 4 (dict, ParamsFile, path or None), optional
+        Identified Kwok-current parameters per corner, offered to that corner's supervisor
+        at the start (None: the corner gets no model and stays in fail-safe).
+    dt : float
+        Control period [s].
+    settle_s : float
+        Time run before t = 0 on the initial road heights (law active), not recorded.
+    substeps : int
+        Integration sub-steps per period.
+    controller : FullCarController, optional
+        Ready-made controller (its supervisors are offered ``damper_params`` too when given).
+    duration_s : float, optional
+        Recorded time [s] (default the road's duration).
+
+    Returns
+    -------
+    FullCarResult
+
+    """
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f'`dt` must be > 0, got {dt}')
+    if controller is None:
+        if isinstance(law, str):
+            law = make_full_car_law(law, params, dt=dt)
+        controller = FullCarController(law, timeout_s=OFFLINE_TIMEOUT_S, i_min_a=params.i_min,
+                                       i_max_a=params.i_max)
+    n_settle = int(round(settle_s / dt))
+    car = FullCar(params, plants, road, substeps=substeps, t0=-n_settle * dt)
+    controller.reset()
+    t_clock0 = car.t
+    if damper_params is not None:
+        if len(damper_params) != 4:
+            raise ValueError('`damper_params` must hold 4 entries (fl, fr, rl, rr)')
+        for i, dp in enumerate(damper_params):
+            if dp is not None:
+                controller.offer_parameters(i, corner_message(dp), t_clock0)
+    s = car.state
+    for _ in range(n_settle):
+        s = car.step(dt, controller.command(s, s.t))
+    duration = road.duration if duration_s is None else float(duration_s)
+    n = int(round(duration / dt)) + 1
+    logs = {f: np.empty((n, 7 if f in ('q', 'v', 'acc') else 4)) for f in _SERIES}
+    t_log = np.empty(n)
+    cmd = np.empty((n, 4))
+    dem = np.empty((n, 4))
+    normal = np.empty((n, 4), dtype=bool)
+    start = time.perf_counter()
+    for k in range(n):
+        cur = controller.command(s, s.t)
+        t_log[k] = s.t
+        for f in _SERIES:
+            logs[f][k] = getattr(s, f)
+        cmd[k] = cur
+        dem[k] = controller.demands
+        normal[k] = [m == 'normal' for m in controller.modes]
+        s = car.step(dt, cur)
+    wall = time.perf_counter() - start
+    return FullCarResult(t=t_log, current_cmd=cmd, demand=dem, normal=normal, law=controller.name,
+                         status=controller.status(), wall_time_s=wall, **logs)
+
+
+def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s=0.5,
+                 seat=(0.0, 0.0)):
+    """
+    Run several full-car laws on the same road and plants; return their metrics.
+
+    Parameters
+    ----------
+    params, road
+        Car and two-track road (:func:`simulate_full_car`).
+    laws : sequence of (str or law object)
+        Laws (names through :func:`make_full_car_law`).
+    plants, damper_params, dt, settle_s
+        As :func:`simulate_full_car`.
+    seat : (float, float)
+        Seat position from the CG [m] (:func:`full_car_metrics`).
+
+    Returns
+    -------
+    dict
+        ``{law name: metrics dict}`` in the given order.
+
+    """
+    out = {}
+    for law in laws:
+        res = simulate_full_car(params, road, law, plants, damper_params, dt=dt,
+                                settle_s=settle_s)
+        m = res.metrics(params, seat=seat)
+        m['failsafe_corners'] = [c for c, st in res.status.items() if st['mode'] != 'normal']
+        m['wall_time_s'] = res.wall_time_s
+        out[res.law] = m
+    return out

@@ -1,0 +1,162 @@
+"""
+Core of the ``state_estimator_node`` without ROS: sensor readings in, one estimate per tick.
+
+The node converts messages and calls this object; everything else happens here:
+
+- :meth:`StateEstimatorCore.offer_reading` keeps the newest reading of each sensor since the
+  last tick (an older one replaced before it was used is counted, ``readings_replaced``);
+- :meth:`offer_current` keeps the last current command [A] (the coil current input);
+- :meth:`offer_parameters` gives an identified Kwok-current parameter set to the fail-safe
+  supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`, the same rules as the
+  controller's: invalid, out-of-bounds, pinned or stale sets are not used); the active set is
+  the estimator's damper model (the known force input);
+- :meth:`tick` (at the control rate) steps the Kalman filter
+  (:class:`quarter_car_sim.estimator.QuarterCarEstimator`) with the readings that arrived and
+  returns the :class:`~quarter_car_sim.estimator.Estimate`. Without a usable identified model
+  the filter runs with the force of the safe current's model if one was ever accepted, else
+  with no damper force, and the estimate is invalid (``no_model``), counted like the filter's
+  own reasons.
+"""
+import math
+
+from quarter_car_sim.estimator import design_estimator, QuarterCarEstimator
+from quarter_car_sim.sensors import SENSOR_NAMES
+
+
+class StateEstimatorCore:
+    """
+    Readings, current and identified model in; an estimate per control tick out.
+
+    Parameters
+    ----------
+    car_params : QuarterCarParams
+        Car the filter assumes.
+    dt : float
+        Control period [s] (one :meth:`tick` per period).
+    specs : dict
+        ``{sensor: SensorSpec}`` of the vehicle's sensors (noise, latency).
+    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+        Gatekeeper of the identified parameters.
+    design_options : dict, optional
+        Options of :func:`~quarter_car_sim.estimator.design_estimator`.
+    run_options : dict, optional
+        Options of :class:`~quarter_car_sim.estimator.QuarterCarEstimator`.
+
+    Attributes
+    ----------
+    estimator : QuarterCarEstimator
+    readings_received, readings_replaced : dict
+        Per sensor: readings offered, and those replaced by a newer one before a tick.
+    no_model_entries, no_model_steps : int
+        Entries into and ticks of an estimate invalid for want of a model.
+
+    """
+
+    def __init__(self, car_params, dt, specs, supervisor, *, design_options=None,
+                 run_options=None):
+        self.sup = supervisor
+        self.design = design_estimator(car_params, dt, specs, **dict(design_options or {}))
+        self.estimator = QuarterCarEstimator(self.design, self._body_force,
+                                             **dict(run_options or {}))
+        self.sensors = self.design.sensors
+        self._pending = {}
+        self.readings_received = dict.fromkeys(self.sensors, 0)
+        self.readings_replaced = dict.fromkeys(self.sensors, 0)
+        self.current_a = supervisor.safe_current_a
+        self._model = None
+        self._model_of = None
+        self.no_model_entries = 0
+        self.no_model_steps = 0
+        self._no_model = False
+        self.last = None
+
+    def _body_force(self, i, x, v):
+        if self._model is None:
+            return 0.0
+        return -self._model.force(i, x, v)
+
+    def offer_reading(self, sensor, value):
+        """
+        Keep the newest reading of ``sensor`` (accelerometers: specific force, gravity in).
+
+        NaN marks a sample the sensor reported lost. Raises ValueError for a sensor the filter
+        was not designed with.
+        """
+        if sensor not in self.readings_received:
+            raise ValueError(f'sensor {sensor!r} is not one of the estimator\'s '
+                             f'({", ".join(self.sensors)}; all: {", ".join(SENSOR_NAMES)})')
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            value = math.nan
+        if sensor in self._pending:
+            self.readings_replaced[sensor] += 1
+        self._pending[sensor] = value
+        self.readings_received[sensor] += 1
+
+    def offer_current(self, current_a):
+        """Take the current command [A] in force (non-finite: ignored, the last one stays)."""
+        try:
+            current_a = float(current_a)
+        except (TypeError, ValueError):
+            return False
+        if not math.isfinite(current_a):
+            return False
+        self.current_a = current_a
+        return True
+
+    def offer_parameters(self, values, t_now):
+        """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
+        return self.sup.offer(values, t_now)
+
+    def _update_model(self):
+        params = self.sup.active
+        if params is None:
+            return False
+        if params is not self._model_of:
+            from mr_damper_model.inverse import KwokCurrentInverse
+            self._model = KwokCurrentInverse(params, i_ref_a=params['i_ref_a'],
+                                             i_min=self.sup.i_min_a, i_max=self.sup.i_max_a)
+            self._model_of = params
+        return True
+
+    def tick(self, t, t_clock=None):
+        """
+        Step the filter with the readings since the last tick; return the Estimate.
+
+        Parameters
+        ----------
+        t : float
+            Time of this control step [s] (the estimate's stamp).
+        t_clock : float, optional
+            Supervisor clock [s] (default ``t``).
+
+        """
+        self.sup.update(t if t_clock is None else t_clock)
+        have_model = self._update_model()
+        readings, self._pending = self._pending, {}
+        est = self.estimator.step(t, readings, self.current_a)
+        if not have_model:
+            self.no_model_steps += 1
+            if not self._no_model:
+                self.no_model_entries += 1
+            self._no_model = True
+            if est.valid:
+                est.valid, est.reason = False, 'no_model'
+        else:
+            self._no_model = False
+        self.last = est
+        return est
+
+    def status(self):
+        """Return the estimator's counters plus the model and reading counters (JSON-ready)."""
+        st = self.estimator.status()
+        if self.last is not None:
+            st['valid'], st['reason'] = self.last.valid, self.last.reason
+            st['std'] = dict(zip(('travel', 'v_s', 'tyre_def', 'v_u', 'v_rel'), self.last.std))
+        st.update({'no_model_entries': self.no_model_entries,
+                   'no_model_steps': self.no_model_steps,
+                   'readings_received': dict(self.readings_received),
+                   'readings_replaced': dict(self.readings_replaced),
+                   'current_a': self.current_a, 'model': self.sup.status()})
+        return st
