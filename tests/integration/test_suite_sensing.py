@@ -1,5 +1,5 @@
 """
-The suite on estimated states: ``mr-damper-suite --sensing vehicle`` (docs/sensing.md, "In the suite").
+The suite on estimated states: ``mr-damper-suite --sensing vehicle`` (docs/sensing.md).
 
 - the configuration alone (no nodes): the estimator starts before the controller and the car,
   takes the car's rate, fail-safe current, timeout and car parameters and is clocked by the
@@ -12,12 +12,10 @@ The suite on estimated states: ``mr-damper-suite --sensing vehicle`` (docs/sensi
   events and counts only, no wall-clock thresholds.
 """
 import json
-import os
-import subprocess
 
 import pytest
 
-from conftest import VENV_BIN
+from integration.ros_helpers import run_suite
 from mr_damper_bringup.config import (CTRL, EST, external_controller, IDENT, node_params, QC,
                                       recorder_arguments, resolve_config, RIG, suite_nodes)
 from mr_damper_bringup.launcher import parse_args
@@ -54,17 +52,9 @@ def test_sensing_vehicle_config_wires_car_estimator_controller(tmp_path):
 def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
     """mr-damper-suite --sensing vehicle end to end, a dropout injected mid-run."""
     out = tmp_path / 'suite'
-    env = dict(os.environ)
-    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--sensing', 'vehicle', '--duration', '20',
-           '--out', str(out), '--progress-s', '5', '--no-plots',
-           '--domain-id', env['ROS_DOMAIN_ID'],
-           '--set', f'quarter_car_node.sensor_dropout_start_s={DROPOUT[0]}',
-           '--set', f'quarter_car_node.sensor_dropout_s={DROPOUT[1]}']
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env)
-    text = proc.stdout[-3000:] + proc.stderr[-3000:]
-    # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
-    assert proc.returncode == 0, text
-    assert 'exited with' not in proc.stderr and 'died (exit' not in proc.stderr, text
+    proc = run_suite(out, '--sensing', 'vehicle', '--duration', '20',
+                     '--set', f'quarter_car_node.sensor_dropout_start_s={DROPOUT[0]}',
+                     '--set', f'quarter_car_node.sensor_dropout_s={DROPOUT[1]}')
     summary = json.loads((out / 'summary.json').read_text())
     assert summary['exit_codes'] and set(summary['exit_codes'].values()) == {0}, summary
     assert set(summary['exit_codes']) >= {RIG, IDENT, EST, CTRL, QC}
