@@ -281,3 +281,21 @@ def pump_lines(stream, lines):
     for line in iter(stream.readline, ''):
         lines.put(line)
     lines.put(None)
+
+
+def run_suite(out, *options, timeout_s=240):
+    """
+    Run ``mr-damper-suite`` to its end (``--no-plots``, the test's domain) and check it was clean.
+
+    Asserts exit status 0 and no node died or exited uncleanly (the launcher says so); the
+    timeout is a hang guard. Returns the completed process (``stdout``, ``stderr``).
+    """
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), *options, '--out', str(out), '--progress-s', '5',
+           '--no-plots', '--domain-id', env['ROS_DOMAIN_ID']]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env)
+    text = proc.stdout[-3000:] + proc.stderr[-3000:]
+    # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
+    assert proc.returncode == 0, text
+    assert 'exited with' not in proc.stderr and 'died (exit' not in proc.stderr, text
+    return proc
