@@ -25,15 +25,14 @@ from conftest import VENV_BIN
 DISCOVERY_TIMEOUT_S = 8.0
 
 
-def fault_test_suite(out, samples_per_message=None):
+def fault_test_suite(out):
     """
     Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
 
     The main job's parameters at real time, with a 1 s parameter timeout, car diagnostics every
     0.1 s, a rig that waits for one reader and an identifier that saves its parameters every
     0.5 s (a restarted identifier starts from them); no end of its own (the test stops it; the
-    road repeats); written to ``out/suite_params.yaml``. ``samples_per_message``: the rig's
-    batch size instead of the default.
+    road repeats); written to ``out/suite_params.yaml``.
     """
     import yaml
     from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
@@ -45,8 +44,6 @@ def fault_test_suite(out, samples_per_message=None):
     set_param(cfg, QC, 'diagnostics_period_s', 0.1)
     set_param(cfg, RIG, 'wait_for_subscribers', 1)
     set_param(cfg, IDENT, 'save_period_s', 0.5)
-    if samples_per_message is not None:
-        set_param(cfg, RIG, 'samples_per_message', int(samples_per_message))
     params_file = Path(out) / 'suite_params.yaml'
     params_file.write_text(yaml.safe_dump(cfg))
     return Suite(params_file, out, int(os.environ['ROS_DOMAIN_ID']))
