@@ -25,15 +25,14 @@ from conftest import VENV_BIN
 DISCOVERY_TIMEOUT_S = 8.0
 
 
-def fault_test_suite(out, samples_per_message=None):
+def fault_test_suite(out):
     """
     Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
 
     The main job's parameters at real time, with a 1 s parameter timeout, car diagnostics every
     0.1 s, a rig that waits for one reader and an identifier that saves its parameters every
     0.5 s (a restarted identifier starts from them); no end of its own (the test stops it; the
-    road repeats); written to ``out/suite_params.yaml``. ``samples_per_message``: the rig's
-    batch size instead of the default.
+    road repeats); written to ``out/suite_params.yaml``.
     """
     import yaml
     from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG, set_param
@@ -45,8 +44,6 @@ def fault_test_suite(out, samples_per_message=None):
     set_param(cfg, QC, 'diagnostics_period_s', 0.1)
     set_param(cfg, RIG, 'wait_for_subscribers', 1)
     set_param(cfg, IDENT, 'save_period_s', 0.5)
-    if samples_per_message is not None:
-        set_param(cfg, RIG, 'samples_per_message', int(samples_per_message))
     params_file = Path(out) / 'suite_params.yaml'
     params_file.write_text(yaml.safe_dump(cfg))
     return Suite(params_file, out, int(os.environ['ROS_DOMAIN_ID']))
@@ -322,3 +319,21 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
             proc.kill()
             proc.wait()
     return ready, proc.returncode, seen, rest
+
+
+def run_suite(out, *options, timeout_s=240):
+    """
+    Run ``mr-damper-suite`` to its end (``--no-plots``, the test's domain) and check it was clean.
+
+    Asserts exit status 0 and no node died or exited uncleanly (the launcher says so); the
+    timeout is a hang guard. Returns the completed process (``stdout``, ``stderr``).
+    """
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), *options, '--out', str(out), '--progress-s', '5',
+           '--no-plots', '--domain-id', env['ROS_DOMAIN_ID']]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env)
+    text = proc.stdout[-3000:] + proc.stderr[-3000:]
+    # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
+    assert proc.returncode == 0, text
+    assert 'exited with' not in proc.stderr and 'died (exit' not in proc.stderr, text
+    return proc

@@ -10,13 +10,12 @@ The suite over CAN: ``mr-damper-suite --config can`` (docs/can.md, "With the sui
   frame log ``can.blf`` reads back with python-can. Counts only, no wall-clock thresholds.
 """
 import json
-import os
-import subprocess
 
 import pytest
 import yaml
 
-from conftest import REPO, VENV_BIN
+from conftest import REPO
+from integration.ros_helpers import run_suite
 from mr_damper_bringup.config import (CAN_BRIDGE, CAN_DRIVER, CAN_PORT_BASE, CTRL,
                                       external_controller, IDENT, node_arguments, node_params,
                                       QC, recorder_arguments, resolve_config, RIG, suite_nodes)
@@ -86,15 +85,7 @@ def test_can_rejects_corners(tmp_path, capsys):
 def test_suite_over_can_loses_no_command(tmp_path):
     """mr-damper-suite --config can end to end: 0 lost frames, the measured current back."""
     out = tmp_path / 'suite'
-    env = dict(os.environ)
-    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'can', '--duration', '20',
-           '--out', str(out), '--progress-s', '5', '--no-plots',
-           '--domain-id', env['ROS_DOMAIN_ID']]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env)
-    text = proc.stdout[-3000:] + proc.stderr[-3000:]
-    # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
-    assert proc.returncode == 0, text
-    assert 'exited with' not in proc.stderr and 'died (exit' not in proc.stderr, text
+    proc = run_suite(out, '--config', 'can', '--duration', '20')
     for node in (CAN_DRIVER, CAN_BRIDGE, RIG, IDENT, CTRL, QC):
         assert (out / 'logs' / f'{node}.log').read_text().startswith('--- start'), node
     assert 'CAN (fl): bridge sent' in proc.stdout

@@ -112,7 +112,8 @@ def test_installed_definitions_are_the_sources():
     """A stale venv (sources changed, not rebuilt) fails here."""
     installed = bag_types.interfaces_msg_dir()
     names = sorted(p.name for p in SRC_MSG.glob('*.msg'))
-    assert names == ['DamperModel.msg', 'KwokParameters.msg', 'QuarterCarState.msg']
+    assert names == ['DamperModel.msg', 'DamperSamples.msg', 'KwokParameters.msg',
+                     'QuarterCarState.msg']
     assert sorted(p.name for p in installed.glob('*.msg')) == names
     for name in names:
         assert (installed / name).read_text() == (SRC_MSG / name).read_text()

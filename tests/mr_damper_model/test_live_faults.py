@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pytest
 
+from live_records import alpha_scaled_fit
 from mr_damper_model.data import DamperData
 from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
                                   LiveConfig, LiveIdentifier, pinned_parameters, robust_range,
                                   running_median)
-from mr_damper_model.metrics import fit_metrics
 from mr_damper_model.presets import thesis_kwok_current
 
 RATE = 1000.0
@@ -156,11 +156,11 @@ def test_1e30_spike_without_range_check_is_still_an_outlier():
 
 
 def test_issue_failure_1e30_in_the_fit_is_refused_by_validity():
-    """Range check, screen and gate off: the spike is fitted; validity alone refuses it."""
+    """Range check, screens, gate and review off: the spike is fitted; validity refuses it."""
     arrays = stream()
     arrays[3][K_FAULT + 10:K_FAULT + 12] = 1e30      # two: one survives the fit decimation
     li, ests = run(arrays, force_limit_n=1e31, outlier_mad_k=1e30,
-                   outlier_floor_fraction=1e30, max_shift_ratio=1e30)
+                   outlier_floor_fraction=1e30, max_shift_ratio=1e30, acceptance_checks=False)
     spiked = [e for e in ests if e.window_start_s <= T_FAULT + 0.011 <= e.window_end_s]
     assert len(spiked) == 4
     for est in spiked:
@@ -186,7 +186,10 @@ def test_stuck_load_cell_and_dropout_are_flagged(value, reason):
     # that (at most stuck_s of it) may have been binned
     stuck_n = int(li.config.stuck_s * RATE)
     assert n_run - stuck_n <= flagged <= n_run
-    assert sum(li.counters['samples_flagged'].values()) == flagged
+    # the force-offset screen takes some of that part (a dropout is an offset to 0 N)
+    offset = li.counters['samples_flagged']['offset']
+    assert flagged + offset <= n_run
+    assert sum(li.counters['samples_flagged'].values()) == flagged + offset
     assert len(after_fault(assert_no_wrong_valid(ests))) >= 8
     assert_accounted(li)
 
@@ -214,9 +217,13 @@ def test_force_offset_step_is_inconsistent_until_it_goes_away():
     assert not [e for e in valid if T_FAULT < e.window_end_s <= offset_end / RATE]
     assert [e for e in valid if e.window_end_s > offset_end / RATE + 0.5]
     assert_accounted(li)
-    # without the consistency gate the offset becomes a valid, wrong f0
-    _, blind = run(arrays, max_shift_ratio=1e9)
+    # without the consistency gate and the acceptance review the offset becomes a valid,
+    # wrong f0; the review's offset screen alone keeps every valid set right
+    _, blind = run(arrays, max_shift_ratio=1e9, acceptance_checks=False)
     assert [e for e in after_fault(blind) if e.valid and force_error(e) >= TOL]
+    li, screened = run(arrays, max_shift_ratio=1e9)
+    assert_no_wrong_valid(screened)
+    assert li.counters['samples_flagged']['offset'] >= 2000
 
 
 def test_load_cell_sign_flip_is_inconsistent():
@@ -245,8 +252,9 @@ def test_current_sensor_stuck_is_inconsistent():
     assert li.counters['windows_skipped']['inconsistent'] >= 8
     assert_no_wrong_valid(ests)
     assert all(max(e.bins_a) <= 1.0 for e in ests)
-    # without the gate, 2 A forces filed at 1 A make a valid, wrong set
-    _, blind = run(arrays, max_shift_ratio=1e9)
+    # without the gate (and the acceptance review), 2 A forces filed at 1 A make a valid,
+    # wrong set
+    _, blind = run(arrays, max_shift_ratio=1e9, acceptance_checks=False)
     assert [e for e in after_fault(blind) if e.valid and force_error(e) >= TOL]
 
 
@@ -317,30 +325,9 @@ def test_range_checks_count_by_channel(channel, index, value):
     assert li.counters['samples_accepted'] == 1 and li.counters['samples_received'] == 2
 
 
-def _perturbing_fit(scale_alpha_after):
-    """Return a fit that scales alpha by 0.85 from call ``scale_alpha_after`` on."""
-    calls = []
-
-    def fit(data, model, config, x0=None):
-        result = fit_data(data, model, config, x0=x0)
-        calls.append(model)
-        if len(calls) > scale_alpha_after:
-            params = dict(result.parameters)
-            for name in ('alpha', 'alpha0', 'alpha1', 'alpha2'):
-                if name in params:
-                    params[name] *= 0.85
-            from mr_damper_model.models import get_model
-            mdl = get_model(model, **({'i_ref_a': 2.0} if model == 'kwok-current' else {}))
-            p = np.array([params[n] for n in mdl.param_names])
-            result.parameters = params
-            result.metrics = fit_metrics(data.f, mdl.force(p, data.x, data.v, i=data.i))
-        return result
-    return fit
-
-
 def test_set_much_worse_than_last_valid_is_refused():
     arrays = stream(currents=(1.0, 1.0), hold_s=2.5)
-    li = LiveIdentifier(LiveConfig(**CFG), fit=_perturbing_fit(2))
+    li = LiveIdentifier(LiveConfig(**CFG), fit=alpha_scaled_fit(2, 0.85))
     ests = li.replay(DamperData(*arrays), 50)
     assert [e.valid for e in ests[:2]] == [True, True]
     bad = ests[2:]

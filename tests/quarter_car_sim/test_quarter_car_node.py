@@ -188,3 +188,31 @@ def test_parameter_timeout_runs_on_ros_time_under_use_sim_time(node_factory):
     while node.sup.reason != 'stale' and time.monotonic() < deadline:
         time.sleep(0.01)
     assert (node.sup.mode, node.sup.reason) == ('failsafe', 'stale')
+
+
+def test_vehicle_sensing_publishes_the_sensors_and_moves_the_true_state(node_factory):
+    """sensing:=vehicle: Imu and JointState readings of the sampler, true state elsewhere."""
+    import time
+    from quarter_car_sim.sensors import G0
+    with pytest.raises(ValueError, match='needs controller:=external'):
+        node_factory(sensing='vehicle')
+    with pytest.raises(ValueError, match="'ideal' or 'vehicle'"):
+        node_factory(sensing='perfect', controller='external')
+    node = node_factory(controller='external', sensing='vehicle', sensor_dropout_start_s=0.1,
+                        sensor_dropout_s=0.05)
+    assert node.car_state_pub.topic_name == '/h5unit/quarter_car/true_state'
+    assert node.imu_pub.topic_name == '/h5unit/quarter_car/body_imu'
+    assert node.position_pub.topic_name == '/h5unit/quarter_car/suspension_position'
+    deadline = time.monotonic() + 30.0          # hang guard: the car runs at 5x real time
+    while node.car.state.t < 0.3 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    st = node.status()['sensing']
+    # every control step sampled both sensors; the 50 ms window (1 kHz) lost, counted
+    assert st['sensors']['body_accel']['samples'] == st['sensors']['travel']['samples'] > 300
+    assert st['sensors']['body_accel']['lost'] >= 50
+    assert st['dropout_window_s'] == [0.1, 0.05]
+    # the messages carry the sampler's readings: specific force and travel, stamped >= 0
+    assert node.imu_msg.orientation_covariance[0] == -1.0
+    assert abs(node.imu_msg.linear_acceleration.z - G0) < 20.0
+    assert node.position_msg.name == ['suspension'] and len(node.position_msg.position) == 1
+    assert node.position_msg.header.stamp.sec >= 0

@@ -135,3 +135,44 @@ def test_defaults_cite_their_datasheet_figures():
 def test_bad_settings_name_the_setting(bad, match):
     with pytest.raises(SensorError, match=match):
         SensorSpec(**{'noise_density': 1e-3, **bad})
+
+
+def test_vehicle_sensors_of_the_car_with_an_injected_dropout():
+    """VehicleSensors: default sensors, seeded, the dropout window NaN and counted."""
+    from types import SimpleNamespace
+
+    from quarter_car_sim.sensors import SensorError, VehicleSensors
+    dt = 1e-3
+
+    def run(seed):
+        vs = VehicleSensors(dt, seed, dropout=(0.2, 0.1))
+        out = []
+        for k in range(500):
+            t = k * dt
+            out.append(vs.step(t, SimpleNamespace(a_s=0.0, a_u=0.0, travel=0.01)))
+        return vs, out
+    vs, out = run(3)
+    assert set(vs.samplers) == {'body_accel', 'travel'}
+    # 1 ms latency: the sample taken at t is delivered at t + dt (none at the first step)
+    assert out[0] == {} and set(out[1]) == {'body_accel', 'travel'}
+    acc = np.array([r['body_accel'] for r in out[1:]])
+    t_sample = np.arange(499) * dt
+    inside = (t_sample >= 0.2 - 1e-9) & (t_sample < 0.3 - 1e-9)
+    assert np.all(np.isnan(acc[inside]))
+    assert np.count_nonzero(np.isnan(acc[~inside])) <= 2       # random loss 1e-4 per sample
+    assert abs(np.nanmean(acc[~inside]) - G0) < 0.5            # specific force: +g at rest
+    travel = np.array([r['travel'] for r in out[1:]])
+    assert np.all(np.isfinite(travel)) and np.all(np.abs(travel - 0.01) < 1e-3)
+    st = vs.status()
+    # every lost sample counted (the last one, still in the latency queue, may be lost too)
+    n_nan = np.count_nonzero(np.isnan(acc))
+    assert st['sensors']['body_accel']['lost'] in (n_nan, n_nan + 1)
+    assert st['sensors']['body_accel']['samples'] == 500
+    assert st['dropout_window_s'] == [0.2, 0.1] and st['dropout_sensors'] == ['body_accel']
+    # seeded: the same readings again; another seed, others
+    _, again = run(3)
+    _, other = run(4)
+    assert again[250:260] == out[250:260] and other[10] != out[10]
+    assert VehicleSensors(dt, dropout=(1.0, 0.0)).status()['dropout_window_s'] == []
+    with pytest.raises(SensorError, match='dropout_sensors'):
+        VehicleSensors(dt, dropout=(1.0, 1.0), dropout_sensors=('wheel_accel',))

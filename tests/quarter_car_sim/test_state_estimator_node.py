@@ -102,3 +102,31 @@ def test_node_publishes_valid_then_marked_invalid_states(make_node):
     node.on_position(_position(math.nan))           # a lost sample: counted, not used
     node.on_tick()
     assert node.core.estimator.samples_missing['travel'] == 1
+
+
+def test_core_clocked_by_readings_predicts_through_missing_periods():
+    """tick_at: the readings' stamps are the filter's time; gaps predicted, counted."""
+    from mr_damper_model.messages import kwok_parameters_flat
+    from quarter_car_sim.failsafe import ModelSupervisor
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.sensors import default_specs, G0
+    from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
+    core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
+    core.offer_parameters(kwok_parameters_flat(thesis_parameters_msg()), 0.0)
+    rng = np.random.default_rng(1)
+    stamps = [k * 1e-3 for k in range(400) if k % 7 != 3]      # every 7th reading lost
+    for t in stamps:
+        core.offer_reading('body_accel', G0 + 0.05 * rng.standard_normal())
+        core.offer_reading('travel', 5e-5 * rng.standard_normal())
+        e = core.tick_at(t, 0.0)
+    # one filter step per control period of the vehicle's time, whatever was lost
+    assert core.estimator.steps == 400
+    assert core.predict_steps == 400 - len(stamps)
+    assert e.valid and e.t == pytest.approx(stamps[-1])
+    # a reading not after the last tick: no step, counted; the reading waits
+    core.offer_reading('travel', 0.0)
+    assert core.tick_at(stamps[-1], 0.0) is None and core.stale_ticks == 1
+    assert core.estimator.steps == 400
+    # the vehicle's clock restarted: the time line re-bases instead of 400 s of prediction
+    assert core.tick_at(stamps[-1] - 2 * REBASE_S, 0.0) is not None
+    assert core.rebases == 1 and core.estimator.steps == 401

@@ -37,6 +37,14 @@ RECORDER_NODE = {RECORDER: 'mr-damper-record'}
 #: the stand-alone controller node (started with ``--external-controller``)
 CTRL = 'semi_active_controller'
 CONTROLLER_NODE = {CTRL: 'semi_active_controller_node'}
+#: the state estimator node (``--sensing vehicle``: the car publishes its sensors, the estimator
+#: publishes the car state the controller node reads)
+EST = 'state_estimator'
+ESTIMATOR_NODE = {EST: 'state_estimator_node'}
+#: car parameters the estimator takes over (control rate, fail-safe current, model timeout,
+#: coil range, the car it assumes and the design road)
+ESTIMATOR_PARAMS = ('rate_hz', 'safe_current_a', 'param_timeout_s', 'i_min_a', 'i_max_a', 'm_s',
+                    'm_u', 'k_s', 'k_t', 'road_class', 'speed_m_s')
 #: ``--config can``: the simulated damper driver (started first) and the CAN bridge (second)
 CAN_DRIVER = 'can_driver_sim'
 CAN_BRIDGE = 'can_bridge'
@@ -169,7 +177,34 @@ def resolve_config(args, out):
         use_external_controller(cfg)
     if args.config == 'can' or can_config(cfg):
         use_can(cfg, args, out)
+    if getattr(args, 'sensing', 'ideal') == 'vehicle' or sensing_vehicle(cfg):
+        use_vehicle_sensing(cfg)
     return cfg
+
+
+def sensing_vehicle(cfg):
+    """Return True when the law runs on estimated states (car ``sensing: vehicle``)."""
+    return str(node_params(cfg, QC).get('sensing', '')).strip().lower() == 'vehicle'
+
+
+def use_vehicle_sensing(cfg):
+    """
+    Run the law on the state estimated from the car's sensors (``--sensing vehicle``).
+
+    The law moves into the controller node (:func:`use_external_controller`); the car publishes
+    its sensors and its true state on ``quarter_car/true_state``; the estimator (its own
+    section, the car's rate, fail-safe current, timeout, coil range and car parameters unless
+    set there; stepped by the readings at their stamps, ``clock: readings``) publishes
+    ``quarter_car/car_state`` for the controller.
+    """
+    use_external_controller(cfg)
+    set_param(cfg, QC, 'sensing', 'vehicle')
+    car = node_params(cfg, QC)
+    own = cfg.setdefault(EST, {}).setdefault('ros__parameters', {})
+    for name in ESTIMATOR_PARAMS:
+        if name in car:
+            own.setdefault(name, car[name])
+    own.setdefault('clock', 'readings')
 
 
 def external_controller(cfg):
@@ -198,7 +233,9 @@ def suite_nodes(cfg):
     first = dict(CAN_NODES) if can_config(cfg) else {}
     if not external_controller(cfg):
         return {**first, **NODES}
-    return {**first, RIG: NODES[RIG], IDENT: NODES[IDENT], **CONTROLLER_NODE, QC: NODES[QC]}
+    est = dict(ESTIMATOR_NODE) if sensing_vehicle(cfg) else {}
+    return {**first, RIG: NODES[RIG], IDENT: NODES[IDENT], **est, **CONTROLLER_NODE,
+            QC: NODES[QC]}
 
 
 def can_config(cfg):
@@ -260,8 +297,9 @@ def node_arguments(cfg, params_file):
 
 
 def recorder_arguments(cfg):
-    """Return the recorder's extra options of a run (a CAN run: ``--can``, the bus topics)."""
-    return ['--can'] if can_config(cfg) else []
+    """Return the recorder's extra options (``--can``: the bus topics; ``--sensing``)."""
+    sensing = ['--sensing'] if sensing_vehicle(cfg) else []
+    return (['--can'] if can_config(cfg) else []) + sensing
 
 
 #: Car corners the launcher can run side by side, each under its namespace.

@@ -24,13 +24,17 @@ Usage::
         [--config sim|replay|hil|can|full-car] [--file PATH ...]
         [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
-        [--external-controller] [--corners fl,fr,rl,rr]
+        [--external-controller] [--sensing ideal|vehicle] [--corners fl,fr,rl,rr]
         [--max-restarts 3] [--restart-window-s 60] [--restart-backoff-s 0.5]
         [--restart-backoff-max-s 8]
 
 ``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
 also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
 then the plant only and its law runs in the controller node (docs/controller-node.md).
+
+``--sensing vehicle`` also starts ``state_estimator_node`` (YAML key ``state_estimator``) before
+the controller: the car publishes its modelled sensors and its true state on
+``quarter_car/true_state``, the controller runs on the estimate (docs/sensing.md).
 
 ``--corners fl,fr`` runs one rig + identifier + car per car corner, each under its namespace
 (``/fl/mr_damper/measurement``, status ``fl/mr_damper_identifier``, ...; :func:`~mr_damper_bringup.
@@ -245,6 +249,10 @@ def parse_args(argv):
     p.add_argument('--external-controller', action='store_true',
                    help='run the car\'s law in semi_active_controller_node (the car is the '
                         'plant only, controller:=external)')
+    p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
+                   help='vehicle: the law runs on the state estimated from the car\'s modelled '
+                        'sensors (state_estimator_node + semi_active_controller_node, '
+                        'docs/sensing.md); ideal: on the true state')
     p.add_argument('--corners', type=lambda s: [c.strip() for c in s.split(',') if c.strip()],
                    help='run one rig + identifier + car per car corner, each in its namespace '
                         '(comma-separated subset of fl,fr,rl,rr)')

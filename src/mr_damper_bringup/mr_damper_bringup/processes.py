@@ -13,7 +13,8 @@ import subprocess
 import sys
 import time
 
-from .config import CAN_BRIDGE, CAN_DRIVER, CTRL, IDENT, NODES, QC, RECORDER, RIG, SuiteError
+from .config import (CAN_BRIDGE, CAN_DRIVER, CTRL, EST, IDENT, NODES, QC, RECORDER, RIG,
+                     SuiteError)
 
 #: Exit statuses of a clean stop: every node handles SIGINT and SIGTERM (node_utils.run_node)
 #: and exits 0, so death by a signal or a traceback on the way out is an unclean shutdown.
@@ -153,7 +154,7 @@ class Suite:
                 self.deaths[name] = rc
         return dict(self.deaths)
 
-    def stop(self, order=(QC, CTRL, RIG, IDENT, CAN_BRIDGE), last=(RECORDER,), drain_s=1.0,
+    def stop(self, order=(QC, CTRL, EST, RIG, IDENT, CAN_BRIDGE), last=(RECORDER,), drain_s=1.0,
              timeout_s=10.0, drained=None, stall_s=3.0, guard_s=60.0, then=(CAN_DRIVER,)):
         """
         Stop every node with SIGINT (then SIGTERM, SIGKILL if it hangs).

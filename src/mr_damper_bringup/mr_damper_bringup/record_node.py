@@ -43,7 +43,7 @@ from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, insta
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
 from .topics import (CAN_TOPICS, namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES,
-                     SUITE_TOPICS, topic_table)
+                     SENSING_TOPICS, SUITE_TOPICS, topic_table)
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': PARAMETERS_QOS,
@@ -118,11 +118,14 @@ def _parser():
     p = argparse.ArgumentParser(prog='mr-damper-record', description=__doc__.split('\n')[1])
     p.add_argument('--out', required=True, help='MCAP file to create (must not exist)')
     p.add_argument('--only', action='append', metavar='KEY',
-                   choices=sorted({**SUITE_TOPICS, **CAN_TOPICS}),
+                   choices=sorted({**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}),
                    help='record only this topic key (repeat; default: every suite topic)')
     p.add_argument('--can', action='store_true',
                    help='also the CAN bridge\'s topics (measured current, can/car_state, '
                         'can/body_imu, can/wheel_imu)')
+    p.add_argument('--sensing', action='store_true',
+                   help='also the vehicle sensing topics (quarter_car/body_imu, '
+                        'quarter_car/suspension_position, quarter_car/true_state)')
     p.add_argument('--namespace', action='append', default=[], metavar='NS',
                    help='record the suite topics of the nodes in namespace NS (repeat for '
                         'several car corners: fl, fr, rl, rr); default: the root namespace')
@@ -149,7 +152,8 @@ def main(argv=None):
     out = Path(args.out)
     try:
         config_text = Path(args.suite_config).read_text() if args.suite_config else None
-        table = namespaced_table(topic_table(args.only, can=args.can), args.namespace)
+        table = namespaced_table(topic_table(args.only, can=args.can, sensing=args.sensing),
+                                 args.namespace)
         recorder = SuiteRecorder(out, table,
                                  config_text=config_text, start_ns=time.time_ns())
     except (OSError, ValueError, LookupError) as exc:

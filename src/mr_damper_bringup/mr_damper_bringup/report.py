@@ -54,7 +54,7 @@ from mr_damper_model.sample_stream import BatchIndex
 
 from .config import IDENT, node_params, QC, RIG
 from .topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
-                     NODE_PARAMETERS_TOPIC, STATUS_KEYS, SUITE_TOPICS)
+                     NODE_PARAMETERS_TOPIC, SENSING_TOPICS, STATUS_KEYS, SUITE_TOPICS)
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 #: file name of the run's recording in the output folder
@@ -111,7 +111,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     from mr_damper_model.mcap_scan import McapScan
     from .topics import decode_measurement
     work = Path(work)
-    keys = {row.name: key for key, row in {**SUITE_TOPICS, **CAN_TOPICS}.items()}
+    tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
+    keys = {row.name: key for key, row in tables.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
     rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
@@ -984,6 +985,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
     if can is not None:
         summary['config'] = 'can'
         summary['can'] = can
+    _add_sensing(summary, out, rec, qc_status)
     lost, breakdown = messages_summary(rec, qc_status)
     attribute_losses(breakdown, rec.get('restarts') or [])
     summary['messages_lost'] = lost
@@ -1017,6 +1019,16 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         suite_plots.plot_all(out, meas.strided(200000), params_plot, summary, trace,
                              passive_trace)
     return summary
+
+
+def _add_sensing(summary, out, rec, qc_status):
+    """``--sensing vehicle``: the ``sensing`` section (:mod:`mr_damper_bringup.sensing_report`)."""
+    if 'estimator' not in rec.get('status', {}) and 'sensing' not in qc_status:
+        return
+    from .recorder import recording_parts
+    from .sensing_report import sensing_summary
+    parts = [f for _, f in recording_parts(out / RECORDING)]
+    summary['sensing'] = sensing_summary(rec.get('status', {}), qc_status, parts)
 
 
 def recording_state(rec):
@@ -1185,6 +1197,9 @@ def format_summary(s):
                      f'{can["bad_checksum"]}; bridge fail-safe entries '
                      f'{can["failsafe_entries"]} ({can["failsafe_s"] or 0:.2f} s), faults '
                      f'{can["bridge_faults"] or "none"}')
+    if s.get('sensing'):
+        from .sensing_report import format_sensing
+        lines.extend(format_sensing(s['sensing']))
     lines.extend(restart_lines(s))
     loop = s.get('loop_full_run') or {}
     m2p = s.get('measurement_to_parameters_s')

@@ -55,6 +55,14 @@ CAN_TOPICS = {
     'can_wheel_imu': Topic('/can/wheel_imu', IMU, 'default'),
 }
 
+#: Vehicle sensing (``mr-damper-suite --sensing vehicle``; ``mr-damper-record --sensing``): the
+#: car's sensors and its true state (the car state topic then carries the estimate).
+SENSING_TOPICS = {
+    'body_imu': Topic('/quarter_car/body_imu', IMU, 'default'),
+    'suspension_position': Topic('/quarter_car/suspension_position', JOINT_STATE, 'default'),
+    'true_state': Topic('/quarter_car/true_state', CAR_STATE, 'default'),
+}
+
 #: Written once by the recorder at its start, not a DDS topic: the parameter YAML the suite's
 #: nodes were started with (``std_msgs/String``), so the report needs nothing but the MCAP.
 CONFIG_TOPIC = Topic('/mr_damper/suite_config', STRING, 'latched')
@@ -66,17 +74,17 @@ CONFIG_TOPIC = Topic('/mr_damper/suite_config', STRING, 'latched')
 NODE_PARAMETERS_TOPIC = Topic('/mr_damper/node_parameters', STRING, 'latched')
 #: Nodes whose parameters the recorder asks for (names in the root namespace).
 PARAMETER_NODES = ('mr_damper_rig', 'mr_damper_identifier', 'quarter_car_node',
-                   'semi_active_controller', 'can_bridge', 'can_driver_sim')
+                   'semi_active_controller', 'can_bridge', 'can_driver_sim', 'state_estimator')
 
 #: Keys of the table whose messages are node statuses (decoded by :func:`decode_status`).
 STATUS_KEYS = ('diagnostics',)
 #: Node name -> the short name the launcher and the report use for its status.
 NODE_KEYS = {'mr_damper_rig': 'rig', 'mr_damper_identifier': 'identifier',
              'quarter_car_node': 'quarter_car', 'semi_active_controller': 'controller',
-             'mr_damper_record': 'recorder'}
+             'mr_damper_record': 'recorder', 'state_estimator': 'estimator'}
 
 
-def topic_table(keys=None, can=False):
+def topic_table(keys=None, can=False, sensing=False):
     """
     Return the rows to record, by key.
 
@@ -87,6 +95,8 @@ def topic_table(keys=None, can=False):
         :data:`SUITE_TOPICS`, and of :data:`CAN_TOPICS` with ``can``).
     can : bool
         Also the CAN bridge's rows (when ``keys`` is None).
+    sensing : bool
+        Also the vehicle sensing rows, :data:`SENSING_TOPICS` (when ``keys`` is None).
 
     Returns
     -------
@@ -100,8 +110,9 @@ def topic_table(keys=None, can=False):
 
     """
     if keys is None:
-        return {**SUITE_TOPICS, **(CAN_TOPICS if can else {})}
-    known = {**SUITE_TOPICS, **CAN_TOPICS}
+        return {**SUITE_TOPICS, **(CAN_TOPICS if can else {}),
+                **(SENSING_TOPICS if sensing else {})}
+    known = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
     keys = list(keys)
     unknown = [k for k in keys if k not in known]
     if unknown:

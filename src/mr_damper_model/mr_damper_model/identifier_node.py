@@ -103,6 +103,26 @@ _LIVE = (
     ('inconsistent_reset_s', 'Forget the reference and bins after this long of consecutive '
      'inconsistent windows [s] (0: never; a persistent sensor fault is then identified as the '
      'damper)', 0.0, _BIG),
+    ('acceptance_checks', 'Review each valid set before it replaces the set in use (excitation, '
+     'comparison on the newest window and held-back data, force offsets); a refused set is '
+     'counted and the set in use re-published', None, None),
+    ('min_amplitude_ratio', 'Refuse a set whose window velocity amplitude at a current level is '
+     'below this fraction of the set in use\'s [1]', 0.0, 1.0),
+    ('velocity_bins', 'Velocity bins over +- the amplitude of each current level [bins]',
+     2, 1000),
+    ('min_velocity_bin_share', 'Refuse a set with a velocity bin holding less than this share '
+     'of its level\'s samples [1]', 0.0, 0.5),
+    ('max_condition_number', 'Refuse a set whose separable least-squares problem at a level '
+     'has a larger condition number (unit-norm columns) [1]', 1.0, 1e12),
+    ('replace_margin', 'A new set must beat the set in use by this fraction of its RMS error on '
+     'the newest window and on held-back data (0: at least as good) [1]', 0.0, 0.99),
+    ('holdout_s', 'Held-back data: admitted samples of this long before the window [s]',
+     1e-3, 3600.0),
+    ('offset_window_s', 'Running-median length of the force-offset screen [s]', 1e-4, 60.0),
+    ('offset_ratio', 'Flag a force offset beyond this times the RMS error of the set in use '
+     '(plus the error floor) [1]', 1e-3, 1e6),
+    ('drift_window_s', 'The f0 trend (status) is the slope over the accepted sets of this long '
+     '[s]', 1.0, _BIG),
 )
 
 #: Every parameter of the node (the one place they are declared).

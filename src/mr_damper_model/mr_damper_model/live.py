@@ -49,6 +49,12 @@ the work, so it can be tested and benchmarked without ROS:
    ``max_nrmse_percent``; and, on the fitted samples of the current levels covered by the last
    valid set of this stream, an RMSE at most ``max_error_ratio`` times that set's plus
    ``error_floor_percent`` of the robust force range (``worse_than_last_valid``).
+8. **Acceptance** (``acceptance_checks``, :mod:`~mr_damper_model.acceptance`): a valid set
+   replaces the set in use only if its window excites what it claims (velocity amplitude,
+   velocity bins, condition number) and it predicts at least as well on the newest window and
+   on held-back recent data; otherwise the set in use is re-published (valid, ``held``) and the
+   reason counted in ``windows_refused``.  Admitted samples with a force offset against the set
+   in use are flagged ``offset``; the f0 trend of the sets taken is reported.
 
 Threading: ``add_sample`` and ``next_window`` may be called from one thread and ``process``
 (the fit) from another; the sample buffer is protected by a lock, the bins and the warm start
@@ -65,6 +71,7 @@ import time
 
 import numpy as np
 
+from .acceptance import Acceptance
 from .data import DamperData
 from .kwok_current import KwokCurrent, kwok_current_coefficients, kwok_current_force
 from .stamps import ACCEPTED, REBASED, StampGuard
@@ -80,7 +87,7 @@ RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 SKIP_REASONS = ('gap', 'few_samples', 'no_motion', 'no_force', 'one_direction', 'inconsistent',
                 'no_bins')
 #: Keys of the flagged-sample counters (samples kept out of the fit and the bins).
-FLAG_REASONS = ('outlier', 'stuck', 'dropout', 'inconsistent')
+FLAG_REASONS = ('outlier', 'stuck', 'dropout', 'offset', 'inconsistent')
 #: Width of the running median of the outlier screen [samples] (isolates bursts of <= 2).
 MEDIAN_WIDTH = 5
 #: Fewest screened samples on which the last valid set's consistency is judged.
@@ -191,6 +198,36 @@ class LiveConfig:
         window's fit then stops on ``maxiter`` (no wall-time ``budget_s``) with a seed derived
         from ``seed`` and the window's index (:func:`window_seed`), so the estimate sequence
         does not depend on the replay speed.
+    acceptance_checks : bool
+        Review every valid set before it replaces the set in use
+        (:mod:`~mr_damper_model.acceptance`): excitation, comparison with the set in use on
+        the newest window and on held-back data, force-offset flags and the f0 trend.  A refused
+        set is counted in ``windows_refused`` and the set in use is re-published (valid, its
+        own window stamps).  False: the previous rules (every valid set is published).
+    min_amplitude_ratio : float
+        A window's velocity amplitude (98th percentile of ``|v|``) at a current level must reach
+        this fraction of the set in use's at that level (``velocity_amplitude``).
+    velocity_bins : int
+        Equal velocity bins over +- the level's own amplitude.
+    min_velocity_bin_share : float
+        Each velocity bin must hold this share of the level's samples (``velocity_bins``; a
+        sine gives at least 0.1 with 6 bins).
+    max_condition_number : float
+        Largest condition number of a level's separable least-squares problem (Kwok
+        regressors at the set's beta and delta, unit-norm columns; ``condition``).
+    replace_margin : float
+        A new set replaces the one in use only if its RMS error is at most ``1 -
+        replace_margin`` times that set's on the newest window and on the held-back samples
+        (``worse_on_window``, ``worse_on_heldback``); 0: at least as good.
+    holdout_s : float
+        Held-back part: the admitted samples of this long [s] before a window's own samples.
+    offset_window_s : float
+        Running-median length of the force-offset screen [s].
+    offset_ratio : float
+        A force offset: the smoothed residual of the set in use (less its mean in the state
+        cell) beyond this times its RMS error, plus the error floor.
+    drift_window_s : float
+        The f0 trend is the slope over the accepted sets of this long [s].
 
     """
 
@@ -230,12 +267,23 @@ class LiveConfig:
     pinned_fraction: float = 1e-3
     inconsistent_reset_s: float = 0.0
     backlog_windows: int = 0
+    acceptance_checks: bool = True
+    min_amplitude_ratio: float = 0.7
+    velocity_bins: int = 6
+    min_velocity_bin_share: float = 0.03
+    max_condition_number: float = 100.0
+    replace_margin: float = 0.0
+    holdout_s: float = 2.0
+    offset_window_s: float = 0.2
+    offset_ratio: float = 3.0
+    drift_window_s: float = 300.0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
                     'max_rate_hz', 'force_limit_n', 'velocity_limit_m_s',
                     'displacement_limit_m', 'max_gap_s', 'outlier_mad_k', 'stuck_s',
-                    'max_error_ratio', 'max_shift_ratio')
+                    'max_error_ratio', 'max_shift_ratio', 'max_condition_number',
+                    'holdout_s', 'offset_window_s', 'offset_ratio', 'drift_window_s')
         for name in positive:
             value = float(getattr(self, name))
             if not math.isfinite(value) or value <= 0:
@@ -243,7 +291,8 @@ class LiveConfig:
         for name in ('budget_s', 'bin_max_age_s', 'min_velocity_rms_m_s', 'min_force_std_n',
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
                      'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
-                     'max_future_s'):
+                     'max_future_s', 'min_amplitude_ratio', 'min_velocity_bin_share',
+                     'replace_margin'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -260,6 +309,12 @@ class LiveConfig:
         if not float(self.current_limit_min_a) < float(self.current_limit_max_a):
             raise ValueError(f'`current_limit_min_a` ({self.current_limit_min_a}) must be below '
                              f'`current_limit_max_a` ({self.current_limit_max_a})')
+        if int(self.velocity_bins) < 2:
+            raise ValueError(f'`velocity_bins` must be >= 2, got {self.velocity_bins!r}')
+        if self.min_velocity_bin_share * int(self.velocity_bins) > 1.0:
+            raise ValueError('`min_velocity_bin_share` times `velocity_bins` must not exceed 1')
+        if self.replace_margin >= 1.0:
+            raise ValueError(f'`replace_margin` must be below 1, got {self.replace_margin}')
         if self.pinned_fraction >= 0.5:
             raise ValueError(f'`pinned_fraction` must be below 0.5, got {self.pinned_fraction}')
 
@@ -320,6 +375,10 @@ class LiveEstimate:
         Current levels of the bins fitted [A].
     result : object
         The :class:`~mr_damper_model.identify.IdentificationResult` (None for a loaded one).
+    held : str
+        '' for a set fitted on its window; for the set in use re-published because the
+        window's set was refused by the acceptance review, the reason
+        (:mod:`~mr_damper_model.acceptance`).
 
     """
 
@@ -339,6 +398,7 @@ class LiveEstimate:
     n_samples: int = 0
     bins_a: list = field(default_factory=list)
     result: object = None
+    held: str = ''
 
     def message_values(self):
         """Return the values of the ``kwok_parameters`` message (see ``messages``)."""
@@ -587,7 +647,9 @@ DYNAMIC_FIELDS = (
     'min_velocity_rms_m_s', 'min_force_std_n', 'min_direction_fraction', 'outlier_mad_k',
     'outlier_floor_fraction', 'stuck_s', 'max_nrmse_percent', 'max_error_ratio',
     'max_shift_ratio', 'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
-    'min_bin_fraction', 'bin_max_age_s')
+    'min_bin_fraction', 'bin_max_age_s', 'acceptance_checks', 'min_amplitude_ratio',
+    'velocity_bins', 'min_velocity_bin_share', 'max_condition_number', 'replace_margin',
+    'holdout_s', 'offset_window_s', 'offset_ratio', 'drift_window_s')
 
 
 def window_seed(seed, index):
@@ -844,6 +906,10 @@ class LiveIdentifier:
         self.last_check = {}       # figures of the last consistency comparisons [N]
         self.processed_up_to_s = math.nan   # end of the last window processed (any outcome)
         self.last_skip = ''        # reason the last skipped window was skipped
+        self.last_held = ''        # why the last fitted window's set was refused ('' taken)
+        self._accept = Acceptance(lambda: self.config)
+        self._restarts_seen = 0    # stream restarts the acceptance state has followed
+        self._in_use = None        # the set the acceptance review compares with (taken last)
         if initial is not None:
             self.estimate = self._initial_estimate(initial)
             if self.estimate is not None:
@@ -1181,6 +1247,9 @@ class LiveIdentifier:
         t_start = time.perf_counter()
         cfg = self.config
         c = self.counters
+        if c['stream_restarts'] != self._restarts_seen:     # a new stream: a new current set
+            self._restarts_seen = c['stream_restarts']
+            self._accept.reset()
         data = window.data
         new = window.new if window.span is not None else data
         span = window.span if window.span is not None else data
@@ -1250,7 +1319,11 @@ class LiveIdentifier:
 
         Returns False (samples counted as ``samples_flagged['inconsistent']``) when the last
         valid set explains them much worse than its own data (:meth:`_consistency`) and no
-        reference reset is due (``inconsistent_reset_s``); True when they were binned.
+        reference reset is due (``inconsistent_reset_s``); True when they were binned.  Of
+        consistent samples, those with a force offset against the set in use
+        (``acceptance_checks``, :meth:`~mr_damper_model.acceptance.Acceptance.offset_flags`:
+        the onset or end of a step inside the part) are counted as
+        ``samples_flagged['offset']`` and left out of the bins.
         """
         cfg = self.config
         c = self.counters
@@ -1264,8 +1337,17 @@ class LiveIdentifier:
             self._ref = None
             self._bins.clear()
             self._last_solution.clear()
+            self._accept.reset()
         self._inconsistent_since = None
+        if cfg.acceptance_checks and clean.n and self._ref is not None:
+            # force offsets against the set in use (fitted on the part before this one) that
+            # the part's overall consistency hides: a step that begins or ends in it
+            offset = self._accept.offset_flags(clean, clean.n, self._ref['scale'], end_s)
+            if offset.any():
+                c['samples_flagged']['offset'] += int(np.count_nonzero(offset))
+                clean = clean.select(~offset)
         self._update_bins(clean, keep, end_s)
+        self._accept.remember(clean, end_s)
         c['samples_binned'] += clean.n
         return True
 
@@ -1316,14 +1398,23 @@ class LiveIdentifier:
         f_new = self._force(params, fit)
         reason = self._judge(model, result.parameters, robust_nrmse, fit, f_new, scale,
                              max(levels) - min(levels))
+        held = ''
+        if not reason and cfg.acceptance_checks:
+            held = self._accept.review(params, fit, data)
+            if held and self._accept.current is None:
+                reason, held = held, ''      # nothing to hold: published as not valid
         seconds = time.perf_counter() - t_start
         est = LiveEstimate(
-            parameters=params, valid=not reason, reason=reason, model_fitted=model,
+            parameters=params, valid=not (reason or held), reason=reason or held,
+            model_fitted=model,
             i_ref_a=float(cfg.i_ref_a), window_start_s=float(data.t[0]),
             window_end_s=float(data.t[-1]), current_min_a=float(min(levels)),
             current_max_a=float(max(levels)), rmse_n=rmse, nrmse_percent=nrmse,
             robust_nrmse_percent=robust_nrmse, seconds=seconds, n_samples=fit.n, bins_a=levels,
             result=result)
+        if est.valid and cfg.acceptance_checks:
+            self._accept.take(params, fit, est.window_start_s, est.window_end_s, rmse)
+            self._in_use = est
         if catch_up:
             c['catch_up_fits'] += 1
             if est.valid:
@@ -1334,13 +1425,17 @@ class LiveIdentifier:
         self._compute_sum += seconds
         self.compute_s_max = max(self.compute_s_max, seconds)
         self.estimate = est
+        self.last_held = held
         if est.valid:
             c['windows_valid'] += 1
             self.last_good = est
             self._set_reference(est, fit, f_new, scale)
         else:
-            key = reason.split(':')[0]
+            key = est.reason.split(':')[0]
             c['windows_refused'][key] = c['windows_refused'].get(key, 0) + 1
+            if held:                         # the set in use stays: re-published, valid
+                self.estimate = replace(self._in_use, held=held, seconds=seconds)
+                return self.estimate
         return est
 
     # ---------------------------------------------------------------- validity
@@ -1537,7 +1632,10 @@ class LiveIdentifier:
         ``last_nrmse_percent``,
         ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
         ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
-        held), ``last_error``.
+        held), ``last_error``, ``last_held`` (why the last fitted window's set was refused and
+        the set in use re-published, '' if taken), ``held_age_s`` (newest window end minus the
+        set in use's [s]), ``last_condition_number``, ``offset`` and ``f0_trend``
+        (:class:`~mr_damper_model.acceptance.Acceptance`).
         """
         with self._lock:
             c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
@@ -1558,7 +1656,14 @@ class LiveIdentifier:
             compute_s_mean=self._compute_sum / fitted if fitted else math.nan,
             compute_s_max=self.compute_s_max,
             bins_a=sorted(b.level for b in list(self._bins.values())),
-            last_error=self.last_error)
+            last_error=self.last_error, last_held=self.last_held,
+            held_age_s=self._accept.age_s(self.processed_up_to_s),
+            last_condition_number=self._accept.last_figures.get('condition', math.nan),
+            offset=dict(self._accept.offset), f0_trend=self._accept.f0_trend())
+        for name in ('window', 'heldback'):
+            if name in self._accept.last_figures:
+                c['last_check'][f'new_vs_current_{name}_rmse_n'] = list(
+                    self._accept.last_figures[name])
         return c
 
 

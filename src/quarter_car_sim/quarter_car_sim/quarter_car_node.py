@@ -54,6 +54,15 @@ publishing state k for the first command received after it (at most ``lockstep_t
 counted) and applies it to step k: the loop is then step for step the built-in one
 (docs/controller-node.md).
 
+Vehicle sensing (``sensing:=vehicle``, with ``controller:=external``): each control step the car
+also publishes what a vehicle's sensors give, with the error models of
+:class:`quarter_car_sim.sensors.VehicleSensors` (ROS-free): the body accelerometer on
+``quarter_car/body_imu`` (sensor_msgs/Imu, ``linear_acceleration.z`` specific force) and the
+suspension position on ``quarter_car/suspension_position`` (sensor_msgs/JointState, joint
+``suspension``), NaN for a lost sample; its true state moves to ``quarter_car/true_state``
+(``state_estimator_node`` publishes ``quarter_car/car_state`` for the controller). An injected
+body accelerometer dropout (``sensor_dropout_start_s``, ``sensor_dropout_s``) tests the fail-safe.
+
 Hardware in the loop (``plant:=rig``, docs/hil.md): the car has no damper model of its own. Each
 control step it publishes the (delay-compensated) suspension travel as the displacement command
 on ``mr_damper/displacement_command`` (std_msgs/Float64 [m], reliable, depth 10) and uses the
@@ -81,7 +90,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from mr_damper_interfaces.msg import DamperSamples, KwokParameters, QuarterCarState
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 from mr_damper_model import messages
@@ -100,6 +109,7 @@ from quarter_car_sim.probing import CurrentProbe
 from quarter_car_sim.road import make_road
 from quarter_car_sim.semi_active_controller_node import (
     car_state_to_msg, CONTROL_QOS, offer_parameters, SUPERVISED_LAW_PARAMETERS)
+from quarter_car_sim.sensors import VehicleSensors
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 
@@ -165,6 +175,15 @@ PARAMETERS = (
     Param('probe_min_samples', 500, 'Samples a bin needs to count as covered [-]', 1,
           10 ** 9),
     Param('probe_max_duty', 0.2, 'Cap of probe_hold_s / probe_period_s [-]', 0.001, 1.0),
+    Param('sensing', 'ideal', 'External controller: ideal (the true state on '
+          'quarter_car/car_state) or vehicle (body accelerometer on quarter_car/body_imu, '
+          'suspension position on quarter_car/suspension_position, quarter_car_sim.sensors; the '
+          'true state on quarter_car/true_state, the estimator publishes car_state)'),
+    Param('sensor_seed', 1, 'sensing vehicle: seed of the sensor errors [-]', 0, 2 ** 31 - 1),
+    Param('sensor_dropout_start_s', 0.0, 'sensing vehicle: start of an injected body '
+          'accelerometer dropout [s, car time]', 0.0, 36000.0),
+    Param('sensor_dropout_s', 0.0, 'sensing vehicle: length of the injected dropout (0 = '
+          'none) [s]', 0.0, 3600.0),
 )
 
 #: Dynamic parameters applied to the health rules rather than the controller cores.
@@ -232,6 +251,7 @@ class QuarterCarNode(Node):
 
         self.drops = DropCounter(self.get_logger())
         self.cmd_in = None
+        self.sensors = self._init_sensing(p)
         if self.external:
             self._init_external(p['command_timeout_s'], p['safe_current_a'], p['i_min_a'],
                                 p['i_max_a'])
@@ -295,10 +315,48 @@ class QuarterCarNode(Node):
         self.lockstep_timeouts = 0
         self.car_state_msg = QuarterCarState()
         self.car_state_msg.header.frame_id = 'quarter_car'
-        self.car_state_pub = self.create_publisher(QuarterCarState, 'quarter_car/car_state',
-                                                   CONTROL_QOS)
+        self.car_state_pub = self.create_publisher(
+            QuarterCarState, 'quarter_car/true_state' if self.sensors else 'quarter_car/car_state',
+            CONTROL_QOS)
         self.cmd_sub = self.drops.subscribe(self, Float64, 'mr_damper/current_command',
                                             self.on_command, CONTROL_QOS, 'commands_lost')
+
+    def _init_sensing(self, p):
+        """``sensing:=vehicle``: the sensor publishers and their ROS-free sampler (or None)."""
+        sensing = p['sensing'].strip().lower()
+        if sensing not in ('ideal', 'vehicle'):
+            raise ValueError(f"sensing must be 'ideal' or 'vehicle', got {p['sensing']!r}")
+        if sensing == 'ideal':
+            return None
+        if not self.external:
+            raise ValueError('sensing:=vehicle needs controller:=external (the law runs on the '
+                             'estimated state, state_estimator_node + '
+                             'semi_active_controller_node)')
+        sensors = VehicleSensors(self.dt, int(p['sensor_seed']), dropout=(
+            p['sensor_dropout_start_s'], p['sensor_dropout_s']))
+        self.imu_msg = Imu()
+        self.imu_msg.header.frame_id = 'body'
+        self.imu_msg.orientation_covariance[0] = -1.0       # no orientation (REP 145)
+        self.position_msg = JointState()
+        self.position_msg.name = ['suspension']
+        self.imu_pub = self.create_publisher(Imu, 'quarter_car/body_imu', CONTROL_QOS)
+        self.position_pub = self.create_publisher(JointState, 'quarter_car/suspension_position',
+                                                  CONTROL_QOS)
+        return sensors
+
+    def _publish_sensors(self, state):
+        """Publish the readings the sensors deliver at this step (NaN: a lost sample)."""
+        readings = self.sensors.step(state.t, state)
+        if state.t < 0.0:
+            return          # settling before the road: the time stamps start at 0
+        if 'body_accel' in readings:
+            messages.seconds_to_stamp(max(state.t, 0.0), self.imu_msg.header.stamp)
+            self.imu_msg.linear_acceleration.z = readings['body_accel']
+            self.drops.publish(self.imu_pub, self.imu_msg)
+        if 'travel' in readings:
+            messages.seconds_to_stamp(max(state.t, 0.0), self.position_msg.header.stamp)
+            self.position_msg.position = [readings['travel']]
+            self.drops.publish(self.position_pub, self.position_msg)
 
     def _init_control_thread(self):
         self.every = (max(1, int(round(self.rate_hz / self.state_rate_hz)))
@@ -397,6 +455,8 @@ class QuarterCarNode(Node):
         cmd = self.cmd
         if self.external:
             state = self.car.state
+            if self.sensors is not None:
+                self._publish_sensors(state)
             cmd.data, normal = self._external_command(state)
             loop.i_cmd = cmd.data
             reason = None       # the car state message is the controller's (not published)
@@ -490,6 +550,8 @@ class QuarterCarNode(Node):
                 st['hil'] = self.remote.as_dict()
         if self.probe is not None:
             st['probe'] = self.probe.as_dict()
+        if self.sensors is not None:
+            st['sensing'] = self.sensors.status()
         return st
 
     def health(self):

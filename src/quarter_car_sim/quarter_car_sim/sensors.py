@@ -398,3 +398,70 @@ def sample_series(spec, t, x, rng=None):
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
     return np.array([s.sample(ti, xi) for ti, xi in zip(t, x)])
+
+
+class VehicleSensors:
+    """
+    The sensors of one simulated corner, read by the car each control period (no ROS).
+
+    What a vehicle gives the state estimator: the body accelerometer (``body_accel``, specific
+    force) and the suspension position sensor (``travel``), each a :class:`SensorSampler` with
+    the default automotive error model (:func:`default_specs`), seeded. A sensor dropout can be
+    injected over a window of sample time (a ``dropout`` :class:`Fault`: every sample of the
+    window is lost, delivered as NaN).
+
+    Parameters
+    ----------
+    dt : float
+        Control period [s].
+    seed : int
+        Seed of the sensors (each sensor draws from its own stream).
+    dropout : tuple of (float, float), optional
+        ``(start_s, duration_s)`` of an injected dropout [s of the car's time]; None or a
+        duration of 0: none.
+    dropout_sensors : tuple of str
+        Sensors the dropout hits (default: the body accelerometer).
+    specs : dict, optional
+        ``{sensor: SensorSpec}`` instead of :func:`default_specs`.
+
+    """
+
+    def __init__(self, dt, seed=1, *, dropout=None, dropout_sensors=('body_accel',),
+                 specs=None):
+        specs = dict(default_specs() if specs is None else specs)
+        self.dropout = None
+        if dropout is not None and float(dropout[1]) > 0:
+            start, duration = float(dropout[0]), float(dropout[1])
+            self.dropout = (start, duration)
+            for name in dropout_sensors:
+                if name not in specs:
+                    raise SensorError(f'`dropout_sensors`: {name!r} is not one of '
+                                      f'{", ".join(specs)}')
+                specs[name] = specs[name].replace(
+                    faults=specs[name].faults + (Fault('dropout', start, start + duration),))
+        self.dropout_sensors = tuple(dropout_sensors) if self.dropout else ()
+        streams = np.random.SeedSequence(int(seed)).spawn(len(specs))
+        self.samplers = {name: SensorSampler(spec, dt, np.random.default_rng(s))
+                         for (name, spec), s in zip(sorted(specs.items()), streams)}
+
+    def step(self, t, state):
+        """
+        Sample the sensors at time ``t`` [s] from a car state (``a_s``, ``a_u``, ``travel``).
+
+        Returns ``{sensor: reading}`` of the readings delivered at this step (NaN: lost; a
+        sensor with nothing due is left out).
+        """
+        true = {'body_accel': state.a_s, 'wheel_accel': state.a_u, 'travel': state.travel}
+        out = {}
+        for name, sampler in self.samplers.items():
+            reading = sampler.step(t, true[name])
+            if reading is not None:
+                out[name] = reading
+        return out
+
+    def status(self):
+        """Return ``{sensor: {samples, lost}}`` and the injected dropout (JSON-ready)."""
+        st = {name: {'samples': s.sensor.n_samples, 'lost': s.sensor.n_dropped}
+              for name, s in self.samplers.items()}
+        return {'sensors': st, 'dropout_window_s': list(self.dropout) if self.dropout else [],
+                'dropout_sensors': list(self.dropout_sensors)}

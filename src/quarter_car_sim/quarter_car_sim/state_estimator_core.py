@@ -22,6 +22,9 @@ import math
 from quarter_car_sim.estimator import design_estimator, QuarterCarEstimator
 from quarter_car_sim.sensors import SENSOR_NAMES
 
+#: :meth:`StateEstimatorCore.tick_at`: a jump of the readings' time longer than this [s] re-bases
+REBASE_S = 1.0
+
 
 class StateEstimatorCore:
     """
@@ -69,6 +72,11 @@ class StateEstimatorCore:
         self.no_model_steps = 0
         self._no_model = False
         self.last = None
+        self.dt = float(dt)
+        self._t_tick = None
+        self.predict_steps = 0
+        self.stale_ticks = 0
+        self.rebases = 0
 
     def _body_force(self, i, x, v):
         if self._model is None:
@@ -148,6 +156,35 @@ class StateEstimatorCore:
         self.last = est
         return est
 
+    def tick_at(self, t, t_clock=None):
+        """
+        Step the filter to the sensors' time ``t`` [s] (a reading's stamp); return the Estimate.
+
+        For a loop clocked by the readings: the periods since the last tick that brought no
+        reading (readings the middleware dropped, a late executor) are predicted through
+        without readings (counted, ``predict_steps``), so the filter keeps the vehicle's time
+        however fast it is called. A time not after the last tick returns None (counted,
+        ``stale_ticks``; the readings wait for the next tick). A jump of more than
+        :data:`REBASE_S` either way (the vehicle's clock restarted) re-bases the time line
+        (counted, ``rebases``) instead.
+        """
+        t = float(t)
+        if self._t_tick is not None and abs(t - self._t_tick) > REBASE_S:
+            self._t_tick = None
+            self.rebases += 1
+        if self._t_tick is not None:
+            n = int(round((t - self._t_tick) / self.dt))
+            if n < 1:
+                self.stale_ticks += 1
+                return None
+            pending, self._pending = self._pending, {}
+            for k in range(1, n):
+                self.tick(self._t_tick + k * self.dt, t_clock)
+                self.predict_steps += 1
+            self._pending = pending
+        self._t_tick = t
+        return self.tick(t, t_clock)
+
     def status(self):
         """Return the estimator's counters plus the model and reading counters (JSON-ready)."""
         st = self.estimator.status()
@@ -158,5 +195,7 @@ class StateEstimatorCore:
                    'no_model_steps': self.no_model_steps,
                    'readings_received': dict(self.readings_received),
                    'readings_replaced': dict(self.readings_replaced),
+                   'predict_steps': self.predict_steps, 'stale_ticks': self.stale_ticks,
+                   'rebases': self.rebases,
                    'current_a': self.current_a, 'model': self.sup.status()})
         return st

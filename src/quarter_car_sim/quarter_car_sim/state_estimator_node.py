@@ -80,6 +80,9 @@ PARAMETERS = (
     Param('k_s', 16000.0, 'Suspension spring the filter assumes [N/m]', 1.0, 1e8),
     Param('k_t', 190000.0, 'Tyre stiffness the filter assumes [N/m]', 1.0, 1e9),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('clock', 'timer', 'What steps the filter: timer (a rate_hz timer on the node clock) '
+          'or readings (each suspension position reading, at its stamp; periods without one '
+          'are predicted through: the vehicle\'s time however late the executor)'),
 )
 
 _NAN = float('nan')
@@ -162,7 +165,12 @@ class StateEstimatorNode(Node):
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='state_estimator', drops=self.drops)
-        self.timer = self.create_timer(1.0 / p['rate_hz'], self.on_tick)
+        clock = p['clock'].strip().lower()
+        if clock not in ('timer', 'readings'):
+            raise ValueError(f"clock must be 'timer' or 'readings', got {p['clock']!r}")
+        self.on_readings = clock == 'readings'
+        self.timer = (None if self.on_readings
+                      else self.create_timer(1.0 / p['rate_hz'], self.on_tick))
         self.get_logger().info(
             f'Kalman filter of {", ".join(self.core.sensors)} at {p["rate_hz"]:g} Hz -> '
             f'{self.resolve_topic_name("quarter_car/car_state")}')
@@ -170,6 +178,9 @@ class StateEstimatorNode(Node):
     def on_position(self, msg):
         """Take the suspension travel of a JointState (first position; NaN if none)."""
         self.core.offer_reading('travel', msg.position[0] if len(msg.position) else _NAN)
+        if self.on_readings:
+            self._publish(self.core.tick_at(messages.stamp_to_seconds(msg.header.stamp),
+                                            node_time_s(self)))
 
     def on_params(self, msg):
         """Offer an identified parameter set to the core's supervisor."""
@@ -185,7 +196,11 @@ class StateEstimatorNode(Node):
 
     def on_tick(self):
         """One control period: step the filter, publish the state."""
-        est = self.core.tick(node_time_s(self))
+        self._publish(self.core.tick(node_time_s(self)))
+
+    def _publish(self, est):
+        if est is None:
+            return
         self.drops.publish(self.pub, estimate_to_msg(est, self.core.current_a, self.msg))
         if not est.valid:
             self.get_logger().warning(f'estimate invalid: {est.reason}',
