@@ -7,7 +7,8 @@ The suite over CAN: ``mr-damper-suite --config can`` (docs/can.md, "With the sui
 - the whole run (20 s, real node processes, ``udp_loopback`` in the test's network namespace):
   exit 0, command frames reach the simulated driver and a lost one is counted by the rolling
   counter (UDP on loopback may drop a datagram under load), the car took the driver's
-  measured current as its command, and the frame log ``can.blf`` reads back with python-can. Counts only, no wall-clock thresholds.
+  measured current as its command, and the frame log ``can.blf`` reads back with python-can.
+  Counts only, no wall-clock thresholds.
 """
 import json
 
