@@ -94,13 +94,12 @@ def test_suite_over_can_loses_no_command(tmp_path):
     assert summary['config'] == 'can'
     can_ = summary['can']
     # frames went from the bridge to the driver. The simulated bus is UDP on loopback and may
-    # drop a datagram when a starved receiver's buffer is full; a lost frame is never silent
-    # (the DBC's rolling counter makes the driver count it); and on a loaded machine the
-    # bridge's last status may reach the recording before its final one, so frames_sent is a
-    # lower bound of what it sent: the exact 0-lost figure is the bench's (docs/can.md)
+    # drop a datagram when a starved receiver's buffer is full; a frame lost mid-run is never
+    # silent (the DBC's rolling counter makes the driver count it), but frames still in
+    # flight at the stop are past the driver's last count, and on a loaded machine the
+    # bridge's last recorded status may precede its final one: frames_sent - received is not
+    # a loss figure here (the exact 0-lost figure is the bench's, docs/can.md)
     assert can_['frames_sent'] > 0 and can_['received'] > 0, can_
-    if can_['lost'] is not None and can_['lost'] > 0:
-        assert can_['counter_jumps'] > 0 and can_['frames_missed'] > 0, can_
     assert (can_['counter_jumps'] == 0) == (can_['frames_missed'] == 0), can_
     assert can_['bad_checksum'] == 0
     # the controller's commands went through the bridge (one frame each, plus re-sends)
