@@ -49,11 +49,10 @@ def _default_file():
 
 def resample(path, rate_hz, out):
     """Write ``path`` resampled to ``rate_hz`` (linear interpolation) as a t,x,v,f,i CSV."""
-    from mr_damper_model.data import read_csv, write_csv
+    from mr_damper_model.data import DamperData, read_csv, write_csv
     d = read_csv(path)
     t = np.arange(d.t[0], d.t[-1], 1.0 / rate_hz)
     cols = [np.interp(t, d.t, getattr(d, c)) for c in 'xvfi']
-    from mr_damper_model.data import DamperData
     write_csv(out, DamperData(t - t[0], *cols))
     return t.size
 
