@@ -17,8 +17,9 @@ configuration, seeds fixed in it) and prints:
 
 With ``--rate-factors 1,2,4,8`` (and ``--samples-per-message 1,20``) it runs the suite once per
 combination, ``--duration`` record seconds each (the wall time is shorter at higher rate
-factors), and prints one table: samples lost, sample -> parameters at the car p50 / p99,
-fail-safe time, CPU per process. ``samples_per_message`` 1 sends one DDS message per DAQ sample,
+factors; ``--wall``: wall seconds each, as ``mr-damper-suite --duration``), and prints one
+table: samples lost, parameter updates, sample -> parameters at the car p50 / p99, fail-safe
+time, CPU per process. ``samples_per_message`` 1 sends one DDS message per DAQ sample,
 as the rig did before batching: the before / after of the batched measurement stream in one run.
 """
 import argparse
@@ -91,17 +92,18 @@ def sweep(args):
     for spm in (int(k) for k in args.samples_per_message.split(',')):
         for rf in (float(r) for r in args.rate_factors.split(',')):
             out = Path(args.out) / f'spm{spm}_rf{rf:g}'
-            rc, s = run_suite(args.duration / rf, out,
+            wall = args.duration if args.wall else args.duration / rf
+            rc, s = run_suite(wall, out,
                               ['--rate-factor', str(rf), '--quiet',
                                '--set', f'mr_damper_rig.samples_per_message={spm}',
                                *args.extra])
             rows.append((spm, rf, rc, s))
-    print('\n=== bench_suite: rate factors (record seconds '
-          f'{args.duration:g} each; load at the end {os.getloadavg()[0]:.2f}, '
+    print('\n=== bench_suite: rate factors ('
+          f'{"wall" if args.wall else "record"} seconds {args.duration:g} each; load at the end {os.getloadavg()[0]:.2f}, '
           f'{os.cpu_count()} cores) ===')
     names = sorted({n for *_, s in rows for n, v in s.get('processes', {}).items()
                     if isinstance(v, dict)})
-    print('samples/msg  rate  exit  lost  sample->params p50 / p99 s  fail-safe s  '
+    print('samples/msg  rate  exit  lost  updates  sample->params p50 / p99 s  fail-safe s  '
           + '  '.join(f'{n[:12]:>12s}' for n in names) + '   (CPU % of one core)')
     for spm, rf, rc, s in rows:
         m2p = s.get('measurement_to_parameters_s') or {}
@@ -109,6 +111,7 @@ def sweep(args):
         cpu = '  '.join(f'{procs[n]["cpu_mean_percent"]:12.1f}' if isinstance(
             procs.get(n), dict) else f'{"-":>12s}' for n in names)
         print(f'{spm:11d}  {rf:4g}  {rc:4d}  {_f(s.get("messages_lost"), "d"):>4s}  '
+              f'{_f(m2p.get("n"), "d"):>7s}  '
               f'{_f(m2p.get("p50")):>10s} / {_f(m2p.get("p99")):<10s}   '
               f'{_f(s.get("failsafe_s"), ".2f"):>10s}  {cpu}')
     return 0
@@ -119,6 +122,9 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--duration', type=float, default=60.0,
                    help='record seconds of each run (wall: duration / rate factor)')
+    p.add_argument('--wall', action='store_true',
+                   help='with --rate-factors: --duration is the wall seconds of each run '
+                        '(as mr-damper-suite --duration), not its record seconds')
     p.add_argument('--out', default=str(REPO / 'runs' / 'bench_suite'))
     p.add_argument('--rate-factors', default='',
                    help='e.g. 1,2,4,8: one run per rate factor (and batch size), one table')

@@ -68,6 +68,19 @@ def test_measurement_to_parameters_delay():
     np.testing.assert_allclose(d, [0.05], atol=1e-9)
 
 
+def test_measurement_to_parameters_counts_a_republished_set_once():
+    # a refused window keeps the set in use: the identifier publishes it again, with the
+    # window it came from; only its first arrival is the delay of that window
+    params, msg = _truth_msg()
+    meas = _measurements(params)
+    first = dict(msg, window_end_s=2.0, recv_epoch_s=1000.0 + 2.0 + 0.002 + 0.05)
+    again = [dict(first, recv_epoch_s=first['recv_epoch_s'] + 0.2 * k) for k in (1, 2, 3)]
+    later = dict(msg, window_end_s=3.0, recv_epoch_s=1000.0 + 3.0 + 0.002 + 0.07)
+    log = [(0.0, first), *[(0.2 * k, a) for k, a in enumerate(again, 1)], (1.0, later)]
+    d = report.measurement_to_parameters(meas, log)
+    np.testing.assert_allclose(d, [0.05, 0.07], atol=1e-9)
+
+
 def _live_log(path, controller_offers=False, seconds=4.0, status=None):
     """Run the node's loop in-process, in the node's way (t0 = -settle), and log it to path."""
     car_p = QuarterCarParams()

@@ -610,6 +610,9 @@ def measurement_to_parameters(meas, params_log):
     """
     Delays [s] from the newest measurement of each identified window to its parameters.
 
+    Each window counts once, at its first arrival: a set the identifier publishes again (it
+    refused a newer window and keeps the set in use) is not a new identification.
+
     The newest sample's arrival (``mr-damper-record`` receives the measurement stream as the
     identifier does) is found from its stamp ``window_end_s``; the delay runs to the arrival of
     the parameter message at the recorder (the quarter car subscribes to it the same way and
@@ -636,6 +639,10 @@ def measurement_to_parameters(meas, params_log):
     ends, gots = np.frombuffer(ends, dtype=float), np.frombuffer(gots, dtype=float)
     order = np.argsort(ends, kind='stable')
     ends, gots = ends[order], gots[order]
+    # a set re-published (a refused window keeps the set in use, with its window) is not a new
+    # identification: each window counts once, from its first arrival
+    ends, first = np.unique(ends, return_index=True)
+    gots = np.minimum.reduceat(gots, first)
     delays = np.full(ends.size, np.nan)
     k = None
     for c in meas.chunks(CHUNK_ROWS, ('t', 'recv_epoch_s'), overlap=1):

@@ -64,6 +64,14 @@ PARAMETERS_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
 STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE)
 
+#: Readers of a vehicle sensor stream (1 kHz accelerometers, position sensors): best effort as
+#: ``qos_profile_sensor_data``, but KEEP_LAST 100 instead of 5, so a Python executor that takes
+#: the readings in bursts (a 0.1 s stall of a shared machine) still gets every one of them. With
+#: depth 5 the state estimator received 59 % of the car's 1 kHz readings at load 1.5.
+SENSOR_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.BEST_EFFORT,
+                        durability=DurabilityPolicy.VOLATILE)
+
 #: ``/diagnostics``: KEEP_LAST 10, reliable (as ROS 2's diagnostic_updater publishes it).
 DIAGNOSTICS_QOS = STATUS_QOS
 

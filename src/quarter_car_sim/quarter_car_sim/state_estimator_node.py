@@ -12,10 +12,10 @@ only convert messages and call the core; the control-rate timer calls ``tick``.
 
 Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
-- sub ``quarter_car/body_imu`` (sensor_msgs/Imu, sensor-data QoS): ``linear_acceleration.z``,
+- sub ``quarter_car/body_imu`` (sensor_msgs/Imu, best effort, KEEP_LAST 100): ``linear_acceleration.z``,
   specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample;
 - sub ``quarter_car/wheel_imu`` (sensor_msgs/Imu) with ``wheel_accel:=true``;
-- sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, sensor-data QoS): the first
+- sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100): the first
   ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
   positive, zero at static equilibrium). JointState because a suspension *is* a prismatic joint:
   it is what ros2_control's joint_state_broadcaster and a URDF of the car publish, it carries a
@@ -35,7 +35,6 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 import sys
 
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
@@ -43,7 +42,8 @@ from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_model import messages
 from mr_damper_model.health import OK, WARN, worst
 from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, node_time_s, Param, run_node, spin_node)
+                                        LATCHED_QOS, node_time_s, Param, run_node,
+                                        SENSOR_QOS, set_realtime_priority, spin_node)
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
@@ -80,6 +80,8 @@ PARAMETERS = (
     Param('k_s', 16000.0, 'Suspension spring the filter assumes [N/m]', 1.0, 1e8),
     Param('k_t', 190000.0, 'Tyre stiffness the filter assumes [N/m]', 1.0, 1e9),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
+          'normal scheduling; needs CAP_SYS_NICE, else a warning)', 0, 99),
     Param('clock', 'timer', 'What steps the filter: timer (a rate_hz timer on the node clock) '
           'or readings (each suspension position reading, at its stamp; periods without one '
           'are predicted through: the vehicle\'s time however late the executor)'),
@@ -149,14 +151,14 @@ class StateEstimatorNode(Node):
         self.drops.subscribe(self, Imu, 'quarter_car/body_imu',
                              lambda m: self.core.offer_reading('body_accel',
                                                                m.linear_acceleration.z),
-                             qos_profile_sensor_data, 'imu_lost')
+                             SENSOR_QOS, 'imu_lost')
         if p['wheel_accel']:
             self.drops.subscribe(self, Imu, 'quarter_car/wheel_imu',
                                  lambda m: self.core.offer_reading('wheel_accel',
                                                                    m.linear_acceleration.z),
-                                 qos_profile_sensor_data, 'wheel_imu_lost')
+                                 SENSOR_QOS, 'wheel_imu_lost')
         self.drops.subscribe(self, JointState, 'quarter_car/suspension_position',
-                             self.on_position, qos_profile_sensor_data, 'position_lost')
+                             self.on_position, SENSOR_QOS, 'position_lost')
         self.drops.subscribe(self, Float64, 'mr_damper/current_command',
                              lambda m: self.core.offer_current(m.data), CONTROL_QOS,
                              'commands_lost')
@@ -171,6 +173,7 @@ class StateEstimatorNode(Node):
         self.on_readings = clock == 'readings'
         self.timer = (None if self.on_readings
                       else self.create_timer(1.0 / p['rate_hz'], self.on_tick))
+        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
         self.get_logger().info(
             f'Kalman filter of {", ".join(self.core.sensors)} at {p["rate_hz"]:g} Hz -> '
             f'{self.resolve_topic_name("quarter_car/car_state")}')
