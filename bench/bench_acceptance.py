@@ -40,8 +40,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
 from live_records import (held_at, inject_faults, replay_published,  # noqa: E402
                           steady_errors, steady_mask)
-from mr_damper_model.data import read_csv  # noqa: E402
-from mr_damper_model.identify import identify  # noqa: E402
+from mr_damper_model.io.data import read_csv  # noqa: E402
+from mr_damper_model.identification.identify import identify  # noqa: E402
 from mr_damper_model.live import LiveConfig, LiveIdentifier  # noqa: E402
 
 #: the identifier node's defaults as a replay under use_sim_time runs them

@@ -35,12 +35,12 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from mr_damper_model import batch  # noqa: E402
-from mr_damper_model.cli import read_record  # noqa: E402
-from mr_damper_model.data import DamperData, write_csv  # noqa: E402
-from mr_damper_model.identify import identify  # noqa: E402
+from mr_damper_model.identification import batch  # noqa: E402
+from mr_damper_model.tools.cli import read_record  # noqa: E402
+from mr_damper_model.io.data import DamperData, write_csv  # noqa: E402
+from mr_damper_model.identification.identify import identify  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
-from mr_damper_model.params_file import save_params  # noqa: E402
+from mr_damper_model.io.params_file import save_params  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 QUIROZ_DIRS = (REPO / 'data' / 'quiroz_mr_damper',)

@@ -48,7 +48,7 @@ def direct_subscriber(out):
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64
-    from mr_damper_model.node_utils import install_stop_handlers, spin_node, stop_requested
+    from mr_damper_common.node_utils import install_stop_handlers, spin_node, stop_requested
     install_stop_handlers()
     rclpy.init()
     node = rclpy.create_node('bench_can_direct')

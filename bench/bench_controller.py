@@ -44,7 +44,7 @@ SEED = 1
 
 
 def _params():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     values = {k: float(v) for k, v in params.items()}
     values.update(i_ref_a=float(model.options.get('i_ref_a', 2.0)), current_min_a=0.0,
@@ -59,7 +59,7 @@ def _ride_states(n):
 
 
 def _built_in_loop():
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim import live_loop
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
@@ -192,7 +192,7 @@ def external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep)
     _stop(car)
     if not ok:
         raise RuntimeError(f'the car did not run {args.duration} s: {status.get("car")}')
-    from mr_damper_model.columnlog import ColumnReader
+    from mr_damper_model.io.columnlog import ColumnReader
     z = ColumnReader(car_log).read()
     meta = ColumnReader(car_log).meta['status']
     title = '2. lock-step' if lockstep else '3. asynchronous (newest command each step)'
@@ -251,8 +251,8 @@ def main(argv=None):
     import rclpy
     from mr_damper_interfaces.msg import KwokParameters
     from diagnostic_msgs.msg import DiagnosticArray
-    from mr_damper_model.messages import health_from_diagnostic, kwok_parameters_msg
-    from mr_damper_model.node_utils import LATCHED_QOS, make_executor, set_realtime_priority
+    from mr_damper_common.messages import health_from_diagnostic, kwok_parameters_msg
+    from mr_damper_common.node_utils import LATCHED_QOS, make_executor, set_realtime_priority
     print(f'bench_controller: load at start {os.getloadavg()}, {os.cpu_count()} CPUs, '
           f'realtime priority {args.realtime_priority}')
     prefix = '/bench_controller'

@@ -10,7 +10,8 @@ The six test series (25 mm at 0.1, 0.25, 0.5 Hz; 10 mm at 1 Hz; 5 mm at 3 Hz; 2 
 each at 0, 0.25, 0.5, 0.75 and 1.0 A) are split every possible way into four training and two
 held-out series (15 splits). For each split and model, ONE parameter set is identified on the
 20 training files joined end to end (``DamperData.concatenate(parts, restamp=True)`` and
-:func:`~mr_damper_model.identify.identify`), and each of the 10 held-out files is predicted
+:func:`~mr_damper_model.identification.identify.identify`), and each of the 10 held-out files is
+predicted
 (stateful models start from rest on each file). The score of a prediction is the ratio of its
 NRMSE to the NRMSE of that file's own best Kwok fit (plain ``kwok``, identified on the file
 alone with the same seed; computed once per run). Printed per model: the median and the worst
@@ -49,9 +50,9 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from mr_damper_model.data import DamperData, read_csv, validate  # noqa: E402
-from mr_damper_model.identify import identify  # noqa: E402
-from mr_damper_model.metrics import fit_metrics  # noqa: E402
+from mr_damper_model.io.data import DamperData, read_csv, validate  # noqa: E402
+from mr_damper_model.identification.identify import identify  # noqa: E402
+from mr_damper_model.identification.metrics import fit_metrics  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
 
 QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
@@ -189,7 +190,7 @@ def print_own_beta(data, own):
 
 def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
     """Median time per call [us]: kwok-current scalar inverse vs the kwok-current-lag one."""
-    from mr_damper_model.inverse import KwokCurrentInverse, KwokCurrentLagInverse
+    from mr_damper_model.models.inverse import KwokCurrentInverse, KwokCurrentLagInverse
     rec = data[('5mm3Hz', '0p5')]
     k = min(n_calls, rec.n)
     x, v, f = rec.x[:k].tolist(), rec.v[:k].tolist(), rec.f[:k].tolist()

@@ -40,7 +40,7 @@ def rss_mb():
             return int(line.split()[1]) / 1024
 path, what = sys.argv[1], sys.argv[2]
 import numpy, scipy.optimize, scipy.signal   # the imports of the fit, in the baseline
-from mr_damper_model import cli
+from mr_damper_model.tools import cli
 out = {'baseline_mb': rss_mb(), 'package': cli.__file__}
 if what == 'read':
     out['n'] = cli.read_record(path).n
@@ -59,7 +59,7 @@ print(json.dumps(out))
 CHILD_METHODS = r'''
 import csv, json, sys, tracemalloc
 import numpy as np
-from mr_damper_model.data import read_csv
+from mr_damper_model.io.data import read_csv
 path, method = sys.argv[1], sys.argv[2]
 tracemalloc.start()
 if method == 'read_csv':
@@ -76,7 +76,7 @@ print(json.dumps({'n': n, 'peak_kb': peak / 1e3}))
 
 def write_record(path, rows, seed=0):
     """Write a cam record through the kwok-current truth at 0.5 A (2 N noise)."""
-    from mr_damper_model.presets import thesis_kwok_current
+    from mr_damper_model.identification.presets import thesis_kwok_current
     model, truth = thesis_kwok_current()
     t = np.arange(rows) * 1e-3
     w = 2 * np.pi * 1.1

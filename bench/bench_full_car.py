@@ -31,7 +31,7 @@ import os
 import statistics
 import time
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim.controllers import DEFAULT_C_P, Skyhook
 from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,

@@ -24,7 +24,7 @@ import argparse
 import os
 from pathlib import Path
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig import car_in_the_loop as cil
 from quarter_car_sim import hil, live_loop
 from quarter_car_sim.controllers import make_controller
@@ -38,7 +38,7 @@ DT = 1e-3
 
 
 def _truth_msg():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     return dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
                 valid=1.0)

@@ -49,7 +49,7 @@ def _default_file():
 
 def resample(path, rate_hz, out):
     """Write ``path`` resampled to ``rate_hz`` (linear interpolation) as a t,x,v,f,i CSV."""
-    from mr_damper_model.data import DamperData, read_csv, write_csv
+    from mr_damper_model.io.data import DamperData, read_csv, write_csv
     d = read_csv(path)
     t = np.arange(d.t[0], d.t[-1], 1.0 / rate_hz)
     cols = [np.interp(t, d.t, getattr(d, c)) for c in 'xvfi']
@@ -63,7 +63,7 @@ class Probe:
     def __init__(self):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
-        from mr_damper_model.messages import health_from_diagnostic
+        from mr_damper_common.messages import health_from_diagnostic
         rclpy.init()
         self.node = rclpy.create_node('bench_identifier_probe')
         self.last = {}

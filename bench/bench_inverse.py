@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """
-Per-call time of the one scalar inverse (``mr_damper_model.inverse.KwokCurrentInverse``).
+Per-call time of the one scalar inverse (``mr_damper_model.models.inverse.KwokCurrentInverse``).
 
 Compared in the same run, on the same demands:
 
@@ -31,9 +31,9 @@ import time
 
 import numpy as np
 
-from mr_damper_model import presets
-from mr_damper_model.inverse import inverse_current, KwokCurrentInverse
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.live_loop import ClosedLoop

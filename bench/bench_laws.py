@@ -33,7 +33,7 @@ from pathlib import Path
 import statistics
 import time
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound

@@ -76,7 +76,7 @@ def main(argv=None):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from diagnostic_msgs.msg import DiagnosticArray
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.messages import health_from_diagnostic, kwok_parameters_from_msg
+    from mr_damper_common.messages import health_from_diagnostic, kwok_parameters_from_msg
 
     bin_dir = Path(sys.executable).parent
     rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments

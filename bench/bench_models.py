@@ -2,7 +2,8 @@
 Benchmark: identification time of the stateful models, compiled time loops against numpy.
 
 What ``mr-damper-identify FILE --model M`` (and ``--compare``) runs with its default options:
-:func:`mr_damper_model.identify.identify` / :func:`~mr_damper_model.identify.compare_models`,
+:func:`mr_damper_model.identification.identify.identify` /
+:func:`~mr_damper_model.identification.identify.compare_models`,
 method ``separable``, default bounds; wall time of the whole call, median of 5 seeds, on two
 shared Quiroz files. Each is run twice in the same process: with the compiled loops
 (``bouc_wen.bouc_wen_z``, ``spencer.spencer_force``) and with today's numpy references
@@ -40,9 +41,9 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from mr_damper_model import bouc_wen, spencer  # noqa: E402
-from mr_damper_model.data import read_csv, validate  # noqa: E402
-from mr_damper_model.identify import compare_models, identify  # noqa: E402
+from mr_damper_model.models import bouc_wen, spencer  # noqa: E402
+from mr_damper_model.io.data import read_csv, validate  # noqa: E402
+from mr_damper_model.identification.identify import compare_models, identify  # noqa: E402
 
 QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
 FILES = ('quiroz_sine_25mm0x25Hz_1p0A.csv.gz', 'quiroz_sine_10mm1Hz_1p0A_preproc.csv.gz')
@@ -112,10 +113,10 @@ t0 = time.perf_counter()
 import numba  # noqa
 t_import = time.perf_counter() - t0
 import numpy as np
-from mr_damper_model import compiled
-from mr_damper_model.bouc_wen import bouc_wen_z
-from mr_damper_model.spencer import Spencer
-from mr_damper_model.presets import spencer_thesis_like
+from mr_damper_model.models import compiled
+from mr_damper_model.models.bouc_wen import bouc_wen_z
+from mr_damper_model.models.spencer import Spencer
+from mr_damper_model.identification.presets import spencer_thesis_like
 t = np.arange(50) / 1000.0
 v = np.cos(t)
 t0 = time.perf_counter()

@@ -37,11 +37,11 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import differential_evolution, least_squares  # noqa: E402
 
-from mr_damper_model.data import DamperData, read_csv, validate  # noqa: E402
-import mr_damper_model.identify as identify_module  # noqa: E402
-from mr_damper_model.identify import identify  # noqa: E402
+from mr_damper_model.io.data import DamperData, read_csv, validate  # noqa: E402
+import mr_damper_model.identification.identify as identify_module  # noqa: E402
+from mr_damper_model.identification.identify import identify  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
-from mr_damper_model.presets import thesis_kwok_current  # noqa: E402
+from mr_damper_model.identification.presets import thesis_kwok_current  # noqa: E402
 
 QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'
 SWARM = 25

@@ -31,7 +31,7 @@ import time
 import numpy as np
 from scipy import signal
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.params import QuarterCarParams

@@ -19,8 +19,8 @@ import math
 import statistics
 import time
 
-from mr_damper_model import presets
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Passive, Skyhook
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.road import iso8608

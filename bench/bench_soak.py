@@ -35,7 +35,7 @@ import time
 import numpy as np
 import psutil
 
-from mr_damper_model.columnlog import ColumnReader
+from mr_damper_model.io.columnlog import ColumnReader
 
 REPO = Path(__file__).resolve().parents[1]
 

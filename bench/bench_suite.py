@@ -99,7 +99,8 @@ def sweep(args):
                                *args.extra])
             rows.append((spm, rf, rc, s))
     print('\n=== bench_suite: rate factors ('
-          f'{"wall" if args.wall else "record"} seconds {args.duration:g} each; load at the end {os.getloadavg()[0]:.2f}, '
+          f'{"wall" if args.wall else "record"} seconds {args.duration:g} each; '
+          f'load at the end {os.getloadavg()[0]:.2f}, '
           f'{os.cpu_count()} cores) ===')
     names = sorted({n for *_, s in rows for n, v in s.get('processes', {}).items()
                     if isinstance(v, dict)})

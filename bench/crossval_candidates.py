@@ -26,10 +26,10 @@ import sys
 
 import numpy as np
 
-from mr_damper_model import models
-from mr_damper_model.kwok_current import KwokCurrent, kwok_current_coefficients
-from mr_damper_model.kwok_current_amp import KwokCurrentAmp, velocity_amplitude
-from mr_damper_model.kwok_current_lag import KwokCurrentLag
+from mr_damper_model.models import base as models
+from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_coefficients
+from mr_damper_model.models.kwok_current_amp import KwokCurrentAmp, velocity_amplitude
+from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
 from mr_damper_model.models import HysteresisModel, SeparableParts
 
 

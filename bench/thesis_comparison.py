@@ -32,11 +32,11 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from mr_damper_model.data import DamperData, read_csv, validate  # noqa: E402
-from mr_damper_model.identify import current_groups, identify  # noqa: E402
-from mr_damper_model.metrics import fit_metrics  # noqa: E402
+from mr_damper_model.io.data import DamperData, read_csv, validate  # noqa: E402
+from mr_damper_model.identification.identify import current_groups, identify  # noqa: E402
+from mr_damper_model.identification.metrics import fit_metrics  # noqa: E402
 from mr_damper_model.models import get_model  # noqa: E402
-from mr_damper_model.presets import THESIS_TABLE_4_3  # noqa: E402
+from mr_damper_model.identification.presets import THESIS_TABLE_4_3  # noqa: E402
 from mr_damper_rig import rig_test_cli  # noqa: E402
 
 QUIROZ = Path(__file__).resolve().parents[1] / 'data' / 'quiroz_mr_damper'

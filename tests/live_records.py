@@ -1,8 +1,8 @@
 """Shared records and helpers of the live identifier tests (tests/mr_damper_model/test_live*)."""
 import numpy as np
 
-from mr_damper_model.data import DamperData
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 RATE = 1000.0
 
@@ -53,7 +53,7 @@ def sequence(ests):
 def quiroz(stem):
     """Read a shared Quiroz record by its name without extension (``.csv`` or ``.csv.gz``)."""
     from conftest import QUIROZ_DIR
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     return read_csv(next(iter(sorted(QUIROZ_DIR.glob(stem + '.csv*')))))
 
 
@@ -119,7 +119,7 @@ def replay_published(li, data):
 
 def steady_errors(published, data, mask, i_ref_a=2.0):
     """[(window end, RMS error [N] on the masked samples of the valid set published then)]."""
-    from mr_damper_model.kwok_current import kwok_current_force
+    from mr_damper_model.models.kwok_current import kwok_current_force
     out = []
     for end, est in published:
         if est.valid:
@@ -142,7 +142,7 @@ def held_at(errors, end):
 def alpha_scaled_fit(after, factor):
     """Return a ``fit_data`` replacement that scales alpha by ``factor`` from call ``after`` on."""
     from mr_damper_model.live import fit_data
-    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.identification.metrics import fit_metrics
     from mr_damper_model.models import get_model
     calls = []
 

@@ -15,8 +15,8 @@ import pytest
 from conftest import REPO
 
 ROS_MODULES = {'messages', 'node_utils'}
-PACKAGES = ('mr_damper_model', 'mr_damper_rig', 'quarter_car_sim', 'mr_damper_bringup',
-            'mr_damper_can')
+PACKAGES = ('mr_damper_common', 'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim',
+            'mr_damper_bringup', 'mr_damper_can')
 
 
 def _core_modules():

@@ -2,11 +2,11 @@
 The node parameter tables in docs/nodes.md match the parameters the nodes declare.
 
 Each node module declares its parameters once, in ``PARAMETERS`` (a tuple of
-``mr_damper_model.node_utils.Param``). docs/nodes.md holds, after the line
+``mr_damper_common.node_utils.Param``). docs/nodes.md holds, after the line
 ``<!-- parameters: <module> -->``, the table this file prints for that module. Print a table
 to paste with::
 
-    .venv/bin/python tests/test_docs_parameters.py mr_damper_model.identifier_node
+    .venv/bin/python tests/test_docs_parameters.py mr_damper_model.nodes.identifier_node
 """
 import importlib
 import math
@@ -19,7 +19,7 @@ import pytest
 DOCS = Path(__file__).resolve().parents[1] / 'docs' / 'nodes.md'
 NODE_MODULES = (
     'mr_damper_rig.rig_node',
-    'mr_damper_model.identifier_node',
+    'mr_damper_model.nodes.identifier_node',
     'quarter_car_sim.quarter_car_node',
     'quarter_car_sim.semi_active_controller_node',
     'mr_damper_can.can_bridge_node',
@@ -102,7 +102,7 @@ def test_docs_table_matches_declared_parameters(module):
 
 
 def test_table_format_of_a_known_spec():
-    from mr_damper_model.node_utils import Param
+    from mr_damper_common.node_utils import Param
     rows = table_rows([Param('gain', 2.0, 'Gain [N s/m]', 0.0, None, dynamic=True),
                        Param('mode', 'sim', 'Source'), Param('on', False, 'Switch')])
     assert rows[2:] == ['| `gain` | `2.0` | 0 .. inf | yes | Gain [N s/m] |',

@@ -27,8 +27,8 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'identifier_node = mr_damper_model.entry_points:identifier_node',
-            'mr-damper-identify = mr_damper_model.cli:main',
+            'identifier_node = mr_damper_model.nodes.entry_points:identifier_node',
+            'mr-damper-identify = mr_damper_model.tools.cli:main',
         ],
     },
 )

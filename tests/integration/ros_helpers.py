@@ -223,7 +223,7 @@ class Diagnostics:
 
     The name is the node's fully qualified name without the leading slash, e.g.
     ``'mr_damper_identifier'`` or ``'fl/mr_damper_identifier'``. Keeps the newest
-    :class:`~mr_damper_model.health.Health` and a count per name, and the sequence of levels
+    :class:`~mr_damper_common.health.Health` and a count per name, and the sequence of levels
     (bounded), so tests assert order and counts of events.
 
     """
@@ -237,7 +237,7 @@ class Diagnostics:
 
     def add(self, msg):
         """Subscription callback: record each status of a ``DiagnosticArray``."""
-        from mr_damper_model.messages import health_from_diagnostic
+        from mr_damper_common.messages import health_from_diagnostic
         with self._lock:
             for status in msg.status:
                 health = health_from_diagnostic(status)

@@ -36,8 +36,8 @@ CAR_NAME, CTRL_NAME = f'{NS}/quarter_car_node', f'{NS}/semi_active_controller'
 @pytest.fixture(scope='module')
 def listener():
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.messages import kwok_parameters_msg
-    from mr_damper_model.node_utils import LATCHED_QOS
+    from mr_damper_common.messages import kwok_parameters_msg
+    from mr_damper_common.node_utils import LATCHED_QOS
     lis = Listener('controller_node_test')
     pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
     pub.publish(kwok_parameters_msg(thesis_parameter_values()))   # latched
@@ -119,7 +119,7 @@ RIDE_COLUMNS = ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')
 
 def _reference_ride(n_steps):
     """Run the built-in loop on the same car, road, seed and model; return per-step arrays."""
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim import live_loop
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
@@ -149,7 +149,7 @@ def _ride_figures(columns):
 
 
 def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
-    from mr_damper_model.columnlog import ColumnReader
+    from mr_damper_model.io.columnlog import ColumnReader
     listener.diag = listener.diagnostics()       # this test's statuses only
     wait = listener.wait_for
     log = tmp_path / 'car_log'
@@ -181,7 +181,7 @@ def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
 
 def _car_states(n):
     """States of a passive ride (the law's inputs), stamped 1 ms apart from 1 s (car time)."""
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.road import make_road

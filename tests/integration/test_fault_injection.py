@@ -183,8 +183,8 @@ def test_rig_clamps_and_refuses_bad_current_commands(listener):
 def test_identifier_exits_0_on_a_signal_in_the_middle_of_a_burst(listener, sig):
     """Signal sent while a 5,000-message burst (single-sample layout) is taken: exit 0."""
     from sensor_msgs.msg import JointState
-    from mr_damper_model.messages import measurement_to_msg
-    from mr_damper_model.node_utils import MEASUREMENT_QOS
+    from mr_damper_common.messages import measurement_to_msg
+    from mr_damper_common.node_utils import MEASUREMENT_QOS
     ns = f'fi_burst_{int(sig)}'
     diag = listener.diagnostics()
     name = f'{ns}/mr_damper_identifier'

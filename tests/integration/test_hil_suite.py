@@ -113,7 +113,7 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
 def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listener):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.messages import kwok_parameters_flat
+    from mr_damper_common.messages import kwok_parameters_flat
     # coarser bins than the shipped config (5 instead of 9) so that the probe covers them in
     # fewer windows; the same bins in the car's probe and the identifier
     bins = {'probe_bin_a': 0.5}

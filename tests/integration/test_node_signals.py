@@ -2,7 +2,7 @@
 Every node's console script exits 0 on SIGINT or SIGTERM, also while it is still starting up.
 
 The stop handlers are installed before the node module is imported
-(``mr_damper_model.stop_flag.early_main``). The test waits until the process catches SIGTERM
+(``mr_damper_common.stop_flag.early_main``). The test waits until the process catches SIGTERM
 (Python itself never does, so the bit in ``/proc/PID/status`` ``SigCgt`` says our handler is
 in), then signals at once: on any machine that is while rclpy, scipy and control are still
 being imported. Before the early handlers, a SIGINT in that window was swallowed inside an

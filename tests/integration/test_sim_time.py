@@ -12,7 +12,7 @@ from conftest import QUIROZ_DIR
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_interfaces.msg import KwokParameters
 from mr_damper_model.live import LiveConfig, LiveIdentifier
-from mr_damper_model.messages import kwok_parameters_from_msg
+from mr_damper_common.messages import kwok_parameters_from_msg
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -70,8 +70,8 @@ class _Vehicle:
 @pytest.fixture(scope='module')
 def listener():
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.messages import kwok_parameters_msg
-    from mr_damper_model.node_utils import LATCHED_QOS
+    from mr_damper_common.messages import kwok_parameters_msg
+    from mr_damper_common.node_utils import LATCHED_QOS
     lis = Listener('state_estimator_test')
     pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
     pub.publish(kwok_parameters_msg(thesis_parameter_values()))

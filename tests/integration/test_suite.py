@@ -29,7 +29,7 @@ from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
 from kwok_messages import thesis_parameter_values
 from mr_damper_bringup.config import IDENT, QC, RIG
 from mr_damper_bringup.processes import CLEAN_EXIT
-from mr_damper_model.columnlog import ColumnReader
+from mr_damper_model.io.columnlog import ColumnReader
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -46,7 +46,7 @@ def listener():
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.messages import kwok_parameters_msg
+    from mr_damper_common.messages import kwok_parameters_msg
     from std_msgs.msg import Float64
     topic = '/h5test/mr_damper/kwok_parameters'
     params = {'safe_current_a': SAFE_A, 'param_timeout_s': 30.0, 'diagnostics_period_s': 0.05,

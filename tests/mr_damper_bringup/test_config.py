@@ -61,7 +61,7 @@ def test_replay_needs_existing_files(tmp_path):
 
 def test_replay_default_input_is_the_data_shipped_in_the_repository(tmp_path):
     import numpy as np
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     from conftest import REPO
     assert len(config.DEFAULT_REPLAY) == 5
     for f in config.DEFAULT_REPLAY:

@@ -8,7 +8,7 @@ from rosbags.highlevel import AnyReader
 from mr_damper_bringup import topics
 from mr_damper_bringup.recorder import (part_path, recording_parts, remove_recording,
                                         SuiteRecorder, work_file)
-from mr_damper_model.bag_types import suite_typestore
+from mr_damper_model.io.bag_types import suite_typestore
 
 TS = suite_typestore()
 
@@ -124,8 +124,8 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
     """What the node writes (rclpy CDR) decodes with the one decoder of each kind."""
     from rclpy.serialization import serialize_message
 
-    from mr_damper_model import messages as mm
-    from mr_damper_model.health import Health, WARN
+    from mr_damper_common import messages as mm
+    from mr_damper_common.health import Health, WARN
     status = {'samples_received': 12, 'mode': 'normal', 'windows_skipped': {'gap': 2}}
     diag = mm.diagnostic_array_msg([mm.diagnostic_status_msg(
         'fl/mr_damper_identifier', Health(WARN, 'gap', status))], stamp_s=2.0)
@@ -257,7 +257,7 @@ def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path
 @pytest.mark.parametrize('chunk_s', [1.0, 0.25])
 def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
     """Chunks are closed every ``chunk_s`` of log time: a cut file holds all but the last one."""
-    from mr_damper_model.mcap_scan import McapScan
+    from mr_damper_model.io.mcap_scan import McapScan
     raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)
     rec = SuiteRecorder(tmp_path / 'k.mcap', topics.topic_table(['measurement']), typestore=TS,
                         chunk_s=chunk_s).open()

@@ -10,8 +10,8 @@ import yaml
 
 from mr_damper_bringup import report
 from mr_damper_bringup.recorder import SuiteRecorder
-from mr_damper_model.columnlog import ColumnReader, ColumnWriter
-from mr_damper_model.kwok_current import kwok_current_force
+from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
+from mr_damper_model.models.kwok_current import kwok_current_force
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -22,7 +22,7 @@ QC = {'plant': 'kwok-current', 'road': 'iso8608', 'road_class': 'C', 'speed_m_s'
 
 
 def _truth_msg():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     return params, dict(params, i_ref_a=2.0, current_min_a=0.0, current_max_a=2.0, valid=1.0,
                         rmse_n=1.0, nrmse_percent=0.1, window_end_s=1.0)
@@ -84,7 +84,7 @@ def test_measurement_to_parameters_counts_a_republished_set_once():
 def _live_log(path, controller_offers=False, seconds=4.0, status=None):
     """Run the node's loop in-process, in the node's way (t0 = -settle), and log it to path."""
     car_p = QuarterCarParams()
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.road import make_road
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=4,
@@ -136,8 +136,8 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
     """
     from rclpy.serialization import serialize_message
 
-    from mr_damper_model import messages as mm
-    from mr_damper_model.health import Health, OK
+    from mr_damper_common import messages as mm
+    from mr_damper_common.health import Health, OK
     from mr_damper_bringup.topics import NODE_PARAMETERS_TOPIC
     with SuiteRecorder(path, config_text=yaml.safe_dump(cfg), start_ns=999_000_000_000) as rec:
         for node, p in (node_params or {}).items():

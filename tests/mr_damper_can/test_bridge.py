@@ -9,7 +9,7 @@ from mr_damper_can import codec
 from mr_damper_can.bridge import BridgeHealth, CanBridge
 from mr_damper_can.codec import FrameCodec
 from mr_damper_can.driver_sim import SimulatedEcu
-from mr_damper_model.health import ERROR, OK, WARN
+from mr_damper_common.health import ERROR, OK, WARN
 
 DB = codec.load_database()
 

@@ -99,7 +99,7 @@ def test_driver_sim_node_takes_fault_requests(ctx):
     from rclpy.parameter import Parameter
     from std_msgs.msg import String
     from mr_damper_can.can_driver_sim_node import CanDriverSimNode
-    from mr_damper_model.health import ERROR, OK
+    from mr_damper_common.health import ERROR, OK
     context, made = ctx
     node = CanDriverSimNode(context=context, namespace='canunit', parameter_overrides=[
         Parameter('interface', value='virtual'), Parameter('corners', value='fl'),

@@ -17,8 +17,8 @@ import time
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
-from mr_damper_model import bag_types
-from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.io import bag_types
+from mr_damper_model.models.kwok_current import KwokCurrent
 import pytest
 import rclpy
 from rclpy.context import Context

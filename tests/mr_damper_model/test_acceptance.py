@@ -12,9 +12,9 @@ import pytest
 
 from live_records import (alpha_scaled_fit, cam_record, held_at, inject_faults, quiroz,
                           replay_published, steady_errors, steady_mask)
-from mr_damper_model.acceptance import (condition_number, excitation_shortfall, level_figures,
-                                        velocity_shares)
-from mr_damper_model.data import DamperData
+from mr_damper_model.identification.acceptance import (condition_number, excitation_shortfall,
+                                                       level_figures, velocity_shares)
+from mr_damper_model.io.data import DamperData
 from mr_damper_model.live import LiveConfig, LiveIdentifier
 
 NODE = dict(backlog_windows=300)

@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 
 from conftest import QUIROZ_DIR
-from mr_damper_model import bag_io
-from mr_damper_model.data import COIL_JOINT, DamperData, DataError, PISTON_JOINT, read_csv
+from mr_damper_model.io import bag_io
+from mr_damper_common.contract import COIL_JOINT, PISTON_JOINT
+from mr_damper_model.io.data import DamperData, DataError, read_csv
 
 QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
 PLUGINS = {'sqlite3': 'SQLITE3', 'mcap': 'MCAP'}

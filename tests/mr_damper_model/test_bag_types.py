@@ -1,9 +1,9 @@
-"""Tests of mr_damper_model.bag_types (suite messages in a rosbags type store, no ROS)."""
+"""Tests of mr_damper_model.io.bag_types (suite messages in a rosbags type store, no ROS)."""
 from pathlib import Path
 import struct
 import sys
 
-from mr_damper_model import bag_types
+from mr_damper_model.io import bag_types
 import pytest
 from rosbags.typesys import get_typestore, Stores
 

@@ -1,5 +1,7 @@
 """
-Tests of the batch identification (mr_damper_model.batch, ``mr-damper-identify --batch``).
+Tests of the batch identification (``mr-damper-identify --batch``).
+
+The code under test is mr_damper_model.identification.batch.
 
 Archive: a handful of short generated dampers (kwok-current, i_ref 1 A, three current levels,
 a 15 mm / 1.2 Hz sine, 1 % force noise), each the master damper with its viscous and
@@ -18,12 +20,12 @@ import numpy as np
 import psutil
 import pytest
 
-from mr_damper_model import batch
-from mr_damper_model.cli import run as cli_run
-from mr_damper_model.data import DamperData, write_csv
+from mr_damper_model.identification import batch
+from mr_damper_model.tools.cli import run as cli_run
+from mr_damper_model.io.data import DamperData, write_csv
 from mr_damper_model.models import get_model
-from mr_damper_model.params_file import save_params
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.io.params_file import save_params
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 MODEL = get_model('kwok-current', i_ref_a=1.0)
 _, TRUTH = thesis_kwok_current()

@@ -1,7 +1,7 @@
 """Tests of the Bingham model (exact expression)."""
 import numpy as np
 
-from mr_damper_model.bingham import Bingham
+from mr_damper_model.models.bingham import Bingham
 
 
 def test_exact():

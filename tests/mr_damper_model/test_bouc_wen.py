@@ -4,8 +4,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from conftest import QUIROZ_DIR
-from mr_damper_model.bouc_wen import bouc_wen_z, bouc_wen_z_numpy, BoucWen
-from mr_damper_model.data import read_csv
+from mr_damper_model.models.bouc_wen import bouc_wen_z, bouc_wen_z_numpy, BoucWen
+from mr_damper_model.io.data import read_csv
 
 
 def _motion(fs=1000.0, T=1.8):

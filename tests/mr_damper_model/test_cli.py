@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from conftest import csv_text, QUIROZ_DIR, VENV_BIN
-from mr_damper_model.cli import run
-from mr_damper_model.params_file import load_params
+from mr_damper_model.tools.cli import run
+from mr_damper_model.io.params_file import load_params
 
 QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
 HEADER = 't,x,v,f,i\n'
@@ -80,7 +80,7 @@ def test_json_output_and_params_file(tmp_path, capsys):
 
 
 def test_per_current_groups_and_default_model(tmp_path, capsys):
-    from mr_damper_model.data import DamperData, read_csv, write_csv
+    from mr_damper_model.io.data import DamperData, read_csv, write_csv
     a = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0A.csv.gz')
     b = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_1p0A.csv.gz')
     both = DamperData.concatenate([a, b], restamp=True)
@@ -113,8 +113,8 @@ TRIO = sorted(QUIROZ_DIR / name for name in ('quiroz_sine_2mm5Hz_0A.csv.gz',
 
 def _direct_metrics(params_path, paths):
     """Per-file and overall metrics of a saved model, computed here without the tool."""
-    from mr_damper_model.data import read_csv
-    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.io.data import read_csv
+    from mr_damper_model.identification.metrics import fit_metrics
     from mr_damper_model.models import get_model
     pf = load_params(params_path)
     mdl = get_model(pf.model, **pf.model_options)
@@ -147,7 +147,7 @@ def joint_fit(tmp_path_factory):
 def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
     doc, out = joint_fit
     assert doc['model'] == 'kwok-current-amp'      # three current levels: the default
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     assert sorted(round(read_csv(p).sample_rate_hz) for p in TRIO) == [200, 200, 1000]
     assert [f['source'] for f in doc['files']] == [str(p) for p in TRIO]
     assert [f['samples'] for f in doc['files']] == [read_csv(p).n for p in TRIO]
@@ -216,10 +216,10 @@ def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, ca
 
 
 def test_validate_stateful_model_starts_from_rest_in_each_file(tmp_path, capsys):
-    from mr_damper_model.data import read_csv
-    from mr_damper_model.metrics import fit_metrics
+    from mr_damper_model.io.data import read_csv
+    from mr_damper_model.identification.metrics import fit_metrics
     from mr_damper_model.models import get_model
-    from mr_damper_model.params_file import save_params
+    from mr_damper_model.io.params_file import save_params
     mdl = get_model('bouc-wen')
     lo, hi = mdl.default_bounds()
     x = (lo + hi) / 2
@@ -235,8 +235,8 @@ def test_validate_stateful_model_starts_from_rest_in_each_file(tmp_path, capsys)
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
 def test_bag_input_fits_and_validates_like_the_csv(joint_fit, tmp_path, capsys, storage):
-    from mr_damper_model.bag_io import write_bag
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.bag_io import write_bag
+    from mr_damper_model.io.data import read_csv
     bag = tmp_path / 'bag'
     write_bag(bag, read_csv(QFILE), storage=storage, topic='/rig/measurement')
     single = next(p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap'))
@@ -265,8 +265,8 @@ def test_bag_input_fits_and_validates_like_the_csv(joint_fit, tmp_path, capsys, 
 
 
 def _bag_error_inputs(tmp_path):
-    from mr_damper_model.bag_io import write_bag
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.bag_io import write_bag
+    from mr_damper_model.io.data import read_csv
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     d = read_csv(QFILE)
@@ -344,7 +344,7 @@ def test_a_closed_output_pipe_ends_quietly():
 
 
 def test_every_registered_model_can_be_chosen():
-    from mr_damper_model.cli import MODEL_CHOICES, MULTI_CURRENT_MODEL
+    from mr_damper_model.tools.cli import MODEL_CHOICES, MULTI_CURRENT_MODEL
     from mr_damper_model.models import MODEL_NAMES
     assert sorted(MODEL_CHOICES) == sorted(MODEL_NAMES)
     assert MULTI_CURRENT_MODEL in MODEL_CHOICES
@@ -352,8 +352,8 @@ def test_every_registered_model_can_be_chosen():
 
 def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path, capsys):
     """mr-damper-identify reads a footer-less MCAP up to its last chunk and says where it ends."""
-    from mr_damper_model.bag_io import write_bag
-    from mr_damper_model.data import DamperData, read_csv
+    from mr_damper_model.io.bag_io import write_bag
+    from mr_damper_model.io.data import DamperData, read_csv
     d = read_csv(QFILE)
     reps = 30                                   # several 1 MiB chunks of measurements
     n = d.t.size

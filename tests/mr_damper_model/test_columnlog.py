@@ -1,13 +1,13 @@
-"""Tests of mr_damper_model.columnlog: logs streamed to disk, read back in bounded chunks."""
+"""Tests of mr_damper_model.io.columnlog: logs streamed to disk, read back in bounded chunks."""
 import json
 import tracemalloc
 
 import numpy as np
 import pytest
 
-from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
-                                       finite_or_none, JsonLines, log_paths, open_log,
-                                       read_json_lines)
+from mr_damper_model.io.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
+                                          finite_or_none, JsonLines, log_paths, open_log,
+                                          read_json_lines)
 
 
 def _rows(n, width=3):

@@ -1,5 +1,5 @@
 """
-Tests of the compiled kernels' disk cache (mr_damper_model.compiled).
+Tests of the compiled kernels' disk cache (mr_damper_model.models.compiled).
 
 Each case runs a fresh interpreter that evaluates both stateful models and prints
 ``compiled.cache_status()``: numba's own counters of signatures loaded from the cache (hits) and
@@ -17,10 +17,10 @@ _RUN = """
 import json, sys
 import numpy as np
 {patch}
-from mr_damper_model import compiled
-from mr_damper_model.bouc_wen import BoucWen
-from mr_damper_model.presets import spencer_thesis_like
-from mr_damper_model.spencer import Spencer
+from mr_damper_model.models import compiled
+from mr_damper_model.models.bouc_wen import BoucWen
+from mr_damper_model.identification.presets import spencer_thesis_like
+from mr_damper_model.models.spencer import Spencer
 t = np.arange(200) / 1000.0
 x = 0.01 * np.sin(2 * np.pi * 3 * t)
 v = 0.01 * 2 * np.pi * 3 * np.cos(2 * np.pi * 3 * t)
@@ -46,7 +46,7 @@ def _unwritable(self):
 caching._CacheLocator.ensure_cache_path = _unwritable
 """
 
-KERNELS = ('mr_damper_model.bouc_wen._z_loop', 'mr_damper_model.spencer._force_loop')
+KERNELS = ('mr_damper_model.models.bouc_wen._z_loop', 'mr_damper_model.models.spencer._force_loop')
 
 
 def _run(patch='', **env):
@@ -67,10 +67,10 @@ def test_second_process_loads_the_cache_beside_the_source():
         st = second['status'][name]
         assert st['cached'] and st['error'] == ''
         assert st['cache_misses'] == 0 and st['cache_hits'] == 1
-        module = name.split('.')[1]
+        module = name.split('.')[2]
         cache = Path(st['cache_path'])
         # in-tree cache of the (editable) package: the module's own __pycache__
-        assert cache.parent.name == 'mr_damper_model'
+        assert cache.parent.name == 'models'
         assert list(cache.glob(f'{module}.*.nbi')) and list(cache.glob(f'{module}.*.nbc'))
 
 

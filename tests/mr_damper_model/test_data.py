@@ -1,10 +1,10 @@
-"""Tests for mr_damper_model.data: CSV reading, validation, current splitting."""
+"""Tests for mr_damper_model.io.data: CSV reading, validation, current splitting."""
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData, DataError, derive_velocity, is_csv, read_csv, \
+from mr_damper_model.io.data import DamperData, DataError, derive_velocity, is_csv, read_csv, \
     validate, write_csv
 
 
@@ -190,7 +190,7 @@ def test_blank_line_inside_the_data_is_an_error_trailing_ones_are_not(tmp_path):
 def test_large_csv_is_read_in_bounded_memory(tmp_path, monkeypatch):
     """Peak memory of read_csv stays within 3x the arrays it returns (several blocks)."""
     import tracemalloc
-    from mr_damper_model import data as data_mod
+    from mr_damper_model.io import data as data_mod
     monkeypatch.setattr(data_mod, '_CSV_BLOCK_ROWS', 4096)   # many blocks, small file
     n = 60000
     t = np.arange(n) * 1e-3

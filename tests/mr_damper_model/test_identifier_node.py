@@ -14,10 +14,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from std_msgs.msg import UInt64
 
-from mr_damper_model.health import ERROR, OK, WARN
-from mr_damper_model.identifier_node import IdentifierNode, PARAMETERS
+from mr_damper_common.health import ERROR, OK, WARN
+from mr_damper_model.nodes.identifier_node import IdentifierNode, PARAMETERS
 from mr_damper_model.live import DYNAMIC_FIELDS
-from mr_damper_model.messages import measurement_to_msg, samples_to_msg
+from mr_damper_common.messages import measurement_to_msg, samples_to_msg
 
 
 @pytest.fixture(scope='module')
@@ -147,8 +147,8 @@ def test_sim_time_fits_in_order_and_ages_are_ros_time(make_node):
 @pytest.mark.parametrize('content', ['kwok-current-lag', 'not json'])
 def test_a_parameter_file_it_cannot_resume_from_is_not_overwritten(
         make_node, tmp_path, content):
-    from mr_damper_model.kwok_current_lag import KwokCurrentLag
-    from mr_damper_model.params_file import save_params
+    from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
+    from mr_damper_model.io.params_file import save_params
     path = tmp_path / 'damper.json'
     if content == 'not json':
         path.write_text('{"model": ')
@@ -166,8 +166,8 @@ def test_a_parameter_file_it_cannot_resume_from_is_not_overwritten(
 
 
 def test_its_own_parameter_file_is_resumed_and_saved_to(make_node, tmp_path):
-    from mr_damper_model import presets
-    from mr_damper_model.params_file import save_params
+    from mr_damper_model.identification import presets
+    from mr_damper_model.io.params_file import save_params
     _, truth = presets.thesis_kwok_current()
     path = tmp_path / 'damper.json'
     save_params(path, {'model': 'kwok-current', 'parameters': truth,

@@ -1,5 +1,5 @@
 """
-Tests of the identification (mr_damper_model.identify): recover known parameters.
+Tests of the identification (mr_damper_model.identification.identify): recover known parameters.
 
 Data: thesis cam excitation (1.1 Hz, 30 mm) at 1 kHz, force from the model with Gaussian noise
 of 1 % of the peak force. Tolerances: a least-squares fit of n = 2000 samples with p parameters
@@ -11,11 +11,11 @@ force, delta within 0.05.
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
-from mr_damper_model.identify import (_full_cost, compare_models, current_groups, identify,
-                                      identify_per_current)
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.identification.identify import (_full_cost, compare_models, current_groups,
+                                                     identify, identify_per_current)
 from mr_damper_model.models import get_model
-from mr_damper_model.presets import THESIS_TABLE_4_3, thesis_kwok_current
+from mr_damper_model.identification.presets import THESIS_TABLE_4_3, thesis_kwok_current
 
 FREQ, AMP = 1.1, 0.03
 
@@ -66,7 +66,7 @@ def test_recover_kwok_current_2s_window():
     res = identify(data, 'kwok-current', seed=2)
     check_force(res, m, data, f_true, sigma)
     # the current-dependent coefficients at each level, not the collinear raw parameters
-    from mr_damper_model.kwok_current import kwok_current_coefficients
+    from mr_damper_model.models.kwok_current import kwok_current_coefficients
     s = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
     got = kwok_current_coefficients(res.x[None], s)
     want = kwok_current_coefficients(m.from_dict(truth)[None], s)
@@ -140,7 +140,7 @@ def test_recover_bouc_wen_from_two_joined_records():
 
 def spencer_record(duration=2.0):
     """Thesis cam at 1 kHz, coil current in four levels, Spencer thesis-like force + 1 % noise."""
-    from mr_damper_model.presets import spencer_thesis_like
+    from mr_damper_model.identification.presets import spencer_thesis_like
     m = get_model('spencer')
     truth = spencer_thesis_like()
     t, x, v, _ = cam(duration=duration)
@@ -186,7 +186,7 @@ def test_spencer_default_same_seed_same_answer():
 
 @pytest.mark.slow
 def test_spencer_short_record_small_budget_full_method():
-    from mr_damper_model.presets import spencer_thesis_like
+    from mr_damper_model.identification.presets import spencer_thesis_like
     m = get_model('spencer')
     truth = spencer_thesis_like()
     t, x, v, _ = cam(duration=0.25)
@@ -271,7 +271,7 @@ def test_full_cost_gram_form_equals_direct_rmse(name):
 
 def test_projected_lm_matches_trf_with_an_active_bound():
     from scipy.optimize import least_squares
-    from mr_damper_model.identify import _projected_lm
+    from mr_damper_model.identification.identify import _projected_lm
     m, truth = thesis_kwok_current()
     t, x, v, _ = cam(2.0)
     i = np.linspace(0.0, 2.0, t.size)
@@ -302,7 +302,7 @@ def test_chunked_polish_and_solve_equal_the_whole_record(monkeypatch, model_name
     parameters within 1e-9 relative, RMSE within 1e-12 relative (chunks of 700 samples, not a
     divisor of the record, against one chunk).
     """
-    from mr_damper_model import identify as idm
+    from mr_damper_model.identification import identify as idm
     m = get_model(model_name)
     t, x, v, _ = cam(6.0)
     levels = [0.0, 0.5, 1.0, 1.5, 2.0]

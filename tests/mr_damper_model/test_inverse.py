@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.inverse import inverse_current, KwokCurrentInverse
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 
 def _samples(n, seed):

@@ -1,8 +1,8 @@
 """Tests of the Kwok model against analytic limits."""
 import numpy as np
 
-from mr_damper_model.kwok import Kwok
-from mr_damper_model.presets import THESIS_TABLE_4_3
+from mr_damper_model.models.kwok import Kwok
+from mr_damper_model.identification.presets import THESIS_TABLE_4_3
 
 
 def test_large_velocity_limit():

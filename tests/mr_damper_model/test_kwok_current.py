@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.kwok import Kwok
-from mr_damper_model.kwok_current import (KwokCurrent, kwok_current_coefficients,
-                                          kwok_current_force_scalar,
-                                          kwok_current_force_slope_at,
-                                          kwok_current_terms_scalar)
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.models.kwok import Kwok
+from mr_damper_model.models.kwok_current import (KwokCurrent, kwok_current_coefficients,
+                                                 kwok_current_force_scalar,
+                                                 kwok_current_force_slope_at,
+                                                 kwok_current_terms_scalar)
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 
 def _p():
@@ -126,8 +126,8 @@ def test_scalar_force_and_slope_match_the_model():
 
 def test_force_of_a_named_parameter_set():
     """``kwok_current_force`` on a saved-parameter dict (with ``i_ref_a``) is the model's force."""
-    from mr_damper_model import presets
-    from mr_damper_model.kwok_current import kwok_current_force
+    from mr_damper_model.identification import presets
+    from mr_damper_model.models.kwok_current import kwok_current_force
     model, params = presets.thesis_kwok_current()
     rng = np.random.default_rng(3)
     x, v, i = rng.normal(0, 0.01, 50), rng.normal(0, 0.1, 50), rng.uniform(0, 2, 50)

@@ -4,10 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
-from mr_damper_model.identify import identify
-from mr_damper_model.kwok_current_amp import KwokCurrentAmp, velocity_amplitude
-from mr_damper_model.kwok_current_lag import KwokCurrentLag
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.identification.identify import identify
+from mr_damper_model.models.kwok_current_amp import KwokCurrentAmp, velocity_amplitude
+from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
 from mr_damper_model.models import get_model, ModelError
 
 

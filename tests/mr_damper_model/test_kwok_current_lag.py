@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
-from mr_damper_model.identify import identify
-from mr_damper_model.inverse import KwokCurrentLagInverse
-from mr_damper_model.kwok_current import KwokCurrent
-from mr_damper_model.kwok_current_lag import first_order_lag, KwokCurrentLag
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.identification.identify import identify
+from mr_damper_model.models.inverse import KwokCurrentLagInverse
+from mr_damper_model.models.kwok_current import KwokCurrent
+from mr_damper_model.models.kwok_current_lag import first_order_lag, KwokCurrentLag
 from mr_damper_model.models import get_model, ModelError
 
 

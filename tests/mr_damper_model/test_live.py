@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
-from mr_damper_model.identify import identify
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.identification.identify import identify
 from mr_damper_model.live import (LiveConfig, LiveIdentifier, check_excitation, fit_kwargs,
                                   kwok_current_at, kwok_to_kwok_current)
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 from live_records import cam_record
 
@@ -169,7 +169,7 @@ def test_config_validation_names_the_setting(bad):
 
 def test_warm_started_windows_reach_the_offline_optimum_on_measured_data():
     from conftest import QUIROZ_DIR
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     data = read_csv(QUIROZ_DIR / 'quiroz_sine_10mm1Hz_0p75A_preproc.csv.gz')
     cfg = LiveConfig(budget_s=0.0, hop_s=0.5)          # warm start, 30 iterations per window
     est = feed(LiveIdentifier(cfg), data, every=100)[-1]

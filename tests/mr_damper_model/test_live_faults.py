@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from live_records import alpha_scaled_fit
-from mr_damper_model.data import DamperData
+from mr_damper_model.io.data import DamperData
 from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
                                   LiveConfig, LiveIdentifier, pinned_parameters, robust_range,
                                   running_median)
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.identification.presets import thesis_kwok_current
 
 RATE = 1000.0
 MODEL, TRUTH = thesis_kwok_current()
@@ -431,8 +431,8 @@ def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
 
 def test_healthy_spencer_damper_raises_no_fault():
     """Model mismatch is no fault: a Bouc-Wen damper, current steps 0..2 A, all valid."""
-    from mr_damper_model.plant import SpencerPlant
-    from mr_damper_model.presets import spencer_thesis_like
+    from mr_damper_model.models.plant import SpencerPlant
+    from mr_damper_model.identification.presets import spencer_thesis_like
     plant = SpencerPlant(spencer_thesis_like())
     t, x, v = cam(10000)
     i_cmd = np.repeat([0.0, 0.5, 1.0, 1.5, 2.0], 2000)
@@ -452,7 +452,7 @@ def test_healthy_spencer_damper_raises_no_fault():
 def test_measured_record_raises_no_fault():
     """A real damper record (Quiroz, 0.5 Hz): the model error depends on the stroke, no fault."""
     from conftest import QUIROZ_DIR
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     data = read_csv(QUIROZ_DIR / 'quiroz_sine_25mm0x5Hz_0A.csv.gz')
     li = LiveIdentifier(LiveConfig(budget_s=0.0, hop_s=1.0, maxiter=20))
     ests = li.replay(data, 50)
@@ -470,7 +470,7 @@ def spencer_stream(currents, hold_s=2.0, seed=3):
     Cam from rest at -30 mm (x = -A cos), the rig's plant (``make_plant('spencer')``, internal
     displacement from mid-stroke), measured coil current (driver and coil lag), 2 N noise.
     """
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     plant = make_plant('spencer')
     n1 = int(hold_s * RATE)
     t = np.arange(n1 * len(currents)) / RATE

@@ -5,9 +5,9 @@ import time
 
 import pytest
 
-from mr_damper_model.health import ERROR, OK, WARN
+from mr_damper_common.health import ERROR, OK, WARN
 from mr_damper_model.live import LiveConfig, LiveIdentifier
-from mr_damper_model.live_worker import (IdentifierHealth, IdentifierRuntime, SaveThrottle,
+from mr_damper_model.live.worker import (IdentifierHealth, IdentifierRuntime, SaveThrottle,
                                          StampAges)
 
 from live_records import cam_record, FAST, sequence

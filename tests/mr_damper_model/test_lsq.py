@@ -1,9 +1,9 @@
-"""Tests of the batched box-bounded least squares (mr_damper_model.lsq)."""
+"""Tests of the batched box-bounded least squares (mr_damper_model.identification.lsq)."""
 import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from mr_damper_model.lsq import box_qp, bounded_lstsq, gram, sum_squares
+from mr_damper_model.identification.lsq import box_qp, bounded_lstsq, gram, sum_squares
 
 
 def _random_problem(rng, m, p=6, n=80):

@@ -1,8 +1,8 @@
-"""Tests for mr_damper_model.metrics (thesis eq. 4.1-4.3)."""
+"""Tests for mr_damper_model.identification.metrics (thesis eq. 4.1-4.3)."""
 import numpy as np
 import pytest
 
-from mr_damper_model.metrics import fit_metrics, METRIC_KEYS
+from mr_damper_model.identification.metrics import fit_metrics, METRIC_KEYS
 
 
 def test_perfect_fit_is_zero():

@@ -1,11 +1,11 @@
-"""Tests for mr_damper_model.params_file: JSON parameter files."""
+"""Tests for mr_damper_model.io.params_file: JSON parameter files."""
 import json
 import math
 
 import pytest
 
-from mr_damper_model.data import DataError
-from mr_damper_model.params_file import load_params, ParamsFile, save_params
+from mr_damper_model.io.data import DataError
+from mr_damper_model.io.params_file import load_params, ParamsFile, save_params
 
 KWOK = {'c': 800.0, 'k': 150.0, 'alpha': 300.0, 'beta': 40.0, 'delta': 0.5, 'f0': 5.0}
 

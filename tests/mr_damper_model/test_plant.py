@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.plant import KwokCurrentPlant, make_plant, SpencerPlant
-from mr_damper_model.presets import spencer_thesis_like, thesis_kwok_current
-from mr_damper_model.spencer import Spencer
+from mr_damper_model.models.plant import KwokCurrentPlant, make_plant, SpencerPlant
+from mr_damper_model.identification.presets import spencer_thesis_like, thesis_kwok_current
+from mr_damper_model.models.spencer import Spencer
 
 FS = 1000.0
 
@@ -70,7 +70,7 @@ def test_make_plant_errors():
 
 def test_make_plant_reads_a_parameter_file(tmp_path):
     # a truth file (params_file format) gives the same plant as its parameters; '' the preset
-    from mr_damper_model.params_file import save_params
+    from mr_damper_model.io.params_file import save_params
     model, truth = thesis_kwok_current()
     changed = dict(truth, c0=2.0 * truth['c0'])
     path = tmp_path / 'truth.json'

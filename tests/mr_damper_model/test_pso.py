@@ -1,8 +1,8 @@
-"""Tests of the particle swarm (mr_damper_model.pso)."""
+"""Tests of the particle swarm (mr_damper_model.identification.pso)."""
 import numpy as np
 import pytest
 
-from mr_damper_model.pso import pso
+from mr_damper_model.identification.pso import pso
 
 SHIFT = np.array([0.3, -1.2, 2.0, 0.7])
 LO, HI = -np.full(4, 5.0), np.full(4, 5.0)

@@ -9,8 +9,8 @@ also in README); a regression beyond 2 % relative + 0.05 points fails. Tuple:
 import pytest
 
 from conftest import QUIROZ_DIR
-from mr_damper_model.data import read_csv, validate
-from mr_damper_model.identify import identify
+from mr_damper_model.io.data import read_csv, validate
+from mr_damper_model.identification.identify import identify
 
 RECORDED = {
     'quiroz_sine_10mm1Hz_0A_preproc.csv.gz': (2.386, 6.34),

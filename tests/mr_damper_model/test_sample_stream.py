@@ -1,5 +1,5 @@
 """BatchIndex: exact lost-sample counts from the batches' stream index."""
-from mr_damper_model.sample_stream import BatchIndex
+from mr_damper_model.live.sample_stream import BatchIndex
 
 
 def test_contiguous_batches_lose_nothing():

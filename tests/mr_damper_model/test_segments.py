@@ -8,9 +8,9 @@ memoryless models must ignore the starts.
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
+from mr_damper_model.io.data import DamperData
 from mr_damper_model.models import get_model, MODEL_NAMES, ModelError
-from mr_damper_model.presets import spencer_thesis_like
+from mr_damper_model.identification.presets import spencer_thesis_like
 
 
 def _part(n, fs, freq, amp, phase, current, t0=0.0):

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from conftest import QUIROZ_DIR
-from mr_damper_model.data import read_csv
-from mr_damper_model.plant import SpencerPlant
-from mr_damper_model.presets import spencer_thesis_like
-from mr_damper_model.spencer import (Spencer, spencer_force, spencer_force_numpy, spring_fit,
-                                     z_step_array, z_step_scalar)
+from mr_damper_model.io.data import read_csv
+from mr_damper_model.models.plant import SpencerPlant
+from mr_damper_model.identification.presets import spencer_thesis_like
+from mr_damper_model.models.spencer import (Spencer, spencer_force, spencer_force_numpy,
+                                            spring_fit, z_step_array, z_step_scalar)
 
 
 @pytest.mark.parametrize('beta,gamma', [(3.63e6, 3.63e6), (5e6, 2e6), (1e6, 4e6)])

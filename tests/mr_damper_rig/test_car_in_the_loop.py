@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig import car_in_the_loop as cil
 from mr_damper_rig.actuator import ServoActuator
 from quarter_car_sim import hil, live_loop
@@ -16,7 +16,7 @@ DT = 1e-3
 
 
 def _truth_msg():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     return dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
                 valid=1.0)
@@ -130,7 +130,7 @@ def test_adaptive_horizon_over_a_latent_link_grows_by_the_latency_and_cuts_the_e
 
 
 def test_cam_rig_comparison_ranks_the_truth_with_the_cam_fit_and_a_wrong_model_below():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     truth = dict(params, i_ref_a=model.options['i_ref_a'])
     good = cil.cam_rig_comparison(truth, 'kwok-current', maxiter=20)

@@ -9,7 +9,7 @@ the lockstep pacer's silent-commander schedule.
 import numpy as np
 import pytest
 
-from mr_damper_model.data import DamperData
+from mr_damper_model.io.data import DamperData
 from mr_damper_rig.pacing import LockstepPacer, Pacer
 from mr_damper_rig.replay import ArraySource
 

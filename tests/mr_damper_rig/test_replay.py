@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from conftest import csv_text, QUIROZ_DIR
-from mr_damper_model.data import DamperData, DataError
+from mr_damper_model.io.data import DamperData, DataError
 from mr_damper_rig import replay
 
 QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
@@ -50,8 +50,8 @@ def test_bag_round_trip_is_exact(tmp_path, storage):
 
 
 def test_replay_reads_bags_with_the_model_package_reader(tmp_path):
-    """One home for measurement bags: replay = mr_damper_model.bag_io + the stream checks."""
-    from mr_damper_model import bag_io
+    """One home for measurement bags: replay = mr_damper_model.io.bag_io + the stream checks."""
+    from mr_damper_model.io import bag_io
     assert replay.BagWriter is bag_io.BagWriter and replay.write_bag is bag_io.write_bag
     assert replay.MEASUREMENT_TOPIC == bag_io.MEASUREMENT_TOPIC
     d = small()

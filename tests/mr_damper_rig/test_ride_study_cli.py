@@ -5,8 +5,8 @@ import subprocess
 import pytest
 
 from conftest import VENV_BIN
-from mr_damper_model import presets
-from mr_damper_model.params_file import save_params
+from mr_damper_model.identification import presets
+from mr_damper_model.io.params_file import save_params
 from mr_damper_rig import ride_study_cli as cli
 
 

@@ -4,7 +4,7 @@ Tests of the rig's health (the /diagnostics level and message) from its status v
 Each finding is injected into a known status and must raise its level once, then clear when
 the counter stops rising; the values are carried unchanged.
 """
-from mr_damper_model.health import ERROR, OK, WARN
+from mr_damper_common.health import ERROR, OK, WARN
 from mr_damper_rig.rig_health import RigHealth
 
 

@@ -88,7 +88,7 @@ def test_current_limits_refused_without_current_commands(make_node):
 
 
 def test_tick_publishes_the_due_samples_and_the_clock_of_the_newest(make_node):
-    from mr_damper_model.data import read_csv
+    from mr_damper_model.io.data import read_csv
     data = read_csv(QUIROZ)
     node = make_node(mode='csv', file=str(QUIROZ), rate_factor=1.0, publish_clock=True,
                      samples_per_message=20)

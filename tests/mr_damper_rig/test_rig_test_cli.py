@@ -5,7 +5,7 @@ import subprocess
 import numpy as np
 
 from conftest import VENV_BIN
-from mr_damper_model.data import read_csv
+from mr_damper_model.io.data import read_csv
 from mr_damper_rig.rig_test_cli import main
 
 

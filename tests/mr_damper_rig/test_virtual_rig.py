@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.plant import make_plant
-from mr_damper_model.presets import thesis_kwok_current
+from mr_damper_model.models.plant import make_plant
+from mr_damper_model.identification.presets import thesis_kwok_current
 from mr_damper_rig.excitation import CamSine, ConstantSchedule
 from mr_damper_rig.virtual_rig import identify_damper, VirtualRig
 

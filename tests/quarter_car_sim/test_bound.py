@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.inverse import KwokCurrentInverse
-from mr_damper_model.plant import KwokCurrentPlant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.inverse import KwokCurrentInverse
+from mr_damper_model.models.plant import KwokCurrentPlant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.bound import (bound_name, CurrentSchedule, KwokForceModel,
                                    semi_active_bound)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.inverse import KwokCurrentInverse
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.inverse import KwokCurrentInverse
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, ControllerCore,
                                              LAW_FIELDS, VehicleState)
@@ -20,7 +20,7 @@ SAFE = 0.5
 
 
 def _truth():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     msg = dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
                valid=1.0)

@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.inverse import inverse_current, KwokCurrentInverse
-from mr_damper_model.plant import KwokCurrentPlant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
+from mr_damper_model.models.plant import KwokCurrentPlant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import CarState
 
@@ -357,7 +357,7 @@ def test_clipped_optimal_wk_feeds_back_the_analog_filter_state():
 
 
 def test_clipped_optimal_wk_on_the_car_is_dissipative_and_within_the_damper_range():
-    from mr_damper_model.plant import KwokCurrentPlant
+    from mr_damper_model.models.plant import KwokCurrentPlant
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.road import iso8608
     from quarter_car_sim.simulate import simulate

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Skyhook
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import (FullCar, FullCarController, make_full_car_law,
@@ -122,7 +122,7 @@ def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
 
 
 def test_corner_message_from_parameter_files(tmp_path):
-    from mr_damper_model.params_file import save_params
+    from mr_damper_model.io.params_file import save_params
     from quarter_car_sim.full_car.simulate import corner_message
     d = {'model': 'kwok-current', 'parameters': KW, 'model_options': {'i_ref_a': 2.0},
          'current_min_a': 0.0, 'current_max_a': 2.0}

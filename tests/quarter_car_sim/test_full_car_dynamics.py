@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from quarter_car_sim.full_car import FullCar, mechanical_energy, PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.dynamics import natural_frequencies, state_matrices

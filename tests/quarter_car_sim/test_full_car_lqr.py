@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import (make_full_car_law, make_two_track_road, PASSENGER_CAR,
                                       simulate_full_car, symmetric_car)
 from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model

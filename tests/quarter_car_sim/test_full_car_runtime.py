@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import make_two_track_road, PASSENGER_CAR, supervisor_message
 from quarter_car_sim.full_car.runtime import corner_car_state, FullCarRuntime
 

@@ -1,5 +1,5 @@
 """Tests of quarter_car_sim.health: the rules of the car's and the controller's diagnostics."""
-from mr_damper_model.health import ERROR, OK, WARN
+from mr_damper_common.health import ERROR, OK, WARN
 from quarter_car_sim.health import CarHealth, ControllerHealth, failsafe_message
 
 

@@ -5,8 +5,8 @@ import sys
 import numpy as np
 import pytest
 
-from mr_damper_model.columnlog import ColumnReader
-from mr_damper_model.plant import make_plant
+from mr_damper_model.io.columnlog import ColumnReader
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.controllers import make_controller, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
@@ -16,7 +16,7 @@ from quarter_car_sim.road import make_road
 
 
 def _truth():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     msg = dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
                valid=1.0)
@@ -58,7 +58,7 @@ def test_inverse_delivers_the_demanded_force_with_the_true_model():
     loop = _loop(Skyhook(3000.0))
     truth, msg = _truth()
     loop.sup.offer(msg, 0.0)
-    from mr_damper_model.inverse import KwokCurrentInverse
+    from mr_damper_model.models.inverse import KwokCurrentInverse
     inv = KwokCurrentInverse(truth, tol_a=1e-4, sign_convention='body')
     checked = 0
     for k in range(2000):

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import hil, live_loop
 from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
@@ -15,7 +15,7 @@ DT = 1e-3
 
 
 def _truth_msg():
-    from mr_damper_model import presets
+    from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()
     return dict(params, i_ref_a=model.options['i_ref_a'], current_min_a=0.0, current_max_a=2.0,
                 valid=1.0)

@@ -35,7 +35,7 @@ def node_factory(tmp_path):
 
 def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_model.health import flatten, OK, unflatten, WARN
+    from mr_damper_common.health import flatten, OK, unflatten, WARN
     node = node_factory(safe_current_a=0.25)
     assert node.sup.safe_current_a == 0.25 and node.sup.mode == 'failsafe'
     h = node.health()
@@ -70,7 +70,7 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     assert st['steps'] > 200 and st['t_sim'] > -0.5 + 0.2
     assert st['loop']['steps'] == st['steps'] or st['loop']['steps'] >= st['steps'] - 1
     node.stop()
-    from mr_damper_model.columnlog import ColumnReader
+    from mr_damper_model.io.columnlog import ColumnReader
     log = ColumnReader(tmp_path / 'log')
     z = log.read()
     assert z['t'].size >= st['steps'] and log.meta['dt'] == pytest.approx(1e-3)
@@ -153,7 +153,7 @@ def test_parameter_age_is_on_the_node_clock(node_factory):
 def test_dead_control_thread_is_an_error_on_diagnostics_and_ends_the_node(node_factory):
     import time
     import rclpy
-    from mr_damper_model.health import ERROR
+    from mr_damper_common.health import ERROR
     node = node_factory(real_time_factor=0.5, log_file='')
 
     def broken():

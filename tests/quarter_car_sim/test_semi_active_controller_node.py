@@ -71,7 +71,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     st = node.status()
     assert (st['mode'], st['reason']) == ('failsafe', 'state_non_finite')
     assert node.core.sup.mode == 'normal'
-    from mr_damper_model.health import WARN
+    from mr_damper_common.health import WARN
     h = node.health()                               # what /diagnostics carries
     assert h.level == WARN and 'fail-safe: vehicle state refused' in h.message
     assert 'states refused since the last check: 1 non_finite' in h.message
@@ -98,7 +98,7 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
                                                              SemiActiveControllerNode,
                                                              vehicle_state_from_msg)
-    from mr_damper_model.messages import kwok_parameters_flat
+    from mr_damper_common.messages import kwok_parameters_flat
     node = _make(ctx, SemiActiveControllerNode, controller=law, safe_current_a=0.25)
     sent = []
     node.cmd_pub.publish = lambda m: sent.append(m.data)

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from mr_damper_model import presets
-from mr_damper_model.plant import make_plant
+from mr_damper_model.identification import presets
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from quarter_car_sim.params import QuarterCarParams

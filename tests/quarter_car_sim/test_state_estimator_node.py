@@ -37,7 +37,7 @@ def _position(x):
 
 
 def test_core_needs_a_model_then_estimates_and_counts_faults():
-    from mr_damper_model.messages import kwok_parameters_flat
+    from mr_damper_common.messages import kwok_parameters_flat
     from quarter_car_sim.failsafe import ModelSupervisor
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
@@ -106,7 +106,7 @@ def test_node_publishes_valid_then_marked_invalid_states(make_node):
 
 def test_core_clocked_by_readings_predicts_through_missing_periods():
     """tick_at: the readings' stamps are the filter's time; gaps predicted, counted."""
-    from mr_damper_model.messages import kwok_parameters_flat
+    from mr_damper_common.messages import kwok_parameters_flat
     from quarter_car_sim.failsafe import ModelSupervisor
     from quarter_car_sim.params import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0

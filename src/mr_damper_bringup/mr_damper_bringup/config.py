@@ -123,7 +123,7 @@ def set_param(cfg, node, name, value):
 
 def concatenate_csv(files, out_path):
     """Concatenate DAQ CSV files (header t,x,v,f,i) into one with continuous time."""
-    from mr_damper_model.data import DamperData, read_csv, write_csv
+    from mr_damper_model.io.data import DamperData, read_csv, write_csv
     data = DamperData.concatenate([read_csv(f) for f in files], restamp=True)
     write_csv(out_path, data)
     return out_path
@@ -150,7 +150,7 @@ def resolve_config(args, out):
     if node_params(cfg, qc).get('road_duration_s', 300.0) < need:
         set_param(cfg, qc, 'road_repeat', True)
     if args.config == 'replay' or args.file:
-        from mr_damper_model.data import is_csv
+        from mr_damper_model.io.data import is_csv
         files = [Path(f) for f in (args.file or DEFAULT_REPLAY)]
         for f in files:
             if not f.exists():

@@ -110,7 +110,7 @@ def passive_body(car_params, t_end, dt):
         Body heave, pitch and roll accelerations.
 
     """
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.full_car import (FullCarController, make_full_car_law,
                                           make_two_track_road, PASSENGER_CAR,
                                           simulate_full_car)

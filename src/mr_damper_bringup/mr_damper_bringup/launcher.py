@@ -60,7 +60,7 @@ import time
 
 import yaml
 
-from mr_damper_model.columnlog import finite_or_none
+from mr_damper_common.health import finite_or_none
 
 from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
                      recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)

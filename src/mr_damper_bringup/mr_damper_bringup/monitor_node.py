@@ -14,7 +14,7 @@ import threading
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
-from mr_damper_model.node_utils import LATCHED_QOS, STATUS_QOS
+from mr_damper_common.node_utils import LATCHED_QOS, STATUS_QOS
 
 from .record_node import message_class
 from .topics import decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
+from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_force
 
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
 

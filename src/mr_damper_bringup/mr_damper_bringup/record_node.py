@@ -35,10 +35,10 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 import yaml
 
-from mr_damper_model.health import Health, OK, WARN
-from mr_damper_model.node_utils import (DiagnosticsPublisher, DropCounter, install_stop_handlers,
-                                        make_executor, MEASUREMENT_QOS, PARAMETERS_QOS,
-                                        stop_requested)
+from mr_damper_common.health import Health, OK, WARN
+from mr_damper_common.node_utils import (DiagnosticsPublisher, DropCounter, install_stop_handlers,
+                                         make_executor, MEASUREMENT_QOS, PARAMETERS_QOS,
+                                         stop_requested)
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder

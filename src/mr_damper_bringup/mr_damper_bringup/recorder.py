@@ -4,7 +4,7 @@ One MCAP file of a suite run: the writer behind ``mr-damper-record``, without RO
 :class:`SuiteRecorder` writes messages still serialised (CDR, as the subscription delivers them)
 with the rosbags ``Writer`` into ONE ``.mcap`` file, one channel per row of the topic table
 (:data:`mr_damper_bringup.topics.SUITE_TOPICS`) with the full ``ros2msg`` schema of its type
-from ``mr_damper_model.bag_types.suite_typestore()`` (which knows the ``mr_damper_interfaces``
+from ``mr_damper_model.io.bag_types.suite_typestore()`` (which knows the ``mr_damper_interfaces``
 messages), so Foxglove, PlotJuggler, ``ros2 bag`` and rosbags open it with named fields.
 
 Memory stays flat for runs of any length: rosbags streams chunks of at most 1 MiB to the file
@@ -13,7 +13,7 @@ and keeps only a chunk index (tens of bytes per chunk). While recording, the fil
 moves the finished file to the target path and removes the folder.
 
 A recorder killed before :meth:`close` leaves that folder with an MCAP file without its footer;
-every chunk written before the kill is complete in it and ``mr_damper_model.mcap_scan`` reads
+every chunk written before the kill is complete in it and ``mr_damper_model.io.mcap_scan`` reads
 them. rosbags writes a chunk whole once it exceeds 1 MiB (a size it does not let you set: many
 seconds of a batched measurement stream); the recorder also closes and flushes the open chunk
 once it spans ``chunk_s`` of log time (1 s), so a kill loses about the last second. A
@@ -105,7 +105,7 @@ class SuiteRecorder:
         The suite's parameter YAML, written once on :data:`~mr_damper_bringup.topics.
         CONFIG_TOPIC` at the start (stamped ``start_ns``).
     typestore : rosbags Typestore, optional
-        Default: ``mr_damper_model.bag_types.suite_typestore()``.
+        Default: ``mr_damper_model.io.bag_types.suite_typestore()``.
     start_ns : int, optional
         Log time [ns] of the config message (default: 0).
     chunk_s : float, optional
@@ -132,7 +132,7 @@ class SuiteRecorder:
                 raise ValueError(f'`path`: {p} already exists')
         self.topics = topic_table() if topics is None else dict(topics)
         if typestore is None:
-            from mr_damper_model.bag_types import suite_typestore
+            from mr_damper_model.io.bag_types import suite_typestore
             typestore = suite_typestore()
         self.typestore = typestore
         for key, row in self.topics.items():

@@ -47,10 +47,10 @@ import tempfile
 
 import numpy as np
 
-from mr_damper_model.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
-                                       finite_or_none, JsonLines, open_log)
-from mr_damper_model.kwok_current import KwokCurrent, kwok_current_force
-from mr_damper_model.sample_stream import BatchIndex
+from mr_damper_model.io.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
+                                          finite_or_none, JsonLines, open_log)
+from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_force
+from mr_damper_model.live.sample_stream import BatchIndex
 
 from .config import IDENT, node_params, QC, RIG
 from .topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
@@ -66,7 +66,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
-    Each file is read front to back (``mr_damper_model.mcap_scan.McapScan``, messages in the
+    Each file is read front to back (``mr_damper_model.io.mcap_scan.McapScan``, messages in the
     order the recorder wrote them), a file whose recorder was killed up to its last complete
     chunk.
 
@@ -107,8 +107,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     """
     import yaml
 
-    from mr_damper_model.bag_types import suite_typestore
-    from mr_damper_model.mcap_scan import McapScan
+    from mr_damper_model.io.bag_types import suite_typestore
+    from mr_damper_model.io.mcap_scan import McapScan
     from .topics import decode_measurement
     work = Path(work)
     tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
@@ -295,7 +295,7 @@ class ParamsLog:
         self.bad_lines = []
 
     def __iter__(self):
-        from mr_damper_model.columnlog import read_json_lines
+        from mr_damper_model.io.columnlog import read_json_lines
         if not self.path.exists():
             return
         bad = []
@@ -331,7 +331,9 @@ def record_error(meas, params):
 
 def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
     """
-    Fit kwok-current offline to the whole record (``mr_damper_model.identify``): a yardstick.
+    Fit kwok-current offline to the whole record: a yardstick.
+
+    The fit is ``mr_damper_model.identification.identify``.
 
     When the true damper is not a kwok-current model (the Spencer plant), no parameter can be
     compared with a truth; the best kwok-current fit of everything recorded says how close the
@@ -345,8 +347,8 @@ def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
         if the record covers fewer than two current levels or the fit fails.
 
     """
-    from mr_damper_model.data import DamperData
-    from mr_damper_model.identify import identify
+    from mr_damper_model.io.data import DamperData
+    from mr_damper_model.identification.identify import identify
     meas = open_log(meas)
     sub = meas.strided(max_samples, ('t', 'x', 'v', 'f', 'i'))
     t, x, v, f, i = (np.asarray(sub[k], dtype=float) for k in ('t', 'x', 'v', 'f', 'i'))
@@ -372,7 +374,7 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
     ----------
     meas : column log, reader or dict
         Columns ``t, x, v, f, i`` of the recorded measurements
-        (``mr_damper_model.columnlog.open_log``); read in streamed passes.
+        (``mr_damper_model.io.columnlog.open_log``); read in streamed passes.
     params_log : iterable of (float, dict)
         Wall receipt time [s] and decoded ``/mr_damper/kwok_parameters`` message; iterated a
         few times (a list, or :class:`ParamsLog` that reads its file on each pass).
@@ -516,7 +518,7 @@ def passive_reference(qc_params, t_end, dt, current=None, *, window=None, keep=N
     from quarter_car_sim.simulate import simulate_blocks
     g = qc_params.get
     car = _car_params(qc_params)
-    from mr_damper_model.plant import make_plant
+    from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.road import make_road
     road = make_road(g('road', 'iso8608'), road_class=g('road_class', 'C'),
                      speed_m_s=g('speed_m_s', 20.0), rng=int(g('road_seed', 1)),

@@ -6,12 +6,12 @@ row per topic, ``key -> Topic(name, type, qos)``. Changing a topic's message typ
 parameters to ``mr_damper_interfaces/msg/KwokParameters``, the JSON status topics to
 ``/diagnostics``) is a change of this table and of :func:`decode_parameters` /
 :func:`decode_status`, nothing else: the recorder writes whatever type the row names (still
-serialised, typed schema from ``mr_damper_model.bag_types.suite_typestore``) and the launcher's
+serialised, typed schema from ``mr_damper_model.io.bag_types.suite_typestore``) and the launcher's
 monitor and the report decode through these two functions.
 
 The decoders take a message object of either origin, the rclpy class (the launcher's monitor)
 or the rosbags dataclass (the report reading ``suite.mcap``): both have the same field names.
-They import ``mr_damper_model.messages`` (message packages, no rclpy) when first called, so
+They import ``mr_damper_common.messages`` (message packages, no rclpy) when first called, so
 importing this module stays ROS-free.
 """
 from collections import namedtuple
@@ -132,7 +132,7 @@ def decode_status(key, msg):
         One entry per ``DiagnosticStatus``: the node from its ``name`` (the node's fully
         qualified name without the leading slash, e.g. ``'fl/mr_damper_identifier'``;
         :data:`NODE_KEYS`), nested values rebuilt from the dotted keys and parsed
-        (:func:`mr_damper_model.messages.health_from_diagnostic`), ``level`` and ``message``
+        (:func:`mr_damper_common.messages.health_from_diagnostic`), ``level`` and ``message``
         added.
 
     Returns
@@ -144,12 +144,12 @@ def decode_status(key, msg):
     Raises
     ------
     ValueError
-        If the payload is not a status (``mr_damper_model.messages.MessageError`` or bad JSON).
+        If the payload is not a status (``mr_damper_common.messages.MessageError`` or bad JSON).
 
     """
     if not hasattr(msg, 'status'):
         raise ValueError(f'{key}: not a diagnostic_msgs/DiagnosticArray')
-    from mr_damper_model.messages import health_from_diagnostic
+    from mr_damper_common.messages import health_from_diagnostic
     out = {}
     for st in msg.status:
         full = str(st.name).split(':')[0].strip()
@@ -181,10 +181,10 @@ def decode_parameters(msg):
     Raises
     ------
     ValueError
-        On a message no model can use (``mr_damper_model.messages.MessageError``).
+        On a message no model can use (``mr_damper_common.messages.MessageError``).
 
     """
-    from mr_damper_model.messages import damper_model_from_msg, kwok_parameters_flat
+    from mr_damper_common.messages import damper_model_from_msg, kwok_parameters_flat
     if hasattr(msg, 'parameter_names'):
         return damper_model_from_msg(msg)['parameters']
     d = kwok_parameters_flat(msg)
@@ -200,10 +200,10 @@ def decode_measurement(msg):
     -------
     tuple of numpy.ndarray
         ``(t, x, v, f, i)``: stamps [s], displacement [m], velocity [m/s], force [N], current
-        [A] (``mr_damper_model.messages.measurement_arrays``; one sample for a JointState).
+        [A] (``mr_damper_common.messages.measurement_arrays``; one sample for a JointState).
 
     """
-    from mr_damper_model.messages import measurement_arrays
+    from mr_damper_common.messages import measurement_arrays
     return measurement_arrays(msg)
 
 

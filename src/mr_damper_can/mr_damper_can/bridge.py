@@ -26,8 +26,8 @@ import can
 
 from mr_damper_can.codec import (command_name, CORNERS, DRV_FAULT, FAULT_SIGNALS, FrameCodec,
                                  HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
-from mr_damper_model.commands import CurrentCommandLimiter
-from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
+from mr_damper_common.commands import CurrentCommandLimiter
+from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 #: Fault counters of the bridge (``faults.<name>`` in its status).
 FAULTS = ('unknown_id', 'bad_length', 'bad_checksum', 'bad_counter', 'frames_missed',
@@ -392,7 +392,7 @@ class BridgeHealth:
         self._rising = Rising()
 
     def __call__(self, status, dropped=None):
-        """Return the :class:`~mr_damper_model.health.Health` of a :meth:`status` dict."""
+        """Return the :class:`~mr_damper_common.health.Health` of a :meth:`status` dict."""
         problems = []
         if status['bus_off']:
             problems.append((ERROR, 'bus off'))

@@ -33,9 +33,9 @@ from mr_damper_can.bridge import BridgeHealth, CanBridge
 from mr_damper_can.bus import make_bus, UDP_LOOPBACK
 from mr_damper_can.codec import parse_corners
 from mr_damper_interfaces.msg import QuarterCarState
-from mr_damper_model import messages
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        node_time_s, Param, run_node, spin_node, STATUS_QOS)
+from mr_damper_common import messages
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         node_time_s, Param, run_node, spin_node, STATUS_QOS)
 
 #: Command subscription: reliable, depth 100 (each command becomes a frame of its own, so a
 #: burst while the bridge's thread is busy is queued, not overwritten).
@@ -172,7 +172,7 @@ class CanBridgeNode(Node):
         return st
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         return self.health_rules(self.status(), self.drops.counts())
 
     def finish(self):

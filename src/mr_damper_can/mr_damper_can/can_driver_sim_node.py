@@ -27,8 +27,8 @@ from mr_damper_can.bus import make_bus, UDP_LOOPBACK
 from mr_damper_can.codec import parse_corners
 from mr_damper_can.driver_sim import EcuHealth, SimulatedEcu
 from mr_damper_interfaces.msg import QuarterCarState
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        Param, run_node, spin_node, STATUS_QOS)
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         Param, run_node, spin_node, STATUS_QOS)
 
 #: The node's parameters (docs/nodes.md shows this table).
 PARAMETERS = (
@@ -102,7 +102,7 @@ class CanDriverSimNode(Node):
         self.get_logger().warning(f'fault injected: {msg.data}')
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         st = self.ecu.status()
         st['dropped'] = self.drops.counts()
         return self.health_rules(st)

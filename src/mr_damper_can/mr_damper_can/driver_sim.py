@@ -25,7 +25,7 @@ import can
 from mr_damper_can.codec import (CAN_ERR_BUSOFF, command_name, CORNERS, DRV_FAULT,
                                  DRV_FAILSAFE, DRV_NORMAL, FAULT_SIGNALS, FrameCodec,
                                  HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
-from mr_damper_model.health import ERROR, Rising, WARN, worst
+from mr_damper_common.health import ERROR, Rising, WARN, worst
 
 #: Driver faults that :meth:`SimulatedEcu.inject` can set (persistent until ``none``).
 DRIVER_FAULTS = HARDWARE_FAULTS
@@ -354,7 +354,7 @@ class EcuHealth:
         self._rising = Rising()
 
     def __call__(self, status):
-        """Return the :class:`~mr_damper_model.health.Health` of :meth:`SimulatedEcu.status`."""
+        """Return the :class:`~mr_damper_common.health.Health` of :meth:`SimulatedEcu.status`."""
         problems = []
         for corner, cs in status['corners'].items():
             if cs['fault']:

@@ -1,9 +1,9 @@
 """
 Console scripts of the mr_damper_can nodes: stop handlers first, then the node module.
 
-See :func:`mr_damper_model.stop_flag.early_main` for why the order matters.
+See :func:`mr_damper_common.stop_flag.early_main` for why the order matters.
 """
-from mr_damper_model.stop_flag import early_main
+from mr_damper_common.stop_flag import early_main
 
 
 def can_bridge_node():

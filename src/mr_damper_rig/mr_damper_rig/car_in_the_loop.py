@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.actuator import CommandedMotion, ServoActuator
 from mr_damper_rig.commands import CommandFollower, DisplacementCommandGuard
 from mr_damper_rig.excitation import CamSine, StepSchedule
@@ -128,7 +128,7 @@ def make_hil_plant(plant='kwok-current', *, actuator='first', compensation='poly
     Parameters
     ----------
     plant : str
-        True damper (``mr_damper_model.plant.make_plant``).
+        True damper (``mr_damper_model.models.plant.make_plant``).
     actuator : {'first', 'second', 'ideal'}
         Actuator model (``mr_damper_rig.actuator.ServoActuator``).
     compensation : {'poly', 'none'}
@@ -255,7 +255,7 @@ def make_simulated_link(plant='kwok-current', *, actuator='first', compensation=
 
 def _nrmse_percent(params, data):
     """NRMSE [%] (by the measured force range) of kwok-current ``params`` on ``data``."""
-    from mr_damper_model.kwok_current import kwok_current_force
+    from mr_damper_model.models.kwok_current import kwok_current_force
     with np.errstate(over='ignore', invalid='ignore'):
         f = kwok_current_force(params, data.x, data.v, data.i)
     rmse = float(np.sqrt(np.mean((f - data.f) ** 2)))
@@ -270,7 +270,7 @@ def cam_rig_record(plant='kwok-current', truth_file='', *, levels_a=(0.0, 0.5, 1
     Parameters
     ----------
     plant, truth_file : str
-        True damper (``mr_damper_model.plant.make_plant``): the same as the HIL rig's.
+        True damper (``mr_damper_model.models.plant.make_plant``): the same as the HIL rig's.
     levels_a : sequence of float
         Coil current levels [A].
     hold_s : float
@@ -282,7 +282,7 @@ def cam_rig_record(plant='kwok-current', truth_file='', *, levels_a=(0.0, 0.5, 1
 
     Returns
     -------
-    mr_damper_model.data.DamperData
+    mr_damper_model.io.data.DamperData
 
     """
     rig = VirtualRig(make_plant(plant, truth_file), CamSine(), StepSchedule(levels_a, hold_s),
@@ -296,8 +296,8 @@ def cam_rig_comparison(hil_params, plant='kwok-current', truth_file='', *, seed=
     Identification quality of a HIL-identified model against the cam rig.
 
     The same true damper is recorded twice on the cam rig (different noise seeds): the first
-    record identifies the cam-rig model (``mr_damper_model.identify``, kwok-current), the second
-    validates both it and the HIL-identified model.
+    record identifies the cam-rig model (``mr_damper_model.identification.identify``,
+    kwok-current), the second validates both it and the HIL-identified model.
 
     Parameters
     ----------
@@ -318,7 +318,7 @@ def cam_rig_comparison(hil_params, plant='kwok-current', truth_file='', *, seed=
         ``ratio`` (HIL / cam), ``cam_parameters``, ``record_s``.
 
     """
-    from mr_damper_model.identify import identify
+    from mr_damper_model.identification.identify import identify
     train = cam_rig_record(plant, truth_file, seed=seed)
     valid = cam_rig_record(plant, truth_file, seed=seed + 1)
     res = identify(train, 'kwok-current', seed=seed, budget_s=budget_s, maxiter=maxiter)

@@ -1,7 +1,7 @@
 """
 Piston displacement commands checked before the rig applies them (no ROS).
 
-Coil current commands are checked by :class:`mr_damper_model.commands.CurrentCommandLimiter`
+Coil current commands are checked by :class:`mr_damper_common.commands.CurrentCommandLimiter`
 (shared with the car). Displacement commands (hardware-in-the-loop, ``excitation:=commanded``)
 go through :class:`DisplacementCommandGuard`: clamped to the stroke, non-finite refused, and a
 silent commander makes the actuator hold, then return to neutral (all counted);
@@ -10,8 +10,8 @@ silent commander makes the actuator hold, then return to neutral (all counted);
 """
 import math
 
-from mr_damper_model.commands import clamp_command, OUTCOMES
-from quarter_car_sim.hil import TrackingMonitor
+from mr_damper_common.commands import clamp_command, OUTCOMES
+from mr_damper_common.tracking import TrackingMonitor
 
 #: Counter keys of :attr:`DisplacementCommandGuard.counts`.
 DISPLACEMENT_OUTCOMES = OUTCOMES + ('stale_timeouts', 'stale_samples')

@@ -2,10 +2,10 @@
 Recorded damper measurements for replay: DAQ CSV files and rosbag2 directories.
 
 Both readers load and check the *whole* file before anything is published, so a bad file fails
-up front with one :class:`~mr_damper_model.data.DataError` line naming the file and the problem
+up front with one :class:`~mr_damper_model.io.data.DataError` line naming the file and the problem
 (a replay never stops half-way through a file it already started to publish).
 
-Bags are read and written by ``mr_damper_model.bag_io`` (rosbags, no ROS install needed):
+Bags are read and written by ``mr_damper_model.io.bag_io`` (rosbags, no ROS install needed):
 rosbag2 directories in the sqlite3 or MCAP storage format, or a single ``.db3`` / ``.mcap`` file
 with ``sensor_msgs/msg/JointState`` measurements; the sample time is the message's
 ``header.stamp``.
@@ -16,11 +16,11 @@ import math
 
 import numpy as np
 
-from mr_damper_model import bag_io
-# the bag names live in mr_damper_model.bag_io; re-exported for the rig's modules and scripts
-from mr_damper_model.bag_io import (  # noqa: F401
+from mr_damper_model.io import bag_io
+# the bag names live in mr_damper_model.io.bag_io; re-exported for the rig's modules and scripts
+from mr_damper_model.io.bag_io import (  # noqa: F401
     bag_topics, BagWriter, JOINTSTATE_TYPE, MEASUREMENT_TOPIC, write_bag)
-from mr_damper_model.data import check_samples, DataError, read_csv
+from mr_damper_model.io.data import check_samples, DataError, read_csv
 
 
 def check_stream(data, *, name='', min_samples=2):
@@ -56,7 +56,7 @@ def read_csv_stream(path):
     Parameters
     ----------
     path : str or Path
-        CSV file (see ``mr_damper_model.data.read_csv`` for the format).
+        CSV file (see ``mr_damper_model.io.data.read_csv`` for the format).
 
     Returns
     -------

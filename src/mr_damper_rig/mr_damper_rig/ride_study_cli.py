@@ -8,7 +8,8 @@ Examples::
     quarter-car-sim --compare --damper-params fit.json --plant kwok --plot ride.png
 
 Without ``--damper-params`` the tool first runs a simulated rig test of the plant and identifies
-kwok-current parameters with ``mr_damper_model.identify``; the controllers only ever see those.
+kwok-current parameters with ``mr_damper_model.identification.identify``; the controllers only
+ever see those.
 ``--compare`` also runs the offline optimal semi-active bound (``quarter_car_sim.bound``, full
 road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
 Bad input exits with status 2 and one line on stderr.
@@ -68,8 +69,8 @@ def build_parser():
 
 def run(args):
     """Run the study for parsed ``args``; return the JSON-ready dict and the results."""
-    from mr_damper_model.columnlog import finite_or_none
-    from mr_damper_model.plant import make_plant
+    from mr_damper_common.health import finite_or_none
+    from mr_damper_model.models.plant import make_plant
     from mr_damper_rig.virtual_rig import identify_damper
     from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
     from quarter_car_sim.controllers import make_controller, Passive

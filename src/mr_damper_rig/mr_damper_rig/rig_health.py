@@ -21,8 +21,8 @@ Status values read (missing ones are skipped): ``started``, ``done``, ``samples_
 (dict), ``commands`` (dict of current-command outcomes), ``displacement_commands`` (dict),
 ``rate_factor``, ``flow`` (dict with ``received``).
 """
-from mr_damper_model.commands import OUTCOMES
-from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
+from mr_damper_common.commands import OUTCOMES
+from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 _CLAMPED = tuple(o for o in OUTCOMES if o != 'accepted')
 
@@ -32,7 +32,7 @@ class RigHealth:
     The rig's health from one status to the next (keeps the previous counters).
 
     Call it with the status values; it returns a
-    :class:`~mr_damper_model.health.Health` carrying those values.
+    :class:`~mr_damper_common.health.Health` carrying those values.
     """
 
     def __init__(self):
@@ -40,7 +40,7 @@ class RigHealth:
         self._first = True
 
     def __call__(self, values):
-        """Return the :class:`~mr_damper_model.health.Health` of ``values`` (dict)."""
+        """Return the :class:`~mr_damper_common.health.Health` of ``values`` (dict)."""
         first, self._first = self._first, False
         rise = self._rising.rise
         problems = []

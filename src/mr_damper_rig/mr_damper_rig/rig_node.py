@@ -27,7 +27,7 @@ measurement writer's history, the writer is replaced (``node_utils.ResettablePub
 ``writer_resets`` in the diagnostics) and the samples due meanwhile are published once the healthy
 readers have matched the new writer; other failed ``publish()`` calls are counted
 (``dropped.publish_failed``) and logged, throttled. With ``current_source:=command`` each
-current command is checked by :class:`mr_damper_model.commands.CurrentCommandLimiter`: out of
+current command is checked by :class:`mr_damper_common.commands.CurrentCommandLimiter`: out of
 ``[current_min_a, current_max_a]`` clamped, non-finite refused, both counted (``commands``)
 with a throttled warning.
 
@@ -58,14 +58,14 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
 from std_msgs.msg import Float64, UInt64
 
-from mr_damper_model.commands import CurrentCommandLimiter
-from mr_damper_model.data import DataError
-from mr_damper_model.messages import (damper_model_msg, kwok_parameters_msg, samples_to_msg,
-                                      seconds_to_stamp)
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, MEASUREMENT_QOS, node_time_s, Param,
-                                        ResettablePublisher, run_node, set_realtime_priority,
-                                        spin_node, STATUS_QOS, stop_requested)
+from mr_damper_common.commands import CurrentCommandLimiter
+from mr_damper_model.io.data import DataError
+from mr_damper_common.messages import (damper_model_msg, kwok_parameters_msg, samples_to_msg,
+                                       seconds_to_stamp)
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         LATCHED_QOS, MEASUREMENT_QOS, node_time_s, Param,
+                                         ResettablePublisher, run_node, set_realtime_priority,
+                                         spin_node, STATUS_QOS, stop_requested)
 
 from .batching import BatchStream
 from .commands import CommandFollower, DisplacementCommandGuard
@@ -415,7 +415,7 @@ class RigNode(Node):
         return values
 
     def health(self):
-        """Return the rig's :class:`~mr_damper_model.health.Health` (for ``/diagnostics``)."""
+        """Return the rig's :class:`~mr_damper_common.health.Health` (for ``/diagnostics``)."""
         return self._health(self.status_values())
 
     def flush(self, timeout_s=1.5):

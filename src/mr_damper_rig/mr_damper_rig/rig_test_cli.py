@@ -16,8 +16,8 @@ import json
 import math
 import sys
 
-from mr_damper_model.data import write_csv
-from mr_damper_model.plant import make_plant, PLANT_NAMES
+from mr_damper_model.io.data import write_csv
+from mr_damper_model.models.plant import make_plant, PLANT_NAMES
 from mr_damper_rig.excitation import EXCITATION_NAMES, make_excitation, StepSchedule
 from mr_damper_rig.virtual_rig import VirtualRig
 

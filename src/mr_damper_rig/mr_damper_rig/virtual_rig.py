@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from mr_damper_model.plant import make_plant
+from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.excitation import CamSine, ExcitationError, StepSchedule
 
 
@@ -163,10 +163,10 @@ class VirtualRig:
 
         Returns
         -------
-        mr_damper_model.data.DamperData
+        mr_damper_model.io.data.DamperData
 
         """
-        from mr_damper_model.data import DamperData
+        from mr_damper_model.io.data import DamperData
         if duration_s is None:
             duration_s = self.schedule.duration_s
             if duration_s is None:
@@ -275,10 +275,10 @@ def simulated_rig_data(plant, *, seed=0, periods=4):
 
     Returns
     -------
-    mr_damper_model.data.DamperData
+    mr_damper_model.io.data.DamperData
 
     """
-    from mr_damper_model.data import DamperData
+    from mr_damper_model.io.data import DamperData
     gen = np.random.default_rng(seed)
     parts = []
     for f_hz, amp in RIG_EXCITATIONS:
@@ -292,7 +292,7 @@ def identify_damper(plant, *, seed=0, budget_s=None):
     """
     Identify kwok-current parameters of a plant from a simulated rig test.
 
-    Uses :func:`simulated_rig_data` and ``mr_damper_model.identify.identify``.
+    Uses :func:`simulated_rig_data` and ``mr_damper_model.identification.identify.identify``.
 
     Returns
     -------
@@ -302,7 +302,7 @@ def identify_damper(plant, *, seed=0, budget_s=None):
         ``quarter_car_sim.simulate.make_inverse``.
 
     """
-    from mr_damper_model.identify import identify
+    from mr_damper_model.identification.identify import identify
     data = simulated_rig_data(plant, seed=seed)
     res = identify(data, 'kwok-current', seed=seed, budget_s=budget_s,
                    model_options={'i_ref_a': 2.0})

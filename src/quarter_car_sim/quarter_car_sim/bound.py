@@ -53,13 +53,13 @@ class KwokForceModel:
 
     Parameters
     ----------
-    inverse : mr_damper_model.inverse.KwokCurrentInverse
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse
         Identified model (its parameters, reference current and current range).
 
     """
 
     def __init__(self, inverse):
-        from mr_damper_model.kwok_current import KwokCurrent
+        from mr_damper_model.models.kwok_current import KwokCurrent
         self.inverse = inverse
         self.i_min, self.i_max = inverse.i_min, inverse.i_max
         self._model = KwokCurrent(i_ref_a=inverse.i_ref_a)
@@ -79,7 +79,7 @@ class KwokForceModel:
 
     def currents(self, f_body, travel, v_rel):
         """Coil currents [A] giving the forces on the body ``f_body`` [N] (arrays (n,))."""
-        from mr_damper_model.inverse import inverse_current
+        from mr_damper_model.models.inverse import inverse_current
         inv = self.inverse
         res = inverse_current(-np.asarray(f_body, dtype=float), travel, v_rel, inv.params,
                               i_ref_a=inv.i_ref_a, i_min=inv.i_min, i_max=inv.i_max,

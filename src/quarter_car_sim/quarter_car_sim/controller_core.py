@@ -15,7 +15,7 @@ One step of :meth:`ControllerCore.command`:
 2. a state whose fields the laws use (:data:`LAW_FIELDS` and the law's own ``state_fields``,
    e.g. the tyre deflection of the LQR laws) are not all finite is refused
    (counted ``state_rejected.non_finite``) and answered with the safe current; so is a state
-   whose stamp :class:`mr_damper_model.stamps.StampGuard` refuses (the one home of stamp
+   whose stamp :class:`mr_damper_common.stamps.StampGuard` refuses (the one home of stamp
    sanity): one older than the newest state taken (``out_of_order``), or stamped more than
    ``max_future_s`` ahead of the caller's clock (``future_stamp``). A refused stamp never
    becomes the reference, so one bad stamp costs one safe-current answer; after
@@ -33,8 +33,8 @@ Pure Python (no ROS): the node converts messages into :class:`VehicleState` and 
 from dataclasses import dataclass
 import math
 
-from mr_damper_model.commands import CurrentCommandLimiter, OUTCOMES
-from mr_damper_model.stamps import StampGuard
+from mr_damper_common.commands import CurrentCommandLimiter, OUTCOMES
+from mr_damper_common.stamps import StampGuard
 from quarter_car_sim.failsafe import clip_current
 
 #: Fields of the state the control laws read (see :mod:`quarter_car_sim.controllers`):
@@ -105,7 +105,7 @@ class ControllerCore:
         Current tolerance [A] of the inverse model.
     max_future_s : float
         A state stamped more than this [s] ahead of the caller's clock is refused
-        (``future_stamp``; :class:`mr_damper_model.stamps.StampGuard`).
+        (``future_stamp``; :class:`mr_damper_common.stamps.StampGuard`).
     rebase_after : int
         Consecutive out-of-order (or future) states, increasing among themselves, after which
         the stamps are re-based on the last of them (a vehicle clock jump).
@@ -126,7 +126,7 @@ class ControllerCore:
         ``{reason: count}`` of :data:`STATE_REJECTIONS`.
     last_refusal : str or None
         Why the last state was answered with the safe current (None: it was taken).
-    stamps : mr_damper_model.stamps.StampGuard
+    stamps : mr_damper_common.stamps.StampGuard
         The stamp checks (re-bases in ``stamps.rebases``).
 
     """
@@ -152,7 +152,7 @@ class ControllerCore:
 
     def _inverse_for(self, params):
         if params is not self._inverse_of:
-            from mr_damper_model.inverse import KwokCurrentInverse
+            from mr_damper_model.models.inverse import KwokCurrentInverse
             # the inverse stays inside the current range the model was identified on
             lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
             hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
@@ -307,7 +307,7 @@ class FixedModelCore:
 
     The command stage of :class:`quarter_car_sim.live_loop.ClosedLoop` in
     ``quarter_car_sim.simulate``: a semi-active law's body force goes through ``inverse``
-    (``mr_damper_model.inverse.KwokCurrentInverse`` with ``sign_convention='body'``) to a
+    (``mr_damper_model.models.inverse.KwokCurrentInverse`` with ``sign_convention='body'``) to a
     current, a passive law's current is clipped to ``[i_min, i_max]``, and an active law's
     force is applied directly (command NaN).
 
@@ -315,7 +315,7 @@ class FixedModelCore:
     ----------
     controller : quarter_car_sim.controllers.Controller
         Any kind (``'current'``, ``'semi-active'``, ``'active'``).
-    inverse : mr_damper_model.inverse.KwokCurrentInverse or None
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse or None
         Needed for semi-active controllers. May be replaced at any time (``core.inverse``).
     i_min, i_max : float
         Coil current range [A] (passive currents are clipped to it).
@@ -382,7 +382,7 @@ class CommandInput:
     """
     The car side of an external controller: the latest current command, checked and timed.
 
-    A command is checked by the rig's :class:`mr_damper_model.commands.CurrentCommandLimiter`
+    A command is checked by the rig's :class:`mr_damper_common.commands.CurrentCommandLimiter`
     (clamped into ``[i_min_a, i_max_a]``, non-finite refused, every outcome of
     :data:`COMMAND_OUTCOMES` counted). :meth:`current` returns the latest applied
     command while it is younger than ``timeout_s``, else the safe current (the transition is

@@ -8,7 +8,7 @@ A controller has ``name``, ``kind`` and ``demand(state) -> float``:
   clipped-optimal, frequency-shaped clipped-optimal): ``demand``
   returns the desired damper force **on the body** [N], positive up, always dissipative
   (``demand * v_rel <= 0``); it goes through an inverse damper model
-  (:class:`mr_damper_model.inverse.KwokCurrentInverse` with ``sign_convention='body'``) to a
+  (:class:`mr_damper_model.models.inverse.KwokCurrentInverse` with ``sign_convention='body'``) to a
   current saturated to the coil's range;
 - ``kind == 'active'`` (``skyhook-ideal``, ``lqr-active``): ``demand`` is a force on the body
   applied directly (``QuarterCar.step_force``), no damper and no current limits.
@@ -396,7 +396,7 @@ class ClippedOptimal(LqrActive):
         LQR gain (:func:`clipped_optimal_gain`).
     force_range : callable, optional
         ``force_range(travel, v_rel) -> (lo, hi)``: reachable damper forces on the body [N]
-        (e.g. :meth:`mr_damper_model.inverse.KwokCurrentInverse.body_force_range`).
+        (e.g. :meth:`mr_damper_model.models.inverse.KwokCurrentInverse.body_force_range`).
     name : str
         Controller name.
 
@@ -625,7 +625,7 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
         Hybrid weight.
     params : QuarterCarParams, optional
         Car parameters for the LQR design.
-    inverse : mr_damper_model.inverse.KwokCurrentInverse, optional
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse, optional
         Inverse model whose force range clips the clipped-optimal demands (else the inverse of
         the loop saturates them, see :class:`ClippedOptimal`).
     damper_only : bool

@@ -180,7 +180,7 @@ class QuarterCar:
     params : QuarterCarParams
         Car parameters.
     plant : DamperPlant or None
-        Streaming damper plant (``mr_damper_model.plant``); ``step(dt, x, v, i_cmd) -> F``
+        Streaming damper plant (``mr_damper_model.models.plant``); ``step(dt, x, v, i_cmd) -> F``
         with x = travel, v = piston velocity, F the model force (resisting extension positive).
         None: only :meth:`step_force` can be used.
     road : RoadProfile

@@ -411,7 +411,7 @@ class QuarterCarEstimator:
     coil_tau_s : float
         Time constant [s] of the coil's first-order lag between the current given to
         :meth:`step` (the command) and the current that makes the force (0: none). The
-        simulated dampers lag by 1/190 s (``mr_damper_model.plant``).
+        simulated dampers lag by 1/190 s (``mr_damper_model.models.plant``).
     travel_deadband_m : float or None
         The force model gets travel 0 while the estimated travel is within this band [m]
         (None: 3 steady-state standard deviations of the travel estimate): the sign of the

@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from mr_damper_model.kwok_current import KwokCurrent
+from mr_damper_model.models.kwok_current import KwokCurrent
 from mr_damper_model.live import pinned_parameters
 
 #: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.

@@ -48,11 +48,11 @@ from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from mr_damper_model import messages
-from mr_damper_model.health import ERROR, WARN, worst
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, node_time_s, Param)
-from mr_damper_model.plant import make_plant
+from mr_damper_common import messages
+from mr_damper_common.health import ERROR, WARN, worst
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         LATCHED_QOS, node_time_s, Param)
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.control_thread import ControlThread
 from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
@@ -210,7 +210,7 @@ class FullCarNode(Node):
         return st
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         st = self.status()
         problems = []
         if self.control.failed:

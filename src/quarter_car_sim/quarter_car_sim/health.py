@@ -2,7 +2,7 @@
 Health rules of the quarter-car node and the semi-active controller node (ROS-free).
 
 The nodes publish the result on ``/diagnostics``
-(:class:`mr_damper_model.health.Health` -> ``diagnostic_msgs/DiagnosticStatus``). The values
+(:class:`mr_damper_common.health.Health` -> ``diagnostic_msgs/DiagnosticStatus``). The values
 are the node's status (mode and why, fail-safe time and entries, parameters accepted and
 rejected by reason, parameter age, current, saturation, loop timing, drops, ...) plus the
 running ride metrics (``ride_metrics``) of the car; the level and message say what is wrong:
@@ -21,7 +21,7 @@ running ride metrics (``ride_metrics``) of the car; the level and message say wh
 "Since the previous check" compares counters between calls, so the rules are stateful: one
 :class:`CarHealth` / :class:`ControllerHealth` per node, called once per diagnostics period.
 """
-from mr_damper_model.health import dropped_since, ERROR, OK, Rising, WARN, worst
+from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
 #: Why the supervisor or the command input is in fail-safe, for a human.
 FAILSAFE_MESSAGES = {
@@ -81,7 +81,7 @@ class CarHealth:
 
     def __call__(self, status, metrics=None, *, failed=None, alive=True):
         """
-        Return the :class:`~mr_damper_model.health.Health` of one check.
+        Return the :class:`~mr_damper_common.health.Health` of one check.
 
         Parameters
         ----------
@@ -171,7 +171,7 @@ class ControllerHealth:
         self._refused_checks = 0
 
     def __call__(self, status):
-        """Return the :class:`~mr_damper_model.health.Health` of one check (``status()``)."""
+        """Return the :class:`~mr_damper_common.health.Health` of one check (``status()``)."""
         problems = []
         if status.get('mode') == 'failsafe':
             problems.append((WARN, failsafe_message(status.get('reason', '?'),

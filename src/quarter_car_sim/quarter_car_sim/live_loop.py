@@ -12,8 +12,8 @@ studies (:mod:`quarter_car_sim.simulate`) with a fixed identified inverse. One c
 2. with a model: the controller's demanded body force (positive up) is turned into a coil
    current by the inverse of the identified model (the damper model
    force resisting extension is the negative of the body force: the scalar inverse
-   ``mr_damper_model.inverse.KwokCurrentInverse`` with ``sign_convention='body'``), saturated
-   to the coil range;
+   ``mr_damper_model.models.inverse.KwokCurrentInverse`` with ``sign_convention='body'``),
+   saturated to the coil range;
    without one: the safe current (fail-safe). A passive controller gives a current directly;
 3. the quarter car (its plant is the "true" damper, never the identified model) advances by
    ``dt`` with that current held, and the running ride metrics take the new state.
@@ -65,7 +65,7 @@ class ClosedLoop:
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     dt : float
         Control period [s].
-    inverse : mr_damper_model.inverse.KwokCurrentInverse, optional
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse, optional
         Fixed inverse (``sign_convention='body'``) without a supervisor; the car's current
         range ``car.params.i_min`` .. ``i_max`` clips passive currents.
     metrics : object, optional
@@ -231,7 +231,7 @@ class TraceLog:
     """
     Per-step log of the loop, streamed to a column log on disk as it runs (flat memory).
 
-    Columns are :data:`TRACE_COLUMNS` (``mr_damper_model.columnlog`` format: ``PATH.f64`` rows
+    Columns are :data:`TRACE_COLUMNS` (``mr_damper_model.io.columnlog`` format: ``PATH.f64`` rows
     and ``PATH.json`` header); rows are written in chunks of ``chunk_rows`` steps, so memory
     does not grow with the run. :meth:`close` writes the final header (``dt`` and ``extra``).
 
@@ -247,7 +247,7 @@ class TraceLog:
     """
 
     def __init__(self, path, dt=1e-3, chunk_rows=1000):
-        from mr_damper_model.columnlog import ColumnWriter
+        from mr_damper_model.io.columnlog import ColumnWriter
         self.path = path
         self._w = ColumnWriter(path, TRACE_COLUMNS, chunk_rows=chunk_rows, meta={'dt': dt})
         self._n_state = TRACE_COLUMNS.index('i_cmd')
@@ -267,7 +267,7 @@ class TraceLog:
 
     def arrays(self):
         """Return the columns written so far (short logs: tests, tools)."""
-        from mr_damper_model.columnlog import ColumnReader
+        from mr_damper_model.io.columnlog import ColumnReader
         self._w.flush()
         return ColumnReader(self.path).read()
 

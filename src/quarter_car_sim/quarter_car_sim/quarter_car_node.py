@@ -93,11 +93,11 @@ from mr_damper_interfaces.msg import DamperSamples, KwokParameters, QuarterCarSt
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
-from mr_damper_model import messages
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, node_time_s, Param, run_node,
-                                        set_realtime_priority, spin_node)
-from mr_damper_model.plant import make_plant
+from mr_damper_common import messages
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         LATCHED_QOS, node_time_s, Param, run_node,
+                                         set_realtime_priority, spin_node)
+from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import controller_core, hil, live_loop
 from quarter_car_sim.control_thread import ControlThread
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
@@ -148,7 +148,7 @@ PARAMETERS = (
     Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for a command [s, wall clock]',
           0.001, 3600.0),
     Param('log_file', '', 'Stream every control step to this column log (LOG.f64 rows + '
-          'LOG.json header, mr_damper_model.columnlog; "" = no log)'),
+          'LOG.json header, mr_damper_model.io.columnlog; "" = no log)'),
     Param('m_s', 300.0, 'Sprung mass [kg]', 1.0, 1e5),
     Param('m_u', 60.0, 'Unsprung mass [kg]', 0.1, 1e4),
     Param('k_s', 16000.0, 'Suspension spring [N/m]', 1.0, 1e8),
@@ -555,7 +555,7 @@ class QuarterCarNode(Node):
         return st
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         metrics = live_loop.metrics_dict(self.metrics) if self.metrics is not None else None
         return self.health_rules(self.status(), metrics, failed=self.control.failed,
                                  alive=self.control.alive() or not self.control.running)

@@ -27,7 +27,7 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
   commands, commands_normal, saturated_steps, state_rejected.<reason>, stamp_rebases,
   dropped.<reason>.
 
-Stamps (:class:`mr_damper_model.stamps.StampGuard`): a state stamped more than
+Stamps (:class:`mr_damper_common.stamps.StampGuard`): a state stamped more than
 ``max_future_s`` ahead of the node clock, or older than the newest state taken, is answered
 with the safe current and counted; it never becomes the reference. ``rebase_after``
 consecutive out-of-order (or future) states increasing among themselves re-base the stamps (a
@@ -44,10 +44,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
-from mr_damper_model import messages
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, node_time_s, Param, run_node,
-                                        set_realtime_priority, spin_node)
+from mr_damper_common import messages
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         LATCHED_QOS, node_time_s, Param, run_node,
+                                         set_realtime_priority, spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
@@ -247,7 +247,7 @@ class SemiActiveControllerNode(Node):
         return st
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         return self.health_rules(self.status())
 
 

@@ -34,7 +34,7 @@ from quarter_car_sim.simulate import _STATE_FIELDS, SimResult
 ERROR_STATES = ('travel', 'v_s', 'tyre_def', 'v_u', 'v_rel', 'a_s')
 
 #: Coil time constant [s] the estimator assumes by default: the simulated dampers' 1/190 s
-#: (``mr_damper_model.plant``; Spencer's eta = 190 1/s), a datasheet figure of a real coil.
+#: (``mr_damper_model.models.plant``; Spencer's eta = 190 1/s), a datasheet figure of a real coil.
 COIL_TAU_S = 1.0 / 190.0
 
 #: Default safe current [A] on an invalid estimate (the nodes' ``safe_current_a``).
@@ -108,7 +108,7 @@ def make_estimator(car_params, dt, specs, inverse, **options):
         Control period [s].
     specs : dict
         ``{sensor: SensorSpec}``.
-    inverse : mr_damper_model.inverse.KwokCurrentInverse
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse
         Identified model (``force(i, x, v)``, model sign: the body force is its negative).
     **options
         Design options of :func:`~quarter_car_sim.estimator.design_estimator` and runtime

@@ -107,7 +107,7 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     damper_params : dict, ParamsFile, inverse object or path
         kwok-current parameters: a ``{name: value}`` dict, a dict/ParamsFile with
         ``parameters`` and ``model_options``, or a JSON parameter file path
-        (``mr_damper_model.params_file.load_params``).
+        (``mr_damper_model.io.params_file.load_params``).
     i_min, i_max : float
         Coil current range [A] the command is saturated to (not applied when
         ``damper_params`` is already an inverse object, which is returned as is).
@@ -117,11 +117,11 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     KwokCurrentInverse
 
     """
-    from mr_damper_model.inverse import KwokCurrentInverse
+    from mr_damper_model.models.inverse import KwokCurrentInverse
     if isinstance(damper_params, KwokCurrentInverse):
         return damper_params
     if isinstance(damper_params, (str, bytes)) or hasattr(damper_params, '__fspath__'):
-        from mr_damper_model.params_file import load_params
+        from mr_damper_model.io.params_file import load_params
         damper_params = load_params(damper_params, model='kwok-current')
     d = damper_params
     if hasattr(d, 'parameters'):

@@ -122,7 +122,7 @@ class StateEstimatorCore:
         if params is None:
             return False
         if params is not self._model_of:
-            from mr_damper_model.inverse import KwokCurrentInverse
+            from mr_damper_model.models.inverse import KwokCurrentInverse
             self._model = KwokCurrentInverse(params, i_ref_a=params['i_ref_a'],
                                              i_min=self.sup.i_min_a, i_max=self.sup.i_max_a)
             self._model_of = params

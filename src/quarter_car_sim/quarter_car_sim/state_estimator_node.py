@@ -12,11 +12,12 @@ only convert messages and call the core; the control-rate timer calls ``tick``.
 
 Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
-- sub ``quarter_car/body_imu`` (sensor_msgs/Imu, best effort, KEEP_LAST 100): ``linear_acceleration.z``,
+- sub ``quarter_car/body_imu`` (sensor_msgs/Imu, best effort, KEEP_LAST 100):
+  ``linear_acceleration.z``,
   specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample;
 - sub ``quarter_car/wheel_imu`` (sensor_msgs/Imu) with ``wheel_accel:=true``;
-- sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100): the first
-  ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
+- sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100):
+  the first ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
   positive, zero at static equilibrium). JointState because a suspension *is* a prismatic joint:
   it is what ros2_control's joint_state_broadcaster and a URDF of the car publish, it carries a
   stamp and the joint name of the corner, and no custom type is needed on the vehicle side;
@@ -39,11 +40,11 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
-from mr_damper_model import messages
-from mr_damper_model.health import OK, WARN, worst
-from mr_damper_model.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                        LATCHED_QOS, node_time_s, Param, run_node,
-                                        SENSOR_QOS, set_realtime_priority, spin_node)
+from mr_damper_common import messages
+from mr_damper_common.health import OK, WARN, worst
+from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
+                                         LATCHED_QOS, node_time_s, Param, run_node, SENSOR_QOS,
+                                         set_realtime_priority, spin_node)
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
@@ -216,7 +217,7 @@ class StateEstimatorNode(Node):
         return st
 
     def health(self):
-        """Return the node's :class:`~mr_damper_model.health.Health` (``/diagnostics``)."""
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         return estimator_health(self.status())
 
 

@@ -175,8 +175,8 @@ class FullCar:
     params : FullCarParams
         Car parameters.
     plants : sequence of 4 DamperPlant or None
-        Streaming damper plants (``mr_damper_model.plant``) of ``fl, fr, rl, rr``; may differ.
-        None: only :meth:`step_force` can be used.
+        Streaming damper plants (``mr_damper_model.models.plant``) of ``fl, fr, rl, rr``; may
+        differ. None: only :meth:`step_force` can be used.
     road : quarter_car_sim.full_car.road.TwoTrackRoad
         Road; ``road.at(t)`` gives the four wheel heights and velocities.
     substeps : int

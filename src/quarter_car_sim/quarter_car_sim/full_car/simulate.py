@@ -94,7 +94,7 @@ def corner_message(damper_params):
     """
     d = damper_params
     if isinstance(d, (str, bytes)) or hasattr(d, '__fspath__'):
-        from mr_damper_model.params_file import load_params
+        from mr_damper_model.io.params_file import load_params
         d = load_params(d, model='kwok-current')
     if hasattr(d, 'parameters'):
         d = {'parameters': d.parameters, 'model_options': d.model_options,

@@ -1,0 +1,536 @@
+"""
+ROS 2 message conversions of the MR damper suite (the only model module that imports msgs).
+
+Topic payloads (see the README topic table):
+
+- measurement: ``mr_damper_interfaces/DamperSamples``, a batch of consecutive DAQ samples
+  (arrays ``t_offset_s, x_m, v_m_s, f_n, i_a`` from ``header.stamp``, with a message
+  ``sequence`` and the stream index ``first_index`` of its first sample, so a reader counts lost
+  samples exactly): :func:`samples_to_msg`, :func:`samples_from_msg`.
+- single-sample measurement (the layout of earlier recordings and of DAQ drivers that publish
+  one message per sample): ``sensor_msgs/JointState``; ``header.stamp`` is the sample time,
+  joints ``('mr_damper_piston', 'mr_damper_coil')``; piston position = displacement [m],
+  velocity [m/s], effort = damper force [N]; coil effort = coil current [A], coil position and
+  velocity NaN. :func:`measurement_arrays` reads either kind into arrays.
+- parameters: ``mr_damper_interfaces/KwokParameters`` (one field per coefficient, window times,
+  current range, fit quality, ``valid`` and ``reason``).
+- true damper of a simulation: ``mr_damper_interfaces/DamperModel`` (named parameters) or
+  ``KwokParameters`` for a kwok-current truth.
+- health: ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (levels and flat key-values,
+  see :mod:`mr_damper_common.health`).
+
+This module imports message types but not rclpy, so it works in any process.
+"""
+import array
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
+import numpy as np
+from sensor_msgs.msg import JointState
+
+from mr_damper_common.contract import COIL_JOINT, KWOK_CURRENT_NAMES, PISTON_JOINT
+from mr_damper_common.health import flatten, Health, unflatten
+
+MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
+
+
+_NAN = float('nan')
+
+
+class MessageError(ValueError):
+    """
+    A message that cannot be converted.
+
+    ``reason`` is a short machine-readable key used for the status counters
+    (``'joint_names'``, ``'layout'``, ``'bad_i_ref'``).
+
+    """
+
+    def __init__(self, reason, message):
+        super().__init__(message)
+        self.reason = reason
+
+
+def stamp_to_seconds(stamp):
+    """
+    Convert a ``builtin_interfaces/Time`` to seconds.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Stamp.
+
+    Returns
+    -------
+    float
+        Time [s].
+
+    """
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def seconds_to_stamp(t, stamp):
+    """
+    Write time ``t`` [s] into ``stamp`` (a ``builtin_interfaces/Time``) and return it.
+
+    Parameters
+    ----------
+    t : float
+        Time [s], >= 0.
+    stamp : builtin_interfaces.msg.Time
+        Stamp to fill in place.
+
+    Returns
+    -------
+    builtin_interfaces.msg.Time
+        ``stamp``.
+
+    """
+    ns = int(round(t * 1e9))
+    if ns < 0:
+        raise ValueError(f'`t` must be >= 0 s for a ROS stamp, got {t!r}')
+    stamp.sec, stamp.nanosec = divmod(ns, 1_000_000_000)
+    return stamp
+
+
+def measurement_to_msg(t, x, v, f, i, msg=None):
+    """
+    Build the JointState of one DAQ sample.
+
+    Parameters
+    ----------
+    t : float
+        Sample time [s] (header stamp).
+    x, v, f, i : float
+        Displacement [m], velocity [m/s], force [N], coil current [A].
+    msg : sensor_msgs.msg.JointState, optional
+        Message to fill (new one if None).
+
+    Returns
+    -------
+    sensor_msgs.msg.JointState
+        The measurement message.
+
+    """
+    if msg is None:
+        msg = JointState()
+        msg.header.frame_id = 'mr_damper'
+        msg.name = list(MEASUREMENT_JOINTS)
+    seconds_to_stamp(t, msg.header.stamp)
+    msg.position = [float(x), _NAN]
+    msg.velocity = [float(v), _NAN]
+    msg.effort = [float(f), float(i)]
+    return msg
+
+
+def measurement_from_msg(msg):
+    """
+    Read one DAQ sample from a measurement JointState.
+
+    Joint order in ``msg.name`` is free; both joints must be present with a position, velocity
+    (piston) and effort (both) each.  Values are returned as they are (non-finite values are for
+    the caller to count and reject).
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.JointState
+        Measurement message.
+
+    Returns
+    -------
+    tuple of float
+        ``(t, x, v, f, i)``: stamp [s], displacement [m], velocity [m/s], force [N], current [A].
+
+    Raises
+    ------
+    MessageError
+        ``reason='joint_names'`` if the joints are not the two expected ones,
+        ``reason='layout'`` if the arrays are too short.
+
+    """
+    names = msg.name
+    if len(names) == 2 and names[0] == PISTON_JOINT and names[1] == COIL_JOINT:
+        ip, ic = 0, 1
+    else:
+        try:
+            ip, ic = names.index(PISTON_JOINT), names.index(COIL_JOINT)
+        except ValueError:
+            raise MessageError('joint_names', f'measurement joints {list(names)!r}, expected '
+                               f'{list(MEASUREMENT_JOINTS)!r}') from None
+    pos, vel, eff = msg.position, msg.velocity, msg.effort
+    if len(pos) <= ip or len(vel) <= ip or len(eff) <= max(ip, ic):
+        raise MessageError('layout', 'measurement arrays shorter than the joint list '
+                           f'(position {len(pos)}, velocity {len(vel)}, effort {len(eff)})')
+    return (stamp_to_seconds(msg.header.stamp), float(pos[ip]), float(vel[ip]),
+            float(eff[ip]), float(eff[ic]))
+
+
+def _doubles(values):
+    """Return ``values`` as an ``array.array('d')`` (the generated setter takes it as is)."""
+    return array.array('d', np.ascontiguousarray(values, dtype=float).tobytes())
+
+
+def samples_to_msg(t, x, v, f, i, *, sequence, first_index, sample_period_s=0.0, msg=None,
+                   frame_id='mr_damper'):
+    """
+    Build one ``DamperSamples`` message from a batch of consecutive DAQ samples.
+
+    Parameters
+    ----------
+    t, x, v, f, i : array_like with shape (n,)
+        Sample times [s] (increasing, ``t[0]`` >= 0), displacement [m], velocity [m/s],
+        force [N], coil current [A]; n >= 1.
+    sequence : int
+        Message number of this publisher's stream (+1 per message).
+    first_index : int
+        Stream index of the first sample (+n per message).
+    sample_period_s : float
+        Nominal DAQ period [s] (0: irregular).
+    msg : DamperSamples, optional
+        Message to fill (new one if None).
+    frame_id : str
+        ``header.frame_id``: the damper.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.DamperSamples
+        The message; ``header.stamp`` is ``t[0]``, ``t_offset_s`` is ``t - t[0]``.
+
+    Raises
+    ------
+    ValueError
+        Arrays of different lengths or empty, a negative first stamp.
+
+    """
+    t = np.asarray(t, dtype=float)
+    n = t.shape[0] if t.ndim == 1 else 0
+    if n == 0 or any(np.shape(a) != (n,) for a in (x, v, f, i)):
+        raise ValueError('`t`, `x`, `v`, `f`, `i` must be 1-D arrays of one length >= 1, got '
+                         f'shapes {[np.shape(a) for a in (t, x, v, f, i)]}')
+    if msg is None:
+        msg = DamperSamples()
+        msg.header.frame_id = frame_id
+    seconds_to_stamp(float(t[0]), msg.header.stamp)
+    msg.sequence = int(sequence)
+    msg.first_index = int(first_index)
+    msg.sample_period_s = float(sample_period_s)
+    msg.t_offset_s = _doubles(t - t[0])
+    msg.x_m = _doubles(x)
+    msg.v_m_s = _doubles(v)
+    msg.f_n = _doubles(f)
+    msg.i_a = _doubles(i)
+    return msg
+
+
+def samples_from_msg(msg):
+    """
+    Read the samples of one ``DamperSamples`` message (rclpy class or rosbags dataclass).
+
+    Values are returned as they are (non-finite values are for the caller to count and reject).
+
+    Parameters
+    ----------
+    msg : DamperSamples
+        Measurement batch.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``, each of shape (n,): stamps [s] (``header.stamp`` +
+        ``t_offset_s``), displacement [m], velocity [m/s], force [N], current [A].
+
+    Raises
+    ------
+    MessageError
+        ``reason='layout'`` if the arrays are empty or of different lengths.
+
+    """
+    cols = [np.asarray(a, dtype=float) for a in (msg.t_offset_s, msg.x_m, msg.v_m_s, msg.f_n,
+                                                 msg.i_a)]
+    n = cols[0].shape[0]
+    if n == 0 or any(c.shape[0] != n for c in cols):
+        raise MessageError('layout', 'measurement batch arrays empty or of different lengths '
+                           f'({[c.shape[0] for c in cols]})')
+    cols[0] = stamp_to_seconds(msg.header.stamp) + cols[0]
+    return tuple(cols)
+
+
+def measurement_arrays(msg):
+    """
+    Read a measurement message of either layout into arrays.
+
+    Parameters
+    ----------
+    msg : DamperSamples or sensor_msgs/JointState
+        A batch (:func:`samples_from_msg`) or one single-sample JointState
+        (:func:`measurement_from_msg`), rclpy class or rosbags dataclass.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(t, x, v, f, i)``, each of shape (n,) (n = 1 for a JointState).
+
+    Raises
+    ------
+    MessageError
+        As :func:`samples_from_msg` / :func:`measurement_from_msg`.
+
+    """
+    if hasattr(msg, 't_offset_s'):
+        return samples_from_msg(msg)
+    return tuple(np.array([value]) for value in measurement_from_msg(msg))
+
+
+def _time_or_zero(t, stamp):
+    """Write ``t`` [s] into ``stamp``; a NaN or negative time (unknown) becomes 0."""
+    if t is None or not math.isfinite(t) or t < 0:
+        stamp.sec, stamp.nanosec = 0, 0
+        return stamp
+    return seconds_to_stamp(t, stamp)
+
+
+def _seconds_or_nan(stamp):
+    """Read a stamp [s]; the zero stamp (unknown) becomes NaN."""
+    return math.nan if stamp.sec == 0 and stamp.nanosec == 0 else stamp_to_seconds(stamp)
+
+
+def kwok_parameters_msg(estimate, msg=None, *, stamp_s=None, frame_id='mr_damper'):
+    """
+    Encode a kwok-current estimate as ``mr_damper_interfaces/KwokParameters``.
+
+    Parameters
+    ----------
+    estimate : dict
+        Must contain the ten kwok-current parameters; optional ``i_ref_a`` (default 2.0),
+        ``window_start_s``, ``window_end_s`` (sample times [s]; NaN or absent: unknown, sent
+        as the zero time), ``current_min_a``, ``current_max_a``, ``rmse_n``, ``nrmse_percent``
+        (NaN if absent), ``valid`` (bool, default False) and ``reason`` (str).
+    msg : KwokParameters, optional
+        Message to fill (new one if None).
+    stamp_s : float, optional
+        ``header.stamp`` [s] (the publisher's clock); None leaves it unchanged.
+    frame_id : str
+        ``header.frame_id``: the damper.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.KwokParameters
+        The message.
+
+    Raises
+    ------
+    ValueError
+        If a parameter is missing or ``i_ref_a`` is not > 0.
+
+    """
+    missing = [n for n in KWOK_CURRENT_NAMES if n not in estimate]
+    if missing:
+        raise ValueError(f'`estimate` misses kwok-current parameters {missing}')
+    i_ref = float(estimate.get('i_ref_a', 2.0))
+    if not i_ref > 0:
+        raise ValueError(f'`estimate`: i_ref_a must be > 0 A, got {i_ref!r}')
+    if msg is None:
+        msg = KwokParameters()
+    msg.header.frame_id = frame_id
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    for name in KWOK_CURRENT_NAMES:
+        setattr(msg, name, float(estimate[name]))
+    msg.i_ref_a = i_ref
+    _time_or_zero(estimate.get('window_start_s', _NAN), msg.window_start)
+    _time_or_zero(estimate.get('window_end_s', _NAN), msg.window_end)
+    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
+        setattr(msg, name, float(estimate.get(name, _NAN)))
+    msg.valid = bool(estimate.get('valid', False))
+    msg.reason = '' if msg.valid else str(estimate.get('reason', '') or 'not_valid')
+    return msg
+
+
+def kwok_parameters_from_msg(msg):
+    """
+    Decode ``mr_damper_interfaces/KwokParameters``.
+
+    Parameters
+    ----------
+    msg : mr_damper_interfaces.msg.KwokParameters
+        Parameters message.
+
+    Returns
+    -------
+    dict
+        ``'parameters'`` (dict of the ten kwok-current parameters), ``'valid'`` (bool),
+        ``'reason'`` (str), ``'stamp_s'`` (header stamp [s]) and ``i_ref_a``,
+        ``window_start_s``, ``window_end_s`` (NaN when unknown), ``current_min_a``,
+        ``current_max_a``, ``rmse_n``, ``nrmse_percent`` as floats.
+
+    Raises
+    ------
+    MessageError
+        ``reason='bad_i_ref'`` if ``i_ref_a`` is not > 0 (a set no model can use).
+
+    """
+    if not msg.i_ref_a > 0:
+        raise MessageError('bad_i_ref',
+                           f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
+    out = {'parameters': {n: float(getattr(msg, n)) for n in KWOK_CURRENT_NAMES},
+           'valid': bool(msg.valid), 'reason': msg.reason,
+           'stamp_s': stamp_to_seconds(msg.header.stamp),
+           'i_ref_a': float(msg.i_ref_a),
+           'window_start_s': _seconds_or_nan(msg.window_start),
+           'window_end_s': _seconds_or_nan(msg.window_end)}
+    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
+        out[name] = float(getattr(msg, name))
+    return out
+
+
+def kwok_parameters_flat(msg):
+    """
+    Decode ``KwokParameters`` into one flat dict (the fail-safe supervisor's input).
+
+    Returns
+    -------
+    dict
+        The ten parameters, ``i_ref_a``, ``current_min_a``, ``current_max_a``, ``rmse_n``,
+        ``nrmse_percent``, ``window_start_s``, ``window_end_s`` (floats), ``valid`` (bool) and
+        ``reason`` (str).
+
+    Raises
+    ------
+    MessageError
+        As :func:`kwok_parameters_from_msg`.
+
+    """
+    d = kwok_parameters_from_msg(msg)
+    flat = dict(d.pop('parameters'))
+    flat.update(d)
+    return flat
+
+
+def damper_model_msg(model, parameters, options=None, *, stamp_s=None, frame_id='mr_damper'):
+    """
+    Encode a named-parameter damper model as ``mr_damper_interfaces/DamperModel``.
+
+    Parameters
+    ----------
+    model : str
+        Model name (``'spencer'``, ``'kwok-current'``, ...).
+    parameters : dict[str, float]
+        Parameter name -> value (SI), in the model's order.
+    options : dict[str, float], optional
+        Model options (e.g. ``{'i_ref_a': 2.0}``).
+    stamp_s : float, optional
+        ``header.stamp`` [s].
+    frame_id : str
+        ``header.frame_id``: the damper.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.DamperModel
+        The message.
+
+    """
+    msg = DamperModel()
+    msg.header.frame_id = frame_id
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    msg.model = str(model)
+    msg.parameter_names = [str(k) for k in parameters]
+    msg.parameter_values = [float(v) for v in parameters.values()]
+    options = dict(options or {})
+    msg.option_names = [str(k) for k in options]
+    msg.option_values = [float(v) for v in options.values()]
+    return msg
+
+
+def damper_model_from_msg(msg):
+    """
+    Decode ``mr_damper_interfaces/DamperModel``.
+
+    Returns
+    -------
+    dict
+        ``{'model': str, 'parameters': {name: value}, 'model_options': {name: value}}`` (the
+        layout of a parameter file, :mod:`mr_damper_model.io.params_file`).
+
+    Raises
+    ------
+    MessageError
+        ``reason='layout'`` if names and values differ in number.
+
+    """
+    names, values = list(msg.parameter_names), list(msg.parameter_values)
+    onames, ovalues = list(msg.option_names), list(msg.option_values)
+    if len(names) != len(values) or len(onames) != len(ovalues):
+        raise MessageError('layout', f'damper model with {len(names)} names for {len(values)} '
+                           f'values, {len(onames)} option names for {len(ovalues)} values')
+    return {'model': msg.model,
+            'parameters': {n: float(v) for n, v in zip(names, values)},
+            'model_options': {n: float(v) for n, v in zip(onames, ovalues)}}
+
+
+def diagnostic_status_msg(name, health, hardware_id=''):
+    """
+    Build one ``diagnostic_msgs/DiagnosticStatus`` from a :class:`~.health.Health`.
+
+    Parameters
+    ----------
+    name : str
+        Status name, by convention ``'<node name>: <component>'``.
+    health : Health
+        Level, message and values (flattened to key-values, see :mod:`.health`).
+    hardware_id : str
+        The device (e.g. the damper or corner).
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticStatus
+        The status.
+
+    """
+    return DiagnosticStatus(level=bytes([health.level]), name=name, message=health.message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in flatten(health.values)])
+
+
+def diagnostic_array_msg(statuses, stamp_s=None):
+    """
+    Wrap statuses in a ``diagnostic_msgs/DiagnosticArray`` stamped ``stamp_s`` [s].
+
+    Parameters
+    ----------
+    statuses : list of DiagnosticStatus
+        Statuses (:func:`diagnostic_status_msg`).
+    stamp_s : float, optional
+        ``header.stamp`` [s] (the publisher's clock).
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticArray
+        The array.
+
+    """
+    msg = DiagnosticArray(status=list(statuses))
+    if stamp_s is not None:
+        seconds_to_stamp(stamp_s, msg.header.stamp)
+    return msg
+
+
+def health_from_diagnostic(status):
+    """
+    Read one ``diagnostic_msgs/DiagnosticStatus`` back into a :class:`~.health.Health`.
+
+    Parameters
+    ----------
+    status : diagnostic_msgs.msg.DiagnosticStatus
+        A status of the suite (or any: non-JSON values stay text).
+
+    Returns
+    -------
+    Health
+        Level, message and nested values (:func:`~.health.unflatten`).
+
+    """
+    level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else status.level
+    return Health(int(level), status.message,
+                  unflatten((kv.key, kv.value) for kv in status.values))

@@ -1,0 +1,860 @@
+"""The sliding-window identifier of the current-dependent Kwok model (no ROS)."""
+from dataclasses import fields, replace
+import math
+import threading
+import time
+
+import numpy as np
+
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
+from mr_damper_common.stamps import ACCEPTED, REBASED, StampGuard
+from mr_damper_model.identification.acceptance import Acceptance
+from mr_damper_model.io.data import DamperData
+from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfig, RANGE_CHANNELS,
+                                         REJECT_REASONS, SKIP_REASONS)
+from mr_damper_model.live.conversions import kwok_current_at, kwok_to_kwok_current
+from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
+from mr_damper_model.live.screening import (check_excitation, flag_samples, pinned_parameters,
+                                            robust_range)
+from mr_damper_model.live.window import LiveEstimate, Window
+from mr_damper_model.models.kwok_current import kwok_current_force
+
+
+#: Fewest screened samples on which the last valid set's consistency is judged.
+MIN_CHECK_SAMPLES = 20
+#: Cells per axis of the (displacement, velocity) grid of the consistency reference.
+STATE_CELLS = 8
+#: Fewest fitted samples in a reference cell for its error to count as known.
+MIN_CELL_SAMPLES = 10
+
+
+class _Bin:
+    __slots__ = ('level', 'data', 'newest_s')
+
+    def __init__(self, level, data):
+        self.level = level
+        self.data = data
+        self.newest_s = float(data.t[-1])
+
+
+class LiveIdentifier:
+    """
+    Sliding-window identifier of the current-dependent Kwok model (pure Python, no ROS).
+
+    Parameters
+    ----------
+    config : LiveConfig, optional
+        Settings.
+    initial : dict or ParamsFile, optional
+        Initial estimate (e.g. the parameter file of a previous run): a kwok-current or kwok
+        parameter set; used as the first published estimate and as the warm start.
+    fit : callable, optional
+        Replacement of :func:`fit_data` with the same signature and result, e.g. one that runs
+        :func:`fit_data` in a worker process.
+
+    """
+
+    def __init__(self, config=None, initial=None, fit=None):
+        self.config = config if config is not None else LiveConfig()
+        self._fit_window = fit_data if fit is None else fit
+        self._seed = None          # in-order mode: the seed of the window being processed
+        cfg = self.config
+        # two windows and three hops: room for the samples of superseded windows
+        self._cap = int(math.ceil((2 * cfg.window_s + (3 + int(cfg.backlog_windows)) * cfg.hop_s)
+                                  * cfg.max_rate_hz)) + 16
+        self._buf = np.empty((self._cap, 5))
+        self._lock = threading.Lock()
+        self._count = 0            # samples in the buffer (<= cap)
+        self._head = 0             # next write position
+        self._last_t = -math.inf
+        self._t_origin = None      # first stamp of the current stream
+        self._next_index = 0       # index m of the next due window end
+        # stamp sanity (order, duplicates, future stamps, re-base after a clock jump)
+        self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
+                                  rebase_after=cfg.restart_samples)
+        self._seq = 0              # samples accepted into the buffer so far (all streams)
+        self._handed = 0           # sequence number of the first sample not yet handed out
+        self.counters = {'samples_received': 0, 'samples_accepted': 0,
+                         'rejected': {r: 0 for r in REJECT_REASONS},
+                         'out_of_range': {r: 0 for r in RANGE_CHANNELS},
+                         'stream_restarts': 0, 'stamp_gaps': 0,
+                         'windows_due': 0, 'windows_superseded': 0, 'windows_overflow': 0,
+                         'windows_fitted': 0, 'windows_valid': 0,
+                         'windows_skipped': {r: 0 for r in SKIP_REASONS},
+                         'windows_refused': {},
+                         'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
+                         'samples_flagged': {r: 0 for r in FLAG_REASONS},
+                         'reference_resets': 0, 'catch_up_fits': 0, 'fit_errors': 0}
+        self._bins = {}
+        self._ref = None           # last valid set of this stream, as a consistency reference
+        self._inconsistent_since = None   # window end of the first of consecutive rejections
+        self._last_solution = {}   # model name -> parameter dict (warm start)
+        self.estimate = None
+        self.last_good = None
+        self.last_compute_s = math.nan
+        self.compute_s_max = 0.0
+        self._compute_sum = 0.0
+        self.last_error = ''
+        self.last_check = {}       # figures of the last consistency comparisons [N]
+        self.processed_up_to_s = math.nan   # end of the last window processed (any outcome)
+        self.last_skip = ''        # reason the last skipped window was skipped
+        self.last_held = ''        # why the last fitted window's set was refused ('' taken)
+        self._accept = Acceptance(lambda: self.config)
+        self._restarts_seen = 0    # stream restarts the acceptance state has followed
+        self._in_use = None        # the set the acceptance review compares with (taken last)
+        if initial is not None:
+            self.estimate = self._initial_estimate(initial)
+            if self.estimate is not None:
+                self._last_solution['kwok-current'] = dict(self.estimate.parameters)
+                if self.estimate.valid:
+                    self.last_good = self.estimate
+
+    # ---------------------------------------------------------------- initial estimate
+    def _initial_estimate(self, initial):
+        d = initial.to_json_dict() if hasattr(initial, 'to_json_dict') else dict(initial)
+        model = d.get('model', 'kwok-current')
+        params = dict(d['parameters'])
+        i_ref = float((d.get('model_options') or {}).get('i_ref_a', self.config.i_ref_a))
+        if model == 'kwok':
+            params = kwok_to_kwok_current(params)
+        elif model != 'kwok-current':
+            raise ValueError(f'`initial`: model {model!r} is not kwok or kwok-current')
+        params = {n: float(params[n]) for n in KWOK_CURRENT_NAMES}
+        metrics = d.get('metrics') or {}
+        nrmse = float(metrics.get('nrmse_percent', math.nan) if metrics.get(
+            'nrmse_percent') is not None else math.nan)
+        rmse = float(metrics.get('rmse_n') if metrics.get('rmse_n') is not None else math.nan)
+        reason = '' if d.get('valid', True) else 'stored_invalid'
+        if not reason and i_ref != self.config.i_ref_a:
+            reason = 'i_ref_mismatch'
+        if not reason:
+            reason = _in_bounds('kwok-current', params, self.config.unbounded, i_ref)
+        if not reason and not (nrmse <= self.config.max_nrmse_percent):
+            reason = 'nrmse_above_threshold'
+        return LiveEstimate(parameters=params, valid=not reason, reason=reason,
+                            model_fitted='file', i_ref_a=i_ref, window_end_s=0.0,
+                            window_start_s=0.0,
+                            current_min_a=float(d.get('current_min_a', math.nan)),
+                            current_max_a=float(d.get('current_max_a', math.nan)),
+                            rmse_n=rmse, nrmse_percent=nrmse)
+
+    # ---------------------------------------------------------------- samples
+    def count_rejected(self, reason):
+        """Count a message rejected before it became a sample (e.g. ``'joint_names'``)."""
+        with self._lock:
+            self.counters['samples_received'] += 1
+            rej = self.counters['rejected']
+            rej[reason] = rej.get(reason, 0) + 1
+
+    def add_sample(self, t, x, v, f, i, now=None):
+        """
+        Offer one sample.
+
+        Parameters
+        ----------
+        t : float
+            Stamp [s].
+        x, v, f, i : float
+            Displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt [s] (``max_future_s``; None: no future check).
+
+        Returns
+        -------
+        str
+            '' if accepted, else the rejection reason (``'nonfinite'``, ``'out_of_order'``,
+            ``'duplicate'``, ``'future_stamp'``, or ``'<channel>_range'`` with channel ``force``,
+            ``velocity``,
+            ``displacement`` or ``current``: counted in ``out_of_range[channel]``).
+
+        """
+        with self._lock:
+            return self._add_one(float(t), float(x), float(v), float(f), float(i), now)
+
+    def add_samples(self, t, x, v, f, i, now=None):
+        """
+        Offer a batch of consecutive samples (one measurement message), in order.
+
+        The result is exactly that of :meth:`add_sample` called on each sample in turn; a batch
+        that is clean (finite, in range, stamps increasing past the newest accepted one) is
+        taken with array operations, others sample by sample.
+
+        Parameters
+        ----------
+        t, x, v, f, i : array_like with shape (n,)
+            Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
+        now : float, optional
+            Node clock at receipt of the batch [s] (``max_future_s``).
+
+        Returns
+        -------
+        list of (int, str)
+            ``(index in the batch, reason)`` of every rejected sample (empty if all accepted).
+
+        """
+        t, x, v, f, i = (np.asarray(a, dtype=float) for a in (t, x, v, f, i))
+        n = t.shape[0]
+        cfg = self.config
+        with self._lock:
+            if n and self._clean_batch(t, x, v, f, i, cfg, now):
+                self._append_batch(t, x, v, f, i, cfg)
+                self._stamps.take_clean(t, now)
+                return []
+            rejected = []
+            for k in range(n):
+                reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
+                                       float(i[k]), now)
+                if reason:
+                    rejected.append((k, reason))
+            return rejected
+
+    def _clean_batch(self, t, x, v, f, i, cfg, now):
+        """Tell whether every sample of the batch would be accepted as it is (lock held)."""
+        if not t[0] > self._last_t or not self._stamps.clean(t, now):
+            return False
+        if t.shape[0] > 1 and not bool(np.all(np.diff(t) > 0.0)):
+            return False
+        with np.errstate(invalid='ignore'):
+            return bool(np.all(np.abs(f) <= cfg.force_limit_n)
+                        and np.all(np.abs(v) <= cfg.velocity_limit_m_s)
+                        and np.all(np.abs(x) <= cfg.displacement_limit_m)
+                        and np.all(i >= cfg.current_limit_min_a)
+                        and np.all(i <= cfg.current_limit_max_a)
+                        and np.all(np.isfinite(t)))
+
+    def _append_batch(self, t, x, v, f, i, cfg):
+        """Take a clean batch (see :meth:`_clean_batch`) into the buffer (lock held)."""
+        c = self.counters
+        n = t.shape[0]
+        c['samples_received'] += n
+        if self._t_origin is None:
+            self._t_origin = float(t[0])
+            steps = np.diff(t)
+        else:
+            steps = np.diff(t, prepend=self._last_t)
+        c['stamp_gaps'] += int(np.count_nonzero(steps > cfg.max_gap_s))
+        cap = self._cap
+        if n > cap:   # only the newest cap samples can stay (older ones are lost below)
+            keep = slice(n - cap, n)
+            skipped = n - cap
+        else:
+            keep, skipped = slice(0, n), 0
+        rows = np.column_stack((t[keep], x[keep], v[keep], f[keep], i[keep]))
+        if skipped:
+            self._seq += skipped   # passed through the buffer at once: never handed out
+        m = rows.shape[0]
+        first = min(m, cap - self._head)
+        self._buf[self._head:self._head + first] = rows[:first]
+        if m > first:
+            self._buf[:m - first] = rows[first:]
+        self._head = (self._head + m) % cap
+        self._count = min(self._count + m, cap)
+        self._last_t = float(t[-1])
+        self._seq += m
+        c['samples_accepted'] += n
+
+    def _add_one(self, t, x, v, f, i, now=None):
+        """:meth:`add_sample` with the lock held."""
+        cfg = self.config
+        c = self.counters
+        c['samples_received'] += 1
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
+                and math.isfinite(f) and math.isfinite(i)):
+            c['rejected']['nonfinite'] += 1
+            return 'nonfinite'
+        verdict = self._stamps.check(t, now)   # order, duplicates, future, clock jumps
+        if verdict == REBASED:
+            self._restart_stream()
+        elif verdict != ACCEPTED:
+            c['rejected'][verdict] += 1
+            return verdict
+        # range checks after the stamp checks: a sample is late before it is implausible
+        channel = ('force' if abs(f) > cfg.force_limit_n else
+                   'velocity' if abs(v) > cfg.velocity_limit_m_s else
+                   'displacement' if abs(x) > cfg.displacement_limit_m else
+                   'current' if not (cfg.current_limit_min_a <= i
+                                     <= cfg.current_limit_max_a) else '')
+        if channel:
+            c['out_of_range'][channel] += 1
+            return channel + '_range'
+        if self._t_origin is None:
+            self._t_origin = t
+        elif t - self._last_t > cfg.max_gap_s:
+            # counted once per gap, here: the windows across it may all be superseded
+            c['stamp_gaps'] += 1
+        row = self._buf[self._head]
+        row[0] = t
+        row[1] = x
+        row[2] = v
+        row[3] = f
+        row[4] = i
+        self._head = (self._head + 1) % self._cap
+        if self._count < self._cap:
+            self._count += 1
+        self._last_t = t
+        self._stamps.commit(t, now)
+        self._seq += 1
+        c['samples_accepted'] += 1
+        return ''
+
+    def _restart_stream(self):
+        self.counters['stream_restarts'] += 1
+        self.counters['samples_lost'] += self._seq - self._handed
+        self._handed = self._seq
+        self._count = 0
+        self._head = 0
+        self._last_t = -math.inf
+        self._t_origin = None
+        self._next_index = 0
+        self._bins.clear()
+        self._ref = None
+
+    # ---------------------------------------------------------------- windows
+    def next_window(self):
+        """
+        Return the newest due window (older due windows are counted as superseded), or None.
+
+        Window ends are ``t0 + window_s + m * hop_s`` in sample time, ``t0`` the first stamp.
+        The window also hands out every sample up to its end that no earlier window handed out
+        (:attr:`Window.new`); samples that left the buffer before that are counted in
+        ``samples_lost`` (the buffer holds two windows and three hops).
+
+        With ``backlog_windows`` > 0 the oldest due window is returned instead (every window in
+        order, none superseded); only when the fitter fell so far behind that the oldest due
+        windows' samples left the buffer (``backlog_windows`` more hops) are those windows
+        passed over, counted in ``windows_overflow``.
+        """
+        cfg = self.config
+        with self._lock:
+            if self._t_origin is None:
+                return None
+            first_end = self._t_origin + cfg.window_s
+            if self._last_t < first_end + self._next_index * cfg.hop_s:
+                return None
+            m = int(math.floor((self._last_t - first_end) / cfg.hop_s + 1e-9))
+            m = max(m, self._next_index)
+            n = self._count
+            oldest = self._seq - n
+            if cfg.backlog_windows:
+                m = self._in_order_index(m, n)
+            else:
+                self.counters['windows_superseded'] += m - self._next_index
+            self.counters['windows_due'] += 1
+            self._next_index = m + 1
+            end = first_end + m * cfg.hop_s
+            if self._handed < oldest:
+                self.counters['samples_lost'] += oldest - self._handed
+                self._handed = oldest
+            idx = (self._head - n + np.arange(n)) % self._cap
+            t = self._buf[idx, 0]
+            k_end = int(np.searchsorted(t, end + 1e-9, side='right'))
+            k_win = int(np.searchsorted(t, end - cfg.window_s + 1e-9, side='right'))
+            k_new = min(self._handed - oldest, k_end)
+            rows = self._buf[idx[min(k_win, k_new):k_end]]
+            n_new = k_end - k_new
+            self._handed = oldest + k_end
+        span = DamperData(*rows.T, source='window')
+        window = span.select(slice(max(k_win - k_new, 0), None))
+        return Window(window, end, span, n_new, oldest + k_new, m)
+
+    def _in_order_index(self, newest, n):
+        """Index of the oldest due window whose samples are all still buffered (lock held)."""
+        m = self._next_index
+        t_old = self._buf[(self._head - n) % self._cap, 0]
+        start = self._t_origin + m * self.config.hop_s      # samples after it form window m
+        if n == self._cap and t_old > start + 1e-9:
+            m_kept = int(math.ceil((t_old - self._t_origin) / self.config.hop_s - 1e-9))
+            m = min(max(m, m_kept), newest)
+            self.counters['windows_overflow'] += m - self._next_index
+        return m
+
+    def _give_back(self, window, n):
+        """Offer the last ``n`` new samples of ``window`` again with the next window."""
+        with self._lock:
+            self._handed = min(self._handed, window.first_new_seq + window.n_new - n)
+
+    # ---------------------------------------------------------------- fitting
+    def process(self, window):
+        """
+        Check, screen, bin and fit one window; return the new estimate (None if skipped).
+
+        Parameters
+        ----------
+        window : Window
+            From :meth:`next_window`.
+
+        Returns
+        -------
+        LiveEstimate or None
+            The estimate (also stored as :attr:`estimate`; :attr:`last_good` if valid).
+
+        """
+        self.last_skip = ''
+        cfg = self.config
+        self._seed = window_seed(cfg.seed, window.index) if cfg.backlog_windows else None
+        try:
+            return self._process(window)
+        finally:
+            self.processed_up_to_s = float(window.end_s)
+
+    def _fit(self, data, model, config, x0=None):
+        """Fit one window's data (in-order mode: stop on ``maxiter``, seeded per window)."""
+        if self._seed is not None:
+            config = replace(config, seed=self._seed, budget_s=0.0)
+        return self._fit_window(data, model, config, x0=x0)
+
+    def reconfigure(self, **changes):
+        """
+        Change settings of :data:`DYNAMIC_FIELDS` while running; return the new config.
+
+        Parameters
+        ----------
+        **changes
+            ``LiveConfig`` field -> new value.
+
+        Returns
+        -------
+        LiveConfig
+            The configuration now in use (validated as a whole, so an error names the field).
+
+        Raises
+        ------
+        ValueError
+            A field that is not dynamic or unknown (nothing changed), or a value the new
+            configuration refuses (nothing changed).
+
+        """
+        names = {f.name for f in fields(LiveConfig)}
+        for name in changes:
+            if name not in names:
+                raise ValueError(f'`{name}` is not a LiveConfig setting')
+            if name not in DYNAMIC_FIELDS:
+                raise ValueError(f'`{name}` is read at start-up and cannot change while running')
+        config = replace(self.config, **changes)
+        self.config = config
+        self._stamps.rebase_after = int(config.restart_samples)
+        return config
+
+    def _process(self, window):
+        t_start = time.perf_counter()
+        cfg = self.config
+        c = self.counters
+        if c['stream_restarts'] != self._restarts_seen:     # a new stream: a new current set
+            self._restarts_seen = c['stream_restarts']
+            self._accept.reset()
+        data = window.data
+        new = window.new if window.span is not None else data
+        span = window.span if window.span is not None else data
+        reason = ''
+        if data.n > 1 and float(np.max(np.diff(data.t))) > cfg.max_gap_s:
+            reason = 'gap'
+        reason = reason or check_excitation(data, cfg)
+        if reason:
+            c['windows_skipped'][reason] += 1
+            self.last_skip = reason
+            # the samples the next window holds get another chance with it (as when windows
+            # were binned whole); the older ones stay out of the bins
+            n_next = int(np.count_nonzero(new.t > window.end_s + cfg.hop_s - cfg.window_s
+                                          + 1e-9))
+            if window.span is not None and n_next:
+                self._give_back(window, n_next)
+            else:
+                n_next = 0
+            c['samples_unbinned'] += new.n - n_next
+            return None
+        flags = flag_samples(span, cfg)[span.n - new.n:]
+        for name in ('outlier', 'stuck', 'dropout'):
+            c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
+        clean = new.select(flags == '')
+        # new samples older than this window (windows superseded while the fitter was busy)
+        # are judged, binned and fitted one window length at a time, in time order
+        parts = self._catch_up_parts(clean, window.end_s)
+        for part_end, part in parts[:-1]:
+            if self._admit(part, part_end, data.n) and part.n >= cfg.min_window_samples:
+                t_catch = time.perf_counter()
+                self._fit_bins(part, data.n, t_catch, catch_up=True)
+                t_start += time.perf_counter() - t_catch    # the window's own time only
+        if not self._admit(parts[-1][1], window.end_s, data.n):
+            c['windows_skipped']['inconsistent'] += 1
+            self.last_skip = 'inconsistent'
+            return None
+        return self._fit_bins(data, data.n, t_start)
+
+    def _catch_up_parts(self, clean, end_s):
+        """
+        Split a window's screened new samples into consecutive ``window_s`` spans.
+
+        Returns ``[(span_end_s, samples), ...]`` in time order; the last span is the window's
+        own (after ``end_s - window_s``), the earlier ones end at ``end_s - j * window_s``.
+        Only windows that follow superseded ones carry samples before their own span.  Judging
+        those against the reference one span at a time, with a fit after each, bounds the age
+        of the reference a sample is judged against by ``window_s`` whatever the fitter's
+        delay: the damper's slow memory (e.g. the force shift of a Bouc-Wen damper back at 0 A
+        after a 2 A dwell) is then judged against a set fitted on the levels in between, as a
+        window of its own would have been, not against a set of the first level only.
+        """
+        ws = self.config.window_s
+        lower = end_s - ws + 1e-9                  # the window's own samples: t > lower
+        k_own = int(np.searchsorted(clean.t, lower, side='right'))
+        parts = [(end_s, clean.select(slice(k_own, None)))]
+        if k_own:
+            span = np.floor((lower - clean.t[:k_own]) / ws).astype(np.int64) + 1
+            for j in range(int(span[0]), 0, -1):   # oldest first (stamps increase)
+                part = clean.select(np.flatnonzero(span == j))
+                if part.n:
+                    parts.insert(-1, (end_s - j * ws, part))
+        return parts
+
+    def _admit(self, clean, end_s, keep):
+        """
+        Judge screened new samples against the reference; bin them unless inconsistent.
+
+        Returns False (samples counted as ``samples_flagged['inconsistent']``) when the last
+        valid set explains them much worse than its own data (:meth:`_consistency`) and no
+        reference reset is due (``inconsistent_reset_s``); True when they were binned.  Of
+        consistent samples, those with a force offset against the set in use
+        (``acceptance_checks``,
+        :meth:`~mr_damper_model.identification.acceptance.Acceptance.offset_flags`:
+        the onset or end of a step inside the part) are counted as
+        ``samples_flagged['offset']`` and left out of the bins.
+        """
+        cfg = self.config
+        c = self.counters
+        if self._consistency(clean):
+            if self._inconsistent_since is None:
+                self._inconsistent_since = end_s
+            if not (0 < cfg.inconsistent_reset_s <= end_s - self._inconsistent_since):
+                c['samples_flagged']['inconsistent'] += clean.n
+                return False
+            c['reference_resets'] += 1          # start afresh from these samples
+            self._ref = None
+            self._bins.clear()
+            self._last_solution.clear()
+            self._accept.reset()
+        self._inconsistent_since = None
+        if cfg.acceptance_checks and clean.n and self._ref is not None:
+            # force offsets against the set in use (fitted on the part before this one) that
+            # the part's overall consistency hides: a step that begins or ends in it
+            offset = self._accept.offset_flags(clean, clean.n, self._ref['scale'], end_s)
+            if offset.any():
+                c['samples_flagged']['offset'] += int(np.count_nonzero(offset))
+                clean = clean.select(~offset)
+        self._update_bins(clean, keep, end_s)
+        self._accept.remember(clean, end_s)
+        c['samples_binned'] += clean.n
+        return True
+
+    def _fit_bins(self, data, keep, t_start, catch_up=False):
+        """
+        Fit the usable bins; return the estimate (None: no usable bin or a fit error).
+
+        ``data``: the window (its first and last stamps are the estimate's); ``keep``: samples
+        a window holds (a bin is usable with ``min_bin_fraction`` of them).  A catch-up fit
+        (samples of superseded windows, see :meth:`_catch_up_parts`) is counted in
+        ``catch_up_fits`` and, when valid, becomes the consistency reference and warm start;
+        it is not published (:attr:`estimate` is the window's).
+        """
+        cfg = self.config
+        c = self.counters
+        usable = [b for b in sorted(self._bins.values(), key=lambda b: b.level)
+                  if b.data.n >= max(cfg.min_bin_fraction * keep, 10)]
+        if not usable:
+            if not catch_up:
+                c['windows_skipped']['no_bins'] += 1
+                self.last_skip = 'no_bins'
+            return None
+        fit = DamperData.concatenate([b.data for b in usable])
+        order = np.argsort(fit.t, kind='stable')
+        fit = fit.select(order)
+        if cfg.max_fit_samples and fit.n > cfg.max_fit_samples:
+            step = int(math.ceil(fit.n / cfg.max_fit_samples))
+            fit = fit.select(slice(None, None, step))
+        levels = [b.level for b in usable]
+        model = 'kwok' if len(usable) == 1 else 'kwok-current'
+        x0 = self._warm_start(model, levels) if cfg.warm_start else None
+        try:
+            result = self._fit(fit, model, cfg, x0=x0)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            c['fit_errors'] += 1
+            self.last_error = f'{type(exc).__name__}: {exc}'
+            return None
+        self._last_solution[model] = dict(result.parameters)
+        if model == 'kwok':
+            params = kwok_to_kwok_current(result.parameters)
+        else:
+            params = dict(result.parameters)
+            self._last_solution['kwok'] = kwok_current_at(params, levels[-1], cfg.i_ref_a)
+        nrmse = float(result.metrics.get('nrmse_percent', math.nan))
+        rmse = float(result.metrics.get('rmse_n', math.nan))
+        scale = robust_range(fit.f)
+        robust_nrmse = 100.0 * rmse / scale if scale > 0 else math.nan
+        f_new = self._force(params, fit)
+        reason = self._judge(model, result.parameters, robust_nrmse, fit, f_new, scale,
+                             max(levels) - min(levels))
+        held = ''
+        if not reason and cfg.acceptance_checks:
+            held = self._accept.review(params, fit, data)
+            if held and self._accept.current is None:
+                reason, held = held, ''      # nothing to hold: published as not valid
+        seconds = time.perf_counter() - t_start
+        est = LiveEstimate(
+            parameters=params, valid=not (reason or held), reason=reason or held,
+            model_fitted=model,
+            i_ref_a=float(cfg.i_ref_a), window_start_s=float(data.t[0]),
+            window_end_s=float(data.t[-1]), current_min_a=float(min(levels)),
+            current_max_a=float(max(levels)), rmse_n=rmse, nrmse_percent=nrmse,
+            robust_nrmse_percent=robust_nrmse, seconds=seconds, n_samples=fit.n, bins_a=levels,
+            result=result)
+        if est.valid and cfg.acceptance_checks:
+            self._accept.take(params, fit, est.window_start_s, est.window_end_s, rmse)
+            self._in_use = est
+        if catch_up:
+            c['catch_up_fits'] += 1
+            if est.valid:
+                self._set_reference(est, fit, f_new, scale)
+            return est
+        c['windows_fitted'] += 1
+        self.last_compute_s = seconds
+        self._compute_sum += seconds
+        self.compute_s_max = max(self.compute_s_max, seconds)
+        self.estimate = est
+        self.last_held = held
+        if est.valid:
+            c['windows_valid'] += 1
+            self.last_good = est
+            self._set_reference(est, fit, f_new, scale)
+        else:
+            key = est.reason.split(':')[0]
+            c['windows_refused'][key] = c['windows_refused'].get(key, 0) + 1
+            if held:                         # the set in use stays: re-published, valid
+                self.estimate = replace(self._in_use, held=held, seconds=seconds)
+                return self.estimate
+        return est
+
+    # ---------------------------------------------------------------- validity
+    def _force(self, params, data):
+        """Kwok-current force [N] of a parameter dict on ``data``."""
+        return kwok_current_force(dict(params, i_ref_a=self.config.i_ref_a), data.x, data.v,
+                                  data.i)
+
+    def _covered(self, ref, data):
+        """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
+        tol = 0.5 * self.config.current_bin_a
+        return (data.i >= ref['current_min_a'] - tol) & (data.i <= ref['current_max_a'] + tol)
+
+    def _judge(self, model, fitted, robust_nrmse, fit, f_new, scale, span_a):
+        """
+        Return why a fitted set is not valid, or ''.
+
+        ``beta1`` (the current slope of beta) may sit at its bound when the fitted current
+        span is below half of ``i_ref_a``: over a narrow span a real damper's beta change
+        extrapolates beyond the +-3 box (seen on the Spencer plant at 0 and 0.5 A); such sets
+        are also too narrow for the quarter car, which refuses any pinned set.
+        """
+        cfg = self.config
+        reason = _in_bounds(model, fitted, cfg.unbounded, cfg.i_ref_a)
+        if reason:
+            return reason
+        from mr_damper_model.models import get_model
+        mdl = get_model(model, **({'i_ref_a': cfg.i_ref_a} if model == 'kwok-current' else {}))
+        lo, hi = mdl.default_bounds(unbounded=cfg.unbounded)
+        pinned = pinned_parameters(mdl.param_names, [fitted[n] for n in mdl.param_names],
+                                   lo, hi, cfg.pinned_fraction)
+        if span_a < 0.5 * cfg.i_ref_a:
+            pinned = [n for n in pinned if n != 'beta1']
+        if pinned:
+            return 'pinned:' + ','.join(pinned)
+        if not (robust_nrmse <= cfg.max_nrmse_percent):
+            return 'nrmse_above_threshold'
+        ref = self._ref
+        if ref is not None:
+            cov = self._covered(ref, fit)
+            if np.count_nonzero(cov) >= MIN_CHECK_SAMPLES:
+                e_new = float(np.sqrt(np.mean((fit.f[cov] - f_new[cov]) ** 2)))
+                f_prev = self._force(ref['parameters'], fit.select(cov))
+                e_prev = float(np.sqrt(np.mean((fit.f[cov] - f_prev) ** 2)))
+                floor = 0.01 * cfg.error_floor_percent * scale
+                self.last_check['new_vs_last_valid_rmse_n'] = (e_new, e_prev)
+                if e_new > cfg.max_error_ratio * e_prev + floor:
+                    return 'worse_than_last_valid'
+        return ''
+
+    def _cells(self, ref, data):
+        """Return the cell codes (current, x, v cell) of samples in ``ref``; -1 off its grid."""
+        xe, ve = ref['x_edges'], ref['v_edges']
+        ix = np.searchsorted(xe, data.x, side='right') - 1
+        iv = np.searchsorted(ve, data.v, side='right') - 1
+        ix[data.x == xe[-1]] = STATE_CELLS - 1
+        iv[data.v == ve[-1]] = STATE_CELLS - 1
+        inside = (ix >= 0) & (ix < STATE_CELLS) & (iv >= 0) & (iv < STATE_CELLS)
+        keys = np.round(data.i / self.config.current_bin_a).astype(np.int64)
+        code = (keys * STATE_CELLS + ix) * STATE_CELLS + iv
+        return np.where(inside, code, -1)
+
+    def _set_reference(self, est, fit, f_new, scale):
+        """
+        Keep a valid set with its mean square error on its fit data per state cell.
+
+        Cells: current bin x ``STATE_CELLS`` displacement cells x ``STATE_CELLS`` velocity
+        cells over the fit data's range; the model error of a Kwok fit depends on the phase of
+        the cycle (e.g. larger on one stroke of a real damper), so new samples are compared
+        with the error the set made at the same current and state.
+        """
+        x_edges = np.linspace(float(fit.x.min()), float(fit.x.max()), STATE_CELLS + 1)
+        v_edges = np.linspace(float(fit.v.min()), float(fit.v.max()), STATE_CELLS + 1)
+        ref = {'parameters': dict(est.parameters), 'current_min_a': est.current_min_a,
+               'current_max_a': est.current_max_a, 'x_edges': x_edges, 'v_edges': v_edges,
+               'scale': scale, 'cell_ms': {}}
+        codes = self._cells(ref, fit)
+        sq = (fit.f - f_new) ** 2
+        ok = codes >= 0
+        uniq, inverse, counts = np.unique(codes[ok], return_inverse=True, return_counts=True)
+        sums = np.bincount(inverse, weights=sq[ok], minlength=uniq.size)
+        ref['cell_ms'] = {int(u): float(m) for u, m, n in zip(uniq, sums / counts, counts)
+                          if n >= MIN_CELL_SAMPLES}
+        self._ref = ref
+
+    def _consistency(self, new):
+        """
+        Return 'inconsistent' if the last valid set explains ``new`` much worse than its data.
+
+        Compares the RMSE of the last valid set of this stream on the new screened samples
+        with its RMSE on the samples it was fitted on in the same state cells (current level,
+        displacement and velocity, see :meth:`_set_reference`): ``max_shift_ratio`` times,
+        plus ``error_floor_percent`` of its robust force range.  Samples in cells the set
+        was not fitted on are not judged; fewer than ``MIN_CHECK_SAMPLES`` judged samples:
+        no judgement ('').
+        """
+        ref = self._ref
+        if ref is None or new.n < MIN_CHECK_SAMPLES:
+            return ''
+        cfg = self.config
+        codes = self._cells(ref, new)
+        cell_ms = ref['cell_ms']
+        known = np.array([int(k) in cell_ms for k in codes], dtype=bool)
+        if np.count_nonzero(known) < MIN_CHECK_SAMPLES:
+            return ''
+        part = new.select(known)
+        r = part.f - self._force(ref['parameters'], part)
+        expected = np.array([cell_ms[int(k)] for k in codes[known]])
+        e_new = float(np.sqrt(np.mean(r * r)))
+        limit = (cfg.max_shift_ratio * float(np.sqrt(np.mean(expected)))
+                 + 0.01 * cfg.error_floor_percent * ref['scale'])
+        self.last_check['new_samples_rmse_n'] = (e_new, limit)
+        return 'inconsistent' if e_new > limit else ''
+
+    def _warm_start(self, model, levels):
+        if model in self._last_solution:
+            return dict(self._last_solution[model])
+        if model == 'kwok' and 'kwok-current' in self._last_solution:
+            return kwok_current_at(self._last_solution['kwok-current'], levels[0],
+                                   self.config.i_ref_a)
+        if model == 'kwok-current' and 'kwok' in self._last_solution:
+            return kwok_to_kwok_current(self._last_solution['kwok'])
+        return None
+
+    def _update_bins(self, new, keep, newest_s):
+        """File ``new`` samples by current; each bin keeps its newest ``keep`` samples."""
+        cfg = self.config
+        if new.n:
+            keys = np.round(new.i / cfg.current_bin_a).astype(int)
+            for key in np.unique(keys):
+                part = new.select(keys == key)
+                old = self._bins.get(int(key))
+                if old is not None:
+                    part = DamperData.concatenate([old.data, part])
+                if part.n > keep:
+                    part = part.select(slice(part.n - keep, None))
+                self._bins[int(key)] = _Bin(float(np.median(part.i)), part)
+        if cfg.bin_max_age_s > 0:
+            for key in [k for k, b in self._bins.items()
+                        if b.newest_s < newest_s - cfg.bin_max_age_s]:
+                del self._bins[key]
+
+    def replay(self, data, every=1):
+        """
+        Feed a record sample by sample, processing the due window every ``every`` samples.
+
+        The offline counterpart of the node (which asks for windows between callbacks):
+        deterministic when the configuration has no wall-time budget.
+
+        Parameters
+        ----------
+        data : DamperData
+            Samples in stream order.
+        every : int
+            Samples between window requests.
+
+        Returns
+        -------
+        list of LiveEstimate
+            The estimates in order (skipped windows give none).
+
+        """
+        out = []
+        for k, row in enumerate(zip(data.t, data.x, data.v, data.f, data.i)):
+            self.add_sample(*row)
+            if k % every == 0:
+                window = self.next_window()
+                if window is not None:
+                    est = self.process(window)
+                    if est is not None:
+                        out.append(est)
+        return out
+
+    # ---------------------------------------------------------------- status
+    def status(self):
+        """
+        Return the status counters and figures as a JSON-ready dict.
+
+        Keys: ``samples_received``, ``samples_accepted``, ``rejected`` {reason: count},
+        ``out_of_range`` {channel: count}, ``stream_restarts``, ``stamp_gaps``, ``windows_due``,
+        ``windows_superseded``, ``windows_overflow`` (in-order mode: passed over, their samples
+        left the buffer), ``windows_fitted``, ``windows_valid``, ``windows_skipped``
+        {reason: count}, ``windows_refused`` {reason: count} (fitted, published not valid),
+        ``samples_binned``, ``samples_unbinned`` (new samples of skipped windows),
+        ``samples_lost`` (left the buffer before a window handed them out),
+        ``samples_pending`` (accepted, not yet handed out: after the last due window end),
+        ``samples_flagged`` {reason: count}, ``reference_resets``, ``catch_up_fits`` (fits of
+        the samples of superseded windows, see :meth:`_catch_up_parts`), ``fit_errors``,
+        ``last_window_start_s``,
+        ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
+        [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
+        sample up to it has been judged [s]), ``last_skip`` (why the last processed window was
+        skipped, '' if it was not), ``last_valid``, ``last_reason``, ``last_model``,
+        ``last_nrmse_percent``,
+        ``last_robust_nrmse_percent``, ``last_check`` (last consistency figures [N]),
+        ``compute_s_last``, ``compute_s_mean``, ``compute_s_max``, ``bins_a`` (current levels
+        held), ``last_error``, ``last_held`` (why the last fitted window's set was refused and
+        the set in use re-published, '' if taken), ``held_age_s`` (newest window end minus the
+        set in use's [s]), ``last_condition_number``, ``offset`` and ``f0_trend``
+        (:class:`~mr_damper_model.identification.acceptance.Acceptance`).
+        """
+        with self._lock:
+            c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
+            c['samples_pending'] = self._seq - self._handed
+        est = self.estimate
+        fitted = c['windows_fitted']
+        c.update(
+            last_window_start_s=est.window_start_s if est else math.nan,
+            last_window_end_s=est.window_end_s if est else math.nan,
+            processed_up_to_s=self.processed_up_to_s, last_skip=self.last_skip,
+            last_valid=bool(est.valid) if est else False,
+            last_reason=est.reason if est else 'no_estimate',
+            last_model=est.model_fitted if est else '',
+            last_nrmse_percent=est.nrmse_percent if est else math.nan,
+            last_robust_nrmse_percent=est.robust_nrmse_percent if est else math.nan,
+            last_check={k: list(v) for k, v in self.last_check.items()},
+            compute_s_last=self.last_compute_s,
+            compute_s_mean=self._compute_sum / fitted if fitted else math.nan,
+            compute_s_max=self.compute_s_max,
+            bins_a=sorted(b.level for b in list(self._bins.values())),
+            last_error=self.last_error, last_held=self.last_held,
+            held_age_s=self._accept.age_s(self.processed_up_to_s),
+            last_condition_number=self._accept.last_figures.get('condition', math.nan),
+            offset=dict(self._accept.offset), f0_trend=self._accept.f0_trend())
+        for name in ('window', 'heldback'):
+            if name in self._accept.last_figures:
+                c['last_check'][f'new_vs_current_{name}_rmse_n'] = list(
+                    self._accept.last_figures[name])
+        return c

@@ -1,0 +1,576 @@
+"""
+Inverse current-dependent Kwok model: desired force -> coil current.
+
+At fixed (x, v) the force F(i) of ``KwokCurrent`` is a smooth function of the current. Method
+(vectorised over samples):
+
+1. Pre-scan: F on a grid of ``n_grid`` (33) currents over [i_min, i_max].
+2. If the desired force lies between two neighbouring grid forces (the first such interval from
+   i_min), the sample is reachable: the root is solved in that bracket, in closed form when
+   beta1 == 0 (F is then a quadratic in s = i/i_ref_a) and otherwise by the Illinois
+   (modified regula falsi) method, all samples at once, to |F - f_des| <= 1e-9*(1 + |f_des|)
+   N or a bracket narrower than ``tol_a``.
+3. Otherwise it is not reachable and the grid current whose force is nearest f_des is returned:
+   for the usual monotone F(i) that is i_min (``saturated_low``: less force than the minimum
+   current makes, including a force of the wrong sign for the motion, which a semi-active damper
+   cannot make) or i_max (``saturated_high``: more than the maximum current makes). If F(i) is
+   not monotone, a dense local grid (65 points over the two grid cells around the nearest grid
+   point) is scanned as well, so a narrow extremum that the coarse grid stepped over is found
+   (then the sample is reachable after all, or its nearest force is taken from the dense grid);
+   a nearest force at an interior current sets neither flag.
+"""
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from mr_damper_model.models.kwok_current import (KwokCurrent, kwok_current_coefficients,
+                                                 kwok_current_force_scalar,
+                                                 kwok_current_force_slope_at,
+                                                 kwok_current_terms_scalar)
+from mr_damper_model.models import ModelError
+
+_N_GRID = 33
+_MAX_ITER = 100
+#: Dense check grid of the lag model's scalar inverse (a demand first found out of reach).
+_N_DENSE = 65
+
+
+@dataclass
+class InverseResult:
+    """
+    Result of ``inverse_current``.
+
+    Attributes
+    ----------
+    current : numpy.ndarray
+        Coil current [A], within [i_min, i_max].
+    force : numpy.ndarray
+        Model force at that current [N] (what the damper will make).
+    reachable : numpy.ndarray of bool
+        The desired force is achievable within the current range.
+    saturated_low : numpy.ndarray of bool
+        Wanted less than the i_min force (incl. wrong sign); current = i_min.
+    saturated_high : numpy.ndarray of bool
+        Wanted more than the i_max force; current = i_max.
+
+    """
+
+    current: np.ndarray
+    force: np.ndarray
+    reachable: np.ndarray
+    saturated_low: np.ndarray
+    saturated_high: np.ndarray
+
+
+def _param_vector(params):
+    model = KwokCurrent()
+    if isinstance(params, dict):
+        return model.from_dict(params)
+    arr = np.asarray(params, dtype=float).ravel()
+    if arr.size != model.n_params:
+        raise ModelError(f'`params` must have {model.n_params} values '
+                         f'({", ".join(model.param_names)}), got {arr.size}')
+    if not np.all(np.isfinite(arr)):
+        raise ModelError('`params` contains NaN or inf')
+    return arr
+
+
+def _force(p, s, x, v, sx):
+    """Kwok-current force at normalised current s (elementwise, broadcasting)."""
+    s = np.asarray(s, dtype=float)
+    terms = kwok_current_coefficients(p[None, :], s if s.ndim == 2 else s.reshape(1, -1))
+    c, alpha, beta = (t if s.ndim == 2 else t.reshape(s.shape) for t in terms)
+    return c * v + p[2] * x + alpha * np.tanh(beta * v + p[8] * sx) + p[9]
+
+
+def inverse_current(f_des, x, v, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, tol_a=1e-6):
+    """
+    Coil current that makes the current-dependent Kwok damper produce a desired force.
+
+    Parameters
+    ----------
+    f_des : array_like with shape (n,) or scalar
+        Desired damper force [N].
+    x : array_like with shape (n,) or scalar
+        Piston displacement [m].
+    v : array_like with shape (n,) or scalar
+        Piston velocity [m/s].
+    params : dict or array_like with shape (10,)
+        KwokCurrent parameters (``KwokCurrent.param_names``).
+    i_ref_a : float
+        Reference current of the model [A].
+    i_min, i_max : float
+        Current range [A], i_min < i_max.
+    tol_a : float
+        Bracket tolerance of the root finder [A] (the force residual is usually far smaller).
+
+    Returns
+    -------
+    InverseResult
+        Arrays of the broadcast shape of the inputs (1-D).
+
+    Raises
+    ------
+    ModelError
+        NaN/inf inputs, bad current range or tolerance.
+
+    """
+    p = _param_vector(params)
+    for name, val in (('i_ref_a', i_ref_a), ('i_min', i_min), ('i_max', i_max),
+                      ('tol_a', tol_a)):
+        if not math.isfinite(float(val)):
+            raise ModelError(f'`{name}` must be finite, got {val}')
+    if not i_ref_a > 0:
+        raise ModelError(f'`i_ref_a` must be positive, got {i_ref_a}')
+    if not i_max > i_min:
+        raise ModelError(f'`i_max` ({i_max}) must be larger than `i_min` ({i_min})')
+    if not tol_a > 0:
+        raise ModelError(f'`tol_a` must be positive, got {tol_a}')
+    arrs = []
+    for name, a in (('f_des', f_des), ('x', x), ('v', v)):
+        a = np.atleast_1d(np.asarray(a, dtype=float))
+        if not np.all(np.isfinite(a)):
+            raise ModelError(f'`{name}` contains NaN or inf')
+        arrs.append(a)
+    try:
+        f, x, v = (a.ravel() for a in np.broadcast_arrays(*arrs))
+    except ValueError as exc:
+        raise ModelError(f'`f_des`, `x`, `v` shapes do not broadcast: {exc}') from None
+    n = f.size
+    sx = np.sign(x)
+    s_lo, s_hi = i_min / i_ref_a, i_max / i_ref_a
+    sg = np.linspace(s_lo, s_hi, _N_GRID)
+    fg = _force(p, sg[None, :], x[:, None], v[:, None], sx[:, None])
+    d = fg - f[:, None]
+    cross = (d[:, :-1] * d[:, 1:]) <= 0.0
+    reachable = cross.any(axis=1)
+    j = np.argmax(cross, axis=1)
+    rows = np.arange(n)
+    s_out = np.empty(n)
+    # unreachable: nearest grid force
+    jn = np.argmin(np.abs(d), axis=1)
+    s_out[:] = sg[jn]
+    sat_low = ~reachable & (jn == 0)
+    sat_high = ~reachable & (jn == _N_GRID - 1)
+    a_all = sg[j]
+    b_all = sg[np.minimum(j + 1, _N_GRID - 1)]
+    fa_all = d[rows, j]
+    fb_all = d[rows, np.minimum(j + 1, _N_GRID - 1)]
+    # second pass for the unreachable: a dense local grid around the nearest grid point finds
+    # a narrow bump of a non-monotone F(i) that the coarse grid stepped over
+    far = np.flatnonzero(~reachable)
+    if far.size:
+        lo_ = sg[np.maximum(jn[far] - 1, 0)]
+        hi_ = sg[np.minimum(jn[far] + 1, _N_GRID - 1)]
+        sl = lo_[:, None] + (hi_ - lo_)[:, None] * np.linspace(0.0, 1.0, 65)[None, :]
+        dl = _force(p, sl, x[far, None], v[far, None], sx[far, None]) - f[far, None]
+        cl = (dl[:, :-1] * dl[:, 1:]) <= 0.0
+        hit = cl.any(axis=1)
+        jl = np.argmax(cl, axis=1)
+        rl = np.arange(far.size)
+        kn = np.argmin(np.abs(dl), axis=1)
+        better = np.abs(dl[rl, kn]) < np.abs(d[far, jn[far]])
+        s_out[far] = np.where(better, sl[rl, kn], s_out[far])
+        sat_low[far] &= ~hit & ~(better & (sl[rl, kn] > s_lo))
+        sat_high[far] &= ~hit & ~(better & (sl[rl, kn] < s_hi))
+        reachable[far] = hit
+        h = far[hit]
+        a_all[h] = sl[hit, jl[hit]]
+        b_all[h] = sl[hit, jl[hit] + 1]
+        fa_all[h] = dl[hit, jl[hit]]
+        fb_all[h] = dl[hit, jl[hit] + 1]
+    idx = np.flatnonzero(reachable)
+    if idx.size:
+        a, b, fa, fb = a_all[idx], b_all[idx], fa_all[idx], fb_all[idx]
+        s_out[idx] = _solve(p, a, b, fa, fb, f[idx], x[idx], v[idx], sx[idx],
+                            tol_a / i_ref_a)
+    force = _force(p, s_out, x, v, sx)
+    return InverseResult(current=np.clip(s_out * i_ref_a, i_min, i_max), force=force,
+                         reachable=reachable, saturated_low=sat_low, saturated_high=sat_high)
+
+
+def _solve(p, a, b, fa, fb, f, x, v, sx, tol_s):
+    """Root of F(s) = f in the brackets [a, b] (fa, fb: residuals at the ends)."""
+    c0, c1, k, a0, a1, a2, b0, b1, delta, f0 = p
+    if b1 == 0.0:
+        T = np.tanh(b0 * v + delta * sx)
+        q2 = (a2 - a1) * T
+        q1 = c1 * v + 2.0 * a1 * T
+        q0 = c0 * v + a0 * T + k * x + f0 - f
+        s = _quadratic_root_in(q2, q1, q0, a, b)
+        ok = np.isfinite(s)
+        if np.all(ok):
+            return s
+        out = np.where(ok, s, 0.0)
+        bad = ~ok
+        out[bad] = _illinois(p, a[bad], b[bad], fa[bad], fb[bad], f[bad], x[bad], v[bad],
+                             sx[bad], tol_s)
+        return out
+    return _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s)
+
+
+def _quadratic_root_in(q2, q1, q0, a, b):
+    """Root of q2 s^2 + q1 s + q0 inside [a, b] (NaN where none is found)."""
+    span = b - a
+    lo, hi = a - 1e-9 * span, b + 1e-9 * span
+    out = np.full(a.shape, np.nan)
+    scale = np.abs(q1) + np.abs(q0) + 1e-300
+    lin = np.abs(q2) * np.maximum(np.abs(a), np.abs(b)) ** 2 <= 1e-13 * scale
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r_lin = np.where(q1 != 0.0, -q0 / np.where(q1 != 0.0, q1, 1.0), np.nan)
+    disc = q1 * q1 - 4.0 * q2 * q0
+    sq = np.sqrt(np.maximum(disc, 0.0))
+    qq = -0.5 * (q1 + np.where(q1 >= 0.0, sq, -sq))
+    safe_q2 = np.where(q2 != 0.0, q2, 1.0)
+    safe_qq = np.where(qq != 0.0, qq, 1.0)
+    r1 = np.where(q2 != 0.0, qq / safe_q2, np.nan)
+    r2 = np.where(qq != 0.0, q0 / safe_qq, np.nan)
+    for r in (r2, r1):
+        good = ~lin & (disc >= 0.0) & np.isfinite(r) & (r >= lo) & (r <= hi)
+        out = np.where(good & np.isnan(out), r, out)
+    good = lin & np.isfinite(r_lin) & (r_lin >= lo) & (r_lin <= hi)
+    out = np.where(good, r_lin, out)
+    return np.clip(out, a, b)
+
+
+def _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s):
+    """Vectorised Illinois iteration; returns the last iterate."""
+    ftol = 1e-9 * (1.0 + np.abs(f))
+    at_a = fa == 0.0
+    b = np.where(at_a, a, b)
+    fb = np.where(at_a, 0.0, fb)
+    for _ in range(_MAX_ITER):
+        done = (np.abs(fb) <= ftol) | (np.abs(b - a) <= tol_s * 1e-6)
+        if np.all(done):
+            break
+        denom = fb - fa
+        c = np.where(denom != 0.0, b - fb * (b - a) / np.where(denom != 0.0, denom, 1.0),
+                     0.5 * (a + b))
+        lo_, hi_ = np.minimum(a, b), np.maximum(a, b)
+        c = np.where((c > lo_) & (c < hi_), c, 0.5 * (a + b))
+        fc = _force(p, c, x, v, sx) - f
+        swap = fc * fb < 0.0
+        a = np.where(done, a, np.where(swap, b, a))
+        fa = np.where(done, fa, np.where(swap, fb, 0.5 * fa))
+        b = np.where(done, b, c)
+        fb = np.where(done, fb, fc)
+    return b
+
+
+class KwokCurrentInverse:
+    """
+    Scalar, plain-Python inverse for 1 kHz control loops (same answers as ``inverse_current``).
+
+    Fast path first: the forces at the two ends of the current range bracket the demand
+    (Illinois regula falsi between them: reachable, flag 0). Otherwise the demand is beyond
+    both end forces, and the slopes dF/di at the ends
+    (``mr_damper_model.models.kwok_current.kwok_current_force_slope_at``) say whether F(i) turns
+    inside the range: running away from the demand at both ends (monotone), the nearest end
+    saturates (flag -1 at ``i_min``, +1 at ``i_max``); with one interior extremum, it is found
+    (Illinois on the slope) and either brackets the demand (solved, flag 0) or is the nearest
+    force (flag +-1). Only F(i) with two interior extrema is pre-scanned on a grid, as
+    ``inverse_current`` does. The one scalar inverse of the suite: the car's control loop uses
+    it with ``sign_convention='body'``.
+
+    Parameters
+    ----------
+    params : dict or array_like with shape (10,)
+        KwokCurrent parameters.
+    i_ref_a, i_min, i_max : float
+        As in ``inverse_current`` [A].
+    n_grid : int
+        Pre-scan grid size for non-monotone F(i) (default 9).
+    tol_a : float or None
+        Stop the root search when the bracket is narrower than this [A]; None: only when the
+        force matches to 1e-9 relative.
+    sign_convention : {'model', 'body'}
+        Sign of the demand given to :meth:`current`: ``'model'`` the damper model's force
+        (resisting extension positive); ``'body'`` the damper force on a vehicle body, positive
+        up, which is the negative of the model force (``x``, ``v`` are then the suspension
+        travel and velocity, extension positive).
+
+    Attributes
+    ----------
+    params : dict
+        The parameters by name (``KwokCurrent.param_names``, float).
+
+    """
+
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
+        p = _param_vector(params)
+        if not (i_ref_a > 0 and i_max > i_min):
+            raise ModelError('need `i_ref_a` > 0 and `i_max` > `i_min`')
+        if sign_convention not in ('model', 'body'):
+            raise ModelError(f"`sign_convention` must be 'model' or 'body', "
+                             f'got {sign_convention!r}')
+        self.sign_convention = sign_convention
+        self._body = sign_convention == 'body'
+        self._p = tuple(float(q) for q in p)
+        self.params = dict(zip(KwokCurrent.param_names, self._p))
+        self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
+        self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
+        self._terms_lo = kwok_current_terms_scalar(self._p, self._s_lo)
+        self._terms_hi = kwok_current_terms_scalar(self._p, self._s_hi)
+        self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
+        self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
+                      for j in range(n_grid)]
+
+    def force(self, i, x, v):
+        """Model force [N] at current i [A], displacement x [m], velocity v [m/s]."""
+        return self._f(i / self.i_ref_a, x, v)
+
+    def _f(self, s, x, v):
+        return kwok_current_force_scalar(self._p, s, x, v)
+
+    def body_force_range(self, travel, v_rel):
+        """
+        Damper forces on the body [N] the model can make at this travel and velocity.
+
+        Parameters
+        ----------
+        travel, v_rel : float
+            Suspension travel [m] and velocity [m/s] (piston displacement and velocity).
+
+        Returns
+        -------
+        lo, hi : float
+            Smallest and largest of ``-force`` at ``i_min`` and ``i_max`` [N].
+
+        """
+        f_lo, _, f_hi, _ = self._ends(travel, v_rel)   # the end terms cached at construction
+        a, b = -f_lo, -f_hi
+        return (a, b) if a <= b else (b, a)
+
+    def current(self, f_des, x, v):
+        """
+        Return ``(current [A], flag)``: flag 0 reachable, -1 saturated low, +1 saturated high.
+
+        A demand out of reach gets the current of the nearest achievable force; the flag says
+        whether the demand was below (-1) or above (+1) that force, in the sign of
+        ``sign_convention`` (model convention: -1 includes the wrong sign for the motion,
+        which a semi-active damper cannot make). Only a reachable demand has flag 0.
+
+        Parameters
+        ----------
+        f_des : float
+            Desired force [N] (model force, or force on the body with ``'body'``).
+        x : float
+            Displacement (suspension travel) [m].
+        v : float
+            Velocity [m/s].
+
+        Returns
+        -------
+        tuple of (float, int)
+
+        """
+        if self._body:
+            cur, flag = self._current(-f_des, x, v)
+            return cur, -flag
+        return self._current(f_des, x, v)
+
+    def _fg(self, s, x, v):
+        """Force [N] and its slope dF/ds [N] at normalised current s."""
+        return kwok_current_force_slope_at(kwok_current_terms_scalar(self._p, s), self._p, x, v)
+
+    def _ends(self, x, v):
+        """Force [N] and slope dF/ds [N] (None: not computed yet) at ``i_min`` and ``i_max``."""
+        p = self._p
+        return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
+                + kwok_current_force_slope_at(self._terms_hi, p, x, v))
+
+    def _current(self, f_des, x, v):
+        """:meth:`current` for a model force ``f_des`` [N]."""
+        if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
+            raise ModelError('`f_des`, `x`, `v` must be finite')
+        s_lo, s_hi = self._s_lo, self._s_hi
+        f_lo, g_lo, f_hi, g_hi = self._ends(x, v)
+        d_lo = f_lo - f_des
+        d_hi = f_hi - f_des
+        if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
+            return self._solve(s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
+        # the demand is beyond both end forces (on the same side): reachable only at an
+        # interior extremum of F(i); the slopes at the ends say whether there is one
+        above = d_lo < 0.0
+        if g_lo is None:
+            g_lo, g_hi = self._fg(s_lo, x, v)[1], self._fg(s_hi, x, v)[1]
+        if g_lo * g_hi < 0.0:
+            # one interior extremum (a maximum when F rises from i_min)
+            if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+            s_x, d_x = self._extremum(s_lo, s_hi, g_lo, g_hi, f_des, x, v)
+            if d_x == 0.0 or (d_x < 0.0) != above:
+                return self._solve(s_lo, s_x, d_lo, d_x, f_des, x, v), 0
+            return (min(max(s_x * self.i_ref_a, self.i_min), self.i_max),
+                    1 if d_x < 0.0 else -1)
+        if g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
+            # F(i) runs the same way at both ends as from end to end: monotone unless it has
+            # two interior extrema, which a mid-range force outside the end forces shows
+            d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
+            if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
+                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
+        return self._grid_scan(f_des, x, v)
+
+    def _grid_scan(self, f_des, x, v):
+        """Pre-scan the range on the grid: the first bracket, else the nearest grid force."""
+        g = self._grid
+        d = [self._f(s, x, v) - f_des for s in g]
+        for j in range(len(g) - 1):
+            if d[j] * d[j + 1] <= 0.0:
+                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
+        jn = min(range(len(g)), key=lambda q: abs(d[q]))
+        return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
+
+    def _extremum(self, a, b, ga, gb, f_des, x, v):
+        """
+        Interior extremum of F on [a, b] (slopes ga, gb of opposite sign), by Illinois.
+
+        Returns the normalised current of the extremum and ``F - f_des`` [N] there.
+        """
+        for _ in range(_MAX_ITER):
+            if abs(b - a) <= 1e-12:
+                break
+            c = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
+            if not min(a, b) < c < max(a, b):
+                c = 0.5 * (a + b)
+            gc = self._fg(c, x, v)[1]
+            if gc == 0.0:
+                b = c
+                break
+            if gc * gb < 0.0:
+                a, ga = b, gb
+            else:
+                ga *= 0.5
+            b, gb = c, gc
+        return b, self._f(b, x, v) - f_des
+
+    def _solve(self, a, b, fa, fb, f_des, x, v):
+        """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
+        if fa == 0.0:
+            b, fb = a, 0.0
+        ftol = 1e-9 * (1.0 + abs(f_des))
+        for _ in range(_MAX_ITER):
+            if abs(fb) <= ftol or abs(b - a) <= self._tol_s:
+                break
+            c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+            if not min(a, b) < c < max(a, b):
+                c = 0.5 * (a + b)
+            fc = self._f(c, x, v) - f_des
+            if fc * fb < 0.0:
+                a, fa = b, fb
+            else:
+                fa *= 0.5
+            b, fb = c, fc
+        return min(max(b * self.i_ref_a, self.i_min), self.i_max)
+
+
+class KwokCurrentLagInverse(KwokCurrentInverse):
+    """
+    Scalar inverse of ``kwok-current-lag`` for a control loop, one sample at a time.
+
+    The model's lagged velocity ``u`` is a state: at each sample, with the previous ``u`` and
+    the sample interval dt, ``u(i) = a(i)*u_prev + (1 - a(i))*v`` with
+    ``a(i) = exp(-dt/(tau0 + tau1*s))``, and the force is the kwok-current force with ``u``
+    in the tanh (``c(i)*v`` stays on the piston velocity). :meth:`step` solves that force for
+    the current exactly as :class:`KwokCurrentInverse` does, then advances ``u`` with the
+    current it returns; the first call starts at rest (``u = v``, as the model's first sample).
+    Near a velocity reversal the lag can make F(i) rise and fall over the range (u changes
+    sign with i), with a narrow peak that the end-point test and the coarse grid step over: a
+    demand found out of reach is checked once more on a dense grid (:data:`_N_DENSE` points)
+    before the current saturates.
+
+    Parameters
+    ----------
+    params : dict or array_like with shape (12,)
+        KwokCurrentLag parameters (``KwokCurrentLag.param_names``).
+    i_ref_a, i_min, i_max, n_grid, tol_a, sign_convention
+        As in :class:`KwokCurrentInverse`.
+
+    """
+
+    def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
+                 sign_convention='model'):
+        from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
+        model = KwokCurrentLag()
+        if isinstance(params, dict):
+            p = model.from_dict(params)
+        else:
+            p = np.asarray(params, dtype=float).ravel()
+            if p.size != model.n_params or not np.all(np.isfinite(p)):
+                raise ModelError(f'`params` must have {model.n_params} finite values '
+                                 f'({", ".join(model.param_names)})')
+        if p[10] < 0 or p[11] < 0:
+            raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
+        super().__init__(p[:10], i_ref_a=i_ref_a, i_min=i_min, i_max=i_max, n_grid=n_grid,
+                         tol_a=tol_a, sign_convention=sign_convention)
+        self._tau0, self._tau1 = float(p[10]), float(p[11])
+        self._dense = [(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
+                       / self.i_ref_a for j in range(_N_DENSE)]
+        self.u = None           # lagged velocity after the last step [m/s]
+        self._u_prev = 0.0
+        self._dt = 0.0
+
+    def _lagged(self, s, v):
+        """Lagged velocity [m/s] after this sample at normalised current s."""
+        if self._dt <= 0.0:             # first sample
+            return self._u_prev
+        tau = self._tau0 + self._tau1 * max(s, 0.0)
+        if tau <= 0.0:
+            return v
+        a = math.exp(-self._dt / tau)
+        return a * self._u_prev + (1.0 - a) * v
+
+    def _fg(self, s, x, v):
+        """Force [N] and a central-difference slope dF/ds [N] (the lag has no closed form)."""
+        h = 1e-6
+        return self._f(s, x, v), (self._f(s + h, x, v) - self._f(s - h, x, v)) / (2.0 * h)
+
+    def _ends(self, x, v):
+        """Force [N] at ``i_min`` and at ``i_max`` (slopes None: computed when needed)."""
+        return self._f(self._s_lo, x, v), None, self._f(self._s_hi, x, v), None
+
+    def _f(self, s, x, v):
+        u = self._lagged(s, v)
+        c = self._p[0] + self._p[1] * s
+        return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
+
+    def _current(self, f_des, x, v):
+        """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
+        cur, flag = super()._current(f_des, x, v)
+        if flag == 0:
+            return cur, flag
+        g = self._dense
+        d = [self._f(s, x, v) - f_des for s in g]
+        for j in range(len(g) - 1):
+            if d[j] * d[j + 1] <= 0.0:
+                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
+        return cur, flag
+
+    def step(self, f_des, x, v, dt):
+        """
+        Return ``(current [A], flag)`` for one sample and advance the lag state.
+
+        Parameters
+        ----------
+        f_des, x, v : float
+            Desired force [N], displacement [m], velocity [m/s], as in :meth:`current`.
+        dt : float
+            Time since the previous sample [s] (ignored at the first call).
+
+        Returns
+        -------
+        tuple of (float, int)
+            As :meth:`KwokCurrentInverse.current`.
+
+        """
+        if not (math.isfinite(dt) and dt > 0):
+            raise ModelError(f'`dt` must be a positive time step [s], got {dt}')
+        if self.u is None:
+            self._u_prev, self._dt = v, 0.0      # first sample: u = v
+        else:
+            self._u_prev, self._dt = self.u, dt
+        cur, flag = self.current(f_des, x, v)
+        self.u = self._lagged(cur / self.i_ref_a, v)
+        return cur, flag

@@ -1,0 +1,1 @@
+"""Command-line tools: ``mr-damper-identify`` (``cli``; ``--batch``: ``batch_cli``) and plots."""

@@ -1,0 +1,302 @@
+"""
+Tests of node_utils: QoS choices, drop counter, spin loop, SIGINT / SIGTERM in run_node.
+
+The spin loop's stop and error handling, and run_node's signal handling in a real process
+(exit 0 after finish and destroy, in that order).
+"""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.qos import HistoryPolicy, ReliabilityPolicy
+from std_msgs.msg import String
+
+from mr_damper_common import node_utils
+
+
+class _Logger:
+    def __init__(self):
+        self.lines = []
+
+    def warning(self, text, throttle_duration_sec=None):
+        self.lines.append(text)
+
+
+@pytest.fixture(scope='module')
+def ros():
+    started = not rclpy.ok()   # the integration tests' listener may have initialised it
+    if started:
+        rclpy.init()
+    yield
+    if started:
+        rclpy.try_shutdown()
+
+
+def test_measurement_stream_is_reliable_keep_all_and_other_topics_keep_last():
+    r = node_utils.MEASUREMENT_QOS
+    assert r.history == HistoryPolicy.KEEP_ALL and r.reliability == ReliabilityPolicy.RELIABLE
+    for q in (node_utils.LATCHED_QOS, node_utils.STATUS_QOS):
+        assert q.history == HistoryPolicy.KEEP_LAST and q.depth <= 10
+
+
+def test_drop_counter_counts_by_reason_and_warns():
+    log = _Logger()
+    drops = node_utils.DropCounter(log)
+    drops.count('message_lost', 3)
+    drops.count('message_lost', 2)
+    drops.count('publish_failed')
+    drops.count('nothing', 0)
+    assert drops.counts() == {'message_lost': 5, 'publish_failed': 1}
+    assert len(log.lines) == 3 and '5 in all' in log.lines[1]
+
+
+def test_lost_callback_adds_the_reported_change():
+    drops = node_utils.DropCounter(_Logger())
+    on_lost = drops.lost_callbacks('command_lost').message_lost
+
+    class Info:
+        total_count, total_count_change = 7, 7
+    on_lost(Info)
+    Info.total_count, Info.total_count_change = 9, 2
+    on_lost(Info)
+    assert drops.counts() == {'command_lost': 9}
+
+
+def test_publish_failure_is_counted_not_raised(ros):
+    node = rclpy.create_node('node_utils_test')
+    drops = node_utils.DropCounter(_Logger())
+    pub = node.create_publisher(String, '/node_utils_test/status', node_utils.STATUS_QOS)
+    assert drops.publish(pub, String(data='x')) is True
+    pub.destroy()                                       # the handle is gone: publish raises
+
+    class Refusing:
+        topic_name = '/refusing'
+
+        def publish(self, msg):
+            raise _rclpy.RCLError('Failed to publish: cannot publish data')
+    assert drops.publish(pub, String(data='y')) is False
+    assert drops.publish(Refusing(), String(data='z')) is False
+    assert drops.counts() == {'publish_failed': 2}
+    node.destroy_node()
+
+
+class _Executor:
+    """spin_once counts calls, raises ``error`` at call ``fail_at``, stops at ``stop_at``."""
+
+    def __init__(self, stop_at=None, fail_at=None, error=RuntimeError('Unable to convert')):
+        self.calls = 0
+        self.stop_at, self.fail_at, self.error = stop_at, fail_at, error
+
+    def spin_once(self, timeout_sec):
+        self.calls += 1
+        if self.calls == self.stop_at:
+            node_utils.request_stop()
+        if self.calls == self.fail_at:
+            raise self.error
+
+
+@pytest.fixture
+def stop_flag(ros):
+    node_utils._STOP.clear()
+    yield
+    node_utils._STOP.clear()
+
+
+def test_spin_returns_on_stop_request_and_on_done(stop_flag):
+    ex = _Executor(stop_at=3)
+    node_utils.spin(ex)
+    assert ex.calls == 3 and node_utils.stop_requested()
+    node_utils._STOP.clear()
+    ex = _Executor()
+    node_utils.spin(ex, done=lambda: ex.calls >= 5)
+    assert ex.calls == 5
+
+
+def test_spin_error_after_stop_ends_quietly_before_stop_raises(stop_flag):
+    ex = _Executor(stop_at=2, fail_at=2)
+    node_utils.spin(ex)                                  # the shutdown race: no error
+    assert ex.calls == 2
+    node_utils._STOP.clear()
+    with pytest.raises(RuntimeError, match='Unable to convert'):
+        node_utils.spin(_Executor(fail_at=2))
+
+
+_NODE_SCRIPT = textwrap.dedent('''
+    import sys, time
+    from rclpy.node import Node
+    from mr_damper_common.node_utils import run_node
+
+    class Busy(Node):
+        def __init__(self):
+            super().__init__('node_utils_signal_test')
+            self.ticks = 0
+            self.create_timer(0.001, self.tick)
+
+        def tick(self):
+            self.ticks += 1
+            t = time.perf_counter()
+            while time.perf_counter() - t < 0.0008:   # keep the main thread busy
+                pass
+            if self.ticks == 50:
+                print('ready', flush=True)
+
+    def finish(node):
+        print(f'finish after {node.ticks} ticks', flush=True)
+
+    sys.exit(run_node(Busy, 'busy', finish=finish))
+''')
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_run_node_exits_0_on_signal_after_finish(sig):
+    proc = subprocess.Popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    try:
+        assert proc.stdout.readline().strip() == 'ready'
+        proc.send_signal(sig)
+        out, _ = proc.communicate(timeout=30)          # hang guard only
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    assert out.startswith('finish after') and 'Traceback' not in out, out
+
+
+def test_resettable_publisher_replaces_a_writer_a_reader_stopped_acknowledging(ros):
+    # a KEEP_ALL reader whose callbacks never run (never spun) stops taking samples once its
+    # history is full; the reliable writer then keeps everything unacknowledged until its own
+    # resource limit (5,000) and publish() fails: the writer is replaced, nothing raises
+    from rclpy.qos import QoSProfile
+    node = rclpy.create_node('resettable_pub')
+    stalled = rclpy.create_node('stalled_reader')
+    qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_ALL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+    stalled.create_subscription(String, 'stall_topic', lambda m: None, qos)
+    pub = node_utils.ResettablePublisher(node, String, 'stall_topic', node_utils.MEASUREMENT_QOS,
+                                         rematch_timeout_s=30.0)
+    for _ in range(3000):   # discovery: a hang guard, not a time bound
+        if pub.get_subscription_count() == 1:
+            break
+        rclpy.spin_once(node, timeout_sec=0.01)
+    assert pub.get_subscription_count() == 1
+    old = pub.publisher
+    sent = 0
+    while pub.publish(String(data='x')):
+        sent += 1
+        assert sent < 20000, 'the stalled reader never filled the writer'
+    assert pub.resets == 1 and pub.publisher is not old
+    assert sent >= 10        # the reader's and writer's histories held these
+    # the new writer waits for as many readers as the old one had, less the stalled one
+    assert pub.ready()
+    node.destroy_node()
+    stalled.destroy_node()
+
+
+_SPECS = (
+    node_utils.Param('gain', 2.0, 'Controller gain [N s/m]', 0.0, 10.0, dynamic=True),
+    node_utils.Param('safe_current_a', 0.5, 'Safe current [A]', 0.0, 2.0, dynamic=True),
+    node_utils.Param('window', 3, 'Window count [-]', 1, 100),
+    node_utils.Param('mode', 'sim', 'Source of the samples'),
+)
+
+
+def test_parameters_have_descriptions_ranges_and_refuse_what_cannot_change(ros):
+    from rclpy.parameter import Parameter
+    node = rclpy.create_node('param_spec_test')
+    applied = []
+
+    def on_set(changes):
+        if changes.get('gain', 0.0) > 5.0 and 'safe_current_a' not in changes:
+            return 'gain above 5 needs a safe current in the same request'
+        applied.append(changes)
+        return ''
+
+    values = node_utils.declare_parameters(node, _SPECS, on_set)
+    assert values == {'gain': 2.0, 'safe_current_a': 0.5, 'window': 3, 'mode': 'sim'}
+    desc = node.describe_parameter('gain')
+    assert desc.description == 'Controller gain [N s/m]' and not desc.read_only
+    assert (desc.floating_point_range[0].from_value,
+            desc.floating_point_range[0].to_value) == (0.0, 10.0)
+    assert node.describe_parameter('window').integer_range[0].to_value == 100
+    assert node.describe_parameter('mode').read_only
+    # a dynamic parameter in range is applied through the callback
+    result = node.set_parameters([Parameter('gain', value=4.0)])[0]
+    assert result.successful and applied == [{'gain': 4.0}]
+    assert node.get_parameter('gain').value == 4.0
+    # out of range: rclpy refuses before the callback
+    result = node.set_parameters([Parameter('gain', value=11.0)])[0]
+    assert not result.successful and 'out of range' in result.reason
+    # the node's own check refuses with its reason; nothing changes
+    result = node.set_parameters([Parameter('gain', value=6.0)])[0]
+    assert not result.successful and 'safe current' in result.reason
+    assert node.get_parameter('gain').value == 4.0 and len(applied) == 1
+    # start-up-only parameters are refused, not accepted and ignored
+    result = node.set_parameters([Parameter('mode', value='csv')])[0]
+    assert not result.successful and 'read-only' in result.reason
+    assert node.get_parameter('mode').value == 'sim'
+    node.destroy_node()
+
+
+def test_a_value_out_of_range_at_start_up_is_a_parameter_error(ros):
+    from rclpy.exceptions import ParameterException
+    from rclpy.parameter import Parameter
+    node = rclpy.create_node('param_range_test', parameter_overrides=[
+        Parameter('window', value=0)])
+    with pytest.raises(ParameterException):
+        node_utils.declare_parameters(node, _SPECS[2:])
+    node.destroy_node()
+
+
+def test_dynamic_parameters_need_an_on_set_callback(ros):
+    node = rclpy.create_node('param_no_callback')
+    with pytest.raises(ValueError, match='on_set'):
+        node_utils.declare_parameters(node, _SPECS[:1])
+    node.destroy_node()
+
+
+def test_diagnostics_publisher_sends_named_levels_and_survives_a_status_error(ros):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from mr_damper_common.health import Health, STALE, WARN
+    from mr_damper_common.messages import health_from_diagnostic
+    node = rclpy.create_node('diag_test', namespace='fl')
+    listener = rclpy.create_node('diag_listener')
+    got = []
+    listener.create_subscription(DiagnosticArray, '/diagnostics', got.append,
+                                 node_utils.DIAGNOSTICS_QOS)
+    calls = []
+
+    def health():
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError('boom')
+        return Health(WARN, 'fail-safe: stale', {'param_age_s': 1.5})
+
+    drops = node_utils.DropCounter(_Logger())
+    diag = node_utils.DiagnosticsPublisher(node, health, period_s=3600.0, hardware_id='fl',
+                                           drops=drops)
+    assert diag.name == 'fl/diag_test'
+    for _ in range(3000):   # discovery: a hang guard, not a time bound
+        if listener.count_publishers('/diagnostics') >= 1 and \
+                node.count_subscribers('/diagnostics') >= 1:
+            break
+        rclpy.spin_once(listener, timeout_sec=0.01)
+    assert diag.publish().level == WARN
+    assert diag.publish().level == STALE         # the error became a STALE status
+    for _ in range(3000):
+        if len(got) == 2:
+            break
+        rclpy.spin_once(listener, timeout_sec=0.01)
+    statuses = [s for msg in got for s in msg.status]
+    assert [s.name for s in statuses] == ['fl/diag_test'] * 2
+    first, second = (health_from_diagnostic(s) for s in statuses)
+    assert first.level == WARN and first.values == {'param_age_s': 1.5}
+    assert statuses[0].hardware_id == 'fl'
+    assert second.level == STALE and 'RuntimeError: boom' in second.message
+    assert diag.published == 2 and drops.counts() == {}
+    node.destroy_node()
+    listener.destroy_node()

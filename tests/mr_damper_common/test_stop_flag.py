@@ -1,0 +1,84 @@
+"""
+Tests of mr_damper_common.stop_flag: the stop handlers come before the node module's imports.
+
+Each case runs in a child interpreter (signal handlers are process-wide; pytest keeps its own).
+The node module of each case is a stand-in written into ``tmp_path`` whose import sends the
+process a signal, as a user's Ctrl-C or a launcher's SIGTERM during the seconds rclpy, scipy and
+control take to import.
+"""
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from mr_damper_common import stop_flag
+
+
+def _run(tmp_path, module_text, call):
+    (tmp_path / 'fake_node.py').write_text(textwrap.dedent(module_text))
+    # Python's own SIGINT handler, as in a terminal: a suite started in the background (or
+    # under nohup) passes SIGINT ignored to its children, which then never see a Ctrl-C
+    code = ('import signal, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n'
+            f'from mr_damper_common import stop_flag\nsys.exit({call})\n')
+    return subprocess.run([sys.executable, '-c', code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120, env={'PYTHONPATH': str(tmp_path),
+                                                       'PATH': '/usr/bin:/bin'})
+
+
+NODE = """
+    import os
+    import signal
+    os.kill(os.getpid(), signal.{sig})       # arrives while the module is being imported
+    def main():
+        print('main ran')
+        return 3
+"""
+
+
+@pytest.mark.parametrize('sig', ['SIGINT', 'SIGTERM'])
+def test_signal_during_the_node_import_exits_0_without_running_the_node(tmp_path, sig):
+    proc = _run(tmp_path, NODE.format(sig=sig), "stop_flag.early_main('fake_node')")
+    assert proc.returncode == 0, proc.stderr
+    assert 'main ran' not in proc.stdout
+    assert 'Traceback' not in proc.stderr
+
+
+def test_without_early_handlers_the_same_signal_is_not_a_clean_exit(tmp_path):
+    """The failure early_main prevents: Python's default handler raises in the import."""
+    proc = _run(tmp_path, NODE.format(sig='SIGINT'),
+                "__import__('fake_node').main()")
+    assert proc.returncode != 0 and 'KeyboardInterrupt' in proc.stderr
+
+
+def test_no_signal_runs_the_node_and_returns_its_status(tmp_path):
+    proc = _run(tmp_path, "def main():\n    print('main ran')\n    return 3\n",
+                "stop_flag.early_main('fake_node')")
+    assert proc.returncode == 3 and 'main ran' in proc.stdout
+
+
+def test_a_second_install_keeps_a_stop_that_came_in_between(tmp_path):
+    code = """
+        import os, signal, sys
+        from mr_damper_common import stop_flag
+        stop_flag.install_stop_handlers()
+        os.kill(os.getpid(), signal.SIGINT)
+        stop_flag.install_stop_handlers()       # e.g. run_node after early_main
+        sys.exit(7 if stop_flag.stop_requested() else 1)
+    """
+    proc = subprocess.run([sys.executable, '-c', textwrap.dedent(code)], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 7, proc.stderr
+
+
+def test_handlers_set_and_restored_in_this_process():
+    old = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    try:
+        assert stop_flag.install_stop_handlers() is True
+        assert signal.getsignal(signal.SIGINT) is stop_flag.request_stop
+        assert signal.getsignal(signal.SIGTERM) is stop_flag.request_stop
+    finally:
+        signal.signal(signal.SIGINT, old[0])
+        signal.signal(signal.SIGTERM, old[1])
+        stop_flag._STOP.clear()
