@@ -21,7 +21,7 @@ from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
 from integration.ros_helpers import Listener, NodeProcess
 from mr_damper_common.health import WARN
-from mr_damper_model.live import pinned_parameters
+from mr_damper_model.models.validity import pinned_parameters
 from mr_damper_common.messages import kwok_parameters_from_msg, samples_to_msg
 from mr_damper_model.identification.presets import thesis_kwok_current
 

@@ -17,8 +17,8 @@ import pytest
 from live_records import alpha_scaled_fit
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
-                                  LiveConfig, LiveIdentifier, pinned_parameters, robust_range,
-                                  running_median)
+                                  LiveConfig, LiveIdentifier, robust_range, running_median)
+from mr_damper_model.models.validity import pinned_parameters
 from mr_damper_model.identification.presets import thesis_kwok_current
 
 RATE = 1000.0

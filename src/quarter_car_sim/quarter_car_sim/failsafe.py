@@ -15,9 +15,9 @@ by tick, whether such a model may be used. A parameter set is accepted only if
   zero current slopes) cannot say which current makes a force, so using it would be a guess;
   the caller also keeps its inverse inside the identified range (no extrapolation),
 - no parameter is pinned at a non-zero bound of that box (within ``pinned_fraction`` of the
-  bound span, :func:`mr_damper_model.live.pinned_parameters`): a fit stopped at the edge of the
-  search box is one that data outside the physical range (typically a sensor fault) pushed
-  there, whatever the identifier concluded,
+  bound span; the identifier's rule, :mod:`mr_damper_model.models.validity`): a fit stopped at
+  the edge of the search box is one that data outside the physical range (typically a sensor
+  fault) pushed there, whatever the identifier concluded,
 
 and it stays usable only while it is younger than ``timeout_s`` (age measured on the caller's
 clock from its receipt). Otherwise the supervisor is in fail-safe mode and the caller commands
@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from mr_damper_model.models.kwok_current import KwokCurrent
-from mr_damper_model.live import pinned_parameters
+from mr_damper_model.models.validity import check_parameter_values, PINNED_FRACTION
 
 #: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.
 KWOK_CURRENT_NAMES = KwokCurrent.param_names
@@ -137,7 +137,7 @@ class ModelSupervisor:
     current_tol_a: float = 0.05
     hold_on_reject: bool = False
     min_current_span_a: float = 1.0
-    pinned_fraction: float = 1e-3
+    pinned_fraction: float = PINNED_FRACTION
     # state (not constructor arguments in practice)
     params: dict = field(default=None, init=False)
     accepted_at: float = field(default=None, init=False)
@@ -248,11 +248,16 @@ class ModelSupervisor:
                 return Verdict(False, 'non_finite', f'{n} = {msg[n]!r}')
             if not math.isfinite(values[n]):
                 return Verdict(False, 'non_finite', f'{n} = {values[n]}')
-        for n in KWOK_CURRENT_NAMES:
-            lo, hi = self.bounds[n]
-            if not lo <= values[n] <= hi:
-                return Verdict(False, 'out_of_bounds',
-                               f'{n} = {values[n]:g} not in [{lo:g}, {hi:g}]')
+        lo = [self.bounds[n][0] for n in KWOK_CURRENT_NAMES]
+        hi = [self.bounds[n][1] for n in KWOK_CURRENT_NAMES]
+        # the identifier's rule for the values (mr_damper_model.models.validity), same tolerances
+        values_check = check_parameter_values(
+            KWOK_CURRENT_NAMES, [values[n] for n in KWOK_CURRENT_NAMES], lo, hi,
+            pinned_fraction=self.pinned_fraction)
+        if values_check.reason == 'out_of_bounds':
+            return Verdict(False, 'out_of_bounds', ', '.join(
+                f'{n} = {values[n]:g} not in [{self.bounds[n][0]:g}, {self.bounds[n][1]:g}]'
+                for n in values_check.names))
         lo_a, hi_a = values['current_min_a'], values['current_max_a']
         tol = self.current_tol_a
         if values['i_ref_a'] <= 0:
@@ -265,14 +270,10 @@ class ModelSupervisor:
             return Verdict(False, 'narrow_current_range',
                            f'identified over [{lo_a:g}, {hi_a:g}] A only (need a span of '
                            f'{self.min_current_span_a:g} A)')
-        lo = [self.bounds[n][0] for n in KWOK_CURRENT_NAMES]
-        hi = [self.bounds[n][1] for n in KWOK_CURRENT_NAMES]
-        pinned = pinned_parameters(KWOK_CURRENT_NAMES, [values[n] for n in KWOK_CURRENT_NAMES],
-                                   lo, hi, self.pinned_fraction)
-        if pinned:
+        if values_check.reason == 'pinned_at_bound':
             return Verdict(False, 'pinned_at_bound',
                            ', '.join(f'{n} = {values[n]:g} at a bound {self.bounds[n]}'
-                                     for n in pinned))
+                                     for n in values_check.names))
         return Verdict(True, 'ok')
 
     # ------------------------------------------------------------------ events

@@ -45,8 +45,9 @@ the work, so it can be tested and benchmarked without ROS:
    usable bin: plain Kwok (mapped to kwok-current with zero current slopes, the covered range
    being that single current); two or more bins: kwok-current on their union.
 7. **Validity**: finite parameters within the model bounds; no parameter pinned at a bound
-   (:func:`pinned_parameters`); the fit RMSE divided by the robust force range of the fit data
-   (0.5-99.5 percentile range, which single outliers cannot move) at most
+   (:mod:`mr_damper_model.models.validity`, the same rule as the car's supervisor); the fit
+   RMSE divided by the robust force range of the fit data (0.5-99.5 percentile range, which
+   single outliers cannot move) at most
    ``max_nrmse_percent``; and, on the fitted samples of the current levels covered by the last
    valid set of this stream, an RMSE at most ``max_error_ratio`` times that set's plus
    ``error_floor_percent`` of the robust force range (``worse_than_last_valid``).
@@ -81,7 +82,7 @@ from mr_damper_model.live.fitting import (fit_data, fit_kwargs, FitProcess,  # n
                                           window_seed)
 from mr_damper_model.live.identifier import LiveIdentifier  # noqa: F401
 from mr_damper_model.live.screening import (check_excitation, constant_runs,  # noqa: F401
-                                            flag_samples, pinned_parameters, robust_range,
+                                            flag_samples, robust_range,
                                             running_median)
 from mr_damper_model.live.window import LiveEstimate, Window  # noqa: F401
 

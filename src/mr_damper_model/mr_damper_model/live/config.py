@@ -2,6 +2,8 @@
 from dataclasses import dataclass
 import math
 
+from mr_damper_model.models.validity import PINNED_FRACTION
+
 #: Keys of the sample rejection counters.
 REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'future_stamp', 'joint_names',
                   'layout')
@@ -181,7 +183,7 @@ class LiveConfig:
     max_error_ratio: float = 1.5
     max_shift_ratio: float = 3.0
     error_floor_percent: float = 2.0
-    pinned_fraction: float = 1e-3
+    pinned_fraction: float = PINNED_FRACTION
     inconsistent_reset_s: float = 0.0
     backlog_windows: int = 0
     acceptance_checks: bool = True

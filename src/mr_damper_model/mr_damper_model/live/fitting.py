@@ -6,6 +6,8 @@ import sys
 
 import numpy as np
 
+from mr_damper_model.models.validity import check_model_parameters
+
 
 def window_seed(seed, index):
     """
@@ -177,16 +179,12 @@ def _serve():
 
 
 def _in_bounds(model, params, unbounded, i_ref_a):
-    from mr_damper_model.models import get_model
-    mdl = get_model(model, **({'i_ref_a': i_ref_a} if model == 'kwok-current' else {}))
-    lo, hi = mdl.default_bounds(unbounded=unbounded)
-    x = np.array([params[n] for n in mdl.param_names], dtype=float)
-    if not np.all(np.isfinite(x)):
+    """The identifier's words for :func:`~mr_damper_model.models.validity.check_model_parameters`
+    without the pinned check: '' or ``nonfinite_parameters`` / ``out_of_bounds:<names>``."""
+    check = check_model_parameters(model, params, unbounded=unbounded, i_ref_a=i_ref_a,
+                                   pinned_fraction=None)
+    if check.reason == 'non_finite':
         return 'nonfinite_parameters'
-    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-    tol = 1e-9 * span
-    if np.any(x < lo - tol) or np.any(x > hi + tol):
-        bad = [n for n, a, b, c in zip(mdl.param_names, x, lo, hi)
-               if a < b - 1e-9 * abs(c - b) or a > c + 1e-9 * abs(c - b)]
-        return f'out_of_bounds:{",".join(bad)}'
+    if check.reason:
+        return f'out_of_bounds:{",".join(check.names)}'
     return ''

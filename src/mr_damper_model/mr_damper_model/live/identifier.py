@@ -14,10 +14,10 @@ from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfi
                                          REJECT_REASONS, SKIP_REASONS)
 from mr_damper_model.live.conversions import kwok_current_at, kwok_to_kwok_current
 from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
-from mr_damper_model.live.screening import (check_excitation, flag_samples, pinned_parameters,
-                                            robust_range)
+from mr_damper_model.live.screening import check_excitation, flag_samples, robust_range
 from mr_damper_model.live.window import LiveEstimate, Window
 from mr_damper_model.models.kwok_current import kwok_current_force
+from mr_damper_model.models.validity import check_model_parameters
 
 
 #: Fewest screened samples on which the last valid set's consistency is judged.
@@ -652,18 +652,16 @@ class LiveIdentifier:
         are also too narrow for the quarter car, which refuses any pinned set.
         """
         cfg = self.config
-        reason = _in_bounds(model, fitted, cfg.unbounded, cfg.i_ref_a)
-        if reason:
-            return reason
-        from mr_damper_model.models import get_model
-        mdl = get_model(model, **({'i_ref_a': cfg.i_ref_a} if model == 'kwok-current' else {}))
-        lo, hi = mdl.default_bounds(unbounded=cfg.unbounded)
-        pinned = pinned_parameters(mdl.param_names, [fitted[n] for n in mdl.param_names],
-                                   lo, hi, cfg.pinned_fraction)
-        if span_a < 0.5 * cfg.i_ref_a:
-            pinned = [n for n in pinned if n != 'beta1']
-        if pinned:
-            return 'pinned:' + ','.join(pinned)
+        check = check_model_parameters(
+            model, fitted, unbounded=cfg.unbounded, i_ref_a=cfg.i_ref_a,
+            pinned_fraction=cfg.pinned_fraction,
+            exempt=('beta1',) if span_a < 0.5 * cfg.i_ref_a else ())
+        if check.reason == 'non_finite':
+            return 'nonfinite_parameters'
+        if check.reason == 'out_of_bounds':
+            return 'out_of_bounds:' + ','.join(check.names)
+        if check.reason == 'pinned_at_bound':
+            return 'pinned:' + ','.join(check.names)
         if not (robust_nrmse <= cfg.max_nrmse_percent):
             return 'nrmse_above_threshold'
         ref = self._ref

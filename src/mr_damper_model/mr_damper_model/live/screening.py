@@ -56,40 +56,6 @@ def robust_range(f):
     return float(hi - lo)
 
 
-def pinned_parameters(names, values, lo, hi, fraction):
-    """
-    Return the names of parameters pinned at a bound of their box.
-
-    A parameter is pinned when it lies within ``fraction`` of its bound span from a bound that
-    is not zero.  Zero bounds (the lower bound of a non-negative coefficient: no viscous term,
-    no hysteresis, no loop shift) are values a physical damper can take; a fit stopped at the
-    end of the search box (e.g. ``f0`` at 500 N, ``beta0`` at 0.1 or 1000 s/m, ``beta1`` at
-    +-3) is one the data pushed out of the physical range, typically by a sensor fault.
-
-    Parameters
-    ----------
-    names : sequence of str
-        Parameter names.
-    values, lo, hi : array_like with shape (n,)
-        Values and bounds (infinite bounds are never reached).
-    fraction : float
-        Fraction of ``hi - lo``.
-
-    Returns
-    -------
-    list of str
-
-    """
-    x = np.asarray(values, dtype=float)
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
-    span = np.where(np.isfinite(hi - lo), hi - lo, np.inf)
-    tol = fraction * span
-    at_lo = np.isfinite(lo) & (lo != 0) & (x <= lo + tol)
-    at_hi = np.isfinite(hi) & (hi != 0) & (x >= hi - tol)
-    return [n for n, a, b in zip(names, at_lo, at_hi) if a or b]
-
-
 def running_median(f, width=MEDIAN_WIDTH):
     """
     Return the centred running median of ``f`` (edges padded with the end values).
