@@ -88,6 +88,7 @@ def test_workspace_dependencies_point_one_way():
     deps = {p.parent.name: declared_dependencies(p.parent) & names
             for p in (REPO / 'src').glob('*/package.xml')}
     assert 'mr_damper_rig' not in deps['quarter_car_sim']
+    assert 'quarter_car_sim' not in deps['mr_damper_rig']
     assert not deps['mr_damper_common'] - {'mr_damper_interfaces'}
     assert not deps['mr_damper_model'] - {'mr_damper_interfaces', 'mr_damper_common'}
     done, path = set(), []

@@ -28,6 +28,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
+            'quarter-car-sim = mr_damper_bringup.ride_study_cli:main',
             'mr-damper-suite = mr_damper_bringup.entry_points:suite',
             'mr-damper-record = mr_damper_bringup.entry_points:record',
         ],

@@ -29,7 +29,6 @@ setup(
         'console_scripts': [
             'rig_node = mr_damper_rig.entry_points:rig_node',
             'mr-damper-rig-test = mr_damper_rig.rig_test_cli:main',
-            'quarter-car-sim = mr_damper_rig.ride_study_cli:main',
         ],
     },
 )

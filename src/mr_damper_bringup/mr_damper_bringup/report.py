@@ -1010,7 +1010,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
             'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
             'max': float(lat.max()), 'n': int(lat.size)}
     if hil:
-        from mr_damper_rig.car_in_the_loop import hil_summary
+        from mr_damper_bringup.car_in_the_loop import hil_summary
         status = rec.get('status', {})
         summary['hil'] = hil_summary(status.get('quarter_car'), status.get('rig'),
                                      (summary.get('identification') or {}).get('parameters'),
@@ -1221,7 +1221,7 @@ def format_summary(s):
                      f'{p.get("jitter_p99_ms") or float("nan"):.3f} ms; state -> command '
                      f'p50 {lat["p50_ms"]:.3f} ms, p99 {lat["p99_ms"]:.3f} ms')
     if s.get('hil'):
-        from mr_damper_rig.car_in_the_loop import format_hil_summary
+        from mr_damper_bringup.car_in_the_loop import format_hil_summary
         lines.append(format_hil_summary(s['hil']))
     return '\n'.join(lines)
 

@@ -6,7 +6,7 @@ Coil current commands are checked by :class:`mr_damper_common.commands.CurrentCo
 go through :class:`DisplacementCommandGuard`: clamped to the stroke, non-finite refused, and a
 silent commander makes the actuator hold, then return to neutral (all counted);
 :class:`CommandFollower` samples the rig with the guarded target and keeps the tracking error
-(``quarter_car_sim.hil.TrackingMonitor``, the car's HIL monitor).
+(``mr_damper_common.tracking.TrackingMonitor``, as the car's HIL monitor).
 """
 import math
 
@@ -145,7 +145,7 @@ class CommandFollower:
 
     Attributes
     ----------
-    tracking : quarter_car_sim.hil.TrackingMonitor
+    tracking : mr_damper_common.tracking.TrackingMonitor
         Guarded target minus measured piston displacement of every sample (actuator lag and
         delay, stroke clamps, return to neutral, DAQ quantisation and noise); the target's
         velocity (its difference over one sample) gives the remaining-delay estimate.

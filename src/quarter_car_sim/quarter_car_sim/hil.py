@@ -30,7 +30,7 @@ displacement command for the node to publish after each step; the force the car 
 latest measured one, at least one rig sample old. The rig's clock and the car's are both paced
 in real time, so the compensator's horizon (adapted online) covers the actuator's lag plus the
 message latency. A rig in the same process (``HilPlant``, ``SimulatedLink``), the cam-rig
-comparison and the suite's HIL summary are the rig's side, ``mr_damper_rig.car_in_the_loop``:
+comparison and the suite's HIL summary are the rig's side, ``mr_damper_bringup.car_in_the_loop``:
 the car does not import the rig.
 """
 import math
@@ -152,7 +152,7 @@ def run_loop(loop, seconds, *, probe=None, t_clock=0.0):
     ----------
     loop : quarter_car_sim.live_loop.ClosedLoop
         The loop (its car has the damper model or a rig in the loop:
-        ``mr_damper_rig.car_in_the_loop.HilPlant`` or ``SimulatedLink``).
+        ``mr_damper_bringup.car_in_the_loop.HilPlant`` or ``SimulatedLink``).
     seconds : float
         Simulated time [s] (whole steps of ``loop.dt``).
     probe : quarter_car_sim.probing.CurrentProbe or None

@@ -7,7 +7,7 @@ import pytest
 from conftest import VENV_BIN
 from mr_damper_model.identification import presets
 from mr_damper_model.io.params_file import save_params
-from mr_damper_rig import ride_study_cli as cli
+from mr_damper_bringup import ride_study_cli as cli
 
 
 @pytest.fixture

@@ -14,9 +14,9 @@ ever see those.
 road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
 Bad input exits with status 2 and one line on stderr.
 
-It lives in ``mr_damper_rig`` because it needs both the rig (the simulated identification test,
-:func:`mr_damper_rig.virtual_rig.simulated_rig_data`) and the car: the dependencies point one
-way, ``mr_damper_model <- quarter_car_sim <- mr_damper_rig``.
+It lives in ``mr_damper_bringup``, above the rig and the car, because it needs both the rig
+(the simulated identification test, :func:`mr_damper_rig.virtual_rig.simulated_rig_data`) and
+the car; neither of those two packages imports the other.
 """
 import json
 import sys

@@ -2,10 +2,10 @@
 The car's damper force from a virtual rig in the same process (hardware in the loop, no ROS).
 
 The rig side of :mod:`quarter_car_sim.hil` (which holds the car side: delay compensation,
-tracking monitor, :class:`quarter_car_sim.hil.RemoteRigPlant` and ``run_loop``). The
-dependencies point one way, ``mr_damper_model <- quarter_car_sim <- mr_damper_rig``: the rig
-composes the car's pieces with its :class:`mr_damper_rig.virtual_rig.VirtualRig`, the car never
-imports the rig.
+:class:`quarter_car_sim.hil.RemoteRigPlant` and ``run_loop``). A study that combines the rig and
+the car, so it lives above both (in bringup): ``mr_damper_model <- quarter_car_sim`` and
+``mr_damper_model <- mr_damper_rig``, neither imports the other; this module composes the car's
+pieces with the rig's :class:`mr_damper_rig.virtual_rig.VirtualRig`.
 
 - :class:`HilPlant` has the streaming damper-plant interface of
   :class:`quarter_car_sim.dynamics.QuarterCar` (``step(dt, x, v, i_cmd) -> F``), so the one

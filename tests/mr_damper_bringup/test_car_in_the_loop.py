@@ -1,9 +1,9 @@
-"""Tests of mr_damper_rig.car_in_the_loop: the car's loop with a virtual rig for a damper."""
+"""Tests of mr_damper_bringup.car_in_the_loop: the car's loop with a virtual rig for a damper."""
 import numpy as np
 import pytest
 
 from mr_damper_model.models.plant import make_plant
-from mr_damper_rig import car_in_the_loop as cil
+from mr_damper_bringup import car_in_the_loop as cil
 from mr_damper_rig.actuator import ServoActuator
 from quarter_car_sim import hil, live_loop
 from quarter_car_sim.controllers import make_controller
