@@ -86,8 +86,18 @@ class FitProcess:
     A fit holds the GIL for most of its time; in a child process it cannot delay the thread that
     receives the 1 kHz measurements.  The child runs ``python -m mr_damper_model.live`` in its
     own session, so a Ctrl-C sent to the parent's process group does not reach it: the parent
-    ends it with :meth:`close` (or the child ends when its stdin closes).  Requests and results
-    travel pickled over the child's stdin / stdout; exceptions are re-raised in the parent.
+    ends it with :meth:`close` (or the child ends when its stdin closes, also when the parent
+    was killed).  Requests and results travel pickled over the child's stdin / stdout;
+    exceptions are re-raised in the parent.
+
+    Why not ``concurrent.futures.ProcessPoolExecutor``: tried (one worker, ``spawn`` context,
+    SIGINT ignored in its initializer). The spawn start method runs the *parent's* main script
+    again in the child to rebuild ``__main__``; a script without an ``if __name__ ==
+    '__main__'`` guard that builds an identifier (a user's quick script, ``python -c``) then
+    spawns recursively and fails with ``BrokenProcessPool`` at the first call (seen with a
+    five-line script). ``fork`` would copy the node's DDS threads and locks. A dedicated
+    ``python -m`` child depends on nothing of the caller, ends with its stdin, and can be
+    killed alone when a fit outlives the shutdown.
     """
 
     def __init__(self):
