@@ -189,8 +189,12 @@ def _serve():
 
 
 def _in_bounds(model, params, unbounded, i_ref_a):
-    """The identifier's words for :func:`~mr_damper_model.models.validity.check_model_parameters`
-    without the pinned check: '' or ``nonfinite_parameters`` / ``out_of_bounds:<names>``."""
+    """
+    Check a set's values without the pinned check, in the identifier's words.
+
+    :func:`~mr_damper_model.models.validity.check_model_parameters`: '' or
+    ``nonfinite_parameters`` / ``out_of_bounds:<names>``.
+    """
     check = check_model_parameters(model, params, unbounded=unbounded, i_ref_a=i_ref_a,
                                    pinned_fraction=None)
     if check.reason == 'non_finite':
