@@ -39,7 +39,7 @@ def test_a_killed_child_fails_one_call_then_is_replaced(proc):
 
 
 def _ended(pid):
-    """True when the process is gone or a zombie (ended, not yet reaped)."""
+    """Return True when the process is gone or a zombie (ended, not yet reaped)."""
     try:
         os.kill(pid, 0)
         with open(f'/proc/{pid}/stat') as f:
