@@ -123,9 +123,9 @@ def test_discover_folders_files_patterns_and_seeds(tmp_path):
 
 @pytest.mark.parametrize('n, workers', [(7, 2), (17, 2), (200, 2), (200, 1), (3, 8)])
 def test_dampers_go_to_the_cluster_in_chunks_of_every_task_once(n, workers):
-    chunks = batch._chunks(list(range(n)), workers)
+    chunks = batch.run._chunks(list(range(n)), workers)
     assert [t for c in chunks for t in c] == list(range(n))
-    assert len(chunks) == min(n, batch.CHUNKS_PER_WORKER * workers)
+    assert len(chunks) == min(n, batch.settings.CHUNKS_PER_WORKER * workers)
     assert max(map(len, chunks)) - min(map(len, chunks)) <= 1
 
 
