@@ -1,0 +1,57 @@
+"""
+Suspension controllers and the force -> coil current path.
+
+A controller has ``name``, ``kind`` and ``demand(state) -> float``:
+
+- ``kind == 'current'`` (:class:`Passive`): ``demand`` returns a coil current [A];
+- ``kind == 'semi-active'`` (skyhook, on-off skyhook, groundhook, hybrid, ADD, SH-ADD,
+  clipped-optimal, frequency-shaped clipped-optimal): ``demand``
+  returns the desired damper force **on the body** [N], positive up, always dissipative
+  (``demand * v_rel <= 0``); it goes through an inverse damper model
+  (:class:`mr_damper_model.models.inverse.KwokCurrentInverse` with ``sign_convention='body'``) to a
+  current saturated to the coil's range;
+- ``kind == 'active'`` (``skyhook-ideal``, ``lqr-active``): ``demand`` is a force on the body
+  applied directly (``QuarterCar.step_force``), no damper and no current limits.
+
+Controllers only read the measured :class:`~quarter_car_sim.dynamics.CarState` (and, for the
+inverse, identified parameters); never the plant's true parameters.
+
+Skyhook-family laws use absolute body / wheel velocities (``v_s``, ``v_u``) and the suspension
+velocity ``v_rel = v_s - v_u``:
+
+- skyhook (continuous, clipped, Karnopp 1974): ``F = -(c_sky v_s + c_p v_rel)`` when that is
+  dissipative, else 0 (the damper's minimum);
+- on-off skyhook: ``F = -c_on v_rel`` when ``v_s v_rel > 0`` else ``-c_off v_rel``;
+- groundhook (Valasek 1997): ``F = +c_gnd v_u`` when ``v_u v_rel < 0``, else 0;
+- hybrid (Ahmadian): ``F = -c (alpha s_sky + (1 - alpha) s_gnd)`` with ``s_sky = v_s`` when
+  ``v_s v_rel > 0`` (else 0) and ``s_gnd = -v_u`` when ``v_u v_rel < 0`` (else 0);
+- ADD (Savaresi 2005, acceleration-driven damper): ``F = -c_max v_rel`` when
+  ``a_s v_rel > 0``, else ``-c_min v_rel``;
+- SH-ADD (Savaresi and Spelta 2007, mixed skyhook / ADD): per sample, the skyhook choice
+  (``c_max`` when ``v_s v_rel > 0``) if ``v_s^2 - alpha^2 a_s^2 >= 0`` (slow body motion), else
+  the ADD choice (``c_max`` when ``a_s v_rel > 0``); ``F = -c v_rel`` with ``c`` the choice;
+- clipped-optimal (Dyke et al. 1996): the fully active LQR force ``-K x`` clipped to what the
+  damper can give: dissipative, and within ``[F(i_min), F(i_max)]`` of the identified model at
+  the present travel and velocity;
+- frequency-shaped clipped-optimal (``clipped-optimal-wk``): the same with an LQR whose cost
+  weights the ISO 2631-1 Wk-weighted body acceleration (the comfort metric); the law runs the
+  Wk filter on the measured body acceleration and feeds its states back.
+
+Modules: ``base`` (interface, passive, the damper clip), ``skyhook`` (skyhook family),
+``add`` (ADD, SH-ADD), ``optimal`` (LQR-designed laws), ``registry`` (:func:`make_controller`).
+
+See docs/control-laws.md for the laws, their gains and the offline semi-active bound
+(:mod:`quarter_car_sim.bound`).
+"""
+from quarter_car_sim.controllers.add import ADD, DEFAULT_SHADD_F_SWITCH_HZ, ShAdd  # noqa: F401
+from quarter_car_sim.controllers.base import (car_state_feedback, clip_to_damper,  # noqa: F401
+                                              Controller, Passive)
+from quarter_car_sim.controllers.optimal import (clipped_optimal_gain,  # noqa: F401
+                                                 ClippedOptimal, ClippedOptimalWk,
+                                                 DEFAULT_CO_WEIGHTS, DEFAULT_COWK_WEIGHTS,
+                                                 LqrActive, wk_lqr_design, wk_state_space)
+from quarter_car_sim.controllers.registry import (CONTROLLER_NAMES,  # noqa: F401
+                                                  DAMPER_LAW_NAMES, make_controller)
+from quarter_car_sim.controllers.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY,  # noqa: F401
+                                                 Groundhook, Hybrid, Skyhook, SkyhookIdeal,
+                                                 SkyhookOnOff)
