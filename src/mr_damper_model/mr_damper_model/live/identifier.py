@@ -1,4 +1,13 @@
-"""The sliding-window identifier of the current-dependent Kwok model (no ROS)."""
+"""
+The sliding-window identifier of the current-dependent Kwok model (no ROS).
+
+Steps 1-8 of the package docstring as one state machine, :class:`LiveIdentifier`. The module is
+longer than the project's ~600 lines on purpose: the sample buffer, the current bins, the
+consistency reference, the warm start and the counters are state that every step reads and
+writes under one lock discipline (samples in one thread, fits in another), so they stay in one
+class; everything that needs no such state lives in the sibling modules (``config``,
+``screening``, ``fitting``, ``conversions``, ``window``).
+"""
 from dataclasses import fields, replace
 import math
 import threading
