@@ -24,7 +24,7 @@ def _core_modules():
         root = REPO / 'src' / pkg / pkg
         for path in sorted(root.glob('*.py')) + sorted(root.glob('*/*.py')):
             stem = path.stem
-            if stem == '__init__' or stem.endswith('_node') or stem in ROS_MODULES:
+            if stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES:
                 continue
             yield '.'.join((pkg,) + path.relative_to(root).with_suffix('').parts)
 

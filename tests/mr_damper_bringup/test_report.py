@@ -274,7 +274,7 @@ def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     meas = _measurements(params)
     force = kwok_current_force(msg, meas['x'], meas['v'], meas['i'])
     whole = report.fit_error(meas['f'], force)
-    monkeypatch.setattr(report, 'CHUNK_ROWS', 333)
+    monkeypatch.setattr(report.recording, 'CHUNK_ROWS', 333)
     assert report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
 
 
@@ -283,7 +283,7 @@ def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
     log = _live_log(tmp_path / 'log', controller_offers=True)
     big = report.ride_summary(log, QC)
-    monkeypatch.setattr(report, 'CHUNK_ROWS', 377)
+    monkeypatch.setattr(report.recording, 'CHUNK_ROWS', 377)
     small = report.ride_summary(log, QC)
     for key in ('skyhook', 'passive', 'passive_0a'):
         for m, v in big[key].items():
@@ -305,7 +305,7 @@ def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypa
     meas = _measurements(params)
     log = [(0.0, dict(msg, window_end_s=e, recv_epoch_s=1000.0 + e + 0.05))
            for e in (-1.0, 0.5, 0.9995, 1.0, 2.2, 3.999, 7.0)]
-    monkeypatch.setattr(report, 'CHUNK_ROWS', 1000)
+    monkeypatch.setattr(report.recording, 'CHUNK_ROWS', 1000)
     d = report.measurement_to_parameters(meas, log)
     # windows before / after the record are ignored; the rest arrive 50 ms - 2 ms later
     np.testing.assert_allclose(d, [0.048] * 5, atol=1e-9)
@@ -351,8 +351,8 @@ def test_restart_figures_from_car_modes_and_identifier_lives():
     for t in np.arange(100.0, 130.0, 0.01):
         if 112.0 < t < 114.0:
             continue
-        report._mode_runs(rec['car_modes'], float(t), int(105.0 <= t < 108.0
-                                                          or 114.0 <= t < 115.0))
+        mode = int(105.0 <= t < 108.0 or 114.0 <= t < 115.0)
+        report.recording._mode_runs(rec['car_modes'], float(t), mode)
     # identifier counts every 0.1 s at 1 kHz; killed at 103 s, restarted at 104 s, counting
     # from 0 on; the recorder missed its first counts (they arrive from 106 s on)
     for k in range(300):
@@ -360,7 +360,7 @@ def test_restart_figures_from_car_modes_and_identifier_lives():
             continue
         t = 100.0 + 0.1 * k
         count = 100 * k if k < 30 else 100 * k - 4500
-        report._count_lives(rec['identifier_lives'], float(t), count, starts=(104.0,))
+        report.recording._count_lives(rec['identifier_lives'], float(t), count, starts=(104.0,))
     assert len(rec['identifier_lives']) == 2
     # every sample recorded (1 kHz) but for 500 missing around 120 s (a recorder gap)
     recv = 100.0 + 1e-3 * np.arange(29901)

@@ -1,0 +1,284 @@
+"""Reading a suite recording back: one streamed pass over its MCAP parts into column logs."""
+from pathlib import Path
+
+import numpy as np
+
+from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
+                                      NODE_PARAMETERS_TOPIC, SENSING_TOPICS, STATUS_KEYS,
+                                      SUITE_TOPICS)
+from mr_damper_model.io.columnlog import ColumnWriter, JsonLines
+from mr_damper_model.live.sample_stream import BatchIndex
+from mr_damper_model.models.kwok_current import KwokCurrent
+
+
+KWOK_CURRENT_NAMES = KwokCurrent.param_names
+
+
+#: file name of the run's recording in the output folder
+RECORDING = 'suite.mcap'
+
+
+MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
+
+
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
+    """
+    Read a suite recording back in one streamed pass (bounded memory).
+
+    Each file is read front to back (``mr_damper_model.io.mcap_scan.McapScan``, messages in the
+    order the recorder wrote them), a file whose recorder was killed up to its last complete
+    chunk.
+
+    Parameters
+    ----------
+    path : str or Path, or a list of them
+        The ``suite.mcap`` file, or the parts of a recording (a restarted recorder writes a new
+        part, ``recorder.recording_parts``), read one after the other.
+    work : str or Path
+        Folder for the streamed extracts: column log ``measurement`` (:data:`MEAS_COLUMNS`,
+        ``recv_epoch_s`` = receive time [s]) and ``parameters.jsonl`` (``[t_s, dict]`` per
+        message, ``t_s`` seconds since the recording started, the dict with ``recv_epoch_s``).
+    identifier_starts : sequence of float, optional
+        Epoch times [s] the identifier was restarted at (the launcher's record): a count after
+        one belongs to a new life, even when the recorder missed the new life's first counts.
+    car_modes_from : float, optional
+        Epoch time [s] from which the car states are decoded into ``car_modes`` (the first
+        death of a node; None: not at all, a 1 kHz topic the rest of the report does not need).
+
+    Returns
+    -------
+    dict
+        ``config`` (the parameter dict the suite ran with, or None), ``node_parameters``
+        (node -> the parameters it reported running with, its defaults included), ``truth``,
+        ``truth_spencer`` (decoded true parameters), ``status`` (last status per node),
+        ``status_messages``, ``ride_metrics`` (last), ``topic_messages`` (messages per topic
+        key), ``parameter_messages``, ``measurements_received``, ``measurement_gaps`` (samples
+        missing between consecutive stamps), ``measurement_out_of_order``, ``undecodable``
+        (messages per key whose payload did not decode), ``start_epoch_s``, ``end_epoch_s``,
+        ``parts`` (per file: ``complete``, ``messages``, first and last log time, ``error``;
+        ``McapScan.summary``), ``identifier_lives`` (the identifier's ``samples_received``
+        counts, one entry per process life: a count after a restart in ``identifier_starts``
+        or one that goes down starts a life; ``counts``: its ``(t, count)`` series),
+        ``gap_events`` (``(receive time, samples missing)`` of each stamp gap) and
+        ``car_modes`` (runs ``[first_s, last_s, fail_safe_mode]`` of the car state, split at a
+        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]).
+
+    """
+    import yaml
+
+    from mr_damper_model.io.bag_types import suite_typestore
+    from mr_damper_model.io.mcap_scan import McapScan
+    from mr_damper_bringup.topics import decode_measurement
+    work = Path(work)
+    tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
+    keys = {row.name: key for key, row in tables.items()}
+    keys[CONFIG_TOPIC.name] = 'config'
+    keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
+    rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
+           'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
+           'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
+           'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None,
+           'end_epoch_s': None, 'parts': [], 'identifier_lives': [], 'car_modes': [],
+           'gap_events': []}
+    meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
+    params = JsonLines(work / 'parameters.jsonl')
+    gaps = _Gaps()
+    typestore = suite_typestore()
+    try:
+        for part in (path if isinstance(path, (list, tuple)) else [path]):
+            reader = McapScan(part)
+            for topic, msgtype, t_ns, raw in reader.messages(keys):
+                key = keys[topic]
+                t_rx = t_ns * 1e-9
+                if rec['start_epoch_s'] is None:
+                    rec['start_epoch_s'] = t_rx
+                rec['end_epoch_s'] = t_rx
+                rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
+                if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
+                               'config', 'node_parameters', 'samples_received', 'car_state',
+                               *STATUS_KEYS) or (key == 'car_state' and (
+                                   car_modes_from is None or t_rx < car_modes_from)):
+                    continue
+                msg = reader.deserialize(raw, msgtype, typestore)
+                try:
+                    if key == 'measurement':
+                        sample = decode_measurement(msg)
+                    elif key == 'samples_received':
+                        _count_lives(rec['identifier_lives'], t_rx, int(msg.data),
+                                     identifier_starts)
+                        continue
+                    elif key == 'car_state':
+                        _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
+                        continue
+                    elif key == 'config':
+                        rec['config'] = yaml.safe_load(msg.data)
+                        continue
+                    elif key == 'node_parameters':
+                        for node, section in yaml.safe_load(msg.data).items():
+                            rec['node_parameters'][node] = section['ros__parameters']
+                        continue
+                    elif key in ('parameters', 'truth', 'truth_spencer'):
+                        d = decode_parameters(msg)
+                    else:
+                        for node, d in decode_status(key, msg).items():
+                            rec['status'][node] = d
+                            rec['status_messages'][node] = \
+                                rec['status_messages'].get(node, 0) + 1
+                            if node == 'quarter_car' and d.get('ride_metrics'):
+                                rec['ride_metrics'] = d['ride_metrics']
+                        continue
+                except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
+                    rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1
+                    continue
+                if key == 'parameters':
+                    d['recv_epoch_s'] = t_rx
+                    params.append([t_rx - rec['start_epoch_s'], d])
+                    rec['parameter_messages'] += 1
+                elif key != 'measurement':
+                    rec[key] = d
+                else:
+                    missing = rec['measurement_gaps']
+                    _take_measurement(rec, gaps, sample, getattr(msg, 'first_index', None),
+                                      meas, t_rx)
+                    if rec['measurement_gaps'] > missing:
+                        rec['gap_events'].append((t_rx, rec['measurement_gaps'] - missing))
+            rec['parts'].append(reader.summary())
+    finally:
+        meas.close()
+        params.close()
+    return rec
+
+
+#: a silence of the car state longer than this [s] ends a run of its mode (the car was down)
+CAR_STATE_GAP_S = 0.5
+
+
+def _count_lives(lives, t, count, starts=()):
+    """
+    Add one count of a process's counter at ``t`` to its ``lives``.
+
+    A count that goes down, or the first count after a (re)start time in ``starts``, starts a
+    new life.
+    """
+    if (not lives or count < lives[-1]['last_count']
+            or any(lives[-1]['last_s'] < t0 <= t for t0 in starts)):
+        lives.append({'first_s': t, 'first_count': count, 'last_s': t, 'last_count': count,
+                      'counts': [(t, count)]})
+    else:
+        lives[-1].update(last_s=t, last_count=count)
+        lives[-1]['counts'].append((t, count))
+
+
+def _received_between(lives, a, b):
+    """Return the samples the identifier's lives counted in ``(a, b]`` (count at b less at a)."""
+    def at(life, t):
+        got = [c for tc, c in life['counts'] if tc <= t]
+        return got[-1] if got else 0
+    return sum(at(life, b) - at(life, a) for life in lives)
+
+
+def _mode_runs(runs, t, mode):
+    """Add one car state's mode at ``t`` to the runs ``[first_s, last_s, mode]``."""
+    if runs and t - runs[-1][1] <= CAR_STATE_GAP_S:
+        if runs[-1][2] == mode:
+            runs[-1][1] = t
+            return
+        runs[-1][1] = t                # contiguous: the previous mode lasted until now
+    runs.append([t, t, mode])
+
+
+class _Gaps:
+    """Samples missing from the recorded measurement stream (see :func:`_take_measurement`)."""
+
+    def __init__(self):
+        self.index = BatchIndex()
+        self.last_t = None
+        self.dt = None
+
+
+def _take_measurement(rec, gaps, cols, first_index, meas, t_rx):
+    """
+    Append one recorded measurement message (arrays ``t, x, v, f, i``) to the column log.
+
+    Samples not after the newest kept stamp are counted (``measurement_out_of_order``) and
+    left out. Missing samples (``measurement_gaps``) are counted exactly from the batches'
+    stream index (``first_index``); for single-sample JointState recordings, from stamp steps
+    longer than 1.5 sample periods (the period: the shortest step of the first 20 samples).
+    """
+    t = cols[0]
+    prev = -np.inf if gaps.last_t is None else gaps.last_t
+    keep = t > np.maximum.accumulate(np.concatenate(([prev], t)))[:-1]
+    rec['measurement_out_of_order'] += int(keep.size - np.count_nonzero(keep))
+    if not keep.any():
+        return
+    if first_index is not None:
+        rec['measurement_gaps'] += gaps.index.update(first_index, t.size)
+    else:
+        t0 = float(t[keep][0])
+        if gaps.last_t is not None:
+            step = t0 - gaps.last_t
+            if gaps.dt is None or rec['measurements_received'] < 20:
+                gaps.dt = step if gaps.dt is None else min(gaps.dt, step)
+            elif step > 1.5 * gaps.dt:
+                rec['measurement_gaps'] += int(round(step / gaps.dt)) - 1
+    gaps.last_t = float(t[keep][-1])
+    block = np.column_stack([c[keep] for c in cols] + [np.full(np.count_nonzero(keep), t_rx)])
+    meas.append_block(block)
+    rec['measurements_received'] += int(block.shape[0])
+
+
+CHUNK_ROWS = 65536
+
+
+class ParamsLog:
+    """
+    The parameter messages of a run, read from ``parameters.jsonl`` on each pass (bounded).
+
+    Iterating yields ``(wall_s, dict)``; ``len()`` counts the records (one pass). Lines that are
+    not JSON (the last line of a crashed run) are skipped and listed in ``bad_lines``.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.bad_lines = []
+
+    def __iter__(self):
+        from mr_damper_model.io.columnlog import read_json_lines
+        if not self.path.exists():
+            return
+        bad = []
+        for rec in read_json_lines(self.path, bad):
+            if isinstance(rec, list) and len(rec) == 2 and isinstance(rec[1], dict):
+                yield float(rec[0]), rec[1]
+        self.bad_lines = bad
+
+    def __len__(self):
+        return sum(1 for _ in self)
+
+
+def recording_state(rec):
+    """
+    Return how complete the recording is: ``complete``, ``parts``, ``note``.
+
+    ``complete`` is True only for one part closed properly (a restarted recorder leaves parts
+    with a gap between them; a killed one a part without its footer, read up to its last
+    complete chunk); ``parts`` lists each file read (``McapScan.summary``).
+    """
+    parts = rec.get('parts') or []
+    complete = len(parts) == 1 and parts[0]['complete']
+    out = {'complete': complete, 'parts': parts}
+    if not parts:
+        out['note'] = 'no recording: the summary comes from the nodes\' last statuses'
+    elif not complete:
+        cut = [p for p in parts if not p['complete']]
+        out['note'] = (f'{len(parts)} part(s), {len(cut)} cut short by a killed recorder '
+                       '(read up to the last complete chunk); messages between the parts were '
+                       'not recorded')
+    return out
+
+
+def _first(d, keys):
+    for k in keys:
+        if isinstance(d.get(k), (int, float)):
+            return d[k]
+    return None
