@@ -147,6 +147,8 @@ class FullCarControllerCore:
         ``incomplete`` (states of a set that never completed) counts.
     normal_commands : list of int
         Commands per corner given in normal mode.
+    first_normal_t : list of float
+        Stamp of each corner's first state answered in normal mode [s] (nan: never).
 
     """
 
@@ -163,6 +165,7 @@ class FullCarControllerCore:
         self.states = [0] * 4
         self.dropped = {'replaced': 0, 'incomplete': 0}
         self.normal_commands = [0] * 4
+        self.first_normal_t = [math.nan] * 4
         self.currents = [sups[0].safe_current_a] * 4
 
     @staticmethod
@@ -215,7 +218,10 @@ class FullCarControllerCore:
         corners, self._pending = self._pending, [None] * 4
         currents = self.controller.command(full_car_state(self.params, corners), t_clock)
         for j, mode in enumerate(self.controller.modes):
-            self.normal_commands[j] += mode == 'normal'
+            if mode == 'normal':
+                self.normal_commands[j] += 1
+                if math.isnan(self.first_normal_t[j]):
+                    self.first_normal_t[j] = corners[j].t
         self.sets += 1
         self.currents = currents
         return currents
@@ -229,7 +235,8 @@ class FullCarControllerCore:
         dict
             ``controller``, ``sets``, ``corners_normal``, ``dropped`` and ``corners`` (per
             corner: the core's status with ``mode``, ``reason``, ``params_accepted``, ...,
-            plus ``states``, ``normal_commands``, ``current_a`` and, with ``t_clock``,
+            plus ``states``, ``normal_commands``, ``first_normal_t_sim``, ``current_a`` and,
+            with ``t_clock``,
             ``param_age_s``).
 
         """
@@ -239,6 +246,7 @@ class FullCarControllerCore:
         corners = self.controller.status()
         for i, c in enumerate(CORNERS):
             corners[c].update(states=self.states[i], normal_commands=self.normal_commands[i],
+                              first_normal_t_sim=self.first_normal_t[i],
                               current_a=float(self.currents[i]))
             if t_clock is not None:
                 corners[c]['param_age_s'] = self.controller.supervisors[i].age(t_clock)
