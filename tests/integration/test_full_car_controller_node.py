@@ -66,7 +66,7 @@ def test_invalid_corner_gets_the_safe_current_the_others_the_law():
                                 safe_current_a=SAFE_A)
     for c in CORNERS:
         ref.offer_parameters(c, bad if c == 'rr' else good, 1.0)
-    states = _ride_states(100)
+    states = _ride_states(200)
     with Listener('full_car_controller_test') as lis:
         diag = lis.diagnostics()
         _publish_parameters(lis, ns, {c: bad if c == 'rr' else good for c in CORNERS})
@@ -149,3 +149,43 @@ def test_controller_drives_the_full_car_in_lock_step_with_rr_withheld():
     for c in CORNERS:                           # the car took every corner's commands
         assert st_car['corners'][c]['commands_received'] >= steps
         assert st_car['corners'][c]['command_timeouts'] == 0
+
+
+def test_lock_step_wait_is_bounded_and_counted_without_answers():
+    """The car in lock-step whose controller never answers: each step waits at most the bound."""
+    from mr_damper_interfaces.msg import QuarterCarState
+    from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
+    from std_msgs.msg import Float64
+    ns = 'fc_lockstep_silent'
+    car = {'controller': 'external', 'lockstep': True, 'lockstep_timeout_s': 0.02,
+           'command_timeout_s': 3600.0, 'real_time_factor': 0.0, 'plant': 'kwok-current',
+           'safe_current_a': SAFE_A, 'road_duration_s': 5.0, 'settle_s': 0.1,
+           'diagnostics_period_s': 0.05, 'log_max_s': 5.0}
+    with Listener('full_car_lockstep_silent') as lis:
+        diag = lis.diagnostics()
+        # a silent controller: the topics matched both ways, no command ever
+        states = {c: lis.subscribe(f'/{ns}/{c}/quarter_car/car_state', QuarterCarState,
+                                   CONTROL_QOS) for c in CORNERS}
+        cmd_pubs = [lis.publisher(f'/{ns}/{c}/mr_damper/current_command', Float64, CONTROL_QOS)
+                    for c in CORNERS]
+        name = f'{ns}/full_car_node'
+        with NodeProcess('full_car_node', params=car, namespace=ns) as plant:
+            assert lis.wait_for(lambda: diag.values(name).get('lockstep_timeouts', 0) >= 5,
+                                GUARD_S, procs=[plant]), plant.output()
+            st = diag.values(name)
+            # one timeout per step without an answer: the car goes on, on the safe current
+            assert st['steps'] <= st['lockstep_timeouts'] + 1
+            for c in CORNERS:
+                d = st['corners'][c]
+                assert (d['mode'], d['reason'], d['current_a']) == (
+                    'failsafe', 'no_command_yet', SAFE_A), (c, d)
+            # answers come: every corner leaves fail-safe on its command
+            n = min(len(states[c]) for c in CORNERS)
+            for pub in cmd_pubs:
+                pub.publish(Float64(data=1.25))
+            assert lis.wait_for(lambda: diag.values(name).get('corners_normal') == 4
+                                and all(diag.values(name)['corners'][c]['current_a'] == 1.25
+                                        for c in CORNERS), GUARD_S, procs=[plant])
+            assert min(len(states[c]) for c in CORNERS) > n      # the car kept stepping
+            assert plant.stop() == 0, plant.output()
+        assert 'no four commands within 0.02 s' in plant.output()

@@ -43,7 +43,9 @@ corner's figures from its nodes' diagnostics (no plots).
 
 ``--config full-car`` runs four rig + identifier pairs in ``fl``, ``fr``, ``rl``, ``rr`` and one
 ``full_car_node`` (the 7-DOF car on the four identified models, :mod:`mr_damper_bringup.
-full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``.
+full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``. With
+``--external-controller`` the full car's law runs in ``full_car_controller_node`` and the car
+is the plant only.
 
 Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
 down, or no summary could be made), 2 bad command line / config.
