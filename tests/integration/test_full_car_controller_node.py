@@ -134,8 +134,13 @@ def test_controller_drives_the_full_car_in_lock_step_with_rr_withheld():
                 assert plant.stop() == 0, plant.output()
             st_car = diag.values(car_name)           # the newest status (steps so far)
             steps = st_car['steps']
-            assert lis.wait_for(lambda: diag.values(ctrl_name).get('sets', 0) >= steps,
-                                GUARD_S, procs=[ctrl])
+
+            def all_answered():
+                st = diag.values(ctrl_name)
+                return (st.get('sets', 0) >= steps and [
+                    st['corners'][c]['states'] for c in CORNERS] == [st['sets']] * 4)
+
+            assert lis.wait_for(all_answered, GUARD_S, procs=[ctrl]), diag.values(ctrl_name)
             st = diag.values(ctrl_name)
             assert ctrl.stop() == 0, ctrl.output()
     assert st_car['controller'] == 'external' and st_car['lockstep'] in (True, 'True')
