@@ -26,6 +26,7 @@ NODE_MODULES = (
     'mr_damper_can.can_driver_sim_node',
     'quarter_car_sim.state_estimator_node',
     'quarter_car_sim.full_car_node',
+    'quarter_car_sim.full_car_controller_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

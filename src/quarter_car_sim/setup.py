@@ -32,6 +32,7 @@ setup(
             'quarter_car_sim.entry_points:semi_active_controller_node',
             'state_estimator_node = quarter_car_sim.entry_points:state_estimator_node',
             'full_car_node = quarter_car_sim.entry_points:full_car_node',
+            'full_car_controller_node = quarter_car_sim.entry_points:full_car_controller_node',
             'full-car-sim = quarter_car_sim.full_car.cli:main',
         ],
     },

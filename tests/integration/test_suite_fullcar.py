@@ -76,3 +76,34 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
         for topic in ('quarter_car/car_state', 'mr_damper/current_command',
                       'mr_damper/kwok_parameters', 'mr_damper/measurement'):
             assert counts.get(f'/{c}/{topic}', 0) > 0, (c, topic, counts)
+
+
+def test_full_car_suite_with_the_external_controller(tmp_path):
+    """``--external-controller``: the law in full_car_controller_node, the car the plant."""
+    out = tmp_path / 'full_car_ext'
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'full-car', '--duration', '0',
+           '--out', str(out), '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
+           '--no-plots', '--external-controller', '--set', 'full_car_node.param_timeout_s=5.0']
+
+    def ready(line):
+        # the modes are the controller's: stop once every corner is on its own model
+        modes = dict(re.findall(r'(fl|fr|rl|rr): \d+ samples, [1-9]\d* valid, car (\w+)',
+                                line))
+        return all(modes.get(c) == 'normal' for c in CORNERS)
+
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    assert ok, ''.join(seen[-20:])
+    assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
+    summary = json.loads((out / 'summary.json').read_text())
+    codes = summary['exit_codes']
+    assert {'full_car_node', 'full_car_controller'} <= set(codes), codes
+    assert all(code == 0 for code in codes.values()), codes
+    car = summary['full_car']
+    assert car['controller'] == 'modal-skyhook', car
+    ext = car['external_controller']
+    assert ext['sets'] > 0 and set(ext['car_command_timeouts']) == set(CORNERS), ext
+    for c in CORNERS:
+        d = car['corners'][c]
+        assert d['params_accepted'] > 0 and d['first_normal_t_sim'] is not None, (c, d)
+        assert summary['corners'][c]['samples_lost'] == 0, (c, summary['corners'][c])

@@ -33,3 +33,22 @@ def test_rate_factor_sets_the_cars_speed_too(tmp_path):
     args.rate_factor = 2.0
     _, car = full_car_configs(resolve_config(args, tmp_path), tmp_path, 30.0)
     assert car[FULL_CAR]['ros__parameters']['real_time_factor'] == 2.0
+
+
+def test_external_controller_takes_the_law_and_the_car_becomes_the_plant(tmp_path):
+    from mr_damper_bringup.full_car_suite import external_full_car, FULL_CAR_CTRL
+    args = _args(30.0)
+    args.set = ['full_car_node.controller=per-corner-skyhook']
+    cfg = resolve_config(args, tmp_path)
+    _, car = full_car_configs(cfg, tmp_path, 30.0)
+    assert not external_full_car(car) and FULL_CAR_CTRL not in car
+    _, car = full_car_configs(cfg, tmp_path, 30.0, external=True)
+    assert external_full_car(car)
+    law = car[FULL_CAR_CTRL]['ros__parameters']
+    plant = car[FULL_CAR]['ros__parameters']
+    assert law['controller'] == 'per-corner-skyhook' and plant['controller'] == 'external'
+    for name in ('safe_current_a', 'param_timeout_s', 'min_current_span_a'):
+        assert law[name] == plant[name]                    # the same supervisor settings
+    # a configuration already external keeps its controller section's law
+    _, again = full_car_configs(cfg | car, tmp_path, 30.0)
+    assert again[FULL_CAR_CTRL]['ros__parameters']['controller'] == 'per-corner-skyhook'

@@ -8,6 +8,11 @@ Four rig / identifier pairs run in the namespaces ``fl``, ``fr``, ``rl``, ``rr``
 status (``/diagnostics``) and its body log (``full_car_body.npz``), and compares the body's
 ISO 2631-1 figures with the same car on the same road at the safe current, simulated offline
 here with :func:`quarter_car_sim.full_car.simulate.simulate_full_car`.
+
+With ``--external-controller`` the law runs in ``full_car_controller_node`` (root namespace,
+subscribing the four corners' states and parameter sets) and ``full_car_node`` is the plant
+only (``controller: external``); the summary then takes the corners' parameter counts and
+modes from the controller.
 """
 import math
 from pathlib import Path
@@ -19,13 +24,20 @@ from .config import IDENT, node_params, QC, RIG, set_param
 #: The full-car node's section name, console script and status key.
 FULL_CAR = 'full_car_node'
 FULL_CAR_NODE = {FULL_CAR: 'full_car_node'}
+#: The full-car controller node's section name, console script and status key.
+FULL_CAR_CTRL = 'full_car_controller'
+FULL_CAR_CTRL_NODE = {FULL_CAR_CTRL: 'full_car_controller_node'}
+#: Car parameters the controller node takes over with ``--external-controller``.
+FULL_CAR_CTRL_PARAMS = ('controller', 'rate_hz', 'safe_current_a', 'param_timeout_s',
+                        'i_min_a', 'i_max_a', 'min_current_span_a', 'hold_on_reject',
+                        'diagnostics_period_s')
 #: The body log the node writes at its end.
 BODY_LOG = 'full_car_body.npz'
 #: The four corner namespaces.
 FULL_CAR_CORNERS = ('fl', 'fr', 'rl', 'rr')
 
 
-def full_car_configs(cfg, out, duration_s):
+def full_car_configs(cfg, out, duration_s, external=False):
     """
     Split a full-car run's parameters: one dict per corner (rig + identifier), one for the car.
 
@@ -39,19 +51,31 @@ def full_car_configs(cfg, out, duration_s):
     duration_s : float
         Run time [s, wall clock] (0 = until stopped: a 600 s road, then held flat): the car's
         road and body log are made long enough.
+    external : bool
+        Run the law in ``full_car_controller_node`` (its own section, the car's law and
+        supervisor settings unless set there); the car becomes the plant
+        (``controller: external``).
 
     Returns
     -------
     corners : dict
         corner -> parameter dict of its rig and identifier (namespaced sections).
     car : dict
-        The car node's parameter dict (``/**`` and ``full_car_node``).
+        The car node's parameter dict (``/**`` and ``full_car_node``; with ``external`` also
+        ``full_car_controller``).
 
     """
     from .config import corner_configs
     stacks = {k: v for k, v in cfg.items() if k in ('/**', RIG, IDENT)}
     corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
-    car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR)}
+    car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR, FULL_CAR_CTRL)}
+    if external or external_full_car(car):
+        law = node_params(car, FULL_CAR)
+        own = car.setdefault(FULL_CAR_CTRL, {}).setdefault('ros__parameters', {})
+        for name in FULL_CAR_CTRL_PARAMS:
+            if name in law and not (name == 'controller' and external_full_car(car)):
+                own.setdefault(name, law[name])
+        set_param(car, FULL_CAR, 'controller', 'external')
     set_param(car, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
     qc_speed = node_params(cfg, QC).get('real_time_factor')   # set by --rate-factor
     if qc_speed is not None:
@@ -63,6 +87,12 @@ def full_car_configs(cfg, out, duration_s):
         set_param(car, FULL_CAR, 'road_duration_s', min(need, 3600.0))
     set_param(car, FULL_CAR, 'log_max_s', min(need, 3600.0))
     return corners, car
+
+
+def external_full_car(car_cfg):
+    """Return True when the full car's law runs in the controller node."""
+    law = str(node_params(car_cfg, FULL_CAR).get('controller', ''))
+    return law.strip().lower() == 'external'
 
 
 def start_full_car(car_cfg, out):
@@ -77,7 +107,8 @@ def full_car_progress_line(monitor, elapsed):
     """Return one progress line: each corner's samples, valid sets, mode in the car; car time."""
     status = monitor.snapshot()[0]
     st = status.get(FULL_CAR) or {}
-    car = st.get('corners') or {}
+    car = (status.get(FULL_CAR_CTRL) or st if st.get('controller') == 'external'
+           else st).get('corners') or {}
     parts = []
     for c in FULL_CAR_CORNERS:
         ident = status.get(f'{c}/identifier') or {}
@@ -170,11 +201,22 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
 
     """
     out = Path(out)
-    st = monitor.snapshot()[0].get(FULL_CAR) or {}
+    statuses = monitor.snapshot()[0]
+    st = statuses.get(FULL_CAR) or {}
     car_corners = st.get('corners') or {}
+    ctrl = statuses.get(FULL_CAR_CTRL) if external_full_car(car_cfg) else None
+    if ctrl is not None:            # the law, supervisors and parameters are the controller's
+        car_corners = ctrl.get('corners') or {}
     section = {'controller': st.get('controller'), 'steps': st.get('steps'),
                'corners_normal': st.get('corners_normal'), 'iso2631': st.get('iso2631'),
                'dropped': st.get('dropped'), 'corners': {}}
+    if ctrl is not None:
+        section['controller'] = ctrl.get('controller')
+        section['external_controller'] = {
+            'sets': ctrl.get('sets'), 'dropped_states': ctrl.get('dropped_states'),
+            'dropped': ctrl.get('dropped'),
+            'car_command_timeouts': {c: (st.get('corners') or {}).get(c, {}).get(
+                'command_timeouts') for c in FULL_CAR_CORNERS}}
     for c in FULL_CAR_CORNERS:
         d = car_corners.get(c) or {}
         ident = corners_summary.get(c) or {}

@@ -43,7 +43,9 @@ corner's figures from its nodes' diagnostics (no plots).
 
 ``--config full-car`` runs four rig + identifier pairs in ``fl``, ``fr``, ``rl``, ``rr`` and one
 ``full_car_node`` (the 7-DOF car on the four identified models, :mod:`mr_damper_bringup.
-full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``.
+full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``. With
+``--external-controller`` the full car's law runs in ``full_car_controller_node`` and the car
+is the plant only.
 
 Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
 down, or no summary could be made), 2 bad command line / config.
@@ -64,7 +66,8 @@ from mr_damper_common.health import finite_or_none
 
 from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
                      recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)
-from .full_car_suite import (FULL_CAR, FULL_CAR_NODE, full_car_configs,
+from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL, FULL_CAR_CTRL_NODE, FULL_CAR_NODE,
+                             external_full_car, full_car_configs,
                              full_car_progress_line, full_car_summary, start_full_car)
 from .processes import CLEAN_EXIT, ProcessStats, Suite
 from .recorder import part_path, remove_recording
@@ -247,8 +250,9 @@ def parse_args(argv):
     p.add_argument('--bin-dir', help='folder of the node console scripts (default: the venv)')
     p.add_argument('--progress-s', type=float, default=5.0, help='progress line period [s]')
     p.add_argument('--external-controller', action='store_true',
-                   help='run the car\'s law in semi_active_controller_node (the car is the '
-                        'plant only, controller:=external)')
+                   help='run the car\'s law in semi_active_controller_node (full-car: '
+                        'full_car_controller_node); the car is the plant only '
+                        '(controller:=external)')
     p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
                    help='vehicle: the law runs on the state estimated from the car\'s modelled '
                         'sensors (state_estimator_node + semi_active_controller_node, '
@@ -293,7 +297,8 @@ def main(argv=None):
         corners = corner_configs(cfg, args.corners, out) if args.corners else {}
         full_car = args.config == 'full-car'
         if full_car:
-            corners, car_cfg = full_car_configs(cfg, out, args.duration)
+            corners, car_cfg = full_car_configs(cfg, out, args.duration,
+                                                external=args.external_controller)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -312,7 +317,10 @@ def main(argv=None):
     record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
     if corners:
         # the full car starts before the corners: on its safe currents until their models come
-        nodes = {**RECORDER_NODE, **(FULL_CAR_NODE if full_car else {})}
+        # (with --external-controller the full car's controller before the car)
+        ext_car = full_car and external_full_car(car_cfg)
+        nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODE if ext_car else {}),
+                 **(FULL_CAR_NODE if full_car else {})}
         node_args = {}
         for corner, corner_cfg in corners.items():
             corner_file = out / f'suite_params_{corner}.yaml'
@@ -327,6 +335,8 @@ def main(argv=None):
         node_args[RECORDER] = record_args
         if full_car:
             node_args[FULL_CAR] = start_full_car(car_cfg, out)
+            if ext_car:
+                node_args[FULL_CAR_CTRL] = node_args[FULL_CAR]
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
     else:
         suite = Suite(params_file, out, domain_id, args.bin_dir,
@@ -387,7 +397,8 @@ def main(argv=None):
         elapsed = time.monotonic() - t_start
     finally:
         if corners:
-            order = [FULL_CAR] + [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
+            order = [FULL_CAR, FULL_CAR_CTRL] + [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT)
+                                                 for c in corners]
             codes = suite.stop(order=order,
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}

@@ -24,3 +24,8 @@ def state_estimator_node():
 def full_car_node():
     """``ros2 run quarter_car_sim full_car_node``."""
     return early_main('quarter_car_sim.full_car_node')
+
+
+def full_car_controller_node():
+    """``ros2 run quarter_car_sim full_car_controller_node``."""
+    return early_main('quarter_car_sim.full_car_controller_node')

@@ -35,12 +35,22 @@ rig / identifier pairs of ``mr-damper-suite --config full-car``)
   a_w_roll, a_v, VDVs, crest factors of the body centre since t = 0), loop.*,
   late_reanchors, dropped.<reason>.
 
+External controller (``controller:=external``): the node is the plant only. Every step it
+publishes the four corner states (reliable, depth 10) and applies each corner's latest command
+from ``<c>/mr_damper/current_command`` (one ``CommandInput`` per corner: a corner without a
+command for ``command_timeout_s`` gets ``safe_current_a``, counted); it neither subscribes the
+parameters nor publishes the commands. With ``lockstep:=true`` step 0 waits for the four topics
+to be matched both ways and each step waits for four commands after publishing its state (at
+most ``lockstep_timeout_s``, each expiry counted in ``lockstep_timeouts``), e.g. for
+``full_car_controller_node``.
+
 At the end the node publishes a final status and, with ``log_file``, writes the body's
 recorded time and accelerations (``t``, ``acc`` with columns heave, pitch, roll) as a NumPy
 ``.npz`` file for the suite's report.
 """
 import sys
 import threading
+import time
 
 import numpy as np
 from rclpy.node import Node
@@ -55,11 +65,14 @@ from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublishe
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.control_thread import ControlThread
+from quarter_car_sim.controller_core import CommandInput
 from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
 from quarter_car_sim.full_car.road import make_two_track_road
+from quarter_car_sim.full_car_controller_node import CORNER_SUPERVISOR_PARAMETERS
 from quarter_car_sim.full_car.runtime import BODY_JOINTS, corner_car_state, FullCarRuntime
 from quarter_car_sim.quarter_car_node import end_on_control_error, run_car_node
-from quarter_car_sim.semi_active_controller_node import car_state_to_msg, offer_parameters
+from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
+                                                         offer_parameters)
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
@@ -67,17 +80,16 @@ PARAMETERS = (
     Param('real_time_factor', 1.0, 'Simulated seconds per wall second (0 = as fast as '
           'possible) [-]', 0.0, 1000.0),
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal, per-corner-<law> (e.g. per-corner-skyhook) or '
-          'passive@<I>A'),
-    Param('safe_current_a', 0.5, 'Coil current of a corner in fail-safe [A]', 0.0, 10.0),
-    Param('param_timeout_s', 1.0, 'A corner\'s identified parameters older than this are '
-          'stale [s, node clock]', 0.01, 3600.0),
-    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
-    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
-    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
-          '[A]', 0.0, 10.0),
-    Param('hold_on_reject', False, 'Keep a corner\'s model when a later message is refused '
-          '(until stale)'),
+          'full-car-clipped-optimal, per-corner-<law> (e.g. per-corner-skyhook), '
+          'passive@<I>A, or external (plant only: currents on <c>/mr_damper/current_command, '
+          'e.g. full_car_controller_node)'),
+    Param('command_timeout_s', 0.05, 'External controller: a corner\'s safe current when no '
+          'command came for it for this long [s, node clock]', 0.001, 3600.0),
+    Param('lockstep', False, 'External controller: each step waits for the four commands '
+          'answering the previous state'),
+    Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for the four commands [s, wall '
+          'clock]', 0.001, 3600.0),
+) + CORNER_SUPERVISOR_PARAMETERS + (
     Param('road', 'iso8608-C', 'Two-track road: iso8608-<class> (A..H) or an event of '
           'quarter_car_sim.full_car.road.EVENTS'),
     Param('speed_m_s', 20.0, 'Vehicle speed [m/s]', 0.1, 100.0),
@@ -121,22 +133,37 @@ class FullCarNode(Node):
                                    duration_s=p['road_duration_s'], dt=dt,
                                    rng=int(p['road_seed']))
         plants = [make_plant(p['plant'], p['truth_file']) for _ in CORNERS]
+        self.external = p['controller'].strip().lower() == 'external'
+        self.lockstep = self.external and p['lockstep']
+        self.lockstep_timeout_s = p['lockstep_timeout_s']
+        self.lockstep_timeouts = 0
+        law = f'passive@{p["safe_current_a"]:g}A' if self.external else p['controller']
         self.rt = FullCarRuntime(
-            PASSENGER_CAR, road, plants, p['controller'], dt=dt,
+            PASSENGER_CAR, road, plants, law, dt=dt,
             timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
             i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
             min_current_span_a=p['min_current_span_a'], hold_on_reject=p['hold_on_reject'],
             settle_s=p['settle_s'], log_max_s=p['log_max_s'])
         self.drops = DropCounter(self.get_logger())
-        self.state_pubs, self.cmd_pubs, self.state_msgs = [], [], []
+        self.state_pubs, self.cmd_pubs, self.state_msgs, self.cmd_subs = [], [], [], []
+        if self.external:
+            self.cmd_ins = [CommandInput(p['command_timeout_s'], p['safe_current_a'],
+                                         p['i_min_a'], p['i_max_a']) for _ in CORNERS]
+            self.answered = threading.Event()     # lock-step: the four commands came
+            self.n_answers = 0
         for i, c in enumerate(CORNERS):
-            self.state_pubs.append(self.create_publisher(QuarterCarState,
-                                                         f'{c}/quarter_car/car_state', 10))
-            self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
-                                                       10))
+            self.state_pubs.append(self.create_publisher(
+                QuarterCarState, f'{c}/quarter_car/car_state', CONTROL_QOS))
             msg = QuarterCarState()
             msg.header.frame_id = f'{c}/quarter_car'
             self.state_msgs.append(msg)
+            if self.external:
+                self.cmd_subs.append(self.drops.subscribe(
+                    self, Float64, f'{c}/mr_damper/current_command',
+                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS, 'commands_lost'))
+                continue
+            self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
+                                                       10))
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
                                  lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
                                  'parameters_lost')
@@ -151,13 +178,16 @@ class FullCarNode(Node):
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='full_car', drops=self.drops)
         self.control = ControlThread(
-            self._step, live_loop.Pacer(dt, self.rtf),
+            self._step_external if self.external else self._step,
+            live_loop.Pacer(dt, self.rtf),
             live_loop.LoopTiming(dt / self.rtf if self.rtf > 0 else None),
+            before_first=self._wait_for_controller if self.lockstep else None,
             on_error=lambda failed: end_on_control_error(self, failed),
             priority=int(p['realtime_priority']) if self.rtf > 0 else 0)
         self.control.start()
+        name = 'external controller' if self.external else self.rt.controller.name
         self.get_logger().info(
-            f'{self.rt.controller.name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
+            f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
             f'{road.name}, plants {p["plant"]}; fail-safe {p["safe_current_a"]:g} A, timeout '
             f'{p["param_timeout_s"]:g} s')
 
@@ -166,6 +196,56 @@ class FullCarNode(Node):
         now = node_time_s(self)
         with self.lock:
             offer_parameters(self.rt.supervisor(i), msg, now, self.get_logger())
+
+    def _wait_for_controller(self):
+        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+        self.get_logger().info('lock-step: waiting for the controller to connect')
+        while self.control.running and not all(
+                pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0
+                for pub, sub in zip(self.state_pubs, self.cmd_subs)):
+            time.sleep(0.005)
+
+    def on_command(self, i, msg):
+        """Take one current command of the external controller for corner ``i``."""
+        now = node_time_s(self)
+        with self.lock:
+            outcome = self.cmd_ins[i].offer(msg.data, now)
+            self.n_answers += 1
+            if self.n_answers >= 4:
+                self.answered.set()
+        if outcome != 'accepted':
+            self.get_logger().warning(f'{CORNERS[i]}: current command {msg.data!r} {outcome}',
+                                      throttle_duration_sec=1.0)
+
+    def _external_reason(self, i):
+        cmd_in = self.cmd_ins[i]
+        if not cmd_in.timed_out:
+            return 'ok'
+        return 'no_command_yet' if cmd_in.received_at is None else 'command_timeout'
+
+    def _step_external(self, wall):
+        """Plant step: publish the four corners, (lock-step: wait for answers), apply, advance."""
+        state = self.rt.state
+        with self.lock:
+            flags = [(not ci.timed_out, self._external_reason(i), self.rt.currents[i])
+                     for i, ci in enumerate(self.cmd_ins)]
+            self.answered.clear()
+            self.n_answers = 0
+        for i, (normal, reason, current) in enumerate(flags):
+            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+                corner_car_state(state, i), current, normal, reason, self.state_msgs[i]))
+        if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
+            self.lockstep_timeouts += 1
+            self.get_logger().warning(
+                f'no four commands within {self.lockstep_timeout_s:g} s of state t = '
+                f'{state.t:.3f} s ({self.lockstep_timeouts} in all)', throttle_duration_sec=1.0)
+        now = node_time_s(self)
+        with self.lock:
+            currents = [ci.current(now) for ci in self.cmd_ins]
+            _, _, new = self.rt.step(now, currents)
+        self.control.command_sent()
+        if self.every and not self.rt.steps % self.every:
+            self._publish_body(new)
 
     def _step(self, wall):
         """One control step (control thread): command, advance, publish at the state rate."""
@@ -183,6 +263,9 @@ class FullCarNode(Node):
                 self.state_msgs[i]))
             self.cmd_msg.data = float(currents[i])
             self.drops.publish(self.cmd_pubs[i], self.cmd_msg)
+        self._publish_body(new)
+
+    def _publish_body(self, new):
         messages.seconds_to_stamp(max(new.t, 0.0), self.body_msg.header.stamp)
         self.body_msg.position = [float(x) for x in new.q[:3]]
         self.body_msg.velocity = [float(x) for x in new.v[:3]]
@@ -199,6 +282,15 @@ class FullCarNode(Node):
         with self.lock:
             st = self.rt.status()
             t, acc = self.rt.body_log()
+            if self.external:
+                st['controller'] = 'external'
+                for i, c in enumerate(CORNERS):
+                    ci = self.cmd_ins[i]
+                    st['corners'][c] = dict(
+                        ci.status(), mode='failsafe' if ci.timed_out else 'normal',
+                        reason=self._external_reason(i), current_a=float(self.rt.currents[i]))
+                st['corners_normal'] = sum(not ci.timed_out for ci in self.cmd_ins)
+                st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts)
         if t.size >= 2:
             from quarter_car_sim.full_car.metrics import iso2631_seat
             st['iso2631'] = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])

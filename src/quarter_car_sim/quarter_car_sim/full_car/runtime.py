@@ -30,6 +30,11 @@ from quarter_car_sim.full_car.params import CORNERS
 BODY_JOINTS = ('heave', 'pitch', 'roll')
 
 
+def corner_supervisors(**settings):
+    """Return one :class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner (``settings``)."""
+    return [ModelSupervisor(**settings) for _ in CORNERS]
+
+
 def corner_car_state(state, i):
     """
     Corner ``i`` of a full-car state as a quarter-car :class:`~quarter_car_sim.dynamics.CarState`.
@@ -91,10 +96,10 @@ class FullCarRuntime:
             raise ValueError(f'`log_max_s` must be >= 0, got {log_max_s}')
         if isinstance(law, str):
             law = make_full_car_law(law, params, dt=dt)
-        sups = [ModelSupervisor(timeout_s=timeout_s, safe_current_a=safe_current_a,
-                                i_min_a=i_min_a, i_max_a=i_max_a,
-                                hold_on_reject=hold_on_reject,
-                                min_current_span_a=min_current_span_a) for _ in CORNERS]
+        sups = corner_supervisors(timeout_s=timeout_s, safe_current_a=safe_current_a,
+                                  i_min_a=i_min_a, i_max_a=i_max_a,
+                                  hold_on_reject=hold_on_reject,
+                                  min_current_span_a=min_current_span_a)
         self.params = params
         self.dt = float(dt)
         self.controller = FullCarController(law, sups)
@@ -127,7 +132,7 @@ class FullCarRuntime:
         i = CORNERS.index(corner) if isinstance(corner, str) else int(corner)
         return self.controller.supervisors[i]
 
-    def step(self, t_clock):
+    def step(self, t_clock, currents=None):
         """
         Run one control period.
 
@@ -135,6 +140,9 @@ class FullCarRuntime:
         ----------
         t_clock : float
             Supervisor clock [s] (parameter ages and timeouts).
+        currents : sequence of 4 float, optional
+            Currents commanded from outside (an external controller) [A]; the law and the
+            supervisors are then not run (nor ``normal_steps`` counted).
 
         Returns
         -------
@@ -147,12 +155,17 @@ class FullCarRuntime:
 
         """
         state = self.car.state
-        currents = self.controller.command(state, t_clock)
-        for i, mode in enumerate(self.controller.modes):
-            if mode == 'normal':
-                self.normal_steps[i] += 1
-                if math.isnan(self.first_normal_t[i]):
-                    self.first_normal_t[i] = state.t
+        if currents is None:
+            currents = self.controller.command(state, t_clock)
+            for i, mode in enumerate(self.controller.modes):
+                if mode == 'normal':
+                    self.normal_steps[i] += 1
+                    if math.isnan(self.first_normal_t[i]):
+                        self.first_normal_t[i] = state.t
+        else:
+            currents = [float(c) for c in currents]
+            if len(currents) != 4:
+                raise ValueError(f'`currents` must hold 4 currents, got {len(currents)}')
         if state.t >= 0 and self._n < len(self._t):
             self._t[self._n] = state.t
             self._acc[self._n] = state.acc[:3]
