@@ -16,7 +16,8 @@ FITTING_STACK = ('mr_damper_model.identification', 'mr_damper_model.live', 'numb
                  'mcap', 'matplotlib', 'dask', 'distributed')
 NODES = ('mr_damper_rig.rig_node', 'quarter_car_sim.quarter_car_node',
          'quarter_car_sim.semi_active_controller_node', 'quarter_car_sim.state_estimator_node',
-         'quarter_car_sim.full_car_node', 'mr_damper_can.can_bridge_node',
+         'quarter_car_sim.full_car_node', 'quarter_car_sim.full_car_controller_node',
+         'mr_damper_can.can_bridge_node',
          'mr_damper_can.can_driver_sim_node')
 
 
