@@ -37,6 +37,9 @@ import tempfile
 import time
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / 'tests'), str(ROOT / 'tests' / 'integration')]
+from test_node_signals import _catches  # noqa: E402 (the test's own /proc SigCgt check)
+
 VENV_BIN = ROOT / '.venv' / 'bin'
 NODES = {
     'rig_node': ['--ros-args', '-p', 'mode:=sim'],
@@ -50,18 +53,6 @@ NODES = {
 }
 NETNS = ('ip link set lo up && ip link set lo multicast on && '
          'ip route add 224.0.0.0/4 dev lo && exec "$@"')
-
-
-def _catches(pid, signum):
-    """Return True once process ``pid`` has a handler for ``signum`` (/proc SigCgt)."""
-    try:
-        with open(f'/proc/{pid}/status') as fh:
-            for line in fh:
-                if line.startswith('SigCgt:'):
-                    return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
-    except OSError:
-        pass
-    return False
 
 
 def _phase(pid, log):
