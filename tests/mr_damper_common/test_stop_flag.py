@@ -82,3 +82,82 @@ def test_handlers_set_and_restored_in_this_process():
         signal.signal(signal.SIGINT, old[0])
         signal.signal(signal.SIGTERM, old[1])
         stop_flag._STOP.clear()
+
+
+#: Child interpreter: call ``target`` again and again; in run k a SIGTERM arrives at the k-th
+#: traced event (each line and each bytecode of ``target`` and of everything it calls) once
+#: the SIGTERM handler is in. Prints ``events signalled stops_kept``.
+AT_EVERY_BYTECODE = """
+    import os, signal, sys
+    from mr_damper_common import stop_flag
+
+    def traced(func, k):
+        seen = [0, False]
+        def local(frame, event, arg):
+            frame.f_trace_opcodes = True
+            if event in ('line', 'opcode'):
+                seen[0] += 1
+                if (seen[0] == k
+                        and signal.getsignal(signal.SIGTERM) is stop_flag.request_stop):
+                    seen[1] = True
+                    os.kill(os.getpid(), signal.SIGTERM)   # handled inside the traced frame
+            return local
+        def start(frame, event, arg):
+            frame.f_trace_opcodes = True
+            return local
+        sys.settrace(start)
+        try:
+            func()
+        finally:
+            sys.settrace(None)
+        return seen
+
+    def fresh():
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        stop_flag._INSTALLED[0] = False
+        stop_flag._STOP.clear()
+
+    target = {target}
+    fresh()
+    if {installed}:
+        stop_flag.install_stop_handlers()
+    events = traced(target, 0)[0]
+    signalled = kept = 0
+    for k in range(1, events + 1):
+        fresh()
+        if {installed}:
+            stop_flag.install_stop_handlers()
+        sent = traced(target, k)[1]
+        signalled += sent
+        kept += sent and stop_flag.stop_requested()
+    print(events, signalled, kept)
+"""
+
+
+@pytest.mark.parametrize('target, installed', [
+    # a SIGTERM while the handlers go in (early_main, run_node)
+    ('stop_flag.install_stop_handlers', False),
+    # a second signal inside the first one's handler
+    ('stop_flag.request_stop', True),
+    # a signal while the main thread polls or clears the flag
+    ('lambda: [stop_flag.stop_requested(), stop_flag._STOP.clear()]', True),
+])
+def test_a_signal_at_any_bytecode_sets_the_flag_and_never_blocks(target, installed):
+    """
+    A SIGTERM that lands anywhere in the flag's own code is kept, and its handler returns.
+
+    With a ``threading.Event`` as the flag, a SIGTERM inside ``install_stop_handlers`` was
+    either wiped out by the clearing that followed (the node ran on) or, landing inside
+    ``Event.clear()`` which holds the event's lock, ran a handler whose ``Event.set()`` waited
+    for that lock forever (the rig_node start-up hang of a CI run under load). The subprocess
+    timeout is only a hang guard.
+    """
+    code = textwrap.dedent(AT_EVERY_BYTECODE).format(target=target, installed=installed)
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    events, signalled, kept = map(int, proc.stdout.split())
+    assert signalled > 0 and events >= signalled
+    # the last case clears the flag itself: a signal before its clear() is legitimately undone
+    if 'clear' not in target:
+        assert kept == signalled, proc.stdout

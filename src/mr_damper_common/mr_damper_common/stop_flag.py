@@ -12,7 +12,39 @@ import importlib
 import signal
 import threading
 
-_STOP = threading.Event()
+
+class _Flag:
+    """
+    A stop flag that a signal handler can set at any moment: no lock anywhere.
+
+    Not ``threading.Event``: its ``set()`` and ``clear()`` take the event's non-reentrant lock,
+    and a Python signal handler runs in the main thread between two bytecodes, also while that
+    thread holds the lock (inside ``clear()`` right after the handlers were installed): the
+    handler's ``set()`` then waited for the lock forever and the node never exited (a SIGTERM
+    to ``rig_node`` during start-up under a CPU burner; reproduced at every bytecode by
+    tests/mr_damper_common/test_stop_flag.py). Assigning one attribute is atomic under the GIL.
+    Nothing waits on the flag: loops poll it.
+    """
+
+    __slots__ = ('_value',)
+
+    def __init__(self):
+        self._value = False
+
+    def is_set(self):
+        """Return True once the flag is set."""
+        return self._value
+
+    def set(self):
+        """Set the flag (safe in a signal handler)."""
+        self._value = True
+
+    def clear(self):
+        """Reset the flag."""
+        self._value = False
+
+
+_STOP = _Flag()
 _INSTALLED = [False]
 
 
@@ -38,16 +70,19 @@ def install_stop_handlers():
     and the process exits 0. The first call clears the flag; later calls keep a stop that
     arrived in between (e.g. during the imports after :func:`early_main` installed the
     handlers). Returns False when not called from the main thread (signal handlers cannot be set
-    there; nothing changes).
+    there; nothing changes). The flag is cleared *before* the handlers go in: a signal that
+    arrives while they are being installed is never wiped out by the clearing.
     """
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    if not _INSTALLED[0]:
+        _STOP.clear()
     try:
         signal.signal(signal.SIGINT, request_stop)
         signal.signal(signal.SIGTERM, request_stop)
     except ValueError:
         return False
-    if not _INSTALLED[0]:
-        _STOP.clear()
-        _INSTALLED[0] = True
+    _INSTALLED[0] = True
     return True
 
 
