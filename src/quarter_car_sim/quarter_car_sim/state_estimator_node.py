@@ -14,7 +14,11 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
 - sub ``quarter_car/body_imu`` (sensor_msgs/Imu, best effort, KEEP_LAST 100):
   ``linear_acceleration.z``,
-  specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample;
+  specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample. The
+  sensor readers take the serialised messages and read the stamp and the one value from the
+  CDR (:mod:`quarter_car_sim.sensor_cdr`; other encodings through rclpy's deserialisation, an
+  undecodable message counted as ``dropped.undecodable_reading``); readings missing between
+  consecutive stamps are counted (``readings_lost``);
 - sub ``quarter_car/wheel_imu`` (sensor_msgs/Imu) with ``wheel_accel:=true``;
 - sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100):
   the first ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
