@@ -68,6 +68,12 @@ def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
     # the estimator published (one estimate per reading it took) and the controller answered
     assert s['estimator']['steps'] > 0 and s['estimates'] > 0 and s['valid_estimates'] > 0
     assert s['controller']['commands'] > s['controller']['commands_normal'] > 0
+    # no reading lost uncounted: each filter step is a position reading taken or one counted
+    # lost between two stamps (the estimator's last status, one snapshot)
+    est = s['estimator']
+    assert est['stale_ticks'] == 0 and est['rebases'] == 0, est
+    assert (est['readings_received']['travel'] + est['readings_lost']['travel']
+            == est['steps']), est
     # the injected dropout: every body accelerometer sample of the window lost (1 kHz)
     sensors = s['car_sensors']
     assert sensors['dropout_window_s'] == list(DROPOUT)

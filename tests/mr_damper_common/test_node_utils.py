@@ -52,7 +52,8 @@ def test_drop_counter_counts_by_reason_and_warns():
     drops.count('publish_failed')
     drops.count('nothing', 0)
     assert drops.counts() == {'message_lost': 5, 'publish_failed': 1}
-    assert len(log.lines) == 3 and '5 in all' in log.lines[1]
+    # one warning per reason per period (the counts are never throttled)
+    assert len(log.lines) == 2 and '3 in all' in log.lines[0] and 'publish_failed' in log.lines[1]
 
 
 def test_lost_callback_adds_the_reported_change():
@@ -300,3 +301,12 @@ def test_diagnostics_publisher_sends_named_levels_and_survives_a_status_error(ro
     assert diag.published == 2 and drops.counts() == {}
     node.destroy_node()
     listener.destroy_node()
+
+
+def test_log_throttle_gates_per_key():
+    """At most one line per key per period; a zero period lets every line through."""
+    from mr_damper_common.node_utils import LogThrottle
+    gate = LogThrottle(3600.0)
+    assert [gate.due('a'), gate.due('a'), gate.due('b'), gate.due('a')] == [True, False, True,
+                                                                            False]
+    assert all(LogThrottle(0.0).due() for _ in range(3))

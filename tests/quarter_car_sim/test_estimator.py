@@ -80,6 +80,35 @@ def test_covariance_converges_to_the_dare_solution():
     assert np.max(np.abs(est.P - d.P_post) / scale) < 1e-4
 
 
+@pytest.mark.parametrize('tol, most_steps', [(1e-6, None), (1e-3, 100)])
+def test_steady_gain_resumes_after_a_lost_reading_per_steady_tol(tol, most_steps):
+    """One lost reading leaves the steady gain; ``steady_tol`` says how soon it comes back."""
+    d = design_estimator(QuarterCarParams(), DT, _specs(1e-3))
+    est = QuarterCarEstimator(d, _lin_force, stuck_s=1e9, steady_tol=tol)
+    rng = np.random.default_rng(3)
+    k = 0
+
+    def step(readings=True):
+        nonlocal k
+        k += 1
+        return est.step(k * DT, {'body_accel': G0 + 0.05 * rng.standard_normal(),
+                                 'travel': 5e-5 * rng.standard_normal()} if readings else {},
+                        0.0)
+    while not est.steady:
+        step()
+    step(readings=False)
+    assert not est.steady
+    back = 0
+    while not est.steady and back < 20000:
+        step()
+        back += 1
+    if most_steps is None:
+        assert back > 1000              # the strict default: thousands of periods
+    else:
+        assert back <= most_steps
+    assert est.steady and np.array_equal(est.P, d.P_post)
+
+
 def test_road_intensity_matches_the_iso_class_velocity_psd():
     # one-sided velocity PSD (2 pi)^2 Gd(n0) n0^2 V for class C at 20 m/s, halved
     assert road_velocity_intensity('C', 20.0) == pytest.approx(
@@ -168,6 +197,8 @@ def test_bad_settings():
     d = design_estimator(p, DT, _specs())
     with pytest.raises(EstimatorError, match='coil_tau_s'):
         QuarterCarEstimator(d, _lin_force, coil_tau_s=-1.0)
+    with pytest.raises(EstimatorError, match='steady_tol'):
+        QuarterCarEstimator(d, _lin_force, steady_tol=0.0)
 
 
 def test_single_spike_is_capped_and_travel_near_zero_gets_the_models_mean_sign():

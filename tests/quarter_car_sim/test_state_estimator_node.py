@@ -31,9 +31,14 @@ def make_node():
         rclpy.try_shutdown(context=context)
 
 
-def _position(x):
+def _position(x, t=None):
+    """Return a serialised JointState reading (the node's readers take raw messages)."""
+    from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
-    return JointState(name=['suspension'], position=[x])
+    msg = JointState(name=['suspension'], position=[x])
+    if t is not None:
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), round((t - int(t)) * 1e9)
+    return serialize_message(msg)
 
 
 def test_core_needs_a_model_then_estimates_and_counts_faults():
@@ -130,3 +135,66 @@ def test_core_clocked_by_readings_predicts_through_missing_periods():
     # the vehicle's clock restarted: the time line re-bases instead of 400 s of prediction
     assert core.tick_at(stamps[-1] - 2 * REBASE_S, 0.0) is not None
     assert core.rebases == 1 and core.estimator.steps == 401
+
+
+def test_core_counts_readings_lost_between_stamps():
+    """Readings the vehicle sent that never arrived: the periods skipped between stamps."""
+    from quarter_car_sim.failsafe import ModelSupervisor
+    from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.sensors import accelerometer_spec, default_specs, G0
+    from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
+    core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
+    sent = range(1000)
+    lost = {k for k in sent if k % 9 == 4} | set(range(500, 530))
+    for k in sent:
+        if k not in lost:
+            core.offer_reading('travel', 0.0, k * 1e-3)
+        if k % 2:                                   # every other accelerometer reading lost
+            core.offer_reading('body_accel', G0, k * 1e-3)
+    # the last reading of each stream arrived, so every lost one lies between two stamps
+    assert core.readings_lost['travel'] == len(lost)
+    assert core.readings_received['travel'] + core.readings_lost['travel'] == len(sent)
+    assert core.readings_lost['body_accel'] == 499        # 1, 3, ..., 999: 499 gaps
+    # not newer (a repeat): nothing skipped; a clock restart: no loss counted
+    core.offer_reading('travel', 0.0, 0.999)
+    core.offer_reading('travel', 0.0, 0.999 - 2 * REBASE_S)
+    core.offer_reading('travel', 0.0, 1.0 - 2 * REBASE_S)
+    assert core.readings_lost['travel'] == len(lost)
+    # a sensor slower than the control rate counts in its own sample period (4 ms)
+    specs = dict(default_specs(), body_accel=accelerometer_spec(rate_hz=250.0))
+    slow = StateEstimatorCore(QuarterCarParams(), 1e-3, specs, ModelSupervisor())
+    for k in (0, 1, 2, 4):
+        slow.offer_reading('body_accel', G0, k * 4e-3)
+    assert slow.readings_lost['body_accel'] == 1
+    assert core.status()['readings_lost'] == dict(core.readings_lost)
+
+
+def test_node_reads_serialised_readings_with_their_stamps(make_node):
+    """The raw readers: stamps and values from the serialised messages, losses counted."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+    from quarter_car_sim.sensors import G0
+    node = make_node(clock='readings')
+    sent = []
+    node.pub.publish = lambda m: sent.append((m.header.stamp.sec, m.header.stamp.nanosec))
+    node.on_params(thesis_parameters_msg())
+    imu = Imu()
+    imu.header.frame_id = 'body'
+    for k in range(1, 60):
+        if k % 10 == 5:
+            continue                                # lost on the way: both sensors
+        imu.header.stamp.nanosec = k * 1_000_000
+        imu.linear_acceleration.z = G0 + 0.01 * (k % 3)
+        node.on_accel('body_accel', serialize_message(imu))
+        node.on_position(_position(1e-5 * (k % 4), k * 1e-3))
+    st = node.status()
+    assert st['readings_received'] == {'body_accel': 53, 'travel': 53}
+    assert st['readings_lost'] == {'body_accel': 6, 'travel': 6}
+    # one estimate per reading, stamped with it; the lost periods predicted through
+    assert len(sent) == 53 and sent[-1] == (0, 59_000_000)
+    assert st['predict_steps'] == 6 and st['steps'] == 59
+    assert node.core.estimator._last_val['body_accel'] == pytest.approx(G0 + 0.01 * (59 % 3))
+    node.on_position(b'\x00\x01\x00\x00\x01')      # plain CDR, cut short: counted
+    node.on_position(b'\x00\x07\x00\x00')           # not plain CDR, undecodable: counted
+    assert node.status()['dropped'] == {'undecodable_reading': 2}
+    assert len(sent) == 53

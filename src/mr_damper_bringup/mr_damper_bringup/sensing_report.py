@@ -189,8 +189,8 @@ def sensing_summary(status, car_status, parts):
     ctrl = status.get('controller') or {}
     out = {'estimator': {k: est.get(k) for k in (
         'steps', 'invalid_steps', 'invalid_entries', 'samples_missing', 'readings_received',
-        'readings_replaced', 'predict_steps', 'stale_ticks', 'rebases', 'no_model_entries',
-        'no_model_steps', 'nis_mean', 'valid', 'reason', 'dropped')},
+        'readings_replaced', 'readings_lost', 'predict_steps', 'stale_ticks', 'rebases',
+        'no_model_entries', 'no_model_steps', 'nis_mean', 'valid', 'reason', 'dropped')},
         'controller': {k: ctrl.get(k) for k in (
             'state_rejected', 'failsafe_entries', 'failsafe_s', 'commands',
             'commands_normal', 'safe_current_a')},

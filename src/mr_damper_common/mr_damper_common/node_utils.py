@@ -65,9 +65,11 @@ STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE)
 
 #: Readers of a vehicle sensor stream (1 kHz accelerometers, position sensors): best effort as
-#: ``qos_profile_sensor_data``, but KEEP_LAST 100 instead of 5, so a Python executor that takes
-#: the readings in bursts (a 0.1 s stall of a shared machine) still gets every one of them. With
-#: depth 5 the state estimator received 59 % of the car's 1 kHz readings at load 1.5.
+#: ``qos_profile_sensor_data``, so any sensor driver's writer connects, but KEEP_LAST 100 instead
+#: of 5, so a reader not scheduled for a while takes up to 0.1 s of readings in a burst. Deeper
+#: is not better for a control loop: with 1000, a starved state estimator in the suite (load 8)
+#: ran 0.7 s behind the car instead of losing (and counting) readings; on its own at load 6.6
+#: (``bench/bench_estimator_rate.py``) depth 100 lost 0.9-10 % of the readings, 1000 none.
 SENSOR_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
@@ -97,7 +99,7 @@ class DropCounter:
 
     def __init__(self, logger, warn_period_s=1.0):
         self._logger = logger
-        self._period = float(warn_period_s)
+        self._warn = LogThrottle(warn_period_s)
         self._lock = threading.Lock()
         self._counts = {}
 
@@ -108,9 +110,10 @@ class DropCounter:
         with self._lock:
             self._counts[reason] = self._counts.get(reason, 0) + int(n)
             total = self._counts[reason]
-        self._logger.warning(f'{n} sample(s) dropped ({reason}, {total} in all)'
-                             f'{": " + detail if detail else ""}',
-                             throttle_duration_sec=self._period)
+            due = self._warn.due(reason)
+        if due:
+            self._logger.warning(f'{n} sample(s) dropped ({reason}, {total} in all)'
+                                 f'{": " + detail if detail else ""}')
 
     def counts(self):
         """Return ``{reason: samples}`` (a copy; reasons never seen are absent)."""
@@ -145,10 +148,44 @@ class DropCounter:
             self.count(reason, int(info.total_count_change), f'total {info.total_count}')
         return SubscriptionEventCallbacks(message_lost=on_lost)
 
-    def subscribe(self, node, msg_type, topic, callback, qos, reason='message_lost'):
+    def subscribe(self, node, msg_type, topic, callback, qos, reason='message_lost', *,
+                  raw=False):
         """``node.create_subscription`` whose lost samples are counted under ``reason``."""
         return node.create_subscription(msg_type, topic, callback, qos,
-                                        event_callbacks=self.lost_callbacks(reason))
+                                        event_callbacks=self.lost_callbacks(reason), raw=raw)
+
+
+class LogThrottle:
+    """
+    Say whether a throttled log line is due, at no cost while it is not.
+
+    rclpy's own ``throttle_duration_sec`` decides only after it has found the calling frame and
+    its source line (``inspect.getframeinfo``, which stats the file system): about 1 ms per call
+    even when nothing is logged (``bench/bench_estimator_rate.py``), which a node calling it per
+    message at 1 kHz cannot afford. Gate the call instead::
+
+        if self.warn_invalid.due():
+            self.get_logger().warning(...)
+
+    Parameters
+    ----------
+    period_s : float
+        At most one line per key per ``period_s`` [s, monotonic wall clock].
+
+    """
+
+    def __init__(self, period_s=1.0):
+        self.period_s = float(period_s)
+        self._last = {}
+
+    def due(self, key=None):
+        """Return True (and restart the period of ``key``) when a line may be logged now."""
+        now = time.monotonic()
+        last = self._last.get(key)
+        if last is not None and now - last < self.period_s:
+            return False
+        self._last[key] = now
+        return True
 
 
 class ResettablePublisher:

@@ -46,8 +46,8 @@ from std_msgs.msg import Float64
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param, run_node,
-                                         set_realtime_priority, spin_node)
+                                         LATCHED_QOS, LogThrottle, node_time_s, Param,
+                                         run_node, set_realtime_priority, spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
@@ -191,6 +191,7 @@ class SemiActiveControllerNode(Node):
                                    rebase_after=int(p['rebase_after']))
         self.health_rules = ControllerHealth()
         self.drops = DropCounter(self.get_logger())
+        self.warn_refused = LogThrottle(1.0)
         self.cmd = Float64()
         self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', CONTROL_QOS)
         self.drops.subscribe(self, QuarterCarState, 'quarter_car/car_state', self.on_state,
@@ -222,10 +223,10 @@ class SemiActiveControllerNode(Node):
         rebases = core.stamps.rebases
         self.cmd.data = core.command(vehicle_state_from_msg(msg), node_time_s(self))
         self.drops.publish(self.cmd_pub, self.cmd)
-        if core.last_refusal is not None:
+        if core.last_refusal is not None and self.warn_refused.due():
             self.get_logger().warning(
                 f'state refused ({core.last_refusal}; {core.state_rejected}): safe current '
-                'commanded', throttle_duration_sec=1.0)
+                'commanded')
         if core.stamps.rebases > rebases:
             jump = core.stamps.last_rebase
             self.get_logger().warning(

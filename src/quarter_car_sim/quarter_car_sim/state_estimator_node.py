@@ -14,7 +14,11 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
 - sub ``quarter_car/body_imu`` (sensor_msgs/Imu, best effort, KEEP_LAST 100):
   ``linear_acceleration.z``,
-  specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample;
+  specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample. The
+  sensor readers take the serialised messages and read the stamp and the one value from the
+  CDR (:mod:`quarter_car_sim.sensor_cdr`; other encodings through rclpy's deserialisation, an
+  undecodable message counted as ``dropped.undecodable_reading``); readings missing between
+  consecutive stamps are counted (``readings_lost``);
 - sub ``quarter_car/wheel_imu`` (sensor_msgs/Imu) with ``wheel_accel:=true``;
 - sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100):
   the first ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
@@ -36,6 +40,7 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 import sys
 
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
@@ -43,11 +48,13 @@ from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param, run_node, SENSOR_QOS,
-                                         set_realtime_priority, spin_node)
+                                         LATCHED_QOS, LogThrottle, node_time_s, Param,
+                                         run_node, SENSOR_QOS, set_realtime_priority,
+                                         spin_node)
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.params import QuarterCarParams
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
+from quarter_car_sim import sensor_cdr
 from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec
 from quarter_car_sim.state_estimator_core import StateEstimatorCore
 
@@ -113,6 +120,17 @@ def estimate_to_msg(est, current_a, msg):
     return msg
 
 
+def _imu_reading(msg):
+    """Return (stamp [s], ``linear_acceleration.z``) of an Imu message."""
+    return messages.stamp_to_seconds(msg.header.stamp), msg.linear_acceleration.z
+
+
+def _joint_reading(msg):
+    """Return (stamp [s], first position or NaN) of a JointState message."""
+    return (messages.stamp_to_seconds(msg.header.stamp),
+            msg.position[0] if len(msg.position) else _NAN)
+
+
 def estimator_health(status):
     """Return the node's Health: OK with a valid estimate, WARN with the reason otherwise."""
     if status.get('valid'):
@@ -146,20 +164,21 @@ class StateEstimatorNode(Node):
             run_options={'coil_tau_s': p['coil_tau_s'], 'dropout_s': p['dropout_s'],
                          'nis_threshold': p['nis_threshold']})
         self.drops = DropCounter(self.get_logger())
+        self.warn_invalid = LogThrottle(1.0)
         self.msg = QuarterCarState()
         self.msg.header.frame_id = 'quarter_car'
         self.pub = self.create_publisher(QuarterCarState, 'quarter_car/car_state', CONTROL_QOS)
+        # the sensor readers take the serialised messages (raw) and read their stamp and value
+        # in place: building the message objects cost more than the filter (sensor_cdr)
         self.drops.subscribe(self, Imu, 'quarter_car/body_imu',
-                             lambda m: self.core.offer_reading('body_accel',
-                                                               m.linear_acceleration.z),
-                             SENSOR_QOS, 'imu_lost')
+                             lambda data: self.on_accel('body_accel', data), SENSOR_QOS,
+                             'imu_lost', raw=True)
         if p['wheel_accel']:
             self.drops.subscribe(self, Imu, 'quarter_car/wheel_imu',
-                                 lambda m: self.core.offer_reading('wheel_accel',
-                                                                   m.linear_acceleration.z),
-                                 SENSOR_QOS, 'wheel_imu_lost')
+                                 lambda data: self.on_accel('wheel_accel', data), SENSOR_QOS,
+                                 'wheel_imu_lost', raw=True)
         self.drops.subscribe(self, JointState, 'quarter_car/suspension_position',
-                             self.on_position, SENSOR_QOS, 'position_lost')
+                             self.on_position, SENSOR_QOS, 'position_lost', raw=True)
         self.drops.subscribe(self, Float64, 'mr_damper/current_command',
                              lambda m: self.core.offer_current(m.data), CONTROL_QOS,
                              'commands_lost')
@@ -179,12 +198,31 @@ class StateEstimatorNode(Node):
             f'Kalman filter of {", ".join(self.core.sensors)} at {p["rate_hz"]:g} Hz -> '
             f'{self.resolve_topic_name("quarter_car/car_state")}')
 
-    def on_position(self, msg):
-        """Take the suspension travel of a JointState (first position; NaN if none)."""
-        self.core.offer_reading('travel', msg.position[0] if len(msg.position) else _NAN)
+    def _read(self, data, read_raw, msg_type, read_msg):
+        """Return (stamp [s], value) of a serialised reading (None: undecodable, counted)."""
+        try:
+            reading = read_raw(data)
+            if reading is None:         # not plain CDR: rclpy decodes it
+                reading = read_msg(deserialize_message(data, msg_type))
+        except (ValueError, RuntimeError) as exc:
+            self.drops.count('undecodable_reading', detail=str(exc))
+            return None
+        return reading
+
+    def on_accel(self, sensor, data):
+        """Take the z specific force of a serialised Imu (``linear_acceleration.z``)."""
+        reading = self._read(data, sensor_cdr.imu_reading, Imu, _imu_reading)
+        if reading is not None:
+            self.core.offer_reading(sensor, reading[1], reading[0])
+
+    def on_position(self, data):
+        """Take the suspension travel of a serialised JointState (first position; NaN if none)."""
+        reading = self._read(data, sensor_cdr.joint_reading, JointState, _joint_reading)
+        if reading is None:
+            return
+        self.core.offer_reading('travel', reading[1], reading[0])
         if self.on_readings:
-            self._publish(self.core.tick_at(messages.stamp_to_seconds(msg.header.stamp),
-                                            node_time_s(self)))
+            self._publish(self.core.tick_at(reading[0], node_time_s(self)))
 
     def on_params(self, msg):
         """Offer an identified parameter set to the core's supervisor."""
@@ -206,9 +244,8 @@ class StateEstimatorNode(Node):
         if est is None:
             return
         self.drops.publish(self.pub, estimate_to_msg(est, self.core.current_a, self.msg))
-        if not est.valid:
-            self.get_logger().warning(f'estimate invalid: {est.reason}',
-                                      throttle_duration_sec=1.0)
+        if not est.valid and self.warn_invalid.due():
+            self.get_logger().warning(f'estimate invalid: {est.reason}')
 
     def status(self):
         """Return the core's status and the drop counts."""
