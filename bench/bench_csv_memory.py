@@ -169,10 +169,16 @@ def main():
                       f'{(r["peak_mb"] - r["baseline_mb"]) / final_mb:19.2f}x')
         b, a = results['read+fit', 'before'], results['read+fit', 'after']
         pb, pa = b['parameters'], a['parameters']
-        rel = max(abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-300) for k in pb)
+        # relative to the value, or to 1e-3 of the bounds' span for a value near 0 (a lag of
+        # a record without one: 1e-6 s against 0 is no difference of the fit)
+        from mr_damper_model.models import get_model
+        mdl = get_model(a['model'])
+        span = dict(zip(mdl.param_names, np.subtract(*mdl.default_bounds()[::-1])))
+        rel, worst = max((abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-3 * span[k], 1e-300), k)
+                         for k in pb)
         print(f'fit ({a["model"]}): before {b["fit_s"]:.2f} s, after {a["fit_s"]:.2f} s; '
-              f'largest relative parameter difference {rel:.1e}, RMSE {b["rmse_n"]:.6f} -> '
-              f'{a["rmse_n"]:.6f} N')
+              f'largest relative parameter difference {rel:.1e} ({worst}: {pb[worst]:.4g} -> '
+              f'{pa[worst]:.4g}), RMSE {b["rmse_n"]:.6f} -> {a["rmse_n"]:.6f} N')
         if args.read_methods and not args.multi:
             methods = {}
             for method in ('read_csv', 'list_of_rows'):
