@@ -25,6 +25,9 @@ Discretisation: exact for a velocity held at its new value over each sample inte
 (within 1 %) and current (within 1 % of i_ref_a, at the time constant of their mean current)
 are filtered in one ``scipy.signal.lfilter`` call per parameter set: fast for test records at
 a few current levels, slow (a call per sample) for a current that changes at every sample.
+A long record is evaluated chunk by chunk with the lag carried from one chunk to the next
+(``_eval_chunks``, the record's stretches: the same result up to rounding), so ``identify``
+fits it in bounded memory (``bench/bench_csv_memory.py --multi``).
 
 ``identify`` polishes it by default (``polish_by_default``): the swarm works on every k-th
 sample (where the lag is washed out: it settles the other parameters) and the bounded
