@@ -12,10 +12,15 @@ the interpreter and its imports, printed as the baseline) as a ratio to the CSV 
 above the baseline as a ratio to the final arrays (5 columns x 8 bytes x rows), how much the
 fit results differ, and the fit's wall time (``seconds``: noisy on a loaded machine).
 
+With ``--multi``: five files of ``--rows / 5`` samples, one per coil current 0, 0.25, 0.5,
+0.75 and 1 A, fitted jointly (``mr-damper-identify FILE...``: the multi-current default,
+kwok-current-amp, a stateful model), before = :data:`BEFORE_MULTI` (main before the chunked
+polish of the stateful current models).
+
 With ``--read-methods``: also the previous comparison of the reader against a list of the
 file's rows (tracemalloc, Python objects and numpy arrays; the list takes about 8x the file).
 
-    .venv/bin/python bench/bench_csv_memory.py [--rows 3000000] [--before REV]
+    .venv/bin/python bench/bench_csv_memory.py [--rows 3000000] [--before REV] [--multi]
 """
 import argparse
 import json
@@ -31,6 +36,10 @@ REPO = Path(__file__).resolve().parents[1]
 
 #: The "before" of the comparison: main before the chunked fit and reader of issue 21.
 BEFORE = '91a9a718356aa93d5ec2d80cc492daaa2e2af9ae'
+#: The "before" of ``--multi``: main before the chunked fit of the stateful multi-current models.
+BEFORE_MULTI = '6cbd700bf56a885d9e4b4d6f5fd46e8f1e5d5ea6'
+#: Coil currents [A] of the ``--multi`` records (one file each).
+MULTI_CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 CHILD = r'''
 import json, resource, sys
@@ -40,15 +49,19 @@ def rss_mb():
             return int(line.split()[1]) / 1024
 path, what = sys.argv[1], sys.argv[2]
 import numpy, scipy.optimize, scipy.signal   # the imports of the fit, in the baseline
-from mr_damper_model.tools import cli
+try:
+    from mr_damper_model.tools import cli
+except ImportError:                 # the layout before the split into sub-packages
+    from mr_damper_model import cli
+paths = path.split(',')             # several files: one joint (multi-current) fit
 out = {'baseline_mb': rss_mb(), 'package': cli.__file__}
 if what == 'read':
-    out['n'] = cli.read_record(path).n
+    out['n'] = sum(cli.read_record(p).n for p in paths)
 else:
     import contextlib, io
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        code = cli.run([path, '--json'])
+        code = cli.run(paths + ['--json'])
     res = json.loads(buf.getvalue())
     out.update(code=code, parameters=res['parameters'], rmse_n=res['metrics']['rmse_n'],
                model=res['model'], fit_s=res['seconds'])
@@ -74,15 +87,15 @@ print(json.dumps({'n': n, 'peak_kb': peak / 1e3}))
 '''
 
 
-def write_record(path, rows, seed=0):
-    """Write a cam record through the kwok-current truth at 0.5 A (2 N noise)."""
+def write_record(path, rows, seed=0, current=0.5):
+    """Write a cam record through the kwok-current truth at ``current`` [A] (2 N noise)."""
     from mr_damper_model.identification.presets import thesis_kwok_current
     model, truth = thesis_kwok_current()
     t = np.arange(rows) * 1e-3
     w = 2 * np.pi * 1.1
     x = 0.03 * np.sin(w * t)
     v = 0.03 * w * np.cos(w * t)
-    i = np.full(rows, 0.5)
+    i = np.full(rows, current)
     p = np.array([truth[k] for k in model.param_names])
     f = model.force(p, x, v, i=i) + 2.0 * np.random.default_rng(seed).standard_normal(rows)
     np.savetxt(path, np.column_stack([t, x, v, f, i]), delimiter=',', header='t,x,v,f,i',
@@ -109,24 +122,39 @@ def run_child(code, args, pythonpath=None):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def write_records(tmp, rows, multi):
+    """Write the record(s); return the comma-joined paths and their total size [MB]."""
+    if not multi:
+        paths = [Path(tmp) / 'large.csv']
+        write_record(paths[0], rows)
+    else:
+        paths = [Path(tmp) / f'large_{c:.2f}A.csv' for c in MULTI_CURRENTS]
+        for k, (path, current) in enumerate(zip(paths, MULTI_CURRENTS)):
+            write_record(path, rows // len(paths), seed=k, current=current)
+    return ','.join(map(str, paths)), sum(p.stat().st_size for p in paths) / 1e6
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--rows', type=int, default=3_000_000,
                     help='samples (3,000,000: a CSV of about 160 MB, the issue-21 file size)')
-    ap.add_argument('--before', default=BEFORE,
-                    help='git revision of the "before" package (default: before issue 21)')
+    ap.add_argument('--before', default=None,
+                    help='git revision of the "before" package (default: before issue 21, '
+                         'with --multi before the chunked multi-current fit)')
+    ap.add_argument('--multi', action='store_true',
+                    help='several files, one per current (0 to 1 A), --rows in all: the joint '
+                         'multi-current fit (kwok-current-amp) instead of the Kwok fit')
     ap.add_argument('--read-methods', action='store_true',
                     help='also compare read_csv with a list of rows (tracemalloc)')
     args = ap.parse_args()
+    before = args.before or (BEFORE_MULTI if args.multi else BEFORE)
     print(f'load average {os.getloadavg()[0]:.1f} (2 cores shared)')
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / 'large.csv'
-        write_record(path, args.rows)
-        size_mb = path.stat().st_size / 1e6
+        path, size_mb = write_records(tmp, args.rows, args.multi)
         final_mb = 5 * 8 * args.rows / 1e6
-        print(f'CSV {size_mb:.0f} MB, {args.rows} rows, final arrays {final_mb:.0f} MB; '
-              f'before = {args.before[:12]}, after = this tree')
-        before_src = extract(args.before, Path(tmp) / 'before')
+        print(f'CSV {size_mb:.0f} MB in {path.count(",") + 1} file(s), {args.rows} rows, final '
+              f'arrays {final_mb:.0f} MB; before = {before[:12]}, after = this tree')
+        before_src = extract(before, Path(tmp) / 'before')
         results = {}
         print(f'{"":22s}{"peak RSS":>10s}{"/ CSV":>8s}{"baseline":>10s}'
               f'{"(peak-base)/arrays":>20s}')
@@ -141,11 +169,17 @@ def main():
                       f'{(r["peak_mb"] - r["baseline_mb"]) / final_mb:19.2f}x')
         b, a = results['read+fit', 'before'], results['read+fit', 'after']
         pb, pa = b['parameters'], a['parameters']
-        rel = max(abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-300) for k in pb)
+        # relative to the value, or to 1e-3 of the bounds' span for a value near 0 (a lag of
+        # a record without one: 1e-6 s against 0 is no difference of the fit)
+        from mr_damper_model.models import get_model
+        mdl = get_model(a['model'])
+        span = dict(zip(mdl.param_names, np.subtract(*mdl.default_bounds()[::-1])))
+        rel, worst = max((abs(pa[k] - pb[k]) / max(abs(pb[k]), 1e-3 * span[k], 1e-300), k)
+                         for k in pb)
         print(f'fit ({a["model"]}): before {b["fit_s"]:.2f} s, after {a["fit_s"]:.2f} s; '
-              f'largest relative parameter difference {rel:.1e}, RMSE {b["rmse_n"]:.6f} -> '
-              f'{a["rmse_n"]:.6f} N')
-        if args.read_methods:
+              f'largest relative parameter difference {rel:.1e} ({worst}: {pb[worst]:.4g} -> '
+              f'{pa[worst]:.4g}), RMSE {b["rmse_n"]:.6f} -> {a["rmse_n"]:.6f} N')
+        if args.read_methods and not args.multi:
             methods = {}
             for method in ('read_csv', 'list_of_rows'):
                 r = run_child(CHILD_METHODS, [path, method])

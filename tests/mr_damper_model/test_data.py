@@ -232,6 +232,29 @@ def test_concatenate_marks_each_part_and_keeps_inner_starts():
         np.testing.assert_array_equal(seg.starts, [0])
 
 
+def test_concatenate_release_frees_each_part_and_joins_the_same():
+    """
+    ``release=True`` empties the list as it copies (a long record's parts are freed one by one).
+
+    The joined record is the same, bit for bit, as without release (restamped, inner starts);
+    the parts' arrays die with the list's references (nothing else held).
+    """
+    import gc
+    import weakref
+    ab = DamperData.concatenate([_record(n=100), _record(n=60)])
+    ref = DamperData.concatenate([ab, _record(n=80)], restamp=True)
+    parts = [DamperData.concatenate([_record(n=100), _record(n=60)]), _record(n=80)]
+    alive = [weakref.ref(p.f) for p in parts]
+    joined = DamperData.concatenate(parts, restamp=True, release=True)
+    gc.collect()
+    assert parts == [None, None]
+    assert [w() for w in alive] == [None, None]
+    for c in ('t', 'x', 'v', 'f', 'i', 'starts'):
+        np.testing.assert_array_equal(getattr(joined, c), getattr(ref, c))
+    with pytest.raises(TypeError, match='list'):
+        DamperData.concatenate((ab, ab), release=True)
+
+
 def test_select_follows_segments():
     ab = DamperData.concatenate([_record(n=100), _record(n=60)])
     np.testing.assert_array_equal(ab.select(slice(50, 130)).starts, [0, 50])

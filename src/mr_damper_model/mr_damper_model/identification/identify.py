@@ -408,38 +408,55 @@ class _Residual:
 
 class _ChunkedResidual:
     """
-    The force residual ``model(p) - f`` of a memoryless model, evaluated chunk by chunk.
+    The force residual ``model(p) - f`` of a long record, evaluated chunk by chunk.
 
-    Sums of squares and normal equations are accumulated over :data:`CHUNK_SAMPLES` samples at
-    a time: memory is bounded by the chunk, whatever the record's length (the whole (n, d)
-    Jacobian, about 8 d bytes per sample, is never formed). Same sums as on the whole record,
-    up to the order of the floating-point additions. The residual of the last point whose sum
-    of squares was asked is kept (one float per sample), so the next Jacobian at that point
-    (the accepted step) does not evaluate the force again.
+    Sums of squares and normal equations are accumulated over ``chunk`` (default
+    :data:`CHUNK_SAMPLES`) samples at a time: memory is bounded by the chunk, whatever the
+    record's length (the whole (n, d) Jacobian, about 8 d bytes per sample, is never formed).
+    Same sums as on the whole record, up to the order of the floating-point additions.
+    Memoryless models are cut into independent chunks and use their analytic Jacobian; a
+    stateful model with a chunked evaluation (``_eval_chunks``: the lag models, whose state
+    runs on from chunk to chunk) gets forward differences (``_fd_batch``: the base set and the
+    perturbed ones in one evaluation per chunk). The residual of the last point whose sum of
+    squares was asked is kept (one float per sample), so the next Jacobian at that point (the
+    accepted step) does not evaluate the force again (memoryless models).
     """
 
     def __init__(self, model, sig, y, chunk=None):
         chunk = CHUNK_SAMPLES if chunk is None else int(chunk)
-        self.model, self.y = model, y
-        x, v, i, t, _ = sig
-        one = np.zeros(1, dtype=sig.starts.dtype)
-        self.parts = [(Signals(x[a:b], v[a:b], None if i is None else i[a:b],
-                               None if t is None else t[a:b], one), a, b)
-                      for a in range(0, y.size, chunk) for b in [min(a + chunk, y.size)]]
+        self.model, self.y, self.sig, self.chunk = model, y, sig, chunk
+        self.stateful = model.stateful
+        if not self.stateful:
+            x, v, i, t, _ = sig
+            one = np.zeros(1, dtype=sig.starts.dtype)
+            self.parts = [(Signals(x[a:b], v[a:b], None if i is None else i[a:b],
+                                   None if t is None else t[a:b], one), a, b)
+                          for a in range(0, y.size, chunk) for b in [min(a + chunk, y.size)]]
         self._r = np.empty(y.size)
         self._p = None
 
-    def _resid(self, p, sig, a, b):
+    def _forces(self, P):
+        """
+        Yield ``(a, b, force of the rows P on samples a:b)`` over the record.
+
+        A stateful model's chunks hold ``chunk / len(P)`` samples (``len(P)`` x chunk floats
+        per intermediate array whatever the batch).
+        """
         with np.errstate(over='ignore', invalid='ignore'):
-            return self.model._eval_force(p[None], sig)[0] - self.y[a:b]
+            if self.stateful:
+                yield from self.model._eval_chunks(self.model._force, (P,), self.sig,
+                                                   max(1, self.chunk // len(P)))
+            else:
+                for sig, a, b in self.parts:
+                    yield a, b, self.model._eval_force(P, sig)
 
     def rss(self, p):
         """Return the sum of squares at ``p`` (inf if not finite)."""
         total = 0.0
         self._p = None
-        for sig, a, b in self.parts:
+        for a, b, F in self._forces(np.asarray(p, dtype=float)[None]):
             r = self._r[a:b]
-            r[:] = self._resid(p, sig, a, b)
+            np.subtract(F[0], self.y[a:b], out=r)
             if not np.all(np.isfinite(r)):
                 return math.inf
             total += float(r @ r)
@@ -449,13 +466,29 @@ class _ChunkedResidual:
     def normal(self, p):
         """Return ``(J^T J, J^T r)`` at ``p``, or None if the Jacobian is not finite."""
         A = g = 0.0
+        if self.stateful:
+            P, h = self.model._fd_batch(np.asarray(p, dtype=float))
+            for a, b, F in self._forces(P):
+                r = F[0] - self.y[a:b]
+                J = F[1:]
+                J -= F[0]
+                J /= h[:, None]                 # (d, chunk): the transposed Jacobian
+                if not np.all(np.isfinite(J)):
+                    return None
+                A = A + J @ J.T
+                g = g + J @ r
+            return A, g
         known = self._p is not None and np.array_equal(self._p, p)
         for sig, a, b in self.parts:
             with np.errstate(over='ignore', invalid='ignore'):
                 J = self.model._eval_jacobian(p, sig)
             if not np.all(np.isfinite(J)):
                 return None
-            r = self._r[a:b] if known else self._resid(p, sig, a, b)
+            if known:
+                r = self._r[a:b]
+            else:
+                with np.errstate(over='ignore', invalid='ignore'):
+                    r = self.model._eval_force(p[None], sig)[0] - self.y[a:b]
             A = A + J.T @ J
             g = g + J.T @ r
         return A, g
@@ -516,20 +549,25 @@ def _projected_lm_normal(normal, rss, x, cost, lo, hi, *, max_iter=30, ftol=1e-1
     return x, cost, evals
 
 
-def _polish(model, data, x, lo, hi, max_nfev=50):
+def _polish(model, data, x, lo, hi, max_nfev=50, chunk=None):
     """
     Bounded least-squares refinement of all parameters; returns (x, evaluations, RSS).
 
     Models with their own Jacobian (the algebraic ones: analytic; Spencer: one batch of
     forward differences): box-bounded Levenberg-Marquardt on the normal equations
     (:func:`_projected_lm_normal`, one evaluation per Jacobian; memoryless models sum them
-    over chunks of :data:`CHUNK_SAMPLES` samples). Others:
-    trust-region reflective Gauss-Newton (scipy ``least_squares``) with forward-difference
-    Jacobians. The signals are validated once, not per evaluation.
+    over chunks of ``chunk`` (default :data:`CHUNK_SAMPLES`) samples on a record longer than
+    :data:`CHUNK_SAMPLES`). The lag models (kwok-current-lag, -amp) on such a record: the same,
+    with forward-difference Jacobians summed chunk by chunk (their state runs on through the
+    chunks). Others, and the lag models on shorter records: trust-region reflective
+    Gauss-Newton (scipy ``least_squares``) with forward-difference Jacobians. The signals are
+    validated once, not per evaluation.
     """
     y = np.asarray(data.f, dtype=float)
     sig = model._signals(data.x, data.v, data.i, data.t, data.starts)
     analytic = type(model)._jacobian is not HysteresisModel._jacobian
+    big = y.size > CHUNK_SAMPLES
+    chunked_state = big and model.stateful and hasattr(model, '_eval_chunks')
     d = x.size
 
     def resid(p):
@@ -541,10 +579,10 @@ def _polish(model, data, x, lo, hi, max_nfev=50):
             return model._eval_jacobian(p, sig)
 
     start = np.clip(x, lo, hi)
-    if analytic:
-        # memoryless: chunk by chunk (bounded memory); stateful: the state runs through all
-        ls = (_ChunkedResidual(model, sig, y) if not model.stateful and y.size > CHUNK_SAMPLES
-              else _Residual(resid, jac))
+    if analytic or chunked_state:
+        # long records chunk by chunk (bounded memory); other stateful models: all at once
+        ls = (_ChunkedResidual(model, sig, y, chunk)
+              if big and (not model.stateful or chunked_state) else _Residual(resid, jac))
         rss0 = ls.rss(start)
         if not math.isfinite(rss0):
             return x, 1, math.inf
@@ -570,15 +608,24 @@ def _gram_all(model, nonlinear, data, chunk=None):
     """
     Gram matrices and right-hand sides of the regressors of ``nonlinear`` on all samples.
 
-    A memoryless model's are summed over chunks of ``chunk`` samples (the (p, n, m) regressors
-    are never formed whole; default :data:`CHUNK_SAMPLES`); a stateful model's are evaluated
-    on the whole record.
+    Summed over chunks of ``chunk`` samples (the (p, n, m) regressors are never formed whole;
+    default :data:`CHUNK_SAMPLES`): a memoryless model's chunks are independent, a lag
+    model's state runs on through them (``_eval_chunks``); other stateful models' are
+    evaluated on the whole record.
     """
     chunk = CHUNK_SAMPLES if chunk is None else int(chunk)
-    if model.stateful or data.n <= chunk:
+    chunked_state = model.stateful and hasattr(model, '_eval_chunks')
+    if (model.stateful and not chunked_state) or data.n <= chunk:
         return gram(model.regressors(nonlinear, data.x, data.v, i=data.i, t=data.t,
                                      starts=data.starts), data.f)
     G = b = 0.0
+    if chunked_state:
+        N = np.atleast_2d(np.asarray(nonlinear, dtype=float))
+        sig = model._signals(data.x, data.v, data.i, data.t, data.starts)
+        for a, b_, phi in model._eval_chunks(model._regressors, (N,), sig, chunk):
+            Gc, bc = gram(phi, data.f[a:b_])
+            G, b = G + Gc, b + bc
+        return (G, b) if np.ndim(nonlinear) > 1 else (G[0], b[0])
     for a in range(0, data.n, chunk):
         part = slice(a, a + chunk)
         Gc, bc = gram(model.regressors(nonlinear, data.x[part], data.v[part],

@@ -600,15 +600,26 @@ class HysteresisModel:
         The base set and the perturbed ones are one ``_force`` call; the other columns are 0.
         """
         cols = np.arange(p.size) if cols is None else np.asarray(cols, dtype=int)
+        P, h = self._fd_batch(p, cols)
+        F = self._force(P, x, v, i, t)
+        J = np.zeros((x.size, p.size))
+        J[:, cols] = ((F[1:] - F[0]) / h[:, None]).T
+        return J
+
+    def _fd_batch(self, p, cols=None):
+        """
+        Parameter rows of a forward-difference Jacobian: ``(P, h)``.
+
+        ``P[0]`` is ``p``, ``P[1 + k]`` is ``p`` with ``cols[k]`` (default all) raised by
+        ``h[k]`` (1e-7 of the value, at least 1e-10 of the wide bounds' span).
+        """
+        cols = np.arange(p.size) if cols is None else np.asarray(cols, dtype=int)
         lo, hi = self.default_bounds(unbounded=True)
         span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
         h = 1e-7 * np.maximum(np.abs(p[cols]), 1e-3 * span[cols])
         P = np.repeat(p[None], cols.size + 1, axis=0)
         P[1 + np.arange(cols.size), cols] += h
-        F = self._force(P, x, v, i, t)
-        J = np.zeros((x.size, p.size))
-        J[:, cols] = ((F[1:] - F[0]) / h[:, None]).T
-        return J
+        return P, h
 
     def _split(self, P):
         """Columns of P as (p, 1) arrays keyed by name."""

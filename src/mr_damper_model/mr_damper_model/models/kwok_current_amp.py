@@ -35,7 +35,7 @@ from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
 from mr_damper_model.models import ModelError
 
 
-def velocity_amplitude(v, t, tau_a):
+def velocity_amplitude(v, t, tau_a, carry=None):
     """
     Causal amplitude of a velocity signal: a peak hold of ``|v|`` decaying with ``tau_a``.
 
@@ -50,6 +50,9 @@ def velocity_amplitude(v, t, tau_a):
         Strictly increasing time [s].
     tau_a : float
         Decay time constant of the peak hold [s], > 0.
+    carry : optional
+        Chunked evaluation (``KwokCurrentLag._eval_chunks``): the hold runs on from the
+        previous chunk's (``carry.g``, updated) on the segment's time origin ``carry.t_ref``.
 
     Returns
     -------
@@ -61,9 +64,13 @@ def velocity_amplitude(v, t, tau_a):
         raise ModelError(f'`tau_a` must be a positive time constant [s], got {tau_a}')
     if v.size == 0:
         return np.zeros(0)
-    r = (t - t[0]) / tau_a
+    r = (t - (t[0] if carry is None else carry.t_ref)) / tau_a
     g = np.log(np.maximum(np.abs(v), 1e-300)) + r
+    if carry is not None and carry.g is not None:
+        g[0] = max(g[0], carry.g)
     np.maximum.accumulate(g, out=g)
+    if carry is not None:
+        carry.g = float(g[-1])
     g -= r
     return np.exp(g, out=g)
 
@@ -95,9 +102,9 @@ class KwokCurrentAmp(KwokCurrentLag):
             raise ModelError(f'`tau_a` must be a positive time constant [s], got {tau_a}')
         self.options['tau_a'] = tau_a
 
-    def _scale_slope(self, a, extra, x, v, t):
+    def _scale_slope(self, a, extra, x, v, t, carry=None):
         """Divide the slope term ``a`` (p, n) by ``1 + kappa*V`` (kappa: ``extra[:, 0]``)."""
         kappa = extra[:, [0]]
         if np.any(kappa < 0):
             raise ModelError('knee widening `kappa` must be >= 0')
-        a /= 1.0 + kappa * velocity_amplitude(v, t, self.options['tau_a'])
+        a /= 1.0 + kappa * velocity_amplitude(v, t, self.options['tau_a'], carry)

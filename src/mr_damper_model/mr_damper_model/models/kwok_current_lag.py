@@ -25,6 +25,9 @@ Discretisation: exact for a velocity held at its new value over each sample inte
 (within 1 %) and current (within 1 % of i_ref_a, at the time constant of their mean current)
 are filtered in one ``scipy.signal.lfilter`` call per parameter set: fast for test records at
 a few current levels, slow (a call per sample) for a current that changes at every sample.
+A long record is evaluated chunk by chunk with the lag carried from one chunk to the next
+(``_eval_chunks``, the record's stretches: the same result up to rounding), so ``identify``
+fits it in bounded memory (``bench/bench_csv_memory.py --multi``).
 
 ``identify`` polishes it by default (``polish_by_default``): the swarm works on every k-th
 sample (where the lag is washed out: it settles the other parameters) and the bounded
@@ -81,7 +84,7 @@ def _stretches(t, s):
     return out
 
 
-def first_order_lag(v, t, tau0, tau1=0.0, s=None):
+def first_order_lag(v, t, tau0, tau1=0.0, s=None, *, stretches=None, u0=None):
     """
     Lag a signal through ``tau*du/dt = v - u`` with ``tau = tau0 + tau1*s``.
 
@@ -97,6 +100,12 @@ def first_order_lag(v, t, tau0, tau1=0.0, s=None):
     s : numpy.ndarray with shape (n,), optional
         Normalised coil current [-] (zero if omitted). Stretches whose current stays within
         :data:`S_SPREAD` use the time constant of their mean current.
+    stretches : list of (int, int, float, float), optional
+        The stretches of these samples (default: ``_stretches(t, s)``); a chunk of a longer
+        record passes its share of the record's stretches (the record's intervals and means).
+    u0 : numpy.ndarray with shape (p,), optional
+        Lagged signal at the sample before the first (the end of the previous chunk); default
+        none: the signal starts at ``u[0] = v[0]``.
 
     Returns
     -------
@@ -112,9 +121,9 @@ def first_order_lag(v, t, tau0, tau1=0.0, s=None):
     out = np.empty((tau0.size, v.size))
     if v.size == 0:
         return out
-    stretches = _stretches(t, s)
+    stretches = _stretches(t, s) if stretches is None else stretches
     for j in range(tau0.size):
-        prev = v[0]
+        prev = v[0] if u0 is None else u0[j]
         for start, stop, dt, s_mean in stretches:
             tau = tau0[j] + tau1[j] * s_mean
             if tau < 0:
@@ -127,6 +136,27 @@ def first_order_lag(v, t, tau0, tau1=0.0, s=None):
                                                 zi=[a * prev])
             prev = out[j, stop - 1]
     return out
+
+
+class _Carry:
+    """
+    State carried from one chunk of a segment to the next (chunked evaluation of a long record).
+
+    ``stretches`` and ``t_ref`` are those of the whole segment, so every chunk is filtered with
+    the record's coefficients; ``u`` is the lagged velocity at the end of the previous chunk
+    (per parameter row), ``g`` the log-domain peak hold of ``kwok-current-amp``.
+    """
+
+    def __init__(self, stretches, t_ref):
+        self.stretches, self.t_ref = stretches, t_ref
+        self.offset = 0
+        self.u = self.g = None
+
+    def local(self, n):
+        """Return the stretches of the chunk of ``n`` samples at ``offset``, chunk-relative."""
+        a, b = self.offset, self.offset + n
+        return [(max(s0, a) - a, min(s1, b) - a, dt, sm)
+                for s0, s1, dt, sm in self.stretches if s0 < b and s1 > a]
 
 
 class KwokCurrentLag(KwokCurrent):
@@ -155,35 +185,61 @@ class KwokCurrentLag(KwokCurrent):
     #: no analytic Jacobian: forward differences (the tau column is a filter of its own)
     _jacobian = HysteresisModel._jacobian
 
-    def _lagged(self, tau0, tau1, v, i, t):
+    def _lagged(self, tau0, tau1, v, i, t, carry=None):
         if np.any(tau0 < 0) or np.any(tau1 < 0):
             raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
-        return first_order_lag(v, t, tau0, tau1, np.maximum(i, 0.0) / self.options['i_ref_a'])
+        s = np.maximum(i, 0.0) / self.options['i_ref_a']
+        if carry is None:
+            return first_order_lag(v, t, tau0, tau1, s)
+        u = first_order_lag(v, t, tau0, tau1, s, stretches=carry.local(v.size), u0=carry.u)
+        carry.u = u[:, -1].copy()
+        return u
 
-    def _scale_slope(self, a, extra, x, v, t):
+    def _scale_slope(self, a, extra, x, v, t, carry=None):
         """Scale the tanh argument's slope term ``a`` in place (subclasses; here none)."""
 
-    def _force(self, P, x, v, i, t):
+    def _force(self, P, x, v, i, t, carry=None):
         s = i / self.options['i_ref_a']
         c, alpha, beta = kwok_current_coefficients(P, s)
-        u = self._lagged(P[:, 10], P[:, 11], v, i, t)
+        u = self._lagged(P[:, 10], P[:, 11], v, i, t, carry)
         u *= beta
-        self._scale_slope(u, P[:, 12:], x, v, t)
+        self._scale_slope(u, P[:, 12:], x, v, t, carry)
         z = np.tanh(u + P[:, [8]] * np.sign(x))
         return c * v + P[:, [2]] * x + alpha * z + P[:, [9]]
 
-    def _nonlinear_factor(self, N, x, v, i, t):
+    def _nonlinear_factor(self, N, x, v, i, t, carry=None):
         s = i / self.options['i_ref_a']
         beta = N[:, [0]] * np.exp(np.clip(N[:, [1]] * s, -50.0, 50.0))
-        a = self._lagged(N[:, 3], N[:, 4], v, i, t)
+        a = self._lagged(N[:, 3], N[:, 4], v, i, t, carry)
         a *= beta
-        self._scale_slope(a, N[:, 5:], x, v, t)
+        self._scale_slope(a, N[:, 5:], x, v, t, carry)
         a += N[:, [2]] * np.sign(x)
         return np.tanh(a, out=a)
 
-    def _regressors(self, N, x, v, i, t):
+    def _eval_chunks(self, method, lead, sig, chunk):
+        """
+        Evaluate ``method(*lead, x, v, i, t, carry)`` chunk by chunk; yield ``(a, b, out)``.
+
+        ``out`` is the result on samples ``a:b`` (at most ``chunk`` of them, within one
+        segment). The lag (and the amplitude's peak hold) runs on from the end of the previous
+        chunk of the segment with the segment's stretches, so the joined results equal the
+        evaluation on the whole record up to rounding, while only one chunk is in memory
+        (bounded memory of a fit of a long record: ``identify``).
+        """
+        x, v, i, t, starts = sig
+        edges = np.append(starts, x.size)
+        for s0, s1 in zip(edges[:-1], edges[1:]):
+            s = np.maximum(i[s0:s1], 0.0) / self.options['i_ref_a']
+            carry = _Carry(_stretches(t[s0:s1], s), float(t[s0]))
+            del s
+            for a in range(s0, s1, chunk):
+                b = min(a + chunk, s1)
+                carry.offset = a - s0
+                yield a, b, method(*lead, x[a:b], v[a:b], i[a:b], t[a:b], carry)
+
+    def _regressors(self, N, x, v, i, t, carry=None):
         parts = self._separable_parts(x, v, i, t)
-        h = self._nonlinear_factor(N, x, v, i, t)
+        h = self._nonlinear_factor(N, x, v, i, t, carry)
         phi = np.empty((N.shape[0], x.size, len(self.linear_names)))
         phi[:, :, parts.fixed_index] = parts.fixed
         phi[:, :, parts.factor_index] = h[:, :, None] * parts.weights

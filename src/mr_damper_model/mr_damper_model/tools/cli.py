@@ -300,6 +300,19 @@ def _read_all(names, topic):
     return parts, None
 
 
+def _views(data, labels):
+    """Return the records joined into ``data`` as views of its arrays; ``labels``: (source, n)."""
+    from mr_damper_model.io.data import DamperData
+    out, a = [], 0
+    for source, n in labels:
+        b = a + n
+        starts = data.starts[(data.starts >= a) & (data.starts < b)] - a
+        out.append(DamperData(data.t[a:b], data.x[a:b], data.v[a:b], data.f[a:b], data.i[a:b],
+                              source=source, starts=starts if starts.size else None))
+        a = b
+    return out
+
+
 def _suffix_path(path, level):
     p = Path(path)
     tag = f'{level:.2f}'.replace('.', 'p')
@@ -340,7 +353,12 @@ def run(argv=None):
     if code is not None:
         return code
     # several files: one record, each part on its own time base (stateful models restart)
-    data = parts[0] if len(parts) == 1 else DamperData.concatenate(parts, restamp=True)
+    if len(parts) == 1:
+        data = parts[0]
+    else:                   # the files become views of the joined record: one copy in memory
+        labels = [(p.source, p.n) for p in parts]
+        data = DamperData.concatenate(parts, restamp=True, release=True)
+        parts = _views(data, labels)
     levels = current_group_levels(data) or list(data.current_levels())
     model = args.model or (MULTI_CURRENT_MODEL if len(levels) > 1 and not args.per_current
                            else 'kwok')
