@@ -432,7 +432,7 @@ class CarRuntime:
         return len(self.trace)
 
 
-def make_car_runtime(p, clock, outputs):
+def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
     """
     Build the car runtime of the quarter-car node from its parameter values.
 
@@ -444,6 +444,14 @@ def make_car_runtime(p, clock, outputs):
         ``clock()`` -> node clock [s].
     outputs : CarOutputs
         The node's outputs.
+    supervisor : dict
+        Keyword settings of the :class:`~quarter_car_sim.failsafe.ModelSupervisor`
+        (``timeout_s``, ``safe_current_a``, ``i_min_a``, ``i_max_a``, ``hold_on_reject``,
+        ``min_current_span_a``); ``safe_current_a``, ``i_min_a`` and ``i_max_a`` also apply to
+        the external controller's commands and the probe.
+    controller_options : str
+        JSON object of the built-in law's keyword options (gains); not read with an external
+        controller.
 
     Returns
     -------
@@ -470,10 +478,7 @@ def make_car_runtime(p, clock, outputs):
     dt = 1.0 / rate_hz
     external = p['controller'].strip().lower() == 'external'
     car_params = QuarterCarParams(**{k: p[k] for k in ('m_s', 'm_u', 'k_s', 'k_t')})
-    sup = ModelSupervisor(timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
-                          i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
-                          hold_on_reject=p['hold_on_reject'],
-                          min_current_span_a=p['min_current_span_a'])
+    sup = ModelSupervisor(**supervisor)
     road = make_road(p['road'], road_class=p['road_class'], speed_m_s=p['speed_m_s'],
                      rng=int(p['road_seed']), duration_s=p['road_duration_s'], dt=dt,
                      file=p['road_file'], repeat=p['road_repeat'])
@@ -483,7 +488,7 @@ def make_car_runtime(p, clock, outputs):
         adapt_gain=p['hil_adapt_gain'], stale_after_s=p['hil_stale_s'])
         if plant == 'rig' else None)
     true_plant = remote or make_plant(plant, p['truth_file'])
-    probe = (CurrentProbe(p['i_min_a'], p['i_max_a'], bin_a=p['probe_bin_a'],
+    probe = (CurrentProbe(sup.i_min_a, sup.i_max_a, bin_a=p['probe_bin_a'],
                           period_s=p['probe_period_s'], hold_s=p['probe_hold_s'],
                           min_samples=p['probe_min_samples'], max_duty=p['probe_max_duty'])
              if p['probe'] else None)
@@ -492,7 +497,7 @@ def make_car_runtime(p, clock, outputs):
     def make_law(options):
         return controller_core.make_node_law(p['controller'], car_params, rate_hz, options)
 
-    law = None if external else make_law(json.loads(p['controller_options'] or '{}'))
+    law = None if external else make_law(json.loads(controller_options or '{}'))
     loop = live_loop.ClosedLoop(car, law, sup, dt,
                                 metrics=live_loop.make_running_metrics(car_params, dt))
     trace = live_loop.TraceLog(p['log_file'], dt) if p['log_file'] else None
@@ -503,7 +508,7 @@ def make_car_runtime(p, clock, outputs):
     sensors = (VehicleSensors(dt, int(p['sensor_seed']), dropout=(
         p['sensor_dropout_start_s'], p['sensor_dropout_s'])) if sensing == 'vehicle' else None)
     command_input = (controller_core.CommandInput(
-        p['command_timeout_s'], p['safe_current_a'], p['i_min_a'], p['i_max_a'])
+        p['command_timeout_s'], sup.safe_current_a, sup.i_min_a, sup.i_max_a)
         if external else None)
     state_rate_hz = p['state_rate_hz']
     name = law.name if law else 'external controller'
@@ -517,5 +522,4 @@ def make_car_runtime(p, clock, outputs):
         state_every=max(1, int(round(rate_hz / state_rate_hz))) if state_rate_hz > 0 else 0,
         trace=trace, health_rules=health_rules, make_law=None if external else make_law,
         summary=f'{name} at {rate_hz:g} Hz (x{rtf:g} real time) on {road.name}, plant '
-                f'{plant}; fail-safe {p["safe_current_a"]:g} A, timeout '
-                f'{p["param_timeout_s"]:g} s')
+                f'{plant}; fail-safe {sup.safe_current_a:g} A, timeout {sup.timeout_s:g} s')

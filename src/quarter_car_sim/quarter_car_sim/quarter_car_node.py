@@ -182,22 +182,25 @@ def _fmt(state):
 
 class QuarterCarNode(Node, CarOutputs):
     """
-    Thin ROS adapter over :class:`quarter_car_sim.car_runtime.CarRuntime` (module docstring).
+    Thin ROS adapter over, and outputs of, :class:`quarter_car_sim.car_runtime.CarRuntime`.
 
-    The node is the runtime's :class:`~quarter_car_sim.car_runtime.CarOutputs` (its publishers
-    and logger). Keyword arguments (e.g. ``context``, ``parameter_overrides``) go to
-    ``rclpy.node.Node``.
+    Keyword arguments (e.g. ``context``, ``parameter_overrides``) go to ``rclpy.node.Node``.
     """
 
     def __init__(self, **node_kwargs):
         super().__init__('quarter_car_node', **node_kwargs)
         p = self.p = declare_parameters(self, PARAMETERS,
                                         lambda changes: self.rt.reconfigure(changes))
-        self.rate_hz = p['rate_hz']
-        self.log_file = p['log_file']
-        rt = self.rt = make_car_runtime(p, self._now, self)
+        self.rate_hz, self.log_file = p['rate_hz'], p['log_file']
+        # the settings shared with the controller node, as its parameters name them
+        supervisor = dict(timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
+                          i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
+                          hold_on_reject=p['hold_on_reject'],
+                          min_current_span_a=p['min_current_span_a'])
+        rt = self.rt = make_car_runtime(p, self._now, self, supervisor=supervisor,
+                                        controller_options=p['controller_options'])
         # the cores (tests and tools look at them)
-        self.lock, self.sup, self.loop, self.car = rt.lock, rt.sup, rt.loop, rt.car
+        self.sup, self.loop, self.car = rt.sup, rt.loop, rt.car
         self.cmd_in, self.health_rules = rt.cmd_in, rt.health_rules
         self.drops = DropCounter(self.get_logger())
         self.cmd, self.disp = Float64(), Float64()
