@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from mr_damper_model.io.data import DamperData
-from mr_damper_model.identification.identify import (_full_cost, compare_models, current_groups,
+from mr_damper_model.identification.identify import (compare_models, current_groups,
                                                      identify, identify_per_current)
+from mr_damper_model.identification.separable import _full_cost
 from mr_damper_model.models import get_model
 from mr_damper_model.identification.presets import THESIS_TABLE_4_3, thesis_kwok_current
 
@@ -271,7 +272,7 @@ def test_full_cost_gram_form_equals_direct_rmse(name):
 
 def test_projected_lm_matches_trf_with_an_active_bound():
     from scipy.optimize import least_squares
-    from mr_damper_model.identification.identify import _projected_lm
+    from mr_damper_model.identification.separable import _projected_lm
     m, truth = thesis_kwok_current()
     t, x, v, _ = cam(2.0)
     i = np.linspace(0.0, 2.0, t.size)
@@ -302,7 +303,7 @@ def test_chunked_polish_and_solve_equal_the_whole_record(monkeypatch, model_name
     parameters within 1e-9 relative, RMSE within 1e-12 relative (chunks of 700 samples, not a
     divisor of the record, against one chunk).
     """
-    from mr_damper_model.identification import identify as idm
+    from mr_damper_model.identification import separable as idm
     m = get_model(model_name)
     t, x, v, _ = cam(6.0)
     levels = [0.0, 0.5, 1.0, 1.5, 2.0]
@@ -338,7 +339,7 @@ def test_chunked_lag_models_equal_the_whole_record(monkeypatch, model_name):
     are nearly flat (a change of 1e-5 in kappa moves the sum of squares by less than 1e-13),
     so the order of the additions shows there.
     """
-    from mr_damper_model.identification import identify as idm
+    from mr_damper_model.identification import separable as idm
     m = get_model(model_name)
     parts = []
     truth = dict(thesis_kwok_current()[1], tau0=0.004, tau1=0.006)
