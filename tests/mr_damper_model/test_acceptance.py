@@ -83,6 +83,7 @@ def test_four_faults_stay_within_the_clean_runs_sets(record, clean_run):
 
 
 @pytest.mark.parametrize('kind', ['step', 'fast_drift'])
+@pytest.mark.slow
 def test_offset_step_and_fast_drift_never_reach_a_valid_set(kind):
     """A force offset with no change in motion is flagged, never absorbed into f0."""
     data = quiroz('quiroz_sine_10mm1Hz_0p5A_preproc')

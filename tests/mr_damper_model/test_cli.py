@@ -57,6 +57,7 @@ def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys):
         assert path.name in err and 'Traceback' not in err, (problem, err)
 
 
+@pytest.mark.slow
 def test_unknown_model_via_console_script(tmp_path):
     proc = subprocess.run([str(VENV_BIN / 'mr-damper-identify'), str(QFILE), '--model', 'foo'],
                           capture_output=True, text=True, timeout=60)
@@ -95,6 +96,7 @@ def test_per_current_groups_and_default_model(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)['model'] == 'kwok-current-amp'
 
 
+@pytest.mark.slow
 def test_table_and_plot(tmp_path, capsys):
     png = tmp_path / 'fit.png'
     assert run([str(QFILE), '--plot', str(png)]) == 0
@@ -144,6 +146,7 @@ def joint_fit(tmp_path_factory):
     return json.loads(buf.getvalue()), out
 
 
+@pytest.mark.slow
 def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
     doc, out = joint_fit
     assert doc['model'] == 'kwok-current-amp'      # three current levels: the default
@@ -182,6 +185,7 @@ def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
         assert docs[how]['source'] == docs['list']['source'], how
 
 
+@pytest.mark.slow
 def test_multi_file_table_and_plot(tmp_path, capsys):
     png = tmp_path / 'joint.png'
     assert run([*map(str, TRIO[:2]), '--plot', str(png), '--seed', '2']) == 0

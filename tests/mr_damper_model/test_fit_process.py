@@ -24,6 +24,7 @@ def test_the_child_is_in_its_own_session(proc):
     assert os.getsid(proc._proc.pid) == proc._proc.pid != os.getsid(0)
 
 
+@pytest.mark.slow
 def test_a_killed_child_fails_one_call_then_is_replaced(proc):
     data, _, _ = cam_record(currents=(1.0,), hold_s=1.0)
     cfg = LiveConfig(warm_start=False, **DET)

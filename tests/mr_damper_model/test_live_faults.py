@@ -203,6 +203,7 @@ def test_whole_window_stuck_is_skipped_no_force():
     assert_no_wrong_valid(ests)
 
 
+@pytest.mark.slow
 def test_force_offset_step_is_inconsistent_until_it_goes_away():
     arrays = stream()
     offset_end = K_FAULT + 2500
@@ -429,6 +430,7 @@ def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_healthy_spencer_damper_raises_no_fault():
     """Model mismatch is no fault: a Bouc-Wen damper, current steps 0..2 A, all valid."""
     from mr_damper_model.models.plant import SpencerPlant

@@ -31,6 +31,7 @@ def _chunks(path):
         reader.close()
 
 
+@pytest.mark.slow
 def test_a_complete_file_reads_whole(tmp_path):
     path, data = _bag(tmp_path)
     scan = McapScan(path)

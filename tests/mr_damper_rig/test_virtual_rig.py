@@ -95,6 +95,7 @@ def test_rig_node_options_build_a_repeating_schedule_or_a_commanded_rig():
         build_virtual_rig(_node_options(current_source='both'))
 
 
+@pytest.mark.slow
 def test_identify_damper_recovers_kwok_truth():
     d = identify_damper(make_plant('kwok-current'), seed=1)
     assert d['model'] == 'kwok-current'
