@@ -10,6 +10,8 @@ package. Node modules (``*_node.py``, among them the recorder and the launcher's
 import subprocess
 import sys
 
+import pytest
+
 from conftest import REPO
 
 ROS_MODULES = {'messages', 'node_utils'}
@@ -49,5 +51,6 @@ def test_core_modules_do_not_import_ros():
         assert not culprits, f'core modules pulled in ROS modules: {culprits}'
 
 
+@pytest.mark.slow
 def test_the_check_sees_a_module_that_imports_ros():
     assert 'rclpy' in _ros_modules_loaded_by(['mr_damper_common.node_utils'])

@@ -10,6 +10,8 @@ which live in
 import subprocess
 import sys
 
+import pytest
+
 
 FITTING_STACK = ('mr_damper_model.identification', 'mr_damper_model.live', 'numba', 'rosbags',
                  'mcap', 'matplotlib', 'dask', 'distributed')
@@ -38,6 +40,7 @@ def test_nodes_do_not_load_the_fitting_stack():
         assert not culprits, f'nodes loading the fitting stack: {culprits}'
 
 
+@pytest.mark.slow
 def test_the_check_sees_a_module_that_loads_it():
     # the identifier node fits: it loads the live identifier and the fitting code at import
     found = loaded(['mr_damper_model.nodes.identifier_node'], FITTING_STACK)

@@ -129,6 +129,7 @@ def test_dampers_go_to_the_cluster_in_chunks_of_every_task_once(n, workers):
     assert max(map(len, chunks)) - min(map(len, chunks)) <= 1
 
 
+@pytest.mark.slow
 def test_batch_pass_fail_bad_files_and_resume(archive, tmp_path):
     root, master = archive
     s = settings_for(master)

@@ -80,6 +80,7 @@ def test_json_output_and_params_file(tmp_path, capsys):
     assert pf.parameters == pytest.approx(doc['parameters'])
 
 
+@pytest.mark.slow
 def test_per_current_groups_and_default_model(tmp_path, capsys):
     from mr_damper_model.io.data import DamperData, read_csv, write_csv
     a = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0A.csv.gz')
@@ -195,6 +196,7 @@ def test_multi_file_table_and_plot(tmp_path, capsys):
     assert png.stat().st_size > 10000
 
 
+@pytest.mark.slow
 def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, capsys):
     _, params = joint_fit
     held_out = [QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p25A.csv.gz',
@@ -354,6 +356,7 @@ def test_every_registered_model_can_be_chosen():
     assert MULTI_CURRENT_MODEL in MODEL_CHOICES
 
 
+@pytest.mark.slow
 def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path, capsys):
     """mr-damper-identify reads a footer-less MCAP up to its last chunk and says where it ends."""
     from mr_damper_model.io.bag_io import write_bag

@@ -61,6 +61,7 @@ def test_close_ends_the_child(proc):
     assert _ended(pid)
 
 
+@pytest.mark.slow
 def test_the_child_ends_when_its_node_is_killed():
     # a node killed with SIGKILL cannot close its child: the child ends when its stdin closes
     import subprocess

@@ -60,6 +60,7 @@ def test_follow_command_and_truth():
     assert truth['model_options'] == {'i_ref_a': 2.0}
 
 
+@pytest.mark.slow
 def test_default_rig_is_thesis_like():
     rig = VirtualRig(rng=0)
     assert rig.true_parameters()['model'] == 'spencer'

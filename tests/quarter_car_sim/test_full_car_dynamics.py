@@ -112,6 +112,7 @@ def test_dynamic_index_one_axles_ride_as_independent_quarter_cars():
     assert pitch > 2e-3            # the body pitched, yet the axles stayed independent
 
 
+@pytest.mark.slow
 def test_free_vibration_without_dampers_conserves_energy():
     p = PASSENGER_CAR.replace(k_arb_f=9000.0, k_arb_r=4000.0)
     car = FullCar(p, None, _flat())
