@@ -7,9 +7,12 @@ and pycodestyle errors fail the suite.
 import subprocess
 import sys
 
+import pytest
+
 from conftest import REPO
 
 
+@pytest.mark.slow
 def test_flake8_clean():
     proc = subprocess.run(
         [sys.executable, '-m', 'flake8', '--max-line-length', '99', '--exclude', '__pycache__',

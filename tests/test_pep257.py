@@ -9,11 +9,14 @@ or ``_``.
 import subprocess
 import sys
 
+import pytest
+
 from conftest import REPO
 
 AMENT_PEP257_IGNORE = 'D100,D101,D102,D103,D104,D105,D106,D107,D203,D212,D404'
 
 
+@pytest.mark.slow
 def test_pep257_clean():
     proc = subprocess.run(
         [sys.executable, '-m', 'pydocstyle', f'--ignore={AMENT_PEP257_IGNORE}',

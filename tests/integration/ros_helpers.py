@@ -12,6 +12,7 @@ Usage::
         status = lis.subscribe('/mr_damper/identifier_status', String)
         lis.wait_for(lambda: len(status) > 0, timeout=10)
 """
+import ast
 import os
 from pathlib import Path
 import signal
@@ -20,9 +21,37 @@ import tempfile
 import threading
 import time
 
-from conftest import VENV_BIN
+from conftest import REPO, VENV_BIN
 
 DISCOVERY_TIMEOUT_S = 8.0
+
+
+def console_scripts(package):
+    """
+    Return the console scripts ``{name: 'module:function'}`` of ``src/<package>/setup.py``.
+
+    Parsed, not executed: the one list of what ``ros2 run PACKAGE NAME`` can start, which the
+    launch-file and colcon tests check against (a new node cannot be missed).
+    """
+    tree = ast.parse((REPO / 'src' / package / 'setup.py').read_text())
+    scripts = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and ' = ' in node.value:
+            name, target = (s.strip() for s in node.value.split('=', 1))
+            scripts[name] = target
+    return scripts
+
+
+def python_packages():
+    """Return the names of the Python packages under ``src/`` (those with a setup.py), sorted."""
+    return sorted(p.parent.name for p in (REPO / 'src').glob('*/setup.py'))
+
+
+def package_of(executable):
+    """Return the package whose setup.py declares the console script ``executable``."""
+    owners = [p for p in python_packages() if executable in console_scripts(p)]
+    assert len(owners) == 1, f'{executable}: declared by {owners or "no package"}'
+    return owners[0]
 
 
 def fault_test_suite(out):

@@ -18,13 +18,12 @@ import time
 import pytest
 
 from conftest import REPO, VENV_BIN
+from integration.ros_helpers import console_scripts, python_packages
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-NODES = [('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
-         ('quarter_car_sim', 'quarter_car_node'), ('mr_damper_bringup', 'mr-damper-suite'),
-         ('mr_damper_bringup', 'mr-damper-record'), ('mr_damper_can', 'can_bridge_node'),
-         ('mr_damper_can', 'can_driver_sim')]
+#: every console script of every package (its setup.py): what `ros2 run` can start
+NODES = [(pkg, exe) for pkg in python_packages() for exe in sorted(console_scripts(pkg))]
 
 
 @pytest.fixture(scope='module')

@@ -22,7 +22,7 @@ import signal
 import numpy as np
 import pytest
 
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 from kwok_messages import thesis_parameter_values
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -34,16 +34,15 @@ CAR_NAME, CTRL_NAME = f'{NS}/quarter_car_node', f'{NS}/semi_active_controller'
 
 
 @pytest.fixture(scope='module')
-def listener():
+def listener(listener):
+    """Return the module's listening node (conftest.py), thesis parameters latched on NS."""
     from mr_damper_interfaces.msg import KwokParameters
     from mr_damper_common.messages import kwok_parameters_msg
     from mr_damper_common.node_utils import LATCHED_QOS
-    lis = Listener('controller_node_test')
-    pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
+    pub = listener.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
     pub.publish(kwok_parameters_msg(thesis_parameter_values()))   # latched
-    lis.params_pub = pub
-    yield lis
-    lis.close()
+    listener.params_pub = pub
+    return listener
 
 
 CAR = {'plant': 'kwok-current', 'controller': 'external', 'safe_current_a': SAFE_A,

@@ -26,19 +26,12 @@ import signal
 
 import pytest
 
-from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
+from integration.ros_helpers import fault_test_suite, NodeProcess
 from mr_damper_bringup.config import IDENT, NODES, QC, RIG
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 GUARD_S = 60.0   # hang guard of every wait (a loaded machine needs seconds, never this long)
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('fault_injection_test')
-    yield lis
-    lis.close()
 
 
 def test_each_node_stopped_and_killed_the_others_carry_on(listener, tmp_path):

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from conftest import REPO
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -37,13 +37,6 @@ def _suite_params(node, **overrides):
     # string must be quoted so that it stays a string
     return {k: (f"'{v}'" if isinstance(v, str) and v.startswith('{') else v)
             for k, v in params.items() if v != ''}
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('hil_suite_test')
-    yield lis
-    lis.close()
 
 
 def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener):

@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from conftest import REPO, VENV_BIN
+from integration.ros_helpers import console_scripts, package_of
 from mr_damper_bringup.config import IDENT, node_params, NODES, QC, resolve_config, RIG
 from mr_damper_bringup.launcher import main, parse_args
 from mr_damper_bringup.processes import wait_while_progressing
@@ -71,26 +72,15 @@ def _entries(action_list, kind):
     return [a for a in action_list if a.__class__ is _Recorded and kind(a)]
 
 
-def _console_scripts(package):
-    """Console scripts declared in src/<package>/setup.py (parsed, not executed)."""
-    tree = ast.parse((REPO / 'src' / package / 'setup.py').read_text())
-    scripts = {}
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Constant) and isinstance(node.value, str) and ' = ' in node.value:
-            name, target = (s.strip() for s in node.value.split('=', 1))
-            scripts[name] = target
-    return scripts
-
-
-def test_three_nodes_with_installed_console_scripts(launch_description):
+def test_launcher_nodes_with_installed_console_scripts(launch_description):
     items = launch_description.args[0]
     nodes = [a.kwargs for a in items if 'executable' in a.kwargs]
+    # the launcher's nodes (mr_damper_bringup.config.NODES), each from the package declaring it
     assert [(n['package'], n['executable']) for n in nodes] == [
-        ('mr_damper_rig', 'rig_node'), ('mr_damper_model', 'identifier_node'),
-        ('quarter_car_sim', 'quarter_car_node')]
+        (package_of(exe), exe) for exe in NODES.values()]
     for n in nodes:
         # what `ros2 run PKG EXE` starts: a console script of that package, installed here
-        scripts = _console_scripts(n['package'])
+        scripts = console_scripts(n['package'])
         assert n['executable'] in scripts
         module, func = scripts[n['executable']].split(':')
         assert module.startswith(n['package'] + '.')
@@ -123,7 +113,7 @@ def test_one_parameter_file_whose_keys_are_the_node_names(launch_description, co
 
 def _node_module(package, executable):
     """Return the node module a console script runs (through ``entry_points.early_main``)."""
-    module, func = _console_scripts(package)[executable].split(':')
+    module, func = console_scripts(package)[executable].split(':')
     if module.endswith('.entry_points'):
         src = (REPO / 'src' / package / (module.replace('.', '/') + '.py')).read_text()
         found = re.search(rf"def {func}\(\):.*?early_main\('([\w.]+)'\)", src, re.S)

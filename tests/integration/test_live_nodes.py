@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState
 from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
 from conftest import csv_text, QUIROZ_DIR, VENV_BIN
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.models.kwok_current import kwok_current_force
 from mr_damper_common.messages import (kwok_parameters_from_msg, measurement_arrays,
@@ -47,13 +47,6 @@ OFFLINE_SAME = {'warm_start': False, 'budget_s': 0.0, 'maxiter': 0, 'swarm_size'
                 'seed': 1, 'acceptance_checks': False}
 #: identifier diagnostics as often as its JSON status was published
 DIAG = {'diagnostics_period_s': 0.2}
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('live_nodes_test')
-    yield lis
-    lis.close()
 
 
 class Topics:

@@ -19,19 +19,12 @@ import threading
 import numpy as np
 import pytest
 
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 
 pytestmark = [pytest.mark.integration]
 
 GUARD_S = 60.0
 RATE_HZ = 200.0
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('rig_node_test')
-    yield lis
-    lis.close()
 
 
 def _write_csv(path, n, t0_s=10.0):

@@ -19,7 +19,7 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 from mr_damper_common.health import WARN
 from mr_damper_model.models.validity import pinned_parameters
 from mr_damper_common.messages import kwok_parameters_from_msg, samples_to_msg
@@ -139,20 +139,17 @@ def diff(after, before, key):
     return {k: after[key][k] - before[key].get(k, 0) for k in after[key]}
 
 
-def test_sensor_faults_never_become_valid_models():
-    lis = Listener('sensor_faults_test')
+def test_sensor_faults_never_become_valid_models(listener):
+    lis = listener
     params = lis.subscribe('/faults/mr_damper/kwok_parameters', KwokParameters)
     diag = lis.diagnostics()
     pub = lis.publisher('/faults/mr_damper/measurement', DamperSamples, KEEP_ALL)
     ident = NodeProcess('identifier_node', DIAG, namespace='faults')
-    try:
-        with ident:
-            assert lis.wait_for(lambda: pub.get_subscription_count() > 0, WAIT_S,
-                                procs=[ident]), ident.output()
-            run_faults(lis, Stream(lis, pub, diag, ident), params)
-            assert ident.alive()
-    finally:
-        lis.close()
+    with ident:
+        assert lis.wait_for(lambda: pub.get_subscription_count() > 0, WAIT_S,
+                            procs=[ident]), ident.output()
+        run_faults(lis, Stream(lis, pub, diag, ident), params)
+        assert ident.alive()
 
 
 def run_faults(lis, stream, params):

@@ -9,7 +9,7 @@ to the ROS-free core's replay of the same samples. The parameter stamps are reco
 import pytest
 
 from conftest import QUIROZ_DIR
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 from mr_damper_interfaces.msg import KwokParameters
 from mr_damper_model.live import LiveConfig, LiveIdentifier
 from mr_damper_common.messages import kwok_parameters_from_msg
@@ -18,13 +18,6 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 HANG_GUARD_S = 180.0    # a guard against a hung node, not a time budget
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('sim_time_test')
-    yield lis
-    lis.close()
 
 
 def _replay(listener, rate_factor, n_samples):

@@ -19,7 +19,7 @@ import threading
 import numpy as np
 import pytest
 
-from integration.ros_helpers import Listener, NodeProcess
+from integration.ros_helpers import NodeProcess
 from kwok_messages import thesis_parameter_values
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -68,17 +68,16 @@ class _Vehicle:
 
 
 @pytest.fixture(scope='module')
-def listener():
+def listener(listener):
+    """Return the module's listening node (conftest.py), thesis parameters, a vehicle."""
     from mr_damper_interfaces.msg import KwokParameters
     from mr_damper_common.messages import kwok_parameters_msg
     from mr_damper_common.node_utils import LATCHED_QOS
-    lis = Listener('state_estimator_test')
-    pub = lis.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
+    pub = listener.publisher(f'/{NS}/mr_damper/kwok_parameters', KwokParameters, LATCHED_QOS)
     pub.publish(kwok_parameters_msg(thesis_parameter_values()))
-    lis.params_pub = pub
-    lis.vehicle = _Vehicle(lis)
-    yield lis
-    lis.close()
+    listener.params_pub = pub
+    listener.vehicle = _Vehicle(listener)
+    return listener
 
 
 def test_dropout_marks_the_state_and_the_controller_falls_back(listener):

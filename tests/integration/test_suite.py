@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import fault_test_suite, Listener, NodeProcess
+from integration.ros_helpers import fault_test_suite, NodeProcess
 from kwok_messages import thesis_parameter_values
 from mr_damper_bringup.config import IDENT, QC, RIG
 from mr_damper_bringup.processes import CLEAN_EXIT
@@ -34,13 +34,6 @@ from mr_damper_model.io.columnlog import ColumnReader
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 SAFE_A = 0.5
-
-
-@pytest.fixture(scope='module')
-def listener():
-    lis = Listener('h5_suite_test')
-    yield lis
-    lis.close()
 
 
 def test_quarter_car_refuses_bad_parameters(listener, tmp_path):

@@ -110,6 +110,7 @@ def test_remote_plant_over_a_zero_latency_link_reproduces_the_in_process_hil_pla
     assert counts['gaps'] == counts['stale_steps'] == counts['out_of_order'] == 0
 
 
+@pytest.mark.slow
 def test_adaptive_horizon_over_a_latent_link_grows_by_the_latency_and_cuts_the_error():
     # 5 ms of message latency the initial horizon does not know of: the adapted horizon ends
     # about 5 ms above the one adapted without latency, and the tracking error falls below the
@@ -129,6 +130,7 @@ def test_adaptive_horizon_over_a_latent_link_grows_by_the_latency_and_cuts_the_e
     assert abs(out[5, 2.0][1]['delay_s']) < 0.25 * abs(out[5, 0.0][1]['delay_s'])
 
 
+@pytest.mark.slow
 def test_cam_rig_comparison_ranks_the_truth_with_the_cam_fit_and_a_wrong_model_below():
     from mr_damper_model.identification import presets
     model, params = presets.thesis_kwok_current()

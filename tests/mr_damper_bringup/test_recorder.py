@@ -193,6 +193,7 @@ def test_status_decoder_takes_diagnostics_by_node_and_namespace():
         topics.decode_status('diagnostics', TS.types[topics.STRING](data='[1, 2]'))
 
 
+@pytest.mark.slow
 def test_memory_stays_flat_while_recording(tmp_path):
     """20,000 batches of 20 samples (~20 MB of file): the writer holds one chunk, not the run."""
     raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)

@@ -199,6 +199,7 @@ def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
     assert d['recv_epoch_s'] == pytest.approx(1000.3)
 
 
+@pytest.mark.slow
 def test_make_report_end_to_end(tmp_path):
     params, msg = _truth_msg()
     meas = _measurements(params)
@@ -404,6 +405,7 @@ def test_identifier_received_adds_up_its_lives():
     assert br['identifier_lives'] == 2
 
 
+@pytest.mark.slow
 def test_a_cut_recording_and_a_second_part_make_one_incomplete_report(tmp_path):
     """A killed recorder's part (no footer) and its successor's: read both, marked incomplete."""
     from mr_damper_bringup.recorder import recording_parts, work_file

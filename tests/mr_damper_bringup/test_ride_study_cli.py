@@ -39,6 +39,7 @@ def test_compare_json(params_file, capsys):
     assert out['controllers']['lqr-active']['mean_current_a'] is None
 
 
+@pytest.mark.slow
 def test_compare_table_names_the_new_laws_and_the_bound(params_file, capsys):
     rc = cli.main(['--compare', '--duration', '2', '--plant', 'kwok',
                    '--damper-params', str(params_file)])

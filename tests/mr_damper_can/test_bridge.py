@@ -5,6 +5,7 @@ import time
 import can
 import pytest
 
+from fake_clock import FakeClock
 from mr_damper_can import codec
 from mr_damper_can.bridge import BridgeHealth, CanBridge
 from mr_damper_can.codec import FrameCodec
@@ -12,16 +13,6 @@ from mr_damper_can.driver_sim import SimulatedEcu
 from mr_damper_common.health import ERROR, OK, WARN
 
 DB = codec.load_database()
-
-
-class Clock:
-    """A hand-moved monotonic clock [s]."""
-
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self):
-        return self.t
 
 
 def _msg(frame_id, data, **kw):
@@ -52,7 +43,7 @@ def _sent_values(frames):
 
 
 def test_each_command_is_one_frame_with_counter_and_checksum():
-    clock = Clock()
+    clock = FakeClock()
     bridge = CanBridge(None, ('fl', 'rr'), db=DB, clock=clock)
     currents = [0.0, 0.01, 1.234, 2.55, 0.5] * 5
     for k, i in enumerate(currents):
@@ -72,7 +63,7 @@ def test_each_command_is_one_frame_with_counter_and_checksum():
 
 
 def test_commands_outside_the_dbc_range_never_leave_the_bridge():
-    clock = Clock()
+    clock = FakeClock()
     bridge = CanBridge(None, ('fl',), db=DB, clock=clock)
     outcomes = [bridge.command('fl', i) for i in (3.7, -0.4, 1e9, -math.inf, math.nan, 1.0)]
     assert outcomes == ['clamped_high', 'clamped_low', 'clamped_high', 'refused_non_finite',
@@ -87,7 +78,7 @@ def test_commands_outside_the_dbc_range_never_leave_the_bridge():
 
 @pytest.mark.parametrize('safe', [0.0, 2.55])
 def test_fail_safe_polarity_is_a_parameter_and_checked(safe):
-    clock = Clock()
+    clock = FakeClock()
     bridge = CanBridge(None, ('fl',), db=DB, clock=clock, safe_current_a=safe)
     assert bridge.tick() == 1                # no command yet: the safe current, flagged
     (v,) = _sent_values(bridge.sent)
@@ -100,7 +91,7 @@ def test_fail_safe_polarity_is_a_parameter_and_checked(safe):
 
 
 def test_command_timeout_puts_the_corner_in_fail_safe_and_back():
-    clock = Clock()
+    clock = FakeClock()
     bridge, ecu = _pair(clock, safe_current_a=0.3, command_timeout_s=0.05,
                         rx_timeout_s=10.0, resend_period_s=0.01)
     for _ in range(10):
@@ -131,7 +122,7 @@ def test_command_timeout_puts_the_corner_in_fail_safe_and_back():
 
 
 def test_driver_fault_puts_the_corner_in_fail_safe_until_cleared():
-    clock = Clock()
+    clock = FakeClock()
     bridge, ecu = _pair(clock, ('fl', 'fr'), safe_current_a=0.2, rx_timeout_s=10.0)
     driver_seen = []
     bridge.on_driver = driver_seen.append
@@ -165,7 +156,7 @@ def test_driver_fault_puts_the_corner_in_fail_safe_until_cleared():
 
 
 def test_link_flags_of_the_driver_are_counted_but_no_fail_safe():
-    clock = Clock()
+    clock = FakeClock()
     bridge = CanBridge(None, ('fl',), db=DB, clock=clock, rx_timeout_s=10.0,
                        command_timeout_s=10.0)
     ecu = SimulatedEcu(None, ('fl',), db=DB, clock=clock, command_timeout_s=0.02)
@@ -185,7 +176,7 @@ def test_link_flags_of_the_driver_are_counted_but_no_fail_safe():
                                             ('error_frame', 'error_frame'),
                                             ('bus_off', 'bus_off')])
 def test_every_bus_fault_injected_is_counted(fault, counter):
-    clock = Clock()
+    clock = FakeClock()
     bridge, ecu = _pair(clock, rx_timeout_s=10.0)
     bridge.command('fl', 1.0)
     for k in range(5):
@@ -213,7 +204,7 @@ def test_every_bus_fault_injected_is_counted(fault, counter):
 
 
 def test_bus_off_is_fail_safe_while_it_lasts():
-    clock = Clock()
+    clock = FakeClock()
     bridge = CanBridge(None, ('fl',), db=DB, clock=clock, rx_timeout_s=10.0)
     bridge.command('fl', 1.0)
     bridge.on_frame(_msg(codec.CAN_ERR_BUSOFF, bytes(8), is_error_frame=True))
@@ -223,7 +214,7 @@ def test_bus_off_is_fail_safe_while_it_lasts():
 
 
 def test_missing_cyclic_frames_are_timeouts_once_per_outage():
-    clock = Clock()
+    clock = FakeClock()
     bridge, ecu = _pair(clock, rx_timeout_s=0.02, command_timeout_s=10.0)
     bridge.command('fl', 1.0)
     for _ in range(5):
@@ -256,7 +247,7 @@ def test_missing_cyclic_frames_are_timeouts_once_per_outage():
 
 
 def test_sensor_frames_decode_to_the_known_synthetic_values():
-    clock = Clock()
+    clock = FakeClock()
     bridge, ecu = _pair(clock, ('fl', 'fr', 'rl', 'rr'), rx_timeout_s=10.0)
     got = []
     bridge.on_sensors = lambda quantity, values, t: got.append((quantity, values))

@@ -4,19 +4,12 @@ import math
 import can
 import pytest
 
+from fake_clock import FakeClock
 from mr_damper_can import codec
 from mr_damper_can.codec import FrameCodec
 from mr_damper_can.driver_sim import SimulatedEcu
 
 DB = codec.load_database()
-
-
-class Clock:
-    def __init__(self):
-        self.t = 50.0
-
-    def __call__(self):
-        return self.t
 
 
 def _command(enc, ecu, corner, value, failsafe=0):
@@ -33,7 +26,7 @@ def _statuses(ecu, corner='fl'):
 
 
 def test_coil_follows_a_step_with_a_first_order_lag():
-    clock = Clock()
+    clock = FakeClock(50.0)
     tau = 0.02
     ecu = SimulatedEcu(None, ('fl',), db=DB, clock=clock, tau_s=tau, command_timeout_s=1.0,
                        sensors=False)
@@ -50,7 +43,7 @@ def test_coil_follows_a_step_with_a_first_order_lag():
 
 
 def test_driver_timeout_falls_back_to_its_safe_current():
-    clock = Clock()
+    clock = FakeClock(50.0)
     ecu = SimulatedEcu(None, ('fl',), db=DB, clock=clock, tau_s=0.001, safe_current_a=0.4,
                        command_timeout_s=0.05, sensors=False)
     enc = FrameCodec(DB)
@@ -66,7 +59,7 @@ def test_driver_timeout_falls_back_to_its_safe_current():
 
 
 def test_bad_command_frames_are_refused_and_counted():
-    clock = Clock()
+    clock = FakeClock(50.0)
     ecu = SimulatedEcu(None, ('fl',), db=DB, clock=clock, sensors=False)
     enc = FrameCodec(DB)
     _command(enc, ecu, 'fl', 1.0)
@@ -89,7 +82,7 @@ def test_bad_command_frames_are_refused_and_counted():
 @pytest.mark.parametrize('fault', ['open_load', 'short', 'overcurrent', 'overtemp',
                                    'undervoltage'])
 def test_driver_faults_switch_the_channel_off_and_are_reported(fault):
-    clock = Clock()
+    clock = FakeClock(50.0)
     ecu = SimulatedEcu(None, ('fl', 'fr'), db=DB, clock=clock, tau_s=0.001, sensors=False)
     enc = FrameCodec(DB)
     _command(enc, ecu, 'fl', 2.0)
@@ -112,7 +105,7 @@ def test_stop_with_drain_takes_the_frames_still_queued():
     channel = 'driver_sim_drain_test'
     with can.Bus(interface='virtual', channel=channel) as ecu_bus, \
             can.Bus(interface='virtual', channel=channel) as bridge_bus:
-        ecu = SimulatedEcu(ecu_bus, ('fl',), db=DB, clock=Clock(), sensors=False)
+        ecu = SimulatedEcu(ecu_bus, ('fl',), db=DB, clock=FakeClock(50.0), sensors=False)
         enc = FrameCodec(DB)
         for k in range(25):
             frame_id, data = enc.encode(codec.command_name('fl'),

@@ -83,6 +83,7 @@ def test_four_faults_stay_within_the_clean_runs_sets(record, clean_run):
 
 
 @pytest.mark.parametrize('kind', ['step', 'fast_drift'])
+@pytest.mark.slow
 def test_offset_step_and_fast_drift_never_reach_a_valid_set(kind):
     """A force offset with no change in motion is flagged, never absorbed into f0."""
     data = quiroz('quiroz_sine_10mm1Hz_0p5A_preproc')
@@ -107,6 +108,7 @@ def test_offset_step_and_fast_drift_never_reach_a_valid_set(kind):
     assert max(abs(est.parameters['f0'] - f0_clean) for est in valid) < 100.0
 
 
+@pytest.mark.slow
 def test_slow_f0_drift_is_a_reported_trend_not_a_fault():
     """A drift of the force offset over minutes is followed by the sets and reported."""
     data, _, _ = cam_record(currents=(1.0,) * 6, hold_s=5.0)      # 30 s at 1 A

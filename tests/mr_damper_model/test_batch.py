@@ -129,6 +129,7 @@ def test_dampers_go_to_the_cluster_in_chunks_of_every_task_once(n, workers):
     assert max(map(len, chunks)) - min(map(len, chunks)) <= 1
 
 
+@pytest.mark.slow
 def test_batch_pass_fail_bad_files_and_resume(archive, tmp_path):
     root, master = archive
     s = settings_for(master)
@@ -220,6 +221,7 @@ def _listening_addresses():
     return out, len(procs) - 1
 
 
+@pytest.mark.slow
 def test_workers_and_a_scheduler_give_the_serial_table_on_loopback_only(
         archive, tmp_path, capsys):
     from dask.distributed import LocalCluster
@@ -254,6 +256,7 @@ def test_workers_and_a_scheduler_give_the_serial_table_on_loopback_only(
     assert serial.read_bytes() == two.read_bytes() == one.read_bytes()
 
 
+@pytest.mark.slow
 def test_trend_recovers_a_known_drift(tmp_path, capsys):
     # serial AG1 ages: its viscous c and hysteretic alpha fall linearly, 10 % and 15 % over
     # 120 days; serial NEW1 does not change. Kwok model, one current, thesis cam (30 mm,

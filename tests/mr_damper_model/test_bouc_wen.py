@@ -14,6 +14,7 @@ def _motion(fs=1000.0, T=1.8):
     return t, -0.03 * np.cos(w * t), 0.03 * w * np.sin(w * t), w
 
 
+@pytest.mark.slow
 def test_matches_fine_reference_integration():
     m = BoucWen()
     t, x, v, w = _motion()
@@ -55,6 +56,7 @@ def _swarm(p, unbounded, seed):
 
 
 @pytest.mark.parametrize('unbounded', [False, True])
+@pytest.mark.slow
 def test_compiled_equals_numpy_reference_random_swarm(unbounded):
     t, x, v, _ = _motion(T=0.7)
     N = _swarm(40, unbounded, 5)

@@ -57,6 +57,7 @@ def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys):
         assert path.name in err and 'Traceback' not in err, (problem, err)
 
 
+@pytest.mark.slow
 def test_unknown_model_via_console_script(tmp_path):
     proc = subprocess.run([str(VENV_BIN / 'mr-damper-identify'), str(QFILE), '--model', 'foo'],
                           capture_output=True, text=True, timeout=60)
@@ -79,6 +80,7 @@ def test_json_output_and_params_file(tmp_path, capsys):
     assert pf.parameters == pytest.approx(doc['parameters'])
 
 
+@pytest.mark.slow
 def test_per_current_groups_and_default_model(tmp_path, capsys):
     from mr_damper_model.io.data import DamperData, read_csv, write_csv
     a = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0A.csv.gz')
@@ -95,6 +97,7 @@ def test_per_current_groups_and_default_model(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)['model'] == 'kwok-current-amp'
 
 
+@pytest.mark.slow
 def test_table_and_plot(tmp_path, capsys):
     png = tmp_path / 'fit.png'
     assert run([str(QFILE), '--plot', str(png)]) == 0
@@ -144,6 +147,7 @@ def joint_fit(tmp_path_factory):
     return json.loads(buf.getvalue()), out
 
 
+@pytest.mark.slow
 def test_many_files_one_model_per_file_metrics_match_saved_parameters(joint_fit):
     doc, out = joint_fit
     assert doc['model'] == 'kwok-current-amp'      # three current levels: the default
@@ -182,6 +186,7 @@ def test_glob_and_directory_give_the_same_fit_as_the_list(tmp_path, capsys):
         assert docs[how]['source'] == docs['list']['source'], how
 
 
+@pytest.mark.slow
 def test_multi_file_table_and_plot(tmp_path, capsys):
     png = tmp_path / 'joint.png'
     assert run([*map(str, TRIO[:2]), '--plot', str(png), '--seed', '2']) == 0
@@ -191,6 +196,7 @@ def test_multi_file_table_and_plot(tmp_path, capsys):
     assert png.stat().st_size > 10000
 
 
+@pytest.mark.slow
 def test_validate_json_equals_metrics_of_the_saved_model(joint_fit, tmp_path, capsys):
     _, params = joint_fit
     held_out = [QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p25A.csv.gz',
@@ -350,6 +356,7 @@ def test_every_registered_model_can_be_chosen():
     assert MULTI_CURRENT_MODEL in MODEL_CHOICES
 
 
+@pytest.mark.slow
 def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path, capsys):
     """mr-damper-identify reads a footer-less MCAP up to its last chunk and says where it ends."""
     from mr_damper_model.io.bag_io import write_bag

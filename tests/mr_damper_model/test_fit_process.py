@@ -24,6 +24,7 @@ def test_the_child_is_in_its_own_session(proc):
     assert os.getsid(proc._proc.pid) == proc._proc.pid != os.getsid(0)
 
 
+@pytest.mark.slow
 def test_a_killed_child_fails_one_call_then_is_replaced(proc):
     data, _, _ = cam_record(currents=(1.0,), hold_s=1.0)
     cfg = LiveConfig(warm_start=False, **DET)
@@ -60,6 +61,7 @@ def test_close_ends_the_child(proc):
     assert _ended(pid)
 
 
+@pytest.mark.slow
 def test_the_child_ends_when_its_node_is_killed():
     # a node killed with SIGKILL cannot close its child: the child ends when its stdin closes
     import subprocess

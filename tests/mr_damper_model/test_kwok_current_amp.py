@@ -164,6 +164,7 @@ def test_options_and_errors():
         velocity_amplitude(rec.v, rec.t, 0.0)
 
 
+@pytest.mark.slow
 def test_identify_recovers_known_parameters():
     rec = _record()
     m = KwokCurrentAmp(i_ref_a=1.0, tau_a=5.0)

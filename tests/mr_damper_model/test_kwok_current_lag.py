@@ -119,6 +119,7 @@ def test_errors():
         first_order_lag(v, t, [np.nan])
 
 
+@pytest.mark.slow
 def test_identify_recovers_known_parameters():
     t, x, v, i = _record(n=3000, fs=1000.0)
     m = KwokCurrentLag(i_ref_a=1.0)

@@ -167,6 +167,7 @@ def test_config_validation_names_the_setting(bad):
         LiveConfig(**bad)
 
 
+@pytest.mark.slow
 def test_warm_started_windows_reach_the_offline_optimum_on_measured_data():
     from conftest import QUIROZ_DIR
     from mr_damper_model.io.data import read_csv
@@ -180,6 +181,7 @@ def test_warm_started_windows_reach_the_offline_optimum_on_measured_data():
     assert est.nrmse_percent == pytest.approx(offline.metrics['nrmse_percent'], abs=0.05)
 
 
+@pytest.mark.slow
 def test_fit_process_gives_the_in_process_result_and_raises_its_errors():
     from mr_damper_model.live import FitProcess, fit_data
     data, _, _ = cam_record(currents=(1.0,), hold_s=2.0)

@@ -104,6 +104,7 @@ def test_clean_stream_is_valid_and_right_throughout():
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_spike_of_1e30_is_rejected_and_changes_nothing():
     clean = run(stream())[1]
     arrays = stream()
@@ -119,6 +120,7 @@ def test_spike_of_1e30_is_rejected_and_changes_nothing():
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_in_range_spikes_are_outliers_left_out_of_fit_and_bins():
     arrays = stream()
     f = arrays[3]
@@ -203,6 +205,7 @@ def test_whole_window_stuck_is_skipped_no_force():
     assert_no_wrong_valid(ests)
 
 
+@pytest.mark.slow
 def test_force_offset_step_is_inconsistent_until_it_goes_away():
     arrays = stream()
     offset_end = K_FAULT + 2500
@@ -244,6 +247,7 @@ def test_sign_flip_from_the_start_is_never_valid():
     assert reasons <= {'pinned', 'nrmse_above_threshold'}, reasons
 
 
+@pytest.mark.slow
 def test_current_sensor_stuck_is_inconsistent():
     arrays = stream()
     # the probe freezes at 1 A half a second before the coil goes to 2 A
@@ -429,6 +433,7 @@ def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_healthy_spencer_damper_raises_no_fault():
     """Model mismatch is no fault: a Bouc-Wen damper, current steps 0..2 A, all valid."""
     from mr_damper_model.models.plant import SpencerPlant

@@ -31,6 +31,7 @@ def _chunks(path):
         reader.close()
 
 
+@pytest.mark.slow
 def test_a_complete_file_reads_whole(tmp_path):
     path, data = _bag(tmp_path)
     scan = McapScan(path)
@@ -45,6 +46,7 @@ def test_a_complete_file_reads_whole(tmp_path):
 
 
 @pytest.mark.parametrize('where', [0.5, 0.999])
+@pytest.mark.slow
 def test_a_cut_file_yields_the_messages_of_its_complete_chunks(tmp_path, where):
     path, data = _bag(tmp_path)
     chunks = _chunks(path)
@@ -69,6 +71,7 @@ def test_a_cut_file_yields_the_messages_of_its_complete_chunks(tmp_path, where):
     assert msg.effort[0] == pytest.approx(data.f[expected - 1])
 
 
+@pytest.mark.slow
 def test_read_bag_reads_a_cut_file_and_says_where(tmp_path):
     path, data = _bag(tmp_path)
     cut = _chunks(path)[1][0] + 100

@@ -90,6 +90,7 @@ def test_compiled_equals_numpy_reference_random_swarm():
     assert np.max(np.abs(f - ref) / scale) < 1e-11
 
 
+@pytest.mark.slow
 def test_compiled_equals_numpy_reference_on_quiroz_record():
     d = read_csv(QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz').select(slice(0, 120))
     P = _swarm(6, 9)

@@ -27,6 +27,7 @@ def test_cam_thesis_values():
     assert np.max(v) == pytest.approx(0.207, abs=0.001)
 
 
+@pytest.mark.slow
 def test_random_seeded_and_rms():
     a = BandLimitedRandom(rms_m=0.01, rng=5)
     b = BandLimitedRandom(rms_m=0.01, rng=5)

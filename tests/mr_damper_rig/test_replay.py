@@ -68,6 +68,7 @@ def test_bag_on_other_topic_and_missing_topic(tmp_path):
         replay.read_bag(tmp_path / 'bag')
 
 
+@pytest.mark.slow
 def test_bag_with_wrong_type_names_or_values(tmp_path):
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore

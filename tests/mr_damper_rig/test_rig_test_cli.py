@@ -3,6 +3,7 @@ import json
 import subprocess
 
 import numpy as np
+import pytest
 
 from conftest import VENV_BIN
 from mr_damper_model.io.data import read_csv
@@ -32,6 +33,7 @@ def test_seed_repeatable(tmp_path):
     assert a.read_text() == b.read_text()
 
 
+@pytest.mark.slow
 def test_bad_arguments_exit_2(tmp_path):
     exe = str(VENV_BIN / 'mr-damper-rig-test')
     for args in (['--out', str(tmp_path / 'x.csv'), '--currents', '0,abc'],

@@ -60,6 +60,7 @@ def test_follow_command_and_truth():
     assert truth['model_options'] == {'i_ref_a': 2.0}
 
 
+@pytest.mark.slow
 def test_default_rig_is_thesis_like():
     rig = VirtualRig(rng=0)
     assert rig.true_parameters()['model'] == 'spencer'
@@ -95,6 +96,7 @@ def test_rig_node_options_build_a_repeating_schedule_or_a_commanded_rig():
         build_virtual_rig(_node_options(current_source='both'))
 
 
+@pytest.mark.slow
 def test_identify_damper_recovers_kwok_truth():
     d = identify_damper(make_plant('kwok-current'), seed=1)
     assert d['model'] == 'kwok-current'

@@ -106,6 +106,7 @@ def kwok_case():
     return truth, inverse, plant, road, res
 
 
+@pytest.mark.slow
 def test_bound_is_no_worse_than_every_passive_setting_and_live_law(kwok_case):
     _, inverse, plant, road, res = kwok_case
     wk_bound = res.metrics()['rms_body_accel_wk']

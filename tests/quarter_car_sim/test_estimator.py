@@ -46,6 +46,7 @@ def _run_free(est, n, latency_steps=0, **init):
 
 
 @pytest.mark.parametrize('latency', [0, 2])
+@pytest.mark.slow
 def test_estimate_converges_to_the_truth_on_the_linear_car(latency):
     p = QuarterCarParams()
     est = QuarterCarEstimator(design_estimator(p, DT, _specs(latency * DT)), _lin_force,
@@ -62,6 +63,7 @@ def test_estimate_converges_to_the_truth_on_the_linear_car(latency):
     assert e.valid and e.reason == ''
 
 
+@pytest.mark.slow
 def test_covariance_converges_to_the_dare_solution():
     p = QuarterCarParams()
     d = design_estimator(p, DT, _specs(1e-3))

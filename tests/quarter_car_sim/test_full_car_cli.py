@@ -16,6 +16,7 @@ def _run(*args):
     return subprocess.run([str(EXE), *args], capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow
 def test_compare_json_has_every_law_and_metric():
     laws = 'passive@0A,passive@2A,per-corner-skyhook,modal-skyhook'
     proc = _run('--compare', '--json', '--duration', '0.5', '--laws', laws)

@@ -73,6 +73,7 @@ def test_per_corner_skyhook_on_heave_only_car_is_the_quarter_car_loop():
 
 
 @pytest.mark.parametrize('law', ['modal-skyhook', 'per-corner-skyhook'])
+@pytest.mark.slow
 def test_one_corner_without_model_fails_safe_and_the_others_control(law):
     p = PASSENGER_CAR
     road = make_two_track_road('iso8608-C', p, speed_m_s=20.0, duration_s=1.0, rng=1)
@@ -90,6 +91,7 @@ def test_one_corner_without_model_fails_safe_and_the_others_control(law):
     assert [res.status[c]['mode'] for c in ('fr', 'rl', 'rr')] == ['normal'] * 3
 
 
+@pytest.mark.slow
 def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
     p = PASSENGER_CAR
     road = make_two_track_road('iso8608-C', p, speed_m_s=20.0, duration_s=1.0, rng=2)

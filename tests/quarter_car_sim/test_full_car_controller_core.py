@@ -52,6 +52,7 @@ def test_assembled_state_gives_the_car_body_rates():
 
 
 @pytest.mark.parametrize('law', ['modal-skyhook', 'per-corner-skyhook'])
+@pytest.mark.slow
 def test_same_currents_as_the_built_in_controller_and_rr_safe_without_a_model(law):
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0, duration_s=2.0,
                                rng=3)

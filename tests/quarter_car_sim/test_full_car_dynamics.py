@@ -65,6 +65,7 @@ def test_car_at_rest_on_flat_road_stays_at_rest():
 
 
 @pytest.mark.parametrize('plant', ['kwok-current', 'spencer'])
+@pytest.mark.slow
 def test_heave_only_symmetric_car_is_the_quarter_car(plant):
     car_p = symmetric_car(i_pitch=900.0, i_roll=400.0)      # inertias do not matter here
     qc_p = QuarterCarParams(m_s=car_p.m_s / 4, m_u=car_p.m_u_f, k_s=car_p.k_s_f, k_t=car_p.k_t)
@@ -87,6 +88,7 @@ def test_heave_only_symmetric_car_is_the_quarter_car(plant):
     assert peak > 0.01             # the bump did move the suspension
 
 
+@pytest.mark.slow
 def test_dynamic_index_one_axles_ride_as_independent_quarter_cars():
     # I_pitch = m a b: front and rear decouple, each a quarter car with its static mass share
     p = PASSENGER_CAR.replace(i_pitch=PASSENGER_CAR.m_s * PASSENGER_CAR.a * PASSENGER_CAR.b)
@@ -110,6 +112,7 @@ def test_dynamic_index_one_axles_ride_as_independent_quarter_cars():
     assert pitch > 2e-3            # the body pitched, yet the axles stayed independent
 
 
+@pytest.mark.slow
 def test_free_vibration_without_dampers_conserves_energy():
     p = PASSENGER_CAR.replace(k_arb_f=9000.0, k_arb_r=4000.0)
     car = FullCar(p, None, _flat())
@@ -120,6 +123,7 @@ def test_free_vibration_without_dampers_conserves_energy():
     np.testing.assert_allclose(es, e0, rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_dampers_dissipate_exactly_their_power():
     p = PASSENGER_CAR.replace(k_arb_f=9000.0)
     car = FullCar(p, [LinearDamperPlant(c) for c in (1400.0, 1400.0, 1600.0, 1600.0)], _flat())

@@ -1,4 +1,6 @@
 """Tests of quarter_car_sim.plots (files are written, figures have the panels)."""
+import pytest
+
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant
 from quarter_car_sim.params import QuarterCarParams
@@ -7,6 +9,7 @@ from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import compare
 
 
+@pytest.mark.slow
 def test_plot_results_and_tradeoff(tmp_path):
     road = iso8608('C', 20.0, 3.0, rng=1)
     res = compare(QuarterCarParams(), road, [ctl.Passive(0.0)], LinearDamperPlant(1000.0))

@@ -56,6 +56,7 @@ def test_closed_loop_equals_simulate():
     np.testing.assert_allclose([s.a_s for s, _ in samples], r.a_s[:500], atol=1e-9)
 
 
+@pytest.mark.slow
 def test_compare_same_road_and_active_references():
     plant = make_plant('kwok-current')
     ctls = [ctl.Passive(0.0), ctl.Passive(2.0), ctl.Skyhook(), ctl.SkyhookIdeal(),
