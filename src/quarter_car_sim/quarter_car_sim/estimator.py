@@ -30,6 +30,10 @@ dropped-out sensor (``dropout_<sensor>``: no reading for ``dropout_s``), a diver
 innovation (``innovation_<sensor>``: the mean normalised innovation squared over the last
 ``nis_window_s`` above ``nis_threshold``, a chi-square test with each sample capped) and a
 non-finite estimate (``diverged``: the filter restarts).
+
+Longer than the project's ~600 lines on purpose: the filter's design (the discrete model and
+``control.dlqe``) and its step (innovation gating, the steady-gain fast path, the fault
+checks) share the state layout and must change together.
 """
 from collections import deque
 import dataclasses
