@@ -1,16 +1,16 @@
 """
 The ROS 2 launch file cannot run here (no ``launch`` / ``launch_ros`` on PyPI): check it.
 
-It is executed against small stand-ins of the ``launch`` API that record what it asks for, and the
-result is checked against the installed console scripts, the packages' setup.py entry points and
-the suite's parameter YAMLs (node names are the YAML keys, parameters file path exists).
+What it starts is plain data in ``mr_damper_bringup.launch_spec``, called here directly and checked
+against the installed console scripts, the packages' setup.py entry points and the suite's
+parameter YAMLs (node names are the YAML keys, the parameters file exists); the launch file's own
+code only turns that data into launch actions, which is checked by reading it (no stand-ins of
+the launch API).
 """
 import ast
 import importlib.util
 from pathlib import Path
 import re
-import sys
-import types
 
 import numpy as np
 
@@ -20,6 +20,7 @@ import yaml
 from conftest import REPO, VENV_BIN
 from integration.ros_helpers import console_scripts, package_of
 from mr_damper_bringup.config import IDENT, node_params, NODES, QC, resolve_config, RIG
+from mr_damper_bringup.launch_spec import default_params_parts, LAUNCH_ARGUMENTS, node_specs
 from mr_damper_bringup.launcher import main, parse_args
 from mr_damper_bringup.processes import wait_while_progressing
 
@@ -27,58 +28,27 @@ LAUNCH_FILE = REPO / 'src' / 'mr_damper_bringup' / 'launch' / 'suite.launch.py'
 CONFIG_DIR = REPO / 'src' / 'mr_damper_bringup' / 'config'
 
 
-class _Recorded:
-    def __init__(self, *args, **kwargs):
-        self.args = args
-        self.kwargs = kwargs
+PARAMS, REPLAY = 'PARAMS_FILE', 'REPLAY_FILE'
 
 
-class _LaunchConfiguration(_Recorded):
-    pass
+def test_the_launch_file_starts_what_launch_spec_says():
+    """The launch file's only logic is launch_spec turned into launch actions (read, not run)."""
+    tree = ast.parse(LAUNCH_FILE.read_text())
+    imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                and n.module == 'mr_damper_bringup.launch_spec' for a in n.names}
+    assert imported == {'default_params_parts', 'LAUNCH_ARGUMENTS', 'node_specs'}
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call)
+             and getattr(n.func, 'id', '') == 'Node']
+    assert len(calls) == 1 and [k.arg for k in calls[0].keywords] == [None]   # Node(**spec)
+    compile(tree, str(LAUNCH_FILE), 'exec')
 
 
-class _PythonExpression(_Recorded):
-    def evaluate(self, values):
-        text = ''
-        for part in self.args[0]:
-            text += values[part.args[0]] if isinstance(part, _LaunchConfiguration) else part
-        return eval(text)  # noqa: S307 - the launch file's own expression, test only
-
-
-@pytest.fixture
-def launch_description(monkeypatch):
-    """Run ``generate_launch_description`` with recording stand-ins of launch / launch_ros."""
-    launch = types.ModuleType('launch')
-    launch.LaunchDescription = _Recorded
-    actions = types.ModuleType('launch.actions')
-    actions.DeclareLaunchArgument = _Recorded
-    subs = types.ModuleType('launch.substitutions')
-    subs.LaunchConfiguration = _LaunchConfiguration
-    subs.PythonExpression = _PythonExpression
-    launch_ros = types.ModuleType('launch_ros')
-    ros_actions = types.ModuleType('launch_ros.actions')
-    ros_actions.Node = _Recorded
-    for name, mod in (('launch', launch), ('launch.actions', actions),
-                      ('launch.substitutions', subs), ('launch_ros', launch_ros),
-                      ('launch_ros.actions', ros_actions)):
-        monkeypatch.setitem(sys.modules, name, mod)
-    spec = importlib.util.spec_from_file_location('suite_launch', LAUNCH_FILE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.generate_launch_description()
-
-
-def _entries(action_list, kind):
-    return [a for a in action_list if a.__class__ is _Recorded and kind(a)]
-
-
-def test_launcher_nodes_with_installed_console_scripts(launch_description):
-    items = launch_description.args[0]
-    nodes = [a.kwargs for a in items if 'executable' in a.kwargs]
+def test_launcher_nodes_with_installed_console_scripts():
+    specs = node_specs(PARAMS, REPLAY)
     # the launcher's nodes (mr_damper_bringup.config.NODES), each from the package declaring it
-    assert [(n['package'], n['executable']) for n in nodes] == [
+    assert [(n['package'], n['executable']) for n in specs] == [
         (package_of(exe), exe) for exe in NODES.values()]
-    for n in nodes:
+    for n in specs:
         # what `ros2 run PKG EXE` starts: a console script of that package, installed here
         scripts = console_scripts(n['package'])
         assert n['executable'] in scripts
@@ -92,21 +62,20 @@ def test_launcher_nodes_with_installed_console_scripts(launch_description):
 
 
 @pytest.mark.parametrize('config', ['sim', 'replay', 'hil'])
-def test_one_parameter_file_whose_keys_are_the_node_names(launch_description, config):
-    items = launch_description.args[0]
-    args = {a.args[0]: a.kwargs for a in items if 'executable' not in a.kwargs}
-    assert set(args) >= {'config', 'params_file'}
-    default = args['params_file']['default_value']
-    path = Path(default.evaluate({'config': config}))
+def test_one_parameter_file_whose_keys_are_the_node_names(config):
+    assert [a[0] for a in LAUNCH_ARGUMENTS] == ['config', 'params_file', 'file']
+    # the default parameter file: the launch file's PythonExpression of these parts
+    parts = default_params_parts(str(CONFIG_DIR), config)
+    path = Path(eval(''.join(parts)))  # noqa: S307 - the launch file's own expression
     assert path == CONFIG_DIR / f'suite_{config}.yaml' and path.exists()
     cfg = yaml.safe_load(path.read_text())
-    nodes = [a.kwargs for a in items if 'executable' in a.kwargs]
-    for n in nodes:
+    specs = node_specs(PARAMS, REPLAY)
+    for n in specs:
         # every node gets the same parameters file first (then at most literal overrides)
-        first = n['parameters'][0]
-        assert isinstance(first, _LaunchConfiguration) and first.args[0] == 'params_file'
+        assert n['parameters'][0] == PARAMS
         assert n['name'] in cfg and 'ros__parameters' in cfg[n['name']]
-    assert set(cfg) - {'/**'} == {n['name'] for n in nodes}
+    assert [n['parameters'][1:] for n in specs if n['name'] == RIG] == [[{'file': REPLAY}]]
+    assert set(cfg) - {'/**'} == {n['name'] for n in specs}
     # the true damper is shared by the rig and the car (honest loop)
     assert 'plant' in cfg['/**']['ros__parameters']
 
@@ -122,14 +91,14 @@ def _node_module(package, executable):
     return module
 
 
-def test_node_names_match_the_nodes_and_the_launcher(launch_description):
+def test_node_names_match_the_nodes_and_the_launcher():
     """The name in the launch file is the name each node gives itself (YAML keys must match)."""
-    nodes = [a.kwargs for a in launch_description.args[0] if 'executable' in a.kwargs]
-    for n in nodes:
+    specs = node_specs(PARAMS, REPLAY)
+    for n in specs:
         module = _node_module(n['package'], n['executable'])
         text = (REPO / 'src' / n['package'] / (module.replace('.', '/') + '.py')).read_text()
         assert f"super().__init__('{n['name']}'" in text
-    assert NODES == {n['name']: n['executable'] for n in nodes}
+    assert NODES == {n['name']: n['executable'] for n in specs}
 
 
 @pytest.mark.parametrize('config', ['sim', 'replay', 'hil'])

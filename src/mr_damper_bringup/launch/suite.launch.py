@@ -4,8 +4,9 @@ ROS 2 launch file of the MR damper suite, for machines with a full ROS 2 install
     ros2 launch mr_damper_bringup suite.launch.py [config:=sim|replay|hil] [params_file:=FILE]
         [file:=REPLAY.csv|BAG_DIR]
 
-Starts the three nodes, each with the same parameter YAML (default
-``config/suite_<config>.yaml`` of this package, installed to ``share/mr_damper_bringup``):
+Starts the launcher's nodes (``mr_damper_bringup.launch_spec``, the same as ``mr-damper-suite``),
+each with the same parameter YAML (default ``config/suite_<config>.yaml`` of this package,
+installed to ``share/mr_damper_bringup``):
 
 - ``ros2 run mr_damper_rig rig_node``            (node name ``mr_damper_rig``)
 - ``ros2 run mr_damper_model identifier_node``   (node name ``mr_damper_identifier``)
@@ -23,38 +24,20 @@ from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
 
+from mr_damper_bringup.launch_spec import default_params_parts, LAUNCH_ARGUMENTS, node_specs
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 #: the package's config folder: next to launch/ in the source tree and in share/mr_damper_bringup
 CONFIG_DIR = os.path.join(os.path.dirname(HERE), 'config')
 
-#: (package, executable, node name): the console scripts of the three ament_python packages
-NODES = (
-    ('mr_damper_rig', 'rig_node', 'mr_damper_rig'),
-    ('mr_damper_model', 'identifier_node', 'mr_damper_identifier'),
-    ('quarter_car_sim', 'quarter_car_node', 'quarter_car_node'),
-)
-
 
 def generate_launch_description():
-    """Return the launch description of the suite (three nodes, one parameter YAML)."""
-    config = LaunchConfiguration('config')
-    params_file = LaunchConfiguration('params_file')
-    replay_file = LaunchConfiguration('file')
-    default_params = PythonExpression([
-        "'", os.path.join(CONFIG_DIR, 'suite_'), "' + '", config, "' + '.yaml'"])
-    actions = [
-        DeclareLaunchArgument('config', default_value='sim',
-                              description='sim (virtual rig) or replay (CSV / bag)'),
-        DeclareLaunchArgument('params_file', default_value=default_params,
-                              description='the single parameter YAML of the three nodes'),
-        DeclareLaunchArgument('file', default_value='',
-                              description='replay input (CSV or rosbag2 folder), replay only'),
-    ]
-    for package, executable, name in NODES:
-        parameters = [params_file]
-        if package == 'mr_damper_rig':
-            # replay: the file given on the command line overrides the YAML's (empty) one
-            parameters.append({'file': replay_file})
-        actions.append(Node(package=package, executable=executable, name=name,
-                            parameters=parameters, output='screen', emulate_tty=True))
+    """Return the launch description of the suite (mr_damper_bringup.launch_spec as actions)."""
+    defaults = {'params_file': PythonExpression(
+        default_params_parts(CONFIG_DIR, LaunchConfiguration('config')))}
+    actions = [DeclareLaunchArgument(name, default_value=defaults.get(name, default),
+                                     description=description)
+               for name, default, description in LAUNCH_ARGUMENTS]
+    specs = node_specs(LaunchConfiguration('params_file'), LaunchConfiguration('file'))
+    actions += [Node(**spec) for spec in specs]
     return LaunchDescription(actions)
