@@ -12,9 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_force
-
-KWOK_CURRENT_NAMES = KwokCurrent.param_names
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
+from mr_damper_model.models.kwok_current import kwok_current_force
 
 
 def _plt():

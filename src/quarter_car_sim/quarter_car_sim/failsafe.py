@@ -33,11 +33,9 @@ import math
 
 import numpy as np
 
-from mr_damper_model.models.kwok_current import KwokCurrent
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_model.models.validity import check_parameter_values, PINNED_FRACTION
 
-#: Kwok-current parameter names, in the order of ``KwokCurrent.param_names``.
-KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 #: Reasons the supervisor reports (``mode == 'failsafe'``) or counts (rejections).
 REASONS = (

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from mr_damper_bringup.report import recording
-from mr_damper_bringup.report.recording import KWOK_CURRENT_NAMES
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_model.io.columnlog import open_log
 from mr_damper_model.models.kwok_current import kwok_current_force
 

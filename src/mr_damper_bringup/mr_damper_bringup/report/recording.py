@@ -8,10 +8,6 @@ from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameter
                                       SUITE_TOPICS)
 from mr_damper_model.io.columnlog import ColumnWriter, JsonLines
 from mr_damper_model.live.sample_stream import BatchIndex
-from mr_damper_model.models.kwok_current import KwokCurrent
-
-
-KWOK_CURRENT_NAMES = KwokCurrent.param_names
 
 
 #: file name of the run's recording in the output folder

@@ -12,10 +12,11 @@ from mr_damper_bringup.report.identification import (identification_summary,
                                                      measurement_to_parameters)
 from mr_damper_bringup.report.losses import (attribute_losses, can_summary, messages_summary,
                                              restart_figures, restart_lines)
-from mr_damper_bringup.report.recording import (KWOK_CURRENT_NAMES, MEAS_COLUMNS, ParamsLog,
+from mr_damper_bringup.report.recording import (MEAS_COLUMNS, ParamsLog,
                                                 read_recording, RECORDING, recording_state)
 from mr_damper_bringup.report.ride import hil_report_config, loop_figures, ride_summary
 from mr_damper_bringup.topics import CONFIG_TOPIC
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_common.health import finite_or_none
 from mr_damper_model.io.columnlog import ArrayLog, ColumnReader, exists
 
