@@ -14,10 +14,11 @@ subscribing the four corners' states and parameter sets) and ``full_car_node`` i
 only (``controller: external``); the summary then takes the corners' parameter counts and
 modes from the controller.
 """
-import math
 from pathlib import Path
 
 import numpy as np
+
+from mr_damper_common.health import finite_or_none
 
 from .config import IDENT, node_params, QC, RIG, set_param
 
@@ -103,8 +104,13 @@ def start_full_car(car_cfg, out):
     return ['--ros-args', '--params-file', str(path)]
 
 
+def _finite(value):
+    # a number that is finite (NaN = never; the diagnostics' JSON may also carry None)
+    return isinstance(value, (int, float)) and finite_or_none(value) is not None
+
+
 def full_car_progress_line(monitor, elapsed):
-    """Return one progress line: each corner's samples, valid sets, mode in the car; car time."""
+    """Return a progress line: per corner samples, valid sets, mode; corners on models; car t."""
     status = monitor.snapshot()[0]
     st = status.get(FULL_CAR) or {}
     car = (status.get(FULL_CAR_CTRL) or st if st.get('controller') == 'external'
@@ -115,6 +121,10 @@ def full_car_progress_line(monitor, elapsed):
         parts.append(f'{c}: {ident.get("samples_received", 0)} samples, '
                      f'{ident.get("windows_valid", 0)} valid, car '
                      f'{(car.get(c) or {}).get("mode", "?")}')
+    # corners whose law has commanded on a model (first_normal_t_sim finite; never reverts)
+    on_models = sum(_finite((car.get(c) or {}).get('first_normal_t_sim'))
+                    for c in FULL_CAR_CORNERS)
+    parts.append(f'on models {on_models}/{len(FULL_CAR_CORNERS)}')
     t_sim = st.get('t_sim')
     parts.append(f'car t {t_sim:.2f} s' if isinstance(t_sim, (int, float)) else 'car t ?')
     return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
@@ -239,7 +249,7 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
     dt = 1.0 / float(params.get('rate_hz', 1000.0))
     t_p, acc_p = passive_body(params, float(t[-1]), dt)
     firsts = [section['corners'][c]['first_normal_t_sim'] for c in FULL_CAR_CORNERS]
-    firsts = [f for f in firsts if isinstance(f, (int, float)) and math.isfinite(f)]
+    firsts = [f for f in firsts if _finite(f)]
     t0 = max(max(firsts), 0.0) if len(firsts) == 4 else 0.0
     live_w, pas_w = t >= t0, t_p >= t0
     section.update(window_s=[t0, float(t[-1])], live=_iso(t[live_w], acc[live_w]),
