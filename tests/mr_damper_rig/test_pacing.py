@@ -211,3 +211,20 @@ def test_lockstep_runs_on_its_own_clock_only_after_the_timeout():
     zero.command()
     clock.t += 0.1
     assert zero.due() == 100 and zero.values()['rate_factor'] == 0.0
+
+
+def test_lockstep_takes_commands_once_its_readers_matched_or_after_the_start_timeout():
+    clock = FakeClock()
+    lock = LockstepPacer(1000.0, 0.05, clock=clock, wait_for_subscribers=2,
+                         start_timeout_s=30.0)
+    assert not lock.accepting(0) and not lock.accepting(1)
+    clock.t += 1.0
+    assert lock.accepting(2) and lock.accepting_s == clock.t
+    assert lock.accepting(0)              # latched: a reader leaving does not close it
+    late = LockstepPacer(1000.0, 0.05, clock=clock, wait_for_subscribers=2,
+                         start_timeout_s=30.0)
+    clock.t += 29.9
+    assert not late.accepting(1)
+    clock.t += 0.1                        # 30 s without the readers: it takes commands anyway
+    assert late.accepting(1)
+    assert LockstepPacer(1000.0, 0.05, clock=clock).accepting(0)   # nothing to wait for

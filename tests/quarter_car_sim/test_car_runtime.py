@@ -172,6 +172,33 @@ def test_rig_as_plant_waits_for_each_answer_and_counts_the_missing_ones():
         assert states[k].damper_force == -(100.0 + last) and states[k].coil_current == 0.8
 
 
+def test_rig_as_plant_holds_step_0_until_the_rig_takes_commands():
+    clock, out = FakeClock(100.0), Recorder()
+    remote = make_remote_plant(DT, compensation='none')
+    rt = _runtime(out, clock, plant=remote, remote=remote, hil_wait_s=0.001)
+    polls = []
+
+    def connected():
+        # the rig opens its command input at the 3rd poll (its measurement readers matched)
+        polls.append(len(out.displacements))
+        return len(polls) >= 3
+    out.rig_connected = connected
+    sent = []
+
+    def rig(k, command_m):
+        # the rig's reader matches late: it answers the car's third neutral command first
+        sent.append(command_m)
+        if len(sent) >= 3:
+            rt.receive_measurements(([len(sent) * DT], [command_m], [0.0], [50.0], [0.5]))
+    out.rig = rig
+    assert rt.control.run(max_steps=2) is None
+    assert polls == [0, 0, 0]          # no command at all before the link was matched
+    # three neutral commands until the first answer, then one per step, no wait timed out
+    assert sent[:3] == [0.0, 0.0, 0.0] and len(sent) == 5
+    counts = rt.status()['hil']['counts']
+    assert counts['wait_timeouts'] == 0 and counts['no_measurement_steps'] == 0
+
+
 def test_construction_refuses_a_law_and_a_command_input_together_and_sensors_without_one():
     clock, out = FakeClock(), Recorder()
     cmd_in = CommandInput(timeout_s=0.05, safe_current_a=SAFE_A)

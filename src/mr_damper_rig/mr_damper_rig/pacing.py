@@ -255,11 +255,20 @@ class LockstepPacer:
         ``clock()`` -> wall time [s], monotonic.
     max_batch : int
         Most samples due in one tick.
+    wait_for_subscribers : int
+        Measurement readers to wait for before the rig takes commands (:meth:`accepting`): the
+        commander (the car) cannot start before them, so no reader misses the first samples.
+    start_timeout_s : float
+        Longest wait for those readers [s]; then the rig takes commands anyway.
 
     """
 
     def __init__(self, sample_rate_hz, timeout_s, rate_factor=1.0, *, clock=time.monotonic,
-                 max_batch=MAX_BATCH):
+                 max_batch=MAX_BATCH, wait_for_subscribers=0, start_timeout_s=30.0):
+        self.wait_for_subscribers = int(wait_for_subscribers)
+        self.start_timeout_s = float(start_timeout_s)
+        self.created_s = clock()
+        self.accepting_s = None
         self.sample_rate_hz = float(sample_rate_hz)
         self.timeout_s = float(timeout_s)
         self.rate_factor = _check_rate_factor(rate_factor)
@@ -275,6 +284,20 @@ class LockstepPacer:
         """Change the rig time per wall time (0 counts as 1)."""
         self.rate_factor = _check_rate_factor(rate_factor)
         self._rate = self.rate_factor or 1.0
+
+    def accepting(self, subscribers):
+        """
+        Return True once the rig may take commands (latched).
+
+        That is once ``subscribers`` (readers matched by the measurement writer now) reached
+        ``wait_for_subscribers``, or after ``start_timeout_s`` of waiting.
+        """
+        if self.accepting_s is None:
+            now = self._clock()
+            if (subscribers >= self.wait_for_subscribers
+                    or now - self.created_s >= self.start_timeout_s):
+                self.accepting_s = now
+        return self.accepting_s is not None
 
     def command(self):
         """Note a command now (its sample is published at once: count it with :meth:`sent`)."""

@@ -209,7 +209,8 @@ class RigNode(Node):
         # replay), so its timers and its pacer run on a steady clock, never on /clock.
         if self.follower is not None:
             self.pacer = LockstepPacer(float(p['rate_hz']), float(p['command_timeout_s']),
-                                       float(p['rate_factor']), clock=time.monotonic)
+                                       float(p['rate_factor']), clock=time.monotonic,
+                                       wait_for_subscribers=int(p['wait_for_subscribers']))
         else:
             self.pacer = Pacer(self.source, float(p['rate_factor']), clock=time.monotonic,
                                wait_for_subscribers=int(p['wait_for_subscribers']),
@@ -235,8 +236,7 @@ class RigNode(Node):
         self._link_msg = None
         if self.follower is not None:
             self._link_pub = self.create_publisher(DamperSamples, HIL_MEASUREMENT, COMMAND_QOS)
-            self.drops.subscribe(self, Float64, DISPLACEMENT_COMMAND, self._on_displacement,
-                                 COMMAND_QOS, 'displacement_command_lost')
+            self._displacement_sub = None   # opened once the measurement readers matched
         elif self.pacer.rate_factor == 0:
             self.create_subscription(UInt64, SAMPLES_RECEIVED, self._on_flow, STATUS_QOS)
         self._msg = None
@@ -323,6 +323,22 @@ class RigNode(Node):
         self.rig.command_current(current)
         self.commands += 1
 
+    def _open_link(self):
+        """
+        Take displacement commands once ``wait_for_subscribers`` measurement readers matched.
+
+        Until then the car, which waits for its link to be matched both ways before its first
+        step, does not start: the identifier and the recorder see the stream from its first
+        sample.
+        """
+        if self.pacer.accepting(self._meas.get_subscription_count()):
+            self._displacement_sub = self.drops.subscribe(
+                self, Float64, DISPLACEMENT_COMMAND, self._on_displacement, COMMAND_QOS,
+                'displacement_command_lost')
+            self.get_logger().info(
+                f'taking displacement commands ({self._meas.get_subscription_count()} '
+                f'measurement readers, {self._wait_subs} awaited)')
+
     def _on_displacement(self, msg):
         target, outcome = self.follower.command(msg.data)
         if outcome != 'accepted':
@@ -370,6 +386,8 @@ class RigNode(Node):
         if self.finished:
             return
         if self.follower is not None:
+            if self._displacement_sub is None:
+                self._open_link()
             for _ in range(self.pacer.due()):   # the car is silent: the rig's own clock
                 self._publish_lockstep(free=True)
             return

@@ -74,6 +74,10 @@ class CarOutputs:
         """Return True once the external controller is matched both ways (lock-step start)."""
         return True
 
+    def rig_connected(self):
+        """Return True once the rig's link is matched both ways (``plant:=rig`` start)."""
+        return True
+
     def warn(self, text):
         """Log a warning (the runtime throttles repeated ones: :data:`WARN_EVERY_S`)."""
 
@@ -186,8 +190,8 @@ class CarRuntime:
             self.step, live_loop.Pacer(dt, self.rtf),
             live_loop.LoopTiming(dt / self.rtf if self.rtf > 0 else None),
             after_step=self._after_step,
-            before_first=self._wait_for_controller if self.external and self.lockstep
-            else None,
+            before_first=(self._wait_for_controller if self.external and self.lockstep
+                          else self._wait_for_rig if remote is not None else None),
             priority=int(priority) if self.rtf > 0 else 0)
 
     @property
@@ -249,6 +253,27 @@ class CarRuntime:
                 self.out.info('lock-step: waiting for the controller to connect')
                 logged = True
             time.sleep(0.005)
+
+    def _wait_for_rig(self):
+        """
+        Hardware in the loop: hold step 0 until the rig answered a command.
+
+        The rig opens its command input only once its measurement readers (identifier,
+        recorder) matched, so they see the stream from its first sample. Once the link is
+        matched both ways, the car sends its neutral command every 5 ms until the rig's first
+        answer comes back (a command sent before the rig's reader matched the car's writer is
+        not delivered): the first steps then do not wait in vain.
+        """
+        logged = False
+        while self.control.running and not self.out.rig_connected():
+            if not logged:
+                self.out.info('hardware in the loop: waiting for the rig to take commands')
+                logged = True
+            time.sleep(0.005)
+        while self.control.running and not self.remote.answered:
+            self.out.publish_displacement(self.remote.last_command_m)
+            with self.answered:
+                self.answered.wait_for(lambda: self.remote.answered, 0.005)
 
     def _warn(self, kind, text):
         """Log a warning unless one of this kind was logged less than WARN_EVERY_S ago."""

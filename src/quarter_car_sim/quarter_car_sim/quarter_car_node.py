@@ -225,10 +225,10 @@ class QuarterCarNode(Node, CarOutputs):
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
         if rt.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
-            self.drops.subscribe(self, DamperSamples, 'mr_damper/hil_measurement',
-                                 self.on_measurement, QoSProfile(
-                                     depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
-                                 'measurements_lost')
+            self.hil_sub = self.drops.subscribe(
+                self, DamperSamples, 'mr_damper/hil_measurement', self.on_measurement,
+                QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
+                'measurements_lost')
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='quarter_car', drops=self.drops)
@@ -312,6 +312,11 @@ class QuarterCarNode(Node, CarOutputs):
         """Lock-step: True once the controller's topics are matched both ways."""
         return (self.car_state_pub.get_subscription_count() > 0
                 and self.cmd_sub.get_publisher_count() > 0)
+
+    def rig_connected(self):
+        """Hardware in the loop: True once the rig's link is matched both ways."""
+        return (self.disp_pub.get_subscription_count() > 0
+                and self.hil_sub.get_publisher_count() > 0)
 
     def warn(self, text):
         """Log a warning of the runtime (it throttles them)."""
