@@ -245,14 +245,19 @@ class CarRuntime:
         return reason
 
     # ------------------------------------------------------------------ the step
-    def _wait_for_controller(self):
-        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+    def _wait_connected(self, connected, text):
+        """Hold step 0 until ``connected()`` (polled every 5 ms); log ``text`` once if not."""
         logged = False
-        while self.control.running and not self.out.controller_connected():
+        while self.control.running and not connected():
             if not logged:
-                self.out.info('lock-step: waiting for the controller to connect')
+                self.out.info(text)
                 logged = True
             time.sleep(0.005)
+
+    def _wait_for_controller(self):
+        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+        self._wait_connected(self.out.controller_connected,
+                             'lock-step: waiting for the controller to connect')
 
     def _wait_for_rig(self):
         """
@@ -264,12 +269,8 @@ class CarRuntime:
         answer comes back (a command sent before the rig's reader matched the car's writer is
         not delivered): the first steps then do not wait in vain.
         """
-        logged = False
-        while self.control.running and not self.out.rig_connected():
-            if not logged:
-                self.out.info('hardware in the loop: waiting for the rig to take commands')
-                logged = True
-            time.sleep(0.005)
+        self._wait_connected(self.out.rig_connected,
+                             'hardware in the loop: waiting for the rig to take commands')
         while self.control.running and not self.remote.answered:
             self.out.publish_displacement(self.remote.last_command_m)
             with self.answered:
