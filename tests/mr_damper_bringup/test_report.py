@@ -318,6 +318,11 @@ def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypa
     for k in ('n', 'mean_ms', 'p50_ms', 'p99_ms', 'max_ms', 'jitter_max_ms', 'jitter_p99_ms'):
         assert fig['period'][k] == pytest.approx(per[k], rel=1e-9), k
     assert fig['latency']['n'] == a['t'].size and fig['timing_sample_stride'] == 1
+    # every 97th period is 3 ms: real time on average is lost, the median step is not
+    sim, wall = a['t'][-1] - a['t'][0], a['wall'][-1] - a['wall'][0]
+    assert fig['real_time_factor_measured'] == pytest.approx(sim / wall, rel=1e-12)
+    assert fig['real_time_factor_measured'] < 0.99
+    assert fig['real_time_factor_median'] == pytest.approx(1.0, rel=1e-9)
 
 
 def test_report_passes_keep_memory_bounded(tmp_path):

@@ -310,3 +310,42 @@ def test_log_throttle_gates_per_key():
     assert [gate.due('a'), gate.due('a'), gate.due('b'), gate.due('a')] == [True, False, True,
                                                                             False]
     assert all(LogThrottle(0.0).due() for _ in range(3))
+
+
+def test_fast_lane_takes_its_topic_in_its_own_thread_with_the_parents_namespace(ros):
+    import threading
+    import time
+    from rclpy.qos import QoSProfile
+    parent = rclpy.create_node('lane_parent', namespace='/corner_fl')
+    lane = node_utils.FastLane(parent, 'link')
+    assert (lane.node.get_name(), lane.node.get_namespace()) == ('lane_parent_link',
+                                                                 '/corner_fl')
+    # no parameter services on the lane: only the parent answers `ros2 param`
+    services = [name for name, _ in lane.node.get_service_names_and_types_by_node(
+        'lane_parent_link', '/corner_fl')]
+    assert not any(name.endswith('/get_parameters') for name in services), services
+    parent_services = parent.get_service_names_and_types_by_node('lane_parent', '/corner_fl')
+    assert '/corner_fl/lane_parent/get_parameters' in [name for name, _ in parent_services]
+    got, threads = [], set()
+
+    def on_msg(msg):
+        got.append(msg.data)
+        threads.add(threading.current_thread().name)
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    lane.node.create_subscription(String, 'link_topic', on_msg, qos)   # relative: namespaced
+    lane.start()
+    pub = parent.create_publisher(String, '/corner_fl/link_topic', qos)
+    for _ in range(3000):   # discovery: a hang guard, not a time bound
+        if pub.get_subscription_count() == 1:
+            break
+        time.sleep(0.01)
+    for k in range(50):
+        pub.publish(String(data=str(k)))
+    for _ in range(3000):   # the parent is never spun: the lane's thread takes them
+        if len(got) == 50:
+            break
+        time.sleep(0.01)
+    assert got == [str(k) for k in range(50)] and threads == {'lane_parent_link'}
+    lane.close()
+    assert lane._thread is None
+    parent.destroy_node()

@@ -89,7 +89,7 @@ from std_msgs.msg import Float64
 
 from mr_damper_common import messages
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param, run_node,
+                                         FastLane, LATCHED_QOS, node_time_s, Param, run_node,
                                          set_realtime_priority, spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.car_runtime import CarOutputs, make_car_runtime
@@ -223,19 +223,28 @@ class QuarterCarNode(Node, CarOutputs):
             self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', 10)
             self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters',
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
+        self.lane = None
         if rt.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
+            # the rig's 1 kHz answers on a lane of their own: the node's executor would rebuild
+            # its whole wait set for each one (docs/hil.md, Timing)
+            self.lane = FastLane(self, 'hil_link', int(p['realtime_priority'])
+                                 if rt.rtf > 0 else 0)
             self.hil_sub = self.drops.subscribe(
-                self, DamperSamples, 'mr_damper/hil_measurement', self.on_measurement,
+                self.lane.node, DamperSamples, 'mr_damper/hil_measurement', self.on_measurement,
                 QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                 'measurements_lost')
+            self.lane.start()
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='quarter_car', drops=self.drops)
         rt.start(on_error=lambda failed: end_on_control_error(self, failed))
-        if rt.external and p['realtime_priority'] > 0 and rt.rtf > 0:
-            # the commands arrive in the executor and middleware threads: they wake the
-            # control thread, so they get its priority too
+        if (rt.external or rt.remote is not None) and p['realtime_priority'] > 0 and rt.rtf > 0:
+            # the commands (the rig's answers) arrive in the executor and middleware threads:
+            # they wake the control thread, so they get its priority too; and every thread of
+            # the process shares the GIL: a normal-priority thread preempted while it holds the
+            # GIL would stall the control thread for a time slice (priority inversion: 10-50 ms
+            # stalls of the HIL car before)
             set_realtime_priority(int(p['realtime_priority']), self.get_logger())
         self.get_logger().info(rt.summary)
 
@@ -342,6 +351,8 @@ class QuarterCarNode(Node, CarOutputs):
     def stop(self):
         """Stop the control thread and write the log file."""
         self.rt.stop(2.0)
+        if self.lane is not None:
+            self.lane.close()
         try:
             steps = self.rt.close_log(self.drops.counts())
         except (OSError, ValueError) as exc:
