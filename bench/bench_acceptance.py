@@ -19,7 +19,9 @@ Per file it prints, for each configuration:
   steady-part error to that of the set the clean replay held at the same window (goal <= 1.25;
   nan when the faulted replay published no valid set: the 2 mm records are so short that the
   faults fill every window);
-- ``at``: the window end of that set [s]; ``s``: seconds of both replays.
+- ``at``: the window end of that set [s]; ``s``: seconds of both replays;
+- ``f/kwok``: the final valid set's steady-part error over ``kwok`` (absolute quality: a replay
+  that never takes a good set meets ``final/best`` with a poor final set).
 
 The steady part (``live_records.steady_mask``): the samples whose velocity amplitude (maximum
 ``|v|`` over one excitation period around them) is within 10 % of the record's median amplitude,
@@ -116,7 +118,8 @@ def main(argv=None):
     print(f'load average at start: {os.getloadavg()[0]:.2f}; {len(paths)} files from {data_dir}')
     head = f'{"file":<40} {"steady":>6} {"kwok":>6}'
     for label in configs:
-        head += f' | {label + " final/best":>17} {"worst f/c":>9} {"at":>6} {"s":>5}'
+        head += (f' | {label + " final/best":>17} {"f/kwok":>6} {"worst f/c":>9} {"at":>6}'
+                 f' {"s":>5}')
     print(head)
     results = []
     for path in paths:
@@ -126,6 +129,7 @@ def main(argv=None):
         for label in configs:
             row = r['rows'][label]
             line += (f' | {row.get("final_best", float("nan")):17.3f}'
+                     f' {row.get("final_vs_kwok", float("nan")):6.2f}'
                      f' {row.get("worst_fault", float("nan")):9.3f}'
                      f' {row.get("worst_at", float("nan")):6.1f} {row["seconds"]:5.1f}')
         print(line, flush=True)

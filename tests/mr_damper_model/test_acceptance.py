@@ -12,8 +12,9 @@ import pytest
 
 from live_records import (alpha_scaled_fit, cam_record, held_at, inject_faults, quiroz,
                           replay_published, steady_errors, steady_mask)
-from mr_damper_model.identification.acceptance import (condition_number, excitation_shortfall,
-                                                       level_figures, velocity_shares)
+from mr_damper_model.identification.acceptance import (condition_number, cycle_start,
+                                                       excitation_shortfall, level_figures,
+                                                       velocity_shares)
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.live import LiveConfig, LiveIdentifier
 
@@ -181,9 +182,45 @@ def test_excitation_figures_on_known_motion():
                                 cfg).startswith('condition:')
 
 
+def test_slow_excitation_is_compared_over_both_stroke_ends():
+    """
+    At 0.1 Hz a 2 s window holds a fifth of a cycle: each set describes one stroke reversal.
+
+    The held-back part reaches back to the second most recent velocity reversal (both ends
+    of the stroke), so a set replaces the one in use only if it describes the other reversal
+    at least as well too: the final set is within 1.1x of the replay's best.  Held back over
+    2 s only (``holdout_max_s`` = ``holdout_s``), a set of the last reversal wins and the
+    final set is 1.5x the best.
+    """
+    data = quiroz('quiroz_sine_25mm0x1Hz_0p25A_preproc')
+    steady = steady_mask(data)
+    ratios = {}
+    for holdout_max_s in (20.0, 2.0):
+        _, published = replay(data, holdout_max_s=holdout_max_s)
+        errors = steady_errors(published, data, steady)
+        ratios[holdout_max_s] = errors[-1][1] / min(e for _, e in errors)
+    assert ratios[20.0] <= FINAL_FACTOR < ratios[2.0]
+
+
+def test_cycle_start_on_a_known_sine():
+    rate, f_hz = 1000.0, 2.0
+    t = np.arange(int(6 * rate)) / rate
+    v = np.cos(2 * np.pi * f_hz * t)
+    # v = cos reverses at (k + 1/2) / (2 f): ..., 5.375, 5.625, 5.875 s, detected once past
+    # the hysteresis (0.1 of the amplitude: asin(0.1) / (2 pi f) = 8 ms later)
+    late = np.arcsin(0.1) / (2 * np.pi * f_hz)
+    assert cycle_start(t, v) == pytest.approx(5.625 + late, abs=2e-3)
+    assert cycle_start(t, v, reversals=3) == pytest.approx(5.375 + late, abs=2e-3)
+    assert cycle_start(t[:200], v[:200]) == -np.inf            # one reversal only
+    # noise at rest reverses nothing
+    rest = 1e-6 * np.random.default_rng(0).standard_normal(t.size)
+    assert cycle_start(t, np.r_[rest[:3000], 0.1 * v[3000:]]) == pytest.approx(
+        5.625 + late, abs=2e-3)
+
+
 @pytest.mark.parametrize('bad', [dict(velocity_bins=1), dict(replace_margin=1.0),
                                  dict(min_velocity_bin_share=0.5), dict(holdout_s=0.0),
-                                 dict(offset_ratio=-1.0)])
+                                 dict(holdout_max_s=0.0), dict(offset_ratio=-1.0)])
 def test_acceptance_settings_are_validated(bad):
     with pytest.raises(ValueError, match='`' + next(iter(bad))):
         LiveConfig(**bad)

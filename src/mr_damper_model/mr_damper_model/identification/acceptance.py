@@ -15,13 +15,15 @@ reviewed here before it replaces the set in use (the *current* set):
    ``max_condition_number`` (``c`` and ``alpha`` or ``k`` and ``f0`` not told apart).
 2. **Comparison** (:func:`compare_sets`): on the newest window's samples, and on the samples
    admitted in the ``holdout_s`` before the window's data (held back from the fit: a fit to a
-   transient in the newest window cannot win there), both at the current levels both sets
-   cover, the new set's RMS error must be at most ``1 - replace_margin`` times the current
-   set's (``replace_margin`` 0: at most :data:`TIE_FRACTION` above it: noise-level ties go to
-   the newer set).  With fewer than :data:`MIN_COMPARE_SAMPLES` held-back samples (start-up,
-   after a pause) only the window is compared.  A set that extends the current range is compared on
-   the common levels with the tolerance of ``max_error_ratio`` instead (the previous rule): it
-   claims levels the current set does not describe.
+   transient in the newest window cannot win there; reaching back over both ends of the
+   stroke when the excitation is slow, :meth:`Acceptance.heldback`), both at the current
+   levels both sets cover, the new set's RMS error must be at most ``1 - replace_margin``
+   times the current set's (``replace_margin`` 0: at most :data:`TIE_FRACTION` above it:
+   noise-level ties go to the newer set).  With fewer than :data:`MIN_COMPARE_SAMPLES`
+   held-back samples (start-up, after a pause) only the window is compared.  A set that
+   extends the current range is compared on the common levels with the tolerance of
+   ``max_error_ratio`` instead (the previous rule): it claims levels the current set does not
+   describe.
 
 A refused set is never published as valid: the identifier re-publishes the current set, valid,
 with its own window stamps (its age: the window end of the newest window minus its
@@ -54,6 +56,8 @@ MIN_LEVEL_SAMPLES = 50
 MIN_COMPARE_SAMPLES = 50
 #: RMS errors within this fraction of each other are a tie (noise), which the new set wins.
 TIE_FRACTION = 0.005
+#: Hysteresis of a velocity reversal (:func:`cycle_start`) [fraction of the amplitude].
+REVERSAL_HYSTERESIS = 0.1
 #: Fewest accepted sets over which the f0 trend is reported.
 MIN_TREND_SETS = 5
 
@@ -81,6 +85,36 @@ def velocity_shares(v, amplitude, n_bins):
     k = np.floor((v / amplitude + 1.0) * 0.5 * n_bins).astype(np.int64)
     k = np.clip(k, 0, n_bins - 1)
     return np.bincount(k, minlength=n_bins) / v.size
+
+
+def reversal_indices(v):
+    """
+    Return the indices where the velocity reverses (changes sign, with a hysteresis).
+
+    The hysteresis is :data:`REVERSAL_HYSTERESIS` of the velocity amplitude (noise at rest
+    reverses nothing).
+    """
+    v = np.asarray(v, dtype=float)
+    h = REVERSAL_HYSTERESIS * velocity_amplitude(v)
+    if not h > 0:
+        return np.zeros(0, dtype=np.int64)
+    sign = np.where(v > h, 1, np.where(v < -h, -1, 0))
+    nz = np.flatnonzero(sign)
+    s = sign[nz]
+    return nz[1:][s[1:] != s[:-1]]
+
+
+def cycle_start(t, v, reversals=2):
+    """
+    Time [s] of the ``reversals``-th most recent velocity reversal (-inf with fewer).
+
+    The span from the second most recent one holds both ends of the stroke (half a cycle or
+    more): at 0.1 Hz a 2 s window holds one of them only.
+    """
+    change = reversal_indices(v)
+    if change.size < reversals:
+        return -math.inf
+    return float(np.asarray(t)[change[-reversals]])
 
 
 def condition_number(params, data, current_a, i_ref_a):
@@ -252,25 +286,31 @@ class Acceptance:
             self._held = clean if self._held is None else DamperData.concatenate(
                 [self._held, clean])
         if self._held is not None:
-            keep_from = newest_s - (2.0 * cfg.window_s + cfg.holdout_s)
+            keep_from = newest_s - (2.0 * cfg.window_s + max(cfg.holdout_s, cfg.holdout_max_s))
             k = int(np.searchsorted(self._held.t, keep_from, side='left'))
             if k:
                 self._held = self._held.select(slice(k, None))
 
     def heldback(self, before_s):
         """
-        Admitted samples in ``[before_s - holdout_s, before_s)``.
+        Admitted samples before ``before_s``: the held-back part of a comparison.
 
-        Out of sample for the new set; the current set may have been fitted on part of them
-        (an advantage that fades as it ages: the set in use is kept when in doubt).
+        The ``holdout_s`` before ``before_s``, reaching back to the second most recent velocity
+        reversal if that is earlier (both ends of the stroke, :func:`cycle_start`), never more
+        than ``holdout_max_s``.  Out of sample for the new set; the current set may have
+        been fitted on part of them (an advantage that fades as it ages: the set in use is kept
+        when in doubt).
         """
         cfg = self._config()
         if self._held is None:
             return None
-        t = self._held.t
-        a = int(np.searchsorted(t, before_s - cfg.holdout_s, side='left'))
-        b = int(np.searchsorted(t, before_s, side='left'))
-        return self._held.select(slice(a, b))
+        held = self._held.select(slice(0, int(np.searchsorted(self._held.t, before_s,
+                                                              side='left'))))
+        start = before_s - cfg.holdout_s
+        if held.n:
+            start = min(start, cycle_start(held.t, held.v))
+        start = max(start, before_s - max(cfg.holdout_s, cfg.holdout_max_s))
+        return held.select(slice(int(np.searchsorted(held.t, start, side='left')), None))
 
     # ---------------------------------------------------------------- review
     def _covered(self, data, levels):

@@ -139,7 +139,11 @@ class LiveConfig:
         replace_margin`` times that set's on the newest window and on the held-back samples
         (``worse_on_window``, ``worse_on_heldback``); 0: at least as good.
     holdout_s : float
-        Held-back part: the admitted samples of this long [s] before a window's own samples.
+        Held-back part: the admitted samples of this long [s] before a window's own samples,
+        reaching back further to the second most recent velocity reversal (both ends of the
+        stroke) up to ``holdout_max_s``.
+    holdout_max_s : float
+        Longest held-back part [s] (a slow excitation: 0.1 Hz needs 10-15 s).
     offset_window_s : float
         Running-median length of the force-offset screen [s].
     offset_ratio : float
@@ -193,6 +197,7 @@ class LiveConfig:
     max_condition_number: float = 100.0
     replace_margin: float = 0.0
     holdout_s: float = 2.0
+    holdout_max_s: float = 20.0
     offset_window_s: float = 0.2
     offset_ratio: float = 3.0
     drift_window_s: float = 300.0
@@ -202,7 +207,8 @@ class LiveConfig:
                     'max_rate_hz', 'force_limit_n', 'velocity_limit_m_s',
                     'displacement_limit_m', 'max_gap_s', 'outlier_mad_k', 'stuck_s',
                     'max_error_ratio', 'max_shift_ratio', 'max_condition_number',
-                    'holdout_s', 'offset_window_s', 'offset_ratio', 'drift_window_s')
+                    'holdout_s', 'holdout_max_s', 'offset_window_s', 'offset_ratio',
+                    'drift_window_s')
         for name in positive:
             value = float(getattr(self, name))
             if not math.isfinite(value) or value <= 0:
@@ -251,4 +257,5 @@ DYNAMIC_FIELDS = (
     'max_shift_ratio', 'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
     'min_bin_fraction', 'bin_max_age_s', 'acceptance_checks', 'min_amplitude_ratio',
     'velocity_bins', 'min_velocity_bin_share', 'max_condition_number', 'replace_margin',
-    'holdout_s', 'offset_window_s', 'offset_ratio', 'drift_window_s')
+    'holdout_s', 'holdout_max_s', 'offset_window_s', 'offset_ratio',
+    'drift_window_s')

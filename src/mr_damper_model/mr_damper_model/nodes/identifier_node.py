@@ -117,8 +117,10 @@ _LIVE = (
      'has a larger condition number (unit-norm columns) [1]', 1.0, 1e12),
     ('replace_margin', 'A new set must beat the set in use by this fraction of its RMS error on '
      'the newest window and on held-back data (0: at least as good) [1]', 0.0, 0.99),
-    ('holdout_s', 'Held-back data: admitted samples of this long before the window [s]',
-     1e-3, 3600.0),
+    ('holdout_s', 'Held-back data: admitted samples of this long before the window, longer '
+     'to the second most recent velocity reversal (both stroke ends) [s]', 1e-3, 3600.0),
+    ('holdout_max_s', 'Longest held-back part (a slow excitation) [s]', 1e-3,
+     3600.0),
     ('offset_window_s', 'Running-median length of the force-offset screen [s]', 1e-4, 60.0),
     ('offset_ratio', 'Flag a force offset beyond this times the RMS error of the set in use '
      '(plus the error floor) [1]', 1e-3, 1e6),
