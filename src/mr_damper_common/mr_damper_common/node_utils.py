@@ -552,10 +552,14 @@ class FastLane:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
             except (OSError, AttributeError) as exc:
                 self._logger.warning(f'fast lane priority {self.priority} not applied: {exc}')
-        try:
-            spin(self._executor, done=lambda: self._thread is None, timeout_sec=0.05)
-        except (InvalidHandle, RuntimeError):   # the context went down under a take
-            pass
+        # not the stop flag: the lane serves the parent until it is closed (the control
+        # thread's last step after SIGINT still gets its answer)
+        context = self.node.context
+        while self._thread is not None and context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.05)
+            except (ExternalShutdownException, InvalidHandle, RuntimeError):
+                return      # the context went down under a take
 
     def close(self, timeout_s=1.0):
         """Stop the lane's thread (waits up to ``timeout_s`` [s]) and destroy its node."""
