@@ -195,11 +195,17 @@ def use_vehicle_sensing(cfg):
     its sensors and its true state on ``quarter_car/true_state``; the estimator (its own
     section, the car's rate, fail-safe current, timeout, coil range and car parameters unless
     set there; stepped by the readings at their stamps, ``clock: readings``) publishes
-    ``quarter_car/car_state`` for the controller.
+    ``quarter_car/car_state`` for the controller. The car runs in lock-step with that chain
+    unless ``lockstep`` is set (``--set quarter_car_node.lockstep=false``: real time): each
+    step waits for the command answering its readings, so the estimator takes every reading
+    and publishes an estimate for every car step (on a small shared machine the three 1 kHz
+    Python nodes cannot keep real time; the summary gives the ratio of simulated to wall time).
     """
     use_external_controller(cfg)
     set_param(cfg, QC, 'sensing', 'vehicle')
     car = node_params(cfg, QC)
+    if 'lockstep' not in car:
+        set_param(cfg, QC, 'lockstep', True)
     own = cfg.setdefault(EST, {}).setdefault('ros__parameters', {})
     for name in ESTIMATOR_PARAMS:
         if name in car:

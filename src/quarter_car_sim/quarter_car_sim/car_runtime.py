@@ -289,15 +289,21 @@ class CarRuntime:
             return 'ok'
         return 'no_command_yet' if self.cmd_in.received_at is None else 'command_timeout'
 
-    def _external_command(self, state):
-        """Publish the state, (lock-step: wait for its answer) and return the current [A]."""
+    def _external_command(self, state, answered=True):
+        """
+        Publish the state, (lock-step: wait for its answer) and return the current [A].
+
+        ``answered``: False when nothing the controller acts on went out at this step (the
+        sensors before the road starts): lock-step does not wait then.
+        """
         cmd_in = self.cmd_in
         with self.lock:
             normal = not cmd_in.timed_out
             reason = self._external_reason()
         self._command_came.clear()
         self.out.publish_car_state(state, self.loop.i_cmd, normal, reason)
-        if self.lockstep and not self._command_came.wait(self.lockstep_timeout_s):
+        if (self.lockstep and answered
+                and not self._command_came.wait(self.lockstep_timeout_s)):
             self.lockstep_timeouts += 1
             self._warn(
                 'lockstep',
@@ -320,11 +326,14 @@ class CarRuntime:
         loop = self.loop
         if self.external:
             state = self.car.state
+            answered = True
             if self.sensors is not None:
+                # the estimator's estimate of the readings is what the controller answers
                 readings = self.sensors.step(state.t, state)
-                if state.t >= 0.0:      # settling before the road: the time stamps start at 0
+                answered = state.t >= 0.0   # settling before the road: stamps start at 0
+                if answered:
                     self.out.publish_sensors(state.t, readings)
-            current, normal = self._external_command(state)
+            current, normal = self._external_command(state, answered)
             loop.i_cmd = current
             # the car state message is the controller's (not published with the state)
             return state, current, normal, None

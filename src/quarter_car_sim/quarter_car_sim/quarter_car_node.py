@@ -216,24 +216,28 @@ class QuarterCarNode(Node, CarOutputs):
             QuarterCarState, 'quarter_car/true_state' if rt.sensors else 'quarter_car/car_state',
             CONTROL_QOS)
         self.state_pub = self.create_publisher(JointState, 'quarter_car/state', 10)
+        # the 1 kHz inputs of the control thread (the external controller's commands, the
+        # rig's answers) on a lane of their own: the node's executor would rebuild its whole
+        # wait set for each one (docs/hil.md, Timing)
+        self.lane = None
+        if rt.external or rt.remote is not None:
+            self.lane = FastLane(self, 'link', int(p['realtime_priority'])
+                                 if rt.rtf > 0 else 0)
         if rt.external:
-            self.cmd_sub = self.drops.subscribe(self, Float64, 'mr_damper/current_command',
-                                                self.on_command, CONTROL_QOS, 'commands_lost')
+            self.cmd_sub = self.drops.subscribe(self.lane.node, Float64,
+                                                'mr_damper/current_command', self.on_command,
+                                                CONTROL_QOS, 'commands_lost')
         else:
             self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', 10)
             self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters',
                                  self.on_params, LATCHED_QOS, 'parameters_lost')
-        self.lane = None
         if rt.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
-            # the rig's 1 kHz answers on a lane of their own: the node's executor would rebuild
-            # its whole wait set for each one (docs/hil.md, Timing)
-            self.lane = FastLane(self, 'hil_link', int(p['realtime_priority'])
-                                 if rt.rtf > 0 else 0)
             self.hil_sub = self.drops.subscribe(
                 self.lane.node, DamperSamples, 'mr_damper/hil_measurement', self.on_measurement,
                 QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
                 'measurements_lost')
+        if self.lane is not None:
             self.lane.start()
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
