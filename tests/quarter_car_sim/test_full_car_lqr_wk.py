@@ -62,6 +62,11 @@ def test_filters_in_the_law_are_the_metric_weightings_and_feed_back_the_analog_s
                            signal.sosfilt(we_sos(fs), acc[:, 1]),
                            signal.sosfilt(we_sos(fs), acc[:, 2])])
     np.testing.assert_allclose(out, ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max())
+    assert law.rejected_samples == 0
+    # a non-finite sample is counted and held: the filters stay finite
+    law.step_filters(SimpleNamespace(t=t[-1] + dt, acc=np.full(7, np.nan)))
+    law.step_filters(SimpleNamespace(t=t[-1] + 2 * dt, acc=np.zeros(7)))
+    assert law.rejected_samples == 1 and np.all(np.isfinite(law.weighted))
     # on a smooth input the fed-back state is the analog filter's (trapezoid vs exact, dt^2)
     law.reset()
     a = np.column_stack([np.sin(2 * np.pi * 1.5 * t), 0.5 * np.sin(2 * np.pi * 0.9 * t),

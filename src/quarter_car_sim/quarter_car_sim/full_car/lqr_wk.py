@@ -182,7 +182,7 @@ class FullCarClippedOptimalWk(ForceLaw):
     ``s_k`` the digital state. Each corner's force is then clipped to its damper (dissipative).
 
     Stateful: :meth:`reset` clears the filters; a state whose time does not advance does not
-    step them again.
+    step them again; non-finite accelerations are counted (``rejected_samples``) and held.
 
     Parameters
     ----------
@@ -235,6 +235,7 @@ class FullCarClippedOptimalWk(ForceLaw):
         self._t = -math.inf
         self._a = np.zeros(3)
         self._fw = np.zeros(4)
+        self.rejected_samples = 0
 
     @property
     def weighted(self):
@@ -242,12 +243,22 @@ class FullCarClippedOptimalWk(ForceLaw):
         return self._cd @ self._s + self._dd @ self._a
 
     def step_filters(self, state):
-        """Step the filters to ``state`` (once per time) and return their feedback force [N]."""
+        """
+        Step the filters to ``state`` (once per time) and return their feedback force [N].
+
+        A state whose body accelerations are not finite is counted in ``rejected_samples``
+        and the filters hold the last finite accelerations (so one bad sample cannot poison
+        them).
+        """
         if state.t != self._t:
             if self._t != -math.inf:
                 self._s = self._ad @ self._s + self._bd @ self._a
             self._t = state.t
-            self._a = self._seat @ np.asarray(state.acc[:3], dtype=float)
+            a = self._seat @ np.asarray(state.acc[:3], dtype=float)
+            if np.all(np.isfinite(a)):
+                self._a = a
+            else:
+                self.rejected_samples += 1
             self._fw = self._g_s @ self._s + self._g_a @ self._a
         return self._fw
 
