@@ -48,7 +48,7 @@ MODAL_GRID = ((0.3, 0.3, 0.3), (0.5, 0.5, 0.5), (0.5, 1.0, 1.0), (0.7, 1.0, 1.0)
               (0.5, 1.5, 1.5), (0.7, 1.5, 1.5), (0.5, 2.0, 2.0))
 SKY_GRID = (2000.0, 3000.0, 4000.0, 6000.0)
 LQR_GRID = ({}, {'r_force': 1e-6}, {'r_force': 3e-7}, {'q_tyre': 1e4, 'r_force': 1e-6})
-LQR_WK_GRID = ({}, {'r_force': 1e-7}, {'q_travel': 300.0},
+LQR_WK_GRID = ({}, {'r_force': 1e-7}, {'q_travel': 0.0},
                {'q_heave': 0.1, 'q_pitch': 0.016, 'q_roll': 0.04})
 KEYS = ('a_v', 'a_wz', 'a_w_pitch', 'a_w_roll', 'vdv_total', 'crest_max')
 

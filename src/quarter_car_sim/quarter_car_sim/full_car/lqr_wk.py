@@ -39,11 +39,14 @@ from quarter_car_sim.full_car.lqr import checked_weights, relative_model
 
 DEFAULT_FULL_LQR_WK_WEIGHTS = {'q_wk': 1.0, 'q_we_pitch': 0.16, 'q_we_roll': 0.3969,
                                'q_heave': 0.0, 'q_pitch': 0.0, 'q_roll': 0.0,
-                               'q_travel': 0.0, 'q_tyre': 1.0e3, 'r_force': 3.0e-7}
+                               'q_travel': 300.0, 'q_tyre': 1.0e3, 'r_force': 3.0e-7}
 """Default weights of :func:`full_car_lqr_wk_design` (SI).
 
 Those of :data:`quarter_car_sim.full_car.lqr.DEFAULT_FULL_LQR_WEIGHTS` moved from the plain to
-the ISO-weighted accelerations (see docs/full-car.md for the bench)."""
+the ISO-weighted accelerations, plus the quarter car's ``clipped-optimal-wk`` travel weight:
+bench/bench_full_car.py on its training roads (ISO 8608 C, 20 m/s, 20 s, seeds 11-13, Spencer
+plants) gives median a_v 0.571 m/s^2 (q_travel 0: 0.572, r_force 1e-7: 0.575, plain
+accelerations weighted 0.1 x: 0.574); docs/full-car.md has the bench roads."""
 
 
 def _filters(weighting):
