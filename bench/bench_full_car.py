@@ -10,10 +10,12 @@ through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on t
 
 1. Tuning on training roads (seeds 11 12 13, 20 s; not the bench roads): modal sky damping
    ratios (heave, pitch, roll) and the per-corner skyhook gain, each picked by median a_v.
-   The full-car clipped-optimal LQR's weights likewise.
+   The full-car clipped-optimal LQR's weights likewise, and those of its ISO-weighted
+   version (``full-car-clipped-optimal-wk``: Wk / We filters in the design and the law).
 2. Bench roads: passive 0 / 0.5 / 1 / 2 A, per-corner skyhook (default and tuned gain),
    SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios), full-car
-   clipped-optimal (default and tuned weights). ``--only-lqr``: passive 0 A and the LQR only.
+   clipped-optimal and full-car clipped-optimal-wk (default and tuned weights).
+   ``--only-lqr``: passive 0 A and the two LQRs only.
 
 Goals (issue 24): the best live law at least 10 % below passive 0 A in the ISO 2631-1
 vibration total value a_v with no worse RMS dynamic tyre load at any wheel; modal control
@@ -39,12 +41,15 @@ from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,
                                       PerCornerLaws)
 from quarter_car_sim.full_car.control import DEFAULT_MODAL_ZETA
 from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
+from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
 
 PASSIVE_A = (0.0, 0.5, 1.0, 2.0)
 MODAL_GRID = ((0.3, 0.3, 0.3), (0.5, 0.5, 0.5), (0.5, 1.0, 1.0), (0.7, 1.0, 1.0),
               (0.5, 1.5, 1.5), (0.7, 1.5, 1.5), (0.5, 2.0, 2.0))
 SKY_GRID = (2000.0, 3000.0, 4000.0, 6000.0)
 LQR_GRID = ({}, {'r_force': 1e-6}, {'r_force': 3e-7}, {'q_tyre': 1e4, 'r_force': 1e-6})
+LQR_WK_GRID = ({}, {'r_force': 1e-7}, {'q_travel': 0.0},
+               {'q_heave': 0.1, 'q_pitch': 0.016, 'q_roll': 0.04})
 KEYS = ('a_v', 'a_wz', 'a_w_pitch', 'a_w_roll', 'vdv_total', 'crest_max')
 
 
@@ -62,6 +67,12 @@ def _sky(c_sky):
 def _lqr(w, name=None):
     txt = ','.join(f'{k}={v:g}' for k, v in w.items()) or 'default'
     return FullCarClippedOptimal.from_car(PASSENGER_CAR, name=name or f'full-car-co {txt}', **w)
+
+
+def _lqr_wk(w, name=None):
+    txt = ','.join(f'{k}={v:g}' for k, v in w.items()) or 'default'
+    return FullCarClippedOptimalWk.from_car(PASSENGER_CAR, name=name or f'full-car-co-wk {txt}',
+                                            **w)
 
 
 def _median_runs(laws_fn, seeds, duration, plants, damper):
@@ -106,13 +117,13 @@ def main(argv=None):
               f'{d["metrics"].get("nrmse_percent", float("nan")):.2f} %', flush=True)
 
     best_z, best_c = tuple(DEFAULT_MODAL_ZETA[k] for k in ('heave', 'pitch', 'roll')), 2000.0
-    best_w = {}
+    best_w, best_wk = {}, {}
     if not args.skip_tuning:
         print(f'\ntuning on seeds {args.train_seeds}, {args.train_duration:g} s (median a_v, '
               'pitch, roll, worst-wheel tyre load)', flush=True)
 
         def grid():
-            out = [_lqr(w) for w in LQR_GRID]
+            out = [_lqr(w) for w in LQR_GRID] + [_lqr_wk(w) for w in LQR_WK_GRID]
             if not args.only_lqr:
                 out += [_modal(z) for z in MODAL_GRID] + [_sky(c) for c in SKY_GRID]
             return out
@@ -123,7 +134,9 @@ def main(argv=None):
                   f'roll {_med(ms, "a_w_roll"):.3f}  '
                   f'tyre {_med(ms, "max_rms_tyre_load_ratio"):.3f}', flush=True)
         best_w = min(LQR_GRID, key=lambda w: _med(runs[_lqr(w).name], 'a_v'))
-        print(f'  picked full-car clipped-optimal weights {best_w or "default"}', flush=True)
+        best_wk = min(LQR_WK_GRID, key=lambda w: _med(runs[_lqr_wk(w).name], 'a_v'))
+        print(f'  picked full-car clipped-optimal weights {best_w or "default"}, -wk weights '
+              f'{best_wk or "default"}', flush=True)
         if not args.only_lqr:
             best_z = min(MODAL_GRID, key=lambda z: _med(runs[_modal(z).name], 'a_v'))
             best_c = min(SKY_GRID, key=lambda c: _med(runs[_sky(c).name], 'a_v'))
@@ -134,6 +147,10 @@ def main(argv=None):
         if best_w:
             lqr.append(_lqr(best_w, name='full-car-clipped-optimal tuned '
                             + ','.join(f'{k}={v:g}' for k, v in best_w.items())))
+        lqr.append(make_full_car_law('full-car-clipped-optimal-wk', PASSENGER_CAR))
+        if best_wk:
+            lqr.append(_lqr_wk(best_wk, name='full-car-clipped-optimal-wk tuned '
+                               + ','.join(f'{k}={v:g}' for k, v in best_wk.items())))
         if args.only_lqr:
             return [make_full_car_law('passive@0A', PASSENGER_CAR)] + lqr
         out = [make_full_car_law(f'passive@{i:g}A', PASSENGER_CAR) for i in PASSIVE_A]
@@ -191,11 +208,17 @@ def main(argv=None):
               f' below in both pitch and roll: {len(beat)} of {len(corner_laws)} per-corner laws'
               + (f' (not: {", ".join(c for c in corner_laws if c not in beat)})'
                  if len(beat) < len(corner_laws) else ''))
+    wk, co = table.get('full-car-clipped-optimal-wk'), table.get('full-car-clipped-optimal')
+    if wk and co:
+        print('full-car-clipped-optimal-wk against full-car-clipped-optimal (same run): a_v '
+              f'{100.0 * (wk["a_v"] / co["a_v"] - 1.0):+.1f} %, tyre per wheel '
+              + ' / '.join(f'{100.0 * (wk["tyre"][c] / co["tyre"][c] - 1.0):+.1f}'
+                           for c in CORNERS) + ' %')
     print(f'total wall time {time.time() - t0:.0f} s; load average at end {os.getloadavg()}')
     if args.json:
         with open(args.json, 'w') as fh:
             json.dump({'table': table, 'modal_zeta': best_z, 'sky_c': best_c,
-                       'lqr_weights': best_w}, fh, indent=1)
+                       'lqr_weights': best_w, 'lqr_wk_weights': best_wk}, fh, indent=1)
 
 
 if __name__ == '__main__':

@@ -41,6 +41,7 @@ def test_default_compare_set_and_table(capsys):
     assert names[:5] == ['passive@0A', 'passive@0.5A', 'passive@1A', 'passive@1.5A',
                          'passive@2A']
     assert 'modal-skyhook' in names and 'per-corner-skyhook' in names
+    assert names[-2:] == ['full-car-clipped-optimal', 'full-car-clipped-optimal-wk']
     assert main(['--law', 'modal-skyhook', '--road', 'pothole', '--speed', '10',
                  '--duration', '0.3']) == 0
     out = capsys.readouterr().out

@@ -49,6 +49,10 @@ def test_gain_ignores_the_road_warp_and_the_law_is_dissipative():
     with pytest.raises(ValueError, match='unknown LQR weight'):
         full_car_lqr_design(PASSENGER_CAR, q_yaw=1.0)
     law = make_full_car_law('full-car-clipped-optimal', PASSENGER_CAR)
+    _assert_dissipative_on_a_short_road(law)
+
+
+def _assert_dissipative_on_a_short_road(law):
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0, duration_s=0.5,
                                rng=3)
     kw = presets.thesis_kwok_current()[1]
@@ -57,3 +61,11 @@ def test_gain_ignores_the_road_warp_and_the_law_is_dissipative():
     assert res.normal.all()
     assert np.all(res.demand * res.v_rel <= 0.0)        # every demand dissipative
     assert np.ptp(res.current_cmd) > 0.3
+
+
+def test_weighted_law_runs_on_the_car_with_dissipative_demands():
+    from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
+    law = make_full_car_law('full-car-clipped-optimal-wk', PASSENGER_CAR)
+    assert isinstance(law, FullCarClippedOptimalWk) and law.name == 'full-car-clipped-optimal-wk'
+    _assert_dissipative_on_a_short_road(law)
+    assert np.any(np.abs(law.weighted) > 0)             # the filters ran on the car

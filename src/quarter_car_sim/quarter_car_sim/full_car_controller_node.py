@@ -63,7 +63,7 @@ CORNER_SUPERVISOR_PARAMETERS = (
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal, per-corner-<law> (e.g. per-corner-skyhook) or '
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook) or '
           'passive@<I>A'),
     Param('rate_hz', 1000.0, 'Rate of the corner states [Hz]: the sample time of a filter '
           'inside the law', 10.0, 10000.0),

@@ -80,7 +80,7 @@ PARAMETERS = (
     Param('real_time_factor', 1.0, 'Simulated seconds per wall second (0 = as fast as '
           'possible) [-]', 0.0, 1000.0),
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal, per-corner-<law> (e.g. per-corner-skyhook), '
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
           'passive@<I>A, or external (plant only: currents on <c>/mr_damper/current_command, '
           'e.g. full_car_controller_node)'),
     Param('command_timeout_s', 0.05, 'External controller: a corner\'s safe current when no '

@@ -140,10 +140,23 @@ def wk_state_space():
     stays well scaled); its transfer function is :func:`~quarter_car_sim.ride_metrics.wk_analog`.
     Input body acceleration [m/s^2], output Wk-weighted acceleration [m/s^2].
     """
+    from quarter_car_sim.ride_metrics import WK_CONSTANTS
+    return weighting_state_space(WK_CONSTANTS)
+
+
+def weighting_state_space(constants):
+    """
+    ISO 2631-1 weighting of ``constants`` as a ``control.StateSpace`` (analog, SI).
+
+    The series connection of the second-order sections of
+    :func:`quarter_car_sim.ride_metrics.weighting_sections` (2 states each), e.g. Wk
+    (:data:`~quarter_car_sim.ride_metrics.WK_CONSTANTS`, 8 states) or the rotational We
+    (:data:`~quarter_car_sim.ride_metrics.WE_CONSTANTS`, 6 states).
+    """
     import control
-    from quarter_car_sim.ride_metrics import wk_sections
+    from quarter_car_sim.ride_metrics import weighting_sections
     sys = None
-    for num, den in wk_sections():
+    for num, den in weighting_sections(constants):
         sec = control.ss(control.tf(num, den))
         sys = sec if sys is None else control.series(sys, sec)
     return sys

@@ -39,12 +39,12 @@ def build_parser():
         description='Full car (7 DOF) with four semi-active MR dampers: ride comparison of '
                     'full-car laws (ISO 2631-1 at the seat).')
     p.add_argument('--law', default='modal-skyhook',
-                   help='modal-skyhook, full-car-clipped-optimal, passive@<I>A or '
+                   help='modal-skyhook, full-car-clipped-optimal(-wk), passive@<I>A or '
                         'per-corner-<law> with <law> one of '
                         f'{", ".join(DAMPER_LAW_NAMES[1:])} (default modal-skyhook)')
     p.add_argument('--compare', action='store_true',
                    help='passive at each current, per-corner laws, modal skyhook and the '
-                        'full-car clipped-optimal LQR')
+                        'full-car clipped-optimal LQR (plain and ISO-weighted)')
     p.add_argument('--laws', default='',
                    help='comma-separated laws for --compare instead of the default set')
     p.add_argument('--road', default='iso8608-C',
@@ -80,7 +80,7 @@ def _laws(args):
             return [s.strip() for s in args.laws.split(',') if s.strip()]
         return ([f'passive@{i:g}A' for i in COMPARE_CURRENTS_A]
                 + [f'per-corner-{n}' for n in COMPARE_CORNER_LAWS]
-                + ['modal-skyhook', 'full-car-clipped-optimal'])
+                + ['modal-skyhook', 'full-car-clipped-optimal', 'full-car-clipped-optimal-wk'])
     return [args.law]
 
 

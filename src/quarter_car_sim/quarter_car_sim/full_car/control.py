@@ -247,7 +247,9 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     ----------
     name : str
         ``'modal-skyhook'``, ``'full-car-clipped-optimal'``
-        (:class:`quarter_car_sim.full_car.lqr.FullCarClippedOptimal`), ``'passive@<I>A'`` (the
+        (:class:`quarter_car_sim.full_car.lqr.FullCarClippedOptimal`),
+        ``'full-car-clipped-optimal-wk'`` (ISO-weighted,
+        :class:`quarter_car_sim.full_car.lqr_wk.FullCarClippedOptimalWk`), ``'passive@<I>A'`` (the
         current at every corner) or
         ``'per-corner-<law>'`` with a damper law of
         :data:`quarter_car_sim.controllers.DAMPER_LAW_NAMES` (e.g. ``per-corner-skyhook``),
@@ -270,6 +272,9 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     if n == 'full-car-clipped-optimal':
         from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
         return FullCarClippedOptimal.from_car(params)
+    if n == 'full-car-clipped-optimal-wk':
+        from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
+        return FullCarClippedOptimalWk.from_car(params, dt=dt)
     if n.startswith('passive'):
         laws = [make_controller(n, damper_only=True) for _ in range(4)]
         return PerCornerLaws(laws, name=laws[0].name)
@@ -278,7 +283,7 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
         return PerCornerLaws([make_controller(law, params=params.corner(i), damper_only=True,
                                               dt=dt) for i in range(4)])
     raise ValueError(f'unknown full-car law {name!r} (use modal-skyhook, '
-                     'full-car-clipped-optimal, passive@<I>A or per-corner-<law>)')
+                     'full-car-clipped-optimal(-wk), passive@<I>A or per-corner-<law>)')
 
 
 def supervisor_message(params, *, i_ref_a=2.0, current_min_a=0.0, current_max_a=2.0, valid=1):

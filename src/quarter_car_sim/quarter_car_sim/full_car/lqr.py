@@ -86,6 +86,24 @@ def relative_model(params):
     return A, B, A[i_b].copy(), B[i_b].copy(), n / np.linalg.norm(n)
 
 
+def checked_weights(defaults, overrides):
+    """
+    Return ``defaults`` updated by ``overrides``, checked (ValueError).
+
+    Every name must be one of ``defaults``, every weight finite and >= 0, ``r_force`` > 0.
+    """
+    unknown = sorted(set(overrides) - set(defaults))
+    if unknown:
+        raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
+    w = {**defaults, **overrides}
+    for k, v in w.items():
+        if not (np.isfinite(v) and v >= 0.0):
+            raise ValueError(f'`{k}` must be finite and >= 0, got {v}')
+    if not w['r_force'] > 0.0:
+        raise ValueError('`r_force` must be > 0')
+    return w
+
+
 class FullCarLqrDesign:
     """
     Result of :func:`full_car_lqr_design`.
@@ -122,15 +140,7 @@ def full_car_lqr_design(params, **weights):
 
     """
     import control
-    unknown = sorted(set(weights) - set(DEFAULT_FULL_LQR_WEIGHTS))
-    if unknown:
-        raise ValueError(f'unknown LQR weight(s): {", ".join(unknown)}')
-    w = {**DEFAULT_FULL_LQR_WEIGHTS, **weights}
-    for k, v in w.items():
-        if not (np.isfinite(v) and v >= 0.0):
-            raise ValueError(f'`{k}` must be finite and >= 0, got {v}')
-    if not w['r_force'] > 0.0:
-        raise ValueError('`r_force` must be > 0')
+    w = checked_weights(DEFAULT_FULL_LQR_WEIGHTS, weights)
     A, B, Cy, Dy, n = relative_model(params)
     c = np.zeros(15)
     c[0:4], c[4:8] = n, n
