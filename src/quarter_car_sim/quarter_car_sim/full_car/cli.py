@@ -133,7 +133,8 @@ def run(args):
                            sensing=args.sensing, sensor_seed=args.seed)
     return finite_or_none({
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
-        'seed': args.seed, 'dt_s': args.dt, 'sensing': args.sensing, 'plants': dict(zip(CORNERS, plant_names)),
+        'seed': args.seed, 'dt_s': args.dt, 'sensing': args.sensing,
+        'plants': dict(zip(CORNERS, plant_names)),
         'damper_params': source, 'car': params.to_dict(), 'laws': metrics,
     })
 
@@ -147,7 +148,8 @@ def _cell(v, fmt):
 def table(out):
     """Return the text table of a :func:`run` result."""
     head = f'{"law":30s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}' for _, h, fmt in TABLE)
-    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, sensing {out["sensing"]}', head]
+    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, sensing {out["sensing"]}',
+             head]
     for name, m in out['laws'].items():
         lines.append(f'{name:30s}' + ''.join(' ' + _cell(m.get(k), fmt) for k, _, fmt in TABLE))
     lines.append('a_v: ISO 2631-1 vibration total value at the CG [m/s^2] (Wk vertical, We '

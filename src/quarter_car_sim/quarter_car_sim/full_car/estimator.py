@@ -65,6 +65,7 @@ def body_accelerations(params, accel):
     Parameters
     ----------
     params : FullCarParams
+        Car (its corner geometry).
     accel : array_like with shape (3,)
         Vertical accelerations [m/s^2] at the points of :data:`ACCEL_CORNERS`.
 
@@ -201,10 +202,15 @@ class FullCarEstimator:
         self.dropout_s = float(dropout_s)
         self.reset()
 
-    def reset(self, x0=None):
-        """Start at ``x0`` (default the static equilibrium) with the steady covariance."""
+    def reset(self, x0=None, P0=None):
+        """
+        Start at ``x0`` (default the static equilibrium) with covariance ``P0``.
+
+        ``P0`` defaults to the steady-state covariance of the design (right for a start at
+        rest); a start that may be far off needs a wider one.
+        """
         self.x = np.zeros(N_E) if x0 is None else np.asarray(x0, dtype=float).copy()
-        self.P = self.d.P.copy()
+        self.P = self.d.P.copy() if P0 is None else np.asarray(P0, dtype=float).copy()
         self._f = np.zeros(4)
         self._last_seen = {s: None for s in SENSORS}
         self.valid = False
@@ -214,7 +220,10 @@ class FullCarEstimator:
 
     def step(self, t, readings, forces):
         """
-        Predict over one period with the forces held, then take the readings that arrived.
+        Predict over the period that ends now, then take the readings that arrived.
+
+        The prediction uses the forces of the previous call (held over the period, as the
+        plants hold them); the accelerometer rows use ``forces``.
 
         Parameters
         ----------
@@ -224,7 +233,7 @@ class FullCarEstimator:
             ``{sensor: value}`` (accelerometers: specific force, gravity included; NaN: lost;
             a missing key: nothing arrived).
         forces : array_like (4,)
-            Damper forces on the body [N] applied over the period that starts now.
+            Damper forces on the body [N] now (held over the period that starts now).
 
         Returns
         -------
@@ -235,7 +244,7 @@ class FullCarEstimator:
         if self.n_steps:
             self.x = d.Ad @ self.x + d.Bd @ self._f
             self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
-        self._f_prev = self._f
+        f_now = np.asarray(forces, dtype=float).reshape(4).copy()
         for r, name in enumerate(SENSORS):
             y = readings.get(name)
             if y is None or not math.isfinite(y):
@@ -247,10 +256,10 @@ class FullCarEstimator:
             ph = self.P @ h
             s = h @ ph + d.R[r, r]
             k = ph / s
-            self.x = self.x + k * (y - h @ self.x - d.Dm[r] @ self._f_prev)
+            self.x = self.x + k * (y - h @ self.x - d.Dm[r] @ f_now)
             self.P = self.P - np.outer(k, ph)
         self.P = (self.P + self.P.T) / 2.0
-        self._f = np.asarray(forces, dtype=float).reshape(4).copy()
+        self._f = f_now
         self.n_steps += 1
         self.reason = ''
         for name, seen in self._last_seen.items():
@@ -270,7 +279,7 @@ class FullCarEstimator:
         return self.x
 
     def std(self):
-        """Standard deviations of the 18 states."""
+        """Return the standard deviations of the 18 states."""
         return np.sqrt(np.maximum(np.diag(self.P), 0.0))
 
     def state(self, t):
@@ -291,7 +300,7 @@ class FullCarEstimator:
 
 
 def true_vector(state):
-    """The estimator's first 15 states from a true :class:`FullCarState`."""
+    """Return the estimator's first 15 states from a true :class:`FullCarState`."""
     return np.concatenate([state.travel, state.q[3:] - state.z_r, state.v])
 
 

@@ -178,6 +178,7 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
             if dp is not None:
                 controller.offer_parameters(i, corner_message(dp), t_clock0)
     s = car.state
+
     def seen(state):
         return state if sensed is None else sensed.update(state)
 
