@@ -7,6 +7,7 @@ Examples::
     full-car-sim --compare --json --duration 10 --seed 2
     full-car-sim --law modal-skyhook --road pothole --speed 10
     full-car-sim --compare --plant spencer --damper-params fit.json   # identified set
+    full-car-sim --compare --sensing vehicle       # laws on the Kalman estimate (3 acc + 4 pos)
 
 Each corner has its own "true" damper plant (``--plant kwok|spencer`` or four names,
 ``fl,fr,rl,rr``) and its own identified Kwok-current parameters for the inverse
@@ -61,6 +62,10 @@ def build_parser():
     p.add_argument('--zeta', default='',
                    help='modal skyhook damping ratios heave,pitch,roll (default '
                         'DEFAULT_MODAL_ZETA)')
+    p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
+                   help='ideal: the laws read the true state; vehicle: they read the full-car '
+                        'Kalman estimate from three body accelerometers (fl, fr, rl) and four '
+                        'position sensors (default ideal)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     return p
 
@@ -124,10 +129,12 @@ def run(args):
                              'parameters, e.g. from mr-damper-identify --out)')
         damper = [presets.thesis_kwok_current()[1]] * 4
         source = 'kwok-current plant truth (no identification run)'
-    metrics = compare_laws(params, road, laws, plants, damper, dt=args.dt)
+    metrics = compare_laws(params, road, laws, plants, damper, dt=args.dt,
+                           sensing=args.sensing, sensor_seed=args.seed)
     return finite_or_none({
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
-        'seed': args.seed, 'dt_s': args.dt, 'plants': dict(zip(CORNERS, plant_names)),
+        'seed': args.seed, 'dt_s': args.dt, 'sensing': args.sensing,
+        'plants': dict(zip(CORNERS, plant_names)),
         'damper_params': source, 'car': params.to_dict(), 'laws': metrics,
     })
 
@@ -141,7 +148,8 @@ def _cell(v, fmt):
 def table(out):
     """Return the text table of a :func:`run` result."""
     head = f'{"law":30s}' + ''.join(f' {h:>{len(fmt.format(0.0))}s}' for _, h, fmt in TABLE)
-    lines = [f'road {out["road"]}, {out["duration_s"]:g} s', head]
+    lines = [f'road {out["road"]}, {out["duration_s"]:g} s, sensing {out["sensing"]}',
+             head]
     for name, m in out['laws'].items():
         lines.append(f'{name:30s}' + ''.join(' ' + _cell(m.get(k), fmt) for k, _, fmt in TABLE))
     lines.append('a_v: ISO 2631-1 vibration total value at the CG [m/s^2] (Wk vertical, We '

@@ -21,6 +21,9 @@ from quarter_car_sim.full_car.metrics import full_car_metrics
 #: Model timeout [s] of the offline supervisors (the models are offered once).
 OFFLINE_TIMEOUT_S = 1.0e9
 
+#: Sensing modes of :func:`simulate_full_car`.
+SENSING = ('ideal', 'vehicle')
+
 _SERIES = ('q', 'v', 'acc', 'z_r', 'travel', 'v_rel', 'tyre_force', 'damper_force',
            'coil_current')
 
@@ -111,7 +114,8 @@ def corner_message(damper_params):
 
 
 def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3, settle_s=0.5,
-                      substeps=1, controller=None, duration_s=None):
+                      substeps=1, controller=None, duration_s=None, sensing='ideal',
+                      sensor_seed=1):
     """
     Simulate the full car on a two-track road under a full-car law.
 
@@ -138,6 +142,12 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
         Ready-made controller (its supervisors are offered ``damper_params`` too when given).
     duration_s : float, optional
         Recorded time [s] (default the road's duration).
+    sensing : str
+        ``'ideal'`` (the law reads the true state) or ``'vehicle'`` (the law reads the
+        estimate of :class:`quarter_car_sim.full_car.estimator.FullCarEstimator` from the
+        production sensor set; the estimation error is recorded in ``status['estimation']``).
+    sensor_seed : int
+        Seed of the sensors with ``sensing='vehicle'``.
 
     Returns
     -------
@@ -151,6 +161,12 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
             law = make_full_car_law(law, params, dt=dt)
         controller = FullCarController(law, timeout_s=OFFLINE_TIMEOUT_S, i_min_a=params.i_min,
                                        i_max_a=params.i_max)
+    if sensing not in SENSING:
+        raise ValueError(f'`sensing` must be one of {", ".join(SENSING)}, got {sensing!r}')
+    sensed = None
+    if sensing == 'vehicle':
+        from quarter_car_sim.full_car.estimator import SensedState
+        sensed = SensedState(params, dt, sensor_seed)
     n_settle = int(round(settle_s / dt))
     car = FullCar(params, plants, road, substeps=substeps, t0=-n_settle * dt)
     controller.reset()
@@ -162,8 +178,14 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
             if dp is not None:
                 controller.offer_parameters(i, corner_message(dp), t_clock0)
     s = car.state
+
+    def seen(state):
+        return state if sensed is None else sensed.update(state)
+
     for _ in range(n_settle):
-        s = car.step(dt, controller.command(s, s.t))
+        s = car.step(dt, controller.command(seen(s), s.t))
+    if sensed is not None:
+        sensed.start_recording()
     duration = road.duration if duration_s is None else float(duration_s)
     n = int(round(duration / dt)) + 1
     logs = {f: np.empty((n, 7 if f in ('q', 'v', 'acc') else 4)) for f in _SERIES}
@@ -173,7 +195,7 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
     normal = np.empty((n, 4), dtype=bool)
     start = time.perf_counter()
     for k in range(n):
-        cur = controller.command(s, s.t)
+        cur = controller.command(seen(s), s.t)
         t_log[k] = s.t
         for f in _SERIES:
             logs[f][k] = getattr(s, f)
@@ -182,12 +204,15 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
         normal[k] = [m == 'normal' for m in controller.modes]
         s = car.step(dt, cur)
     wall = time.perf_counter() - start
+    status = controller.status()
+    if sensed is not None:
+        status['estimation'] = sensed.summary()
     return FullCarResult(t=t_log, current_cmd=cmd, demand=dem, normal=normal, law=controller.name,
-                         status=controller.status(), wall_time_s=wall, **logs)
+                         status=status, wall_time_s=wall, **logs)
 
 
 def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s=0.5,
-                 seat=(0.0, 0.0)):
+                 seat=(0.0, 0.0), sensing='ideal', sensor_seed=1):
     """
     Run several full-car laws on the same road and plants; return their metrics.
 
@@ -201,6 +226,9 @@ def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s
         As :func:`simulate_full_car`.
     seat : (float, float)
         Seat position from the CG [m] (:func:`full_car_metrics`).
+    sensing, sensor_seed
+        As :func:`simulate_full_car`; with ``'vehicle'`` each metrics dict also holds
+        ``estimation`` (RMS estimation error per state group, invalid steps per reason).
 
     Returns
     -------
@@ -211,8 +239,11 @@ def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s
     out = {}
     for law in laws:
         res = simulate_full_car(params, road, law, plants, damper_params, dt=dt,
-                                settle_s=settle_s)
+                                settle_s=settle_s, sensing=sensing, sensor_seed=sensor_seed)
         m = res.metrics(params, seat=seat)
+        est = res.status.pop('estimation', None)
+        if est is not None:
+            m['estimation'] = est
         m['failsafe_corners'] = [c for c, st in res.status.items() if st['mode'] != 'normal']
         m['wall_time_s'] = res.wall_time_s
         out[res.law] = m
