@@ -170,16 +170,48 @@ def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
     plant:=rig with controller:=external (hil --external-controller) keeps stepping.
 
     Lock-step is off here: the test is that the rig plant's wait and the external command
-    input coexist (their Condition and Event no longer share a name).
+    input coexist (their Condition and Event no longer share a name). The car holds step 0
+    until a rig answers: a stand-in rig (real topics) answers each displacement command with
+    one measured sample, as the rig node does.
     """
+    import threading
+    from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64
+    from mr_damper_common.messages import samples_to_msg
+    from mr_damper_interfaces.msg import DamperSamples
     from quarter_car_sim.quarter_car_node import QuarterCarNode
+    context, made = ctx
+    rig = rclpy_node(context, 'stand_in_rig')
+    made.append(rig)
+    answers = rig.create_publisher(DamperSamples, 'cnunit/mr_damper/hil_measurement', 10)
+    sent = []
+
+    def answer(msg):
+        k = len(sent)
+        sent.append(msg.data)
+        answers.publish(samples_to_msg([k * 1e-3], [msg.data], [0.0], [100.0], [1.0],
+                                       sequence=k, first_index=k, sample_period_s=1e-3))
+    rig.create_subscription(Float64, 'cnunit/mr_damper/displacement_command', answer, 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(rig)
+    spinning = threading.Thread(target=executor.spin, daemon=True)
+    spinning.start()
     node = _make(ctx, QuarterCarNode, controller='external', plant='rig', real_time_factor=2.0,
                  road_duration_s=30.0, safe_current_a=0.5, log_file=str(tmp_path / 'log'))
     node.on_command(Float64(data=1.0))
     st = _steps_later(node, 50)
     assert node.failed is None and st['steps'] >= 50
     assert st['commands']['accepted'] == 1
+    # step 0 came after the rig answered the car's neutral command (hil_wait_s 0: the steps
+    # after it do not wait for each answer)
+    assert sent[0] == 0.0 and st['hil']['counts']['measurements'] >= 1
+    executor.shutdown(timeout_sec=1.0)
+
+
+def rclpy_node(context, name):
+    """A plain node in the test's context (a stand-in peer on real topics)."""
+    import rclpy
+    return rclpy.create_node(name, context=context)
 
 
 def test_controller_node_dynamic_parameters(ctx):
