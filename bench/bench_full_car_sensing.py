@@ -12,7 +12,7 @@ estimation error per state group.
 
 Usage::
 
-    .venv/bin/python bench/bench_full_car_sensing.py [--seeds 1 2 3] [--duration 20]
+    .venv/bin/python bench/bench_full_car_sensing.py [--seeds 1 2 3] [--duration 20] [--laws A,B]
 """
 import argparse
 import os
@@ -24,7 +24,8 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import compare_laws, make_two_track_road, PASSENGER_CAR
 
 LAWS = ('passive@0A', 'per-corner-skyhook', 'per-corner-sh-add',
-        'per-corner-clipped-optimal-wk', 'modal-skyhook', 'full-car-clipped-optimal')
+        'per-corner-clipped-optimal-wk', 'modal-skyhook', 'full-car-clipped-optimal',
+        'full-car-clipped-optimal-wk')
 
 
 def main(argv=None):
@@ -32,7 +33,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
     ap.add_argument('--duration', type=float, default=20.0)
+    ap.add_argument('--laws', default=','.join(LAWS), help='comma-separated laws to run')
     args = ap.parse_args(argv)
+    laws = [name.strip() for name in args.laws.split(',') if name.strip()]
     print(f'load average at start {os.getloadavg()}', flush=True)
     t0 = time.time()
     plants = [make_plant('kwok-current') for _ in range(4)]
@@ -42,7 +45,7 @@ def main(argv=None):
         road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
                                    duration_s=args.duration, rng=seed)
         for sensing in ('ideal', 'vehicle'):
-            out = compare_laws(PASSENGER_CAR, road, list(LAWS), plants, damper,
+            out = compare_laws(PASSENGER_CAR, road, laws, plants, damper,
                                sensing=sensing, sensor_seed=seed)
             for name, m in out.items():
                 runs.setdefault((name, sensing), []).append(m)
