@@ -562,19 +562,3 @@ def test_fault_during_a_stalled_fitter_is_inconsistent():
     assert li.estimate is first
     assert_no_wrong_valid([first, last] if last else [first])
     assert_accounted(li)
-
-
-def test_stuck_head_shorter_than_stuck_s_waits_for_the_next_window():
-    # the run begins 0.1 s before a window end (hop 0.5 s): its head, shorter than stuck_s,
-    # is held back (a constant run at the end of the new samples) and judged with the rest
-    arrays = stream()
-    f = arrays[3]
-    k0 = int(6.9 * RATE)
-    n_run = 600
-    f[k0:k0 + n_run] = f[k0]
-    li, ests = run(arrays)
-    flagged = li.counters['samples_flagged']
-    assert flagged['stuck'] + flagged['offset'] == n_run     # none of the run was binned
-    assert flagged['stuck'] >= n_run - int(li.config.stuck_s * RATE)
-    assert_no_wrong_valid(ests)
-    assert_accounted(li)
