@@ -472,18 +472,6 @@ class LiveIdentifier:
             c['samples_unbinned'] += new.n - n_next
             return None
         flags = flag_samples(span, cfg)[span.n - new.n:]
-        if window.span is not None and new.n > 2:
-            # a constant run at the end of the new samples may be the head of a stuck load
-            # cell that has not yet lasted ``stuck_s``: it waits for the next window's screen
-            f = new.f
-            k = new.n - 1
-            while k > 0 and f[k - 1] == f[-1]:
-                k -= 1
-            n_late = new.n - k
-            if 3 <= n_late < new.n and flags[-1] == '':
-                self._give_back(window, n_late)
-                new = new.select(slice(None, k))
-                flags = flags[:k]
         for name in ('outlier', 'stuck', 'dropout'):
             c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
         clean = new.select(flags == '')
