@@ -14,7 +14,8 @@ DT = 1e-3
 C_PASSIVE = 1500.0
 
 
-def _run(design, sensors, n, *, x0=None, P0=None, q0=None, flat=False, seed=1, force=None):
+def _run(design, sensors, n, *, x0=None, P0=None, q0=None, flat=False, seed=1, force=None,
+         delay_steps=0):
     if flat:
         t = np.arange(n + 100) * DT
         z = np.zeros_like(t)
@@ -24,7 +25,7 @@ def _run(design, sensors, n, *, x0=None, P0=None, q0=None, flat=False, seed=1, f
                                    duration_s=n * DT + 0.1, dt=DT, rng=seed)
     car = FullCar(PASSENGER_CAR, None, road)
     s = car.state if q0 is None else car.set_state(q0)
-    est = fe.FullCarEstimator(design)
+    est = fe.FullCarEstimator(design, delay_steps=delay_steps)
     est.reset(x0, P0)
     err, true = [], []
     for _ in range(n):
@@ -71,6 +72,17 @@ def test_noisy_sensors_error_far_below_state_rms(design):
         ratio = np.sqrt((e[:, sl] ** 2).mean(0)) / np.sqrt((tr[:, sl] ** 2).mean(0))
         assert np.all(ratio < 0.2), (group, ratio)
     assert est.valid
+
+
+def test_one_step_delay_takes_the_sensor_latency(design):
+    """Default sensors deliver 1 ms (one period) late: ``delay_steps=1`` removes that lag."""
+    rms = {}
+    for k in (0, 1):
+        _, err, true = _run(design, fe.FullCarSensors(DT, seed=2), 3000, delay_steps=k)
+        rms[k] = np.sqrt(np.mean(err[1000:, 0:4] ** 2)) / np.sqrt(np.mean(true[1000:, 0:4] ** 2))
+    assert rms[1] < 0.5 * rms[0], rms
+    with pytest.raises(ValueError):
+        fe.FullCarEstimator(design, delay_steps=2)
 
 
 def test_three_accelerometers_fix_rigid_body_accelerations():

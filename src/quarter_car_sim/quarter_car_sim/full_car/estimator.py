@@ -184,6 +184,11 @@ class FullCarEstimator:
     design : FullCarDesign
     dropout_s : float
         A sensor with no reading for this long makes the estimate invalid.
+    delay_steps : int
+        Sensor latency in control periods the filter accounts for: 0 (a reading delivered
+        now is taken as of now) or 1 (as of the previous step, the default sensors' 1 ms at
+        1 kHz: the reading updates the previous step's state with the previous forces, then
+        the filter predicts to now; no extra states).
 
     Attributes
     ----------
@@ -197,9 +202,12 @@ class FullCarEstimator:
 
     """
 
-    def __init__(self, design, *, dropout_s=0.02):
+    def __init__(self, design, *, dropout_s=0.02, delay_steps=0):
+        if delay_steps not in (0, 1):
+            raise EstimatorError(f'`delay_steps` must be 0 or 1, got {delay_steps!r}')
         self.d = design
         self.dropout_s = float(dropout_s)
+        self.delay_steps = int(delay_steps)
         self.reset()
 
     def reset(self, x0=None, P0=None):
@@ -241,10 +249,11 @@ class FullCarEstimator:
 
         """
         d = self.d
-        if self.n_steps:
-            self.x = d.Ad @ self.x + d.Bd @ self._f
-            self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
+        if self.n_steps and not self.delay_steps:
+            self._predict()
         f_now = np.asarray(forces, dtype=float).reshape(4).copy()
+        # with one step of delay the readings are of the previous step (its forces)
+        f_meas = self._f if self.delay_steps and self.n_steps else f_now
         for r, name in enumerate(SENSORS):
             y = readings.get(name)
             if y is None or not math.isfinite(y):
@@ -256,9 +265,11 @@ class FullCarEstimator:
             ph = self.P @ h
             s = h @ ph + d.R[r, r]
             k = ph / s
-            self.x = self.x + k * (y - h @ self.x - d.Dm[r] @ f_now)
+            self.x = self.x + k * (y - h @ self.x - d.Dm[r] @ f_meas)
             self.P = self.P - np.outer(k, ph)
         self.P = (self.P + self.P.T) / 2.0
+        if self.delay_steps and self.n_steps:
+            self._predict()
         self._f = f_now
         self.n_steps += 1
         self.reason = ''
@@ -277,6 +288,11 @@ class FullCarEstimator:
         if self.reason:
             self.n_invalid[self.reason] = self.n_invalid.get(self.reason, 0) + 1
         return self.x
+
+    def _predict(self):
+        d = self.d
+        self.x = d.Ad @ self.x + d.Bd @ self._f
+        self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
 
     def std(self):
         """Return the standard deviations of the 18 states."""
@@ -365,13 +381,19 @@ class SensedState:
         Sensor seed.
     dropout : (str, float, float), optional
         Injected dropout (:class:`FullCarSensors`).
+    delay_steps : int, optional
+        :class:`FullCarEstimator`'s ``delay_steps``; None: the default sensors' latency in
+        periods, at most 1 (1 at 1 kHz).
 
     """
 
-    def __init__(self, params, dt, seed=1, *, dropout=None, road_class='C', speed_m_s=20.0):
+    def __init__(self, params, dt, seed=1, *, dropout=None, road_class='C', speed_m_s=20.0,
+                 delay_steps=None):
         self.sensors = FullCarSensors(dt, seed, dropout=dropout)
+        if delay_steps is None:
+            delay_steps = min(1, int(round(accelerometer_spec().latency_s / dt)))
         self.estimator = FullCarEstimator(design_full_car_estimator(
-            params, dt, road_class=road_class, speed_m_s=speed_m_s))
+            params, dt, road_class=road_class, speed_m_s=speed_m_s), delay_steps=delay_steps)
         self._recording = False
         self._sq = np.zeros(15)
         self._n = 0
