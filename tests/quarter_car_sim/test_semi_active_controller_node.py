@@ -209,7 +209,7 @@ def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
 
 
 def rclpy_node(context, name):
-    """A plain node in the test's context (a stand-in peer on real topics)."""
+    """Return a plain node in the test's context (a stand-in peer on real topics)."""
     import rclpy
     return rclpy.create_node(name, context=context)
 
