@@ -175,13 +175,14 @@ def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
     one measured sample, as the rig node does.
     """
     import threading
+    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64
     from mr_damper_common.messages import samples_to_msg
     from mr_damper_interfaces.msg import DamperSamples
     from quarter_car_sim.quarter_car_node import QuarterCarNode
     context, made = ctx
-    rig = rclpy_node(context, 'stand_in_rig')
+    rig = rclpy.create_node('stand_in_rig', context=context)
     made.append(rig)
     answers = rig.create_publisher(DamperSamples, 'cnunit/mr_damper/hil_measurement', 10)
     sent = []
@@ -206,12 +207,6 @@ def test_car_external_with_the_rig_as_plant_keeps_stepping(ctx, tmp_path):
     # after it do not wait for each answer)
     assert sent[0] == 0.0 and st['hil']['counts']['measurements'] >= 1
     executor.shutdown(timeout_sec=1.0)
-
-
-def rclpy_node(context, name):
-    """Return a plain node in the test's context (a stand-in peer on real topics)."""
-    import rclpy
-    return rclpy.create_node(name, context=context)
 
 
 def test_controller_node_dynamic_parameters(ctx):

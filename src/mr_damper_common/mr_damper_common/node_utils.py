@@ -517,10 +517,8 @@ class FastLane:
     parent : rclpy.node.Node
         The node the lane serves (its name, namespace and context).
     suffix : str
-        The lane node is ``<parent name>_<suffix>``.
-    priority : int
-        SCHED_FIFO priority of the lane's thread (0: normal); needs CAP_SYS_NICE, else a
-        warning on the parent's logger.
+        The lane node is ``<parent name>_<suffix>``. Its thread exists once :meth:`start`
+        returned, so :func:`set_realtime_priority` called after that covers it.
 
     Attributes
     ----------
@@ -529,12 +527,10 @@ class FastLane:
 
     """
 
-    def __init__(self, parent, suffix, priority=0):
+    def __init__(self, parent, suffix):
         self.node = rclpy.create_node(
             f'{parent.get_name()}_{suffix}', namespace=parent.get_namespace(),
             context=parent.context, start_parameter_services=False, enable_rosout=False)
-        self.priority = int(priority)
-        self._logger = parent.get_logger()
         self._executor = make_executor(events=True, context=parent.context)
         self._executor.add_node(self.node)
         self._thread = None
@@ -547,11 +543,6 @@ class FastLane:
         return self
 
     def _run(self):
-        if self.priority > 0:
-            try:
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
-            except (OSError, AttributeError) as exc:
-                self._logger.warning(f'fast lane priority {self.priority} not applied: {exc}')
         # not the stop flag: the lane serves the parent until it is closed (the control
         # thread's last step after SIGINT still gets its answer)
         context = self.node.context

@@ -221,8 +221,7 @@ class QuarterCarNode(Node, CarOutputs):
         # wait set for each one (docs/hil.md, Timing)
         self.lane = None
         if rt.external or rt.remote is not None:
-            self.lane = FastLane(self, 'link', int(p['realtime_priority'])
-                                 if rt.rtf > 0 else 0)
+            self.lane = FastLane(self, 'link')   # its thread: realtime_priority below
         if rt.external:
             self.cmd_sub = self.drops.subscribe(self.lane.node, Float64,
                                                 'mr_damper/current_command', self.on_command,

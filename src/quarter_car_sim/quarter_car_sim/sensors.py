@@ -400,6 +400,27 @@ def sample_series(spec, t, x, rng=None):
     return np.array([s.sample(ti, xi) for ti, xi in zip(t, x)])
 
 
+def sample_due(samplers, t, true):
+    """
+    Step every sampler at time ``t`` [s] on its true value; return the readings delivered.
+
+    ``samplers``: ``{sensor: SensorSampler}``; ``true``: ``{sensor: value}``. A sensor with
+    nothing due is left out of the result (NaN: a lost sample).
+    """
+    out = {}
+    for name, sampler in samplers.items():
+        reading = sampler.step(t, true[name])
+        if reading is not None:
+            out[name] = reading
+    return out
+
+
+def sampler_counts(samplers):
+    """Return ``{sensor: {samples, lost}}`` of ``{sensor: SensorSampler}`` (JSON-ready)."""
+    return {name: {'samples': s.sensor.n_samples, 'lost': s.sensor.n_dropped}
+            for name, s in samplers.items()}
+
+
 class VehicleSensors:
     """
     The sensors of one simulated corner, read by the car each control period (no ROS).
@@ -452,16 +473,10 @@ class VehicleSensors:
         sensor with nothing due is left out).
         """
         true = {'body_accel': state.a_s, 'wheel_accel': state.a_u, 'travel': state.travel}
-        out = {}
-        for name, sampler in self.samplers.items():
-            reading = sampler.step(t, true[name])
-            if reading is not None:
-                out[name] = reading
-        return out
+        return sample_due(self.samplers, t, true)
 
     def status(self):
         """Return ``{sensor: {samples, lost}}`` and the injected dropout (JSON-ready)."""
-        st = {name: {'samples': s.sensor.n_samples, 'lost': s.sensor.n_dropped}
-              for name, s in self.samplers.items()}
-        return {'sensors': st, 'dropout_window_s': list(self.dropout) if self.dropout else [],
+        return {'sensors': sampler_counts(self.samplers),
+                'dropout_window_s': list(self.dropout) if self.dropout else [],
                 'dropout_sensors': list(self.dropout_sensors)}

@@ -42,7 +42,7 @@ from quarter_car_sim.estimator import EstimatorError, road_velocity_intensity
 from quarter_car_sim.full_car.dynamics import FullCarState, N_Q, state_matrices
 from quarter_car_sim.full_car.params import CORNERS
 from quarter_car_sim.sensors import (G0, SensorSampler, accelerometer_spec, Fault,
-                                     ride_height_spec)
+                                     ride_height_spec, sample_due, sampler_counts)
 
 #: Corners whose body point carries an accelerometer.
 ACCEL_CORNERS = ('fl', 'fr', 'rl')
@@ -353,17 +353,11 @@ class FullCarSensors:
         """Return ``{sensor: reading}`` delivered at this step from a true state."""
         true = {f'accel_{c}': state.body_a[i] for c, i in zip(ACCEL_CORNERS, self._rows)}
         true.update({f'travel_{c}': state.travel[i] for i, c in enumerate(CORNERS)})
-        out = {}
-        for name, sm in self.samplers.items():
-            r = sm.step(t, true[name])
-            if r is not None:
-                out[name] = r
-        return out
+        return sample_due(self.samplers, t, true)
 
     def status(self):
         """Return ``{sensor: {samples, lost}}``."""
-        return {n: {'samples': s.sensor.n_samples, 'lost': s.sensor.n_dropped}
-                for n, s in self.samplers.items()}
+        return sampler_counts(self.samplers)
 
 
 class SensedState:
