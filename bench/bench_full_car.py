@@ -16,6 +16,11 @@ through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on t
    SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios), full-car
    clipped-optimal and full-car clipped-optimal-wk (default and tuned weights).
    ``--only-lqr``: passive 0 A and the two LQRs only.
+3. ``--bound``: also the offline optimal semi-active bound (``quarter_car_sim.full_car.bound``:
+   full road preview, each corner's identified force map; its currents replayed on the Spencer
+   plants) at each ``--bound-rho``, with its model prediction as a row of its own.
+   ``--only-bound``: passive 0 / 0.5 A, modal skyhook, the ISO-weighted full-car LQR and the
+   bound (no tuning: the laws' defaults).
 
 Goals (issue 24): the best live law at least 10 % below passive 0 A in the ISO 2631-1
 vibration total value a_v with no worse RMS dynamic tyre load at any wheel; modal control
@@ -26,6 +31,7 @@ Usage::
     .venv/bin/python bench/bench_full_car.py [--seeds 1 2 3] [--duration 60]
                                              [--train-seeds 11 12 13] [--train-duration 20]
                                              [--skip-tuning] [--only-lqr] [--json OUT.json]
+                                           [--bound [--bound-rho 0 0.5]] [--only-bound]
 """
 import argparse
 import json
@@ -36,6 +42,7 @@ import time
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim.controllers import DEFAULT_C_P, Skyhook
+from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
 from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,
                                       make_two_track_road, ModalSkyhook, PASSENGER_CAR,
                                       PerCornerLaws)
@@ -75,14 +82,32 @@ def _lqr_wk(w, name=None):
                                             **w)
 
 
-def _median_runs(laws_fn, seeds, duration, plants, damper):
-    """Run fresh laws (``laws_fn()``) on each seed's road; return {name: [metrics per seed]}."""
+def _median_runs(laws_fn, seeds, duration, plants, damper, bound_rho=()):
+    """
+    Run fresh laws (``laws_fn()``) on each seed's road; return {name: [metrics per seed]}.
+
+    With ``bound_rho`` the offline bound at each weight too: its replay on the plants and its
+    prediction on the identified models (``<name> prediction``).
+    """
     runs = {}
+    models = [corner_force_model(d, PASSENGER_CAR) for d in damper]
     for seed in seeds:
         road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
                                    duration_s=duration, rng=seed)
         for name, m in compare_laws(PASSENGER_CAR, road, laws_fn(), plants, damper).items():
             runs.setdefault(name, []).append(m)
+        for rho in bound_rho:
+            start = time.perf_counter()
+            res = full_car_bound(PASSENGER_CAR, road, models, plants, damper, rho=rho)
+            wall = time.perf_counter() - start
+            name = res.replay.law
+            print(f'  seed {seed} {name}: J {res.cost_start:.4f} -> '
+                  + ' '.join(f'{j:.4f}' for j in res.cost_history[1:]) + f' ({wall:.0f} s)',
+                  flush=True)
+            for key, m in ((name, res.metrics(PASSENGER_CAR)),
+                           (name + ' prediction', dict(res.predicted_metrics))):
+                m['wall_time_s'] = wall
+                runs.setdefault(key, []).append(m)
     return runs
 
 
@@ -104,8 +129,17 @@ def main(argv=None):
     ap.add_argument('--skip-tuning', action='store_true')
     ap.add_argument('--only-lqr', action='store_true',
                     help='only the full-car clipped-optimal LQR (and passive 0 A)')
+    ap.add_argument('--bound', action='store_true',
+                    help='also the offline optimal semi-active bound (replay and prediction)')
+    ap.add_argument('--bound-rho', type=float, nargs='+', default=[0.0, 0.5],
+                    help='tyre-load weights of the bound (default 0 0.5)')
+    ap.add_argument('--only-bound', action='store_true',
+                    help='passive 0 / 0.5 A, modal skyhook, full-car clipped-optimal-wk and '
+                         'the bound, no tuning')
     ap.add_argument('--json', default='')
     args = ap.parse_args(argv)
+    if args.only_bound:
+        args.bound, args.skip_tuning = True, True
     t0 = time.time()
     print(f'load average at start {os.getloadavg()}', flush=True)
     plants = [make_plant('spencer') for _ in CORNERS]
@@ -153,6 +187,10 @@ def main(argv=None):
                                + ','.join(f'{k}={v:g}' for k, v in best_wk.items())))
         if args.only_lqr:
             return [make_full_car_law('passive@0A', PASSENGER_CAR)] + lqr
+        if args.only_bound:
+            return [make_full_car_law(n, PASSENGER_CAR)
+                    for n in ('passive@0A', 'passive@0.5A', 'modal-skyhook',
+                              'full-car-clipped-optimal-wk')]
         out = [make_full_car_law(f'passive@{i:g}A', PASSENGER_CAR) for i in PASSIVE_A]
         out += [make_full_car_law(f'per-corner-{n}', PASSENGER_CAR)
                 for n in ('skyhook', 'sh-add', 'clipped-optimal-wk')]
@@ -164,7 +202,8 @@ def main(argv=None):
                               '/'.join(f'{v:g}' for v in best_z)))
         return out + lqr
 
-    runs = _median_runs(laws, args.seeds, args.duration, plants, damper)
+    runs = _median_runs(laws, args.seeds, args.duration, plants, damper,
+                        bound_rho=args.bound_rho if args.bound else ())
     ref = runs['passive@0.0A']
     av0 = _med(ref, 'a_v')
     print(f'\nISO 8608 C, 20 m/s, {args.duration:g} s, seeds {args.seeds}, Spencer plants, '
@@ -192,7 +231,7 @@ def main(argv=None):
           'roll: We-weighted RMS [rad/s^2]; VDV [m/s^1.75]; tyre: RMS dynamic / static load per '
           'wheel; trav: largest corner RMS travel; wall: loop wall time per run')
 
-    live = {n: r for n, r in table.items() if not n.startswith('passive')}
+    live = {n: r for n, r in table.items() if not n.startswith(('passive', 'bound'))}
     ok = {n: r for n, r in live.items() if r['tyre_no_worse']}
     best = min(ok or live, key=lambda n: table[n]['a_v'])
     b = table[best]
@@ -214,6 +253,12 @@ def main(argv=None):
               f'{100.0 * (wk["a_v"] / co["a_v"] - 1.0):+.1f} %, tyre per wheel '
               + ' / '.join(f'{100.0 * (wk["tyre"][c] / co["tyre"][c] - 1.0):+.1f}'
                            for c in CORNERS) + ' %')
+    for name in (n for n in table if n.startswith('bound') and 'prediction' not in n):
+        r = table[name]
+        print(f'{name} (replayed on the plants): a_v {r["a_v"]:.3f} ({r["dav_pct"]:+.1f} % vs '
+              f'passive 0 A); best live law {best} {b["a_v"]:.3f}, '
+              f'{100.0 * (b["a_v"] / r["a_v"] - 1.0):+.1f} % above the bound; tyre no worse '
+              f'than passive 0 A at every wheel: {r["tyre_no_worse"]}')
     print(f'total wall time {time.time() - t0:.0f} s; load average at end {os.getloadavg()}')
     if args.json:
         with open(args.json, 'w') as fh:

@@ -41,7 +41,7 @@ def test_default_compare_set_and_table(capsys):
     assert names[:5] == ['passive@0A', 'passive@0.5A', 'passive@1A', 'passive@1.5A',
                          'passive@2A']
     assert 'modal-skyhook' in names and 'per-corner-skyhook' in names
-    assert names[-2:] == ['full-car-clipped-optimal', 'full-car-clipped-optimal-wk']
+    assert names[-3:] == ['full-car-clipped-optimal', 'full-car-clipped-optimal-wk', 'bound']
     assert main(['--law', 'modal-skyhook', '--road', 'pothole', '--speed', '10',
                  '--duration', '0.3']) == 0
     out = capsys.readouterr().out
@@ -56,6 +56,7 @@ def test_default_compare_set_and_table(capsys):
     (('--zeta', '1,2'), 'zeta'),
     (('--speed', '0'), 'speed'),
     (('--damper-params', '/nonexistent.json'), 'nonexistent'),
+    (('--law', 'bound', '--bound-rho', '-1'), 'bound-rho'),
 ])
 def test_bad_input_exits_2_with_one_line(args, msg, capsys):
     try:
@@ -65,3 +66,19 @@ def test_bad_input_exits_2_with_one_line(args, msg, capsys):
     err = capsys.readouterr().err
     assert status == 2
     assert msg in err and len(err.strip().splitlines()) == 1
+
+
+def test_bound_is_listed_with_the_laws_and_beats_them(capsys):
+    # the offline bound (full preview) in the same table: its replay on the plants is no worse
+    # than the best live law and the softest passive setting on the same road
+    laws = 'passive@0A,full-car-clipped-optimal-wk,bound'
+    assert main(['--compare', '--json', '--duration', '1.5', '--laws', laws,
+                 '--bound-rho', '0']) == 0
+    out = json.loads(capsys.readouterr().out)['laws']
+    assert list(out) == ['passive@0.0A', 'full-car-clipped-optimal-wk', 'bound']
+    b = out['bound']
+    for key in METRICS:
+        assert key in b
+    assert b['failsafe_corners'] == []
+    assert b['bound']['cost'] < b['bound']['cost_start'] == pytest.approx(1.0)
+    assert b['a_v'] < out['full-car-clipped-optimal-wk']['a_v'] < out['passive@0.0A']['a_v']

@@ -240,7 +240,7 @@ def _free_response(params, road, dt, n, c_ref):
     return _rollout(params, road, dt, n, _Open, np.zeros(n), c_ref)
 
 
-def _largest_eigenvalue(hess, n, iters=30):
+def largest_eigenvalue(hess, n, iters=30):
     """Largest eigenvalue of a symmetric positive operator (power iteration, +5 % margin)."""
     v = np.random.default_rng(0).standard_normal(n)
     lam = 0.0
@@ -251,7 +251,7 @@ def _largest_eigenvalue(hess, n, iters=30):
     return 1.05 * lam
 
 
-def _fista(grad, lipschitz, w, lb, ub, maxiter):
+def fista_box(grad, lipschitz, w, lb, ub, maxiter):
     """Projected accelerated gradient (FISTA with gradient restart) on the box [lb, ub]."""
     y, t = w.copy(), 1.0
     step = 1.0 / lipschitz
@@ -264,6 +264,18 @@ def _fista(grad, lipschitz, w, lb, ub, maxiter):
             y = w_new + ((t - 1.0) / t_new) * (w_new - w)
         w, t = w_new, t_new
     return w
+
+
+def check_bound_options(rho, dt, outer, maxiter, settle_s=0.0):
+    """Raise ValueError unless the options of a bound are in range."""
+    if not (math.isfinite(rho) and rho >= 0.0):
+        raise ValueError(f'`rho` must be >= 0, got {rho}')
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f'`dt` must be > 0, got {dt}')
+    if not (math.isfinite(settle_s) and settle_s >= 0.0):
+        raise ValueError(f'`settle_s` must be >= 0, got {settle_s}')
+    if int(outer) < 0 or int(maxiter) < 1:
+        raise ValueError('`outer` must be >= 0 and `maxiter` >= 1')
 
 
 def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3,
@@ -308,12 +320,7 @@ def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3
     BoundResult
 
     """
-    if not (math.isfinite(rho) and rho >= 0.0):
-        raise ValueError(f'`rho` must be >= 0, got {rho}')
-    if not (math.isfinite(dt) and dt > 0.0):
-        raise ValueError(f'`dt` must be > 0, got {dt}')
-    if int(outer) < 0 or int(maxiter) < 1:
-        raise ValueError('`outer` must be >= 0 and `maxiter` >= 1')
+    check_bound_options(rho, dt, outer, maxiter)
     n = int(round(road.duration / dt)) + 1
     sos = wk_sos(1.0 / dt)
     nk = min(n, max(2, int(round(kernel_s / dt))))
@@ -347,7 +354,7 @@ def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3
             hv += (2.0 * rho / (n * t0)) * conv_t.T(conv_t(v))
         return hv
 
-    lipschitz = _largest_eigenvalue(hess, n)
+    lipschitz = largest_eigenvalue(hess, n)
 
     best, j_best = start, cost_of(start)
     history = [j_best]
@@ -359,7 +366,7 @@ def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3
         vr = free['v_rel'] + conv_vr(w)
         lo, hi = force_model.body_force_range_array(tr, vr)
         lb, ub = lo + c_ref * vr, hi + c_ref * vr
-        w = _fista(grad, lipschitz, np.clip(w, lb, ub), lb, ub, int(maxiter))
+        w = fista_box(grad, lipschitz, np.clip(w, lb, ub), lb, ub, int(maxiter))
         run = _rollout(params, road, dt, n, force_model, w, c_ref)
         j = cost_of(run)
         history.append(j)

@@ -3,6 +3,7 @@ Full vehicle (7-DOF) with four MR dampers: car, two-track roads, modal control, 
 
 The public API (``from quarter_car_sim.full_car import ...``); see docs/full-car.md.
 """
+from quarter_car_sim.full_car.bound import full_car_bound
 from quarter_car_sim.full_car.control import (FullCarController, make_full_car_law,
                                               ModalSkyhook, PerCornerLaws, supervisor_message)
 from quarter_car_sim.full_car.dynamics import FullCar, FullCarState, mechanical_energy
@@ -15,7 +16,7 @@ from quarter_car_sim.full_car.road import (event_road, iso8608_two_tracks,
 from quarter_car_sim.full_car.simulate import compare_laws, FullCarResult, simulate_full_car
 
 __all__ = ['CORNERS', 'FullCar', 'FullCarClippedOptimal', 'FullCarController', 'FullCarParams',
-           'FullCarResult', 'full_car_lqr_design',
+           'FullCarResult', 'full_car_bound', 'full_car_lqr_design',
            'FullCarState', 'ModalSkyhook', 'PASSENGER_CAR', 'PerCornerLaws', 'TwoTrackRoad',
            'compare_laws', 'event_road', 'full_car_metrics', 'iso2631_seat',
            'iso8608_two_tracks', 'make_full_car_law', 'make_two_track_road',

@@ -8,13 +8,17 @@ Examples::
     full-car-sim --law modal-skyhook --road pothole --speed 10
     full-car-sim --compare --plant spencer --damper-params fit.json   # identified set
     full-car-sim --compare --sensing vehicle       # laws on the Kalman estimate (3 acc + 4 pos)
+    full-car-sim --compare --laws passive@0A,full-car-clipped-optimal-wk,bound --bound-rho 0.5
 
 Each corner has its own "true" damper plant (``--plant kwok|spencer`` or four names,
 ``fl,fr,rl,rr``) and its own identified Kwok-current parameters for the inverse
 (``--damper-params`` one file for all corners or four comma-separated files, e.g. from
 ``mr-damper-identify --out``). Without ``--damper-params`` only kwok-current plants can run: the
 inverse then gets the plant's own parameters (a perfect identification; the JSON says so).
-Bad input exits with status 2 and one line on stderr.
+``bound`` (in ``--compare``, or ``--law bound``) is the offline optimal semi-active bound
+(:mod:`quarter_car_sim.full_car.bound`: full road preview, each corner's identified force map),
+its current sequences replayed on the plants. Bad input exits with status 2 and one line on
+stderr.
 """
 import json
 import math
@@ -24,6 +28,8 @@ from quarter_car_sim.cli_args import OneLineParser, positive
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
 
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
+#: Name of the offline bound among the laws.
+BOUND = 'bound'
 #: Per-corner laws of ``--compare`` (the quarter-car damper laws, one per corner).
 COMPARE_CORNER_LAWS = ('skyhook', 'sh-add', 'clipped-optimal-wk')
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
@@ -40,12 +46,17 @@ def build_parser():
         description='Full car (7 DOF) with four semi-active MR dampers: ride comparison of '
                     'full-car laws (ISO 2631-1 at the seat).')
     p.add_argument('--law', default='modal-skyhook',
-                   help='modal-skyhook, full-car-clipped-optimal(-wk), passive@<I>A or '
+                   help='modal-skyhook, full-car-clipped-optimal(-wk), passive@<I>A, '
                         'per-corner-<law> with <law> one of '
-                        f'{", ".join(DAMPER_LAW_NAMES[1:])} (default modal-skyhook)')
+                        f'{", ".join(DAMPER_LAW_NAMES[1:])}, or bound (the offline optimal '
+                        'semi-active bound) (default modal-skyhook)')
     p.add_argument('--compare', action='store_true',
-                   help='passive at each current, per-corner laws, modal skyhook and the '
-                        'full-car clipped-optimal LQR (plain and ISO-weighted)')
+                   help='passive at each current, per-corner laws, modal skyhook, the '
+                        'full-car clipped-optimal LQR (plain and ISO-weighted) and the offline '
+                        'bound')
+    p.add_argument('--bound-rho', type=float, default=0.0, metavar='RHO',
+                   help='weight of the dynamic tyre loads in the bound\'s cost (default 0: '
+                        'comfort only)')
     p.add_argument('--laws', default='',
                    help='comma-separated laws for --compare instead of the default set')
     p.add_argument('--road', default='iso8608-C',
@@ -85,7 +96,8 @@ def _laws(args):
             return [s.strip() for s in args.laws.split(',') if s.strip()]
         return ([f'passive@{i:g}A' for i in COMPARE_CURRENTS_A]
                 + [f'per-corner-{n}' for n in COMPARE_CORNER_LAWS]
-                + ['modal-skyhook', 'full-car-clipped-optimal', 'full-car-clipped-optimal-wk'])
+                + ['modal-skyhook', 'full-car-clipped-optimal', 'full-car-clipped-optimal-wk',
+                   BOUND])
     return [args.law]
 
 
@@ -114,9 +126,11 @@ def run(args):
         if len(z) != 3 or not all(math.isfinite(v) and v >= 0 for v in z):
             raise ValueError(f'--zeta must be three numbers >= 0, got {args.zeta!r}')
         zeta = dict(zip(('heave', 'pitch', 'roll'), z))
-    laws = []
-    for name in _laws(args):
-        laws.append(make_full_car_law(name, params, dt=args.dt, zeta=zeta))
+    if not (math.isfinite(args.bound_rho) and args.bound_rho >= 0):
+        raise ValueError(f'--bound-rho must be >= 0, got {args.bound_rho}')
+    names = _laws(args)
+    laws = [make_full_car_law(name, params, dt=args.dt, zeta=zeta)
+            for name in names if name.strip().lower() != BOUND]
     road = make_two_track_road(args.road, params, speed_m_s=args.speed,
                                duration_s=args.duration, dt=args.dt, rng=args.seed)
     plants = [make_plant(n) for n in plant_names]
@@ -131,12 +145,33 @@ def run(args):
         source = 'kwok-current plant truth (no identification run)'
     metrics = compare_laws(params, road, laws, plants, damper, dt=args.dt,
                            sensing=args.sensing, sensor_seed=args.seed)
+    if any(name.strip().lower() == BOUND for name in names):
+        metrics.update(_bound(params, road, plants, damper, args))
     return finite_or_none({
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
         'seed': args.seed, 'dt_s': args.dt, 'sensing': args.sensing,
         'plants': dict(zip(CORNERS, plant_names)),
         'damper_params': source, 'car': params.to_dict(), 'laws': metrics,
     })
+
+
+def _bound(params, road, plants, damper, args):
+    """Run the offline bound; return ``{name: metrics of its replay}``."""
+    import time
+    from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
+    start = time.perf_counter()
+    models = [corner_force_model(d, params) for d in damper]
+    res = full_car_bound(params, road, models, plants, damper, rho=args.bound_rho, dt=args.dt)
+    m = res.metrics(params)
+    m['failsafe_corners'] = [c for c, st in res.replay.status.items() if st['mode'] != 'normal']
+    m['wall_time_s'] = time.perf_counter() - start
+    m['bound'] = {'rho': res.rho, 'cost': res.cost, 'cost_start': res.cost_start,
+                  'outer_iterations': res.nit, 'predicted_a_v': res.predicted_metrics['a_v'],
+                  'predicted_max_rms_tyre_load_ratio':
+                      res.predicted_metrics['max_rms_tyre_load_ratio'],
+                  'what': 'offline: full road preview, each corner\'s identified force map; '
+                          'its currents replayed open loop on the plants (no sensing)'}
+    return {res.replay.law: m}
 
 
 def _cell(v, fmt):
