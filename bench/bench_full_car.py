@@ -240,7 +240,7 @@ def main(argv=None):
           f'{b["dav_pct"]:+.1f} % against passive 0 A -> {"met" if goal1 else "NOT met"}')
     corner_laws = [n for n in live if n.startswith('per-corner')]
     modal = [n for n in live if n.startswith('modal')]
-    for m in modal:
+    for m in modal if corner_laws else ():
         beat = [c for c in corner_laws if table[m]['a_w_pitch'] < table[c]['a_w_pitch']
                 and table[m]['a_w_roll'] < table[c]['a_w_roll']]
         print(f'goal 2: {m} (pitch {table[m]["a_w_pitch"]:.3f}, roll {table[m]["a_w_roll"]:.3f})'
