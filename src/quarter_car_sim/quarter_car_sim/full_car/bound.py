@@ -44,7 +44,7 @@ from scipy import fft as sfft, signal
 
 from quarter_car_sim.bound import (bound_name, check_bound_options, CurrentSchedule, fista_box,
                                    largest_eigenvalue)
-from quarter_car_sim.full_car.dynamics import _maps, discretise, FullCar, N_Q
+from quarter_car_sim.full_car.dynamics import corner_maps, discretise, FullCar, N_Q
 from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
 from quarter_car_sim.ride_metrics import wk_sos
 
@@ -77,7 +77,7 @@ def _output_maps(params, c_ref):
     With ``F = -c_ref v_rel + w`` each output at a sample is ``C x + D w`` (``x = [q, v]``).
     """
     p = params
-    T, S, P = _maps(p)
+    T, S, P = corner_maps(p)
     ks = p.spring_matrix()
     cs = np.diag(p.c_s + c_ref)
     minv_b = np.diag(1.0 / np.array([p.m_s, p.i_pitch, p.i_roll]))
@@ -101,7 +101,7 @@ def impulse_responses(params, dt, c_ref, n):
     """
     d = discretise(params, dt)
     phi, g = d[:, :2 * N_Q], d[:, 26:30]
-    _, S, _ = _maps(params)
+    _, S, _ = corner_maps(params)
     sv = np.hstack([np.zeros((4, N_Q)), S])
     phi_cl = phi - c_ref * g @ sv
     C, D = _output_maps(params, c_ref)

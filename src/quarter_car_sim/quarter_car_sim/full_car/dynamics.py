@@ -31,7 +31,13 @@ N_X = 14
 N_U = 13
 
 
-def _maps(params):
+def corner_maps(params):
+    """
+    Return the maps ``T`` (4, 3), ``S = [T, -I]`` (4, 7) and ``P = [0, I]`` (4, 7).
+
+    ``T`` takes the body's ``[z, theta, phi]`` to the four body points, ``S`` the coordinates
+    ``q`` to the suspension travels and ``P`` to the wheels.
+    """
     T = params.geometry
     S = np.hstack([T, -np.eye(4)])
     P = np.hstack([np.zeros((4, 3)), np.eye(4)])
@@ -58,7 +64,7 @@ def state_matrices(params, contact=(True, True, True, True)):
 
     """
     p = params
-    _, S, P = _maps(p)
+    _, S, P = corner_maps(p)
     m = np.asarray(contact, dtype=float)
     kt = np.diag(p.k_t * m)
     ct = np.diag(p.c_t * m)
@@ -207,7 +213,7 @@ class FullCar:
         self.substeps = int(substeps)
         self._t0 = float(t0)
         self._coef = {}
-        T, S, P = _maps(params)
+        T, S, P = corner_maps(params)
         self._T, self._S = T, S
         self._ks = params.spring_matrix()
         self._cs = params.c_s
