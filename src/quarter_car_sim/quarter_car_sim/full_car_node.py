@@ -61,7 +61,8 @@ from std_msgs.msg import Float64
 from mr_damper_common import messages
 from mr_damper_common.health import ERROR, WARN, worst
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param)
+                                         FastLane, LATCHED_QOS, node_time_s, Param,
+                                         set_realtime_priority)
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.control_thread import ControlThread
@@ -104,8 +105,9 @@ PARAMETERS = (
     Param('state_rate_hz', 100.0, 'Rate of the corner states, current commands and body state '
           '(0 = none) [Hz]', 0.0, 10000.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
-    Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (1..99; 0 = normal '
-          'scheduling); only with real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (with controller '
+          'external: of every thread) (1..99; 0 = normal scheduling); only with '
+          'real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
     Param('log_max_s', 600.0, 'Longest body history kept for the ISO 2631-1 figures [s]',
           0.0, 3600.0),
     Param('log_file', '', 'At the end write the body accelerations (t, acc) to this .npz file '
@@ -146,6 +148,10 @@ class FullCarNode(Node):
             settle_s=p['settle_s'], log_max_s=p['log_max_s'])
         self.drops = DropCounter(self.get_logger())
         self.state_pubs, self.cmd_pubs, self.state_msgs, self.cmd_subs = [], [], [], []
+        # the external controller's four 1 kHz command streams on a lane of their own: the
+        # node's executor would rebuild its whole wait set for each command (docs/hil.md,
+        # Timing; the same for the quarter car's external commands)
+        self.lane = FastLane(self, 'commands') if self.external else None
         if self.external:
             self.cmd_ins = [CommandInput(p['command_timeout_s'], p['safe_current_a'],
                                          p['i_min_a'], p['i_max_a']) for _ in CORNERS]
@@ -159,7 +165,7 @@ class FullCarNode(Node):
             self.state_msgs.append(msg)
             if self.external:
                 self.cmd_subs.append(self.drops.subscribe(
-                    self, Float64, f'{c}/mr_damper/current_command',
+                    self.lane.node, Float64, f'{c}/mr_damper/current_command',
                     lambda m, i=i: self.on_command(i, m), CONTROL_QOS, 'commands_lost'))
                 continue
             self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
@@ -184,7 +190,14 @@ class FullCarNode(Node):
             before_first=self._wait_for_controller if self.lockstep else None,
             on_error=lambda failed: end_on_control_error(self, failed),
             priority=int(p['realtime_priority']) if self.rtf > 0 else 0)
+        if self.lane is not None:
+            self.lane.start()
         self.control.start()
+        if self.external and p['realtime_priority'] > 0 and self.rtf > 0:
+            # the commands arrive in the lane's and the middleware's threads and every thread
+            # shares the GIL: a normal-priority thread preempted while it holds the GIL would
+            # stall the control thread (as the quarter car's external and HIL modes)
+            set_realtime_priority(int(p['realtime_priority']), self.get_logger())
         name = 'external controller' if self.external else self.rt.controller.name
         self.get_logger().info(
             f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
@@ -316,6 +329,8 @@ class FullCarNode(Node):
     def stop(self):
         """Stop the control thread, publish the final status, write the body log."""
         self.control.stop(2.0)
+        if self.lane is not None:
+            self.lane.close()
         try:
             self.diagnostics.publish_final()
         except Exception as exc:  # noqa: B902 - the context may be gone after Ctrl-C
