@@ -42,7 +42,8 @@ from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
 from mr_damper_common.health import WARN, worst
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param, run_node, spin_node)
+                                         LATCHED_QOS, node_time_s, Param, run_node,
+                                         set_realtime_priority, spin_node)
 from quarter_car_sim.full_car.controller_core import CornerState, FullCarControllerCore
 from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS, offer_parameters
@@ -69,6 +70,8 @@ PARAMETERS = (
           'inside the law', 10.0, 10000.0),
 ) + CORNER_SUPERVISOR_PARAMETERS + (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
+          'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
 )
 
 
@@ -111,6 +114,7 @@ class FullCarControllerNode(Node):
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='full_car_controller',
                                                 drops=self.drops)
+        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
         self.get_logger().info(
             f'{self.core.controller.name}: {", ".join(CORNERS)} states -> currents; fail-safe '
             f'{p["safe_current_a"]:g} A per corner, parameter timeout '
