@@ -389,6 +389,26 @@ def test_screen_helpers_on_known_signals():
     assert not continued_runs(short, t, 0.16, 1.0).any()
 
 
+@pytest.mark.parametrize('start_s', [7.33, 7.37])
+def test_stuck_run_within_one_hop_never_reaches_the_bins(start_s):
+    """
+    A stuck load cell from 0.17 / 0.13 s before a window end: shorter than ``stuck_s`` there.
+
+    The screen cannot flag it yet and the part (7.0, 7.5] s is inconsistent; judged in blocks,
+    the blocks before the onset are binned, less the constant run that goes on into the first
+    inconsistent block: the bins end on the sample just before the run.
+    """
+    arrays = stream()
+    k = int(round(start_s * RATE))
+    arrays[3][k:k + 600] = arrays[3][k]
+    li, ests = run([a[:7501] for a in arrays])         # to the window ending at 7.5 s
+    newest = max(float(b.data.t[-1]) for b in li._bins.values())
+    assert newest == pytest.approx(start_s - 1.0 / RATE)
+    assert li.counters['samples_flagged']['inconsistent'] == 7501 - k
+    assert_no_wrong_valid(ests)
+    assert_accounted(li)
+
+
 def test_offset_onset_inside_a_part_keeps_the_samples_before_it():
     """
     A +150 N offset from 7.3 s: the part (7.0, 7.5] s is inconsistent as a whole.

@@ -801,8 +801,10 @@ class LiveIdentifier:
         The part is cut into blocks of ``BLOCK_SAMPLES`` consecutive samples (the last one
         takes the remainder), each judged on its own (enough samples in known cells); when
         consistent blocks are followed only by inconsistent ones, a fault (or change) began
-        inside the part and the blocks before it are kept.  Any other pattern keeps nothing.
-        Called only when the part before was consistent as a whole (the onset is new).
+        inside the part and the blocks before it are kept, less an exactly constant run that
+        goes on into the first inconsistent block (a stuck load cell's first samples).  Any
+        other pattern keeps nothing.  Called only when the part before was consistent as a
+        whole (the onset is new).
         """
         keep = np.zeros(new.n, dtype=bool)
         n_blocks = new.n // BLOCK_SAMPLES
@@ -819,6 +821,12 @@ class LiveIdentifier:
         if not good[0] or np.count_nonzero(good[1:] != good[:-1]) != 1:
             return keep
         keep[:] = np.repeat(good, np.diff(np.r_[np.arange(n_blocks) * BLOCK_SAMPLES, new.n]))
+        # a constant run that goes on into the first inconsistent block is that fault's start
+        # (a stuck load cell stays close to the true force for a while): cut before it
+        j = int(np.argmin(keep))
+        while j > 0 and new.f[j - 1] == new.f[j]:
+            j -= 1
+        keep[j:] = False
         return keep
 
     def _warm_start(self, model, levels):
