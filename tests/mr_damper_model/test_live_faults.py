@@ -16,8 +16,9 @@ import pytest
 
 from live_records import alpha_scaled_fit
 from mr_damper_model.io.data import DamperData
-from mr_damper_model.live import (constant_runs, fit_data, FLAG_REASONS, flag_samples,
-                                  LiveConfig, LiveIdentifier, robust_range, running_median)
+from mr_damper_model.live import (constant_runs, continued_runs, fit_data, FLAG_REASONS,
+                                  flag_samples, LiveConfig, LiveIdentifier, robust_range,
+                                  running_median)
 from mr_damper_model.models.validity import pinned_parameters
 from mr_damper_model.identification.presets import thesis_kwok_current
 
@@ -379,6 +380,53 @@ def test_screen_helpers_on_known_signals():
     flags = flag_samples(data, LiveConfig())
     assert np.flatnonzero(flags == 'outlier').tolist() == [100, 500, 501]
     assert np.flatnonzero(flags == 'dropout').tolist() == list(range(700, 1000))
+    # a 0.15 s run: too short for stuck_s, the same fault when it began among samples already
+    # kept out (at or before since_s), left alone when it began later
+    short = np.r_[f[:300], np.full(150, 7.0), f[450:]]
+    assert not constant_runs(short, t, 0.2).any()
+    assert np.flatnonzero(continued_runs(short, t, 0.1, 0.30)).tolist() == list(range(300, 450))
+    assert not continued_runs(short, t, 0.1, 0.29).any()
+    assert not continued_runs(short, t, 0.16, 1.0).any()
+
+
+@pytest.mark.parametrize('start_s', [7.33, 7.37])
+def test_stuck_run_within_one_hop_never_reaches_the_bins(start_s):
+    """
+    A stuck load cell from 0.17 / 0.13 s before a window end: shorter than ``stuck_s`` there.
+
+    The screen cannot flag it yet and the part (7.0, 7.5] s is inconsistent; judged in blocks,
+    the blocks before the onset are binned, less the constant run that goes on into the first
+    inconsistent block: the bins end on the sample just before the run.
+    """
+    arrays = stream()
+    k = int(round(start_s * RATE))
+    arrays[3][k:k + 600] = arrays[3][k]
+    li, ests = run([a[:7501] for a in arrays])         # to the window ending at 7.5 s
+    newest = max(float(b.data.t[-1]) for b in li._bins.values())
+    assert newest == pytest.approx(start_s - 1.0 / RATE)
+    assert li.counters['samples_flagged']['inconsistent'] == 7501 - k
+    assert_no_wrong_valid(ests)
+    assert_accounted(li)
+
+
+def test_offset_onset_inside_a_part_keeps_the_samples_before_it():
+    """
+    A +150 N offset from 7.3 s: the part (7.0, 7.5] s is inconsistent as a whole.
+
+    Judged in blocks of 40 samples, its blocks before the onset are consistent and binned (to
+    7.28 s, the block holding 7.3 s is not); no sample from the onset on reaches a bin.
+    """
+    arrays = stream()
+    k = int(7.3 * RATE)
+    arrays[3][k:] += 150.0
+    li, ests = run([a[:7501] for a in arrays])         # to the window ending at 7.5 s
+    newest = max(float(b.data.t[-1]) for b in li._bins.values())
+    assert newest == pytest.approx(7.28)
+    c = li.counters
+    assert c['samples_flagged']['inconsistent'] == 220 and c['samples_flagged']['offset'] == 0
+    assert li.last_skip == ''                   # the window was fitted, not skipped
+    assert_no_wrong_valid(ests)
+    assert_accounted(li)
 
 
 @pytest.mark.parametrize('bad', [dict(force_limit_n=0.0), dict(max_gap_s=math.nan),
@@ -555,10 +603,16 @@ def test_fault_during_a_stalled_fitter_is_inconsistent():
     c = li.counters
     assert first.valid and c['windows_superseded'] == 48
     # fitted after (1.8, 3.8], (3.8, 5.8] and (5.8, 7.8] s (0..2 A); (7.8, 9.8] s holds 0.8 s
-    # of the offset: inconsistent with that set, as is the window's own span (9.8, 11.8] s
+    # of the offset: inconsistent with that set, but judged block by block its 1.2 s before
+    # the onset are consistent and fitted (a fourth catch-up fit); the offset's first sample
+    # (9.0 s, in the last consistent block) is flagged `offset`; the rest of the part and
+    # the window's own span (9.8, 11.8] s are inconsistent
     assert last is None and li.last_skip == 'inconsistent'
-    assert c['catch_up_fits'] == 3
-    assert c['samples_flagged']['inconsistent'] == 4000 and c['samples_binned'] == 2001 + 5800
+    assert c['catch_up_fits'] == 4
+    assert c['samples_flagged']['offset'] == 1
+    assert c['samples_flagged']['inconsistent'] == 800 + 2000
+    assert c['samples_binned'] == 2001 + 5800 + 1199
+    assert max(float(b.data.t[-1]) for b in li._bins.values()) < 9.0   # no offset sample
     assert li.estimate is first
     assert_no_wrong_valid([first, last] if last else [first])
     assert_accounted(li)

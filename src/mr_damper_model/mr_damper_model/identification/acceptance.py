@@ -16,7 +16,10 @@ reviewed here before it replaces the set in use (the *current* set):
 2. **Comparison** (:func:`compare_sets`): on the newest window's samples, and on the samples
    admitted in the ``holdout_s`` before the window's data (held back from the fit: a fit to a
    transient in the newest window cannot win there; reaching back over both ends of the
-   stroke when the excitation is slow, :meth:`Acceptance.heldback`), both at the current
+   stroke when the excitation is slow, :meth:`Acceptance.heldback`; of it only the half cycles
+   whose velocity peak reaches ``min_amplitude_ratio`` of the window's amplitude, so a start
+   from rest that a first set was fitted on does not keep that set,
+   :func:`half_cycle_amplitude`), both at the current
    levels both sets cover, the new set's RMS error must be at most ``1 - replace_margin``
    times the current set's (``replace_margin`` 0: at most :data:`TIE_FRACTION` above it:
    noise-level ties go to the newer set).  With fewer than :data:`MIN_COMPARE_SAMPLES`
@@ -102,6 +105,20 @@ def reversal_indices(v):
     nz = np.flatnonzero(sign)
     s = sign[nz]
     return nz[1:][s[1:] != s[:-1]]
+
+
+def half_cycle_amplitude(v):
+    """
+    Return, per sample, the largest ``|v|`` of its half cycle (between velocity reversals).
+
+    The samples before the first reversal and after the last one form half cycles too.
+    """
+    v = np.asarray(v, dtype=float)
+    if not v.size:
+        return v.copy()
+    edges = np.r_[0, reversal_indices(v), v.size]
+    peaks = np.maximum.reduceat(np.abs(v), edges[:-1])
+    return np.repeat(peaks, np.diff(edges))
 
 
 def cycle_start(t, v, reversals=2):
@@ -354,6 +371,11 @@ class Acceptance:
         held = self.heldback(w0)
         if held is not None:
             held = held.select(self._covered(held, common))
+            if held.n and recent.n:
+                # only the half cycles of full motion judge: a start from rest (where the set
+                # in use may have been fitted) would keep any first set
+                env = half_cycle_amplitude(held.v)
+                held = held.select(env >= cfg.min_amplitude_ratio * velocity_amplitude(recent.v))
         if new_levels - cur['levels']:
             # a wider claim: compared on the common levels with the validity tolerance
             e_new = rmse(params, win, cfg.i_ref_a)

@@ -29,16 +29,25 @@ the work, so it can be tested and benchmarked without ROS:
    the 5-sample running median of its neighbours (beyond ``outlier_mad_k`` robust standard
    deviations, from the median absolute deviation, and ``outlier_floor_fraction`` of the robust
    force range) is an ``outlier``; a force exactly constant for ``stuck_s`` or longer is a
-   ``stuck`` load cell (``dropout`` when the constant is zero).  Flagged samples leave the fit
+   ``stuck`` load cell (``dropout`` when the constant is zero), and so is a constant run of half
+   ``stuck_s`` or longer that began among samples already kept out (the same fault going on,
+   :func:`continued_runs`).  Flagged samples leave the fit
    and the bins and are counted by reason (``samples_flagged``).  Then the last valid model of
    this stream (if any) must explain the new samples of the current levels it covers about as
    well as it explained the data it was fitted on (:meth:`LiveIdentifier._consistency`):
    otherwise the data changed abruptly (force offset step, current sensor stuck, load cell sign
-   flip, a dropout) and the window is skipped (``inconsistent``) without binning them.
+   flip, a dropout) and the window is skipped (``inconsistent``) without binning them.  When
+   the part before was consistent as a whole and the new part, judged in blocks of 40 samples,
+   is consistent up to one point and inconsistent after it (the onset of a fault inside the
+   part), the blocks before the onset are binned and the window is fitted.
 5. **Current bins**: the screened new samples are filed by coil current into bins of width
    ``current_bin_a``; each bin keeps its newest samples (as many as one window holds) and bins
    older than ``bin_max_age_s`` are dropped.  The Kwok model is algebraic (no internal state),
    so the union of the bins is a valid data set even though it joins different moments.
+   When samples of the window were kept out (flagged or inconsistent), the levels the window
+   holds are fitted on the window's own remaining samples, not on older ones filling the gap
+   (a start from rest), unless fewer than ``min_bin_fraction`` of a window are left at that
+   level (then its whole bin is used).
 6. **Fit** (:func:`fit_data`, the same :func:`~mr_damper_model.identification.identify.identify`
    call as the
    offline tool): separable PSO warm-started from the last solution, within ``budget_s``.  One
@@ -82,7 +91,7 @@ from mr_damper_model.live.fitting import (fit_data, fit_kwargs, FitProcess,  # n
                                           window_seed)
 from mr_damper_model.live.identifier import LiveIdentifier  # noqa: F401
 from mr_damper_model.live.screening import (check_excitation, constant_runs,  # noqa: F401
-                                            flag_samples, robust_range,
+                                            continued_runs, flag_samples, robust_range,
                                             running_median)
 from mr_damper_model.live.window import LiveEstimate, Window  # noqa: F401
 

@@ -23,7 +23,8 @@ from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfi
                                          REJECT_REASONS, SKIP_REASONS)
 from mr_damper_model.live.conversions import kwok_current_at, kwok_to_kwok_current
 from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
-from mr_damper_model.live.screening import check_excitation, flag_samples, robust_range
+from mr_damper_model.live.screening import (check_excitation, continued_runs, flag_samples,
+                                            robust_range)
 from mr_damper_model.live.window import LiveEstimate, Window
 from mr_damper_model.models.kwok_current import kwok_current_force
 from mr_damper_model.models.validity import check_model_parameters
@@ -35,6 +36,8 @@ MIN_CHECK_SAMPLES = 20
 STATE_CELLS = 8
 #: Fewest fitted samples in a reference cell for its error to count as known.
 MIN_CELL_SAMPLES = 10
+#: Samples per block when an inconsistent part is judged block by block.
+BLOCK_SAMPLES = 2 * MIN_CHECK_SAMPLES
 
 
 class _Bin:
@@ -97,6 +100,8 @@ class LiveIdentifier:
         self._bins = {}
         self._ref = None           # last valid set of this stream, as a consistency reference
         self._inconsistent_since = None   # window end of the first of consecutive rejections
+        self._excluded_s = -math.inf      # newest stamp of a sample kept out (flag, gate)
+        self._prev_whole = True           # the last judged part was consistent as a whole
         self._last_solution = {}   # model name -> parameter dict (warm start)
         self.estimate = None
         self.last_good = None
@@ -317,6 +322,8 @@ class LiveIdentifier:
         self._next_index = 0
         self._bins.clear()
         self._ref = None
+        self._excluded_s = -math.inf
+        self._prev_whole = True
 
     # ---------------------------------------------------------------- windows
     def next_window(self):
@@ -471,9 +478,15 @@ class LiveIdentifier:
                 n_next = 0
             c['samples_unbinned'] += new.n - n_next
             return None
-        flags = flag_samples(span, cfg)[span.n - new.n:]
+        flags = flag_samples(span, cfg)
+        # a constant run that began among samples already kept out is that fault going on
+        more = (flags == '') & continued_runs(span.f, span.t, 0.5 * cfg.stuck_s,
+                                              self._excluded_s)
+        flags[more] = np.where(span.f[more] == 0.0, 'dropout', 'stuck')
+        flags = flags[span.n - new.n:]
         for name in ('outlier', 'stuck', 'dropout'):
             c['samples_flagged'][name] += int(np.count_nonzero(flags == name))
+        self._exclude(new.t[flags != ''])
         clean = new.select(flags == '')
         # new samples older than this window (windows superseded while the fitter was busy)
         # are judged, binned and fitted one window length at a time, in time order
@@ -529,11 +542,22 @@ class LiveIdentifier:
         """
         cfg = self.config
         c = self.counters
-        if self._consistency(clean):
+        inconsistent = self._consistency(clean)
+        prev_whole, self._prev_whole = self._prev_whole, not inconsistent
+        if inconsistent and prev_whole:
+            # the onset of a fault inside the part: the blocks before it still count
+            fine = self._consistent_blocks(clean)
+            if fine.any():
+                c['samples_flagged']['inconsistent'] += int(np.count_nonzero(~fine))
+                self._exclude(clean.t[~fine])
+                clean = clean.select(fine)
+                inconsistent = ''
+        if inconsistent:
             if self._inconsistent_since is None:
                 self._inconsistent_since = end_s
             if not (0 < cfg.inconsistent_reset_s <= end_s - self._inconsistent_since):
                 c['samples_flagged']['inconsistent'] += clean.n
+                self._exclude(clean.t)
                 return False
             c['reference_resets'] += 1          # start afresh from these samples
             self._ref = None
@@ -565,8 +589,21 @@ class LiveIdentifier:
         """
         cfg = self.config
         c = self.counters
-        usable = [b for b in sorted(self._bins.values(), key=lambda b: b.level)
-                  if b.data.n >= max(cfg.min_bin_fraction * keep, 10)]
+        start = float(data.t[0])
+        trim = not catch_up and self._excluded_s >= start
+        least = max(cfg.min_bin_fraction * keep, 10)
+        usable = []
+        for b in sorted(self._bins.values(), key=lambda b: b.level):
+            part = b.data
+            if trim and b.newest_s >= start:
+                # samples of the window were kept out: the level is fitted on the window's
+                # remaining samples, not on older ones (a start from rest) filling the gap;
+                # with too few of them, on its whole bin (dropping the level would narrow
+                # the set and with it the consistency reference)
+                own = part.select(part.t >= start)
+                part = own if own.n >= least else part
+            if part.n >= least:
+                usable.append(_Bin(b.level, part))
         if not usable:
             if not catch_up:
                 c['windows_skipped']['no_bins'] += 1
@@ -732,23 +769,65 @@ class LiveIdentifier:
         was not fitted on are not judged; fewer than ``MIN_CHECK_SAMPLES`` judged samples:
         no judgement ('').
         """
+        figures = self._consistency_figures(new)
+        if figures is None:
+            return ''
+        self.last_check['new_samples_rmse_n'] = figures
+        return 'inconsistent' if figures[0] > figures[1] else ''
+
+    def _consistency_figures(self, new):
+        """Return (RMSE of the last valid set on ``new``, its limit) [N], or None (unjudged)."""
         ref = self._ref
         if ref is None or new.n < MIN_CHECK_SAMPLES:
-            return ''
+            return None
         cfg = self.config
         codes = self._cells(ref, new)
         cell_ms = ref['cell_ms']
         known = np.array([int(k) in cell_ms for k in codes], dtype=bool)
         if np.count_nonzero(known) < MIN_CHECK_SAMPLES:
-            return ''
+            return None
         part = new.select(known)
         r = part.f - self._force(ref['parameters'], part)
         expected = np.array([cell_ms[int(k)] for k in codes[known]])
         e_new = float(np.sqrt(np.mean(r * r)))
         limit = (cfg.max_shift_ratio * float(np.sqrt(np.mean(expected)))
                  + 0.01 * cfg.error_floor_percent * ref['scale'])
-        self.last_check['new_samples_rmse_n'] = (e_new, limit)
-        return 'inconsistent' if e_new > limit else ''
+        return e_new, limit
+
+    def _consistent_blocks(self, new):
+        """
+        Mask of the samples of an inconsistent part before the onset of the inconsistency.
+
+        The part is cut into blocks of ``BLOCK_SAMPLES`` consecutive samples (the last one
+        takes the remainder), each judged on its own (enough samples in known cells); when
+        consistent blocks are followed only by inconsistent ones, a fault (or change) began
+        inside the part and the blocks before it are kept, less an exactly constant run that
+        goes on into the first inconsistent block (a stuck load cell's first samples).  Any
+        other pattern keeps nothing.  Called only when the part before was consistent as a
+        whole (the onset is new).
+        """
+        keep = np.zeros(new.n, dtype=bool)
+        n_blocks = new.n // BLOCK_SAMPLES
+        if n_blocks < 2:
+            return keep
+        good = np.zeros(n_blocks, dtype=bool)
+        for b in range(n_blocks):
+            lo = b * BLOCK_SAMPLES
+            hi = new.n if b == n_blocks - 1 else lo + BLOCK_SAMPLES
+            figures = self._consistency_figures(new.select(slice(lo, hi)))
+            good[b] = figures is not None and figures[0] <= figures[1]
+        # one step, from consistent blocks to inconsistent ones (an onset); any other pattern
+        # (a persistent fault that some blocks happen to match) counts whole
+        if not good[0] or np.count_nonzero(good[1:] != good[:-1]) != 1:
+            return keep
+        keep[:] = np.repeat(good, np.diff(np.r_[np.arange(n_blocks) * BLOCK_SAMPLES, new.n]))
+        # a constant run that goes on into the first inconsistent block is that fault's start
+        # (a stuck load cell stays close to the true force for a while): cut before it
+        j = int(np.argmin(keep))
+        while j > 0 and new.f[j - 1] == new.f[j]:
+            j -= 1
+        keep[j:] = False
+        return keep
 
     def _warm_start(self, model, levels):
         if model in self._last_solution:
@@ -759,6 +838,11 @@ class LiveIdentifier:
         if model == 'kwok-current' and 'kwok' in self._last_solution:
             return kwok_to_kwok_current(self._last_solution['kwok'])
         return None
+
+    def _exclude(self, t):
+        """Note the stamps of samples kept out of the bins (flagged or inconsistent)."""
+        if len(t):
+            self._excluded_s = max(self._excluded_s, float(np.max(t)))
 
     def _update_bins(self, new, keep, newest_s):
         """File ``new`` samples by current; each bin keeps its newest ``keep`` samples."""

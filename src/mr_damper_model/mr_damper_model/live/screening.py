@@ -112,6 +112,38 @@ def constant_runs(f, t, min_s):
     return mask
 
 
+def continued_runs(f, t, min_s, since_s):
+    """
+    Mask of the samples in constant runs of ``min_s`` or longer that began by ``since_s``.
+
+    A run that began among samples already kept out of the fit (a stuck load cell or a dropout
+    judged inconsistent before it lasted ``stuck_s``) and goes on into new samples is the same
+    fault: its new samples are flagged even when the run falls just short of ``stuck_s``.
+
+    Parameters
+    ----------
+    f, t : array_like with shape (n,)
+        Signal and its stamps [s], increasing.
+    min_s : float
+        Shortest run [s] (first to last stamp).
+    since_s : float
+        Latest start of a run [s].
+
+    Returns
+    -------
+    numpy.ndarray of bool with shape (n,)
+
+    """
+    f = np.asarray(f, dtype=float)
+    t = np.asarray(t, dtype=float)
+    mask = constant_runs(f, t, min_s)
+    if mask.any():
+        starts = np.flatnonzero(np.r_[True, f[1:] != f[:-1]])
+        first = starts[np.searchsorted(starts, np.arange(f.size), side='right') - 1]
+        mask &= t[first] <= since_s
+    return mask
+
+
 def flag_samples(data, config):
     """
     Screen force samples for sensor faults; return a reason code per sample.
