@@ -231,13 +231,18 @@ def _rollout(params, road, dt, n, model, w, c_ref):
             'static_tyre_load': p.static_tyre_load}
 
 
+class Unlimited:
+    """A force model without limits: the free response's (any force is reachable)."""
+
+    @staticmethod
+    def body_force_range(travel, v_rel):
+        """Return ``(-inf, inf)``."""
+        return -math.inf, math.inf
+
+
 def _free_response(params, road, dt, n, c_ref):
     """Run the car with ``F = -c_ref v_rel`` only (``w = 0``, no limits)."""
-    class _Open:
-        @staticmethod
-        def body_force_range(travel, v_rel):
-            return -math.inf, math.inf
-    return _rollout(params, road, dt, n, _Open, np.zeros(n), c_ref)
+    return _rollout(params, road, dt, n, Unlimited, np.zeros(n), c_ref)
 
 
 def largest_eigenvalue(hess, n, iters=30):

@@ -42,8 +42,8 @@ import math
 import numpy as np
 from scipy import fft as sfft, signal
 
-from quarter_car_sim.bound import (bound_name, check_bound_options, CurrentSchedule, fista_box,
-                                   largest_eigenvalue)
+from quarter_car_sim.bound import (bound_name, BoundResult, check_bound_options,
+                                   CurrentSchedule, fista_box, largest_eigenvalue, Unlimited)
 from quarter_car_sim.full_car.dynamics import corner_maps, discretise, FullCar, N_Q
 from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
 from quarter_car_sim.ride_metrics import wk_sos
@@ -114,14 +114,6 @@ def impulse_responses(params, dt, c_ref, n):
     return h
 
 
-class _Open:
-    """Force model without limits (the free response)."""
-
-    @staticmethod
-    def body_force_range(travel, v_rel):
-        return -math.inf, math.inf
-
-
 def _rollout(params, road, dt, n, t0, models, w, c_ref):
     """
     Run the nonlinear car with ``F_i,k = clip(-c_ref v_rel + w_i,k, lo, hi)`` per corner.
@@ -169,31 +161,18 @@ def _accelerations(params, run):
 
 
 @dataclasses.dataclass
-class FullCarBoundResult:
+class FullCarBoundResult(BoundResult):
     """
-    Result of :func:`full_car_bound`.
+    Result of :func:`full_car_bound`: the fields of the quarter car's ``BoundResult``.
+
+    There ``force``, ``current`` are (n, 4) (a column per corner, samples from ``t0``),
+    ``predicted`` is the projected run's recorded part (``t >= 0``) as a ``FullCarResult``,
+    ``predicted_metrics`` its :func:`full_car_metrics`, ``replay`` the currents replayed on
+    the plants by :func:`simulate_full_car` (None without plants), ``cost_start`` the cost
+    with every damper at ``i_min``; and:
 
     Attributes
     ----------
-    force : ndarray (n, 4)
-        Damper forces on the body over each control period [N] (the projected optimum;
-        samples from ``t0``).
-    current : ndarray (n, 4)
-        Coil currents giving those forces on the corners' damper models [A].
-    predicted : FullCarResult
-        The projected run on the damper models, recorded part (``t >= 0``).
-    predicted_metrics : dict
-        :func:`full_car_metrics` of the prediction.
-    cost, cost_start : float
-        ``J`` of the result and of the start (every damper at ``i_min``).
-    cost_history : list of float
-        ``J`` of each projected run.
-    replay : FullCarResult or None
-        The currents replayed on the plants by :func:`simulate_full_car` (None without plants).
-    rho : float
-        Tyre-load weight.
-    nit : int
-        Outer (projection) iterations done.
     t0 : float
         Time of the first planned sample [s] (``-settle_s``).
     force_lo, force_hi : ndarray (n, 4)
@@ -201,19 +180,9 @@ class FullCarBoundResult:
 
     """
 
-    force: np.ndarray
-    current: np.ndarray
-    predicted: object
-    predicted_metrics: dict
-    cost: float
-    cost_start: float
-    cost_history: list
-    replay: object
-    rho: float
-    nit: int
-    t0: float
-    force_lo: np.ndarray
-    force_hi: np.ndarray
+    t0: float = 0.0
+    force_lo: np.ndarray = None
+    force_hi: np.ndarray = None
 
     def metrics(self, params, *, seat=(0.0, 0.0)):
         """Metrics of the replay on the plants (else of the prediction)."""
@@ -325,22 +294,18 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     kx = AXIS_FACTORS
 
     def comfort(acc):
-        """ISO-weighted seat vertical, pitch, roll (3, n), axis factors applied."""
+        """ISO-weighted seat vertical, pitch, roll of ``acc`` (3, ..., n), axis factors in."""
         a_z = acc[0] - x_s * acc[1] + y_s * acc[2]
-        return np.vstack([signal.sosfilt(wk, a_z, axis=-1),
-                          kx['pitch'] * signal.sosfilt(we, acc[1], axis=-1),
-                          kx['roll'] * signal.sosfilt(we, acc[2], axis=-1)])
+        return np.stack([signal.sosfilt(wk, a_z, axis=-1),
+                         kx['pitch'] * signal.sosfilt(we, acc[1], axis=-1),
+                         kx['roll'] * signal.sosfilt(we, acc[2], axis=-1)])
 
     nk = min(n, max(2, int(round(kernel_s / dt))))
     h = impulse_responses(params, dt, c_ref, nk)
-    acc_k = h[:3]
-    a_z_k = acc_k[0] - x_s * acc_k[1] + y_s * acc_k[2]
-    h_comfort = np.stack([signal.sosfilt(wk, a_z_k, axis=-1),
-                          kx['pitch'] * signal.sosfilt(we, acc_k[1], axis=-1),
-                          kx['roll'] * signal.sosfilt(we, acc_k[2], axis=-1)])
+    h_comfort = comfort(h[:3])                        # (3, 4, nk): the filters are linear
     conv_tv = _Mimo(h[3:11], n)                       # travels and rates, for the limits
 
-    free = _rollout(params, road, dt, n, t0, [_Open] * 4, np.zeros((4, n)), c_ref)
+    free = _rollout(params, road, dt, n, t0, [Unlimited] * 4, np.zeros((4, n)), c_ref)
     start = _rollout(params, road, dt, n, t0, models, np.zeros((4, n)), 0.0)
     w_load = params.static_tyre_loads
     a0 = float(np.sum(comfort(start['acc'].T)[:, mask] ** 2) / n_rec)

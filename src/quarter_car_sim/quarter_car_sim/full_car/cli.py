@@ -23,6 +23,7 @@ stderr.
 import json
 import math
 import sys
+import time
 
 from quarter_car_sim.cli_args import OneLineParser, positive
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
@@ -157,7 +158,6 @@ def run(args):
 
 def _bound(params, road, plants, damper, args):
     """Run the offline bound; return ``{name: metrics of its replay}``."""
-    import time
     from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
     start = time.perf_counter()
     models = [corner_force_model(d, params) for d in damper]
