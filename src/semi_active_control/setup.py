@@ -1,0 +1,29 @@
+"""Setup for the semi_active_control ament_python package."""
+from setuptools import find_packages, setup
+
+package_name = 'semi_active_control'
+PACKAGE_DESCRIPTION = (
+    'The vehicle side of the MR damper suite: what runs on a car (state and identified-set '
+    'types, control laws, supervision, state estimation, the vehicle nodes); never imports the '
+    'simulator or the fitting stack.'
+)
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='MR damper suite developers',
+    maintainer_email='mr-damper-suite@example.org',
+    description=PACKAGE_DESCRIPTION,
+    license='Apache-2.0',
+    extras_require={'test': ['pytest']},
+    entry_points={
+        'console_scripts': [],
+    },
+)
