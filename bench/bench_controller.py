@@ -64,7 +64,7 @@ def _built_in_loop():
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     params = QuarterCarParams()
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=SEED,
@@ -224,7 +224,7 @@ def external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep)
 
 def ride_figures(columns):
     """Return (Wk RMS body acceleration [m/s^2], RMS dynamic tyre load ratio) for t >= 0."""
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.ride_metrics import ride_metrics
     keep = columns['t'] >= 0.0
     m = ride_metrics({c: np.asarray(columns[c])[keep] for c in

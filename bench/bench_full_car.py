@@ -2,7 +2,7 @@
 """
 Full car (7 DOF, issue 24): modal skyhook against per-corner laws and passive settings.
 
-Passenger car of ``quarter_car_sim.full_car.params`` with a Spencer damper (the "true" plant)
+Passenger car of ``semi_active_control.car.full_car`` with a Spencer damper (the "true" plant)
 at each corner, each corner's kwok-current model identified on the simulated rig
 (``mr_damper_rig.virtual_rig.identify_damper``, a different noise seed per corner) and used
 through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on two tracks
@@ -43,9 +43,9 @@ from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim.controllers import DEFAULT_C_P, Skyhook
 from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
-from quarter_car_sim.full_car import (compare_laws, CORNERS, make_full_car_law,
-                                      make_two_track_road, ModalSkyhook, PASSENGER_CAR,
-                                      PerCornerLaws)
+from quarter_car_sim.full_car import (compare_laws, make_full_car_law, make_two_track_road,
+                                      ModalSkyhook, PerCornerLaws)
+from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from quarter_car_sim.full_car.control import DEFAULT_MODAL_ZETA
 from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
 from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk

@@ -37,7 +37,7 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.live_loop import ClosedLoop
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import iso8608
 
 SEED = 1

@@ -34,7 +34,7 @@ from scipy import signal
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.plots import plot_tradeoff
 from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
 from quarter_car_sim.road import iso8608

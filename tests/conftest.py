@@ -5,6 +5,7 @@ This runs before any test module imports rclpy, so every node a test creates (in
 in a subprocess that inherits the environment) uses LOCALHOST discovery and a private domain.
 """
 import gzip
+import importlib
 import os
 import random
 import sys
@@ -16,6 +17,19 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(20
 os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
 
 REPO = Path(__file__).resolve().parents[1]
+
+# The test folders mirror the packages (tests/semi_active_control/laws/...). With tests/ on
+# sys.path (pytest.ini: pythonpath, for the helpers next to this file) such a folder would be
+# found first and taken for a namespace package of the same name, hiding the installed one and
+# its sub-packages: import each package of src/ once, without tests/ on the path, so the real
+# one is the one in sys.modules.
+_TESTS = str(REPO / 'tests')
+_SAVED_PATH = list(sys.path)
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or os.curdir) != _TESTS]
+for _package in sorted(p.parent.name for p in (REPO / 'src').glob('*/setup.py')):
+    importlib.import_module(_package)
+sys.path[:] = _SAVED_PATH
+
 # measured Quiroz damper tests shipped in the repository, gzip-compressed DAQ CSVs
 QUIROZ_DIR = REPO / 'data' / 'quiroz_mr_damper'
 # console scripts of the editable installs live next to the interpreter running the tests

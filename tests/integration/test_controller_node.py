@@ -123,7 +123,7 @@ def _reference_ride(n_steps):
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     params = QuarterCarParams()
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=CAR['road_seed'],
@@ -139,7 +139,7 @@ def _reference_ride(n_steps):
 
 def _ride_figures(columns):
     """Wk RMS body acceleration and RMS dynamic tyre load ratio on the road (t >= 0)."""
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.ride_metrics import ride_metrics
     keep = columns['t'] >= 0.0
     m = ride_metrics({c: columns[c][keep] for c in RIDE_COLUMNS},
@@ -182,7 +182,7 @@ def _car_states(n):
     """States of a passive ride (the law's inputs), stamped 1 ms apart from 1 s (car time)."""
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.dynamics import QuarterCar
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=5, duration_s=n * 1e-3 + 2)
     car = QuarterCar(QuarterCarParams(), make_plant('kwok-current'), road, t0=1.0)
@@ -193,7 +193,7 @@ def test_one_future_stamped_state_costs_one_safe_answer(listener):
     from mr_damper_interfaces.msg import QuarterCarState
     from quarter_car_sim.controller_core import ControllerCore, make_node_law
     from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
                                                              vehicle_state_from_msg)
     from std_msgs.msg import Float64

@@ -43,7 +43,8 @@ def _publish_parameters(lis, ns, values_of):
 def _ride_states(n):
     """Full-car states of a passive ride (0.5 A) on the two-track road, from t = 0."""
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.full_car import make_two_track_road, PASSENGER_CAR
+    from quarter_car_sim.full_car import make_two_track_road
+    from semi_active_control.car.full_car import PASSENGER_CAR
     from quarter_car_sim.full_car.runtime import FullCarRuntime
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0, duration_s=2.0,
                                rng=4)
@@ -54,7 +55,7 @@ def _ride_states(n):
 
 def test_invalid_corner_gets_the_safe_current_the_others_the_law():
     from mr_damper_interfaces.msg import QuarterCarState
-    from quarter_car_sim.full_car import PASSENGER_CAR
+    from semi_active_control.car.full_car import PASSENGER_CAR
     from quarter_car_sim.full_car.controller_core import FullCarControllerCore
     from quarter_car_sim.full_car.runtime import corner_car_state
     from quarter_car_sim.full_car_controller_node import corner_state_from_msg

@@ -15,7 +15,7 @@ from mr_damper_model.models.kwok_current import kwok_current_force
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 
 QC = {'plant': 'kwok-current', 'road': 'iso8608', 'road_class': 'C', 'speed_m_s': 20.0,
       'road_seed': 4, 'road_duration_s': 6.0, 'safe_current_a': 0.5, 'controller': 'skyhook'}

@@ -19,7 +19,7 @@ from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.hil import make_remote_plant
 from quarter_car_sim.live_loop import ClosedLoop, TraceLog
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
 from quarter_car_sim.road import make_road
 from quarter_car_sim.sensors import VehicleSensors

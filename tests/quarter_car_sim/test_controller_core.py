@@ -13,7 +13,7 @@ from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, Con
 from quarter_car_sim.controllers import ADD, Groundhook, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import make_road
 
 SAFE = 0.5

@@ -215,8 +215,8 @@ def test_clipped_optimal_without_range_clips_to_dissipative_only():
 
 
 def test_clipped_optimal_gain_is_the_lqr_design():
-    from quarter_car_sim.linear_analysis import lqr_design
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import lqr_design
+    from semi_active_control.car.quarter_car import QuarterCarParams
     ref = lqr_design(QuarterCarParams(), **ctl.DEFAULT_CO_WEIGHTS).gain
     np.testing.assert_allclose(ctl.clipped_optimal_gain(), ref)
     with pytest.raises(ValueError, match='unknown LQR weight'):
@@ -269,8 +269,8 @@ def test_wk_design_model_is_the_car_in_series_with_the_wk_filter():
     # independent truth: python-control's series connection of the car (force -> a_s) and the
     # Wk filter has the frequency response of the design model's force -> a_wk
     import control
-    from quarter_car_sim.linear_analysis import linear_model
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import linear_model
+    from semi_active_control.car.quarter_car import QuarterCarParams
     d = ctl.wk_lqr_design()
     car = linear_model(QuarterCarParams())
     truth = control.series(control.ss(car.A, car.B[:, [1]], car.C[[0]], car.D[[0], [1]]),
@@ -289,8 +289,8 @@ def test_wk_design_is_optimal_among_gains_that_ignore_the_filter():
     # other stabilising gain, here the plain (a_s-weighted) clipped-optimal gain with zeros on
     # the filter states, same weights
     import control
-    from quarter_car_sim.linear_analysis import linear_model
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import linear_model
+    from semi_active_control.car.quarter_car import QuarterCarParams
     w = {'q_tyre': 1e3, 'r_force': 3e-6}
     d = ctl.wk_lqr_design(**w)
     car = linear_model(QuarterCarParams())
@@ -358,7 +358,7 @@ def test_clipped_optimal_wk_feeds_back_the_analog_filter_state():
 
 def test_clipped_optimal_wk_on_the_car_is_dissipative_and_within_the_damper_range():
     from mr_damper_model.models.plant import KwokCurrentPlant
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import iso8608
     from quarter_car_sim.simulate import simulate
     model, truth = presets.thesis_kwok_current()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar, state_matrices
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import iso8608, make_road, RoadProfile, step
 
 P = QuarterCarParams()

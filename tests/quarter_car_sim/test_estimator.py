@@ -7,7 +7,7 @@ import pytest
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from quarter_car_sim.estimator import (design_estimator, EstimatorError, QuarterCarEstimator,
                                        road_velocity_intensity)
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import step as step_road
 from quarter_car_sim.sensors import accelerometer_spec, G0, ride_height_spec
 

@@ -7,8 +7,8 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import KwokCurrentInverse
 from mr_damper_model.models.plant import KwokCurrentPlant
 from quarter_car_sim.bound import KwokForceModel, semi_active_bound
-from quarter_car_sim.full_car import (compare_laws, FullCar, make_two_track_road,
-                                      PASSENGER_CAR, symmetric_car)
+from quarter_car_sim.full_car import compare_laws, FullCar, make_two_track_road
+from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.bound import full_car_bound, impulse_responses
 from quarter_car_sim.full_car.road import same_road_all_wheels
 from quarter_car_sim.road import iso8608

@@ -9,10 +9,11 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Skyhook
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import (FullCar, FullCarController, make_full_car_law,
-                                      make_two_track_road, ModalSkyhook, PASSENGER_CAR,
-                                      simulate_full_car, supervisor_message, symmetric_car)
+                                      make_two_track_road, ModalSkyhook, simulate_full_car,
+                                      supervisor_message)
+from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import same_road_all_wheels
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import bump
 from quarter_car_sim.simulate import make_inverse, simulate
 

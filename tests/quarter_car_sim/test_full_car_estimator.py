@@ -6,7 +6,7 @@ import pytest
 
 from quarter_car_sim.full_car import estimator as fe
 from quarter_car_sim.full_car.dynamics import FullCar
-from quarter_car_sim.full_car.params import PASSENGER_CAR
+from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.road import make_two_track_road, TwoTrackRoad
 from quarter_car_sim.sensors import ideal_spec, G0
 

@@ -4,11 +4,11 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import (make_full_car_law, make_two_track_road, PASSENGER_CAR,
-                                      simulate_full_car, symmetric_car)
+from quarter_car_sim.full_car import make_full_car_law, make_two_track_road, simulate_full_car
+from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model
-from quarter_car_sim.linear_analysis import lqr_design
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car_linear import lqr_design
+from semi_active_control.car.quarter_car import QuarterCarParams
 
 
 def test_relative_model_matches_the_absolute_car():

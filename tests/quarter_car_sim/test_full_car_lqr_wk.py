@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from quarter_car_sim.full_car import PASSENGER_CAR
+from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model
 from quarter_car_sim.full_car.lqr_wk import (FullCarClippedOptimalWk, full_car_lqr_wk_design,
                                              weighting_filter)

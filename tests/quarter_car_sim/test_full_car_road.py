@@ -5,7 +5,7 @@ from scipy import signal
 
 from quarter_car_sim import road as qroad
 from quarter_car_sim.full_car import event_road, iso8608_two_tracks, make_two_track_road
-from quarter_car_sim.full_car import PASSENGER_CAR
+from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.road import isotropic_coherence
 from quarter_car_sim.road import RoadError
 

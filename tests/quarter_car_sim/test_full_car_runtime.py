@@ -6,7 +6,8 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_two_track_road, PASSENGER_CAR, supervisor_message
+from quarter_car_sim.full_car import make_two_track_road, supervisor_message
+from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.runtime import corner_car_state, FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]

@@ -3,7 +3,7 @@ import pytest
 
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.plots import plot_results, plot_tradeoff
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import compare

@@ -7,7 +7,7 @@ from quarter_car_sim import hil, live_loop
 from quarter_car_sim.controllers import make_controller
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe, ProbeError
 from quarter_car_sim.road import make_road
 

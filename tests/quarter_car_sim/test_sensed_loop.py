@@ -4,7 +4,7 @@ import pytest
 
 from quarter_car_sim.controllers import Passive, Skyhook
 from quarter_car_sim.dynamics import LinearDamperPlant
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import make_road
 from quarter_car_sim.sensed_loop import SAFE_CURRENT_A, simulate_sensed
 from quarter_car_sim.sensors import (accelerometer_spec, Fault, G0, ideal_spec,

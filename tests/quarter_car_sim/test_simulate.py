@@ -8,7 +8,7 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.live_loop import ClosedLoop
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import compare, make_inverse, simulate

@@ -153,8 +153,8 @@ def passive_body(car_params, t_end, dt):
     """
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.full_car import (FullCarController, make_full_car_law,
-                                          make_two_track_road, PASSENGER_CAR,
-                                          simulate_full_car)
+                                          make_two_track_road, simulate_full_car)
+    from semi_active_control.car.full_car import PASSENGER_CAR
     from quarter_car_sim.full_car.simulate import OFFLINE_TIMEOUT_S
     g = car_params.get
     safe = float(g('safe_current_a', 0.5))

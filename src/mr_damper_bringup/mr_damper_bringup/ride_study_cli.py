@@ -74,7 +74,7 @@ def run(args):
     from mr_damper_rig.virtual_rig import identify_damper
     from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
     from quarter_car_sim.controllers import make_controller, Passive
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     from quarter_car_sim.simulate import compare, make_inverse
 

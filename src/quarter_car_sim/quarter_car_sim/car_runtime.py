@@ -504,7 +504,7 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
     from quarter_car_sim.health import CarHealth
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.probing import CurrentProbe
     from quarter_car_sim.road import make_road
     from quarter_car_sim.sensors import VehicleSensors

@@ -2,7 +2,7 @@
 Quarter-car dynamics: linear state-space model and the stepwise nonlinear simulator.
 
 State ``[z_s, v_s, z_u, v_u]`` relative to the static equilibrium on a flat road (see
-:mod:`quarter_car_sim.params` for the sign conventions)::
+:mod:`semi_active_control.car.quarter_car` for the sign conventions)::
 
     m_s a_s = -k_s (z_s - z_u) - c_s (v_s - v_u) + F_d
     m_u a_u = +k_s (z_s - z_u) + c_s (v_s - v_u) - F_d + F_t - W
@@ -24,13 +24,13 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class CarState:
     """
-    Quarter-car state at one instant (SI units, conventions of :mod:`quarter_car_sim.params`).
+    Quarter-car state at one instant (SI, the conventions of ``semi_active_control.car``).
 
     Attributes
     ----------

@@ -1,7 +1,8 @@
 """
 State estimator of a quarter-car corner from vehicle sensors: a Kalman filter, no ROS.
 
-Model (the linear car of :mod:`quarter_car_sim.linear_analysis`, nominal parameters): state ::
+Model (the linear car of :mod:`semi_active_control.car.quarter_car_linear`, nominal parameters):
+state ::
 
     x = [travel, v_s, z_u - z_r, v_u, d, b_body (, b_wheel)]
 

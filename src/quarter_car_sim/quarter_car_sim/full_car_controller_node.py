@@ -45,7 +45,7 @@ from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublishe
                                          LATCHED_QOS, node_time_s, Param, run_node,
                                          set_realtime_priority, spin_node)
 from quarter_car_sim.full_car.controller_core import CornerState, FullCarControllerCore
-from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
+from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS, offer_parameters
 
 #: Settings of each corner's fail-safe supervisor, shared with ``full_car_node``'s built-in law.

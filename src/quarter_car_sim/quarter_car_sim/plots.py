@@ -21,7 +21,7 @@ def plot_transmissibility(trans, f_hz, ax=None, *, quantity='a_s'):
     Parameters
     ----------
     trans : dict
-        Output of :func:`quarter_car_sim.linear_analysis.transmissibility`.
+        Output of :func:`semi_active_control.car.quarter_car_linear.transmissibility`.
     f_hz : array_like
         Frequencies [Hz] used for ``trans``.
     ax : matplotlib Axes, optional
@@ -72,8 +72,8 @@ def plot_results(results, path=None, *, params=None, c_values=(300.0, 1000.0, 30
     """
     from scipy import signal
 
-    from quarter_car_sim.linear_analysis import transmissibility
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import transmissibility
+    from semi_active_control.car.quarter_car import QuarterCarParams
     plt = _plt()
     fig, axs = plt.subplots(2, 2, figsize=(12, 8))
     if names is None:

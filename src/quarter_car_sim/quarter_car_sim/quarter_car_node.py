@@ -22,7 +22,7 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
   transient local, depth 1);
 - pub ``mr_damper/current_command`` (std_msgs/Float64, A, every control step; reliable, 10);
 - pub ``quarter_car/state`` (sensor_msgs/JointState at ``state_rate_hz``; header.stamp = sim
-  time). Joints and fields (SI, positive up, see quarter_car_sim.params):
+  time). Joints and fields (SI, positive up, see semi_active_control.car.quarter_car):
 
   ============  ======================  ======================  ==============================
   joint         position                velocity                effort

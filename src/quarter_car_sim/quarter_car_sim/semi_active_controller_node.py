@@ -53,7 +53,7 @@ from quarter_car_sim.controller_core import ControllerCore, VehicleState
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 
 #: Parameters of the supervised law, shared with the quarter car's built-in controller.
 SUPERVISED_LAW_PARAMETERS = (

@@ -26,7 +26,7 @@ class SimResult:
     """
     Time series of a closed-loop simulation.
 
-    SI units; sign conventions of :mod:`quarter_car_sim.params`.
+    SI units; sign conventions of :mod:`semi_active_control.car.quarter_car`.
 
     Attributes
     ----------

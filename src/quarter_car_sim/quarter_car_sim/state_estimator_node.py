@@ -52,7 +52,7 @@ from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublishe
                                          run_node, SENSOR_QOS, set_realtime_priority,
                                          spin_node)
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
 from quarter_car_sim import sensor_cdr
 from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec

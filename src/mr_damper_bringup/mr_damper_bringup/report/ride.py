@@ -14,7 +14,7 @@ def _static_load(qc_params):
 
 
 def _car_params(qc_params):
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car import QuarterCarParams
     g = qc_params.get
     return QuarterCarParams(m_s=g('m_s', 300.0), m_u=g('m_u', 60.0), k_s=g('k_s', 16000.0),
                             k_t=g('k_t', 190000.0))

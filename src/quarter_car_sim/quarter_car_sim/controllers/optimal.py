@@ -14,7 +14,7 @@ class LqrActive(Controller):
     ----------
     gain : array_like with shape (4,)
         LQR gain for the state ``[z_s - z_u, v_s, z_u - z_r, v_u]``
-        (see :func:`quarter_car_sim.linear_analysis.lqr_design`).
+        (see :func:`semi_active_control.car.quarter_car_linear.lqr_design`).
 
     """
 
@@ -49,8 +49,8 @@ def clipped_optimal_gain(params=None, **weights):
     """
     LQR gain of the clipped-optimal law: active force on the linear quarter car.
 
-    Designed with :func:`quarter_car_sim.linear_analysis.lqr_design` (``control.lqr``) on the
-    car without damper: cost ``q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2 +
+    Designed with :func:`semi_active_control.car.quarter_car_linear.lqr_design` (``control.lqr``)
+    on the car without damper: cost ``q_accel a_s^2 + q_travel travel^2 + q_tyre tyre_def^2 +
     r_force F^2`` (SI units).
 
     Parameters
@@ -66,8 +66,8 @@ def clipped_optimal_gain(params=None, **weights):
         Gain for ``F = -K [travel, v_s, z_u - z_r, v_u]``.
 
     """
-    from quarter_car_sim.linear_analysis import lqr_design
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import lqr_design
+    from semi_active_control.car.quarter_car import QuarterCarParams
     w = _lqr_weights(DEFAULT_CO_WEIGHTS, weights)
     return lqr_design(params or QuarterCarParams(), **w).gain
 
@@ -166,7 +166,7 @@ def wk_lqr_design(params=None, *, weighting='wk', **weights):
     """
     Frequency-shaped LQR: active force on the linear quarter car, cost on Wk-weighted a_s.
 
-    :func:`quarter_car_sim.linear_analysis.lqr_design` (the one LQR cost) with the car
+    :func:`semi_active_control.car.quarter_car_linear.lqr_design` (the one LQR cost) with the car
     (state ``x = [travel, v_s, z_u - z_r, v_u]``, force ``F`` on the body) augmented with the
     states ``w`` of the weighting filter driven by the body acceleration; it minimises ::
 
@@ -186,13 +186,13 @@ def wk_lqr_design(params=None, *, weighting='wk', **weights):
 
     Returns
     -------
-    quarter_car_sim.linear_analysis.LqrDesign
+    semi_active_control.car.quarter_car_linear.LqrDesign
         With ``filter`` the weighting (gain ``4 + n_w`` long).
 
     """
     import control
-    from quarter_car_sim.linear_analysis import lqr_design
-    from quarter_car_sim.params import QuarterCarParams
+    from semi_active_control.car.quarter_car_linear import lqr_design
+    from semi_active_control.car.quarter_car import QuarterCarParams
     w = _lqr_weights(DEFAULT_COWK_WEIGHTS, weights)
     for k, v in w.items():
         if not (math.isfinite(v) and v >= 0.0):
@@ -230,7 +230,7 @@ class ClippedOptimalWk(Controller):
 
     Parameters
     ----------
-    design : quarter_car_sim.linear_analysis.LqrDesign
+    design : semi_active_control.car.quarter_car_linear.LqrDesign
         Design with its weighting filter (:func:`wk_lqr_design`).
     force_range : callable, optional
         ``force_range(travel, v_rel) -> (lo, hi)`` [N] (see :class:`ClippedOptimal`).

@@ -23,7 +23,7 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     lqr_gain : array_like, optional
         LQR gain (lqr-active, clipped-optimal; refused by clipped-optimal-wk, which designs
         its own); default designed on ``params`` by
-        :func:`quarter_car_sim.linear_analysis.lqr_design` (lqr-active) or
+        :func:`semi_active_control.car.quarter_car_linear.lqr_design` (lqr-active) or
         :func:`clipped_optimal_gain` (clipped-optimal).
     alpha : float
         Hybrid weight.
@@ -92,8 +92,8 @@ def _make_controller(name, c_sky, c_p, lqr_gain, alpha, params, inverse, dt):
         return SkyhookIdeal(c_sky, c_p)
     if n == 'lqr-active':
         if lqr_gain is None:
-            from quarter_car_sim.linear_analysis import lqr_design
-            from quarter_car_sim.params import QuarterCarParams
+            from semi_active_control.car.quarter_car_linear import lqr_design
+            from semi_active_control.car.quarter_car import QuarterCarParams
             lqr_gain = lqr_design(params or QuarterCarParams()).gain
         return LqrActive(lqr_gain)
     raise ValueError(f'unknown controller {name!r} (use {", ".join(CONTROLLER_NAMES)})')

@@ -9,8 +9,7 @@ from quarter_car_sim.full_car.control import (FullCarController, make_full_car_l
 from quarter_car_sim.full_car.dynamics import FullCar, FullCarState, mechanical_energy
 from quarter_car_sim.full_car.lqr import FullCarClippedOptimal, full_car_lqr_design
 from quarter_car_sim.full_car.metrics import full_car_metrics, iso2631_seat
-from quarter_car_sim.full_car.params import (CORNERS, FullCarParams, PASSENGER_CAR,
-                                             symmetric_car)
+from semi_active_control.car.full_car import CORNERS, FullCarParams, PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import (event_road, iso8608_two_tracks,
                                            make_two_track_road, TwoTrackRoad)
 from quarter_car_sim.full_car.simulate import compare_laws, FullCarResult, simulate_full_car

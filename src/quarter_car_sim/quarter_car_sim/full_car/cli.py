@@ -108,7 +108,7 @@ def run(args):
     from mr_damper_common.health import finite_or_none
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.full_car.control import make_full_car_law
-    from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
+    from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
     from quarter_car_sim.full_car.road import make_two_track_road
     from quarter_car_sim.full_car.simulate import compare_laws
 

@@ -25,7 +25,7 @@ import numpy as np
 from quarter_car_sim.controller_core import ControllerCore
 from quarter_car_sim.controllers import clip_to_damper, Controller, make_controller
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.full_car.params import CORNERS
+from semi_active_control.car.full_car import CORNERS
 
 DEFAULT_MODAL_ZETA = {'heave': 0.7, 'pitch': 1.5, 'roll': 1.5}
 """Default sky damping ratios of :meth:`ModalSkyhook.from_car` per body mode [-].
@@ -358,7 +358,7 @@ class FullCarController:
         Parameters
         ----------
         corner : int or str
-            Index 0..3 or name of :data:`~quarter_car_sim.full_car.params.CORNERS`.
+            Index 0..3 or name of :data:`~semi_active_control.car.full_car.CORNERS`.
         values : dict
             Decoded message (:func:`supervisor_message`).
         t_clock : float

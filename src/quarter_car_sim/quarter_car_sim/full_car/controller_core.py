@@ -22,7 +22,7 @@ import numpy as np
 
 from quarter_car_sim.full_car.control import FullCarController, make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCarState
-from quarter_car_sim.full_car.params import CORNERS
+from semi_active_control.car.full_car import CORNERS
 from quarter_car_sim.full_car.runtime import corner_supervisors
 
 #: Fields of a corner state (:class:`CornerState`), SI, positive up.

@@ -2,7 +2,7 @@
 Full-car (7-DOF) dynamics: linear matrices and the stepwise simulator with four damper plants.
 
 Generalised coordinates ``q = [z, theta, phi, z_u_fl, z_u_fr, z_u_rl, z_u_rr]`` and velocities
-``v`` (conventions of :mod:`quarter_car_sim.full_car.params`). With ``S = [T, -I]`` the map from
+``v`` (conventions of :mod:`semi_active_control.car.full_car`). With ``S = [T, -I]`` the map from
 ``q`` to the four suspension travels and ``P = [0, I]`` the map to the wheels::
 
     M qdd = -S' (Ks S q + Cs S v) + S' F_d + P' (F_t - W)
@@ -22,7 +22,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from quarter_car_sim.controller_core import VehicleState
-from quarter_car_sim.full_car.params import FullCarParams
+from semi_active_control.car.full_car import FullCarParams
 
 N_Q = 7
 N_X = 14
@@ -124,7 +124,7 @@ def discretise(params, h, contact=(True, True, True, True)):
 @dataclasses.dataclass(frozen=True)
 class FullCarState:
     """
-    Full-car state at one instant (SI, conventions of :mod:`quarter_car_sim.full_car.params`).
+    Full-car state at one instant (SI, conventions of :mod:`semi_active_control.car.full_car`).
 
     Attributes
     ----------

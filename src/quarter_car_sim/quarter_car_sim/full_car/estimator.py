@@ -40,7 +40,7 @@ from scipy.linalg import expm
 
 from quarter_car_sim.estimator import EstimatorError, road_velocity_intensity
 from quarter_car_sim.full_car.dynamics import FullCarState, N_Q, state_matrices
-from quarter_car_sim.full_car.params import CORNERS
+from semi_active_control.car.full_car import CORNERS
 from quarter_car_sim.sensors import (G0, SensorSampler, accelerometer_spec, Fault,
                                      ride_height_spec, sample_due, sampler_counts)
 

@@ -29,7 +29,7 @@ import math
 import numpy as np
 from scipy import signal
 
-from quarter_car_sim.full_car.params import CORNERS
+from semi_active_control.car.full_car import CORNERS
 from quarter_car_sim.ride_metrics import WE_CONSTANTS, weighting_sos, wk_sos
 
 #: ISO 2631-1 clause 8.2.2.2 comfort multiplying factors (seated, seat surface).

@@ -24,7 +24,7 @@ from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car.control import FullCarController, make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
 from quarter_car_sim.full_car.metrics import iso2631_seat
-from quarter_car_sim.full_car.params import CORNERS
+from semi_active_control.car.full_car import CORNERS
 
 #: Body coordinates published and logged, in order (``q[:3]`` of the car).
 BODY_JOINTS = ('heave', 'pitch', 'roll')

@@ -1,11 +1,11 @@
-"""Tests of quarter_car_sim.linear_analysis: natural frequencies, responses, LQR."""
+"""Tests of semi_active_control.car.quarter_car_linear: natural frequencies, responses, LQR."""
 import math
 
 import numpy as np
 import pytest
 
-from quarter_car_sim import linear_analysis as la
-from quarter_car_sim.params import QuarterCarParams
+from semi_active_control.car import quarter_car_linear as la
+from semi_active_control.car.quarter_car import QuarterCarParams
 
 P = QuarterCarParams()
 

@@ -13,8 +13,8 @@ Coordinates (ISO 8855: x forward, y left, z up), all from the static equilibrium
 Corners are in the order of the suite's ``--corners``: ``fl, fr, rl, rr``. Corner ``i`` sits at
 ``(x_i, y_i)`` = ``(a, +tf/2)``, ``(a, -tf/2)``, ``(-b, +tr/2)``, ``(-b, -tr/2)`` and its body
 point moves by ``z - x_i theta + y_i phi``. Suspension travel, damper and tyre forces follow the
-quarter car (:mod:`quarter_car_sim.params`): travel = body point - wheel (extension +), the
-damper force acts on the body (+ up), the tyre cannot pull.
+quarter car (:mod:`semi_active_control.car.quarter_car`): travel = body point - wheel
+(extension +), the damper force acts on the body (+ up), the tyre cannot pull.
 
 Default set :data:`PASSENGER_CAR`: the full vertical car model of Table 1 of "Designing a
 Kalman-Bucy state estimator for a full vertical car model", *Mathematical Problems in
@@ -33,7 +33,7 @@ import dataclasses
 
 import numpy as np
 
-from quarter_car_sim.params import check_fields, ParamsError, QuarterCarParams
+from semi_active_control.car.quarter_car import check_fields, ParamsError, QuarterCarParams
 
 #: Corner names, in order.
 CORNERS = ('fl', 'fr', 'rl', 'rr')

@@ -10,11 +10,13 @@ dynamic tyre load is ``-k_t (z_u - z_r) - c_t (v_u - zdot_r)``). A linear damper
 can be included; the tyre is always in contact.
 
 Responses to road *displacement* follow from road velocity by multiplying by ``j w``.
+
+``control`` (python-control, seconds to import: it loads ``scipy.signal``) is imported by the
+functions that use it, so a node whose law needs no design starts without it.
 """
 import dataclasses
 import math
 
-import control
 import numpy as np
 
 OUTPUT_NAMES = ('a_s', 'travel', 'tyre_deflection', 'dynamic_tyre_load')
@@ -38,6 +40,7 @@ def linear_model(params, c=0.0):
         ``[travel, v_s, z_u - z_r, v_u]``.
 
     """
+    import control
     p = params
     cs = float(c) + p.c_s
     ms, mu, ks, kt, ct = p.m_s, p.m_u, p.k_s, p.k_t, p.c_t
@@ -119,6 +122,7 @@ def transmissibility(params, c_values, f_hz):
         'tyre_deflection': |tyre def / z_r| [-]}`` (magnitudes, arrays like ``f_hz``).
 
     """
+    import control
     f = np.asarray(f_hz, dtype=float)
     w = 2.0 * np.pi * f
     out = {}
@@ -198,6 +202,7 @@ def lqr_design(params, *, q_accel=1.0, q_travel=1.0e3, q_tyre=1.0e4, r_force=1.0
     LqrDesign
 
     """
+    import control
     sys = linear_model(params, 0.0)
     A, B = sys.A, sys.B[:, 1]
     ca, da = sys.C[0], sys.D[0, 1]

@@ -1,7 +1,7 @@
-"""Tests of quarter_car_sim.params."""
+"""Tests of semi_active_control.car.quarter_car."""
 import pytest
 
-from quarter_car_sim.params import ParamsError, QuarterCarParams
+from semi_active_control.car.quarter_car import ParamsError, QuarterCarParams
 
 
 def test_defaults_and_derived():
