@@ -36,7 +36,8 @@ from mr_damper_rig.virtual_rig import identify_damper
 from quarter_car_sim import controllers as ctl
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.plots import plot_tradeoff
-from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
+from quarter_car_sim.ride_metrics import ride_metrics
+from semi_active_control.iso2631 import wk_filter
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import make_inverse, simulate
 

@@ -281,7 +281,8 @@ def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
 
 def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
-    from quarter_car_sim.ride_metrics import ride_metrics, wk_filter
+    from quarter_car_sim.ride_metrics import ride_metrics
+    from semi_active_control.iso2631 import wk_filter
     log = _live_log(tmp_path / 'log', controller_offers=True)
     big = report.ride_summary(log, QC)
     monkeypatch.setattr(report.recording, 'CHUNK_ROWS', 377)

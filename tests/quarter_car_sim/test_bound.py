@@ -11,7 +11,7 @@ from quarter_car_sim.bound import (bound_name, CurrentSchedule, KwokForceModel,
                                    semi_active_bound)
 from quarter_car_sim.dynamics import CarState, QuarterCar
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.ride_metrics import wk_filter
+from semi_active_control.iso2631 import wk_filter
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import simulate
 

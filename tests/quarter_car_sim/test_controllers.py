@@ -245,13 +245,6 @@ def _body_accel_states(a, dt=1e-3, seed=0):
     return out
 
 
-def test_wk_state_space_is_the_metric_weighting():
-    from quarter_car_sim.ride_metrics import wk_gain
-    f = np.logspace(-1, 2.5, 60)
-    resp = ctl.wk_state_space().frequency_response(2.0 * np.pi * f)
-    np.testing.assert_allclose(np.abs(resp.complex).ravel(), wk_gain(f), rtol=1e-9)
-
-
 @pytest.mark.parametrize('weights', [{'q_tyre': 1e3, 'r_force': 1e-5, 'q_travel': 0.0},
                                      {'q_tyre': 1e4, 'r_force': 1e-6, 'q_travel': 1e3}])
 def test_wk_design_without_filter_is_the_plain_clipped_optimal_design(weights):
@@ -316,7 +309,7 @@ def test_wk_design_is_optimal_among_gains_that_ignore_the_filter():
 
 
 def test_wk_filter_inside_the_law_is_the_metric_wk_filter():
-    from quarter_car_sim.ride_metrics import wk_filter
+    from semi_active_control.iso2631 import wk_filter
     g = np.random.default_rng(6)
     a = np.cumsum(g.normal(0.0, 0.5, 3000)) * 0.05 + g.normal(0.0, 1.0, 3000)
     law = ctl.ClippedOptimalWk(ctl.wk_lqr_design(), dt=1e-3)

@@ -34,8 +34,8 @@ def _run_forces(params, road, dt, u):
 def _weighted(acc, dt):
     """ISO weighted seat axes (Wk z, 0.40 We pitch, 0.63 We roll) at the CG, shape (n, 3)."""
     from scipy import signal
-    from quarter_car_sim.full_car.metrics import we_sos
-    from quarter_car_sim.ride_metrics import wk_sos
+    from semi_active_control.iso2631 import we_sos
+    from semi_active_control.iso2631 import wk_sos
     fs = 1.0 / dt
     return np.column_stack([signal.sosfilt(wk_sos(fs), acc[:, 0]),
                             0.40 * signal.sosfilt(we_sos(fs), acc[:, 1]),

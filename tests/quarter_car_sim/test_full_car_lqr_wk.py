@@ -13,8 +13,8 @@ from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model
 from quarter_car_sim.full_car.lqr_wk import (FullCarClippedOptimalWk, full_car_lqr_wk_design,
                                              weighting_filter)
-from quarter_car_sim.full_car.metrics import we_sos
-from quarter_car_sim.ride_metrics import wk_sos
+from semi_active_control.iso2631 import we_sos
+from semi_active_control.iso2631 import wk_sos
 
 
 def test_unit_gain_filters_give_the_unweighted_design():

@@ -1,29 +1,11 @@
-"""Tests of quarter_car_sim.ride_metrics: ISO 2631-1 Wk weighting and the metric values."""
+"""Tests of quarter_car_sim.ride_metrics: the metric values (the weightings: test_iso2631)."""
 import math
 
 import numpy as np
 import pytest
-from scipy import signal
 
 from quarter_car_sim import ride_metrics as rm
 from quarter_car_sim.dynamics import CarState
-
-# ISO 2631-1:1997 Table 3, Wk weighting factors (x 1000) at one-third-octave band centres
-WK_TABLE = {0.5: 418, 1.0: 482, 2.0: 531, 4.0: 967, 5.0: 1039, 6.3: 1054, 8.0: 1036,
-            10.0: 988, 12.5: 902, 16.0: 768, 20.0: 636, 31.5: 405, 50.0: 246, 80.0: 132}
-
-
-def test_analog_wk_matches_standard_table():
-    f = np.array(list(WK_TABLE))
-    expected = np.array(list(WK_TABLE.values())) / 1000.0
-    np.testing.assert_allclose(rm.wk_gain(f), expected, rtol=0.005)
-
-
-@pytest.mark.parametrize('f, tol', [(1.0, 0.005), (5.0, 0.005), (8.0, 0.005), (16.0, 0.005),
-                                    (31.5, 0.01), (80.0, 0.05)])
-def test_digital_wk_at_1khz(f, tol):
-    _, h = signal.sosfreqz(rm.wk_sos(1000.0), worN=[f], fs=1000.0)
-    assert abs(h[0]) == pytest.approx(WK_TABLE[f] / 1000.0, rel=tol)
 
 
 def _sine_result(f_hz, amp=1.0, duration=20.0, fs=1000.0):
@@ -70,8 +52,3 @@ def test_running_metrics_empty_and_no_current():
     run.update(CarState(0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0, 1000.0, 0, math.nan))
     d = run.as_dict()
     assert math.isnan(d['mean_current_a']) and math.isnan(d['saturated_fraction'])
-
-
-def test_wk_needs_sample_rate():
-    with pytest.raises(ValueError, match='fs'):
-        rm.wk_sos(100.0)

@@ -44,7 +44,8 @@ import numpy as np
 from scipy import signal
 
 from quarter_car_sim.dynamics import discretise, QuarterCar
-from quarter_car_sim.ride_metrics import ride_metrics, wk_sos
+from quarter_car_sim.ride_metrics import ride_metrics
+from semi_active_control.iso2631 import wk_sos
 
 
 class KwokForceModel:

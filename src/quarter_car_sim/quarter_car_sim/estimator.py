@@ -44,6 +44,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from quarter_car_sim.sensors import G0, SENSOR_NAMES
+from semi_active_control.iso8608 import ISO8608_GD_N0, ISO8608_N0
 
 #: States of the car part of the estimate, in order.
 CAR_STATES = ('travel', 'v_s', 'tyre_def', 'v_u')
@@ -65,7 +66,6 @@ def road_velocity_intensity(road_class='C', speed_m_s=20.0):
     ``(2 pi)^2 Gd(n0) n0^2 V`` [(m/s)^2/Hz], flat in frequency; the white-noise intensity is
     half of it.
     """
-    from quarter_car_sim.road import ISO8608_GD_N0, ISO8608_N0
     if road_class not in ISO8608_GD_N0:
         raise EstimatorError(f'`road_class` must be one of {"".join(ISO8608_GD_N0)}, got '
                              f'{road_class!r}')

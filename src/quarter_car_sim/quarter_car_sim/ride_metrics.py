@@ -1,18 +1,8 @@
 """
 Ride metrics: ISO 2631-1 Wk-weighted and raw body acceleration, suspension travel, tyre load.
 
-The Wk frequency weighting (ISO 2631-1:1997, Annex A, vertical whole-body vibration, seated) is
-the product of
-
-- band limiting: 2nd-order Butterworth high pass at f1 = 0.4 Hz and low pass at f2 = 100 Hz;
-- acceleration-velocity transition ``(1 + s/w3) / (1 + s/(Q4 w4) + s^2/w4^2)`` with
-  f3 = f4 = 12.5 Hz, Q4 = 0.63;
-- upward step ``(w5/w6)^2 (1 + s/(Q5 w5) + s^2/w5^2) / (1 + s/(Q6 w6) + s^2/w6^2)`` with
-  f5 = 2.37 Hz, Q5 = 0.91, f6 = 3.35 Hz, Q6 = 0.91;
-
-made digital with the bilinear transform (``scipy.signal.bilinear_zpk``) at the sample rate and
-run as second-order sections. At 1 kHz its gain is within 2 % of the analog weighting up to
-31.5 Hz (frequency warping grows above; the tests state the tolerances).
+The Wk weighting of the body acceleration is :func:`semi_active_control.iso2631.wk_sos` (the
+one home of the ISO 2631-1 weightings, which the Wk-weighted laws run too).
 
 Metric keys (both :func:`ride_metrics` and :class:`RunningRideMetrics`):
 
@@ -30,131 +20,13 @@ import math
 import numpy as np
 from scipy import signal
 
-WK_CONSTANTS = {'f1': 0.4, 'f2': 100.0, 'q1': 1.0 / math.sqrt(2.0), 'f3': 12.5, 'f4': 12.5,
-                'q4': 0.63, 'f5': 2.37, 'q5': 0.91, 'f6': 3.35, 'q6': 0.91}
-"""ISO 2631-1 Table A.2 constants of the Wk weighting [Hz] and quality factors [-]."""
+from semi_active_control.iso2631 import wk_filter, wk_sos
 
 METRIC_KEYS = ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
                'rms_tyre_load_ratio', 'peak_body_accel', 'peak_suspension_travel',
                'peak_tyre_load_ratio', 'contact_loss_fraction', 'rms_damper_force',
                'mean_current_a', 'max_current_a', 'saturated_fraction', 'duration_s',
                'n_samples')
-
-
-WE_CONSTANTS = {'f1': 0.4, 'f2': 100.0, 'q1': 1.0 / math.sqrt(2.0), 'f3': 1.0, 'f4': 1.0,
-                'q4': 0.63, 'f5': math.inf, 'q5': 1.0, 'f6': math.inf, 'q6': 1.0}
-"""ISO 2631-1 Table A.2 (= ISO 8041) constants of the rotational We weighting (no upward step)."""
-
-
-def weighting_sections(constants):
-    """
-    Analog ISO 2631-1 frequency weighting as second-order sections (rad/s).
-
-    Band limiting high pass (f1) and low pass (f2), acceleration-velocity transition (f3, f4,
-    Q4) and upward step (f5, Q5, f6, Q6; left out when f5 and f6 are infinite, as for We),
-    each with a gain near 1 in its band (ISO 2631-1:1997 Annex A, ISO 8041).
-
-    Parameters
-    ----------
-    constants : dict
-        ``f1`` ... ``f6`` [Hz], ``q1``, ``q4``, ``q5``, ``q6`` [-] (:data:`WK_CONSTANTS`,
-        :data:`WE_CONSTANTS`).
-
-    Returns
-    -------
-    list of (num, den)
-        Polynomial coefficients in ``s`` [rad/s], highest power first, of each section.
-
-    """
-    c = constants
-    w = {n: 2.0 * math.pi * c[n] for n in ('f1', 'f2', 'f3', 'f4', 'f5', 'f6')}
-    out = [
-        (np.array([1.0, 0.0, 0.0]), np.array([1.0, w['f1'] / c['q1'], w['f1'] ** 2])),
-        (np.array([w['f2'] ** 2]), np.array([1.0, w['f2'] / c['q1'], w['f2'] ** 2])),
-        (np.array([1.0, w['f3']]) * w['f4'] ** 2 / w['f3'],
-         np.array([1.0, w['f4'] / c['q4'], w['f4'] ** 2])),
-    ]
-    if math.isfinite(w['f5']) and math.isfinite(w['f6']):
-        out.append((np.array([1.0, w['f5'] / c['q5'], w['f5'] ** 2]),
-                    np.array([1.0, w['f6'] / c['q6'], w['f6'] ** 2])))
-    return out
-
-
-def weighting_sos(constants, fs):
-    """
-    Digital ISO 2631-1 weighting at sample rate ``fs`` [Hz] (bilinear) as second-order sections.
-
-    Returns
-    -------
-    ndarray with shape (n_sections, 6)
-
-    """
-    if not fs > 250.0:
-        raise ValueError(f'`fs` must be > 250 Hz for the ISO 2631-1 weightings (f2 = 100 Hz), '
-                         f'got {fs}')
-    num, den = np.array([1.0]), np.array([1.0])
-    for b, a in weighting_sections(constants):
-        num, den = np.polymul(num, b), np.polymul(den, a)
-    z, p, k = signal.tf2zpk(num, den)
-    zd, pd, kd = signal.bilinear_zpk(z, p, k, fs)
-    return signal.zpk2sos(zd, pd, kd)
-
-
-def wk_sections():
-    """
-    Analog Wk weighting as its four second-order sections (rad/s).
-
-    :func:`weighting_sections` of :data:`WK_CONSTANTS` (the product is :func:`wk_analog`).
-
-    Returns
-    -------
-    list of (num, den)
-        Polynomial coefficients in ``s`` [rad/s], highest power first, of each section.
-
-    """
-    return weighting_sections(WK_CONSTANTS)
-
-
-def wk_analog():
-    """
-    Analog Wk weighting as zeros, poles and gain (rad/s).
-
-    Returns
-    -------
-    z, p : ndarray
-        Zeros and poles [rad/s].
-    k : float
-        Gain.
-
-    """
-    num, den = np.array([1.0]), np.array([1.0])
-    for b, a in wk_sections():
-        num, den = np.polymul(num, b), np.polymul(den, a)
-    return signal.tf2zpk(num, den)
-
-
-def wk_gain(f_hz):
-    """Analog Wk weighting magnitude at frequencies ``f_hz`` [Hz]."""
-    z, p, k = wk_analog()
-    _, h = signal.freqs_zpk(z, p, k, worN=2.0 * np.pi * np.atleast_1d(f_hz))
-    return np.abs(h)
-
-
-def wk_sos(fs):
-    """
-    Digital Wk filter at sample rate ``fs`` [Hz] (bilinear transform) as second-order sections.
-
-    Returns
-    -------
-    ndarray with shape (n_sections, 6)
-
-    """
-    return weighting_sos(WK_CONSTANTS, fs)
-
-
-def wk_filter(a, fs):
-    """Wk-weighted acceleration (zero initial filter state) [m/s^2] for ``a`` sampled at fs."""
-    return signal.sosfilt(wk_sos(fs), np.asarray(a, dtype=float))
 
 
 def _rms(x):

@@ -11,7 +11,7 @@ ISO 8608 roads are synthesised from the standard's displacement PSD
 on the discrete-Fourier grid ``n_k = k / L`` of the travelled length L with amplitudes
 ``sqrt(2 Gd(n_k) dn)`` and independent uniform random phases (evaluated with an inverse FFT, so
 the one-sided PSD of the profile is Gd(n) on ``n_min <= n <= n_max``, zero outside). The
-standard's band is 0.011 to 2.83 cycles/m.
+standard's band is 0.011 to 2.83 cycles/m (the constants: :mod:`semi_active_control.iso8608`).
 """
 import csv
 import dataclasses
@@ -20,14 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-ISO8608_N0 = 0.1
-"""Reference spatial frequency n0 [cycles/m]."""
-
-ISO8608_GD_N0 = {c: 16e-6 * 4.0 ** k for k, c in enumerate('ABCDEFGH')}
-"""Geometric-mean displacement PSD Gd(n0) per class [m^3] (A 16e-6 ... H 262144e-6)."""
-
-ISO8608_BAND = (0.011, 2.83)
-"""Spatial frequency band of ISO 8608 [cycles/m]."""
+from semi_active_control.iso8608 import ISO8608_BAND, ISO8608_GD_N0, ISO8608_N0
 
 
 class RoadError(ValueError):

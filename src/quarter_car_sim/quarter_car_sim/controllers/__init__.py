@@ -49,7 +49,8 @@ from quarter_car_sim.controllers.base import (car_state_feedback, clip_to_damper
 from quarter_car_sim.controllers.optimal import (clipped_optimal_gain,  # noqa: F401
                                                  ClippedOptimal, ClippedOptimalWk,
                                                  DEFAULT_CO_WEIGHTS, DEFAULT_COWK_WEIGHTS,
-                                                 LqrActive, wk_lqr_design, wk_state_space)
+                                                 LqrActive, wk_lqr_design)
+from semi_active_control.iso2631 import wk_state_space  # noqa: F401
 from quarter_car_sim.controllers.registry import (CONTROLLER_NAMES,  # noqa: F401
                                                   DAMPER_LAW_NAMES, make_controller)
 from quarter_car_sim.controllers.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY,  # noqa: F401

@@ -4,6 +4,9 @@ import math
 import numpy as np
 
 from quarter_car_sim.controllers.base import car_state_feedback, clip_to_damper, Controller
+from semi_active_control.car.quarter_car import QuarterCarParams
+from semi_active_control.car.quarter_car_linear import lqr_design
+from semi_active_control.iso2631 import wk_state_space
 
 
 class LqrActive(Controller):
@@ -66,8 +69,6 @@ def clipped_optimal_gain(params=None, **weights):
         Gain for ``F = -K [travel, v_s, z_u - z_r, v_u]``.
 
     """
-    from semi_active_control.car.quarter_car_linear import lqr_design
-    from semi_active_control.car.quarter_car import QuarterCarParams
     w = _lqr_weights(DEFAULT_CO_WEIGHTS, weights)
     return lqr_design(params or QuarterCarParams(), **w).gain
 
@@ -131,37 +132,6 @@ plant), not on the bench roads; bench/bench_laws.py (seeds 1-3, 60 s): Wk RMS 0.
 bound; see docs/control-laws.md."""
 
 
-def wk_state_space():
-    """
-    ISO 2631-1 Wk weighting as an 8-state ``control.StateSpace`` (analog, SI).
-
-    The series connection of the four sections of
-    :func:`quarter_car_sim.ride_metrics.wk_sections` (each a 2-state block, so the realisation
-    stays well scaled); its transfer function is :func:`~quarter_car_sim.ride_metrics.wk_analog`.
-    Input body acceleration [m/s^2], output Wk-weighted acceleration [m/s^2].
-    """
-    from quarter_car_sim.ride_metrics import WK_CONSTANTS
-    return weighting_state_space(WK_CONSTANTS)
-
-
-def weighting_state_space(constants):
-    """
-    ISO 2631-1 weighting of ``constants`` as a ``control.StateSpace`` (analog, SI).
-
-    The series connection of the second-order sections of
-    :func:`quarter_car_sim.ride_metrics.weighting_sections` (2 states each), e.g. Wk
-    (:data:`~quarter_car_sim.ride_metrics.WK_CONSTANTS`, 8 states) or the rotational We
-    (:data:`~quarter_car_sim.ride_metrics.WE_CONSTANTS`, 6 states).
-    """
-    import control
-    from quarter_car_sim.ride_metrics import weighting_sections
-    sys = None
-    for num, den in weighting_sections(constants):
-        sec = control.ss(control.tf(num, den))
-        sys = sec if sys is None else control.series(sys, sec)
-    return sys
-
-
 def wk_lqr_design(params=None, *, weighting='wk', **weights):
     """
     Frequency-shaped LQR: active force on the linear quarter car, cost on Wk-weighted a_s.
@@ -191,8 +161,6 @@ def wk_lqr_design(params=None, *, weighting='wk', **weights):
 
     """
     import control
-    from semi_active_control.car.quarter_car_linear import lqr_design
-    from semi_active_control.car.quarter_car import QuarterCarParams
     w = _lqr_weights(DEFAULT_COWK_WEIGHTS, weights)
     for k, v in w.items():
         if not (math.isfinite(v) and v >= 0.0):

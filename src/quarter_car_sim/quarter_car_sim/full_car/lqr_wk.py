@@ -56,8 +56,8 @@ def _filters(weighting):
         return [unit] * 3
     if weighting != 'iso':
         raise ValueError(f"`weighting` must be 'iso' or 'none', got {weighting!r}")
-    from quarter_car_sim.controllers.optimal import weighting_state_space, wk_state_space
-    from quarter_car_sim.ride_metrics import WE_CONSTANTS
+    from semi_active_control.iso2631 import weighting_state_space, wk_state_space
+    from semi_active_control.iso2631 import WE_CONSTANTS
     out = []
     for sys in (wk_state_space(), weighting_state_space(WE_CONSTANTS)):
         out.append(tuple(np.atleast_2d(np.asarray(m, dtype=float))

@@ -30,18 +30,13 @@ import numpy as np
 from scipy import signal
 
 from semi_active_control.car.full_car import CORNERS
-from quarter_car_sim.ride_metrics import WE_CONSTANTS, weighting_sos, wk_sos
+from semi_active_control.iso2631 import we_sos, wk_sos
 
 #: ISO 2631-1 clause 8.2.2.2 comfort multiplying factors (seated, seat surface).
 AXIS_FACTORS = {'z': 1.0, 'roll': 0.63, 'pitch': 0.40}
 
 #: Crest factor above which ISO 2631-1 (6.2.1) calls for the VDV.
 CREST_LIMIT = 9.0
-
-
-def we_sos(fs):
-    """Digital We (rotational) weighting at sample rate ``fs`` [Hz] as second-order sections."""
-    return weighting_sos(WE_CONSTANTS, fs)
 
 
 def _rms(x):
