@@ -124,7 +124,8 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     from quarter_car_sim.controller_core import ControllerCore
     from quarter_car_sim.controllers import Skyhook
     from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.semi_active_controller_node import car_state_to_msg, CONTROL_QOS
+    from mr_damper_common.messages import corner_state_to_msg
+    from mr_damper_common.node_utils import CONTROL_QOS
     n = int(rate_hz * duration_s)
     states = _ride_states(n)
     recv = []
@@ -147,7 +148,7 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
                 break
             if due - now > 2e-4:
                 time.sleep(due - now - 1.5e-4)
-        msg = car_state_to_msg(s, 0.0, True, 'ok', msg)
+        msg = corner_state_to_msg(s, 0.0, True, 'ok', msg)
         sent[k] = time.perf_counter()
         pub.publish(msg)
     _wait(lambda: len(recv) >= n, 5.0)

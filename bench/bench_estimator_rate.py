@@ -139,7 +139,7 @@ def bench_dds(duration_s):
     from mr_damper_interfaces.msg import KwokParameters
     from mr_damper_common import messages
     from mr_damper_common.node_utils import LATCHED_QOS
-    from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
+    from mr_damper_common.node_utils import CONTROL_QOS
     import numpy as np
 
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')

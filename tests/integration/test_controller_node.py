@@ -194,8 +194,8 @@ def test_one_future_stamped_state_costs_one_safe_answer(listener):
     from quarter_car_sim.controller_core import ControllerCore, make_node_law
     from quarter_car_sim.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
-                                                             vehicle_state_from_msg)
+    from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
+    from mr_damper_common.node_utils import CONTROL_QOS
     from std_msgs.msg import Float64
     listener.diag = listener.diagnostics()       # this test's statuses only
     wait = listener.wait_for
@@ -218,7 +218,7 @@ def test_one_future_stamped_state_costs_one_safe_answer(listener):
         def send(state, stamp_shift=0.0):
             """Publish one state and wait for its answer (lock-step); return it."""
             n = len(answers)
-            msg = car_state_to_msg(state, 0.0, True, 'ok')
+            msg = corner_state_to_msg(state, 0.0, True, 'ok')
             msg.header.stamp.sec += int(stamp_shift)
             pub.publish(msg)
             assert wait(lambda: len(answers) > n, GUARD_S, poll=0.001, procs=[ctrl]), (
@@ -226,13 +226,13 @@ def test_one_future_stamped_state_costs_one_safe_answer(listener):
             assert len(answers) == n + 1
             return answers[n][1].data
 
-        ref.command(vehicle_state_from_msg(car_state_to_msg(states[0], 0.0, True, 'ok')), 1.0)
+        ref.command(corner_state_from_msg(corner_state_to_msg(states[0], 0.0, True, 'ok')), 1.0)
         send(states[0])
         got, want = [], []
         for j, s in enumerate(states[1:301]):
             future = j == 150
             got.append(send(s, 1e6 if future else 0.0))
-            vs = vehicle_state_from_msg(car_state_to_msg(s, 0.0, True, 'ok'))
+            vs = corner_state_from_msg(corner_state_to_msg(s, 0.0, True, 'ok'))
             want.append(SAFE_A if future else ref.command(vs, 1.0))
         n_sent = 1 + 300
         assert got == pytest.approx(want, abs=1e-12)

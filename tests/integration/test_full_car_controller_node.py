@@ -57,9 +57,8 @@ def test_invalid_corner_gets_the_safe_current_the_others_the_law():
     from mr_damper_interfaces.msg import QuarterCarState
     from semi_active_control.car.full_car import PASSENGER_CAR
     from quarter_car_sim.full_car.controller_core import FullCarControllerCore
-    from quarter_car_sim.full_car.runtime import corner_car_state
-    from quarter_car_sim.full_car_controller_node import corner_state_from_msg
-    from quarter_car_sim.semi_active_controller_node import car_state_to_msg, CONTROL_QOS
+    from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
+    from mr_damper_common.node_utils import CONTROL_QOS
     from std_msgs.msg import Float64
     ns = 'fc_ctrl_alone'
     good, bad = thesis_parameter_values(), thesis_parameter_values(valid=0.0)
@@ -90,7 +89,7 @@ def test_invalid_corner_gets_the_safe_current_the_others_the_law():
                                 GUARD_S, procs=[ctrl]), ctrl.output()
             got, want = [], []
             for k, s in enumerate(states):
-                msgs = [car_state_to_msg(corner_car_state(s, i), 0.0, True, 'ok')
+                msgs = [corner_state_to_msg(s.corner(i), 0.0, True, 'ok')
                         for i in range(4)]
                 for c, msg in zip(CORNERS, msgs):
                     pubs[c].publish(msg)
@@ -160,7 +159,7 @@ def test_controller_drives_the_full_car_in_lock_step_with_rr_withheld():
 def test_lock_step_wait_is_bounded_and_counted_without_answers():
     """The car in lock-step whose controller never answers: each step waits at most the bound."""
     from mr_damper_interfaces.msg import QuarterCarState
-    from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
+    from mr_damper_common.node_utils import CONTROL_QOS
     from std_msgs.msg import Float64
     ns = 'fc_lockstep_silent'
     car = {'controller': 'external', 'lockstep': True, 'lockstep_timeout_s': 0.02,

@@ -9,7 +9,8 @@ from mr_damper_model.models.plant import KwokCurrentPlant
 from quarter_car_sim import controllers as ctl
 from quarter_car_sim.bound import (bound_name, CurrentSchedule, KwokForceModel,
                                    semi_active_bound)
-from quarter_car_sim.dynamics import CarState, QuarterCar
+from mr_damper_common.contract import CornerState
+from quarter_car_sim.dynamics import QuarterCar
 from semi_active_control.car.quarter_car import QuarterCarParams
 from semi_active_control.iso2631 import wk_filter
 from quarter_car_sim.road import iso8608
@@ -127,7 +128,7 @@ def test_current_schedule_commands_the_next_sample():
     assert sched.kind == 'current'
 
     def at(t):
-        return CarState(t, *([0.0] * 12))
+        return CornerState(t, *([0.0] * 12))
     assert sched.demand(at(0.5)) == 0.1        # settling before the road
     assert sched.demand(at(1.0)) == 0.2
     assert sched.demand(at(1.01)) == 0.3

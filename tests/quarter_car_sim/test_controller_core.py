@@ -8,8 +8,9 @@ import pytest
 from mr_damper_model.models.inverse import KwokCurrentInverse
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
+from mr_damper_common.contract import CornerState
 from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, ControllerCore,
-                                             LAW_FIELDS, VehicleState)
+                                             LAW_FIELDS)
 from quarter_car_sim.controllers import ADD, Groundhook, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
@@ -39,7 +40,7 @@ def _states(n=2000, seed=4):
 
 
 def _vehicle(state, **extra):
-    return VehicleState(t=state.t, **{n: getattr(state, n) for n in LAW_FIELDS}, **extra)
+    return CornerState(t=state.t, **{n: getattr(state, n) for n in LAW_FIELDS}, **extra)
 
 
 def test_no_model_then_model_then_stale_then_refused():

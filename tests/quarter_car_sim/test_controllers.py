@@ -8,7 +8,7 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
 from mr_damper_model.models.plant import KwokCurrentPlant
 from quarter_car_sim import controllers as ctl
-from quarter_car_sim.dynamics import CarState
+from mr_damper_common.contract import CornerState
 
 SEMI_ACTIVE = [ctl.Skyhook(), ctl.Skyhook(4000.0, 0.0), ctl.SkyhookOnOff(), ctl.Groundhook(),
                ctl.Hybrid(alpha=0.0), ctl.Hybrid(alpha=0.5), ctl.Hybrid(alpha=1.0), ctl.ADD(),
@@ -26,8 +26,8 @@ def _random_states(n, seed=0):
     for _ in range(n):
         vs, vu = g.normal(0, 0.3, 2)
         zs, zu, zr = g.normal(0, 0.02, 3)
-        out.append(CarState(0.0, zs, vs, g.normal(0, 3.0), zu, vu, g.normal(0, 20.0), zr,
-                            zs - zu, vs - vu, 3500.0, 0.0, 0.0))
+        out.append(CornerState(0.0, zs, vs, g.normal(0, 3.0), zu, vu, g.normal(0, 20.0), zr,
+                               zs - zu, vs - vu, 3500.0, 0.0, 0.0))
     return out
 
 
@@ -41,17 +41,17 @@ def test_semi_active_laws_never_demand_wrong_sign(law):
 
 
 def test_skyhook_law_values():
-    s = CarState(0, 0, 0.3, 0, 0, 0.1, 0, 0, 0, 0.2, 0, 0, 0)
+    s = CornerState(0, 0, 0.3, 0, 0, 0.1, 0, 0, 0, 0.2, 0, 0, 0)
     assert ctl.Skyhook(2000.0, 0.0).demand(s) == pytest.approx(-600.0)
     assert ctl.Skyhook(2000.0, 100.0).demand(s) == pytest.approx(-620.0)
-    s2 = CarState(0, 0, -0.3, 0, 0, -0.5, 0, 0, 0, 0.2, 0, 0, 0)   # v_s v_rel < 0: off
+    s2 = CornerState(0, 0, -0.3, 0, 0, -0.5, 0, 0, 0, 0.2, 0, 0, 0)   # v_s v_rel < 0: off
     assert ctl.Skyhook(2000.0, 0.0).demand(s2) == 0.0
     assert ctl.Groundhook(1000.0).demand(s2) == pytest.approx(-500.0)
 
 
 def test_lqr_active_feedback():
     k = [1.0, 2.0, 3.0, 4.0]
-    s = CarState(0, 0.1, 0.2, 0, 0.05, 0.3, 0, 0.01, 0.05, -0.1, 0, 0, 0)
+    s = CornerState(0, 0.1, 0.2, 0, 0.05, 0.3, 0, 0.01, 0.05, -0.1, 0, 0, 0)
     expected = -(1.0 * 0.05 + 2.0 * 0.2 + 3.0 * (0.05 - 0.01) + 4.0 * 0.3)
     assert ctl.LqrActive(k).demand(s) == pytest.approx(expected)
 
@@ -144,8 +144,8 @@ def test_unknown_controller():
 
 def _state(v_s=0.0, a_s=0.0, v_rel=0.0, travel=0.0, z_u=0.0, z_r=0.0, v_u=None):
     v_u = v_s - v_rel if v_u is None else v_u
-    return CarState(0.0, travel + z_u, v_s, a_s, z_u, v_u, 0.0, z_r, travel, v_rel, 3500.0,
-                    0.0, 0.0)
+    return CornerState(0.0, travel + z_u, v_s, a_s, z_u, v_u, 0.0, z_r, travel, v_rel, 3500.0,
+                       0.0, 0.0)
 
 
 @pytest.mark.parametrize('v_s, a_s, v_rel, law, high', [
@@ -240,8 +240,8 @@ def _body_accel_states(a, dt=1e-3, seed=0):
     for k, ak in enumerate(a):
         vs, vu = g.normal(0, 0.3, 2)
         zs, zu, zr = g.normal(0, 0.02, 3)
-        out.append(CarState(k * dt, zs, vs, float(ak), zu, vu, 0.0, zr, zs - zu, vs - vu,
-                            3500.0, 0.0, 0.0))
+        out.append(CornerState(k * dt, zs, vs, float(ak), zu, vu, 0.0, zr, zs - zu, vs - vu,
+                               3500.0, 0.0, 0.0))
     return out
 
 

@@ -8,9 +8,10 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import make_two_track_road, supervisor_message
 from semi_active_control.car.full_car import PASSENGER_CAR
-from quarter_car_sim.full_car.controller_core import (body_coordinates, CornerState,
-                                                      full_car_state, FullCarControllerCore)
-from quarter_car_sim.full_car.runtime import corner_car_state, FullCarRuntime
+from mr_damper_common.contract import CornerState
+from quarter_car_sim.full_car.controller_core import (body_coordinates, full_car_state,
+                                                      FullCarControllerCore)
+from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
 SAFE_A = 0.7
@@ -21,9 +22,7 @@ def corners_of(state):
     """Return the four corner states of a full-car state, as the corner messages carry them."""
     out = []
     for i in range(4):
-        c = corner_car_state(state, i)
-        out.append(CornerState(c.t, c.z_s, c.v_s, c.a_s, c.z_u, c.v_u, c.travel, c.v_rel,
-                               c.z_r))
+        out.append(state.corner(i))
     return out
 
 
@@ -88,7 +87,8 @@ def test_incomplete_and_replaced_states_are_counted_and_never_answered_twice():
     core = FullCarControllerCore(PASSENGER_CAR, 'modal-skyhook', safe_current_a=SAFE_A)
 
     def cs(t):
-        return CornerState(t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return CornerState(t, z_s=0.0, v_s=0.0, a_s=0.0, z_u=0.0, v_u=0.0, travel=0.0, v_rel=0.0,
+                           z_r=0.0)
 
     assert core.offer_state('fl', cs(1.0), 1.0) is None
     assert core.offer_state('fl', cs(1.001), 1.0) is None      # replaces fl's first

@@ -8,7 +8,7 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import make_two_track_road, supervisor_message
 from semi_active_control.car.full_car import PASSENGER_CAR
-from quarter_car_sim.full_car.runtime import corner_car_state, FullCarRuntime
+from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
 SAFE_A = 0.7
@@ -66,7 +66,7 @@ def test_corner_state_is_the_quarter_car_view_of_the_corner():
     rt.step(0.0)
     s = rt.state
     for i in range(4):
-        c = corner_car_state(s, i)
+        c = s.corner(i)
         assert c.z_s - c.z_u == pytest.approx(c.travel)
         assert c.v_s - c.v_u == pytest.approx(c.v_rel)
         assert c.tyre_force == s.tyre_force[i] and c.z_r == s.z_r[i]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from kwok_messages import thesis_parameters_msg
+from mr_damper_common.contract import CornerState
 
 
 @pytest.fixture
@@ -87,8 +88,7 @@ def test_bad_parameters_raise_value_error(node_factory):
 
 def test_state_message_layout():
     from quarter_car_sim.quarter_car_node import _fmt, STATE_JOINTS
-    from quarter_car_sim.dynamics import CarState
-    s = CarState(0.1, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0)
+    s = CornerState(0.1, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0)
     pos, vel, eff = _fmt(s)
     assert STATE_JOINTS == ('body', 'wheel', 'suspension', 'tyre')
     assert pos == [1.0, 4.0, 8.0, 7.0]               # z_s, z_u, travel, z_r

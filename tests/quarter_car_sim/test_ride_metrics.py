@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from quarter_car_sim import ride_metrics as rm
-from quarter_car_sim.dynamics import CarState
+from mr_damper_common.contract import CornerState
 
 
 def _sine_result(f_hz, amp=1.0, duration=20.0, fs=1000.0):
@@ -38,8 +38,8 @@ def test_running_metrics_equal_batch():
     batch = rm.ride_metrics(res)
     run = rm.RunningRideMetrics(1000.0, 1000.0)
     for k in range(res['t'].size):
-        s = CarState(res['t'][k], 0, 0, res['a_s'][k], 0, 0, 0, 0, res['travel'][k], 0,
-                     res['tyre_force'][k], 0.0, 0.5)
+        s = CornerState(res['t'][k], 0, 0, res['a_s'][k], 0, 0, 0, 0, res['travel'][k], 0,
+                        res['tyre_force'][k], 0.0, 0.5)
         run.update(s, 0.5, bool(res['saturated'][k]))
     d = run.as_dict()
     for key in rm.METRIC_KEYS:
@@ -49,6 +49,6 @@ def test_running_metrics_equal_batch():
 def test_running_metrics_empty_and_no_current():
     run = rm.RunningRideMetrics(1000.0, 1000.0)
     assert run.as_dict()['n_samples'] == 0
-    run.update(CarState(0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0, 1000.0, 0, math.nan))
+    run.update(CornerState(0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0, 1000.0, 0, math.nan))
     d = run.as_dict()
     assert math.isnan(d['mean_current_a']) and math.isnan(d['saturated_fraction'])

@@ -5,6 +5,7 @@ import time
 import pytest
 
 from kwok_messages import thesis_parameters_msg
+from mr_damper_common.contract import CornerState
 
 
 @pytest.fixture
@@ -32,18 +33,16 @@ def _make(ctx, cls, **params):
 
 
 def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
-    from quarter_car_sim.dynamics import CarState
-    return CarState(t, 0.01, v_s, 2.0, 0.0, v_s - v_rel, -1.0, 0.0, 0.01, v_rel, 2900.0, -50.0,
-                    0.4)
+    return CornerState(t, 0.01, v_s, 2.0, 0.0, v_s - v_rel, -1.0, 0.0, 0.01, v_rel, 2900.0, -50.0,
+                       0.4)
 
 
 def test_state_message_round_trip_keeps_the_law_fields():
     from quarter_car_sim.controller_core import LAW_FIELDS
-    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
-                                                             vehicle_state_from_msg)
+    from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     s = _car_state(t=2.5)
-    msg = car_state_to_msg(s, 1.25, False, 'stale')
-    v = vehicle_state_from_msg(msg)
+    msg = corner_state_to_msg(s, 1.25, False, 'stale')
+    v = corner_state_from_msg(msg)
     assert v.t == pytest.approx(2.5, abs=1e-9)
     for name in LAW_FIELDS + ('z_u', 'z_r'):     # and the LQR laws' tyre deflection
         assert getattr(v, name) == getattr(s, name)
@@ -54,17 +53,17 @@ def test_state_message_round_trip_keeps_the_law_fields():
 
 def test_controller_node_answers_states_through_the_supervised_core(ctx):
     from mr_damper_interfaces.msg import KwokParameters
-    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
-                                                             SemiActiveControllerNode)
+    from mr_damper_common.messages import corner_state_to_msg
+    from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     node = _make(ctx, SemiActiveControllerNode, safe_current_a=0.25)
     sent = []
     node.cmd_pub.publish = lambda m: sent.append(m.data)
-    node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
+    node.on_state(corner_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
     assert sent == [0.25] and node.status()['reason'] == 'no_parameters_yet'
     node.on_params(thesis_parameters_msg())
-    node.on_state(car_state_to_msg(_car_state(1.001), 0.0, True, 'ok'))
+    node.on_state(corner_state_to_msg(_car_state(1.001), 0.0, True, 'ok'))
     assert node.core.sup.mode == 'normal' and 0.0 <= sent[-1] <= 2.0 and sent[-1] != 0.25
-    bad = car_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
+    bad = corner_state_to_msg(_car_state(1.002, v_s=math.nan), 0.0, True, 'ok')
     node.on_state(bad)
     assert sent[-1] == 0.25
     # the safe current for a state reason: the status says so, with the model still in use
@@ -76,7 +75,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
     assert h.level == WARN and 'fail-safe: vehicle state refused' in h.message
     assert 'states refused since the last check: 1 non_finite' in h.message
     node.on_params(KwokParameters())               # i_ref_a 0: refused by its own reason
-    node.on_state(car_state_to_msg(_car_state(1.003), 0.0, True, 'ok'))
+    node.on_state(corner_state_to_msg(_car_state(1.003), 0.0, True, 'ok'))
     assert sent[-1] == 0.25
     st = node.status()
     assert st['mode'] == 'failsafe' and st['reason'] == 'bad_i_ref'
@@ -95,9 +94,8 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     from quarter_car_sim.controller_core import ControllerCore
     from quarter_car_sim.controllers import make_controller
     from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
-                                                             SemiActiveControllerNode,
-                                                             vehicle_state_from_msg)
+    from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
+    from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     from mr_damper_common.messages import kwok_parameters_flat
     node = _make(ctx, SemiActiveControllerNode, controller=law, safe_current_a=0.25)
     sent = []
@@ -108,14 +106,14 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     node.on_params(params)
     ref.offer_parameters(kwok_parameters_flat(params), 0.0)
     for k in range(5):
-        msg = car_state_to_msg(_car_state(1.0 + 1e-3 * k, v_s=-0.3, v_rel=0.2), 0.0, True, 'ok')
+        msg = corner_state_to_msg(_car_state(1.0 + 1e-3 * k, v_s=-0.3, v_rel=0.2), 0.0, True, 'ok')
         node.on_state(msg)
-        assert sent[-1] == ref.command(vehicle_state_from_msg(msg), 0.0)
+        assert sent[-1] == ref.command(corner_state_from_msg(msg), 0.0)
     st = node.status()
     assert st['commands_normal'] == 5 and st['state_rejected']['non_finite'] == 0
     assert sent[-1] != 0.25
     # a vehicle that leaves the road height NaN: the LQR law cannot run, the safe current
-    blind = car_state_to_msg(_car_state(1.01), 0.0, True, 'ok')
+    blind = corner_state_to_msg(_car_state(1.01), 0.0, True, 'ok')
     blind.road_height_m = math.nan
     node.on_state(blind)
     assert sent[-1] == 0.25 and node.status()['state_rejected']['non_finite'] == 1
@@ -245,8 +243,8 @@ def test_car_external_command_timeout_is_dynamic(ctx, tmp_path):
 def test_parameter_age_and_timeout_follow_ros_time_under_use_sim_time(ctx):
     from rclpy.parameter import Parameter
     from rclpy.time import Time
-    from quarter_car_sim.semi_active_controller_node import (car_state_to_msg,
-                                                             SemiActiveControllerNode)
+    from mr_damper_common.messages import corner_state_to_msg
+    from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     node = _make(ctx, SemiActiveControllerNode, param_timeout_s=1.0)
     node.set_parameters([Parameter('use_sim_time', value=True)])
     clock = node.get_clock()
@@ -259,7 +257,7 @@ def test_parameter_age_and_timeout_follow_ros_time_under_use_sim_time(ctx):
     assert st['mode'] == 'normal' and st['param_age_s'] == pytest.approx(0.5)
     # 1.5 s of ROS time later (no wall time passes): stale
     clock.set_ros_time_override(Time(seconds=101.5))
-    node.on_state(car_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
+    node.on_state(corner_state_to_msg(_car_state(1.0), 0.0, True, 'ok'))
     st = node.status()
     assert (st['mode'], st['reason']) == ('failsafe', 'stale')
     clock.set_ros_time_override(Time(seconds=102.25))

@@ -16,6 +16,9 @@ Topic payloads (see the README topic table):
   current range, fit quality, ``valid`` and ``reason``).
 - true damper of a simulation: ``mr_damper_interfaces/DamperModel`` (named parameters) or
   ``KwokParameters`` for a kwok-current truth.
+- a corner's state: ``mr_damper_interfaces/QuarterCarState`` (the fields of
+  :class:`mr_damper_common.contract.CornerState`, the current command and the commander's mode):
+  :func:`corner_state_to_msg`, :func:`corner_state_from_msg`.
 - health: ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (levels and flat key-values,
   see :mod:`mr_damper_common.health`).
 
@@ -25,11 +28,11 @@ import array
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
+from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters, QuarterCarState
 import numpy as np
 from sensor_msgs.msg import JointState
 
-from mr_damper_common.contract import COIL_JOINT, KWOK_CURRENT_NAMES, PISTON_JOINT
+from mr_damper_common.contract import COIL_JOINT, CornerState, KWOK_CURRENT_NAMES, PISTON_JOINT
 from mr_damper_common.health import flatten, Health, unflatten
 
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
@@ -405,6 +408,77 @@ def kwok_parameters_flat(msg):
     flat = dict(d.pop('parameters'))
     flat.update(d)
     return flat
+
+
+def corner_state_to_msg(state, current_command_a, normal, reason, msg=None, *,
+                        frame_id='quarter_car'):
+    """
+    Fill a ``QuarterCarState`` from a :class:`~mr_damper_common.contract.CornerState`.
+
+    Parameters
+    ----------
+    state : CornerState
+        The corner (SI); ``header.stamp`` = ``max(state.t, 0)`` (a car settling before the
+        road starts has negative times).
+    current_command_a : float
+        Coil current command in force [A].
+    normal : bool
+        Mode of whoever commands the current (False: fail-safe).
+    reason : str
+        Fail-safe reason (``'ok'`` in normal mode).
+    msg : QuarterCarState, optional
+        Message to fill in place (one allocation for a 1 kHz publisher).
+    frame_id : str
+        ``header.frame_id`` of a new message.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.QuarterCarState
+
+    """
+    if msg is None:
+        msg = QuarterCarState()
+        msg.header.frame_id = frame_id
+    seconds_to_stamp(max(state.t, 0.0), msg.header.stamp)
+    msg.body_displacement_m = state.z_s
+    msg.body_velocity_m_s = state.v_s
+    msg.body_acceleration_m_s2 = state.a_s
+    msg.wheel_displacement_m = state.z_u
+    msg.wheel_velocity_m_s = state.v_u
+    msg.wheel_acceleration_m_s2 = state.a_u
+    msg.suspension_travel_m = state.travel
+    msg.suspension_velocity_m_s = state.v_rel
+    msg.damper_force_n = state.damper_force
+    msg.tyre_load_n = state.tyre_force
+    msg.road_height_m = state.z_r
+    msg.current_command_a = float(current_command_a)
+    msg.coil_current_a = state.coil_current
+    msg.fail_safe_mode = QuarterCarState.MODE_NORMAL if normal else QuarterCarState.MODE_FAIL_SAFE
+    msg.fail_safe_reason = reason
+    return msg
+
+
+def corner_state_from_msg(msg):
+    """
+    Read a ``QuarterCarState`` into a :class:`~mr_damper_common.contract.CornerState`.
+
+    Parameters
+    ----------
+    msg : mr_damper_interfaces.msg.QuarterCarState
+        State message (rclpy class or rosbags dataclass).
+
+    Returns
+    -------
+    CornerState
+        Every field as sent (``t`` the header stamp [s]; a NaN field stays NaN: not measured).
+
+    """
+    return CornerState(stamp_to_seconds(msg.header.stamp), msg.body_displacement_m,
+                       msg.body_velocity_m_s, msg.body_acceleration_m_s2,
+                       msg.wheel_displacement_m, msg.wheel_velocity_m_s,
+                       msg.wheel_acceleration_m_s2, msg.road_height_m, msg.suspension_travel_m,
+                       msg.suspension_velocity_m_s, msg.tyre_load_n, msg.damper_force_n,
+                       msg.coil_current_a)
 
 
 def damper_model_msg(model, parameters, options=None, *, stamp_s=None, frame_id='mr_damper'):

@@ -51,6 +51,9 @@ MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
 LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: A corner's state and its current command (car, estimator, controller): reliable, depth 10
+#: (only the newest matters; a stalled reader costs the writer nothing).
+CONTROL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: The identified parameters' writer, and readers that need every set (the recorder, tests):
 #: transient local so late subscribers get the newest, KEEP_LAST 100 so a burst of sets (in-order
 #: fits of a replay under sim time publish back to back) reaches every reliable reader instead of

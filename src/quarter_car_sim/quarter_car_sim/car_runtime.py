@@ -59,7 +59,7 @@ class CarOutputs:
         """Publish the coil current command [A] of a step (built-in law)."""
 
     def publish_car_state(self, state, current_a, normal, reason):
-        """Publish the typed state (``CarState``) with its command [A], mode and reason."""
+        """Publish the typed state (a ``CornerState``) with its command [A], mode and reason."""
 
     def publish_state(self, state):
         """Publish the joint state of ``state`` (at the state rate)."""
@@ -365,7 +365,7 @@ class CarRuntime:
         """
         Run one control period in the control thread: command, publish, advance the car.
 
-        ``wall`` is the pacer's wake-up time [s] (not used). Returns the new ``CarState``.
+        ``wall`` is the pacer's wake-up time [s] (not used). Returns the new ``CornerState``.
         """
         state, current, normal, reason = self._command()
         self.current_a = current

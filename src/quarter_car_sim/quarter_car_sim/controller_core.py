@@ -28,9 +28,9 @@ One step of :meth:`ControllerCore.command`:
    the coil range; without one: the safe current. A passive law (``passive@<I>A``) gives its
    current directly, in both modes.
 
-Pure Python (no ROS): the node converts messages into :class:`VehicleState` and calls it.
+Pure Python (no ROS): the node converts messages into
+:class:`~mr_damper_common.contract.CornerState` and calls it.
 """
-from dataclasses import dataclass
 import math
 
 from mr_damper_common.commands import CurrentCommandLimiter, OUTCOMES
@@ -52,42 +52,6 @@ REBASE_AFTER = 50
 
 #: Outcomes of a current command offered to :class:`CommandInput` (the limiter's).
 COMMAND_OUTCOMES = OUTCOMES
-
-
-@dataclass
-class VehicleState:
-    """
-    What a control law needs of a vehicle corner (SI, positive up; the vehicle contract).
-
-    Attributes
-    ----------
-    t : float
-        Time stamp of the measurement [s].
-    v_s : float
-        Body (sprung mass) absolute vertical velocity [m/s] (skyhook, hybrid).
-    a_s : float
-        Body absolute vertical acceleration [m/s^2] (ADD).
-    v_u : float
-        Wheel (unsprung mass) absolute vertical velocity [m/s] (groundhook, hybrid).
-    travel : float
-        Suspension travel ``z_s - z_u`` [m], extension positive (inverse model).
-    v_rel : float
-        Suspension velocity ``v_s - v_u`` [m/s] (every law and the inverse model).
-    z_u, z_r : float
-        Wheel displacement and road height under the tyre [m]: only their difference, the tyre
-        deflection, is used, by the LQR laws (``clipped-optimal``, ``clipped-optimal-wk``;
-        their ``state_fields``). NaN when not measured: such a law then refuses the state.
-
-    """
-
-    t: float
-    v_s: float
-    a_s: float
-    v_u: float
-    travel: float
-    v_rel: float
-    z_u: float = math.nan
-    z_r: float = math.nan
 
 
 class ControllerCore:
@@ -189,8 +153,8 @@ class ControllerCore:
 
         Parameters
         ----------
-        state : VehicleState or quarter_car_sim.dynamics.CarState
-            Anything with ``t`` and the :data:`LAW_FIELDS` attributes.
+        state : mr_damper_common.contract.CornerState
+            The corner (anything with ``t`` and the :data:`LAW_FIELDS` attributes).
         t_clock : float
             Caller's clock [s] (the parameter timeout and the stamp horizon; <= 0: no
             stamp horizon, a clock not started).

@@ -18,56 +18,13 @@ airborne as decided at the start of each (sub)step, and the damper force held ov
 velocity and returns the force for the next (sub)step. Each control step can be split into
 ``substeps`` for stiff damper characteristics; per-step work is plain Python floats.
 """
-import dataclasses
 import math
 
 import numpy as np
 from scipy.linalg import expm
 
+from mr_damper_common.contract import CornerState
 from semi_active_control.car.quarter_car import QuarterCarParams
-
-
-@dataclasses.dataclass(frozen=True, slots=True)
-class CarState:
-    """
-    Quarter-car state at one instant (SI, the conventions of ``semi_active_control.car``).
-
-    Attributes
-    ----------
-    t : float
-        Time [s].
-    z_s, v_s, a_s : float
-        Body displacement [m], velocity [m/s], acceleration [m/s^2].
-    z_u, v_u, a_u : float
-        Wheel displacement [m], velocity [m/s], acceleration [m/s^2].
-    z_r : float
-        Road height under the tyre [m].
-    travel : float
-        Suspension travel z_s - z_u [m] (extension positive).
-    v_rel : float
-        Suspension (piston) velocity v_s - v_u [m/s].
-    tyre_force : float
-        Total tyre contact force [N] (>= 0; 0 = wheel off the road).
-    damper_force : float
-        Damper force on the body [N], positive up (acting from this instant on).
-    coil_current : float
-        Actual coil current of the plant [A] (nan when the force is applied directly).
-
-    """
-
-    t: float
-    z_s: float
-    v_s: float
-    a_s: float
-    z_u: float
-    v_u: float
-    a_u: float
-    z_r: float
-    travel: float
-    v_rel: float
-    tyre_force: float
-    damper_force: float
-    coil_current: float
 
 
 def state_matrices(params, *, contact=True):
@@ -233,7 +190,7 @@ class QuarterCar:
 
     @property
     def state(self):
-        """Current :class:`CarState`."""
+        """Return the present :class:`~mr_damper_common.contract.CornerState`."""
         return self._state
 
     def set_state(self, z_s=0.0, v_s=0.0, z_u=0.0, v_u=0.0, damper_force=0.0):
@@ -249,7 +206,7 @@ class QuarterCar:
 
         Returns
         -------
-        CarState
+        CornerState
 
         """
         self._x = [float(z_s), float(v_s), float(z_u), float(v_u)]
@@ -295,7 +252,7 @@ class QuarterCar:
         fs = self._ks * tr + self._cs * vr
         a_s = (f - fs) / self._ms
         a_u = (fs - f + ft - self._w) / self._mu
-        return CarState(self.t, zs, vs, a_s, zu, vu, a_u, zr, tr, vr, ft, f, self._cur)
+        return CornerState(self.t, zs, vs, a_s, zu, vu, a_u, zr, tr, vr, ft, f, self._cur)
 
     def _advance(self, dt, current_cmd, force):
         if not dt > 0.0:
@@ -345,7 +302,7 @@ class QuarterCar:
 
         Returns
         -------
-        CarState
+        CornerState
             State at the end of the step; ``damper_force`` is the plant's force there.
 
         """
@@ -362,7 +319,7 @@ class QuarterCar:
 
         Returns
         -------
-        CarState
+        CornerState
 
         """
         f = float(force)

@@ -43,6 +43,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from mr_damper_common.contract import CornerState
 from quarter_car_sim.sensors import G0, SENSOR_NAMES
 from semi_active_control.iso8608 import ISO8608_GD_N0, ISO8608_N0
 
@@ -382,6 +383,21 @@ class Estimate:
     def z_r(self):
         """Zero: the road height is folded into ``z_u`` (tyre deflection)."""
         return 0.0
+
+    def corner_state(self):
+        """
+        Return the estimate as a :class:`~mr_damper_common.contract.CornerState`.
+
+        The fields a law reads are NaN when the estimate is invalid (a controller core then
+        answers with the safe current); ``z_u`` is the tyre deflection, ``z_r`` 0, and the
+        damper force the known input. What is not estimated (body and wheel displacements,
+        wheel acceleration, tyre force, coil current) is NaN.
+        """
+        if not self.valid:
+            return CornerState(self.t, z_r=0.0, damper_force=self.damper_force)
+        return CornerState(self.t, v_s=self.v_s, a_s=self.a_s, z_u=self.tyre_def, v_u=self.v_u,
+                           z_r=0.0, travel=self.travel, v_rel=self.v_rel,
+                           damper_force=self.damper_force)
 
 
 class QuarterCarEstimator:

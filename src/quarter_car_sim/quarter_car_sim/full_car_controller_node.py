@@ -41,12 +41,12 @@ from std_msgs.msg import Float64
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
 from mr_damper_common.health import WARN, worst
-from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, node_time_s, Param, run_node,
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, LATCHED_QOS, node_time_s, Param, run_node,
                                          set_realtime_priority, spin_node)
-from quarter_car_sim.full_car.controller_core import CornerState, FullCarControllerCore
+from quarter_car_sim.full_car.controller_core import FullCarControllerCore
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
-from quarter_car_sim.semi_active_controller_node import CONTROL_QOS, offer_parameters
+from quarter_car_sim.semi_active_controller_node import offer_parameters
 
 #: Settings of each corner's fail-safe supervisor, shared with ``full_car_node``'s built-in law.
 CORNER_SUPERVISOR_PARAMETERS = (
@@ -73,14 +73,6 @@ PARAMETERS = (
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
           'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
 )
-
-
-def corner_state_from_msg(msg):
-    """Return the :class:`CornerState` of a ``QuarterCarState`` message."""
-    return CornerState(messages.stamp_to_seconds(msg.header.stamp), msg.body_displacement_m,
-                       msg.body_velocity_m_s, msg.body_acceleration_m_s2,
-                       msg.wheel_displacement_m, msg.wheel_velocity_m_s,
-                       msg.suspension_travel_m, msg.suspension_velocity_m_s, msg.road_height_m)
 
 
 class FullCarControllerNode(Node):
@@ -122,7 +114,8 @@ class FullCarControllerNode(Node):
 
     def on_state(self, i, msg):
         """Hand corner ``i``'s state to the core; publish the four currents of a complete set."""
-        currents = self.core.offer_state(i, corner_state_from_msg(msg), node_time_s(self))
+        currents = self.core.offer_state(i, messages.corner_state_from_msg(msg),
+                                         node_time_s(self))
         if currents is None:
             return
         for pub, current in zip(self.cmd_pubs, currents):

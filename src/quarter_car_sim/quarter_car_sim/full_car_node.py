@@ -60,8 +60,8 @@ from std_msgs.msg import Float64
 
 from mr_damper_common import messages
 from mr_damper_common.health import ERROR, WARN, worst
-from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         FastLane, LATCHED_QOS, node_time_s, Param,
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
                                          set_realtime_priority)
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
@@ -70,10 +70,9 @@ from quarter_car_sim.controller_core import CommandInput
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from quarter_car_sim.full_car.road import make_two_track_road
 from quarter_car_sim.full_car_controller_node import CORNER_SUPERVISOR_PARAMETERS
-from quarter_car_sim.full_car.runtime import BODY_JOINTS, corner_car_state, FullCarRuntime
+from quarter_car_sim.full_car.runtime import BODY_JOINTS, FullCarRuntime
 from quarter_car_sim.quarter_car_node import end_on_control_error, run_car_node
-from quarter_car_sim.semi_active_controller_node import (car_state_to_msg, CONTROL_QOS,
-                                                         offer_parameters)
+from quarter_car_sim.semi_active_controller_node import offer_parameters
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
@@ -245,8 +244,8 @@ class FullCarNode(Node):
             self.answered.clear()
             self.n_answers = 0
         for i, (normal, reason, current) in enumerate(flags):
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
-                corner_car_state(state, i), current, normal, reason, self.state_msgs[i]))
+            self.drops.publish(self.state_pubs[i], messages.corner_state_to_msg(
+                state.corner(i), current, normal, reason, self.state_msgs[i]))
         if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
             self.lockstep_timeouts += 1
             self.get_logger().warning(
@@ -271,8 +270,8 @@ class FullCarNode(Node):
             return
         for i in range(4):
             mode, reason = modes[i]
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
-                corner_car_state(new, i), currents[i], mode == 'normal', reason,
+            self.drops.publish(self.state_pubs[i], messages.corner_state_to_msg(
+                new.corner(i), currents[i], mode == 'normal', reason,
                 self.state_msgs[i]))
             self.cmd_msg.data = float(currents[i])
             self.drops.publish(self.cmd_pubs[i], self.cmd_msg)

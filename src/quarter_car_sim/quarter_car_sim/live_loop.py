@@ -160,7 +160,7 @@ class ClosedLoop:
 
         Returns
         -------
-        CarState
+        mr_damper_common.contract.CornerState
             State at the end of the step.
 
         """

@@ -88,14 +88,14 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 from mr_damper_common import messages
-from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         FastLane, LATCHED_QOS, node_time_s, Param, run_node,
-                                         set_realtime_priority, spin_node)
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
+                                         run_node, set_realtime_priority, spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.car_runtime import CarOutputs, make_car_runtime
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
-from quarter_car_sim.semi_active_controller_node import (
-    car_state_to_msg, CONTROL_QOS, offer_parameters, SUPERVISED_LAW_PARAMETERS)
+from quarter_car_sim.semi_active_controller_node import (offer_parameters,
+                                                         SUPERVISED_LAW_PARAMETERS)
 
 STATE_JOINTS = ('body', 'wheel', 'suspension', 'tyre')
 
@@ -295,7 +295,7 @@ class QuarterCarNode(Node, CarOutputs):
 
     def publish_car_state(self, state, current_a, normal, reason):
         """Publish the typed state."""
-        self.drops.publish(self.car_state_pub, car_state_to_msg(
+        self.drops.publish(self.car_state_pub, messages.corner_state_to_msg(
             state, current_a, normal, reason, self.car_state_msg))
 
     def publish_state(self, state):

@@ -138,7 +138,7 @@ class RunningRideMetrics:
 
         Parameters
         ----------
-        state : CarState
+        state : mr_damper_common.contract.CornerState
             Car state (uses ``a_s``, ``travel``, ``tyre_force``, ``damper_force``).
         current_cmd : float
             Coil current command [A] (nan: none).

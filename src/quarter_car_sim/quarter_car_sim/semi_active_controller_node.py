@@ -40,16 +40,15 @@ import json
 import sys
 
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
-from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, LogThrottle, node_time_s, Param,
-                                         run_node, set_realtime_priority, spin_node)
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, LATCHED_QOS, LogThrottle, node_time_s,
+                                         Param, run_node, set_realtime_priority, spin_node)
 from quarter_car_sim import controller_core
-from quarter_car_sim.controller_core import ControllerCore, VehicleState
+from quarter_car_sim.controller_core import ControllerCore
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
@@ -90,63 +89,6 @@ PARAMETERS = (
     Param('k_s', 16000.0, 'Suspension spring (LQR-designed laws only) [N/m]', 1.0, 1e8),
     Param('k_t', 190000.0, 'Tyre stiffness (LQR-designed laws only) [N/m]', 1.0, 1e9),
 )
-
-#: State and command topics: reliable, depth 10 (only the newest matters; a stalled reader
-#: costs the writer nothing).
-CONTROL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def vehicle_state_from_msg(msg):
-    """Return the :class:`VehicleState` of a ``QuarterCarState`` message (the fields used)."""
-    return VehicleState(t=messages.stamp_to_seconds(msg.header.stamp),
-                        v_s=msg.body_velocity_m_s, a_s=msg.body_acceleration_m_s2,
-                        v_u=msg.wheel_velocity_m_s, travel=msg.suspension_travel_m,
-                        v_rel=msg.suspension_velocity_m_s, z_u=msg.wheel_displacement_m,
-                        z_r=msg.road_height_m)
-
-
-def car_state_to_msg(state, current_command_a, normal, reason, msg=None):
-    """
-    Fill a ``QuarterCarState`` from a simulated ``CarState`` (the quarter car's publisher).
-
-    Parameters
-    ----------
-    state : quarter_car_sim.dynamics.CarState
-        State (SI); ``header.stamp`` = ``max(state.t, 0)`` (simulated time).
-    current_command_a : float
-        Coil current command in force [A].
-    normal : bool
-        Mode of whoever commands the current (False: fail-safe).
-    reason : str
-        Fail-safe reason (``'ok'`` in normal mode).
-    msg : QuarterCarState, optional
-        Message to fill in place (one allocation for a 1 kHz publisher).
-
-    Returns
-    -------
-    QuarterCarState
-
-    """
-    if msg is None:
-        msg = QuarterCarState()
-        msg.header.frame_id = 'quarter_car'
-    messages.seconds_to_stamp(max(state.t, 0.0), msg.header.stamp)
-    msg.body_displacement_m = state.z_s
-    msg.body_velocity_m_s = state.v_s
-    msg.body_acceleration_m_s2 = state.a_s
-    msg.wheel_displacement_m = state.z_u
-    msg.wheel_velocity_m_s = state.v_u
-    msg.wheel_acceleration_m_s2 = state.a_u
-    msg.suspension_travel_m = state.travel
-    msg.suspension_velocity_m_s = state.v_rel
-    msg.damper_force_n = state.damper_force
-    msg.tyre_load_n = state.tyre_force
-    msg.road_height_m = state.z_r
-    msg.current_command_a = float(current_command_a)
-    msg.coil_current_a = state.coil_current
-    msg.fail_safe_mode = QuarterCarState.MODE_NORMAL if normal else QuarterCarState.MODE_FAIL_SAFE
-    msg.fail_safe_reason = reason
-    return msg
 
 
 def offer_parameters(supervisor, msg, now, logger):
@@ -221,7 +163,7 @@ class SemiActiveControllerNode(Node):
         """Answer one state with one current command."""
         core = self.core
         rebases = core.stamps.rebases
-        self.cmd.data = core.command(vehicle_state_from_msg(msg), node_time_s(self))
+        self.cmd.data = core.command(messages.corner_state_from_msg(msg), node_time_s(self))
         self.drops.publish(self.cmd_pub, self.cmd)
         if core.last_refusal is not None and self.warn_refused.due():
             self.get_logger().warning(

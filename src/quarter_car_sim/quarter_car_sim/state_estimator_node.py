@@ -47,13 +47,12 @@ from std_msgs.msg import Float64
 from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
-from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
-                                         LATCHED_QOS, LogThrottle, node_time_s, Param,
-                                         run_node, SENSOR_QOS, set_realtime_priority,
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, LATCHED_QOS, LogThrottle, node_time_s,
+                                         Param, run_node, SENSOR_QOS, set_realtime_priority,
                                          spin_node)
 from quarter_car_sim.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.semi_active_controller_node import CONTROL_QOS
 from quarter_car_sim import sensor_cdr
 from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec
 from quarter_car_sim.state_estimator_core import StateEstimatorCore
@@ -100,24 +99,8 @@ _NAN = float('nan')
 
 def estimate_to_msg(est, current_a, msg):
     """Fill a ``QuarterCarState`` from an Estimate (NaN law fields when it is invalid)."""
-    messages.seconds_to_stamp(max(est.t, 0.0), msg.header.stamp)
-    ok = est.valid
-    msg.body_velocity_m_s = est.v_s if ok else _NAN
-    msg.body_acceleration_m_s2 = est.a_s if ok else _NAN
-    msg.wheel_velocity_m_s = est.v_u if ok else _NAN
-    msg.suspension_travel_m = est.travel if ok else _NAN
-    msg.suspension_velocity_m_s = est.v_rel if ok else _NAN
-    msg.wheel_displacement_m = est.tyre_def if ok else _NAN
-    msg.road_height_m = 0.0
-    msg.body_displacement_m = _NAN
-    msg.wheel_acceleration_m_s2 = _NAN
-    msg.tyre_load_n = _NAN
-    msg.damper_force_n = est.damper_force
-    msg.current_command_a = float(current_a)
-    msg.coil_current_a = _NAN
-    msg.fail_safe_mode = QuarterCarState.MODE_NORMAL if ok else QuarterCarState.MODE_FAIL_SAFE
-    msg.fail_safe_reason = 'ok' if ok else est.reason
-    return msg
+    return messages.corner_state_to_msg(est.corner_state(), current_a, est.valid,
+                                        'ok' if est.valid else est.reason, msg)
 
 
 def _imu_reading(msg):

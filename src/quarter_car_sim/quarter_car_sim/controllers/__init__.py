@@ -13,7 +13,7 @@ A controller has ``name``, ``kind`` and ``demand(state) -> float``:
 - ``kind == 'active'`` (``skyhook-ideal``, ``lqr-active``): ``demand`` is a force on the body
   applied directly (``QuarterCar.step_force``), no damper and no current limits.
 
-Controllers only read the measured :class:`~quarter_car_sim.dynamics.CarState` (and, for the
+Controllers only read the measured :class:`~mr_damper_common.contract.CornerState` (and, for the
 inverse, identified parameters); never the plant's true parameters.
 
 Skyhook-family laws use absolute body / wheel velocities (``v_s``, ``v_u``) and the suspension

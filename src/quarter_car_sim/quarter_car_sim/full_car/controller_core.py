@@ -2,8 +2,8 @@
 The full car's external controller without ROS: four corner states in, four currents out.
 
 :class:`FullCarControllerCore` is what ``full_car_controller_node`` calls: it collects one
-state of each corner (``fl, fr, rl, rr``, as the quarter-car contract
-:class:`~quarter_car_sim.controller_core.VehicleState` plus the body point's displacement),
+state of each corner (``fl, fr, rl, rr``, a :class:`~mr_damper_common.contract.CornerState`
+whose body point carries its displacement too),
 rebuilds the body's heave, pitch and roll from the four body points (least squares through the
 corner map ``T`` of the car; the corners whose fields are not finite are left out, three are
 enough) and runs :class:`~quarter_car_sim.full_car.control.FullCarController`: the full-car law,
@@ -24,35 +24,6 @@ from quarter_car_sim.full_car.control import FullCarController, make_full_car_la
 from quarter_car_sim.full_car.dynamics import FullCarState
 from semi_active_control.car.full_car import CORNERS
 from quarter_car_sim.full_car.runtime import corner_supervisors
-
-#: Fields of a corner state (:class:`CornerState`), SI, positive up.
-CORNER_FIELDS = ('t', 'z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'travel', 'v_rel', 'z_r')
-
-
-class CornerState:
-    """
-    One corner's measured state (what a ``QuarterCarState`` message carries for the laws).
-
-    Attributes
-    ----------
-    t : float
-        Stamp [s].
-    z_s, v_s, a_s : float
-        Body point above the wheel: displacement [m], velocity [m/s], acceleration [m/s^2].
-    z_u, v_u : float
-        Wheel displacement [m] and velocity [m/s].
-    travel, v_rel : float
-        Suspension travel [m] (extension +) and its rate [m/s].
-    z_r : float
-        Road height under the tyre [m] (NaN: not measured).
-
-    """
-
-    __slots__ = CORNER_FIELDS
-
-    def __init__(self, t, z_s, v_s, a_s, z_u, v_u, travel, v_rel, z_r=math.nan):
-        for name, value in zip(CORNER_FIELDS, (t, z_s, v_s, a_s, z_u, v_u, travel, v_rel, z_r)):
-            setattr(self, name, float(value))
 
 
 def body_coordinates(geometry, values):
@@ -89,7 +60,7 @@ def full_car_state(params, corners):
     ----------
     params : FullCarParams
         Car (its corner map).
-    corners : sequence of 4 CornerState
+    corners : sequence of 4 mr_damper_common.contract.CornerState
         ``fl, fr, rl, rr`` at one stamp.
 
     Returns
@@ -189,7 +160,7 @@ class FullCarControllerCore:
         ----------
         corner : int or str
             Corner.
-        state : CornerState
+        state : mr_damper_common.contract.CornerState
             Its state.
         t_clock : float
             Supervisor clock [s].

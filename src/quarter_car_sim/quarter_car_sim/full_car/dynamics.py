@@ -21,7 +21,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from quarter_car_sim.controller_core import VehicleState
+from mr_damper_common.contract import CornerState
 from semi_active_control.car.full_car import FullCarParams
 
 N_Q = 7
@@ -163,13 +163,18 @@ class FullCarState:
 
     def corner(self, i):
         """
-        Corner ``i`` as the quarter-car controller contract (a ``VehicleState``).
+        Corner ``i`` as a :class:`~mr_damper_common.contract.CornerState` (the laws' contract).
 
-        ``v_s`` and ``a_s`` are those of the body point above the wheel.
+        The body point above the wheel is ``z_s = travel + z_u``, its velocity and acceleration
+        ``body_v`` / ``body_a``; the rest is the corner's column (NaN where the state has none,
+        e.g. the tyre force of an estimate).
         """
-        return VehicleState(self.t, self.body_v.item(i), self.body_a.item(i),
-                            self.v.item(3 + i), self.travel.item(i), self.v_rel.item(i),
-                            self.q.item(3 + i), self.z_r.item(i))
+        z_u = self.q.item(3 + i)
+        travel = self.travel.item(i)
+        return CornerState(self.t, travel + z_u, self.body_v.item(i), self.body_a.item(i), z_u,
+                           self.v.item(3 + i), self.acc.item(3 + i), self.z_r.item(i), travel,
+                           self.v_rel.item(i), self.tyre_force.item(i),
+                           self.damper_force.item(i), self.coil_current.item(i))
 
 
 class FullCar:

@@ -19,7 +19,6 @@ import math
 
 import numpy as np
 
-from quarter_car_sim.dynamics import CarState
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car.control import FullCarController, make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
@@ -33,23 +32,6 @@ BODY_JOINTS = ('heave', 'pitch', 'roll')
 def corner_supervisors(**settings):
     """Return one :class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner (``settings``)."""
     return [ModelSupervisor(**settings) for _ in CORNERS]
-
-
-def corner_car_state(state, i):
-    """
-    Corner ``i`` of a full-car state as a quarter-car :class:`~quarter_car_sim.dynamics.CarState`.
-
-    The body point above the wheel is ``z_s = travel + z_u``, its velocity and acceleration
-    ``body_v`` / ``body_a``; the rest is the corner's column.
-    """
-    return CarState(t=state.t, z_s=float(state.travel[i] + state.q[3 + i]),
-                    v_s=float(state.body_v[i]), a_s=float(state.body_a[i]),
-                    z_u=float(state.q[3 + i]), v_u=float(state.v[3 + i]),
-                    a_u=float(state.acc[3 + i]), z_r=float(state.z_r[i]),
-                    travel=float(state.travel[i]), v_rel=float(state.v_rel[i]),
-                    tyre_force=float(state.tyre_force[i]),
-                    damper_force=float(state.damper_force[i]),
-                    coil_current=float(state.coil_current[i]))
 
 
 class FullCarRuntime:
