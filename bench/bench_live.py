@@ -76,7 +76,7 @@ def main(argv=None):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from diagnostic_msgs.msg import DiagnosticArray
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_common.messages import health_from_diagnostic, kwok_parameters_from_msg
+    from mr_damper_common.messages import health_from_diagnostic, identified_set_from_msg
 
     bin_dir = Path(sys.executable).parent
     rclpy.init(args=[])   # not sys.argv: our own options are no ROS arguments
@@ -98,7 +98,7 @@ def main(argv=None):
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     node.create_subscription(
         KwokParameters, '/mr_damper/kwok_parameters',
-        lambda m: updates.append((time.monotonic(), kwok_parameters_from_msg(m))),
+        lambda m: updates.append((time.monotonic(), identified_set_from_msg(m).to_dict())),
         QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.VOLATILE))
     stop = threading.Event()

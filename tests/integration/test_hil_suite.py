@@ -106,7 +106,7 @@ def test_rig_follows_clamps_refuses_and_times_out_displacement_commands(listener
 def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listener):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from mr_damper_interfaces.msg import KwokParameters
-    from mr_damper_common.messages import kwok_parameters_flat
+    from mr_damper_common.messages import identified_set_from_msg
     # coarser bins than the shipped config (5 instead of 9) so that the probe covers them in
     # fewer windows; the same bins in the car's probe and the identifier
     bins = {'probe_bin_a': 0.5}
@@ -170,7 +170,7 @@ def test_hil_suite_rig_follows_the_car_and_the_identifier_fills_every_bin(listen
     assert tr['rms_m'] < hil['travel_rms_m']
     assert tr['peak_m'] >= tr['rms_m']
     # valid parameters over the whole coil range, thanks to the probe; the car took one
-    sets = [kwok_parameters_flat(m) for _, m in params]
+    sets = [identified_set_from_msg(m).to_flat() for _, m in params]
     valid = [p for p in sets if p.get('valid') == 1.0]
     assert valid, sets[-3:]
     assert any(p['current_max_a'] - p['current_min_a'] >= 1.0 for p in valid)

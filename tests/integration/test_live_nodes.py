@@ -30,7 +30,7 @@ from conftest import csv_text, QUIROZ_DIR, VENV_BIN
 from integration.ros_helpers import NodeProcess
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.models.kwok_current import kwok_current_force
-from mr_damper_common.messages import (kwok_parameters_from_msg, measurement_arrays,
+from mr_damper_common.messages import (identified_set_from_msg, measurement_arrays,
                                        measurement_to_msg, samples_to_msg)
 from mr_damper_model.io.params_file import load_params
 
@@ -84,7 +84,7 @@ class Topics:
         return self.diag.values(self.diag_name)
 
     def estimates(self):
-        return [kwok_parameters_from_msg(m) for _, m in self.params]
+        return [identified_set_from_msg(m).to_dict() for _, m in self.params]
 
 
 def wait_identified(lis, topics, n_samples, procs, timeout=60.0):
@@ -171,7 +171,7 @@ def test_sim_rig_to_identifier_converges(listener, tmp_path, plant):
     peak = np.max(np.abs(data.f))
     if plant == 'kwok-current':
         # converges to the truth: force error below 3 % of the peak force everywhere
-        true = kwok_parameters_from_msg(truth[-1][1])
+        true = identified_set_from_msg(truth[-1][1]).to_dict()
         assert true['valid'] and true['current_max_a'] == 2.0
         f_true = kwok_current_force(true['parameters'], data.x, data.v, data.i)
         assert np.max(np.abs(f_est - f_true)) < 0.03 * peak

@@ -22,7 +22,7 @@ from mr_damper_interfaces.msg import DamperSamples, KwokParameters
 from integration.ros_helpers import NodeProcess
 from mr_damper_common.health import WARN
 from mr_damper_model.models.validity import pinned_parameters
-from mr_damper_common.messages import kwok_parameters_from_msg, samples_to_msg
+from mr_damper_common.messages import identified_set_from_msg, samples_to_msg
 from mr_damper_model.identification.presets import thesis_kwok_current
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -154,7 +154,7 @@ def test_sensor_faults_never_become_valid_models(listener):
 
 def run_faults(lis, stream, params):
     def estimates():
-        return [kwok_parameters_from_msg(m) for _, m in params]
+        return [identified_set_from_msg(m).to_dict() for _, m in params]
 
     def valid_full():
         return [e for e in estimates() if e['valid'] and e['current_max_a'] > 1.99

@@ -12,7 +12,7 @@ from conftest import QUIROZ_DIR
 from integration.ros_helpers import NodeProcess
 from mr_damper_interfaces.msg import KwokParameters
 from mr_damper_model.live import LiveConfig, LiveIdentifier
-from mr_damper_common.messages import kwok_parameters_from_msg
+from mr_damper_common.messages import identified_set_from_msg
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -49,7 +49,7 @@ def _replay(listener, rate_factor, n_samples):
     assert status['use_sim_time'] is True
     assert status['windows_superseded'] == 0 and status['windows_overflow'] == 0
     assert status['samples_lost'] == 0
-    return [kwok_parameters_from_msg(m) for _, m in params], status
+    return [identified_set_from_msg(m).to_dict() for _, m in params], status
 
 
 def test_replay_gives_the_same_parameter_sequence_at_rate_4_as_at_1(listener):

@@ -62,25 +62,27 @@ def test_kwok_parameters_typed_round_trip():
     assert (msg.window_end.sec, msg.window_end.nanosec) == (12, 500_000_000)
     assert msg.header.frame_id == 'mr_damper' and msg.header.stamp.sec == 20
     assert msg.valid and msg.reason == ''
-    back = m.kwok_parameters_from_msg(msg)
-    assert back['parameters'] == params
-    assert back['valid'] is True and back['i_ref_a'] == 2.0
-    assert (back['window_start_s'], back['window_end_s'], back['stamp_s']) == (10.5, 12.5, 20.25)
-    assert (back['current_min_a'], back['current_max_a'], back['rmse_n']) == (0.0, 2.0, 3.0)
-    flat = m.kwok_parameters_flat(msg)
+    back = m.identified_set_from_msg(msg)
+    assert back.parameters == params
+    assert back.valid is True and back.i_ref_a == 2.0
+    assert (back.window_start_s, back.window_end_s, back.stamp_s) == (10.5, 12.5, 20.25)
+    assert (back.current_min_a, back.current_max_a, back.rmse_n) == (0.0, 2.0, 3.0)
+    flat = back.to_flat()
     assert {k: flat[k] for k in m.KWOK_CURRENT_NAMES} == params
     assert flat['valid'] is True and flat['current_max_a'] == 2.0
+    # the typed set encodes as its flat mapping does
+    assert m.kwok_parameters_msg(back, stamp_s=20.25) == msg
 
 
 def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
     params = dict(zip(m.KWOK_CURRENT_NAMES, np.ones(10)))
     msg = m.kwok_parameters_msg(dict(params, reason='nrmse_above_threshold'))
-    back = m.kwok_parameters_from_msg(msg)
-    assert back['valid'] is False and back['reason'] == 'nrmse_above_threshold'
-    assert math.isnan(back['window_start_s']) and math.isnan(back['window_end_s'])
-    assert math.isnan(back['rmse_n'])
+    back = m.identified_set_from_msg(msg)
+    assert back.valid is False and back.reason == 'nrmse_above_threshold'
+    assert math.isnan(back.window_start_s) and math.isnan(back.window_end_s)
+    assert math.isnan(back.rmse_n)
     # not valid always carries a reason
-    assert m.kwok_parameters_from_msg(m.kwok_parameters_msg(params))['reason'] == 'not_valid'
+    assert m.identified_set_from_msg(m.kwok_parameters_msg(params)).reason == 'not_valid'
     with pytest.raises(ValueError, match='beta1'):
         m.kwok_parameters_msg({k: v for k, v in params.items() if k != 'beta1'})
     with pytest.raises(ValueError, match='i_ref_a'):
@@ -90,11 +92,11 @@ def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
 def test_kwok_parameters_with_zero_reference_current_is_refused_as_bad_i_ref():
     msg = KwokParameters()           # every field 0: no model can use it
     with pytest.raises(m.MessageError, match='i_ref_a') as info:
-        m.kwok_parameters_from_msg(msg)
+        m.identified_set_from_msg(msg)
     assert info.value.reason == 'bad_i_ref'
     msg.i_ref_a = -1.0
     with pytest.raises(m.MessageError, match='i_ref_a') as info:
-        m.kwok_parameters_flat(msg)
+        m.identified_set_from_msg(msg)
     assert info.value.reason == 'bad_i_ref'
 
 

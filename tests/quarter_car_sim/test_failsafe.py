@@ -44,7 +44,7 @@ def test_starts_in_failsafe_and_leaves_on_first_valid():
     verdict = sup.offer(GOOD, 0.25)
     assert verdict.accepted and verdict.reason == 'ok'
     assert sup.mode == 'normal' and sup.reason == 'ok'
-    assert sup.active['c1'] == 2000.0 and sup.active['i_ref_a'] == 2.0
+    assert sup.active.parameters['c1'] == 2000.0 and sup.active.i_ref_a == 2.0
     assert sup.first_valid_at == 0.25
     # 0.25 s spent in fail-safe before the first model
     assert sup.failsafe_s == pytest.approx(0.25)
@@ -141,7 +141,7 @@ def test_hold_on_reject_keeps_previous_model_until_stale():
     sup = make(hold_on_reject=True, timeout_s=1.0)
     sup.offer(GOOD, 0.0)
     sup.offer(with_(valid=0.0), 0.5)
-    assert sup.mode == 'normal' and sup.active['c0'] == 800.0
+    assert sup.mode == 'normal' and sup.active.parameters['c0'] == 800.0
     assert sup.update(1.2) == 'failsafe' and sup.reason == 'stale'
 
 

@@ -4,18 +4,18 @@ import math
 import numpy as np
 import pytest
 
+from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.controllers import Skyhook
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import (FullCar, FullCarController, make_full_car_law,
-                                      make_two_track_road, ModalSkyhook, simulate_full_car,
-                                      supervisor_message)
+                                      make_two_track_road, ModalSkyhook, simulate_full_car)
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import same_road_all_wheels
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import bump
-from quarter_car_sim.simulate import make_inverse, simulate
+from quarter_car_sim.simulate import identified_set_of, make_inverse, simulate
 
 KW = presets.thesis_kwok_current()[1]
 
@@ -99,7 +99,7 @@ def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
     sups = [ModelSupervisor(timeout_s=0.2, safe_current_a=1.0) for _ in range(4)]
     ctl = FullCarController(make_full_car_law('modal-skyhook', p), sups)
     car = FullCar(p, [make_plant('kwok-current') for _ in range(4)], road)
-    msg = supervisor_message(KW)
+    msg = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)
     s = car.state
     log = []
     for k in range(1000):
@@ -109,7 +109,7 @@ def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
                 # the identifier of fr publishes an invalid fit at 0.5 s and goes silent
                 if i == 1 and k >= 500:
                     if k == 500:
-                        assert not ctl.offer_parameters('fr', {**msg, 'valid': 0}, t).accepted
+                        assert not ctl.offer_parameters('fr', msg.replace(valid=False), t).accepted
                     continue
                 assert ctl.offer_parameters(i, msg, t).accepted
         cur = ctl.command(s, t)
@@ -124,15 +124,14 @@ def test_corner_dropping_to_failsafe_mid_run_leaves_the_others():
     assert sups[1].rejected['invalid_flag'] == 1
 
 
-def test_corner_message_from_parameter_files(tmp_path):
+def test_identified_set_of_parameter_files(tmp_path):
     from mr_damper_model.io.params_file import save_params
-    from quarter_car_sim.full_car.simulate import corner_message
     d = {'model': 'kwok-current', 'parameters': KW, 'model_options': {'i_ref_a': 2.0},
          'current_min_a': 0.0, 'current_max_a': 2.0}
     save_params(tmp_path / 'fit.json', d)
     for src in (KW, d, tmp_path / 'fit.json', str(tmp_path / 'fit.json')):
-        msg = corner_message(src)
+        msg = identified_set_of(src)
         assert ModelSupervisor().offer(msg, 0.0).accepted
-        assert {k: msg[k] for k in KW} == pytest.approx(KW)
-    narrow = corner_message({**d, 'current_min_a': 1.0, 'current_max_a': 1.0})
+        assert msg.parameters == pytest.approx(KW)
+    narrow = identified_set_of({**d, 'current_min_a': 1.0, 'current_max_a': 1.0})
     assert ModelSupervisor().offer(narrow, 0.0).reason == 'narrow_current_range'

@@ -6,14 +6,15 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_two_track_road, supervisor_message
+from quarter_car_sim.full_car import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
-from mr_damper_common.contract import CornerState
+from mr_damper_common.contract import CornerState, IdentifiedSet
 from quarter_car_sim.full_car.controller_core import (body_coordinates, full_car_state,
                                                       FullCarControllerCore)
 from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
+IDENTIFIED = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)
 SAFE_A = 0.7
 T = PASSENGER_CAR.geometry
 
@@ -61,8 +62,8 @@ def test_same_currents_as_the_built_in_controller_and_rr_safe_without_a_model(la
     core = FullCarControllerCore(PASSENGER_CAR, law, dt=1e-3, timeout_s=1e9,
                                  safe_current_a=SAFE_A)
     for corner in ('fl', 'fr', 'rl'):                      # rr gets no model
-        assert rt.offer_parameters(corner, supervisor_message(KW), 0.0).accepted
-        assert core.offer_parameters(corner, supervisor_message(KW), 0.0).accepted
+        assert rt.offer_parameters(corner, IDENTIFIED, 0.0).accepted
+        assert core.offer_parameters(corner, IDENTIFIED, 0.0).accepted
     n = 500
     got, want = [], []
     for k in range(n):

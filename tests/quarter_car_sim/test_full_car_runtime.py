@@ -4,13 +4,15 @@ import math
 import numpy as np
 import pytest
 
+from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_two_track_road, supervisor_message
+from quarter_car_sim.full_car import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
+IDENTIFIED = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)
 SAFE_A = 0.7
 
 
@@ -26,7 +28,7 @@ def _runtime(**kw):
 def test_corner_without_parameters_stays_safe_while_the_others_control():
     rt = _runtime()
     for corner in ('fl', 'fr', 'rl'):                      # rr gets no model
-        assert rt.offer_parameters(corner, supervisor_message(KW), 0.0).accepted
+        assert rt.offer_parameters(corner, IDENTIFIED, 0.0).accepted
     n = 600
     rr_currents, others = [], []
     for k in range(n):

@@ -96,7 +96,7 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     from quarter_car_sim.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
-    from mr_damper_common.messages import kwok_parameters_flat
+    from mr_damper_common.messages import identified_set_from_msg
     node = _make(ctx, SemiActiveControllerNode, controller=law, safe_current_a=0.25)
     sent = []
     node.cmd_pub.publish = lambda m: sent.append(m.data)
@@ -104,7 +104,7 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
                          ModelSupervisor(safe_current_a=0.25))
     params = thesis_parameters_msg()
     node.on_params(params)
-    ref.offer_parameters(kwok_parameters_flat(params), 0.0)
+    ref.offer_parameters(identified_set_from_msg(params), 0.0)
     for k in range(5):
         msg = corner_state_to_msg(_car_state(1.0 + 1e-3 * k, v_s=-0.3, v_rel=0.2), 0.0, True, 'ok')
         node.on_state(msg)

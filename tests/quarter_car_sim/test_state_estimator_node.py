@@ -42,7 +42,7 @@ def _position(x, t=None):
 
 
 def test_core_needs_a_model_then_estimates_and_counts_faults():
-    from mr_damper_common.messages import kwok_parameters_flat
+    from mr_damper_common.messages import identified_set_from_msg
     from quarter_car_sim.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
@@ -57,7 +57,7 @@ def test_core_needs_a_model_then_estimates_and_counts_faults():
         return core.tick(k * 1e-3)
     e = tick(0)
     assert not e.valid and e.reason == 'no_model'
-    core.offer_parameters(kwok_parameters_flat(thesis_parameters_msg()), 0.001)
+    core.offer_parameters(identified_set_from_msg(thesis_parameters_msg()), 0.001)
     for k in range(1, 300):
         e = tick(k)
     assert e.valid and math.isfinite(e.v_s)
@@ -78,7 +78,9 @@ def test_core_needs_a_model_then_estimates_and_counts_faults():
 
 def test_node_publishes_valid_then_marked_invalid_states(make_node):
     from quarter_car_sim.sensors import G0
-    node = make_node(dropout_s=0.02)
+    # the set must not go stale while the loop runs (node clock = wall time; a loaded machine
+    # took over 1 s for the 200 periods below): the truth here is the dropout, not the timeout
+    node = make_node(dropout_s=0.02, param_timeout_s=3600.0)
     sent = []
     node.pub.publish = lambda m: sent.append((m.fail_safe_mode, m.fail_safe_reason,
                                               m.body_velocity_m_s, m.wheel_displacement_m,
@@ -111,13 +113,13 @@ def test_node_publishes_valid_then_marked_invalid_states(make_node):
 
 def test_core_clocked_by_readings_predicts_through_missing_periods():
     """tick_at: the readings' stamps are the filter's time; gaps predicted, counted."""
-    from mr_damper_common.messages import kwok_parameters_flat
+    from mr_damper_common.messages import identified_set_from_msg
     from quarter_car_sim.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
     from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
     core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
-    core.offer_parameters(kwok_parameters_flat(thesis_parameters_msg()), 0.0)
+    core.offer_parameters(identified_set_from_msg(thesis_parameters_msg()), 0.0)
     rng = np.random.default_rng(1)
     stamps = [k * 1e-3 for k in range(400) if k % 7 != 3]      # every 7th reading lost
     for t in stamps:

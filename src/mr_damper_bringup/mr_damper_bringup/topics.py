@@ -184,10 +184,10 @@ def decode_parameters(msg):
         On a message no model can use (``mr_damper_common.messages.MessageError``).
 
     """
-    from mr_damper_common.messages import damper_model_from_msg, kwok_parameters_flat
+    from mr_damper_common.messages import damper_model_from_msg, identified_set_from_msg
     if hasattr(msg, 'parameter_names'):
         return damper_model_from_msg(msg)['parameters']
-    d = kwok_parameters_flat(msg)
+    d = identified_set_from_msg(msg).to_flat()
     d['valid'] = 1.0 if d['valid'] else 0.0
     return d
 

@@ -13,7 +13,9 @@ Topic payloads (see the README topic table):
   velocity [m/s], effort = damper force [N]; coil effort = coil current [A], coil position and
   velocity NaN. :func:`measurement_arrays` reads either kind into arrays.
 - parameters: ``mr_damper_interfaces/KwokParameters`` (one field per coefficient, window times,
-  current range, fit quality, ``valid`` and ``reason``).
+  current range, fit quality, ``valid`` and ``reason``), typed as
+  :class:`mr_damper_common.contract.IdentifiedSet`: :func:`kwok_parameters_msg`,
+  :func:`identified_set_from_msg`.
 - true damper of a simulation: ``mr_damper_interfaces/DamperModel`` (named parameters) or
   ``KwokParameters`` for a kwok-current truth.
 - a corner's state: ``mr_damper_interfaces/QuarterCarState`` (the fields of
@@ -32,7 +34,8 @@ from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters,
 import numpy as np
 from sensor_msgs.msg import JointState
 
-from mr_damper_common.contract import COIL_JOINT, CornerState, KWOK_CURRENT_NAMES, PISTON_JOINT
+from mr_damper_common.contract import (COIL_JOINT, CornerState, IdentifiedSet,
+                                       KWOK_CURRENT_NAMES, PISTON_JOINT)
 from mr_damper_common.health import flatten, Health, unflatten
 
 MEASUREMENT_JOINTS = (PISTON_JOINT, COIL_JOINT)
@@ -298,17 +301,18 @@ def _seconds_or_nan(stamp):
     return math.nan if stamp.sec == 0 and stamp.nanosec == 0 else stamp_to_seconds(stamp)
 
 
-def kwok_parameters_msg(estimate, msg=None, *, stamp_s=None, frame_id='mr_damper'):
+def kwok_parameters_msg(identified, msg=None, *, stamp_s=None, frame_id='mr_damper'):
     """
-    Encode a kwok-current estimate as ``mr_damper_interfaces/KwokParameters``.
+    Encode an identified set as ``mr_damper_interfaces/KwokParameters``.
 
     Parameters
     ----------
-    estimate : dict
-        Must contain the ten kwok-current parameters; optional ``i_ref_a`` (default 2.0),
-        ``window_start_s``, ``window_end_s`` (sample times [s]; NaN or absent: unknown, sent
-        as the zero time), ``current_min_a``, ``current_max_a``, ``rmse_n``, ``nrmse_percent``
-        (NaN if absent), ``valid`` (bool, default False) and ``reason`` (str).
+    identified : mr_damper_common.contract.IdentifiedSet or mapping
+        The set; a flat mapping (the ten kwok-current parameters, optional ``i_ref_a`` (default
+        2.0), ``window_start_s``, ``window_end_s``, ``current_min_a``, ``current_max_a``,
+        ``rmse_n``, ``nrmse_percent``, ``valid`` (default False) and ``reason``) is converted by
+        :meth:`~mr_damper_common.contract.IdentifiedSet.from_flat`. Unknown (NaN) window times
+        are sent as the zero time.
     msg : KwokParameters, optional
         Message to fill (new one if None).
     stamp_s : float, optional
@@ -324,48 +328,44 @@ def kwok_parameters_msg(estimate, msg=None, *, stamp_s=None, frame_id='mr_damper
     Raises
     ------
     ValueError
-        If a parameter is missing or ``i_ref_a`` is not > 0.
+        If a parameter is missing or not a number, or ``i_ref_a`` is not > 0.
 
     """
-    missing = [n for n in KWOK_CURRENT_NAMES if n not in estimate]
-    if missing:
-        raise ValueError(f'`estimate` misses kwok-current parameters {missing}')
-    i_ref = float(estimate.get('i_ref_a', 2.0))
-    if not i_ref > 0:
-        raise ValueError(f'`estimate`: i_ref_a must be > 0 A, got {i_ref!r}')
+    s = (identified if isinstance(identified, IdentifiedSet)
+         else IdentifiedSet.from_flat(identified))
+    if not s.i_ref_a > 0:
+        raise ValueError(f'identified set: i_ref_a must be > 0 A, got {s.i_ref_a!r}')
     if msg is None:
         msg = KwokParameters()
     msg.header.frame_id = frame_id
     if stamp_s is not None:
         seconds_to_stamp(stamp_s, msg.header.stamp)
     for name in KWOK_CURRENT_NAMES:
-        setattr(msg, name, float(estimate[name]))
-    msg.i_ref_a = i_ref
-    _time_or_zero(estimate.get('window_start_s', _NAN), msg.window_start)
-    _time_or_zero(estimate.get('window_end_s', _NAN), msg.window_end)
-    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
-        setattr(msg, name, float(estimate.get(name, _NAN)))
-    msg.valid = bool(estimate.get('valid', False))
-    msg.reason = '' if msg.valid else str(estimate.get('reason', '') or 'not_valid')
+        setattr(msg, name, s.parameters[name])
+    msg.i_ref_a = s.i_ref_a
+    _time_or_zero(s.window_start_s, msg.window_start)
+    _time_or_zero(s.window_end_s, msg.window_end)
+    msg.current_min_a, msg.current_max_a = s.current_min_a, s.current_max_a
+    msg.rmse_n, msg.nrmse_percent = s.rmse_n, s.nrmse_percent
+    msg.valid = s.valid
+    msg.reason = '' if s.valid else (s.reason or 'not_valid')
     return msg
 
 
-def kwok_parameters_from_msg(msg):
+def identified_set_from_msg(msg):
     """
-    Decode ``mr_damper_interfaces/KwokParameters``.
+    Decode ``mr_damper_interfaces/KwokParameters`` into an identified set.
 
     Parameters
     ----------
     msg : mr_damper_interfaces.msg.KwokParameters
-        Parameters message.
+        Parameters message (rclpy class or rosbags dataclass).
 
     Returns
     -------
-    dict
-        ``'parameters'`` (dict of the ten kwok-current parameters), ``'valid'`` (bool),
-        ``'reason'`` (str), ``'stamp_s'`` (header stamp [s]) and ``i_ref_a``,
-        ``window_start_s``, ``window_end_s`` (NaN when unknown), ``current_min_a``,
-        ``current_max_a``, ``rmse_n``, ``nrmse_percent`` as floats.
+    mr_damper_common.contract.IdentifiedSet
+        Every element of the message; ``stamp_s`` is the header stamp [s], unknown window
+        times (the zero time) are NaN.
 
     Raises
     ------
@@ -376,38 +376,13 @@ def kwok_parameters_from_msg(msg):
     if not msg.i_ref_a > 0:
         raise MessageError('bad_i_ref',
                            f'kwok parameters with i_ref_a {msg.i_ref_a!r} (must be > 0)')
-    out = {'parameters': {n: float(getattr(msg, n)) for n in KWOK_CURRENT_NAMES},
-           'valid': bool(msg.valid), 'reason': msg.reason,
-           'stamp_s': stamp_to_seconds(msg.header.stamp),
-           'i_ref_a': float(msg.i_ref_a),
-           'window_start_s': _seconds_or_nan(msg.window_start),
-           'window_end_s': _seconds_or_nan(msg.window_end)}
-    for name in ('current_min_a', 'current_max_a', 'rmse_n', 'nrmse_percent'):
-        out[name] = float(getattr(msg, name))
-    return out
-
-
-def kwok_parameters_flat(msg):
-    """
-    Decode ``KwokParameters`` into one flat dict (the fail-safe supervisor's input).
-
-    Returns
-    -------
-    dict
-        The ten parameters, ``i_ref_a``, ``current_min_a``, ``current_max_a``, ``rmse_n``,
-        ``nrmse_percent``, ``window_start_s``, ``window_end_s`` (floats), ``valid`` (bool) and
-        ``reason`` (str).
-
-    Raises
-    ------
-    MessageError
-        As :func:`kwok_parameters_from_msg`.
-
-    """
-    d = kwok_parameters_from_msg(msg)
-    flat = dict(d.pop('parameters'))
-    flat.update(d)
-    return flat
+    return IdentifiedSet({n: getattr(msg, n) for n in KWOK_CURRENT_NAMES}, i_ref_a=msg.i_ref_a,
+                         current_min_a=msg.current_min_a, current_max_a=msg.current_max_a,
+                         valid=msg.valid, reason=msg.reason,
+                         window_start_s=_seconds_or_nan(msg.window_start),
+                         window_end_s=_seconds_or_nan(msg.window_end), rmse_n=msg.rmse_n,
+                         nrmse_percent=msg.nrmse_percent,
+                         stamp_s=stamp_to_seconds(msg.header.stamp))
 
 
 def corner_state_to_msg(state, current_command_a, normal, reason, msg=None, *,

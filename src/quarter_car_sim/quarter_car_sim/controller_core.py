@@ -114,18 +114,18 @@ class ControllerCore:
         self._inverse = None
         self._inverse_of = None
 
-    def _inverse_for(self, params):
-        if params is not self._inverse_of:
+    def _inverse_for(self, identified):
+        if identified is not self._inverse_of:
             from mr_damper_model.models.inverse import KwokCurrentInverse
             # the inverse stays inside the current range the model was identified on
-            lo = max(self.sup.i_min_a, params.get('current_min_a', self.sup.i_min_a))
-            hi = min(self.sup.i_max_a, params.get('current_max_a', self.sup.i_max_a))
+            lo = max(self.sup.i_min_a, identified.current_min_a)
+            hi = min(self.sup.i_max_a, identified.current_max_a)
             if not hi > lo:
                 lo, hi = self.sup.i_min_a, self.sup.i_max_a
             self._inverse = KwokCurrentInverse(
-                params, i_ref_a=params['i_ref_a'], i_min=lo, i_max=hi, tol_a=self.inverse_tol_a,
-                sign_convention='body')
-            self._inverse_of = params
+                identified.parameters, i_ref_a=identified.i_ref_a, i_min=lo, i_max=hi,
+                tol_a=self.inverse_tol_a, sign_convention='body')
+            self._inverse_of = identified
         return self._inverse
 
     @property
@@ -237,7 +237,7 @@ class ControllerCore:
         return self.sup.mode, self.sup.reason
 
     def offer_parameters(self, values, t_clock):
-        """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
+        """Offer an identified set (or its flat mapping) to the supervisor; return its verdict."""
         return self.sup.offer(values, t_clock)
 
     def status(self):

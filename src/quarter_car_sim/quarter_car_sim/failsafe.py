@@ -26,14 +26,16 @@ message drops the model in use at once (the identifier has just said the damper 
 matches it), unless ``hold_on_reject`` is set, in which case the previous model stays in use
 until it goes stale.
 
-The module is pure Python/numpy (no ROS): the node feeds it decoded dictionaries and times.
+The module is pure Python/numpy (no ROS): the node feeds it decoded sets
+(:class:`mr_damper_common.contract.IdentifiedSet`) and times.
 """
 from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
 
-from mr_damper_common.contract import KWOK_CURRENT_NAMES
+from mr_damper_common.contract import (IdentifiedSet, IdentifiedSetError, KWOK_CURRENT_NAMES,
+                                       valid_flag)
 from mr_damper_model.models.validity import check_parameter_values, PINNED_FRACTION
 
 
@@ -137,7 +139,7 @@ class ModelSupervisor:
     min_current_span_a: float = 1.0
     pinned_fraction: float = PINNED_FRACTION
     # state (not constructor arguments in practice)
-    params: dict = field(default=None, init=False)
+    params: IdentifiedSet = field(default=None, init=False)
     accepted_at: float = field(default=None, init=False)
     first_valid_at: float = field(default=None, init=False)
     mode: str = field(default='failsafe', init=False)
@@ -209,57 +211,50 @@ class ModelSupervisor:
         replace(self, **changes)          # runs __post_init__: raises on an invalid value
 
     # ------------------------------------------------------------------ checks
-    def check(self, msg):
+    def check(self, identified):
         """
-        Check one decoded parameter message without changing the supervisor.
+        Check one identified set without changing the supervisor.
 
         Parameters
         ----------
-        msg : dict
-            Element name -> value, as decoded from ``/mr_damper/kwok_parameters`` (by label):
-            the ten Kwok-current parameters, ``i_ref_a``, ``current_min_a``, ``current_max_a``
-            and ``valid``; other elements are ignored.
+        identified : mr_damper_common.contract.IdentifiedSet or mapping
+            The set, as decoded from ``/mr_damper/kwok_parameters``
+            (:func:`mr_damper_common.messages.identified_set_from_msg`); a flat name -> value
+            mapping is converted first (:func:`as_identified_set`: a missing element or one
+            that is not a number is refused as ``'missing'`` / ``'non_finite'``).
 
         Returns
         -------
         Verdict
 
         """
-        if not isinstance(msg, dict):
-            return Verdict(False, 'missing', 'message is not a name -> value mapping')
-        needed = KWOK_CURRENT_NAMES + ('i_ref_a', 'current_min_a', 'current_max_a', 'valid')
-        missing = [n for n in needed if n not in msg]
-        if 'valid' in msg:
-            try:
-                valid = float(msg['valid'])
-            except (TypeError, ValueError):
-                valid = math.nan
-            if valid != 1.0:
-                return Verdict(False, 'invalid_flag', f'valid = {msg["valid"]!r}')
-        if missing:
-            return Verdict(False, 'missing', 'missing ' + ', '.join(missing))
-        values = {}
-        for n in needed:
-            try:
-                values[n] = float(msg[n])
-            except (TypeError, ValueError):
-                return Verdict(False, 'non_finite', f'{n} = {msg[n]!r}')
-            if not math.isfinite(values[n]):
-                return Verdict(False, 'non_finite', f'{n} = {values[n]}')
+        identified, refusal = as_identified_set(identified)
+        if refusal is not None:
+            return refusal
+        s = identified
+        if not s.valid:
+            return Verdict(False, 'invalid_flag',
+                           'valid = False' + (f' ({s.reason})' if s.reason else ''))
+        params = s.parameters
+        for name, value in (*params.items(), ('i_ref_a', s.i_ref_a),
+                            ('current_min_a', s.current_min_a),
+                            ('current_max_a', s.current_max_a)):
+            if not math.isfinite(value):
+                return Verdict(False, 'non_finite', f'{name} = {value}')
         lo = [self.bounds[n][0] for n in KWOK_CURRENT_NAMES]
         hi = [self.bounds[n][1] for n in KWOK_CURRENT_NAMES]
         # the identifier's rule for the values (mr_damper_model.models.validity), same tolerances
         values_check = check_parameter_values(
-            KWOK_CURRENT_NAMES, [values[n] for n in KWOK_CURRENT_NAMES], lo, hi,
+            KWOK_CURRENT_NAMES, [params[n] for n in KWOK_CURRENT_NAMES], lo, hi,
             pinned_fraction=self.pinned_fraction)
         if values_check.reason == 'out_of_bounds':
             return Verdict(False, 'out_of_bounds', ', '.join(
-                f'{n} = {values[n]:g} not in [{self.bounds[n][0]:g}, {self.bounds[n][1]:g}]'
+                f'{n} = {params[n]:g} not in [{self.bounds[n][0]:g}, {self.bounds[n][1]:g}]'
                 for n in values_check.names))
-        lo_a, hi_a = values['current_min_a'], values['current_max_a']
+        lo_a, hi_a = s.current_min_a, s.current_max_a
         tol = self.current_tol_a
-        if values['i_ref_a'] <= 0:
-            return Verdict(False, 'bad_i_ref', f'i_ref_a = {values["i_ref_a"]:g} <= 0')
+        if s.i_ref_a <= 0:
+            return Verdict(False, 'bad_i_ref', f'i_ref_a = {s.i_ref_a:g} <= 0')
         if not (self.i_min_a - tol <= lo_a <= hi_a <= self.i_max_a + tol):
             return Verdict(False, 'bad_current_range',
                            f'identified current range [{lo_a:g}, {hi_a:g}] A not ordered inside '
@@ -270,19 +265,19 @@ class ModelSupervisor:
                            f'{self.min_current_span_a:g} A)')
         if values_check.reason == 'pinned_at_bound':
             return Verdict(False, 'pinned_at_bound',
-                           ', '.join(f'{n} = {values[n]:g} at a bound {self.bounds[n]}'
+                           ', '.join(f'{n} = {params[n]:g} at a bound {self.bounds[n]}'
                                      for n in values_check.names))
         return Verdict(True, 'ok')
 
     # ------------------------------------------------------------------ events
-    def offer(self, msg, t_now):
+    def offer(self, identified, t_now):
         """
-        Offer a received parameter message; accept it or count the reason it is refused.
+        Offer a received identified set; accept it or count the reason it is refused.
 
         Parameters
         ----------
-        msg : dict
-            Decoded message, see :meth:`check`.
+        identified : mr_damper_common.contract.IdentifiedSet or mapping
+            Decoded set, see :meth:`check`.
         t_now : float
             Receipt time [s] on the caller's clock (the clock later passed to :meth:`update`).
 
@@ -291,7 +286,41 @@ class ModelSupervisor:
         Verdict
 
         """
-        return self._apply(self.check(msg), msg, t_now)
+        identified, refusal = as_identified_set(identified)
+        if refusal is not None:
+            return self._apply(refusal, None, t_now)
+        return self._apply(self.check(identified), identified, t_now)
+
+    def offer_decoded(self, decode, raw, t_now):
+        """
+        Decode a received message with ``decode`` and offer the set; refuse what fails to decode.
+
+        Parameters
+        ----------
+        decode : callable
+            ``decode(raw)`` -> :class:`~mr_damper_common.contract.IdentifiedSet`, raising
+            ValueError (with a ``reason`` attribute when it has one, e.g. ``'bad_i_ref'``) for
+            a message it cannot decode
+            (:func:`mr_damper_common.messages.identified_set_from_msg`).
+        raw : object
+            The received message.
+        t_now : float
+            Receipt time [s].
+
+        Returns
+        -------
+        Verdict
+            A message the decoder refuses is refused by the decoder's reason when the
+            supervisor knows it, else as ``'undecodable'``.
+
+        """
+        try:
+            identified = decode(raw)
+        except ValueError as exc:
+            reason = getattr(exc, 'reason', None)
+            return self.refuse(reason if reason in self.rejected else 'undecodable', str(exc),
+                               t_now)
+        return self.offer(identified, t_now)
 
     def refuse(self, reason, detail, t_now):
         """
@@ -317,11 +346,9 @@ class ModelSupervisor:
                 f'`reason` must be one of {sorted(self.rejected)}, got {reason!r}.')
         return self._apply(Verdict(False, reason, detail), None, t_now)
 
-    def _apply(self, verdict, msg, t_now):
+    def _apply(self, verdict, identified, t_now):
         if verdict.accepted:
-            self.params = {n: float(msg[n]) for n in KWOK_CURRENT_NAMES}
-            for n in ('i_ref_a', 'current_min_a', 'current_max_a'):
-                self.params[n] = float(msg[n])
+            self.params = identified
             self.accepted_at = float(t_now)
             self.n_accepted += 1
             if self.first_valid_at is None:
@@ -378,10 +405,10 @@ class ModelSupervisor:
     @property
     def active(self):
         """
-        Return the parameters in use, or None in fail-safe mode.
+        Return the identified set in use, or None in fail-safe mode.
 
-        The dict holds the ten Kwok-current parameters, ``i_ref_a``, ``current_min_a`` and
-        ``current_max_a``.
+        An :class:`~mr_damper_common.contract.IdentifiedSet`: the ten Kwok-current parameters,
+        ``i_ref_a``, ``current_min_a``, ``current_max_a`` and what the identifier said.
         """
         return self.params if self.mode == 'normal' else None
 
@@ -410,6 +437,32 @@ class ModelSupervisor:
             'last_reject_detail': self.last_detail,
             'safe_current_a': self.safe_current_a,
         }
+
+
+def as_identified_set(values):
+    """
+    Return ``(set, None)`` for an identified set or a flat mapping, or ``(None, Verdict)``.
+
+    A mapping (the flat layout of :meth:`~mr_damper_common.contract.IdentifiedSet.from_flat`)
+    is refused as ``'invalid_flag'`` when its ``valid`` is not 1, whatever else it holds; as
+    ``'missing'`` when it lacks one of the ten parameters, ``i_ref_a``, ``current_min_a``,
+    ``current_max_a`` or ``valid`` (the supervisor takes no default for them); as
+    ``'non_finite'`` when an element is not a number.
+    """
+    if isinstance(values, IdentifiedSet):
+        return values, None
+    if not hasattr(values, 'keys'):
+        return None, Verdict(False, 'missing', 'message is not a name -> value mapping')
+    if 'valid' in values and not valid_flag(values['valid']):
+        return None, Verdict(False, 'invalid_flag', f'valid = {values["valid"]!r}')
+    needed = KWOK_CURRENT_NAMES + ('i_ref_a', 'current_min_a', 'current_max_a', 'valid')
+    missing = [n for n in needed if n not in values]
+    if missing:
+        return None, Verdict(False, 'missing', 'missing ' + ', '.join(missing))
+    try:
+        return IdentifiedSet.from_flat(values), None
+    except IdentifiedSetError as exc:
+        return None, Verdict(False, exc.reason, str(exc))
 
 
 def clip_current(i_cmd, i_min_a, i_max_a, fallback_a):

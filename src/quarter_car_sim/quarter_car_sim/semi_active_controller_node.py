@@ -95,18 +95,13 @@ def offer_parameters(supervisor, msg, now, logger):
     """
     Offer a ``KwokParameters`` message received at ``now`` [s, node clock] to ``supervisor``.
 
-    A message the decoder refuses is refused by the decoder's reason when the supervisor
-    knows it (``'bad_i_ref'``), else as ``'undecodable'``; refusals are logged (throttled).
-    The caller holds the supervisor's lock if it has one. Returns the ``Verdict``.
+    Decoded by :func:`mr_damper_common.messages.identified_set_from_msg` and offered
+    (:meth:`~quarter_car_sim.failsafe.ModelSupervisor.offer_decoded`: a message the decoder
+    refuses is refused by the decoder's reason when the supervisor knows it, ``'bad_i_ref'``,
+    else as ``'undecodable'``); refusals are logged (throttled). The caller holds the
+    supervisor's lock if it has one. Returns the ``Verdict``.
     """
-    try:
-        values = messages.kwok_parameters_flat(msg)
-    except ValueError as exc:
-        reason = getattr(exc, 'reason', None)
-        reason = reason if reason in supervisor.rejected else 'undecodable'
-        verdict = supervisor.refuse(reason, str(exc), now)
-    else:
-        verdict = supervisor.offer(values, now)
+    verdict = supervisor.offer_decoded(messages.identified_set_from_msg, msg, now)
     if not verdict.accepted:
         logger.warning(f'parameters refused ({verdict.reason}): {verdict.detail}',
                        throttle_duration_sec=1.0)

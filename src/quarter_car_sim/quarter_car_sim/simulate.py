@@ -14,8 +14,12 @@ import time
 
 import numpy as np
 
+from mr_damper_common.contract import IdentifiedSet
+from mr_damper_model.io.params_file import load_identified_set
+from mr_damper_model.models.inverse import KwokCurrentInverse
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.live_loop import ClosedLoop
+from quarter_car_sim.ride_metrics import ride_metrics
 
 _STATE_FIELDS = ('z_s', 'v_s', 'a_s', 'z_u', 'v_u', 'a_u', 'z_r', 'travel', 'v_rel',
                  'tyre_force', 'damper_force', 'coil_current')
@@ -90,12 +94,40 @@ class SimResult:
 
     def metrics(self):
         """Return the ride metrics, see :func:`quarter_car_sim.ride_metrics.ride_metrics`."""
-        from quarter_car_sim.ride_metrics import ride_metrics
         return ride_metrics(self)
 
 
 #: Current tolerance [A] of the offline inverse model (as the car node's ``inverse_tol_a``).
 INVERSE_TOL_A = 1e-4
+
+
+def identified_set_of(damper_params):
+    """
+    Return the identified set of a study's damper parameters, whatever form they came in.
+
+    Parameters
+    ----------
+    damper_params : IdentifiedSet, dict, ParamsFile or path
+        A :class:`~mr_damper_common.contract.IdentifiedSet`; a JSON parameter file path
+        (:func:`mr_damper_model.io.params_file.load_identified_set`); a parameter file's
+        content (a dict or ``ParamsFile`` with ``parameters``, ``model_options``,
+        ``current_min_a``, ``current_max_a``); or ``{name: value}`` of the ten kwok-current
+        parameters (``i_ref_a`` 2 A, identified over 0-2 A).
+
+    Returns
+    -------
+    mr_damper_common.contract.IdentifiedSet
+        Marked valid unless the file says otherwise.
+
+    """
+    d = damper_params
+    if isinstance(d, IdentifiedSet):
+        return d
+    if isinstance(d, (str, bytes)) or hasattr(d, '__fspath__'):
+        return load_identified_set(d)
+    if hasattr(d, 'parameters') or (isinstance(d, dict) and 'parameters' in d):
+        return IdentifiedSet.from_params_file(d)
+    return IdentifiedSet(dict(d), current_min_a=0.0, current_max_a=2.0, valid=True)
 
 
 def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
@@ -104,10 +136,8 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
 
     Parameters
     ----------
-    damper_params : dict, ParamsFile, inverse object or path
-        kwok-current parameters: a ``{name: value}`` dict, a dict/ParamsFile with
-        ``parameters`` and ``model_options``, or a JSON parameter file path
-        (``mr_damper_model.io.params_file.load_params``).
+    damper_params : IdentifiedSet, dict, ParamsFile, inverse object or path
+        kwok-current parameters in a form :func:`identified_set_of` takes.
     i_min, i_max : float
         Coil current range [A] the command is saturated to (not applied when
         ``damper_params`` is already an inverse object, which is returned as is).
@@ -117,21 +147,11 @@ def make_inverse(damper_params, *, i_min=0.0, i_max=2.0):
     KwokCurrentInverse
 
     """
-    from mr_damper_model.models.inverse import KwokCurrentInverse
     if isinstance(damper_params, KwokCurrentInverse):
         return damper_params
-    if isinstance(damper_params, (str, bytes)) or hasattr(damper_params, '__fspath__'):
-        from mr_damper_model.io.params_file import load_params
-        damper_params = load_params(damper_params, model='kwok-current')
-    d = damper_params
-    if hasattr(d, 'parameters'):
-        params, opts = d.parameters, dict(getattr(d, 'model_options', None) or {})
-    elif isinstance(d, dict) and 'parameters' in d:
-        params, opts = d['parameters'], dict(d.get('model_options') or {})
-    else:
-        params, opts = dict(d), {}
-    return KwokCurrentInverse(params, i_ref_a=float(opts.get('i_ref_a', 2.0)), i_min=i_min,
-                              i_max=i_max, tol_a=INVERSE_TOL_A, sign_convention='body')
+    s = identified_set_of(damper_params)
+    return KwokCurrentInverse(s.parameters, i_ref_a=s.i_ref_a, i_min=i_min, i_max=i_max,
+                              tol_a=INVERSE_TOL_A, sign_convention='body')
 
 
 def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=None,

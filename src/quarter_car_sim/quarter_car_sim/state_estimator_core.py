@@ -143,7 +143,7 @@ class StateEstimatorCore:
         return True
 
     def offer_parameters(self, values, t_now):
-        """Offer a decoded parameter set to the supervisor; return its ``Verdict``."""
+        """Offer an identified set (or its flat mapping) to the supervisor; return its verdict."""
         return self.sup.offer(values, t_now)
 
     def _update_model(self):
@@ -152,7 +152,7 @@ class StateEstimatorCore:
             return False
         if params is not self._model_of:
             from mr_damper_model.models.inverse import KwokCurrentInverse
-            self._model = KwokCurrentInverse(params, i_ref_a=params['i_ref_a'],
+            self._model = KwokCurrentInverse(params.parameters, i_ref_a=params.i_ref_a,
                                              i_min=self.sup.i_min_a, i_max=self.sup.i_max_a)
             self._model_of = params
         return True

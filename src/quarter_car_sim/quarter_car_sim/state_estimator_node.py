@@ -209,12 +209,8 @@ class StateEstimatorNode(Node):
 
     def on_params(self, msg):
         """Offer an identified parameter set to the core's supervisor."""
-        try:
-            values = messages.kwok_parameters_flat(msg)
-        except ValueError as exc:
-            self.core.sup.refuse('undecodable', str(exc), node_time_s(self))
-            return
-        verdict = self.core.offer_parameters(values, node_time_s(self))
+        verdict = self.core.sup.offer_decoded(messages.identified_set_from_msg, msg,
+                                              node_time_s(self))
         if not verdict.accepted:
             self.get_logger().warning(f'parameters refused ({verdict.reason}): '
                                       f'{verdict.detail}', throttle_duration_sec=1.0)

@@ -26,6 +26,7 @@ import os
 from pathlib import Path
 import tempfile
 
+from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.io.data import DataError
 
 
@@ -151,6 +152,29 @@ def load_params(path, *, model=None):
     pf.current_min_a = _float_or_nan(pf.current_min_a)
     pf.current_max_a = _float_or_nan(pf.current_max_a)
     return pf
+
+
+def load_identified_set(path):
+    """
+    Read a kwok-current parameter file as the set it holds.
+
+    Parameters
+    ----------
+    path : str or Path
+        JSON file of a ``kwok-current`` model (:func:`load_params`).
+
+    Returns
+    -------
+    mr_damper_common.contract.IdentifiedSet
+        :meth:`~mr_damper_common.contract.IdentifiedSet.from_params_file` of the file.
+
+    Raises
+    ------
+    DataError
+        As :func:`load_params`.
+
+    """
+    return IdentifiedSet.from_params_file(load_params(path, model='kwok-current'))
 
 
 def _float_or_nan(v):

@@ -2,6 +2,7 @@
 from dataclasses import dataclass, field
 import math
 
+from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.io.data import DamperData
 
 
@@ -87,14 +88,14 @@ class LiveEstimate:
     result: object = None
     held: str = ''
 
-    def message_values(self):
-        """Return the values of the ``kwok_parameters`` message (see ``messages``)."""
-        d = dict(self.parameters)
-        d.update(i_ref_a=self.i_ref_a, window_start_s=self.window_start_s,
-                 window_end_s=self.window_end_s, current_min_a=self.current_min_a,
-                 current_max_a=self.current_max_a, rmse_n=self.rmse_n,
-                 nrmse_percent=self.nrmse_percent, valid=self.valid, reason=self.reason)
-        return d
+    def identified_set(self):
+        """Return the set the ``kwok_parameters`` message carries (an ``IdentifiedSet``)."""
+        return IdentifiedSet(self.parameters, i_ref_a=self.i_ref_a,
+                             window_start_s=self.window_start_s, window_end_s=self.window_end_s,
+                             current_min_a=self.current_min_a,
+                             current_max_a=self.current_max_a, rmse_n=self.rmse_n,
+                             nrmse_percent=self.nrmse_percent, valid=self.valid,
+                             reason=self.reason)
 
     def params_file_dict(self, source=''):
         """Return the parameter-file dictionary (``params_file.save_params``)."""

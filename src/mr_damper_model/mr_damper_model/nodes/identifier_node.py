@@ -300,7 +300,7 @@ class IdentifierNode(Node):
 
     def _publish_estimate(self, est):
         return self.drops.publish(self._pub_params, kwok_parameters_msg(
-            est.message_values(), stamp_s=self._now()), 'parameters_publish_failed')
+            est.identified_set(), stamp_s=self._now()), 'parameters_publish_failed')
 
     def _publish_received(self):
         self._received_msg.data = int(self.runtime.live.counters['samples_received'])

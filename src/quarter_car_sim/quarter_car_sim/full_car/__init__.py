@@ -5,7 +5,7 @@ The public API (``from quarter_car_sim.full_car import ...``); see docs/full-car
 """
 from quarter_car_sim.full_car.bound import full_car_bound
 from quarter_car_sim.full_car.control import (FullCarController, make_full_car_law,
-                                              ModalSkyhook, PerCornerLaws, supervisor_message)
+                                              ModalSkyhook, PerCornerLaws)
 from quarter_car_sim.full_car.dynamics import FullCar, FullCarState, mechanical_energy
 from quarter_car_sim.full_car.lqr import FullCarClippedOptimal, full_car_lqr_design
 from quarter_car_sim.full_car.metrics import full_car_metrics, iso2631_seat
@@ -19,4 +19,4 @@ __all__ = ['CORNERS', 'FullCar', 'FullCarClippedOptimal', 'FullCarController', '
            'FullCarState', 'ModalSkyhook', 'PASSENGER_CAR', 'PerCornerLaws', 'TwoTrackRoad',
            'compare_laws', 'event_road', 'full_car_metrics', 'iso2631_seat',
            'iso8608_two_tracks', 'make_full_car_law', 'make_two_track_road',
-           'mechanical_energy', 'simulate_full_car', 'supervisor_message', 'symmetric_car']
+           'mechanical_energy', 'simulate_full_car', 'symmetric_car']

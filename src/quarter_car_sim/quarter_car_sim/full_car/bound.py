@@ -211,8 +211,8 @@ def corner_force_model(damper_params, params):
 
     Parameters
     ----------
-    damper_params : dict, ParamsFile or path
-        The corner's identified set (as :func:`quarter_car_sim.full_car.simulate.corner_message`
+    damper_params : IdentifiedSet, dict, ParamsFile or path
+        The corner's identified set (as :func:`quarter_car_sim.simulate.identified_set_of`
         takes it).
     params : FullCarParams
         Car (its coil current range).
@@ -225,14 +225,14 @@ def corner_force_model(damper_params, params):
     """
     from mr_damper_model.models.inverse import KwokCurrentInverse
     from quarter_car_sim.bound import KwokForceModel
-    from quarter_car_sim.full_car.simulate import corner_message
-    msg = corner_message(damper_params)
-    lo = max(params.i_min, msg['current_min_a'])
-    hi = min(params.i_max, msg['current_max_a'])
+    from quarter_car_sim.simulate import identified_set_of
+    s = identified_set_of(damper_params)
+    lo = max(params.i_min, s.current_min_a)
+    hi = min(params.i_max, s.current_max_a)
     if not hi > lo:
         lo, hi = params.i_min, params.i_max
-    return KwokForceModel(KwokCurrentInverse(msg, i_ref_a=msg['i_ref_a'], i_min=lo, i_max=hi,
-                                             tol_a=1e-6, sign_convention='body'))
+    return KwokForceModel(KwokCurrentInverse(s.parameters, i_ref_a=s.i_ref_a, i_min=lo,
+                                             i_max=hi, tol_a=1e-6, sign_convention='body'))
 
 
 def full_car_bound(params, road, force_models, plants=None, damper_params=None, *, rho=0.0,

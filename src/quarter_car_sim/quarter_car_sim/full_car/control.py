@@ -286,29 +286,6 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
                      'full-car-clipped-optimal(-wk), passive@<I>A or per-corner-<law>)')
 
 
-def supervisor_message(params, *, i_ref_a=2.0, current_min_a=0.0, current_max_a=2.0, valid=1):
-    """
-    Return identified Kwok-current parameters as the decoded message a supervisor takes.
-
-    Parameters
-    ----------
-    params : dict
-        The ten Kwok-current parameters by name.
-    i_ref_a, current_min_a, current_max_a : float
-        Reference current and identified current range [A].
-    valid : int
-        The identifier's validity flag.
-
-    Returns
-    -------
-    dict
-
-    """
-    return {**{k: float(v) for k, v in params.items()}, 'i_ref_a': float(i_ref_a),
-            'current_min_a': float(current_min_a), 'current_max_a': float(current_max_a),
-            'valid': valid}
-
-
 class FullCarController:
     """
     One full-car control step: the law, then per corner inverse + supervisor (four cores).
@@ -359,8 +336,9 @@ class FullCarController:
         ----------
         corner : int or str
             Index 0..3 or name of :data:`~semi_active_control.car.full_car.CORNERS`.
-        values : dict
-            Decoded message (:func:`supervisor_message`).
+        values : mr_damper_common.contract.IdentifiedSet or mapping
+            The corner's identified set (a flat mapping is converted, see
+            :meth:`~quarter_car_sim.failsafe.ModelSupervisor.check`).
         t_clock : float
             Receipt time [s].
 

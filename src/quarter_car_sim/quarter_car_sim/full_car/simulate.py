@@ -13,10 +13,11 @@ import time
 
 import numpy as np
 
-from quarter_car_sim.full_car.control import (FullCarController, make_full_car_law,
-                                              supervisor_message)
+from quarter_car_sim.full_car.control import FullCarController, make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.full_car.estimator import SensedState
 from quarter_car_sim.full_car.metrics import full_car_metrics
+from quarter_car_sim.simulate import identified_set_of
 
 #: Model timeout [s] of the offline supervisors (the models are offered once).
 OFFLINE_TIMEOUT_S = 1.0e9
@@ -79,40 +80,6 @@ class FullCarResult:
         return full_car_metrics(self, params, seat=seat)
 
 
-def corner_message(damper_params):
-    """
-    One corner's identified Kwok-current parameters as a supervisor message.
-
-    Parameters
-    ----------
-    damper_params : dict, ParamsFile or path
-        ``{name: value}`` of the ten parameters (``i_ref_a`` 2 A, range 0-2 A), a parameter
-        file dict / ``ParamsFile`` (``parameters``, ``model_options``, ``current_min_a``,
-        ``current_max_a``) or a JSON parameter file.
-
-    Returns
-    -------
-    dict
-
-    """
-    d = damper_params
-    if isinstance(d, (str, bytes)) or hasattr(d, '__fspath__'):
-        from mr_damper_model.io.params_file import load_params
-        d = load_params(d, model='kwok-current')
-    if hasattr(d, 'parameters'):
-        d = {'parameters': d.parameters, 'model_options': d.model_options,
-             'current_min_a': d.current_min_a, 'current_max_a': d.current_max_a}
-    if 'parameters' in d:
-        opts = dict(d.get('model_options') or {})
-        lo = d.get('current_min_a', 0.0)
-        hi = d.get('current_max_a', 2.0)
-        lo = 0.0 if lo is None or not math.isfinite(float(lo)) else float(lo)
-        hi = 2.0 if hi is None or not math.isfinite(float(hi)) else float(hi)
-        return supervisor_message(d['parameters'], i_ref_a=float(opts.get('i_ref_a', 2.0)),
-                                  current_min_a=lo, current_max_a=hi)
-    return supervisor_message(d)
-
-
 def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3, settle_s=0.5,
                       substeps=1, controller=None, duration_s=None, sensing='ideal',
                       sensor_seed=1):
@@ -165,7 +132,6 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
         raise ValueError(f'`sensing` must be one of {", ".join(SENSING)}, got {sensing!r}')
     sensed = None
     if sensing == 'vehicle':
-        from quarter_car_sim.full_car.estimator import SensedState
         sensed = SensedState(params, dt, sensor_seed)
     n_settle = int(round(settle_s / dt))
     car = FullCar(params, plants, road, substeps=substeps, t0=-n_settle * dt)
@@ -176,7 +142,7 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
             raise ValueError('`damper_params` must hold 4 entries (fl, fr, rl, rr)')
         for i, dp in enumerate(damper_params):
             if dp is not None:
-                controller.offer_parameters(i, corner_message(dp), t_clock0)
+                controller.offer_parameters(i, identified_set_of(dp), t_clock0)
     s = car.state
 
     def seen(state):
