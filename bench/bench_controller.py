@@ -61,7 +61,7 @@ def _ride_states(n):
 def _built_in_loop():
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim import live_loop
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
@@ -122,7 +122,7 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     from mr_damper_interfaces.msg import QuarterCarState
     from std_msgs.msg import Float64
     from quarter_car_sim.controller_core import ControllerCore
-    from quarter_car_sim.controllers import Skyhook
+    from semi_active_control.laws import Skyhook
     from quarter_car_sim.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_to_msg
     from mr_damper_common.node_utils import CONTROL_QOS

@@ -41,14 +41,14 @@ import time
 
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
-from quarter_car_sim.controllers import DEFAULT_C_P, Skyhook
+from semi_active_control.laws import DEFAULT_C_P, Skyhook
 from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
-from quarter_car_sim.full_car import (compare_laws, make_full_car_law, make_two_track_road,
-                                      ModalSkyhook, PerCornerLaws)
+from quarter_car_sim.full_car import compare_laws, make_two_track_road
+from semi_active_control.laws.full_car import make_full_car_law, ModalSkyhook, PerCornerLaws
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
-from quarter_car_sim.full_car.control import DEFAULT_MODAL_ZETA
-from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
-from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
+from semi_active_control.laws.full_car import DEFAULT_MODAL_ZETA
+from semi_active_control.laws.full_car_lqr import FullCarClippedOptimal
+from semi_active_control.laws.full_car_lqr_wk import FullCarClippedOptimalWk
 
 PASSIVE_A = (0.0, 0.5, 1.0, 2.0)
 MODAL_GRID = ((0.3, 0.3, 0.3), (0.5, 0.5, 0.5), (0.5, 1.0, 1.0), (0.7, 1.0, 1.0),

@@ -34,7 +34,7 @@ import numpy as np
 from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.controllers import Skyhook
+from semi_active_control.laws import Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.live_loop import ClosedLoop
 from semi_active_control.car.quarter_car import QuarterCarParams

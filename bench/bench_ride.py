@@ -33,7 +33,7 @@ from scipy import signal
 
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
-from quarter_car_sim import controllers as ctl
+from semi_active_control import laws as ctl
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.plots import plot_tradeoff
 from quarter_car_sim.ride_metrics import ride_metrics

@@ -35,7 +35,7 @@ import time
 
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
-from quarter_car_sim.controllers import make_controller, Passive
+from semi_active_control.laws import make_controller, Passive
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.sensed_loop import ERROR_STATES, simulate_sensed, true_values

@@ -21,7 +21,7 @@ import time
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.controllers import Passive, Skyhook
+from semi_active_control.laws import Passive, Skyhook
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.simulate import make_inverse, simulate

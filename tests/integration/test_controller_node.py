@@ -120,7 +120,7 @@ def _reference_ride(n_steps):
     """Run the built-in loop on the same car, road, seed and model; return per-step arrays."""
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim import live_loop
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     from quarter_car_sim.dynamics import QuarterCar
     from quarter_car_sim.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams

@@ -85,7 +85,7 @@ def _live_log(path, controller_offers=False, seconds=4.0, status=None):
     """Run the node's loop in-process, in the node's way (t0 = -settle), and log it to path."""
     car_p = QuarterCarParams()
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     from quarter_car_sim.road import make_road
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=4,
                      duration_s=QC['road_duration_s'])

@@ -6,7 +6,7 @@ from bound_cases import WideLinearDamper
 from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import KwokCurrentInverse
 from mr_damper_model.models.plant import KwokCurrentPlant
-from quarter_car_sim import controllers as ctl
+from semi_active_control import laws as ctl
 from quarter_car_sim.bound import (bound_name, CurrentSchedule, KwokForceModel,
                                    semi_active_bound)
 from mr_damper_common.contract import CornerState

@@ -11,7 +11,7 @@ from quarter_car_sim import live_loop
 from mr_damper_common.contract import CornerState
 from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, ControllerCore,
                                              LAW_FIELDS)
-from quarter_car_sim.controllers import ADD, Groundhook, Passive, Skyhook
+from semi_active_control.laws import ADD, Groundhook, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
@@ -99,7 +99,7 @@ def test_vehicle_state_and_car_state_give_the_same_command():
 
 @pytest.mark.parametrize('name', ['clipped-optimal', 'clipped-optimal-wk'])
 def test_lqr_laws_read_the_tyre_deflection_and_refuse_a_state_without_it(name):
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     _, msg = _truth()
     laws = [make_controller(name, damper_only=True) for _ in range(2)]
     assert laws[0].state_fields == ('z_u', 'z_r')
@@ -288,7 +288,7 @@ def test_command_input_rejects_bad_settings(kwargs, match):
 
 def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing():
     from quarter_car_sim.controller_core import reconfigure
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     _, msg = _truth()
     sup = ModelSupervisor(timeout_s=10.0, safe_current_a=SAFE)
     core = ControllerCore(Skyhook(3000.0), sup)
@@ -309,7 +309,7 @@ def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing()
         make_law=make_law)
     assert 'controller_options refused' in reconfigure({'controller_options': '[1]'}, sup,
                                                        core=core, make_law=make_law)
-    from quarter_car_sim.controllers import SkyhookIdeal
+    from semi_active_control.laws import SkyhookIdeal
     assert 'cannot drive an MR damper' in reconfigure(
         {'controller_options': '{}'}, sup, core=core, make_law=lambda o: SkyhookIdeal(3000.0))
     assert core.controller.c_sky == 6000.0 and sup.safe_current_a == SAFE
@@ -332,7 +332,7 @@ def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing()
 
 
 def test_set_controller_refuses_an_active_law():
-    from quarter_car_sim.controllers import SkyhookIdeal
+    from semi_active_control.laws import SkyhookIdeal
     core = ControllerCore(Skyhook(3000.0), ModelSupervisor(safe_current_a=SAFE))
     with pytest.raises(ValueError, match='cannot drive an MR damper'):
         core.set_controller(SkyhookIdeal(3000.0))
@@ -342,7 +342,7 @@ def test_set_controller_refuses_an_active_law():
 
 def test_a_stateful_law_follows_the_car_through_a_fail_safe_episode():
     """The Wk filter of clipped-optimal-wk sees every state, with or without a model."""
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     _, msg = _truth()
     gap = ControllerCore(make_controller('clipped-optimal-wk', damper_only=True),
                          ModelSupervisor(timeout_s=0.1, safe_current_a=SAFE))

@@ -8,7 +8,7 @@ import pytest
 from mr_damper_model.io.columnlog import ColumnReader
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
-from quarter_car_sim.controllers import make_controller, Passive, Skyhook
+from semi_active_control.laws import make_controller, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from quarter_car_sim.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
@@ -157,7 +157,7 @@ def test_fixed_inverse_loop_applies_an_active_force_and_checks_its_settings():
     # without a supervisor an active law's force goes to the car directly (command NaN), as
     # QuarterCar.step_force does; an external command needs a supervisor; a supervised loop
     # takes its inverse from the supervisor only
-    from quarter_car_sim.controllers import SkyhookIdeal
+    from semi_active_control.laws import SkyhookIdeal
     params = QuarterCarParams()
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=3, duration_s=0.2)
     law = SkyhookIdeal()

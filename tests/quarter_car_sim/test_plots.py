@@ -1,7 +1,7 @@
 """Tests of quarter_car_sim.plots (files are written, figures have the panels)."""
 import pytest
 
-from quarter_car_sim import controllers as ctl
+from semi_active_control import laws as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.plots import plot_results, plot_tradeoff

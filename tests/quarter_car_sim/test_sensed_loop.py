@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from quarter_car_sim.controllers import Passive, Skyhook
+from semi_active_control.laws import Passive, Skyhook
 from quarter_car_sim.dynamics import LinearDamperPlant
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import make_road
@@ -78,7 +78,7 @@ def test_injected_fault_makes_the_estimate_invalid_and_the_law_falls_back(
 
 
 def test_active_law_refused():
-    from quarter_car_sim.controllers import SkyhookIdeal
+    from semi_active_control.laws import SkyhookIdeal
     with pytest.raises(ValueError, match='damper law'):
         _run({'travel': ride_height_spec(), 'body_accel': accelerometer_spec()},
              controller=SkyhookIdeal())

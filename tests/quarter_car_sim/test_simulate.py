@@ -6,7 +6,7 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim import controllers as ctl
+from semi_active_control import laws as ctl
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.live_loop import ClosedLoop

@@ -22,7 +22,7 @@ import json
 import sys
 
 from quarter_car_sim.cli_args import OneLineParser, positive
-from quarter_car_sim.controllers import CONTROLLER_NAMES
+from semi_active_control.laws import CONTROLLER_NAMES
 
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
@@ -73,7 +73,7 @@ def run(args):
     from mr_damper_model.models.plant import make_plant
     from mr_damper_rig.virtual_rig import identify_damper
     from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
-    from quarter_car_sim.controllers import make_controller, Passive
+    from semi_active_control.laws import make_controller, Passive
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     from quarter_car_sim.simulate import compare, make_inverse

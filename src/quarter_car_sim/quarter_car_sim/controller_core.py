@@ -37,7 +37,7 @@ from mr_damper_common.commands import CurrentCommandLimiter, OUTCOMES
 from mr_damper_common.stamps import StampGuard
 from quarter_car_sim.failsafe import clip_current
 
-#: Fields of the state the control laws read (see :mod:`quarter_car_sim.controllers`):
+#: Fields of the state the control laws read (see :mod:`semi_active_control.laws`):
 #: body velocity and acceleration, wheel velocity, suspension travel and its rate.
 LAW_FIELDS = ('v_s', 'a_s', 'v_u', 'travel', 'v_rel')
 
@@ -60,7 +60,7 @@ class ControllerCore:
 
     Parameters
     ----------
-    controller : quarter_car_sim.controllers.Controller
+    controller : semi_active_control.laws.Controller
         Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
         inverse model of the supervisor's active parameters).
     supervisor : quarter_car_sim.failsafe.ModelSupervisor
@@ -199,7 +199,7 @@ class ControllerCore:
 
         Parameters
         ----------
-        controller : quarter_car_sim.controllers.Controller
+        controller : semi_active_control.laws.Controller
             Kind ``'current'`` or ``'semi-active'``.
 
         Raises
@@ -277,7 +277,7 @@ class FixedModelCore:
 
     Parameters
     ----------
-    controller : quarter_car_sim.controllers.Controller
+    controller : semi_active_control.laws.Controller
         Any kind (``'current'``, ``'semi-active'``, ``'active'``).
     inverse : mr_damper_model.models.inverse.KwokCurrentInverse or None
         Needed for semi-active controllers. May be replaced at any time (``core.inverse``).
@@ -472,7 +472,7 @@ def make_node_law(name, car_params, rate_hz, options):
     Parameters
     ----------
     name : str
-        Law name (:data:`quarter_car_sim.controllers.DAMPER_LAW_NAMES`).
+        Law name (:data:`semi_active_control.laws.DAMPER_LAW_NAMES`).
     car_params : QuarterCarParams
         Car of the LQR-designed laws.
     rate_hz : float
@@ -487,7 +487,7 @@ def make_node_law(name, car_params, rate_hz, options):
         Unknown or fully active law, bad options.
 
     """
-    from quarter_car_sim.controllers import make_controller
+    from semi_active_control.laws import make_controller
     return make_controller(name, params=car_params, damper_only=True,
                            **{'dt': 1.0 / float(rate_hz), **options})
 

@@ -56,7 +56,7 @@ class ClosedLoop:
     ----------
     car : quarter_car_sim.dynamics.QuarterCar
         Car with its "true" damper plant.
-    controller : quarter_car_sim.controllers.Controller or None
+    controller : semi_active_control.laws.Controller or None
         Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
         inverse model); ``'active'`` only without a supervisor. None (with a supervisor) when
         the command comes from outside (an external controller node): set :attr:`i_cmd` before

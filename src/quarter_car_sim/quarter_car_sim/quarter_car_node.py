@@ -93,7 +93,7 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
                                          run_node, set_realtime_priority, spin_node)
 from quarter_car_sim import live_loop
 from quarter_car_sim.car_runtime import CarOutputs, make_car_runtime
-from quarter_car_sim.controllers import DAMPER_LAW_NAMES
+from semi_active_control.laws import DAMPER_LAW_NAMES
 from quarter_car_sim.semi_active_controller_node import (offer_parameters,
                                                          SUPERVISED_LAW_PARAMETERS)
 

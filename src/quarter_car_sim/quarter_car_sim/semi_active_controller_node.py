@@ -49,7 +49,7 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
                                          Param, run_node, set_realtime_priority, spin_node)
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore
-from quarter_car_sim.controllers import DAMPER_LAW_NAMES
+from semi_active_control.laws import DAMPER_LAW_NAMES
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.health import ControllerHealth
 from semi_active_control.car.quarter_car import QuarterCarParams

@@ -166,7 +166,7 @@ def simulate(params, road, controller, plant=None, *, dt=1e-3, damper_params=Non
     road : RoadProfile
         Road (the result covers its duration).
     controller : Controller
-        Controller (:mod:`quarter_car_sim.controllers`).
+        Controller (:mod:`semi_active_control.laws`).
     plant : DamperPlant, optional
         Damper plant (reset before the run); needed unless the controller is active.
     dt : float

@@ -79,7 +79,7 @@ def passive_reference(qc_params, t_end, dt, current=None, *, window=None, keep=N
 
     """
     from quarter_car_sim import live_loop
-    from quarter_car_sim.controllers import Passive
+    from semi_active_control.laws import Passive
     from quarter_car_sim.simulate import simulate_blocks
     g = qc_params.get
     car = _car_params(qc_params)

@@ -4,10 +4,10 @@ Full vehicle (7-DOF) with four MR dampers: car, two-track roads, modal control, 
 The public API (``from quarter_car_sim.full_car import ...``); see docs/full-car.md.
 """
 from quarter_car_sim.full_car.bound import full_car_bound
-from quarter_car_sim.full_car.control import (FullCarController, make_full_car_law,
-                                              ModalSkyhook, PerCornerLaws)
+from quarter_car_sim.full_car.controller_core import FullCarController
+from semi_active_control.laws.full_car import make_full_car_law, ModalSkyhook, PerCornerLaws
 from quarter_car_sim.full_car.dynamics import FullCar, FullCarState, mechanical_energy
-from quarter_car_sim.full_car.lqr import FullCarClippedOptimal, full_car_lqr_design
+from semi_active_control.laws.full_car_lqr import full_car_lqr_design, FullCarClippedOptimal
 from quarter_car_sim.full_car.metrics import full_car_metrics, iso2631_seat
 from semi_active_control.car.full_car import CORNERS, FullCarParams, PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import (event_road, iso8608_two_tracks,

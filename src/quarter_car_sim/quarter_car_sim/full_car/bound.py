@@ -371,7 +371,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     predicted = _as_result(best, mask, name)
     replay = None
     if plants is not None:
-        from quarter_car_sim.full_car.control import PerCornerLaws
+        from semi_active_control.laws.full_car import PerCornerLaws
         from quarter_car_sim.full_car.simulate import simulate_full_car
         law = PerCornerLaws([CurrentSchedule(current[:, i], t0, dt, name=name)
                              for i in range(4)], name=name)

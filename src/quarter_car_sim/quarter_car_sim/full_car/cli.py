@@ -26,7 +26,7 @@ import sys
 import time
 
 from quarter_car_sim.cli_args import OneLineParser, positive
-from quarter_car_sim.controllers import DAMPER_LAW_NAMES
+from semi_active_control.laws import DAMPER_LAW_NAMES
 
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
 #: Name of the offline bound among the laws.
@@ -107,7 +107,7 @@ def run(args):
     from mr_damper_model.identification import presets
     from mr_damper_common.health import finite_or_none
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.full_car.control import make_full_car_law
+    from semi_active_control.laws.full_car import make_full_car_law
     from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
     from quarter_car_sim.full_car.road import make_two_track_road
     from quarter_car_sim.full_car.simulate import compare_laws

@@ -4,7 +4,8 @@ The full car's live runtime without ROS: one control step of the 7-DOF car at a 
 :class:`FullCarRuntime` holds the car (:class:`~quarter_car_sim.full_car.dynamics.FullCar`
 with its four "true" damper plants and the two-track road), the full-car law under one
 :class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner
-(:class:`~quarter_car_sim.full_car.control.FullCarController`) and the counts a node reports.
+(:class:`~quarter_car_sim.full_car.controller_core.FullCarController`) and the counts a node
+reports.
 Each :meth:`FullCarRuntime.step` reads the state at ``t_k``, commands the four currents
 (a corner without a valid, fresh model gets its safe current; the others go on controlling)
 and advances the car to ``t_k + dt`` with them held, as the offline
@@ -19,19 +20,15 @@ import math
 
 import numpy as np
 
-from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.full_car.control import FullCarController, make_full_car_law
+
+from quarter_car_sim.full_car.controller_core import corner_supervisors, FullCarController
+from semi_active_control.laws.full_car import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
 from quarter_car_sim.full_car.metrics import iso2631_seat
 from semi_active_control.car.full_car import CORNERS
 
 #: Body coordinates published and logged, in order (``q[:3]`` of the car).
 BODY_JOINTS = ('heave', 'pitch', 'roll')
-
-
-def corner_supervisors(**settings):
-    """Return one :class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner (``settings``)."""
-    return [ModelSupervisor(**settings) for _ in CORNERS]
 
 
 class FullCarRuntime:
@@ -47,7 +44,7 @@ class FullCarRuntime:
     plants : sequence of 4 DamperPlant
         True dampers of ``fl, fr, rl, rr``.
     law : str or law object
-        Full-car law (:func:`~quarter_car_sim.full_car.control.make_full_car_law` names:
+        Full-car law (:func:`~semi_active_control.laws.full_car.make_full_car_law` names:
         ``modal-skyhook``, ``per-corner-<law>``, ``passive@<I>A``, ...).
     dt : float
         Control period [s].

@@ -195,7 +195,7 @@ def lqr_design(params, *, q_accel=1.0, q_travel=1.0e3, q_tyre=1.0e4, r_force=1.0
         Output weights (SI).
     weighting : control.StateSpace, optional
         SISO stable filter on the body acceleration (e.g.
-        ``quarter_car_sim.controllers.wk_state_space``).
+        ``semi_active_control.laws.wk_state_space``).
 
     Returns
     -------

@@ -1,15 +1,15 @@
 """
 Frequency-weighted full-car clipped-optimal control: the ISO 2631-1 filters inside the LQR.
 
-The road-relative car of :mod:`quarter_car_sim.full_car.lqr` (state ``x = [s, d, v_b, v_u]``,
-the four corner forces ``F`` on the body) augmented with the ISO 2631-1 weighting filters the
-ride metric uses (:mod:`quarter_car_sim.full_car.metrics`), each driven by a body
+The road-relative car of :mod:`semi_active_control.laws.full_car_lqr` (state ``x = [s, d, v_b,
+v_u]``, the four corner forces ``F`` on the body) augmented with the ISO 2631-1 weighting filters
+the ride metric uses (:mod:`quarter_car_sim.full_car.metrics`), each driven by a body
 acceleration ``y = Cy x + Dy F``:
 
-- Wk (8 states, :func:`quarter_car_sim.controllers.optimal.wk_state_space`) on the vertical
+- Wk (8 states, :func:`semi_active_control.laws.optimal.wk_state_space`) on the vertical
   acceleration at the seat ``zdd - x_seat thetadd + y_seat phidd`` (the CG by default, as the
   metric);
-- We (6 states each, :func:`quarter_car_sim.controllers.optimal.weighting_state_space` of
+- We (6 states each, :func:`semi_active_control.laws.optimal.weighting_state_space` of
   :data:`quarter_car_sim.ride_metrics.WE_CONSTANTS`) on the pitch and the roll acceleration.
 
 Cost (SI)::
@@ -21,12 +21,12 @@ Cost (SI)::
 with the default rotational weights the squares of the axis factors (0.40, 0.63 m/rad), so
 the weighted part is the integrand of the metric's a_v squared. The design runs on the
 14-dimensional controllable subspace of the car (the road warp left out, as
-:func:`~quarter_car_sim.full_car.lqr.full_car_lqr_design` does) plus the 20 filter states
+:func:`~semi_active_control.laws.full_car_lqr.full_car_lqr_design` does) plus the 20 filter states
 (stable, driven through the accelerations). The law (:class:`FullCarClippedOptimalWk`) runs
 the filters made digital with the bilinear transform at the control period on the body
 accelerations the full-car state carries (``state.acc[:3]``, computed by the plant from the
 forces acting at that sample), feeds back the analog filter state the design assumed, and the
-demands are clipped per damper (dissipative) by :class:`~quarter_car_sim.full_car.control.
+demands are clipped per damper (dissipative) by :class:`~semi_active_control.laws.full_car.
 ForceLaw`.
 """
 import math
@@ -34,18 +34,18 @@ import math
 import numpy as np
 from scipy.linalg import block_diag, null_space
 
-from quarter_car_sim.full_car.control import ForceLaw
-from quarter_car_sim.full_car.lqr import checked_weights, relative_model
+from semi_active_control.laws.full_car import ForceLaw
+from semi_active_control.laws.full_car_lqr import checked_weights, relative_model
 
 DEFAULT_FULL_LQR_WK_WEIGHTS = {'q_wk': 1.0, 'q_we_pitch': 0.16, 'q_we_roll': 0.3969,
                                'q_heave': 0.0, 'q_pitch': 0.0, 'q_roll': 0.0,
                                'q_travel': 300.0, 'q_tyre': 1.0e3, 'r_force': 3.0e-7}
 """Default weights of :func:`full_car_lqr_wk_design` (SI).
 
-Those of :data:`quarter_car_sim.full_car.lqr.DEFAULT_FULL_LQR_WEIGHTS` moved from the plain to
-the ISO-weighted accelerations, plus the quarter car's ``clipped-optimal-wk`` travel weight:
-bench/bench_full_car.py on its training roads (ISO 8608 C, 20 m/s, 20 s, seeds 11-13, Spencer
-plants) gives median a_v 0.571 m/s^2 (q_travel 0: 0.572, r_force 1e-7: 0.575, plain
+Those of :data:`semi_active_control.laws.full_car_lqr.DEFAULT_FULL_LQR_WEIGHTS` moved from the
+plain to the ISO-weighted accelerations, plus the quarter car's ``clipped-optimal-wk`` travel
+weight: bench/bench_full_car.py on its training roads (ISO 8608 C, 20 m/s, 20 s, seeds 11-13,
+Spencer plants) gives median a_v 0.571 m/s^2 (q_travel 0: 0.572, r_force 1e-7: 0.575, plain
 accelerations weighted 0.1 x: 0.574); docs/full-car.md has the bench roads."""
 
 
@@ -128,7 +128,8 @@ def full_car_lqr_wk_design(params, *, weighting='iso', seat=(0.0, 0.0), **weight
         Car.
     weighting : {'iso', 'none'}
         ISO 2631-1 filters, or static unit gains (the design is then
-        :func:`~quarter_car_sim.full_car.lqr.full_car_lqr_design` with ``q_heave + q_wk`` ...).
+        :func:`~semi_active_control.laws.full_car_lqr.full_car_lqr_design` with ``q_heave + q_wk``
+        ...).
     seat : (float, float)
         Seat ``(x, y)`` [m] from the CG of the vertical acceleration (as the metric's).
     **weights

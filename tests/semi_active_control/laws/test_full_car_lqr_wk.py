@@ -10,9 +10,9 @@ import pytest
 from scipy import signal
 
 from semi_active_control.car.full_car import PASSENGER_CAR
-from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model
-from quarter_car_sim.full_car.lqr_wk import (FullCarClippedOptimalWk, full_car_lqr_wk_design,
-                                             weighting_filter)
+from semi_active_control.laws.full_car_lqr import full_car_lqr_design, relative_model
+from semi_active_control.laws.full_car_lqr_wk import (full_car_lqr_wk_design,
+                                                      FullCarClippedOptimalWk, weighting_filter)
 from semi_active_control.iso2631 import we_sos
 from semi_active_control.iso2631 import wk_sos
 

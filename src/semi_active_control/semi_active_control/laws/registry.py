@@ -1,10 +1,10 @@
 """Controllers by name: make_controller and the names the command-line tools and nodes accept."""
-from quarter_car_sim.controllers.add import ADD, ShAdd
-from quarter_car_sim.controllers.base import Passive
-from quarter_car_sim.controllers.optimal import (clipped_optimal_gain, ClippedOptimal,
-                                                 ClippedOptimalWk, LqrActive, wk_lqr_design)
-from quarter_car_sim.controllers.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY, Groundhook, Hybrid,
-                                                 Skyhook, SkyhookIdeal, SkyhookOnOff)
+from semi_active_control.laws.add import ADD, ShAdd
+from semi_active_control.laws.base import Passive
+from semi_active_control.laws.optimal import (clipped_optimal_gain, ClippedOptimal,
+                                              ClippedOptimalWk, LqrActive, wk_lqr_design)
+from semi_active_control.laws.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY, Groundhook, Hybrid,
+                                              Skyhook, SkyhookIdeal, SkyhookOnOff)
 
 
 def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None, alpha=0.7,

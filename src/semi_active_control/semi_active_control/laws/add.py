@@ -1,7 +1,7 @@
 """Acceleration-driven damper laws: ADD (Savaresi 2005) and SH-ADD (Savaresi and Spelta 2007)."""
 import math
 
-from quarter_car_sim.controllers.base import Controller
+from semi_active_control.laws.base import Controller
 
 
 class ADD(Controller):

@@ -1,5 +1,5 @@
 """Skyhook-family laws: skyhook, on-off skyhook, groundhook, hybrid, ideal skyhook."""
-from quarter_car_sim.controllers.base import Controller
+from semi_active_control.laws.base import Controller
 
 
 DEFAULT_C_SKY = 2000.0

@@ -31,7 +31,7 @@ clipping is the corner inverse's saturation.
 import numpy as np
 from scipy.linalg import null_space
 
-from quarter_car_sim.full_car.control import ForceLaw
+from semi_active_control.laws.full_car import ForceLaw
 
 DEFAULT_FULL_LQR_WEIGHTS = {'q_heave': 1.0, 'q_pitch': 0.16, 'q_roll': 0.3969,
                             'q_travel': 0.0, 'q_tyre': 1.0e3, 'r_force': 3.0e-7}

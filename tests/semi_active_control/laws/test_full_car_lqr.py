@@ -4,9 +4,10 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_full_car_law, make_two_track_road, simulate_full_car
+from quarter_car_sim.full_car import make_two_track_road, simulate_full_car
+from semi_active_control.laws.full_car import make_full_car_law
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
-from quarter_car_sim.full_car.lqr import full_car_lqr_design, relative_model
+from semi_active_control.laws.full_car_lqr import full_car_lqr_design, relative_model
 from semi_active_control.car.quarter_car_linear import lqr_design
 from semi_active_control.car.quarter_car import QuarterCarParams
 
@@ -64,7 +65,7 @@ def _assert_dissipative_on_a_short_road(law):
 
 
 def test_weighted_law_runs_on_the_car_with_dissipative_demands():
-    from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
+    from semi_active_control.laws.full_car_lqr_wk import FullCarClippedOptimalWk
     law = make_full_car_law('full-car-clipped-optimal-wk', PASSENGER_CAR)
     assert isinstance(law, FullCarClippedOptimalWk) and law.name == 'full-car-clipped-optimal-wk'
     _assert_dissipative_on_a_short_road(law)

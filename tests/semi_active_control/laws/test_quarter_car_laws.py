@@ -1,4 +1,4 @@
-"""Tests of quarter_car_sim.controllers: passivity of the laws, the inverse path, names."""
+"""Tests of semi_active_control.laws: passivity of the laws, the inverse path, names."""
 import math
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
 from mr_damper_model.models.plant import KwokCurrentPlant
-from quarter_car_sim import controllers as ctl
+from semi_active_control import laws as ctl
 from mr_damper_common.contract import CornerState
 
 SEMI_ACTIVE = [ctl.Skyhook(), ctl.Skyhook(4000.0, 0.0), ctl.SkyhookOnOff(), ctl.Groundhook(),

@@ -43,16 +43,14 @@ Modules: ``base`` (interface, passive, the damper clip), ``skyhook`` (skyhook fa
 See docs/control-laws.md for the laws, their gains and the offline semi-active bound
 (:mod:`quarter_car_sim.bound`).
 """
-from quarter_car_sim.controllers.add import ADD, DEFAULT_SHADD_F_SWITCH_HZ, ShAdd  # noqa: F401
-from quarter_car_sim.controllers.base import (car_state_feedback, clip_to_damper,  # noqa: F401
-                                              Controller, Passive)
-from quarter_car_sim.controllers.optimal import (clipped_optimal_gain,  # noqa: F401
-                                                 ClippedOptimal, ClippedOptimalWk,
-                                                 DEFAULT_CO_WEIGHTS, DEFAULT_COWK_WEIGHTS,
-                                                 LqrActive, wk_lqr_design)
+from semi_active_control.laws.add import ADD, DEFAULT_SHADD_F_SWITCH_HZ, ShAdd  # noqa: F401
+from semi_active_control.laws.base import (car_state_feedback, clip_to_damper,  # noqa: F401
+                                           Controller, Passive)
+from semi_active_control.laws.optimal import (clipped_optimal_gain, ClippedOptimal,  # noqa: F401
+                                              ClippedOptimalWk, DEFAULT_CO_WEIGHTS,
+                                              DEFAULT_COWK_WEIGHTS, LqrActive, wk_lqr_design)
 from semi_active_control.iso2631 import wk_state_space  # noqa: F401
-from quarter_car_sim.controllers.registry import (CONTROLLER_NAMES,  # noqa: F401
-                                                  DAMPER_LAW_NAMES, make_controller)
-from quarter_car_sim.controllers.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY,  # noqa: F401
-                                                 Groundhook, Hybrid, Skyhook, SkyhookIdeal,
-                                                 SkyhookOnOff)
+from semi_active_control.laws.registry import (CONTROLLER_NAMES, DAMPER_LAW_NAMES,  # noqa: F401
+                                               make_controller)
+from semi_active_control.laws.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY, Groundhook,  # noqa: F401
+                                              Hybrid, Skyhook, SkyhookIdeal, SkyhookOnOff)

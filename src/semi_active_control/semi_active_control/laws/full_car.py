@@ -1,30 +1,25 @@
 """
-Full-car control: per-corner laws and modal skyhook, each corner under its own supervisor.
+Full-car laws: per-corner laws and modal skyhook, four corner forces from the whole car.
 
-:class:`FullCarController` is one control step of the whole car: it runs one
-:class:`quarter_car_sim.controller_core.ControllerCore` per corner (law + the inverse of that
-corner's identified Kwok-current model + that corner's
-:class:`quarter_car_sim.failsafe.ModelSupervisor`). A corner without a valid, fresh model
-commands its safe current; the other three go on controlling (each core only knows its own
-corner).
+Each corner of a full-car law runs under its own supervisor in the full-car controller core
+(:class:`quarter_car_sim.full_car.controller_core.FullCarController`: per corner the inverse of
+that corner's identified model and its fail-safe), so a law only chooses forces.
 
 Two kinds of full-car law:
 
-- :class:`PerCornerLaws`: four quarter-car laws of :mod:`quarter_car_sim.controllers`, each
+- :class:`PerCornerLaws`: four quarter-car laws of :mod:`semi_active_control.laws`, each
   reading its corner (body point above the wheel, wheel, travel), the baseline;
 - :class:`ModalSkyhook`: skyhook on the body modes. The demanded heave force, pitch and roll
   moments ``-[c_heave zdot, c_pitch thetadot, c_roll phidot]`` are distributed to the four
   corners by the minimum-norm solution of ``T' F = Q`` (``F = T (T'T)^-1 Q``), a passive part
   ``-c_p v_rel`` is added per corner, and each corner's force is clipped to what its damper can
-  do (:func:`quarter_car_sim.controllers.clip_to_damper`: dissipative, 0 otherwise).
+  do (:func:`semi_active_control.laws.clip_to_damper`: dissipative, 0 otherwise).
 """
 import math
 
 import numpy as np
 
-from quarter_car_sim.controller_core import ControllerCore
-from quarter_car_sim.controllers import clip_to_damper, Controller, make_controller
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.laws import clip_to_damper, Controller, make_controller
 from semi_active_control.car.full_car import CORNERS
 
 DEFAULT_MODAL_ZETA = {'heave': 0.7, 'pitch': 1.5, 'roll': 1.5}
@@ -247,12 +242,12 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     ----------
     name : str
         ``'modal-skyhook'``, ``'full-car-clipped-optimal'``
-        (:class:`quarter_car_sim.full_car.lqr.FullCarClippedOptimal`),
+        (:class:`semi_active_control.laws.full_car_lqr.FullCarClippedOptimal`),
         ``'full-car-clipped-optimal-wk'`` (ISO-weighted,
-        :class:`quarter_car_sim.full_car.lqr_wk.FullCarClippedOptimalWk`), ``'passive@<I>A'`` (the
-        current at every corner) or
+        :class:`semi_active_control.laws.full_car_lqr_wk.FullCarClippedOptimalWk`),
+        ``'passive@<I>A'`` (the current at every corner) or
         ``'per-corner-<law>'`` with a damper law of
-        :data:`quarter_car_sim.controllers.DAMPER_LAW_NAMES` (e.g. ``per-corner-skyhook``),
+        :data:`semi_active_control.laws.DAMPER_LAW_NAMES` (e.g. ``per-corner-skyhook``),
         each corner's law designed on its quarter car (:meth:`FullCarParams.corner`).
     params : FullCarParams
         Car.
@@ -270,10 +265,10 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
     if n == 'modal-skyhook':
         return ModalSkyhook.from_car(params, zeta=zeta, c_p=c_p)
     if n == 'full-car-clipped-optimal':
-        from quarter_car_sim.full_car.lqr import FullCarClippedOptimal
+        from semi_active_control.laws.full_car_lqr import FullCarClippedOptimal
         return FullCarClippedOptimal.from_car(params)
     if n == 'full-car-clipped-optimal-wk':
-        from quarter_car_sim.full_car.lqr_wk import FullCarClippedOptimalWk
+        from semi_active_control.laws.full_car_lqr_wk import FullCarClippedOptimalWk
         return FullCarClippedOptimalWk.from_car(params, dt=dt)
     if n.startswith('passive'):
         laws = [make_controller(n, damper_only=True) for _ in range(4)]
@@ -284,111 +279,3 @@ def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P
                                               dt=dt) for i in range(4)])
     raise ValueError(f'unknown full-car law {name!r} (use modal-skyhook, '
                      'full-car-clipped-optimal(-wk), passive@<I>A or per-corner-<law>)')
-
-
-class FullCarController:
-    """
-    One full-car control step: the law, then per corner inverse + supervisor (four cores).
-
-    Parameters
-    ----------
-    law : PerCornerLaws or ModalSkyhook
-        Full-car law (``prepare(state)`` and four ``corner_laws``).
-    supervisors : sequence of 4 ModelSupervisor, optional
-        One per corner (default: four with ``timeout_s``, ``safe_current_a`` and the coil
-        range given).
-    timeout_s, safe_current_a, i_min_a, i_max_a : float
-        Settings of the default supervisors.
-    inverse_tol_a : float
-        Current tolerance [A] of the inverse models.
-
-    Attributes
-    ----------
-    cores : list of ControllerCore
-        The four corner cores (``cores[i].status()`` per corner).
-
-    """
-
-    def __init__(self, law, supervisors=None, *, timeout_s=1.0, safe_current_a=0.0,
-                 i_min_a=0.0, i_max_a=2.0, inverse_tol_a=1e-4):
-        if supervisors is None:
-            supervisors = [ModelSupervisor(timeout_s=timeout_s, safe_current_a=safe_current_a,
-                                           i_min_a=i_min_a, i_max_a=i_max_a)
-                           for _ in range(4)]
-        supervisors = list(supervisors)
-        if len(supervisors) != 4:
-            raise ValueError('`supervisors` must hold 4 supervisors (fl, fr, rl, rr)')
-        self.law = law
-        self.supervisors = supervisors
-        self.cores = [ControllerCore(cl, sup, inverse_tol_a=inverse_tol_a)
-                      for cl, sup in zip(law.corner_laws, supervisors)]
-
-    @property
-    def name(self):
-        """Return the law's name."""
-        return self.law.name
-
-    def offer_parameters(self, corner, values, t_clock):
-        """
-        Offer a decoded parameter message to one corner's supervisor.
-
-        Parameters
-        ----------
-        corner : int or str
-            Index 0..3 or name of :data:`~semi_active_control.car.full_car.CORNERS`.
-        values : mr_damper_common.contract.IdentifiedSet or mapping
-            The corner's identified set (a flat mapping is converted, see
-            :meth:`~quarter_car_sim.failsafe.ModelSupervisor.check`).
-        t_clock : float
-            Receipt time [s].
-
-        Returns
-        -------
-        quarter_car_sim.failsafe.Verdict
-
-        """
-        i = CORNERS.index(corner) if isinstance(corner, str) else int(corner)
-        return self.cores[i].offer_parameters(values, t_clock)
-
-    def command(self, state, t_clock):
-        """
-        Return the four coil currents [A] for a full-car state.
-
-        Parameters
-        ----------
-        state : FullCarState
-            Measured state.
-        t_clock : float
-            Supervisor clock [s].
-
-        Returns
-        -------
-        list of float
-            Currents of ``fl, fr, rl, rr``.
-
-        """
-        self.law.prepare(state)
-        return [core.command(state.corner(i), t_clock) for i, core in enumerate(self.cores)]
-
-    @property
-    def modes(self):
-        """Supervisor mode of each corner (``'normal'`` / ``'failsafe'``)."""
-        return [s.mode for s in self.supervisors]
-
-    @property
-    def demands(self):
-        """Last demanded body force of each corner [N] (NaN without a model or passive)."""
-        return [c.f_demand for c in self.cores]
-
-    @property
-    def saturated(self):
-        """Return, per corner, True when its last command hit a limit (None: no model)."""
-        return [c.last_saturated for c in self.cores]
-
-    def reset(self):
-        """Reset the law's memory (the supervisors keep their models)."""
-        self.law.reset()
-
-    def status(self):
-        """Return ``{corner: core status}`` (JSON-ready)."""
-        return {name: core.status() for name, core in zip(CORNERS, self.cores)}

@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from quarter_car_sim.controllers.base import car_state_feedback, clip_to_damper, Controller
+from semi_active_control.laws.base import car_state_feedback, clip_to_damper, Controller
 from semi_active_control.car.quarter_car import QuarterCarParams
 from semi_active_control.car.quarter_car_linear import lqr_design
 from semi_active_control.iso2631 import wk_state_space

@@ -7,10 +7,11 @@ import pytest
 from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.controllers import Skyhook
+from semi_active_control.laws import Skyhook
 from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.full_car import (FullCar, FullCarController, make_full_car_law,
-                                      make_two_track_road, ModalSkyhook, simulate_full_car)
+from quarter_car_sim.full_car import FullCar, make_two_track_road, simulate_full_car
+from quarter_car_sim.full_car.controller_core import FullCarController
+from semi_active_control.laws.full_car import make_full_car_law, ModalSkyhook
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import same_road_all_wheels
 from semi_active_control.car.quarter_car import QuarterCarParams
@@ -46,7 +47,7 @@ def test_modal_skyhook_maps_modes_to_corners_and_clips_each_damper():
 def test_modal_gains_from_damping_ratios():
     law = ModalSkyhook.from_car(PASSENGER_CAR, zeta={'heave': 0.5, 'pitch': 0.0, 'roll': 1.0})
     assert law.c_modal[1] == 0.0
-    from quarter_car_sim.full_car.control import body_mode_stiffness
+    from semi_active_control.laws.full_car import body_mode_stiffness
     k_h, _, k_r = body_mode_stiffness(PASSENGER_CAR)
     assert law.c_modal[0] == pytest.approx(2 * 0.5 * math.sqrt(k_h * PASSENGER_CAR.m_s))
     assert law.c_modal[2] == pytest.approx(2 * math.sqrt(k_r * PASSENGER_CAR.i_roll))
