@@ -44,7 +44,8 @@ from mr_damper_rig.virtual_rig import identify_damper
 from semi_active_control.laws import DEFAULT_C_P, Skyhook
 from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
 from quarter_car_sim.full_car import compare_laws, make_two_track_road
-from semi_active_control.laws.full_car import make_full_car_law, ModalSkyhook, PerCornerLaws
+from semi_active_control.laws.full_car import ModalSkyhook, PerCornerLaws
+from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from semi_active_control.laws.full_car import DEFAULT_MODAL_ZETA
 from semi_active_control.laws.full_car_lqr import FullCarClippedOptimal

@@ -11,7 +11,8 @@ from semi_active_control.laws import Skyhook
 from quarter_car_sim.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import FullCar, make_two_track_road, simulate_full_car
 from quarter_car_sim.full_car.controller_core import FullCarController
-from semi_active_control.laws.full_car import make_full_car_law, ModalSkyhook
+from semi_active_control.laws.full_car import ModalSkyhook
+from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from quarter_car_sim.full_car.road import same_road_all_wheels
 from semi_active_control.car.quarter_car import QuarterCarParams

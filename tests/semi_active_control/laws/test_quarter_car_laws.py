@@ -8,6 +8,7 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
 from mr_damper_model.models.plant import KwokCurrentPlant
 from semi_active_control import laws as ctl
+from semi_active_control.iso2631 import wk_state_space
 from mr_damper_common.contract import CornerState
 
 SEMI_ACTIVE = [ctl.Skyhook(), ctl.Skyhook(4000.0, 0.0), ctl.SkyhookOnOff(), ctl.Groundhook(),
@@ -267,7 +268,7 @@ def test_wk_design_model_is_the_car_in_series_with_the_wk_filter():
     d = ctl.wk_lqr_design()
     car = linear_model(QuarterCarParams())
     truth = control.series(control.ss(car.A, car.B[:, [1]], car.C[[0]], car.D[[0], [1]]),
-                           ctl.wk_state_space())
+                           wk_state_space())
     cw = np.concatenate([np.asarray(d.filter.D).ravel()[0] * car.C[0],
                          np.asarray(d.filter.C).ravel()])
     dw = float(np.asarray(d.filter.D).ravel()[0] * car.D[0, 1])

@@ -107,7 +107,7 @@ def run(args):
     from mr_damper_model.identification import presets
     from mr_damper_common.health import finite_or_none
     from mr_damper_model.models.plant import make_plant
-    from semi_active_control.laws.full_car import make_full_car_law
+    from semi_active_control.laws.registry import make_full_car_law
     from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
     from quarter_car_sim.full_car.road import make_two_track_road
     from quarter_car_sim.full_car.simulate import compare_laws

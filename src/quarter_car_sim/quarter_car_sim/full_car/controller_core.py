@@ -22,7 +22,7 @@ import numpy as np
 
 from quarter_car_sim.controller_core import ControllerCore
 from quarter_car_sim.failsafe import ModelSupervisor
-from semi_active_control.laws.full_car import make_full_car_law
+from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCarState
 from semi_active_control.car.full_car import CORNERS
 

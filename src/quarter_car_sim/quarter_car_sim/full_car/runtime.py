@@ -22,7 +22,7 @@ import numpy as np
 
 
 from quarter_car_sim.full_car.controller_core import corner_supervisors, FullCarController
-from semi_active_control.laws.full_car import make_full_car_law
+from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
 from quarter_car_sim.full_car.metrics import iso2631_seat
 from semi_active_control.car.full_car import CORNERS

@@ -1,7 +1,7 @@
 """
-Suspension controllers and the force -> coil current path.
+The control laws: quarter-car laws (one corner) and full-car laws (the whole car), by name.
 
-A controller has ``name``, ``kind`` and ``demand(state) -> float``:
+A quarter-car law (a controller) has ``name``, ``kind`` and ``demand(state) -> float``:
 
 - ``kind == 'current'`` (:class:`Passive`): ``demand`` returns a coil current [A];
 - ``kind == 'semi-active'`` (skyhook, on-off skyhook, groundhook, hybrid, ADD, SH-ADD,
@@ -37,8 +37,19 @@ velocity ``v_rel = v_s - v_u``:
   weights the ISO 2631-1 Wk-weighted body acceleration (the comfort metric); the law runs the
   Wk filter on the measured body acceleration and feeds its states back.
 
+A full-car law chooses the four corner forces from the whole car's state
+(:mod:`~semi_active_control.laws.full_car`): per-corner laws, modal skyhook and the full-car
+clipped-optimal laws (plain and ISO 2631-1 weighted); each corner's force then goes through
+that corner's inverse under its own supervisor
+(:class:`semi_active_control.runtime.full_car_controller_core.FullCarController`).
+
+Laws by name: :data:`LAWS` (:mod:`~semi_active_control.laws.registry`), one dict whose keys
+are the names; :func:`make_controller` and :func:`make_full_car_law` build them
+(docs/extending.md adds a law).
+
 Modules: ``base`` (interface, passive, the damper clip), ``skyhook`` (skyhook family),
-``add`` (ADD, SH-ADD), ``optimal`` (LQR-designed laws), ``registry`` (:func:`make_controller`).
+``add`` (ADD, SH-ADD), ``optimal`` (LQR-designed laws), ``full_car`` (full-car laws, modal
+skyhook), ``full_car_lqr`` and ``full_car_lqr_wk`` (full-car clipped-optimal), ``registry``.
 
 See docs/control-laws.md for the laws, their gains and the offline semi-active bound
 (:mod:`quarter_car_sim.bound`).
@@ -46,11 +57,16 @@ See docs/control-laws.md for the laws, their gains and the offline semi-active b
 from semi_active_control.laws.add import ADD, DEFAULT_SHADD_F_SWITCH_HZ, ShAdd  # noqa: F401
 from semi_active_control.laws.base import (car_state_feedback, clip_to_damper,  # noqa: F401
                                            Controller, Passive)
-from semi_active_control.laws.optimal import (clipped_optimal_gain, ClippedOptimal,  # noqa: F401
-                                              ClippedOptimalWk, DEFAULT_CO_WEIGHTS,
-                                              DEFAULT_COWK_WEIGHTS, LqrActive, wk_lqr_design)
-from semi_active_control.iso2631 import wk_state_space  # noqa: F401
-from semi_active_control.laws.registry import (CONTROLLER_NAMES, DAMPER_LAW_NAMES,  # noqa: F401
-                                               make_controller)
-from semi_active_control.laws.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY, Groundhook,  # noqa: F401
-                                              Hybrid, Skyhook, SkyhookIdeal, SkyhookOnOff)
+from semi_active_control.laws.full_car import ForceLaw, ModalSkyhook, PerCornerLaws  # noqa: F401
+from semi_active_control.laws.full_car_lqr import FullCarClippedOptimal  # noqa: F401
+from semi_active_control.laws.full_car_lqr_wk import FullCarClippedOptimalWk  # noqa: F401
+from semi_active_control.laws.optimal import (clipped_optimal_gain,  # noqa: F401
+                                              ClippedOptimal, ClippedOptimalWk,
+                                              DEFAULT_CO_WEIGHTS, DEFAULT_COWK_WEIGHTS,
+                                              LqrActive, wk_lqr_design)
+from semi_active_control.laws.registry import (CONTROLLER_NAMES,  # noqa: F401
+                                               DAMPER_LAW_NAMES, Law, law_names, LawOptions,
+                                               LAWS, make_controller, make_full_car_law)
+from semi_active_control.laws.skyhook import (DEFAULT_C_P, DEFAULT_C_SKY,  # noqa: F401
+                                              Groundhook, Hybrid, Skyhook, SkyhookIdeal,
+                                              SkyhookOnOff)

@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from semi_active_control.laws import clip_to_damper, Controller, make_controller
 from semi_active_control.car.full_car import CORNERS
+from semi_active_control.laws.base import clip_to_damper, Controller
 
 DEFAULT_MODAL_ZETA = {'heave': 0.7, 'pitch': 1.5, 'roll': 1.5}
 """Default sky damping ratios of :meth:`ModalSkyhook.from_car` per body mode [-].
@@ -232,50 +232,3 @@ def body_mode_stiffness(params):
     ride_roll = kr * kt / (kr + kt)
     return (float(ride.sum()), float((ride * params.x ** 2).sum()),
             float((ride_roll * params.y ** 2).sum()))
-
-
-def make_full_car_law(name, params, *, dt=1e-3, zeta=None, c_p=DEFAULT_MODAL_C_P):
-    """
-    Build a full-car law by name.
-
-    Parameters
-    ----------
-    name : str
-        ``'modal-skyhook'``, ``'full-car-clipped-optimal'``
-        (:class:`semi_active_control.laws.full_car_lqr.FullCarClippedOptimal`),
-        ``'full-car-clipped-optimal-wk'`` (ISO-weighted,
-        :class:`semi_active_control.laws.full_car_lqr_wk.FullCarClippedOptimalWk`),
-        ``'passive@<I>A'`` (the current at every corner) or
-        ``'per-corner-<law>'`` with a damper law of
-        :data:`semi_active_control.laws.DAMPER_LAW_NAMES` (e.g. ``per-corner-skyhook``),
-        each corner's law designed on its quarter car (:meth:`FullCarParams.corner`).
-    params : FullCarParams
-        Car.
-    dt : float
-        Control period [s].
-    zeta, c_p
-        Modal skyhook options (:meth:`ModalSkyhook.from_car`).
-
-    Returns
-    -------
-    PerCornerLaws or ModalSkyhook
-
-    """
-    n = str(name).strip().lower()
-    if n == 'modal-skyhook':
-        return ModalSkyhook.from_car(params, zeta=zeta, c_p=c_p)
-    if n == 'full-car-clipped-optimal':
-        from semi_active_control.laws.full_car_lqr import FullCarClippedOptimal
-        return FullCarClippedOptimal.from_car(params)
-    if n == 'full-car-clipped-optimal-wk':
-        from semi_active_control.laws.full_car_lqr_wk import FullCarClippedOptimalWk
-        return FullCarClippedOptimalWk.from_car(params, dt=dt)
-    if n.startswith('passive'):
-        laws = [make_controller(n, damper_only=True) for _ in range(4)]
-        return PerCornerLaws(laws, name=laws[0].name)
-    if n.startswith('per-corner-'):
-        law = n[len('per-corner-'):]
-        return PerCornerLaws([make_controller(law, params=params.corner(i), damper_only=True,
-                                              dt=dt) for i in range(4)])
-    raise ValueError(f'unknown full-car law {name!r} (use modal-skyhook, '
-                     'full-car-clipped-optimal(-wk), passive@<I>A or per-corner-<law>)')
