@@ -63,7 +63,7 @@ def _built_in_loop():
     from quarter_car_sim import live_loop
     from semi_active_control.laws import make_controller
     from quarter_car_sim.dynamics import QuarterCar
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     params = QuarterCarParams()
@@ -123,7 +123,7 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     from std_msgs.msg import Float64
     from quarter_car_sim.controller_core import ControllerCore
     from semi_active_control.laws import Skyhook
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_to_msg
     from mr_damper_common.node_utils import CONTROL_QOS
     n = int(rate_hz * duration_s)

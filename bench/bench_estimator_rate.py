@@ -60,7 +60,7 @@ def bench_in_process(repeats):
     from kwok_messages import thesis_parameter_values
     from mr_damper_common.node_utils import LogThrottle
     from quarter_car_sim import sensor_cdr
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
     from quarter_car_sim.state_estimator_core import StateEstimatorCore

@@ -29,7 +29,7 @@ from mr_damper_bringup import car_in_the_loop as cil
 from quarter_car_sim import hil, live_loop
 from semi_active_control.laws import make_controller
 from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.probing import CurrentProbe
 from quarter_car_sim.road import make_road

@@ -122,7 +122,7 @@ def _reference_ride(n_steps):
     from quarter_car_sim import live_loop
     from semi_active_control.laws import make_controller
     from quarter_car_sim.dynamics import QuarterCar
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.road import make_road
     params = QuarterCarParams()
@@ -192,7 +192,7 @@ def _car_states(n):
 def test_one_future_stamped_state_costs_one_safe_answer(listener):
     from mr_damper_interfaces.msg import QuarterCarState
     from quarter_car_sim.controller_core import ControllerCore, make_node_law
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     from mr_damper_common.node_utils import CONTROL_QOS

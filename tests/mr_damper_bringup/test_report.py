@@ -14,7 +14,7 @@ from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
 from mr_damper_model.models.kwok_current import kwok_current_force
 from quarter_car_sim import live_loop
 from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
 
 QC = {'plant': 'kwok-current', 'road': 'iso8608', 'road_class': 'C', 'speed_m_s': 20.0,

@@ -7,7 +7,7 @@ from mr_damper_model.identification.presets import thesis_kwok_current
 from mr_damper_model.live import LiveConfig
 from mr_damper_model.models.validity import (BOUND_TOL, check_model_parameters,
                                              check_parameter_values, PINNED_FRACTION)
-from quarter_car_sim.failsafe import kwok_current_bounds, ModelSupervisor
+from semi_active_control.supervision.failsafe import kwok_current_bounds, ModelSupervisor
 
 NAMES = ('c', 'k', 'beta', 'f0')
 LO, HI = (0.0, -1e4, 0.1, -500.0), (1e5, 1e4, 1000.0, 500.0)

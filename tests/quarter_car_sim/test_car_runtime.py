@@ -16,7 +16,7 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.car_runtime import CarOutputs, CarRuntime
 from quarter_car_sim.controller_core import CommandInput, make_node_law
 from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from quarter_car_sim.hil import make_remote_plant
 from quarter_car_sim.live_loop import ClosedLoop, TraceLog
 from semi_active_control.car.quarter_car import QuarterCarParams
@@ -211,7 +211,7 @@ def test_construction_refuses_a_law_and_a_command_input_together_and_sensors_wit
 
 
 def test_reconfigure_reaches_the_law_the_supervisor_and_the_health_rules():
-    from quarter_car_sim.health import CarHealth
+    from quarter_car_sim.runtime.car_health import CarHealth
     clock, out = FakeClock(), Recorder()
     params = QuarterCarParams()
     rt = _runtime(out, clock, health_rules=CarHealth(),

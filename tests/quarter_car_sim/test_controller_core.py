@@ -13,7 +13,7 @@ from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, Con
                                              LAW_FIELDS)
 from semi_active_control.laws import ADD, Groundhook, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import make_road
 

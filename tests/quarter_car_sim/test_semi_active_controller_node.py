@@ -93,7 +93,7 @@ def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     """The LQR laws read the tyre deflection (wheel displacement - road height) of the state."""
     from quarter_car_sim.controller_core import ControllerCore
     from semi_active_control.laws import make_controller
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     from quarter_car_sim.semi_active_controller_node import SemiActiveControllerNode
     from mr_damper_common.messages import identified_set_from_msg

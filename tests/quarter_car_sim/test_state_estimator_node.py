@@ -43,7 +43,7 @@ def _position(x, t=None):
 
 def test_core_needs_a_model_then_estimates_and_counts_faults():
     from mr_damper_common.messages import identified_set_from_msg
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
     from quarter_car_sim.state_estimator_core import StateEstimatorCore
@@ -114,7 +114,7 @@ def test_node_publishes_valid_then_marked_invalid_states(make_node):
 def test_core_clocked_by_readings_predicts_through_missing_periods():
     """tick_at: the readings' stamps are the filter's time; gaps predicted, counted."""
     from mr_damper_common.messages import identified_set_from_msg
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import default_specs, G0
     from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
@@ -141,7 +141,7 @@ def test_core_clocked_by_readings_predicts_through_missing_periods():
 
 def test_core_counts_readings_lost_between_stamps():
     """Readings the vehicle sent that never arrived: the periods skipped between stamps."""
-    from quarter_car_sim.failsafe import ModelSupervisor
+    from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.sensors import accelerometer_spec, default_specs, G0
     from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore

@@ -25,7 +25,7 @@ one :class:`CarRuntime`, as the identifier node calls
   each step first waits, at most that long, for the rig's answer to the previous command);
 - the vehicle sensors of ``sensing:=vehicle`` (:class:`quarter_car_sim.sensors.VehicleSensors`);
 - the per-step trace log, the status dict (the values of ``/diagnostics`` and the log file's
-  header) and the health rules (:class:`quarter_car_sim.health.CarHealth`).
+  header) and the health rules (:class:`quarter_car_sim.runtime.car_health.CarHealth`).
 
 What goes out goes through the node's :class:`CarOutputs` (command, typed state, joint state,
 displacement command, sensor readings, log lines): the runtime says what and when, the node
@@ -121,7 +121,7 @@ class CarRuntime:
         Publish the state every this many steps (0: never).
     trace : quarter_car_sim.live_loop.TraceLog, optional
         Per-step log.
-    health_rules : quarter_car_sim.health.CarHealth, optional
+    health_rules : quarter_car_sim.runtime.car_health.CarHealth, optional
         Level and message of the status.
     make_law : callable, optional
         ``make_law(options)`` -> law of the built-in controller with new options.
@@ -480,7 +480,7 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
     outputs : CarOutputs
         The node's outputs.
     supervisor : dict
-        Keyword settings of the :class:`~quarter_car_sim.failsafe.ModelSupervisor`
+        Keyword settings of the :class:`~semi_active_control.supervision.failsafe.ModelSupervisor`
         (``timeout_s``, ``safe_current_a``, ``i_min_a``, ``i_max_a``, ``hold_on_reject``,
         ``min_current_span_a``); ``safe_current_a``, ``i_min_a`` and ``i_max_a`` also apply to
         the external controller's commands and the probe.
@@ -502,8 +502,8 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
     """
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.dynamics import QuarterCar
-    from quarter_car_sim.failsafe import ModelSupervisor
-    from quarter_car_sim.health import CarHealth
+    from semi_active_control.supervision.failsafe import ModelSupervisor
+    from quarter_car_sim.runtime.car_health import CarHealth
     from semi_active_control.car.quarter_car import QuarterCarParams
     from quarter_car_sim.probing import CurrentProbe
     from quarter_car_sim.road import make_road

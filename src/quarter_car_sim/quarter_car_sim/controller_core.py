@@ -10,7 +10,8 @@ its timeout and the checks a command passes before it reaches the coil) is
 
 One step of :meth:`ControllerCore.command`:
 
-1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the
+1. the supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`) is advanced
+to the
    caller's clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
 2. a state whose fields the laws use (:data:`LAW_FIELDS` and the law's own ``state_fields``,
    e.g. the tyre deflection of the LQR laws) are not all finite is refused
@@ -35,7 +36,7 @@ import math
 
 from mr_damper_common.commands import CurrentCommandLimiter, OUTCOMES
 from mr_damper_common.stamps import StampGuard
-from quarter_car_sim.failsafe import clip_current
+from semi_active_control.supervision.failsafe import clip_current
 
 #: Fields of the state the control laws read (see :mod:`semi_active_control.laws`):
 #: body velocity and acceleration, wheel velocity, suspension travel and its rate.
@@ -63,7 +64,7 @@ class ControllerCore:
     controller : semi_active_control.laws.Controller
         Kind ``'current'`` (commanded as is) or ``'semi-active'`` (body force through the
         inverse model of the supervisor's active parameters).
-    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+    supervisor : semi_active_control.supervision.failsafe.ModelSupervisor
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     inverse_tol_a : float
         Current tolerance [A] of the inverse model.
@@ -507,7 +508,7 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
         Parameter name -> new value; names of :data:`SUPERVISOR_PARAMETERS`,
         ``controller_options`` (JSON object of the law's keyword options) and
         ``command_timeout_s`` [s].
-    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+    supervisor : semi_active_control.supervision.failsafe.ModelSupervisor
         Gets the supervisor settings.
     core : ControllerCore, optional
         Gets the new law (``controller_options``); None: no built-in law.
@@ -528,7 +529,7 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
     """
     import contextlib
     import json
-    from quarter_car_sim.failsafe import SupervisorError
+    from semi_active_control.supervision.failsafe import SupervisorError
     unknown = sorted(set(changes) - set(SUPERVISOR_PARAMETERS)
                      - {'controller_options', 'command_timeout_s'})
     if unknown:

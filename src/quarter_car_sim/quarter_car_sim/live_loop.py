@@ -7,7 +7,8 @@ studies (:mod:`quarter_car_sim.simulate`) with a fixed identified inverse. One c
 :class:`quarter_car_sim.controller_core.ControllerCore`, shared with the stand-alone
 ``semi_active_controller_node``):
 
-1. the supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`) is advanced to the caller's
+1. the supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`) is advanced
+to the caller's
    clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
 2. with a model: the controller's demanded body force (positive up) is turned into a coil
    current by the inverse of the identified model (the damper model
@@ -61,7 +62,7 @@ class ClosedLoop:
         inverse model); ``'active'`` only without a supervisor. None (with a supervisor) when
         the command comes from outside (an external controller node): set :attr:`i_cmd` before
         :meth:`advance`.
-    supervisor : quarter_car_sim.failsafe.ModelSupervisor or None
+    supervisor : semi_active_control.supervision.failsafe.ModelSupervisor or None
         Gatekeeper of the identified parameters; holds the safe current and coil range.
     dt : float
         Control period [s].

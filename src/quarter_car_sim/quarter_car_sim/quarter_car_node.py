@@ -8,13 +8,13 @@ The node declares its parameters, converts messages and calls one ROS-free
 control thread runs :class:`quarter_car_sim.live_loop.ClosedLoop` at ``rate_hz`` (1 kHz), paced
 against the monotonic wall clock (real time times ``real_time_factor``; 0 = as fast as
 possible): a real-time simulation keeps pace with the wall clock by nature, even under
-``use_sim_time``. Each step: the supervisor (:mod:`quarter_car_sim.failsafe`) says whether the
-latest identified parameters may be used; the controller's force goes through their inverse to
-a coil current (or the safe current in fail-safe), published on ``mr_damper/current_command``;
-then the car and its "true" damper plant advance 1 ms. Parameter messages and ``/diagnostics``
-go through the executor in the main thread. Ages and timeouts of messages (parameter age and
-timeout, command timeout) are on the node's clock: ROS time, so they follow ``/clock`` under
-``use_sim_time``.
+``use_sim_time``. Each step: the supervisor (:mod:`semi_active_control.supervision.failsafe`) says
+whether the latest identified parameters may be used; the controller's force goes through their
+inverse to a coil current (or the safe current in fail-safe), published on
+``mr_damper/current_command``; then the car and its "true" damper plant advance 1 ms. Parameter
+messages and ``/diagnostics`` go through the executor in the main thread. Ages and timeouts of
+messages (parameter age and timeout, command timeout) are on the node's clock: ROS time, so they
+follow ``/clock`` under ``use_sim_time``.
 
 Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
@@ -38,8 +38,8 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
   control step with ``controller:=external``; reliable, depth 10);
 - pub ``/diagnostics`` (diagnostic_msgs/DiagnosticArray every ``diagnostics_period_s``, status
   name ``quarter_car_node`` or ``<ns>/quarter_car_node``): level and message from
-  :class:`quarter_car_sim.health.CarHealth` (OK normal; WARN fail-safe and why, loop late,
-  drops; ERROR control thread died, commands refused persistently); values: mode, reason,
+  :class:`quarter_car_sim.runtime.car_health.CarHealth` (OK normal; WARN fail-safe and why, loop
+  late, drops; ERROR control thread died, commands refused persistently); values: mode, reason,
   failsafe_s, failsafe_entries, params_accepted, params_rejected.<reason>, param_age_s,
   current_a, saturated_steps, loop.period / lateness / latency / step statistics [ms],
   late_reanchors, dropped.<reason>, ride_metrics.* (running Wk RMS body acceleration, RMS tyre

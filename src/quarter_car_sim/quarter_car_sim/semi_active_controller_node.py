@@ -20,9 +20,9 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 - pub ``mr_damper/current_command`` (std_msgs/Float64, A, one per state; reliable, depth 10);
 - pub ``/diagnostics`` (diagnostic_msgs/DiagnosticArray every ``diagnostics_period_s``, status
   name ``semi_active_controller`` or ``<ns>/semi_active_controller``): level and message from
-  :class:`quarter_car_sim.health.ControllerHealth` (OK normal; WARN fail-safe and why, states
-  refused, state stamps re-based, drops; ERROR states refused persistently); values: mode,
-  reason (``state_<reason>`` while the last state was refused), failsafe_s,
+  :class:`semi_active_control.supervision.health.ControllerHealth` (OK normal; WARN fail-safe and
+  why, states refused, state stamps re-based, drops; ERROR states refused persistently); values:
+  mode, reason (``state_<reason>`` while the last state was refused), failsafe_s,
   failsafe_entries, params_accepted, params_rejected.<reason>, param_age_s, current_a,
   commands, commands_normal, saturated_steps, state_rejected.<reason>, stamp_rebases,
   dropped.<reason>.
@@ -50,8 +50,8 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
 from quarter_car_sim import controller_core
 from quarter_car_sim.controller_core import ControllerCore
 from semi_active_control.laws import DAMPER_LAW_NAMES
-from quarter_car_sim.failsafe import ModelSupervisor
-from quarter_car_sim.health import ControllerHealth
+from semi_active_control.supervision.failsafe import ModelSupervisor
+from semi_active_control.supervision.health import ControllerHealth
 from semi_active_control.car.quarter_car import QuarterCarParams
 
 #: Parameters of the supervised law, shared with the quarter car's built-in controller.
@@ -96,10 +96,10 @@ def offer_parameters(supervisor, msg, now, logger):
     Offer a ``KwokParameters`` message received at ``now`` [s, node clock] to ``supervisor``.
 
     Decoded by :func:`mr_damper_common.messages.identified_set_from_msg` and offered
-    (:meth:`~quarter_car_sim.failsafe.ModelSupervisor.offer_decoded`: a message the decoder
-    refuses is refused by the decoder's reason when the supervisor knows it, ``'bad_i_ref'``,
-    else as ``'undecodable'``); refusals are logged (throttled). The caller holds the
-    supervisor's lock if it has one. Returns the ``Verdict``.
+    (:meth:`~semi_active_control.supervision.failsafe.ModelSupervisor.offer_decoded`: a message the
+    decoder refuses is refused by the decoder's reason when the supervisor knows it,
+    ``'bad_i_ref'``, else as ``'undecodable'``); refusals are logged (throttled). The caller holds
+    the supervisor's lock if it has one. Returns the ``Verdict``.
     """
     verdict = supervisor.offer_decoded(messages.identified_set_from_msg, msg, now)
     if not verdict.accepted:

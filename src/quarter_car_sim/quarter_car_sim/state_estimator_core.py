@@ -9,8 +9,8 @@ The node converts messages and calls this object; everything else happens here:
   sample periods skipped between consecutive stamps);
 - :meth:`offer_current` keeps the last current command [A] (the coil current input);
 - :meth:`offer_parameters` gives an identified Kwok-current parameter set to the fail-safe
-  supervisor (:class:`quarter_car_sim.failsafe.ModelSupervisor`, the same rules as the
-  controller's: invalid, out-of-bounds, pinned or stale sets are not used); the active set is
+  supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`, the same rules as
+  the controller's: invalid, out-of-bounds, pinned or stale sets are not used); the active set is
   the estimator's damper model (the known force input);
 - :meth:`tick` (at the control rate) steps the Kalman filter
   (:class:`quarter_car_sim.estimator.QuarterCarEstimator`) with the readings that arrived and
@@ -45,7 +45,7 @@ class StateEstimatorCore:
         Control period [s] (one :meth:`tick` per period).
     specs : dict
         ``{sensor: SensorSpec}`` of the vehicle's sensors (noise, latency).
-    supervisor : quarter_car_sim.failsafe.ModelSupervisor
+    supervisor : semi_active_control.supervision.failsafe.ModelSupervisor
         Gatekeeper of the identified parameters.
     design_options : dict, optional
         Options of :func:`~quarter_car_sim.estimator.design_estimator`.

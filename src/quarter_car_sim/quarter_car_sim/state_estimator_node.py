@@ -51,7 +51,7 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
                                          DropCounter, LATCHED_QOS, LogThrottle, node_time_s,
                                          Param, run_node, SENSOR_QOS, set_realtime_priority,
                                          spin_node)
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim import sensor_cdr
 from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec

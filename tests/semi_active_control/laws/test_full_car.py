@@ -8,7 +8,7 @@ from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from semi_active_control.laws import Skyhook
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import FullCar, make_two_track_road, simulate_full_car
 from quarter_car_sim.full_car.controller_core import FullCarController
 from semi_active_control.laws.full_car import ModalSkyhook

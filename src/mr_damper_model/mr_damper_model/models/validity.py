@@ -2,9 +2,9 @@
 The one rule for a parameter set's values: finite, inside the model's box, not pinned at a bound.
 
 The live identifier applies it to every fitted set (:mod:`mr_damper_model.live`) and the car's
-supervisor (``quarter_car_sim.failsafe.ModelSupervisor``) to every set it receives, with the
-same tolerances, so a set the identifier publishes as valid is not refused by the car for its
-values (the car adds its own checks on the current range it needs).
+supervisor (``semi_active_control.supervision.failsafe.ModelSupervisor``) to every set it receives,
+with the same tolerances, so a set the identifier publishes as valid is not refused by the car for
+its values (the car adds its own checks on the current range it needs).
 
 - **finite**: every parameter finite (``non_finite``);
 - **in the box**: every parameter inside the model's bounds, within :data:`BOUND_TOL` of the

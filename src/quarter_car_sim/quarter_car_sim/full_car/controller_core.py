@@ -8,8 +8,8 @@ rebuilds the body's heave, pitch and roll from the four body points (least squar
 corner map ``T`` of the car; the corners whose fields are not finite are left out, three are
 enough) and runs :class:`~quarter_car_sim.full_car.controller_core.FullCarController`: the full-car
 law, then per corner the inverse of that corner's identified model under that corner's
-:class:`~quarter_car_sim.failsafe.ModelSupervisor`. A corner without a valid, fresh model gets
-its safe current; the other three go on controlling.
+:class:`~semi_active_control.supervision.failsafe.ModelSupervisor`. A corner without a valid, fresh
+model gets its safe current; the other three go on controlling.
 
 A set is complete when each corner has a state not yet answered and the four stamps are equal;
 it is then answered once. A corner's second state before the set completes replaces its first
@@ -21,14 +21,14 @@ import math
 import numpy as np
 
 from quarter_car_sim.controller_core import ControllerCore
-from quarter_car_sim.failsafe import ModelSupervisor
+from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCarState
 from semi_active_control.car.full_car import CORNERS
 
 
 def corner_supervisors(**settings):
-    """Return one :class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner (``settings``)."""
+    """Return one :class:`~semi_active_control.supervision.ModelSupervisor` per corner."""
     return [ModelSupervisor(**settings) for _ in CORNERS]
 
 
@@ -107,9 +107,9 @@ class FullCarControllerCore:
     dt : float
         Period of the states [s] (laws with a filter inside).
     **supervisor_settings
-        Settings of each corner's :class:`~quarter_car_sim.failsafe.ModelSupervisor`
-        (``timeout_s``, ``safe_current_a``, ``i_min_a``, ``i_max_a``,
-        ``min_current_span_a``, ``hold_on_reject``).
+        Settings of each corner's
+        :class:`~semi_active_control.supervision.failsafe.ModelSupervisor` (``timeout_s``,
+        ``safe_current_a``, ``i_min_a``, ``i_max_a``, ``min_current_span_a``, ``hold_on_reject``).
 
     Attributes
     ----------
@@ -284,13 +284,13 @@ class FullCarController:
             Index 0..3 or name of :data:`~semi_active_control.car.full_car.CORNERS`.
         values : mr_damper_common.contract.IdentifiedSet or mapping
             The corner's identified set (a flat mapping is converted, see
-            :meth:`~quarter_car_sim.failsafe.ModelSupervisor.check`).
+            :meth:`~semi_active_control.supervision.failsafe.ModelSupervisor.check`).
         t_clock : float
             Receipt time [s].
 
         Returns
         -------
-        quarter_car_sim.failsafe.Verdict
+        semi_active_control.supervision.failsafe.Verdict
 
         """
         i = CORNERS.index(corner) if isinstance(corner, str) else int(corner)

@@ -3,7 +3,7 @@ The full car's live runtime without ROS: one control step of the 7-DOF car at a 
 
 :class:`FullCarRuntime` holds the car (:class:`~quarter_car_sim.full_car.dynamics.FullCar`
 with its four "true" damper plants and the two-track road), the full-car law under one
-:class:`~quarter_car_sim.failsafe.ModelSupervisor` per corner
+:class:`~semi_active_control.supervision.failsafe.ModelSupervisor` per corner
 (:class:`~quarter_car_sim.full_car.controller_core.FullCarController`) and the counts a node
 reports.
 Each :meth:`FullCarRuntime.step` reads the state at ``t_k``, commands the four currents
@@ -49,7 +49,8 @@ class FullCarRuntime:
     dt : float
         Control period [s].
     timeout_s, safe_current_a, i_min_a, i_max_a, min_current_span_a, hold_on_reject
-        Settings of each corner's :class:`~quarter_car_sim.failsafe.ModelSupervisor`.
+        Settings of each corner's
+        :class:`~semi_active_control.supervision.failsafe.ModelSupervisor`.
     settle_s : float
         Time run before the road starts (the car starts at ``t = -settle_s``) [s].
     log_max_s : float

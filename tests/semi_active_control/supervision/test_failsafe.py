@@ -1,4 +1,4 @@
-"""Tests of quarter_car_sim.failsafe: the model supervisor of the quarter-car controller."""
+"""Tests of semi_active_control.supervision.failsafe: the model supervisor of the controllers."""
 import math
 import subprocess
 import sys
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from mr_damper_model.models import get_model
-from quarter_car_sim.failsafe import (
-    clip_current, KWOK_CURRENT_NAMES, ModelSupervisor, SupervisorError)
+from semi_active_control.supervision.failsafe import (clip_current, KWOK_CURRENT_NAMES,
+                                                      ModelSupervisor, SupervisorError)
 
 BOUNDS = {
     'c0': (0.0, 1e4), 'c1': (0.0, 1e4), 'k': (-1e4, 1e4), 'alpha0': (0.0, 2e3),
@@ -201,7 +201,7 @@ def test_default_bounds_are_the_kwok_current_model_bounds():
 
 
 def test_module_does_not_import_rclpy():
-    code = 'import sys, quarter_car_sim.failsafe; print("rclpy" in sys.modules)'
+    code = 'import sys, semi_active_control.supervision.failsafe; print("rclpy" in sys.modules)'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
 
