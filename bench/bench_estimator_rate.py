@@ -6,11 +6,12 @@ Benchmark: what the state estimator node pays per 1 kHz sensor reading (not coll
 In-process (medians of ``--repeats``, the alternatives timed in turn in the same run):
 
 - reading a serialised ``sensor_msgs/Imu`` / ``JointState``: rclpy's deserialisation (what a
-  typed subscription does) against :mod:`quarter_car_sim.sensor_cdr` (what the node's raw
-  readers do);
+  typed subscription does) against :mod:`semi_active_control.estimation.sensor_cdr` (what the
+  node's raw readers do);
 - a suppressed throttled warning: rclpy's ``throttle_duration_sec`` against the
   :class:`~mr_damper_common.node_utils.LogThrottle` gate;
-- one filter period of :class:`~quarter_car_sim.state_estimator_core.StateEstimatorCore` on the
+- one filter period of
+:class:`~semi_active_control.estimation.state_estimator_core.StateEstimatorCore` on the
   steady gain and time-varying (after a lost reading), and the periods it takes to return to
   the steady gain after one lost reading with ``steady_tol`` 1e-6 and the node's 1e-3.
 
@@ -59,11 +60,11 @@ def bench_in_process(repeats):
     from sensor_msgs.msg import Imu, JointState
     from kwok_messages import thesis_parameter_values
     from mr_damper_common.node_utils import LogThrottle
-    from quarter_car_sim import sensor_cdr
+    from semi_active_control.estimation import sensor_cdr
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.sensors import default_specs, G0
-    from quarter_car_sim.state_estimator_core import StateEstimatorCore
+    from semi_active_control.estimation.sensor_specs import default_specs, G0
+    from semi_active_control.estimation.state_estimator_core import StateEstimatorCore
 
     imu = Imu()
     imu.header.frame_id = 'body'

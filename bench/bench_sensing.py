@@ -7,8 +7,8 @@ bench_laws.py), ISO 8608 class C at 20 m/s, 60 s, seeds 1 2 3, medians over the 
 skyhook, SH-ADD, clipped-optimal and clipped-optimal-wk: Wk RMS body acceleration [m/s^2] and
 RMS dynamic tyre load / static load with the law on the true state ("ideal") and on the state
 estimated from the default modelled sensors (ADXL313-like body accelerometer, ride-height
-sensor; ``quarter_car_sim.sensors``) by ``quarter_car_sim.estimator`` ("vehicle"), and the RMS
-estimation error of each state. Conditions:
+sensor; ``quarter_car_sim.sensors``) by ``semi_active_control.estimation.quarter_car`` ("vehicle"),
+and the RMS estimation error of each state. Conditions:
 
 - ``nominal``: the simulated car is the one the estimator (and the LQR laws) assume;
 - ``m_s +-20%``, ``k_s +-20%``, ``k_t +-20%``: the simulated car's body mass, spring or tyre
@@ -39,7 +39,7 @@ from semi_active_control.laws import make_controller, Passive
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import iso8608
 from quarter_car_sim.sensed_loop import ERROR_STATES, simulate_sensed, true_values
-from quarter_car_sim.sensors import accelerometer_spec, default_specs
+from semi_active_control.estimation.sensor_specs import accelerometer_spec, default_specs
 from quarter_car_sim.simulate import make_inverse, simulate
 
 LAWS = ('skyhook', 'sh-add', 'clipped-optimal', 'clipped-optimal-wk')

@@ -43,7 +43,8 @@ class _Vehicle:
     def __init__(self, lis):
         from rclpy.qos import qos_profile_sensor_data
         from sensor_msgs.msg import Imu, JointState
-        from quarter_car_sim.sensors import accelerometer_spec, G0, ride_height_spec
+        from semi_active_control.estimation.sensor_specs import (accelerometer_spec, G0,
+                                                                 ride_height_spec)
         self.imu_pub = lis.node.create_publisher(Imu, f'/{NS}/quarter_car/body_imu',
                                                  qos_profile_sensor_data)
         self.pos_pub = lis.node.create_publisher(JointState,

@@ -8,7 +8,7 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
 from quarter_car_sim.full_car import FullCar, mechanical_energy
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
-from quarter_car_sim.full_car.dynamics import natural_frequencies, state_matrices
+from semi_active_control.car.full_car_linear import natural_frequencies, state_matrices
 from quarter_car_sim.full_car.road import same_road_all_wheels, TwoTrackRoad
 from semi_active_control.car.quarter_car_linear import analytic_frequencies
 from semi_active_control.car.quarter_car import QuarterCarParams

@@ -193,7 +193,7 @@ def test_parameter_timeout_runs_on_ros_time_under_use_sim_time(node_factory):
 def test_vehicle_sensing_publishes_the_sensors_and_moves_the_true_state(node_factory):
     """sensing:=vehicle: Imu and JointState readings of the sampler, true state elsewhere."""
     import time
-    from quarter_car_sim.sensors import G0
+    from semi_active_control.estimation.sensor_specs import G0
     with pytest.raises(ValueError, match='needs controller:=external'):
         node_factory(sensing='vehicle')
     with pytest.raises(ValueError, match="'ideal' or 'vehicle'"):

@@ -7,8 +7,8 @@ from quarter_car_sim.dynamics import LinearDamperPlant
 from semi_active_control.car.quarter_car import QuarterCarParams
 from quarter_car_sim.road import make_road
 from quarter_car_sim.sensed_loop import SAFE_CURRENT_A, simulate_sensed
-from quarter_car_sim.sensors import (accelerometer_spec, Fault, G0, ideal_spec,
-                                     ride_height_spec)
+from semi_active_control.estimation.sensor_specs import (accelerometer_spec, Fault, G0, ideal_spec,
+                                                         ride_height_spec)
 
 C = 1500.0
 

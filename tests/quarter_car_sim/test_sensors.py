@@ -4,9 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from quarter_car_sim.sensors import (accelerometer_spec, default_specs, Fault, G0,
-                                     ride_height_spec, sample_series, Sensor, SensorError,
-                                     SensorSampler, SensorSpec)
+from quarter_car_sim.sensors import sample_series, Sensor, SensorSampler
+from semi_active_control.estimation.sensor_specs import (accelerometer_spec, default_specs, Fault,
+                                                         G0, ride_height_spec, SensorError,
+                                                         SensorSpec)
 
 
 def test_noise_std_is_density_times_sqrt_bandwidth():
@@ -141,7 +142,8 @@ def test_vehicle_sensors_of_the_car_with_an_injected_dropout():
     """VehicleSensors: default sensors, seeded, the dropout window NaN and counted."""
     from types import SimpleNamespace
 
-    from quarter_car_sim.sensors import SensorError, VehicleSensors
+    from quarter_car_sim.sensors import VehicleSensors
+    from semi_active_control.estimation.sensor_specs import SensorError
     dt = 1e-3
 
     def run(seed):

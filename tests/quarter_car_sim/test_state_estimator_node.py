@@ -45,8 +45,8 @@ def test_core_needs_a_model_then_estimates_and_counts_faults():
     from mr_damper_common.messages import identified_set_from_msg
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.sensors import default_specs, G0
-    from quarter_car_sim.state_estimator_core import StateEstimatorCore
+    from semi_active_control.estimation.sensor_specs import default_specs, G0
+    from semi_active_control.estimation.state_estimator_core import StateEstimatorCore
     core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
     rng = np.random.default_rng(0)
 
@@ -77,7 +77,7 @@ def test_core_needs_a_model_then_estimates_and_counts_faults():
 
 
 def test_node_publishes_valid_then_marked_invalid_states(make_node):
-    from quarter_car_sim.sensors import G0
+    from semi_active_control.estimation.sensor_specs import G0
     # the set must not go stale while the loop runs (node clock = wall time; a loaded machine
     # took over 1 s for the 200 periods below): the truth here is the dropout, not the timeout
     node = make_node(dropout_s=0.02, param_timeout_s=3600.0)
@@ -116,8 +116,8 @@ def test_core_clocked_by_readings_predicts_through_missing_periods():
     from mr_damper_common.messages import identified_set_from_msg
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.sensors import default_specs, G0
-    from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
+    from semi_active_control.estimation.sensor_specs import default_specs, G0
+    from semi_active_control.estimation.state_estimator_core import REBASE_S, StateEstimatorCore
     core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
     core.offer_parameters(identified_set_from_msg(thesis_parameters_msg()), 0.0)
     rng = np.random.default_rng(1)
@@ -143,8 +143,8 @@ def test_core_counts_readings_lost_between_stamps():
     """Readings the vehicle sent that never arrived: the periods skipped between stamps."""
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.sensors import accelerometer_spec, default_specs, G0
-    from quarter_car_sim.state_estimator_core import REBASE_S, StateEstimatorCore
+    from semi_active_control.estimation.sensor_specs import accelerometer_spec, default_specs, G0
+    from semi_active_control.estimation.state_estimator_core import REBASE_S, StateEstimatorCore
     core = StateEstimatorCore(QuarterCarParams(), 1e-3, default_specs(), ModelSupervisor())
     sent = range(1000)
     lost = {k for k in sent if k % 9 == 4} | set(range(500, 530))
@@ -175,7 +175,7 @@ def test_node_reads_serialised_readings_with_their_stamps(make_node):
     """The raw readers: stamps and values from the serialised messages, losses counted."""
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import Imu
-    from quarter_car_sim.sensors import G0
+    from semi_active_control.estimation.sensor_specs import G0
     node = make_node(clock='readings')
     sent = []
     node.pub.publish = lambda m: sent.append((m.header.stamp.sec, m.header.stamp.nanosec))

@@ -7,7 +7,8 @@ vehicle``, ``bench/bench_sensing.py``). One control period ``dt`` of :func:`simu
 1. each sensor (:class:`quarter_car_sim.sensors.SensorSampler`) samples the true car state at
    ``t_k`` (body acceleration, optionally wheel acceleration, suspension travel) and delivers
    what arrives now (latency, rate, dropouts, faults);
-2. the estimator (:class:`quarter_car_sim.estimator.QuarterCarEstimator`, designed on the
+2. the estimator (:class:`semi_active_control.estimation.quarter_car.QuarterCarEstimator`, designed
+on the
    *nominal* car, which may differ from the simulated one) takes those readings and the last
    current command (the damper force of the identified model is its known input);
 3. a valid estimate goes to the law and the inverse exactly as a measured state would
@@ -26,8 +27,9 @@ import numpy as np
 
 from quarter_car_sim.controller_core import FixedModelCore
 from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.estimator import design_estimator, QuarterCarEstimator
-from quarter_car_sim.sensors import default_specs, SensorSampler
+from semi_active_control.estimation.quarter_car import design_estimator, QuarterCarEstimator
+from quarter_car_sim.sensors import SensorSampler
+from semi_active_control.estimation.sensor_specs import default_specs
 from quarter_car_sim.simulate import _STATE_FIELDS, SimResult
 
 #: Estimated quantities whose RMS error is reported (true value from the car state).
@@ -111,8 +113,9 @@ def make_estimator(car_params, dt, specs, inverse, **options):
     inverse : mr_damper_model.models.inverse.KwokCurrentInverse
         Identified model (``force(i, x, v)``, model sign: the body force is its negative).
     **options
-        Design options of :func:`~quarter_car_sim.estimator.design_estimator` and runtime
-        options of :class:`~quarter_car_sim.estimator.QuarterCarEstimator`.
+        Design options of :func:`~semi_active_control.estimation.quarter_car.design_estimator` and
+        runtime options of
+        :class:`~semi_active_control.estimation.quarter_car.QuarterCarEstimator`.
 
     """
     run_keys = ('stuck_s', 'dropout_s', 'nis_window_s', 'nis_threshold', 'nis_cap', 'gravity',
@@ -148,7 +151,8 @@ def simulate_sensed(params, road, controller, plant, inverse, *, dt=1e-3, specs=
     dt : float
         Control period [s].
     specs : dict, optional
-        ``{sensor: SensorSpec}`` (default :func:`quarter_car_sim.sensors.default_specs`).
+        ``{sensor: SensorSpec}`` (default
+        :func:`semi_active_control.estimation.sensor_specs.default_specs`).
     nominal : QuarterCarParams, optional
         Car the estimator assumes (default ``params``).
     rng : int or None

@@ -3,12 +3,13 @@ State estimator node: vehicle sensors in, the car state for the controller node 
 
 ``ros2 run quarter_car_sim state_estimator_node``
 
-A Kalman filter of one corner (:class:`quarter_car_sim.state_estimator_core.StateEstimatorCore`,
-no ROS) on the body accelerometer, the suspension position sensor (and optionally a wheel
-accelerometer), with the damper force of the live identified model as a known input. At the
-control rate it publishes the typed car state the semi-active controller node reads, so the
-controller is unchanged (docs/sensing.md, docs/controller-node.md "Vehicle contract"). Callbacks
-only convert messages and call the core; the control-rate timer calls ``tick``.
+A Kalman filter of one corner
+(:class:`semi_active_control.estimation.state_estimator_core.StateEstimatorCore`, no ROS) on the
+body accelerometer, the suspension position sensor (and optionally a wheel accelerometer), with the
+damper force of the live identified model as a known input. At the control rate it publishes the
+typed car state the semi-active controller node reads, so the controller is unchanged
+(docs/sensing.md, docs/controller-node.md "Vehicle contract"). Callbacks only convert messages and
+call the core; the control-rate timer calls ``tick``.
 
 Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
@@ -16,9 +17,9 @@ Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
   ``linear_acceleration.z``,
   specific force [m/s^2] as REP 145 has it (+9.81 at rest); NaN marks a lost sample. The
   sensor readers take the serialised messages and read the stamp and the one value from the
-  CDR (:mod:`quarter_car_sim.sensor_cdr`; other encodings through rclpy's deserialisation, an
-  undecodable message counted as ``dropped.undecodable_reading``); readings missing between
-  consecutive stamps are counted (``readings_lost``);
+  CDR (:mod:`semi_active_control.estimation.sensor_cdr`; other encodings through rclpy's
+  deserialisation, an undecodable message counted as ``dropped.undecodable_reading``); readings
+  missing between consecutive stamps are counted (``readings_lost``);
 - sub ``quarter_car/wheel_imu`` (sensor_msgs/Imu) with ``wheel_accel:=true``;
 - sub ``quarter_car/suspension_position`` (sensor_msgs/JointState, best effort, KEEP_LAST 100):
   the first ``position`` [m] (the suspension as a prismatic joint: travel ``z_s - z_u``, extension
@@ -53,9 +54,9 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
                                          spin_node)
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim import sensor_cdr
-from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec
-from quarter_car_sim.state_estimator_core import StateEstimatorCore
+from semi_active_control.estimation import sensor_cdr
+from semi_active_control.estimation.sensor_specs import accelerometer_spec, ride_height_spec
+from semi_active_control.estimation.state_estimator_core import StateEstimatorCore
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (

@@ -14,7 +14,7 @@ from semi_active_control.car.quarter_car import QuarterCarParams
 
 def test_relative_model_matches_the_absolute_car():
     # the road-relative model's body accelerations equal those of the car's own matrices
-    from quarter_car_sim.full_car.dynamics import state_matrices
+    from semi_active_control.car.full_car_linear import state_matrices
     p = PASSENGER_CAR.replace(k_arb_f=7000.0, c_s_f=300.0)
     A, B = state_matrices(p)
     Ar, Br, _, _, n = relative_model(p)

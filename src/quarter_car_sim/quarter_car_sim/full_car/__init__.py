@@ -7,7 +7,8 @@ from quarter_car_sim.full_car.bound import full_car_bound
 from quarter_car_sim.full_car.controller_core import FullCarController
 from semi_active_control.laws.full_car import ModalSkyhook, PerCornerLaws
 from semi_active_control.laws.registry import make_full_car_law
-from quarter_car_sim.full_car.dynamics import FullCar, FullCarState, mechanical_energy
+from quarter_car_sim.full_car.dynamics import FullCar, mechanical_energy
+from semi_active_control.car.full_car_linear import FullCarState
 from semi_active_control.laws.full_car_lqr import full_car_lqr_design, FullCarClippedOptimal
 from quarter_car_sim.full_car.metrics import full_car_metrics, iso2631_seat
 from semi_active_control.car.full_car import CORNERS, FullCarParams, PASSENGER_CAR, symmetric_car

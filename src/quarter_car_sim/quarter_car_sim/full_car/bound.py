@@ -44,7 +44,8 @@ from scipy import fft as sfft, signal
 
 from quarter_car_sim.bound import (bound_name, BoundResult, check_bound_options,
                                    CurrentSchedule, fista_box, largest_eigenvalue, Unlimited)
-from quarter_car_sim.full_car.dynamics import corner_maps, discretise, FullCar, N_Q
+from quarter_car_sim.full_car.dynamics import discretise, FullCar
+from semi_active_control.car.full_car_linear import corner_maps, N_Q
 from quarter_car_sim.full_car.metrics import AXIS_FACTORS
 from semi_active_control.iso2631 import we_sos
 from semi_active_control.iso2631 import wk_sos

@@ -23,7 +23,7 @@ import numpy as np
 from quarter_car_sim.controller_core import ControllerCore
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.laws.registry import make_full_car_law
-from quarter_car_sim.full_car.dynamics import FullCarState
+from semi_active_control.car.full_car_linear import FullCarState
 from semi_active_control.car.full_car import CORNERS
 
 

@@ -16,9 +16,12 @@ import numpy as np
 from quarter_car_sim.full_car.controller_core import FullCarController
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
-from quarter_car_sim.full_car.estimator import SensedState
 from quarter_car_sim.full_car.metrics import full_car_metrics
+from quarter_car_sim.sensors import FullCarSensors
 from quarter_car_sim.simulate import identified_set_of
+from semi_active_control.estimation.full_car import (design_full_car_estimator,
+                                                     FullCarEstimator, STATE_GROUPS)
+from semi_active_control.estimation.sensor_specs import accelerometer_spec
 
 #: Model timeout [s] of the offline supervisors (the models are offered once).
 OFFLINE_TIMEOUT_S = 1.0e9
@@ -112,7 +115,7 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
         Recorded time [s] (default the road's duration).
     sensing : str
         ``'ideal'`` (the law reads the true state) or ``'vehicle'`` (the law reads the
-        estimate of :class:`quarter_car_sim.full_car.estimator.FullCarEstimator` from the
+        estimate of :class:`semi_active_control.estimation.full_car.FullCarEstimator` from the
         production sensor set; the estimation error is recorded in ``status['estimation']``).
     sensor_seed : int
         Seed of the sensors with ``sensing='vehicle'``.
@@ -215,3 +218,62 @@ def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s
         m['wall_time_s'] = res.wall_time_s
         out[res.law] = m
     return out
+
+
+def true_vector(state):
+    """Return the estimator's first 15 states from a true :class:`FullCarState`."""
+    return np.concatenate([state.travel, state.q[3:] - state.z_r, state.v])
+
+
+class SensedState:
+    """
+    Sensors plus filter of one simulated run: true state in, estimated state out.
+
+    The filter's known input is the damper force each plant holds over the next period
+    (``state.damper_force``): what the corner's identified model gives when it is exact.
+
+    Parameters
+    ----------
+    params : FullCarParams
+    dt : float
+    seed : int
+        Sensor seed.
+    dropout : (str, float, float), optional
+        Injected dropout (:class:`FullCarSensors`).
+    delay_steps : int, optional
+        :class:`FullCarEstimator`'s ``delay_steps``; None: the default sensors' latency in
+        periods, at most 1 (1 at 1 kHz).
+
+    """
+
+    def __init__(self, params, dt, seed=1, *, dropout=None, road_class='C', speed_m_s=20.0,
+                 delay_steps=None):
+        self.sensors = FullCarSensors(dt, seed, dropout=dropout)
+        if delay_steps is None:
+            delay_steps = min(1, int(round(accelerometer_spec().latency_s / dt)))
+        self.estimator = FullCarEstimator(design_full_car_estimator(
+            params, dt, road_class=road_class, speed_m_s=speed_m_s), delay_steps=delay_steps)
+        self._recording = False
+        self._sq = np.zeros(15)
+        self._n = 0
+
+    def start_recording(self):
+        """Accumulate estimation errors from now on (after the settling time)."""
+        self._recording = True
+
+    def update(self, state):
+        """Read the sensors on the true ``state``, step the filter, return the estimate."""
+        readings = self.sensors.step(state.t, state)
+        x = self.estimator.step(state.t, readings, state.damper_force)
+        if self._recording:
+            e = x[:15] - true_vector(state)
+            self._sq += e * e
+            self._n += 1
+        return self.estimator.state(state.t)
+
+    def summary(self):
+        """RMS estimation error per state group, invalid steps per reason, lost samples."""
+        rms = np.sqrt(self._sq / max(self._n, 1))
+        return {'rms_error': {g: [float(v) for v in rms[sl]] for g, sl in STATE_GROUPS.items()},
+                'steps': self._n, 'invalid_steps': dict(self.estimator.n_invalid),
+                'lost_samples': sum(s['lost'] for s in self.sensors.status().values())}

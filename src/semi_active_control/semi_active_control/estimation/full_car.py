@@ -7,12 +7,13 @@ at the body points above the front-left, front-right and rear-left wheels
 accelerations, so the fourth corner adds nothing but cost; the front pair sits near the front
 dampers' top mounts where the controller needs the body velocity most) and four suspension
 position sensors (travel, one per corner). Each sensor has the error model of
-:mod:`quarter_car_sim.sensors` (reused: :func:`~quarter_car_sim.sensors.accelerometer_spec`,
-:func:`~quarter_car_sim.sensors.ride_height_spec`, :class:`~quarter_car_sim.sensors.
-SensorSampler`).
+:mod:`semi_active_control.estimation.sensor_specs`
+(:func:`~semi_active_control.estimation.sensor_specs.accelerometer_spec`,
+:func:`~semi_active_control.estimation.sensor_specs.ride_height_spec`); the simulator samples them
+(:class:`quarter_car_sim.sensors.FullCarSensors`).
 
-Model (the linear car of :func:`quarter_car_sim.full_car.dynamics.state_matrices`, all wheels
-in contact), state ::
+Model (the linear car of :func:`semi_active_control.car.full_car_linear.state_matrices`, all
+wheels in contact), state ::
 
     x = [travel (4), tyre_def (4), v (7), b_acc (3)]
 
@@ -21,9 +22,10 @@ suspension travels [m] (extension +), tyre deflections ``z_u - z_r`` [m], the se
 Travels and tyre deflections are the 8 independent position coordinates relative to the road
 (the car's absolute height is not observable and no law needs it). Inputs: the four damper
 forces on the body (a *known* input, as in the quarter-car filter
-:mod:`quarter_car_sim.estimator`) and the four road velocities, unknown: white process noise of
-the ISO 8608 intensity :func:`quarter_car_sim.estimator.road_velocity_intensity` (the two
-tracks taken independent). Measurements: body specific force at the three points (gravity
+:mod:`semi_active_control.estimation.quarter_car`) and the four road velocities, unknown: white
+process noise of the ISO 8608 intensity
+:func:`semi_active_control.estimation.quarter_car.road_velocity_intensity` (the two tracks
+taken independent). Measurements: body specific force at the three points (gravity
 removed), the four travels.
 
 Design (:func:`design_full_car_estimator`): exact discretisation at the control period (Van
@@ -38,11 +40,10 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from quarter_car_sim.estimator import EstimatorError, road_velocity_intensity
-from quarter_car_sim.full_car.dynamics import FullCarState, N_Q, state_matrices
 from semi_active_control.car.full_car import CORNERS
-from quarter_car_sim.sensors import (G0, SensorSampler, accelerometer_spec, Fault,
-                                     ride_height_spec, sample_due, sampler_counts)
+from semi_active_control.car.full_car_linear import FullCarState, N_Q, state_matrices
+from semi_active_control.estimation.quarter_car import EstimatorError, road_velocity_intensity
+from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
 
 #: Corners whose body point carries an accelerometer.
 ACCEL_CORNERS = ('fl', 'fr', 'rl')
@@ -313,102 +314,3 @@ class FullCarEstimator:
         return FullCarState(float(t), q, v.copy(), acc, np.zeros(4), np.zeros(4),
                             travel.copy(), S @ v, np.full(4, math.nan), self._f.copy(),
                             np.full(4, math.nan), T @ v[:3], T @ acc[:3])
-
-
-def true_vector(state):
-    """Return the estimator's first 15 states from a true :class:`FullCarState`."""
-    return np.concatenate([state.travel, state.q[3:] - state.z_r, state.v])
-
-
-class FullCarSensors:
-    """
-    The production sensor set of a simulated full car (seeded samplers of each sensor).
-
-    Parameters
-    ----------
-    dt : float
-    seed : int
-    accel, travel : SensorSpec, optional
-    dropout : (str, float, float), optional
-        ``(sensor, start_s, duration_s)`` of an injected dropout.
-
-    """
-
-    def __init__(self, dt, seed=1, *, accel=None, travel=None, dropout=None):
-        accel = accelerometer_spec() if accel is None else accel
-        travel = ride_height_spec() if travel is None else travel
-        specs = {s: (accel if s.startswith('accel') else travel) for s in SENSORS}
-        if dropout is not None:
-            name, start, dur = dropout
-            if name not in specs:
-                raise EstimatorError(f'unknown sensor {name!r} (use {", ".join(SENSORS)})')
-            specs[name] = specs[name].replace(
-                faults=specs[name].faults + (Fault('dropout', start, start + dur),))
-        streams = np.random.SeedSequence(int(seed)).spawn(len(SENSORS))
-        self.samplers = {s: SensorSampler(specs[s], dt, np.random.default_rng(r))
-                         for s, r in zip(SENSORS, streams)}
-        self._rows = [CORNERS.index(c) for c in ACCEL_CORNERS]
-
-    def step(self, t, state):
-        """Return ``{sensor: reading}`` delivered at this step from a true state."""
-        true = {f'accel_{c}': state.body_a[i] for c, i in zip(ACCEL_CORNERS, self._rows)}
-        true.update({f'travel_{c}': state.travel[i] for i, c in enumerate(CORNERS)})
-        return sample_due(self.samplers, t, true)
-
-    def status(self):
-        """Return ``{sensor: {samples, lost}}``."""
-        return sampler_counts(self.samplers)
-
-
-class SensedState:
-    """
-    Sensors plus filter of one simulated run: true state in, estimated state out.
-
-    The filter's known input is the damper force each plant holds over the next period
-    (``state.damper_force``): what the corner's identified model gives when it is exact.
-
-    Parameters
-    ----------
-    params : FullCarParams
-    dt : float
-    seed : int
-        Sensor seed.
-    dropout : (str, float, float), optional
-        Injected dropout (:class:`FullCarSensors`).
-    delay_steps : int, optional
-        :class:`FullCarEstimator`'s ``delay_steps``; None: the default sensors' latency in
-        periods, at most 1 (1 at 1 kHz).
-
-    """
-
-    def __init__(self, params, dt, seed=1, *, dropout=None, road_class='C', speed_m_s=20.0,
-                 delay_steps=None):
-        self.sensors = FullCarSensors(dt, seed, dropout=dropout)
-        if delay_steps is None:
-            delay_steps = min(1, int(round(accelerometer_spec().latency_s / dt)))
-        self.estimator = FullCarEstimator(design_full_car_estimator(
-            params, dt, road_class=road_class, speed_m_s=speed_m_s), delay_steps=delay_steps)
-        self._recording = False
-        self._sq = np.zeros(15)
-        self._n = 0
-
-    def start_recording(self):
-        """Accumulate estimation errors from now on (after the settling time)."""
-        self._recording = True
-
-    def update(self, state):
-        """Read the sensors on the true ``state``, step the filter, return the estimate."""
-        readings = self.sensors.step(state.t, state)
-        x = self.estimator.step(state.t, readings, state.damper_force)
-        if self._recording:
-            e = x[:15] - true_vector(state)
-            self._sq += e * e
-            self._n += 1
-        return self.estimator.state(state.t)
-
-    def summary(self):
-        """RMS estimation error per state group, invalid steps per reason, lost samples."""
-        rms = np.sqrt(self._sq / max(self._n, 1))
-        return {'rms_error': {g: [float(v) for v in rms[sl]] for g, sl in STATE_GROUPS.items()},
-                'steps': self._n, 'invalid_steps': dict(self.estimator.n_invalid),
-                'lost_samples': sum(s['lost'] for s in self.sensors.status().values())}

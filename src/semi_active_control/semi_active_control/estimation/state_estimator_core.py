@@ -13,16 +13,16 @@ The node converts messages and calls this object; everything else happens here:
   the controller's: invalid, out-of-bounds, pinned or stale sets are not used); the active set is
   the estimator's damper model (the known force input);
 - :meth:`tick` (at the control rate) steps the Kalman filter
-  (:class:`quarter_car_sim.estimator.QuarterCarEstimator`) with the readings that arrived and
-  returns the :class:`~quarter_car_sim.estimator.Estimate`. Without a usable identified model
-  the filter runs with the force of the safe current's model if one was ever accepted, else
-  with no damper force, and the estimate is invalid (``no_model``), counted like the filter's
-  own reasons.
+  (:class:`semi_active_control.estimation.quarter_car.QuarterCarEstimator`) with the readings that
+  arrived and returns the :class:`~semi_active_control.estimation.quarter_car.Estimate`. Without a
+  usable identified model the filter runs with the force of the safe current's model if one was
+  ever accepted, else with no damper force, and the estimate is invalid (``no_model``), counted
+  like the filter's own reasons.
 """
 import math
 
-from quarter_car_sim.estimator import design_estimator, QuarterCarEstimator
-from quarter_car_sim.sensors import SENSOR_NAMES
+from semi_active_control.estimation.quarter_car import design_estimator, QuarterCarEstimator
+from semi_active_control.estimation.sensor_specs import SENSOR_NAMES
 
 #: :meth:`StateEstimatorCore.tick_at`: a jump of the readings' time longer than this [s] re-bases
 REBASE_S = 1.0
@@ -48,9 +48,9 @@ class StateEstimatorCore:
     supervisor : semi_active_control.supervision.failsafe.ModelSupervisor
         Gatekeeper of the identified parameters.
     design_options : dict, optional
-        Options of :func:`~quarter_car_sim.estimator.design_estimator`.
+        Options of :func:`~semi_active_control.estimation.quarter_car.design_estimator`.
     run_options : dict, optional
-        Options of :class:`~quarter_car_sim.estimator.QuarterCarEstimator`.
+        Options of :class:`~semi_active_control.estimation.quarter_car.QuarterCarEstimator`.
 
     Attributes
     ----------

@@ -30,7 +30,7 @@ def _joint(frame_id, names, positions, sec=3, nanosec=250_000_000):
 
 @pytest.mark.parametrize('frame_id', ['', 'b', 'body', 'body_imu', 'a' * 8, 'corner_fl/imu_z'])
 def test_imu_reading_of_every_header_length(frame_id):
-    from quarter_car_sim.sensor_cdr import imu_reading
+    from semi_active_control.estimation.sensor_cdr import imu_reading
     stamp, z = imu_reading(_imu(frame_id, 12, 500_000_000, 9.80665 + 1e-3))
     assert stamp == pytest.approx(12.5, abs=1e-9) and z == 9.80665 + 1e-3
 
@@ -38,7 +38,7 @@ def test_imu_reading_of_every_header_length(frame_id):
 @pytest.mark.parametrize('frame_id', ['', 'abc', 'abcd'])
 @pytest.mark.parametrize('names', [(), ('suspension',), ('a', 'bb', 'ccc', 'dddd', 'eeeee')])
 def test_joint_reading_of_every_layout(frame_id, names):
-    from quarter_car_sim.sensor_cdr import joint_reading
+    from semi_active_control.estimation.sensor_cdr import joint_reading
     positions = [-0.0123 + 1e-3 * k for k in range(max(len(names), 1))]
     stamp, x = joint_reading(_joint(frame_id, names, positions))
     assert stamp == pytest.approx(3.25, abs=1e-9) and x == positions[0]
@@ -48,7 +48,7 @@ def test_joint_reading_of_every_layout(frame_id, names):
 
 def test_big_endian_plain_cdr():
     """A big-endian writer: the same fields, other byte order (built by hand)."""
-    from quarter_car_sim.sensor_cdr import imu_reading, joint_reading
+    from semi_active_control.estimation.sensor_cdr import imu_reading, joint_reading
     body = struct.pack('>iII', 4, 5, 5) + b'body\0' + b'\0' * 7       # header, pad to 24
     doubles = [0.0] * 4 + [0.0] * 9 + [0.0] * 3 + [0.0] * 9 + [0.1, 0.2, -9.5] + [0.0] * 9
     data = b'\x00\x00\x00\x00' + body + struct.pack('>37d', *doubles)
@@ -59,7 +59,7 @@ def test_big_endian_plain_cdr():
 
 
 def test_other_encodings_and_short_messages():
-    from quarter_car_sim.sensor_cdr import CdrError, imu_reading, joint_reading
+    from semi_active_control.estimation.sensor_cdr import CdrError, imu_reading, joint_reading
     data = bytearray(_imu('body', 1, 2, 3.0))
     data[1] = 0x07                                  # XCDR2: the caller decodes it fully
     assert imu_reading(bytes(data)) is None and joint_reading(bytes(data)) is None

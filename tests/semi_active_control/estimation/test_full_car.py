@@ -4,11 +4,13 @@ import json
 import numpy as np
 import pytest
 
-from quarter_car_sim.full_car import estimator as fe
+from semi_active_control.estimation import full_car as fe
 from quarter_car_sim.full_car.dynamics import FullCar
 from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.full_car.road import make_two_track_road, TwoTrackRoad
-from quarter_car_sim.sensors import ideal_spec, G0
+from quarter_car_sim.full_car.simulate import true_vector
+from quarter_car_sim.sensors import FullCarSensors
+from semi_active_control.estimation.sensor_specs import G0, ideal_spec
 
 DT = 1e-3
 C_PASSIVE = 1500.0
@@ -32,8 +34,8 @@ def _run(design, sensors, n, *, x0=None, P0=None, q0=None, flat=False, seed=1, f
         # the force the accelerometers see now (held over the last step) is the known input
         f = -C_PASSIVE * s.v_rel if force is None else force
         x = est.step(s.t, sensors.step(s.t, s), s.damper_force)
-        err.append(x[:15] - fe.true_vector(s))
-        true.append(fe.true_vector(s))
+        err.append(x[:15] - true_vector(s))
+        true.append(true_vector(s))
         s = car.step_force(DT, f)
     return est, np.array(err), np.array(true)
 
@@ -46,7 +48,7 @@ def design():
 def test_noise_free_converges_from_wrong_initial_state():
     acc, pos = ideal_spec(offset=G0), ideal_spec()
     d = fe.design_full_car_estimator(PASSENGER_CAR, DT, accel=acc, travel=pos)
-    sens = fe.FullCarSensors(DT, accel=acc, travel=pos)
+    sens = FullCarSensors(DT, accel=acc, travel=pos)
     # free vibration on a flat road (linear car: no wheel lifts), filter started at rest
     q0 = np.array([0.02, 0.01, -0.01, 0.0, 0.0, 0.0, 0.0])
     x0 = np.zeros(fe.N_E)
@@ -65,7 +67,7 @@ def test_noise_free_converges_from_wrong_initial_state():
 
 
 def test_noisy_sensors_error_far_below_state_rms(design):
-    est, err, true = _run(design, fe.FullCarSensors(DT, seed=2), 2000)
+    est, err, true = _run(design, FullCarSensors(DT, seed=2), 2000)
     e, tr = err[300:], true[300:]
     for group in ('travel', 'body_rates', 'wheel_v'):
         sl = fe.STATE_GROUPS[group]
@@ -78,7 +80,7 @@ def test_one_step_delay_takes_the_sensor_latency(design):
     """Default sensors deliver 1 ms (one period) late: ``delay_steps=1`` removes that lag."""
     rms = {}
     for k in (0, 1):
-        _, err, true = _run(design, fe.FullCarSensors(DT, seed=2), 3000, delay_steps=k)
+        _, err, true = _run(design, FullCarSensors(DT, seed=2), 3000, delay_steps=k)
         rms[k] = np.sqrt(np.mean(err[1000:, 0:4] ** 2)) / np.sqrt(np.mean(true[1000:, 0:4] ** 2))
     assert rms[1] < 0.5 * rms[0], rms
     with pytest.raises(ValueError):
@@ -101,7 +103,7 @@ def test_three_accelerometers_fix_rigid_body_accelerations():
 
 
 def test_dropout_is_detected_and_counted(design):
-    sens = fe.FullCarSensors(DT, seed=3, dropout=('accel_fr', 0.3, 0.1))
+    sens = FullCarSensors(DT, seed=3, dropout=('accel_fr', 0.3, 0.1))
     est, _, _ = _run(design, sens, 600)
     n = est.n_invalid.get('dropout_accel_fr', 0)
     # no reading for > dropout_s (0.02 s) of the 0.1 s window: about 80 steps invalid

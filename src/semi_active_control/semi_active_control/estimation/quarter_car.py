@@ -44,7 +44,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from mr_damper_common.contract import CornerState
-from quarter_car_sim.sensors import G0, SENSOR_NAMES
+from semi_active_control.estimation.sensor_specs import G0, SENSOR_NAMES
 from semi_active_control.iso8608 import ISO8608_GD_N0, ISO8608_N0
 
 #: States of the car part of the estimate, in order.
@@ -224,9 +224,9 @@ def design_estimator(params, dt, sensors, *, road_class='C', speed_m_s=20.0,
     dt : float
         Control period [s].
     sensors : dict
-        ``{name: SensorSpec}`` with names of :data:`quarter_car_sim.sensors.SENSOR_NAMES`; the
-        spec gives the noise variance (``variance``) and the latency (``latency_s``, rounded to
-        whole periods).
+        ``{name: SensorSpec}`` with names of
+        :data:`semi_active_control.estimation.sensor_specs.SENSOR_NAMES`; the spec gives the noise
+        variance (``variance``) and the latency (``latency_s``, rounded to whole periods).
     road_class : str
         ISO 8608 class of the design road (process noise of the road velocity).
     speed_m_s : float

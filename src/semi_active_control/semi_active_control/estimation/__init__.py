@@ -1,0 +1,24 @@
+"""
+State estimation on a vehicle: Kalman filters from production sensors, and the node's core.
+
+Public API::
+
+    from semi_active_control.estimation import design_estimator, QuarterCarEstimator, Estimate
+    from semi_active_control.estimation import design_full_car_estimator, FullCarEstimator
+    from semi_active_control.estimation import StateEstimatorCore
+    from semi_active_control.estimation import SensorSpec, default_specs, accelerometer_spec
+
+Modules: ``quarter_car`` (a corner's filter), ``full_car`` (the 7-DOF car's filter from three
+body accelerometers and four position sensors), ``state_estimator_core`` (readings, current
+and identified model in, one estimate per tick out: what ``state_estimator_node`` calls),
+``sensor_specs`` (the sensors' datasheet error models the filters are designed on),
+``sensor_cdr`` (the sensor messages read from their serialised bytes).
+"""
+from semi_active_control.estimation.full_car import (design_full_car_estimator,  # noqa: F401
+                                                     FullCarEstimator)
+from semi_active_control.estimation.quarter_car import (design_estimator, Estimate,  # noqa: F401
+                                                        EstimatorError, QuarterCarEstimator)
+from semi_active_control.estimation.sensor_specs import (accelerometer_spec,  # noqa: F401
+                                                         default_specs, ride_height_spec,
+                                                         SensorSpec)
+from semi_active_control.estimation.state_estimator_core import StateEstimatorCore  # noqa: F401
