@@ -121,7 +121,7 @@ def latency_run(node, ctrl_status, rate_hz, duration_s, prefix):
     """Publish paced states, return (send times, receive times, in-process core times)."""
     from mr_damper_interfaces.msg import QuarterCarState
     from std_msgs.msg import Float64
-    from quarter_car_sim.controller_core import ControllerCore
+    from semi_active_control.runtime.controller_core import ControllerCore
     from semi_active_control.laws import Skyhook
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_to_msg

@@ -191,7 +191,7 @@ def _car_states(n):
 
 def test_one_future_stamped_state_costs_one_safe_answer(listener):
     from mr_damper_interfaces.msg import QuarterCarState
-    from quarter_car_sim.controller_core import ControllerCore, make_node_law
+    from semi_active_control.runtime.controller_core import ControllerCore, make_node_law
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg

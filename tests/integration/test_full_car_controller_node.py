@@ -56,7 +56,7 @@ def _ride_states(n):
 def test_invalid_corner_gets_the_safe_current_the_others_the_law():
     from mr_damper_interfaces.msg import QuarterCarState
     from semi_active_control.car.full_car import PASSENGER_CAR
-    from quarter_car_sim.full_car.controller_core import FullCarControllerCore
+    from semi_active_control.runtime.full_car_controller_core import FullCarControllerCore
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     from mr_damper_common.node_utils import CONTROL_QOS
     from std_msgs.msg import Float64

@@ -14,7 +14,8 @@ import pytest
 from fake_clock import FakeClock
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.car_runtime import CarOutputs, CarRuntime
-from quarter_car_sim.controller_core import CommandInput, make_node_law
+from quarter_car_sim.runtime.command_input import CommandInput
+from semi_active_control.runtime.controller_core import make_node_law
 from quarter_car_sim.dynamics import QuarterCar
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from quarter_car_sim.hil import make_remote_plant

@@ -38,7 +38,7 @@ def _car_state(t=1.0, v_s=0.3, v_rel=0.2):
 
 
 def test_state_message_round_trip_keeps_the_law_fields():
-    from quarter_car_sim.controller_core import LAW_FIELDS
+    from semi_active_control.runtime.controller_core import LAW_FIELDS
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg
     s = _car_state(t=2.5)
     msg = corner_state_to_msg(s, 1.25, False, 'stale')
@@ -91,7 +91,7 @@ def test_controller_node_answers_states_through_the_supervised_core(ctx):
 @pytest.mark.parametrize('law', ['clipped-optimal', 'clipped-optimal-wk'])
 def test_controller_node_runs_the_lqr_laws_on_the_state_message(ctx, law):
     """The LQR laws read the tyre deflection (wheel displacement - road height) of the state."""
-    from quarter_car_sim.controller_core import ControllerCore
+    from semi_active_control.runtime.controller_core import ControllerCore
     from semi_active_control.laws import make_controller
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from mr_damper_common.messages import corner_state_from_msg, corner_state_to_msg

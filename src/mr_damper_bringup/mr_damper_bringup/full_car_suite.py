@@ -153,7 +153,7 @@ def passive_body(car_params, t_end, dt):
     """
     from mr_damper_model.models.plant import make_plant
     from quarter_car_sim.full_car import make_two_track_road, simulate_full_car
-    from quarter_car_sim.full_car.controller_core import FullCarController
+    from semi_active_control.runtime.full_car_controller_core import FullCarController
     from semi_active_control.laws.registry import make_full_car_law
     from semi_active_control.car.full_car import PASSENGER_CAR
     from quarter_car_sim.full_car.simulate import OFFLINE_TIMEOUT_S

@@ -3,9 +3,9 @@ Coil current commands checked before a coil takes them: clamped to the range, or
 
 A command below ``i_min_a`` or above ``i_max_a`` is clamped to the range and counted; a NaN or
 infinite command is refused (the coil keeps its current) and counted. Both the rig (its coil)
-and the car (an external controller's command, ``quarter_car_sim.controller_core``) check
-commands with :class:`CurrentCommandLimiter`; ``counts`` goes into their status. The rule itself,
-:func:`clamp_command`, is also the rig's for displacement commands
+and the car (an external controller's command, ``semi_active_control.runtime.controller_core``)
+check commands with :class:`CurrentCommandLimiter`; ``counts`` goes into their status. The rule
+itself, :func:`clamp_command`, is also the rig's for displacement commands
 (``mr_damper_rig.commands.DisplacementCommandGuard``).
 """
 import math

@@ -15,7 +15,7 @@ one :class:`CarRuntime`, as the identifier node calls
   - the built-in law through the supervised inverse (fail-safe: the safe current), optionally
     overridden by the current probe (:class:`quarter_car_sim.probing.CurrentProbe`, also in
     fail-safe, so the identifier sees every current bin);
-  - an external controller (:class:`quarter_car_sim.controller_core.CommandInput`: the latest
+  - an external controller (:class:`quarter_car_sim.runtime.command_input.CommandInput`: the latest
     command received, or the safe current after ``command_timeout_s``); with ``lockstep`` each
     step publishes its state and waits (at most ``lockstep_timeout_s``, counted) for the first
     command received after it, so the loop is step for step the built-in one;
@@ -38,8 +38,10 @@ import math
 import threading
 import time
 
-from quarter_car_sim import controller_core, hil, live_loop
+from quarter_car_sim import hil, live_loop
+from semi_active_control.runtime import controller_core
 from quarter_car_sim.control_thread import ControlThread
+from quarter_car_sim.runtime.command_input import CommandInput
 
 #: Dynamic parameters applied to the health rules rather than the controller cores.
 HEALTH_PARAMETERS = ('lateness_warn_ms',)
@@ -103,7 +105,7 @@ class CarRuntime:
         Simulated seconds per wall second of the pacing (0: as fast as possible).
     priority : int
         SCHED_FIFO priority of the control thread (0: normal; only with a real-time factor).
-    command_input : quarter_car_sim.controller_core.CommandInput, optional
+    command_input : quarter_car_sim.runtime.command_input.CommandInput, optional
         The external controller's commands (``controller:=external``; the loop has no law).
     lockstep : bool
         External controller: wait for the command answering each state.
@@ -542,7 +544,7 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
         raise ValueError(f"sensing must be 'ideal' or 'vehicle', got {p['sensing']!r}")
     sensors = (VehicleSensors(dt, int(p['sensor_seed']), dropout=(
         p['sensor_dropout_start_s'], p['sensor_dropout_s'])) if sensing == 'vehicle' else None)
-    command_input = (controller_core.CommandInput(
+    command_input = (CommandInput(
         p['command_timeout_s'], sup.safe_current_a, sup.i_min_a, sup.i_max_a)
         if external else None)
     state_rate_hz = p['state_rate_hz']

@@ -5,13 +5,13 @@ Full-car controller node: four corner states in, four supervised coil currents o
 
 The full-car law (modal skyhook by default) without the simulated car, for a vehicle or for
 ``full_car_node`` run as the plant (``controller:=external``). The callbacks convert messages
-and call the ROS-free :class:`quarter_car_sim.full_car.controller_core.FullCarControllerCore`:
-when each corner has sent its state of one stamp, the core rebuilds the body's heave, pitch and
-roll from the four body points, runs the law, and turns each corner's force into a current
-through the inverse of that corner's identified model under that corner's fail-safe
-supervisor. A corner without a valid, fresh model gets ``safe_current_a``; the other three go
-on controlling. One set of four states is answered by one command per corner, in the order
-``fl, fr, rl, rr``.
+and call the ROS-free
+:class:`semi_active_control.runtime.full_car_controller_core.FullCarControllerCore`: when each
+corner has sent its state of one stamp, the core rebuilds the body's heave, pitch and roll from the
+four body points, runs the law, and turns each corner's force into a current through the inverse of
+that corner's identified model under that corner's fail-safe supervisor. A corner without a valid,
+fresh model gets ``safe_current_a``; the other three go on controlling. One set of four states is
+answered by one command per corner, in the order ``fl, fr, rl, rr``.
 
 Topics (relative; ``<c>`` is each of ``fl``, ``fr``, ``rl``, ``rr``, the corner namespaces of
 ``mr-damper-suite --config full-car``)
@@ -44,7 +44,7 @@ from mr_damper_common.health import WARN, worst
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, LATCHED_QOS, node_time_s, Param, run_node,
                                          set_realtime_priority, spin_node)
-from quarter_car_sim.full_car.controller_core import FullCarControllerCore
+from semi_active_control.runtime.full_car_controller_core import FullCarControllerCore
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from quarter_car_sim.semi_active_controller_node import offer_parameters
 
@@ -77,7 +77,7 @@ PARAMETERS = (
 
 class FullCarControllerNode(Node):
     """
-    Thin ROS adapter over :class:`~quarter_car_sim.full_car.controller_core.FullCarControllerCore`.
+    Thin ROS adapter over :class:`~semi_active_control.runtime.FullCarControllerCore`.
 
     Topics and status: see the module docstring. Keyword arguments (e.g. ``context``,
     ``parameter_overrides``) go to ``rclpy.node.Node``.

@@ -66,7 +66,7 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, Diagno
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.control_thread import ControlThread
-from quarter_car_sim.controller_core import CommandInput
+from quarter_car_sim.runtime.command_input import CommandInput
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from quarter_car_sim.full_car.road import make_two_track_road
 from quarter_car_sim.full_car_controller_node import CORNER_SUPERVISOR_PARAMETERS

@@ -4,7 +4,7 @@ The quarter-car control loop, without ROS: car + controller + (supervised) inver
 :class:`ClosedLoop` is the car's one closed loop: the ROS node runs it supervised, offline
 studies (:mod:`quarter_car_sim.simulate`) with a fixed identified inverse. One control step
 (period ``dt``, 1 ms by default) of the supervised loop (steps 1-2 are
-:class:`quarter_car_sim.controller_core.ControllerCore`, shared with the stand-alone
+:class:`semi_active_control.runtime.controller_core.ControllerCore`, shared with the stand-alone
 ``semi_active_controller_node``):
 
 1. the supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`) is advanced
@@ -22,10 +22,15 @@ to the caller's
 :class:`Pacer` schedules steps against a monotonic clock (real time times a factor, or as fast
 as possible) and :class:`TraceLog` streams every step to the run's log file.
 """
+from collections import deque
 import math
 import time
 
 import numpy as np
+
+from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
+from quarter_car_sim.ride_metrics import RunningRideMetrics
+from semi_active_control.runtime.controller_core import ControllerCore
 
 
 #: time [s] the car runs before the road starts (t = -SETTLE_S .. 0) so that it settles on the
@@ -47,10 +52,11 @@ class ClosedLoop:
     command is computed from the state at ``t_k``, and the car (plant) advances to
     ``t_k + dt`` with that command held. The command stage is one of two cores:
 
-    - with a ``supervisor``: :class:`quarter_car_sim.controller_core.ControllerCore` (law +
+    - with a ``supervisor``: :class:`semi_active_control.runtime.controller_core.ControllerCore`
+    (law +
       inverse of the supervisor's active identified parameters + fail-safe, shared with the
       stand-alone controller node), as the car node runs;
-    - without: :class:`quarter_car_sim.controller_core.FixedModelCore` (law + the fixed
+    - without: :class:`quarter_car_sim.live_loop.FixedModelCore` (law + the fixed
       ``inverse``; active laws apply their force directly), as offline studies run.
 
     Parameters
@@ -83,7 +89,6 @@ class ClosedLoop:
 
     def __init__(self, car, controller, supervisor=None, dt=1e-3, *, inverse=None,
                  metrics=None, inverse_tol_a=1e-4):
-        from quarter_car_sim.controller_core import ControllerCore, FixedModelCore
         if not dt > 0:
             raise ValueError(f'`dt` must be > 0 s, got {dt}')
         self.car = car
@@ -169,6 +174,83 @@ class ClosedLoop:
         return self.advance()
 
 
+class FixedModelCore:
+    """
+    One control step with a fixed identified inverse and no supervisor (offline studies).
+
+    The command stage of :class:`quarter_car_sim.live_loop.ClosedLoop` in
+    ``quarter_car_sim.simulate``: a semi-active law's body force goes through ``inverse``
+    (``mr_damper_model.models.inverse.KwokCurrentInverse`` with ``sign_convention='body'``) to a
+    current, a passive law's current is clipped to ``[i_min, i_max]``, and an active law's
+    force is applied directly (command NaN).
+
+    Parameters
+    ----------
+    controller : semi_active_control.laws.Controller
+        Any kind (``'current'``, ``'semi-active'``, ``'active'``).
+    inverse : mr_damper_model.models.inverse.KwokCurrentInverse or None
+        Needed for semi-active controllers. May be replaced at any time (``core.inverse``).
+    i_min, i_max : float
+        Coil current range [A] (passive currents are clipped to it).
+
+    Attributes
+    ----------
+    i_cmd : float
+        Last command [A] (NaN for force-applying controllers and before the first).
+    demand : float
+        Last controller output: body force [N], or current [A] for a passive law.
+    f_demand : float
+        Last demanded body force [N] (NaN with a passive law).
+    saturated : int
+        Commands that could not be delivered exactly.
+    last_saturated : bool or None
+        Whether the last command was saturated.
+
+    """
+
+    def __init__(self, controller, inverse=None, *, i_min=0.0, i_max=2.0):
+        if controller.kind == 'semi-active' and inverse is None:
+            raise ValueError(f'controller {controller.name!r} needs an inverse model')
+        self.controller = controller
+        self.inverse = inverse
+        self.i_min, self.i_max = float(i_min), float(i_max)
+        self.i_cmd = self.demand = self.f_demand = math.nan
+        self.saturated = 0
+        self.last_saturated = None
+
+    def demand_command(self, state):
+        """
+        Demand and command for a state (no bookkeeping: the offline simulation's hot path).
+
+        Returns
+        -------
+        demand : float
+            Controller output (force [N] on the body, or current [A]).
+        current_cmd : float
+            Current command [A] (NaN for force-applying controllers).
+        saturated : bool
+
+        """
+        ctl = self.controller
+        d = ctl.demand(state)
+        kind = ctl.kind
+        if kind == 'semi-active':
+            i, flag = self.inverse.current(d, state.travel, state.v_rel)
+            return d, i, flag != 0
+        if kind == 'current':
+            i = min(max(d, self.i_min), self.i_max)
+            return d, i, i != d
+        return d, math.nan, False
+
+    def command(self, state, t_clock=None):
+        """Set and return the command [A] for ``state`` (``t_clock`` is not used)."""
+        d, i, sat = self.demand_command(state)
+        self.demand, self.i_cmd, self.last_saturated = d, i, sat
+        self.f_demand = math.nan if self.controller.kind == 'current' else d
+        self.saturated += sat
+        return i
+
+
 class Pacer:
     """
     Schedule control steps against a monotonic clock.
@@ -248,7 +330,6 @@ class TraceLog:
     """
 
     def __init__(self, path, dt=1e-3, chunk_rows=1000):
-        from mr_damper_model.io.columnlog import ColumnWriter
         self.path = path
         self._w = ColumnWriter(path, TRACE_COLUMNS, chunk_rows=chunk_rows, meta={'dt': dt})
         self._n_state = TRACE_COLUMNS.index('i_cmd')
@@ -268,7 +349,6 @@ class TraceLog:
 
     def arrays(self):
         """Return the columns written so far (short logs: tests, tools)."""
-        from mr_damper_model.io.columnlog import ColumnReader
         self._w.flush()
         return ColumnReader(self.path).read()
 
@@ -310,7 +390,6 @@ def timing_stats(values, nominal=None):
 
 def make_running_metrics(car_params, dt=1e-3):
     """Return the core's running ride metrics for this car sampled every ``dt`` [s]."""
-    from quarter_car_sim.ride_metrics import RunningRideMetrics
     return RunningRideMetrics(1.0 / dt, car_params.static_tyre_load)
 
 
@@ -333,7 +412,6 @@ class LoopTiming:
     """
 
     def __init__(self, nominal, keep=5000):
-        from collections import deque
         self.nominal = nominal
         self.periods = deque(maxlen=keep)
         self.lateness = deque(maxlen=keep)

@@ -5,10 +5,10 @@ Semi-active controller node: a car or vehicle state in, a supervised coil curren
 
 The skyhook (or any law the quarter-car node accepts) without the simulated car: each state
 message is answered with one current command, computed by the ROS-free
-:class:`quarter_car_sim.controller_core.ControllerCore` (law + inverse of the live identified
-Kwok-current model + fail-safe supervisor: no, stale, invalid or refused model -> safe current).
-The callback of the state converts the message, calls the core and publishes; nothing else runs
-per state. See docs/controller-node.md for the vehicle contract.
+:class:`semi_active_control.runtime.controller_core.ControllerCore` (law + inverse of the live
+identified Kwok-current model + fail-safe supervisor: no, stale, invalid or refused model -> safe
+current). The callback of the state converts the message, calls the core and publishes; nothing
+else runs per state. See docs/controller-node.md for the vehicle contract.
 
 Topics (relative: remap with ``--ros-args -r old:=new`` or run in a namespace)
 -----------------------------------------------------------------------------
@@ -47,8 +47,8 @@ from mr_damper_common import messages
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, LATCHED_QOS, LogThrottle, node_time_s,
                                          Param, run_node, set_realtime_priority, spin_node)
-from quarter_car_sim import controller_core
-from quarter_car_sim.controller_core import ControllerCore
+from semi_active_control.runtime import controller_core
+from semi_active_control.runtime.controller_core import ControllerCore
 from semi_active_control.laws import DAMPER_LAW_NAMES
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.supervision.health import ControllerHealth

@@ -12,7 +12,7 @@ on the
    *nominal* car, which may differ from the simulated one) takes those readings and the last
    current command (the damper force of the identified model is its known input);
 3. a valid estimate goes to the law and the inverse exactly as a measured state would
-   (:class:`quarter_car_sim.controller_core.FixedModelCore`); an invalid one gets the safe
+   (:class:`quarter_car_sim.live_loop.FixedModelCore`); an invalid one gets the safe
    current (counted);
 4. the car advances by ``dt`` with that command.
 
@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from quarter_car_sim.controller_core import FixedModelCore
+from quarter_car_sim.live_loop import FixedModelCore
 from quarter_car_sim.dynamics import QuarterCar
 from semi_active_control.estimation.quarter_car import design_estimator, QuarterCarEstimator
 from quarter_car_sim.sensors import SensorSampler

@@ -10,7 +10,7 @@ from mr_damper_model.models.plant import make_plant
 from semi_active_control.laws import Skyhook
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from quarter_car_sim.full_car import FullCar, make_two_track_road, simulate_full_car
-from quarter_car_sim.full_car.controller_core import FullCarController
+from semi_active_control.runtime.full_car_controller_core import FullCarController
 from semi_active_control.laws.full_car import ModalSkyhook
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car

@@ -4,7 +4,7 @@ Full vehicle (7-DOF) with four MR dampers: car, two-track roads, modal control, 
 The public API (``from quarter_car_sim.full_car import ...``); see docs/full-car.md.
 """
 from quarter_car_sim.full_car.bound import full_car_bound
-from quarter_car_sim.full_car.controller_core import FullCarController
+from semi_active_control.runtime.full_car_controller_core import FullCarController
 from semi_active_control.laws.full_car import ModalSkyhook, PerCornerLaws
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar, mechanical_energy

@@ -4,8 +4,8 @@ The full car's live runtime without ROS: one control step of the 7-DOF car at a 
 :class:`FullCarRuntime` holds the car (:class:`~quarter_car_sim.full_car.dynamics.FullCar`
 with its four "true" damper plants and the two-track road), the full-car law under one
 :class:`~semi_active_control.supervision.failsafe.ModelSupervisor` per corner
-(:class:`~quarter_car_sim.full_car.controller_core.FullCarController`) and the counts a node
-reports.
+(:class:`~semi_active_control.runtime.full_car_controller_core.FullCarController`) and the counts a
+node reports.
 Each :meth:`FullCarRuntime.step` reads the state at ``t_k``, commands the four currents
 (a corner without a valid, fresh model gets its safe current; the others go on controlling)
 and advances the car to ``t_k + dt`` with them held, as the offline
@@ -21,7 +21,8 @@ import math
 import numpy as np
 
 
-from quarter_car_sim.full_car.controller_core import corner_supervisors, FullCarController
+from semi_active_control.runtime.full_car_controller_core import (corner_supervisors,
+                                                                  FullCarController)
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
 from quarter_car_sim.full_car.metrics import iso2631_seat

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from quarter_car_sim.full_car.controller_core import FullCarController
+from semi_active_control.runtime.full_car_controller_core import FullCarController
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.full_car.dynamics import FullCar
 from quarter_car_sim.full_car.metrics import full_car_metrics

@@ -2,8 +2,8 @@
 Full-car laws: per-corner laws and modal skyhook, four corner forces from the whole car.
 
 Each corner of a full-car law runs under its own supervisor in the full-car controller core
-(:class:`quarter_car_sim.full_car.controller_core.FullCarController`: per corner the inverse of
-that corner's identified model and its fail-safe), so a law only chooses forces.
+(:class:`semi_active_control.runtime.full_car_controller_core.FullCarController`: per corner the
+inverse of that corner's identified model and its fail-safe), so a law only chooses forces.
 
 Two kinds of full-car law:
 

@@ -23,7 +23,8 @@ class LqrActive(Controller):
 
     kind = 'active'
     #: State fields beyond the common ones (tyre deflection ``z_u - z_r``): a controller core
-    #: refuses a state where they are not finite (:mod:`quarter_car_sim.controller_core`).
+    #: refuses a state where they are not finite
+    #: (:mod:`semi_active_control.runtime.controller_core`).
     state_fields = ('z_u', 'z_r')
 
     def __init__(self, gain, name='lqr-active'):

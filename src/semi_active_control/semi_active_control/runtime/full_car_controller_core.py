@@ -6,8 +6,8 @@ state of each corner (``fl, fr, rl, rr``, a :class:`~mr_damper_common.contract.C
 whose body point carries its displacement too),
 rebuilds the body's heave, pitch and roll from the four body points (least squares through the
 corner map ``T`` of the car; the corners whose fields are not finite are left out, three are
-enough) and runs :class:`~quarter_car_sim.full_car.controller_core.FullCarController`: the full-car
-law, then per corner the inverse of that corner's identified model under that corner's
+enough) and runs :class:`~semi_active_control.runtime.full_car_controller_core.FullCarController`:
+the full-car law, then per corner the inverse of that corner's identified model under that corner's
 :class:`~semi_active_control.supervision.failsafe.ModelSupervisor`. A corner without a valid, fresh
 model gets its safe current; the other three go on controlling.
 
@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from quarter_car_sim.controller_core import ControllerCore
+from semi_active_control.runtime.controller_core import ControllerCore
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car_linear import FullCarState

@@ -9,8 +9,8 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
 from mr_damper_common.contract import CornerState, IdentifiedSet
-from quarter_car_sim.full_car.controller_core import (body_coordinates, full_car_state,
-                                                      FullCarControllerCore)
+from semi_active_control.runtime.full_car_controller_core import (body_coordinates, full_car_state,
+                                                                  FullCarControllerCore)
 from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]

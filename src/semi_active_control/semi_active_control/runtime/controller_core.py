@@ -4,15 +4,15 @@ Semi-active controller core without ROS: a vehicle state in, a supervised coil c
 The one home of "law + identified inverse + fail-safe supervisor" for one control step. Both
 the simulated car's built-in loop (:class:`quarter_car_sim.live_loop.ClosedLoop`) and the
 stand-alone ``semi_active_controller_node`` (state from a car or a vehicle over a topic) call
-:class:`ControllerCore`. The car side of an external controller (the latest command received,
-its timeout and the checks a command passes before it reaches the coil) is
-:class:`CommandInput`.
+:class:`ControllerCore`. The simulated car's side of an external controller (the latest command
+received, its timeout and the checks a command passes before it reaches the coil) is
+:class:`quarter_car_sim.runtime.command_input.CommandInput`.
 
 One step of :meth:`ControllerCore.command`:
 
-1. the supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`) is advanced
-to the
-   caller's clock; it holds the latest valid, fresh identified Kwok-current parameters or none;
+1. the supervisor (:class:`semi_active_control.supervision.failsafe.ModelSupervisor`) is
+   advanced to the caller's clock; it holds the latest valid, fresh identified Kwok-current
+   parameters or none;
 2. a state whose fields the laws use (:data:`LAW_FIELDS` and the law's own ``state_fields``,
    e.g. the tyre deflection of the LQR laws) are not all finite is refused
    (counted ``state_rejected.non_finite``) and answered with the safe current; so is a state
@@ -32,11 +32,14 @@ to the
 Pure Python (no ROS): the node converts messages into
 :class:`~mr_damper_common.contract.CornerState` and calls it.
 """
+import contextlib
+import json
 import math
 
-from mr_damper_common.commands import CurrentCommandLimiter, OUTCOMES
 from mr_damper_common.stamps import StampGuard
-from semi_active_control.supervision.failsafe import clip_current
+from mr_damper_model.models.inverse import KwokCurrentInverse
+from semi_active_control.laws.registry import make_controller
+from semi_active_control.supervision.failsafe import clip_current, SupervisorError
 
 #: Fields of the state the control laws read (see :mod:`semi_active_control.laws`):
 #: body velocity and acceleration, wheel velocity, suspension travel and its rate.
@@ -50,9 +53,6 @@ MAX_FUTURE_S = 1.0
 
 #: Default run of consecutive out-of-order (or future) states that re-bases the stamps.
 REBASE_AFTER = 50
-
-#: Outcomes of a current command offered to :class:`CommandInput` (the limiter's).
-COMMAND_OUTCOMES = OUTCOMES
 
 
 class ControllerCore:
@@ -117,7 +117,6 @@ class ControllerCore:
 
     def _inverse_for(self, identified):
         if identified is not self._inverse_of:
-            from mr_damper_model.models.inverse import KwokCurrentInverse
             # the inverse stays inside the current range the model was identified on
             lo = max(self.sup.i_min_a, identified.current_min_a)
             hi = min(self.sup.i_max_a, identified.current_max_a)
@@ -266,200 +265,6 @@ class ControllerCore:
         return st
 
 
-class FixedModelCore:
-    """
-    One control step with a fixed identified inverse and no supervisor (offline studies).
-
-    The command stage of :class:`quarter_car_sim.live_loop.ClosedLoop` in
-    ``quarter_car_sim.simulate``: a semi-active law's body force goes through ``inverse``
-    (``mr_damper_model.models.inverse.KwokCurrentInverse`` with ``sign_convention='body'``) to a
-    current, a passive law's current is clipped to ``[i_min, i_max]``, and an active law's
-    force is applied directly (command NaN).
-
-    Parameters
-    ----------
-    controller : semi_active_control.laws.Controller
-        Any kind (``'current'``, ``'semi-active'``, ``'active'``).
-    inverse : mr_damper_model.models.inverse.KwokCurrentInverse or None
-        Needed for semi-active controllers. May be replaced at any time (``core.inverse``).
-    i_min, i_max : float
-        Coil current range [A] (passive currents are clipped to it).
-
-    Attributes
-    ----------
-    i_cmd : float
-        Last command [A] (NaN for force-applying controllers and before the first).
-    demand : float
-        Last controller output: body force [N], or current [A] for a passive law.
-    f_demand : float
-        Last demanded body force [N] (NaN with a passive law).
-    saturated : int
-        Commands that could not be delivered exactly.
-    last_saturated : bool or None
-        Whether the last command was saturated.
-
-    """
-
-    def __init__(self, controller, inverse=None, *, i_min=0.0, i_max=2.0):
-        if controller.kind == 'semi-active' and inverse is None:
-            raise ValueError(f'controller {controller.name!r} needs an inverse model')
-        self.controller = controller
-        self.inverse = inverse
-        self.i_min, self.i_max = float(i_min), float(i_max)
-        self.i_cmd = self.demand = self.f_demand = math.nan
-        self.saturated = 0
-        self.last_saturated = None
-
-    def demand_command(self, state):
-        """
-        Demand and command for a state (no bookkeeping: the offline simulation's hot path).
-
-        Returns
-        -------
-        demand : float
-            Controller output (force [N] on the body, or current [A]).
-        current_cmd : float
-            Current command [A] (NaN for force-applying controllers).
-        saturated : bool
-
-        """
-        ctl = self.controller
-        d = ctl.demand(state)
-        kind = ctl.kind
-        if kind == 'semi-active':
-            i, flag = self.inverse.current(d, state.travel, state.v_rel)
-            return d, i, flag != 0
-        if kind == 'current':
-            i = min(max(d, self.i_min), self.i_max)
-            return d, i, i != d
-        return d, math.nan, False
-
-    def command(self, state, t_clock=None):
-        """Set and return the command [A] for ``state`` (``t_clock`` is not used)."""
-        d, i, sat = self.demand_command(state)
-        self.demand, self.i_cmd, self.last_saturated = d, i, sat
-        self.f_demand = math.nan if self.controller.kind == 'current' else d
-        self.saturated += sat
-        return i
-
-
-class CommandInput:
-    """
-    The car side of an external controller: the latest current command, checked and timed.
-
-    A command is checked by the rig's :class:`mr_damper_common.commands.CurrentCommandLimiter`
-    (clamped into ``[i_min_a, i_max_a]``, non-finite refused, every outcome of
-    :data:`COMMAND_OUTCOMES` counted). :meth:`current` returns the latest applied
-    command while it is younger than ``timeout_s``, else the safe current (the transition is
-    counted in :attr:`timeouts` and the time spent on the safe current in
-    :attr:`timeout_s_total`).
-
-    Parameters
-    ----------
-    timeout_s : float
-        Longest a command is held [s, caller's clock] before the safe current applies.
-    safe_current_a : float
-        Coil current [A] without a fresh command.
-    i_min_a, i_max_a : float
-        Coil current range [A].
-
-    """
-
-    def __init__(self, timeout_s, safe_current_a, i_min_a=0.0, i_max_a=2.0):
-        for name, value in (('timeout_s', timeout_s), ('safe_current_a', safe_current_a),
-                            ('i_min_a', i_min_a), ('i_max_a', i_max_a)):
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f'`{name}` must be a finite number, got {value!r}')
-        if not timeout_s > 0:
-            raise ValueError(f'`timeout_s` must be > 0 s, got {timeout_s}')
-        if not i_min_a < i_max_a:
-            raise ValueError(f'`i_min_a` ({i_min_a}) must be below `i_max_a` ({i_max_a})')
-        if not i_min_a <= safe_current_a <= i_max_a:
-            raise ValueError(f'`safe_current_a` ({safe_current_a} A) must lie in '
-                             f'[{i_min_a}, {i_max_a}] A')
-        self.timeout_s = float(timeout_s)
-        self.safe_current_a = float(safe_current_a)
-        self.i_min_a, self.i_max_a = float(i_min_a), float(i_max_a)
-        self.limiter = CurrentCommandLimiter(i_min_a, i_max_a)
-        self.latest_a = None
-        self.received_at = None
-        self.n_received = 0
-        self.timeouts = 0
-        self.timeout_s_total = 0.0
-        self.timed_out = True
-        self._last_t = None
-
-    def reconfigure(self, *, timeout_s=None, safe_current_a=None):
-        """
-        Change the command timeout [s] and/or the safe current [A] while running.
-
-        Validated as at construction; nothing changes on an invalid value (ValueError).
-        """
-        timeout_s = self.timeout_s if timeout_s is None else timeout_s
-        safe_current_a = self.safe_current_a if safe_current_a is None else safe_current_a
-        CommandInput(timeout_s, safe_current_a, self.i_min_a, self.i_max_a)   # validates
-        self.timeout_s = float(timeout_s)
-        self.safe_current_a = float(safe_current_a)
-
-    def offer(self, i_a, t_now):
-        """
-        Take one received command.
-
-        Parameters
-        ----------
-        i_a : float
-            Commanded coil current [A].
-        t_now : float
-            Receipt time [s] on the caller's clock.
-
-        Returns
-        -------
-        str
-            One of :data:`COMMAND_OUTCOMES` (also counted).
-
-        """
-        self.n_received += 1
-        try:
-            i_a = float(i_a)
-        except (TypeError, ValueError):
-            i_a = math.nan
-        current, outcome = self.limiter.apply(i_a)
-        if current is not None:
-            self.latest_a = current
-            self.received_at = float(t_now)
-        return outcome
-
-    def current(self, t_now):
-        """
-        Return the current [A] to apply at ``t_now`` (latest command, or safe when stale).
-
-        Parameters
-        ----------
-        t_now : float
-            Time [s] on the caller's clock; non-decreasing between calls.
-
-        Returns
-        -------
-        float
-
-        """
-        t_now = float(t_now)
-        fresh = self.received_at is not None and t_now - self.received_at <= self.timeout_s
-        if self._last_t is not None and t_now > self._last_t and self.timed_out:
-            self.timeout_s_total += t_now - self._last_t
-        if not fresh and not self.timed_out:
-            self.timeouts += 1
-        self.timed_out = not fresh
-        self._last_t = t_now if self._last_t is None else max(self._last_t, t_now)
-        return self.latest_a if fresh else self.safe_current_a
-
-    def status(self):
-        """Return ``commands`` (outcome counts), ``commands_received``, timeout counters."""
-        return {'commands': dict(self.limiter.counts), 'commands_received': self.n_received,
-                'command_timeouts': self.timeouts, 'command_timed_out': self.timed_out,
-                'command_timeout_s_total': self.timeout_s_total}
-
-
 #: Node parameters applied while running, and the supervisor setting each one sets.
 SUPERVISOR_PARAMETERS = {'param_timeout_s': 'timeout_s', 'safe_current_a': 'safe_current_a',
                          'hold_on_reject': 'hold_on_reject',
@@ -488,7 +293,6 @@ def make_node_law(name, car_params, rate_hz, options):
         Unknown or fully active law, bad options.
 
     """
-    from semi_active_control.laws import make_controller
     return make_controller(name, params=car_params, damper_only=True,
                            **{'dt': 1.0 / float(rate_hz), **options})
 
@@ -514,8 +318,10 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
         Gets the new law (``controller_options``); None: no built-in law.
     make_law : callable, optional
         ``make_law(options_dict)`` -> law; raises ValueError on bad options.
-    command_input : CommandInput, optional
-        Gets ``command_timeout_s`` and ``safe_current_a`` (external controller).
+    command_input : quarter_car_sim.runtime.command_input.CommandInput, optional
+        Gets ``command_timeout_s`` and ``safe_current_a`` (external controller): anything with
+        ``timeout_s``, ``safe_current_a``, ``check_settings(timeout_s, safe_current_a)``
+        (raises ValueError) and ``reconfigure(timeout_s=..., safe_current_a=...)``.
     lock : context manager, optional
         Held while the changes are applied only, not while the new law is built and the
         settings checked (an LQR design takes milliseconds: a control loop that needs the
@@ -527,9 +333,6 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
         ``''`` when applied, else the reason nothing was.
 
     """
-    import contextlib
-    import json
-    from semi_active_control.supervision.failsafe import SupervisorError
     unknown = sorted(set(changes) - set(SUPERVISOR_PARAMETERS)
                      - {'controller_options', 'command_timeout_s'})
     if unknown:
@@ -554,9 +357,9 @@ def reconfigure(changes, supervisor, *, core=None, make_law=None, command_input=
     try:
         supervisor.check_settings(**sup_changes)
         if command_input is not None:
-            CommandInput(changes.get('command_timeout_s', command_input.timeout_s),
-                         changes.get('safe_current_a', command_input.safe_current_a),
-                         command_input.i_min_a, command_input.i_max_a)
+            command_input.check_settings(
+                changes.get('command_timeout_s', command_input.timeout_s),
+                changes.get('safe_current_a', command_input.safe_current_a))
     except (SupervisorError, ValueError) as exc:
         return str(exc)
     with lock if lock is not None else contextlib.nullcontext():

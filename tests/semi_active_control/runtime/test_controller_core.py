@@ -1,4 +1,4 @@
-"""Tests of quarter_car_sim.controller_core: law + inverse + supervisor, command input."""
+"""Tests of semi_active_control.runtime.controller_core: law + inverse + supervisor."""
 import dataclasses
 import math
 
@@ -9,8 +9,8 @@ from mr_damper_model.models.inverse import KwokCurrentInverse
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim import live_loop
 from mr_damper_common.contract import CornerState
-from quarter_car_sim.controller_core import (CommandInput, COMMAND_OUTCOMES, ControllerCore,
-                                             LAW_FIELDS)
+from quarter_car_sim.runtime.command_input import CommandInput
+from semi_active_control.runtime.controller_core import ControllerCore, LAW_FIELDS
 from semi_active_control.laws import ADD, Groundhook, Passive, Skyhook
 from quarter_car_sim.dynamics import QuarterCar
 from semi_active_control.supervision.failsafe import ModelSupervisor
@@ -244,50 +244,8 @@ def test_passive_law_ignores_the_model():
     assert core.command(s, 0.0) == 1.2 and core.sup.mode == 'failsafe'
 
 
-# ---------------------------------------------------------------------------- CommandInput
-def test_command_timeout_falls_back_to_the_safe_current():
-    cmd = CommandInput(timeout_s=0.05, safe_current_a=SAFE)
-    assert cmd.current(0.0) == SAFE and cmd.timed_out and cmd.timeouts == 0   # none yet
-    cmd.offer(1.5, 0.01)
-    assert cmd.current(0.02) == 1.5 and cmd.current(0.06) == 1.5 and not cmd.timed_out
-    assert cmd.current(0.0601) == SAFE and cmd.timeouts == 1
-    assert cmd.current(0.2) == SAFE and cmd.timeouts == 1           # one entry, not per step
-    cmd.offer(0.2, 0.3)
-    assert cmd.current(0.3) == 0.2 and not cmd.timed_out
-    assert cmd.current(0.5) == SAFE and cmd.timeouts == 2
-    # time on the safe current: 0..0.02 (none yet) and 0.0601..0.3 (0.3 -> 0.5 was fresh)
-    assert cmd.timeout_s_total == pytest.approx(0.02 + (0.3 - 0.0601), abs=1e-9)
-    st = cmd.status()
-    assert st['command_timeouts'] == 2 and st['commands_received'] == 2
-
-
-def test_bad_commands_are_clamped_or_refused_and_counted():
-    cmd = CommandInput(timeout_s=1.0, safe_current_a=SAFE, i_min_a=0.0, i_max_a=2.0)
-    applied = []
-    for k, value in enumerate((-5.0, 1e9, math.nan, math.inf, 1.2, 'x')):
-        cmd.offer(value, 0.1 * k)
-        applied.append(cmd.current(0.1 * k))
-    # a refused command leaves the previous one in force (it still ages)
-    assert applied == [0.0, 2.0, 2.0, 2.0, 1.2, 1.2]
-    assert cmd.status()['commands'] == {'accepted': 1, 'clamped_low': 1, 'clamped_high': 1,
-                                        'refused_non_finite': 3}
-    assert tuple(cmd.status()['commands']) == COMMAND_OUTCOMES
-    assert cmd.received_at == pytest.approx(0.4)
-
-
-@pytest.mark.parametrize('kwargs, match', [
-    ({'timeout_s': 0.0}, 'timeout_s'), ({'timeout_s': math.nan}, 'timeout_s'),
-    ({'safe_current_a': 3.0}, 'safe_current_a'), ({'i_min_a': 2.0, 'i_max_a': 1.0}, 'i_min_a'),
-])
-def test_command_input_rejects_bad_settings(kwargs, match):
-    args = dict(timeout_s=0.05, safe_current_a=SAFE, i_min_a=0.0, i_max_a=2.0)
-    args.update(kwargs)
-    with pytest.raises(ValueError, match=match):
-        CommandInput(**args)
-
-
 def test_reconfigure_changes_gains_supervisor_and_command_input_all_or_nothing():
-    from quarter_car_sim.controller_core import reconfigure
+    from semi_active_control.runtime.controller_core import reconfigure
     from semi_active_control.laws import make_controller
     _, msg = _truth()
     sup = ModelSupervisor(timeout_s=10.0, safe_current_a=SAFE)

@@ -1,0 +1,22 @@
+"""
+The ROS-free cores the vehicle's controller nodes call: one control step, supervised.
+
+Public API::
+
+    from semi_active_control.runtime import ControllerCore, LAW_FIELDS, STATE_REJECTIONS
+    from semi_active_control.runtime import make_node_law, reconfigure, SUPERVISOR_PARAMETERS
+    from semi_active_control.runtime import FullCarControllerCore, FullCarController
+
+Modules: ``controller_core`` (a corner: law + the inverse of the identified model + the
+fail-safe supervisor, the state checks; the node's law and parameter changes),
+``full_car_controller_core`` (the whole car: four corner states in, four supervised currents
+out, each corner under its own supervisor).
+"""
+from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa: F401
+                                                         LAW_FIELDS, make_node_law,
+                                                         MAX_FUTURE_S, REBASE_AFTER,
+                                                         reconfigure, STATE_REJECTIONS,
+                                                         SUPERVISOR_PARAMETERS)
+from semi_active_control.runtime.full_car_controller_core import (  # noqa: F401
+    body_coordinates, corner_supervisors, full_car_state, FullCarController,
+    FullCarControllerCore)
