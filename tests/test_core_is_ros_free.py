@@ -4,7 +4,8 @@ Check the numerical core of every package imports without ROS.
 Style rule: thin nodes on a pure core.
 
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
-package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor),
+package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor, and
+every module of a ``nodes`` sub-package: what the nodes share and their console scripts),
 ``messages.py`` (message conversions) and ``node_utils.py`` are the only modules allowed to.
 """
 import subprocess
@@ -16,17 +17,19 @@ from conftest import REPO
 
 ROS_MODULES = {'messages', 'node_utils'}
 PACKAGES = ('mr_damper_common', 'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim',
-            'mr_damper_bringup', 'mr_damper_can')
+            'mr_damper_bringup', 'mr_damper_can', 'semi_active_control')
 
 
 def _core_modules():
     for pkg in PACKAGES:
         root = REPO / 'src' / pkg / pkg
-        for path in sorted(root.glob('*.py')) + sorted(root.glob('*/*.py')):
+        for path in sorted(root.rglob('*.py')):
             stem = path.stem
-            if stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES:
+            parts = path.relative_to(root).with_suffix('').parts
+            if (stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES
+                    or 'nodes' in parts[:-1]):
                 continue
-            yield '.'.join((pkg,) + path.relative_to(root).with_suffix('').parts)
+            yield '.'.join((pkg,) + parts)
 
 
 def _ros_modules_loaded_by(modules):

@@ -20,13 +20,13 @@ DOCS = Path(__file__).resolve().parents[1] / 'docs' / 'nodes.md'
 NODE_MODULES = (
     'mr_damper_rig.rig_node',
     'mr_damper_model.nodes.identifier_node',
-    'quarter_car_sim.quarter_car_node',
-    'quarter_car_sim.semi_active_controller_node',
+    'quarter_car_sim.nodes.quarter_car_node',
+    'semi_active_control.nodes.semi_active_controller_node',
     'mr_damper_can.can_bridge_node',
     'mr_damper_can.can_driver_sim_node',
-    'quarter_car_sim.state_estimator_node',
-    'quarter_car_sim.full_car_node',
-    'quarter_car_sim.full_car_controller_node',
+    'semi_active_control.nodes.state_estimator_node',
+    'quarter_car_sim.nodes.full_car_node',
+    'semi_active_control.nodes.full_car_controller_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

@@ -105,3 +105,64 @@ def test_workspace_dependencies_point_one_way():
 
     for name in sorted(deps):
         visit(name)
+
+
+#: What the vehicle side may never import: the simulator and the fitting stack (issue 33).
+VEHICLE_FORBIDDEN = ('quarter_car_sim', 'mr_damper_rig', 'mr_damper_bringup', 'mr_damper_can',
+                     'mr_damper_model.identification', 'mr_damper_model.live',
+                     'mr_damper_model.io', 'mr_damper_model.tools', 'mr_damper_model.nodes')
+
+
+def imported_names(path):
+    """Return ``[(line, module)]`` of every import of a file, module and function level (ast).
+
+    ``from package import name`` gives ``package.name`` too (a sub-module imported that way).
+    """
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.append((node.lineno, node.module))
+            out += [(node.lineno, f'{node.module}.{a.name}') for a in node.names]
+    return out
+
+
+def forbidden_imports(package_dir, forbidden):
+    """Return ``['file:line module']`` of the imports of ``forbidden`` (or below) in a package."""
+    bad = []
+    for path in sorted((package_dir / package_dir.name).rglob('*.py')):
+        for line, name in imported_names(path):
+            if any(name == f or name.startswith(f + '.') for f in forbidden):
+                bad.append(f'{path.relative_to(package_dir)}:{line} {name}')
+    return bad
+
+
+def test_the_vehicle_side_imports_neither_the_simulator_nor_the_fitting_stack():
+    bad = forbidden_imports(REPO / 'src' / 'semi_active_control', VEHICLE_FORBIDDEN)
+    assert not bad, 'semi_active_control imports what a vehicle does not run:\n' + '\n'.join(bad)
+
+
+def test_the_forbidden_import_check_sees_function_level_and_from_imports(tmp_path):
+    pkg = tmp_path / 'demo_pkg'
+    (pkg / 'demo_pkg').mkdir(parents=True)
+    (pkg / 'demo_pkg' / 'law.py').write_text(
+        'import math\n\n\ndef f():\n    from mr_damper_model import identification\n'
+        '    import quarter_car_sim.plant.road\n    return identification, math\n')
+    (pkg / 'demo_pkg' / 'ok.py').write_text('from mr_damper_model.models import inverse\n')
+    assert forbidden_imports(pkg, VEHICLE_FORBIDDEN) == [
+        'demo_pkg/law.py:5 mr_damper_model.identification',
+        'demo_pkg/law.py:6 quarter_car_sim.plant.road']
+
+
+def test_the_layers_point_one_way():
+    # mr_damper_common <- mr_damper_model <- semi_active_control <- quarter_car_sim <- the rest
+    names = {p.parent.name for p in (REPO / 'src').glob('*/package.xml')}
+    deps = {p.parent.name: declared_dependencies(p.parent) & names
+            for p in (REPO / 'src').glob('*/package.xml')}
+    assert not deps['semi_active_control'] - {'mr_damper_interfaces', 'mr_damper_common',
+                                              'mr_damper_model'}
+    assert deps['quarter_car_sim'] - {'mr_damper_interfaces'} <= {
+        'mr_damper_common', 'mr_damper_model', 'semi_active_control'}
+    users = {name for name, d in deps.items() if 'semi_active_control' in d}
+    assert 'mr_damper_model' not in users and 'mr_damper_common' not in users

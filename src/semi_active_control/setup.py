@@ -24,6 +24,12 @@ setup(
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'semi_active_controller_node = '
+            'semi_active_control.nodes.entry_points:semi_active_controller_node',
+            'state_estimator_node = semi_active_control.nodes.entry_points:state_estimator_node',
+            'full_car_controller_node = '
+            'semi_active_control.nodes.entry_points:full_car_controller_node',
+        ],
     },
 )

@@ -119,12 +119,12 @@ RIDE_COLUMNS = ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')
 def _reference_ride(n_steps):
     """Run the built-in loop on the same car, road, seed and model; return per-step arrays."""
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim import live_loop
+    from quarter_car_sim.simulate import live_loop
     from semi_active_control.laws import make_controller
-    from quarter_car_sim.dynamics import QuarterCar
+    from quarter_car_sim.plant.quarter_car import QuarterCar
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.road import make_road
+    from quarter_car_sim.plant.road import make_road
     params = QuarterCarParams()
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=CAR['road_seed'],
                      duration_s=CAR['road_duration_s'], dt=1e-3)
@@ -140,7 +140,7 @@ def _reference_ride(n_steps):
 def _ride_figures(columns):
     """Wk RMS body acceleration and RMS dynamic tyre load ratio on the road (t >= 0)."""
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.ride_metrics import ride_metrics
+    from quarter_car_sim.metrics.quarter_car import ride_metrics
     keep = columns['t'] >= 0.0
     m = ride_metrics({c: columns[c][keep] for c in RIDE_COLUMNS},
                      static_load=QuarterCarParams().static_tyre_load)
@@ -181,9 +181,9 @@ def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
 def _car_states(n):
     """States of a passive ride (the law's inputs), stamped 1 ms apart from 1 s (car time)."""
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.dynamics import QuarterCar
+    from quarter_car_sim.plant.quarter_car import QuarterCar
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.road import make_road
+    from quarter_car_sim.plant.road import make_road
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=5, duration_s=n * 1e-3 + 2)
     car = QuarterCar(QuarterCarParams(), make_plant('kwok-current'), road, t0=1.0)
     return [car.step(1e-3, 0.7) for _ in range(n)]

@@ -43,9 +43,9 @@ def _publish_parameters(lis, ns, values_of):
 def _ride_states(n):
     """Full-car states of a passive ride (0.5 A) on the two-track road, from t = 0."""
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.full_car import make_two_track_road
+    from quarter_car_sim.plant.two_track_road import make_two_track_road
     from semi_active_control.car.full_car import PASSENGER_CAR
-    from quarter_car_sim.full_car.runtime import FullCarRuntime
+    from quarter_car_sim.runtime.full_car import FullCarRuntime
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0, duration_s=2.0,
                                rng=4)
     rt = FullCarRuntime(PASSENGER_CAR, road, [make_plant('kwok-current') for _ in CORNERS],

@@ -107,7 +107,7 @@ def test_yaml_parameters_are_declared_by_the_nodes(config):
     cfg = yaml.safe_load((CONFIG_DIR / f'suite_{config}.yaml').read_text())
     modules = {'mr_damper_rig': 'mr_damper_rig.rig_node',
                'mr_damper_identifier': 'mr_damper_model.nodes.identifier_node',
-               'quarter_car_node': 'quarter_car_sim.quarter_car_node'}
+               'quarter_car_node': 'quarter_car_sim.nodes.quarter_car_node'}
     shared = cfg.get('/**', {}).get('ros__parameters', {})
     for node, module in modules.items():
         declared = {p.name for p in importlib.import_module(module).PARAMETERS}
@@ -163,7 +163,7 @@ def test_launcher_bad_input_exits_2(tmp_path, capsys, argv, message):
 
 
 def test_node_default_yaml_lists_every_declared_parameter():
-    from quarter_car_sim.quarter_car_node import PARAMETERS
+    from quarter_car_sim.nodes.quarter_car_node import PARAMETERS
     declared = {spec.name for spec in PARAMETERS}
     cfg = yaml.safe_load((REPO / 'src/quarter_car_sim/config/quarter_car.yaml').read_text())
     assert set(cfg['quarter_car_node']['ros__parameters']) == declared

@@ -12,8 +12,8 @@ from mr_damper_bringup import report
 from mr_damper_bringup.recorder import SuiteRecorder
 from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
 from mr_damper_model.models.kwok_current import kwok_current_force
-from quarter_car_sim import live_loop
-from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.simulate import live_loop
+from quarter_car_sim.plant.quarter_car import QuarterCar
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
 
@@ -86,7 +86,7 @@ def _live_log(path, controller_offers=False, seconds=4.0, status=None):
     car_p = QuarterCarParams()
     from mr_damper_model.models.plant import make_plant
     from semi_active_control.laws import make_controller
-    from quarter_car_sim.road import make_road
+    from quarter_car_sim.plant.road import make_road
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=4,
                      duration_s=QC['road_duration_s'])
     car = QuarterCar(car_p, make_plant('kwok-current'), road, t0=-live_loop.SETTLE_S)
@@ -281,7 +281,7 @@ def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
 
 def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
-    from quarter_car_sim.ride_metrics import ride_metrics
+    from quarter_car_sim.metrics.quarter_car import ride_metrics
     from semi_active_control.iso2631 import wk_filter
     log = _live_log(tmp_path / 'log', controller_offers=True)
     big = report.ride_summary(log, QC)

@@ -170,3 +170,20 @@ def test_measurement_arrays_reads_both_layouts():
     batch = m.samples_to_msg([3.5, 3.501], [0.01, 0.02], [0.1, 0.2], [300.0, 301.0],
                              [2.0, 2.0], sequence=0, first_index=0)
     assert [len(a) for a in m.measurement_arrays(batch)] == [2] * 5
+
+
+def test_corner_state_round_trip_keeps_every_field():
+    from mr_damper_common.contract import CORNER_FIELDS, CornerState
+    s = CornerState(2.5, 0.01, 0.3, 2.0, 0.0, 0.1, -1.0, 0.0, 0.01, 0.2, 2900.0, -50.0, 0.4)
+    msg = m.corner_state_to_msg(s, 1.25, False, 'stale')
+    v = m.corner_state_from_msg(msg)
+    assert v.t == pytest.approx(2.5, abs=1e-9)
+    for name in CORNER_FIELDS[1:]:     # the laws' fields, the tyre deflection's and the rest
+        assert getattr(v, name) == getattr(s, name)
+    assert msg.current_command_a == 1.25 and msg.fail_safe_reason == 'stale'
+    assert msg.fail_safe_mode == msg.MODE_FAIL_SAFE
+    assert (msg.tyre_load_n, msg.coil_current_a) == (s.tyre_force, s.coil_current)
+    assert msg.header.frame_id == 'quarter_car'
+    # a car settling before the road starts (t < 0) is stamped 0; a NaN field stays NaN
+    early = m.corner_state_from_msg(m.corner_state_to_msg(CornerState(-0.2), 0.5, True, 'ok'))
+    assert early.t == 0.0 and math.isnan(early.v_s) and math.isnan(early.coil_current)

@@ -102,6 +102,6 @@ def test_identify_damper_recovers_kwok_truth():
     assert d['model'] == 'kwok-current'
     for k in ('c1', 'alpha1', 'alpha2', 'beta0', 'delta'):
         assert d['parameters'][k] == pytest.approx(thesis_kwok_current()[1][k], rel=0.05), k
-    from quarter_car_sim.simulate import make_inverse
+    from quarter_car_sim.simulate.quarter_car import make_inverse
     inv = make_inverse(d)
     assert inv.i_ref_a == 2.0

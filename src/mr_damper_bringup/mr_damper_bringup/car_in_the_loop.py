@@ -1,22 +1,22 @@
 """
 The car's damper force from a virtual rig in the same process (hardware in the loop, no ROS).
 
-The rig side of :mod:`quarter_car_sim.hil` (which holds the car side: delay compensation,
-:class:`quarter_car_sim.hil.RemoteRigPlant` and ``run_loop``). A study that combines the rig and
-the car, so it lives above both (in bringup): ``mr_damper_model <- quarter_car_sim`` and
+The rig side of :mod:`quarter_car_sim.runtime.hil` (which holds the car side: delay compensation,
+:class:`quarter_car_sim.runtime.hil.RemoteRigPlant` and ``run_loop``). A study that combines the
+rig and the car, so it lives above both (in bringup): ``mr_damper_model <- quarter_car_sim`` and
 ``mr_damper_model <- mr_damper_rig``, neither imports the other; this module composes the car's
 pieces with the rig's :class:`mr_damper_rig.virtual_rig.VirtualRig`.
 
 - :class:`HilPlant` has the streaming damper-plant interface of
-  :class:`quarter_car_sim.dynamics.QuarterCar` (``step(dt, x, v, i_cmd) -> F``), so the one
-  closed loop (:class:`quarter_car_sim.live_loop.ClosedLoop`) runs unchanged with a rig in place
-  of the damper model. Per (sub)step of the car: the car's suspension travel goes through the
-  delay compensator and is sent as the displacement command, the rig's actuator
+  :class:`quarter_car_sim.plant.quarter_car.QuarterCar` (``step(dt, x, v, i_cmd) -> F``), so the
+  one closed loop (:class:`quarter_car_sim.simulate.live_loop.ClosedLoop`) runs unchanged with a
+  rig in place of the damper model. Per (sub)step of the car: the car's suspension travel goes
+  through the delay compensator and is sent as the displacement command, the rig's actuator
   (:mod:`mr_damper_rig.actuator`) follows it, the true damper is moved by the actuator's actual
   motion and the rig measures force; the measured force goes back to the car
   ``feedback_delay_steps`` samples late.
 - :class:`SimulatedLink` is what the ROS 2 nodes do over ``plant:=rig`` (docs/hil.md), in one
-  process: :class:`quarter_car_sim.hil.RemoteRigPlant` and a guarded rig
+  process: :class:`quarter_car_sim.runtime.hil.RemoteRigPlant` and a guarded rig
   (:class:`mr_damper_rig.commands.CommandFollower`) with a message latency.
 - :func:`cam_rig_comparison` rates a model the identifier learnt from road-induced motion
   against one learnt on the cam rig; :func:`hil_summary` is the HIL part of a suite summary.
@@ -30,8 +30,8 @@ from mr_damper_rig.actuator import CommandedMotion, ServoActuator
 from mr_damper_rig.commands import CommandFollower, DisplacementCommandGuard
 from mr_damper_rig.excitation import CamSine, StepSchedule
 from mr_damper_rig.virtual_rig import VirtualRig
-from quarter_car_sim.hil import (DelayCompensator, HilError, make_remote_plant,
-                                 TrackingMonitor)
+from quarter_car_sim.runtime.hil import (DelayCompensator, HilError, make_remote_plant,
+                                         TrackingMonitor)
 
 
 class HilPlant:
@@ -134,7 +134,7 @@ def make_hil_plant(plant='kwok-current', *, actuator='first', compensation='poly
     compensation : {'poly', 'none'}
         Delay compensation: polynomial extrapolation over the actuator's equivalent delay.
     order, adapt_gain :
-        Options of :class:`quarter_car_sim.hil.DelayCompensator`.
+        Options of :class:`quarter_car_sim.runtime.hil.DelayCompensator`.
     dt : float
         Rig sample interval = car (sub)step [s].
     feedback_delay_steps : int
@@ -163,7 +163,7 @@ def make_hil_plant(plant='kwok-current', *, actuator='first', compensation='poly
 
 class SimulatedLink:
     """
-    The car's :class:`quarter_car_sim.hil.RemoteRigPlant` and a guarded rig in one process.
+    The car's :class:`quarter_car_sim.runtime.hil.RemoteRigPlant` and a guarded rig in one process.
 
     A message latency delays the measurements.
 
@@ -200,7 +200,7 @@ class SimulatedLink:
 
     @property
     def monitor(self):
-        """The car side's :class:`quarter_car_sim.hil.TrackingMonitor`."""
+        """The car side's :class:`quarter_car_sim.runtime.hil.TrackingMonitor`."""
         return self.remote.monitor
 
     @property
@@ -240,7 +240,7 @@ def make_simulated_link(plant='kwok-current', *, actuator='first', compensation=
 
     ``delay_s`` (initial horizon) defaults to the actuator's equivalent delay plus the latency
     and the one-sample feedback; the other arguments are those of :func:`make_hil_plant` and
-    :func:`quarter_car_sim.hil.make_remote_plant`.
+    :func:`quarter_car_sim.runtime.hil.make_remote_plant`.
     """
     act = ServoActuator(actuator, dt, **actuator_options)
     rig = VirtualRig(make_plant(plant), CommandedMotion(act), sample_rate_hz=1.0 / dt,

@@ -7,7 +7,7 @@ Four rig / identifier pairs run in the namespaces ``fl``, ``fr``, ``rl``, ``rr``
 7-DOF car. The summary's ``full_car`` section (:func:`full_car_summary`) takes the node's final
 status (``/diagnostics``) and its body log (``full_car_body.npz``), and compares the body's
 ISO 2631-1 figures with the same car on the same road at the safe current, simulated offline
-here with :func:`quarter_car_sim.full_car.simulate.simulate_full_car`.
+here with :func:`quarter_car_sim.simulate.full_car.simulate_full_car`.
 
 With ``--external-controller`` the law runs in ``full_car_controller_node`` (root namespace,
 subscribing the four corners' states and parameter sets) and ``full_car_node`` is the plant
@@ -152,11 +152,12 @@ def passive_body(car_params, t_end, dt):
 
     """
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.full_car import make_two_track_road, simulate_full_car
+    from quarter_car_sim.plant.two_track_road import make_two_track_road
+    from quarter_car_sim.simulate.full_car import simulate_full_car
     from semi_active_control.runtime.full_car_controller_core import FullCarController
     from semi_active_control.laws.registry import make_full_car_law
     from semi_active_control.car.full_car import PASSENGER_CAR
-    from quarter_car_sim.full_car.simulate import OFFLINE_TIMEOUT_S
+    from quarter_car_sim.simulate.full_car import OFFLINE_TIMEOUT_S
     g = car_params.get
     safe = float(g('safe_current_a', 0.5))
     road = make_two_track_road(g('road', 'iso8608-C'), PASSENGER_CAR,
@@ -174,7 +175,7 @@ def passive_body(car_params, t_end, dt):
 
 
 def _iso(t, acc):
-    from quarter_car_sim.full_car.metrics import iso2631_seat
+    from quarter_car_sim.metrics.full_car import iso2631_seat
     if len(t) < 2:
         return None
     m = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])

@@ -10,9 +10,9 @@ Examples::
 Without ``--damper-params`` the tool first runs a simulated rig test of the plant and identifies
 kwok-current parameters with ``mr_damper_model.identification.identify``; the controllers only
 ever see those.
-``--compare`` also runs the offline optimal semi-active bound (``quarter_car_sim.bound``, full
-road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
-Bad input exits with status 2 and one line on stderr.
+``--compare`` also runs the offline optimal semi-active bound
+(``quarter_car_sim.bound.quarter_car``, full road preview, comfort only) and lists its current
+sequence replayed on the plant as ``bound``. Bad input exits with status 2 and one line on stderr.
 
 It lives in ``mr_damper_bringup``, above the rig and the car, because it needs both the rig
 (the simulated identification test, :func:`mr_damper_rig.virtual_rig.simulated_rig_data`) and
@@ -21,7 +21,7 @@ the car; neither of those two packages imports the other.
 import json
 import sys
 
-from quarter_car_sim.cli_args import OneLineParser, positive
+from quarter_car_sim.tools.cli_args import OneLineParser, positive
 from semi_active_control.laws import CONTROLLER_NAMES
 
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
@@ -72,11 +72,11 @@ def run(args):
     from mr_damper_common.health import finite_or_none
     from mr_damper_model.models.plant import make_plant
     from mr_damper_rig.virtual_rig import identify_damper
-    from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
+    from quarter_car_sim.bound.quarter_car import bound_name, KwokForceModel, semi_active_bound
     from semi_active_control.laws import make_controller, Passive
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.road import make_road
-    from quarter_car_sim.simulate import compare, make_inverse
+    from quarter_car_sim.plant.road import make_road
+    from quarter_car_sim.simulate.quarter_car import compare, make_inverse
 
     params = QuarterCarParams()
     road = make_road(args.road, speed_m_s=args.speed, duration_s=args.duration, dt=args.dt,
@@ -104,7 +104,7 @@ def run(args):
                                        dt=args.dt)]
     sensed = {}
     if args.sensing == 'vehicle':
-        from quarter_car_sim.sensed_loop import simulate_sensed
+        from quarter_car_sim.simulate.sensed_loop import simulate_sensed
         damper_laws = [c for c in controllers if c.kind in ('current', 'semi-active')]
         for c in damper_laws:
             sensed[c.name] = simulate_sensed(params, road, c, plant, inverse, dt=args.dt,
@@ -160,7 +160,7 @@ def main(argv=None):
     try:
         out, results = run(args)
         if args.plot:
-            from quarter_car_sim.plots import plot_results
+            from quarter_car_sim.analysis.plots import plot_results
             plot_results(results, args.plot)
     except (ValueError, OSError, KeyError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

@@ -299,7 +299,7 @@ def identify_damper(plant, *, seed=0, budget_s=None):
     dict
         Parameter-file dictionary (``model``, ``parameters``, ``model_options``, ``metrics``,
         ``seed``, ``source``, ...) as accepted by
-        ``quarter_car_sim.simulate.make_inverse``.
+        ``quarter_car_sim.simulate.quarter_car.make_inverse``.
 
     """
     from mr_damper_model.identification.identify import identify

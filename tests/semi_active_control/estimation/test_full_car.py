@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from semi_active_control.estimation import full_car as fe
-from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.plant.full_car import FullCar
 from semi_active_control.car.full_car import PASSENGER_CAR
-from quarter_car_sim.full_car.road import make_two_track_road, TwoTrackRoad
-from quarter_car_sim.full_car.simulate import true_vector
-from quarter_car_sim.sensors import FullCarSensors
+from quarter_car_sim.plant.two_track_road import make_two_track_road, TwoTrackRoad
+from quarter_car_sim.simulate.full_car import true_vector
+from quarter_car_sim.plant.sensors import FullCarSensors
 from semi_active_control.estimation.sensor_specs import G0, ideal_spec
 
 DT = 1e-3
@@ -113,7 +113,7 @@ def test_dropout_is_detected_and_counted(design):
 
 
 def test_cli_sensing_vehicle_json(capsys):
-    from quarter_car_sim.full_car.cli import main
+    from quarter_car_sim.tools.full_car_sim import main
     assert main(['--compare', '--laws', 'modal-skyhook', '--duration', '0.5', '--sensing',
                  'vehicle', '--json']) == 0
     out = json.loads(capsys.readouterr().out)

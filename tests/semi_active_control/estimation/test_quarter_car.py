@@ -4,12 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from quarter_car_sim.dynamics import LinearDamperPlant, QuarterCar
+from quarter_car_sim.plant.quarter_car import LinearDamperPlant, QuarterCar
 from semi_active_control.estimation.quarter_car import (design_estimator, EstimatorError,
                                                         QuarterCarEstimator,
                                                         road_velocity_intensity)
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import step as step_road
+from quarter_car_sim.plant.road import step as step_road
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
 
 C_LIN = 1500.0

@@ -9,15 +9,17 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from semi_active_control.laws import Skyhook
 from semi_active_control.supervision.failsafe import ModelSupervisor
-from quarter_car_sim.full_car import FullCar, make_two_track_road, simulate_full_car
+from quarter_car_sim.plant.full_car import FullCar
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.simulate.full_car import simulate_full_car
 from semi_active_control.runtime.full_car_controller_core import FullCarController
 from semi_active_control.laws.full_car import ModalSkyhook
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
-from quarter_car_sim.full_car.road import same_road_all_wheels
+from quarter_car_sim.plant.two_track_road import same_road_all_wheels
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import bump
-from quarter_car_sim.simulate import identified_set_of, make_inverse, simulate
+from quarter_car_sim.plant.road import bump
+from quarter_car_sim.simulate.quarter_car import identified_set_of, make_inverse, simulate
 
 KW = presets.thesis_kwok_current()[1]
 

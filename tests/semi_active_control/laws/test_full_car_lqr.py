@@ -4,7 +4,8 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_two_track_road, simulate_full_car
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.simulate.full_car import simulate_full_car
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import PASSENGER_CAR, symmetric_car
 from semi_active_control.laws.full_car_lqr import full_car_lqr_design, relative_model

@@ -353,8 +353,8 @@ def test_clipped_optimal_wk_feeds_back_the_analog_filter_state():
 def test_clipped_optimal_wk_on_the_car_is_dissipative_and_within_the_damper_range():
     from mr_damper_model.models.plant import KwokCurrentPlant
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.road import iso8608
-    from quarter_car_sim.simulate import simulate
+    from quarter_car_sim.plant.road import iso8608
+    from quarter_car_sim.simulate.quarter_car import simulate
     model, truth = presets.thesis_kwok_current()
     inv = KwokCurrentInverse(truth, i_ref_a=model.options['i_ref_a'], tol_a=1e-4,
                              sign_convention='body')

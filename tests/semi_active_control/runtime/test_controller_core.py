@@ -7,15 +7,15 @@ import pytest
 
 from mr_damper_model.models.inverse import KwokCurrentInverse
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim import live_loop
+from quarter_car_sim.simulate import live_loop
 from mr_damper_common.contract import CornerState
 from quarter_car_sim.runtime.command_input import CommandInput
 from semi_active_control.runtime.controller_core import ControllerCore, LAW_FIELDS
 from semi_active_control.laws import ADD, Groundhook, Passive, Skyhook
-from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.plant.quarter_car import QuarterCar
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import make_road
+from quarter_car_sim.plant.road import make_road
 
 SAFE = 0.5
 

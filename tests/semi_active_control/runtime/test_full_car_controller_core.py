@@ -6,12 +6,12 @@ import pytest
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import make_two_track_road
+from quarter_car_sim.plant.two_track_road import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
 from mr_damper_common.contract import CornerState, IdentifiedSet
 from semi_active_control.runtime.full_car_controller_core import (body_coordinates, full_car_state,
                                                                   FullCarControllerCore)
-from quarter_car_sim.full_car.runtime import FullCarRuntime
+from quarter_car_sim.runtime.full_car import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
 IDENTIFIED = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)

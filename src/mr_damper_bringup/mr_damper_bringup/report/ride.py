@@ -28,7 +28,7 @@ def _metrics_of_blocks(blocks, window, static_load, dt, *, current_key='current_
     ``keep``: a dict filled with at most ``max_keep`` evenly spaced rows of ``t`` and ``a_s``
     (for the plot), given ``n_total`` rows in all.
     """
-    from quarter_car_sim.ride_metrics import RunningRideMetrics
+    from quarter_car_sim.metrics.quarter_car import RunningRideMetrics
     m = RunningRideMetrics(1.0 / dt, static_load)
     lo, hi = window[0] - 0.5 * dt, window[1] + 0.5 * dt
     step = max(1, int(math.ceil((n_total or 1) / max_keep)))
@@ -78,13 +78,13 @@ def passive_reference(qc_params, t_end, dt, current=None, *, window=None, keep=N
         ``current_a``.
 
     """
-    from quarter_car_sim import live_loop
+    from quarter_car_sim.simulate import live_loop
     from semi_active_control.laws import Passive
-    from quarter_car_sim.simulate import simulate_blocks
+    from quarter_car_sim.simulate.quarter_car import simulate_blocks
     g = qc_params.get
     car = _car_params(qc_params)
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim.road import make_road
+    from quarter_car_sim.plant.road import make_road
     road = make_road(g('road', 'iso8608'), road_class=g('road_class', 'C'),
                      speed_m_s=g('speed_m_s', 20.0), rng=int(g('road_seed', 1)),
                      duration_s=g('road_duration_s', 300.0), dt=dt,
@@ -197,7 +197,7 @@ def loop_figures(log):
     step; 1 = the loop kept real time on average); ``real_time_factor_median``: the step over
     the median period (what a typical step achieved).
     """
-    from quarter_car_sim.live_loop import timing_stats
+    from quarter_car_sim.simulate.live_loop import timing_stats
     log = open_log(log)
     step = max(1, int(math.ceil(log.rows / MAX_TIMING_SAMPLES)))
     per_keep, lat_keep = array('d'), array('d')

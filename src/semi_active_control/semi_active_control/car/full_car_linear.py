@@ -10,7 +10,7 @@ from ``q`` to the four suspension travels and ``P = [0, I]`` the map to the whee
 ``Ks`` holds the springs and the anti-roll bars, ``F_d`` the four damper forces on the body
 (+ up), ``W`` the static tyre loads, ``F_t`` the tyre forces (linear here: in contact). The
 full-car laws and the full-car estimator are designed on it; the simulator
-(:mod:`quarter_car_sim.full_car.dynamics`) integrates it with tyre lift-off and four damper
+(:mod:`quarter_car_sim.plant.full_car`) integrates it with tyre lift-off and four damper
 plants. :class:`FullCarState` is the whole car's state the full-car laws read.
 """
 import dataclasses

@@ -10,7 +10,7 @@ position sensors (travel, one per corner). Each sensor has the error model of
 :mod:`semi_active_control.estimation.sensor_specs`
 (:func:`~semi_active_control.estimation.sensor_specs.accelerometer_spec`,
 :func:`~semi_active_control.estimation.sensor_specs.ride_height_spec`); the simulator samples them
-(:class:`quarter_car_sim.sensors.FullCarSensors`).
+(:class:`quarter_car_sim.plant.sensors.FullCarSensors`).
 
 Model (the linear car of :func:`semi_active_control.car.full_car_linear.state_matrices`, all
 wheels in contact), state ::
@@ -133,7 +133,7 @@ def design_full_car_estimator(params, dt, *, accel=None, travel=None, road_class
         Control period [s].
     accel, travel : SensorSpec, optional
         Error models of the accelerometers and the position sensors (default the automotive
-        parts of :mod:`quarter_car_sim.sensors`); ``variance`` sets the measurement noise.
+        parts of :mod:`quarter_car_sim.plant.sensors`); ``variance`` sets the measurement noise.
     road_class, speed_m_s
         Design road (ISO 8608 class) and speed: intensity of the road velocity noise.
     q_bias : float

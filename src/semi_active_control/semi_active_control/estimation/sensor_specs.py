@@ -4,7 +4,7 @@ Vehicle sensors of a corner by their datasheets: accelerometers and the ride-hei
 What a production semi-active suspension measures at a corner, and each sensor's error model
 (:class:`SensorSpec`): the estimators are designed on these figures (noise, rate, latency,
 offset), the simulator samples the true state with them
-(:class:`quarter_car_sim.sensors.SensorSampler`):
+(:class:`quarter_car_sim.plant.sensors.SensorSampler`):
 
 - the **body accelerometer** at the corner (vertical specific force, gravity included, as a
   ``sensor_msgs/Imu`` reports it: +9.81 m/s^2 at rest);

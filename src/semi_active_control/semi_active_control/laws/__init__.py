@@ -52,7 +52,7 @@ Modules: ``base`` (interface, passive, the damper clip), ``skyhook`` (skyhook fa
 skyhook), ``full_car_lqr`` and ``full_car_lqr_wk`` (full-car clipped-optimal), ``registry``.
 
 See docs/control-laws.md for the laws, their gains and the offline semi-active bound
-(:mod:`quarter_car_sim.bound`).
+(:mod:`quarter_car_sim.bound.quarter_car`).
 """
 from semi_active_control.laws.add import ADD, DEFAULT_SHADD_F_SWITCH_HZ, ShAdd  # noqa: F401
 from semi_active_control.laws.base import (car_state_feedback, clip_to_damper,  # noqa: F401

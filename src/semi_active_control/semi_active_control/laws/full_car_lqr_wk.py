@@ -3,14 +3,14 @@ Frequency-weighted full-car clipped-optimal control: the ISO 2631-1 filters insi
 
 The road-relative car of :mod:`semi_active_control.laws.full_car_lqr` (state ``x = [s, d, v_b,
 v_u]``, the four corner forces ``F`` on the body) augmented with the ISO 2631-1 weighting filters
-the ride metric uses (:mod:`quarter_car_sim.full_car.metrics`), each driven by a body
+the ride metric uses (:mod:`quarter_car_sim.metrics.full_car`), each driven by a body
 acceleration ``y = Cy x + Dy F``:
 
 - Wk (8 states, :func:`semi_active_control.laws.optimal.wk_state_space`) on the vertical
   acceleration at the seat ``zdd - x_seat thetadd + y_seat phidd`` (the CG by default, as the
   metric);
 - We (6 states each, :func:`semi_active_control.laws.optimal.weighting_state_space` of
-  :data:`quarter_car_sim.ride_metrics.WE_CONSTANTS`) on the pitch and the roll acceleration.
+  :data:`quarter_car_sim.metrics.quarter_car.WE_CONSTANTS`) on the pitch and the roll acceleration.
 
 Cost (SI)::
 

@@ -190,9 +190,9 @@ class ClippedOptimalWk(Controller):
     acceleration ``a_s``; the demand is clipped as :class:`ClippedOptimal` does (damper range,
     then dissipative). The filter is the design's analog filter made digital with the bilinear
     transform at the control period ``dt``: its output is the metric's digital Wk filter
-    (:func:`quarter_car_sim.ride_metrics.wk_sos`) on the same samples. The analog filter state
-    at sample k is ``(I - A_w dt/2)^-1 (s_k + B_w a_s,k dt/2)`` with ``s_k`` the digital state
-    (the bilinear realisation), so the state fed back is the one the design assumed.
+    (:func:`quarter_car_sim.metrics.quarter_car.wk_sos`) on the same samples. The analog filter
+    state at sample k is ``(I - A_w dt/2)^-1 (s_k + B_w a_s,k dt/2)`` with ``s_k`` the digital
+    state (the bilinear realisation), so the state fed back is the one the design assumed.
 
     Stateful: :meth:`reset` clears the filter; a state whose time ``t`` does not advance does
     not step the filter again.

@@ -2,7 +2,7 @@
 Semi-active controller core without ROS: a vehicle state in, a supervised coil current out.
 
 The one home of "law + identified inverse + fail-safe supervisor" for one control step. Both
-the simulated car's built-in loop (:class:`quarter_car_sim.live_loop.ClosedLoop`) and the
+the simulated car's built-in loop (:class:`quarter_car_sim.simulate.live_loop.ClosedLoop`) and the
 stand-alone ``semi_active_controller_node`` (state from a car or a vehicle over a topic) call
 :class:`ControllerCore`. The simulated car's side of an external controller (the latest command
 received, its timeout and the checks a command passes before it reaches the coil) is

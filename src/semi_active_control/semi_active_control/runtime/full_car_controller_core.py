@@ -60,7 +60,7 @@ def body_coordinates(geometry, values):
 
 def full_car_state(params, corners):
     """
-    Assemble a :class:`~quarter_car_sim.full_car.dynamics.FullCarState` from four corners.
+    Assemble a :class:`~quarter_car_sim.plant.full_car.FullCarState` from four corners.
 
     Parameters
     ----------

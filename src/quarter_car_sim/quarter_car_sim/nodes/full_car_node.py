@@ -1,0 +1,354 @@
+"""
+Full-car node: the 7-DOF car on four MR dampers it only knows through four identifiers.
+
+``ros2 run quarter_car_sim full_car_node --ros-args --params-file suite_full_car.yaml``
+
+A control thread (:class:`quarter_car_sim.runtime.control_thread.ControlThread`) steps the ROS-free
+:class:`quarter_car_sim.runtime.full_car.FullCarRuntime` at ``rate_hz``, paced against the
+monotonic wall clock (real time times ``real_time_factor``; 0 = as fast as possible): the
+full-car law (modal skyhook by default) chooses four corner forces, each corner's supervisor and
+the inverse of that corner's identified model turn them into four coil currents (a corner
+without a valid, fresh model gets ``safe_current_a``; the others go on controlling), and the car
+with its four "true" damper plants advances one period on the two-track road. Parameter
+messages and ``/diagnostics`` go through the executor in the main thread; ages and timeouts of
+parameter sets are on the node's clock (ROS time).
+
+Topics (relative; ``<c>`` is each of ``fl``, ``fr``, ``rl``, ``rr``, the namespaces of the four
+rig / identifier pairs of ``mr-damper-suite --config full-car``)
+-------------------------------------------------------------------------------------------
+- sub ``<c>/mr_damper/kwok_parameters`` (mr_damper_interfaces/KwokParameters; reliable,
+  transient local, depth 1): that corner's identified model;
+- pub ``<c>/quarter_car/car_state`` (mr_damper_interfaces/QuarterCarState at
+  ``state_rate_hz``): the corner as a quarter car (body point above the wheel, wheel, travel,
+  damper force, tyre load, road, current command, that corner's fail-safe mode and reason);
+- pub ``<c>/mr_damper/current_command`` (std_msgs/Float64 [A] at ``state_rate_hz``): the
+  corner's current command (applied inside the node; published for the record);
+- pub ``full_car/body_state`` (sensor_msgs/JointState at ``state_rate_hz``; header.stamp =
+  sim time): joints ``heave``, ``pitch``, ``roll`` with position z [m], theta [rad], phi [rad],
+  velocity their rates and effort their accelerations [m/s^2, rad/s^2] (the quarter car's
+  JointState convention: a standard message of named generalised coordinates and their rates,
+  readable by any tool, no new interface type);
+- pub ``/diagnostics`` (status name ``full_car_node``): OK with four corners normal, WARN
+  naming the corners in fail-safe, ERROR when the control thread died; values: controller,
+  steps, t_sim, corners_normal, corners.<c>.* (mode, reason, failsafe_s, params_accepted,
+  params_rejected.<reason>, normal_steps, current_a, ...), iso2631.* (a_wz, a_w_pitch,
+  a_w_roll, a_v, VDVs, crest factors of the body centre since t = 0), loop.*,
+  late_reanchors, dropped.<reason>.
+
+External controller (``controller:=external``): the node is the plant only. Every step it
+publishes the four corner states (reliable, depth 10) and applies each corner's latest command
+from ``<c>/mr_damper/current_command`` (one ``CommandInput`` per corner: a corner without a
+command for ``command_timeout_s`` gets ``safe_current_a``, counted); it neither subscribes the
+parameters nor publishes the commands. With ``lockstep:=true`` step 0 waits for the four topics
+to be matched both ways and each step waits for four commands after publishing its state (at
+most ``lockstep_timeout_s``, each expiry counted in ``lockstep_timeouts``), e.g. for
+``full_car_controller_node``.
+
+At the end the node publishes a final status and, with ``log_file``, writes the body's
+recorded time and accelerations (``t``, ``acc`` with columns heave, pitch, roll) as a NumPy
+``.npz`` file for the suite's report.
+"""
+import sys
+import threading
+import time
+
+import numpy as np
+from rclpy.node import Node
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from mr_damper_common import messages
+from mr_damper_common.health import ERROR, WARN, worst
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
+                                         DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
+                                         set_realtime_priority)
+from mr_damper_model.models.plant import make_plant
+from quarter_car_sim.simulate import live_loop
+from quarter_car_sim.runtime.control_thread import ControlThread
+from quarter_car_sim.runtime.command_input import CommandInput
+from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS
+from quarter_car_sim.runtime.full_car import BODY_JOINTS, FullCarRuntime
+from quarter_car_sim.nodes.car_process import end_on_control_error, run_car_node
+from semi_active_control.nodes.common import offer_parameters
+
+#: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
+PARAMETERS = (
+    Param('rate_hz', 1000.0, 'Control rate [Hz]', 10.0, 10000.0),
+    Param('real_time_factor', 1.0, 'Simulated seconds per wall second (0 = as fast as '
+          'possible) [-]', 0.0, 1000.0),
+    Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
+          'passive@<I>A, or external (plant only: currents on <c>/mr_damper/current_command, '
+          'e.g. full_car_controller_node)'),
+    Param('command_timeout_s', 0.05, 'External controller: a corner\'s safe current when no '
+          'command came for it for this long [s, node clock]', 0.001, 3600.0),
+    Param('lockstep', False, 'External controller: each step waits for the four commands '
+          'answering the previous state'),
+    Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for the four commands [s, wall '
+          'clock]', 0.001, 3600.0),
+) + CORNER_SUPERVISOR_PARAMETERS + (
+    Param('road', 'iso8608-C', 'Two-track road: iso8608-<class> (A..H) or an event of '
+          'quarter_car_sim.plant.two_track_road.EVENTS'),
+    Param('speed_m_s', 20.0, 'Vehicle speed [m/s]', 0.1, 100.0),
+    Param('road_seed', 1, 'Seed of the random road [-]', 0, 2 ** 31 - 1),
+    Param('road_duration_s', 300.0, 'Road length in time (then held flat) [s]', 1.0, 3600.0),
+    Param('settle_s', live_loop.SETTLE_S, 'Time run before the road starts (settling) [s]',
+          0.0, 60.0),
+    Param('plant', 'spencer', 'True damper plant of every corner (same as the rigs): spencer '
+          'or kwok-current'),
+    Param('truth_file', '', 'JSON parameter file of the true dampers, as the rigs (default: '
+          'preset)'),
+    Param('state_rate_hz', 100.0, 'Rate of the corner states, current commands and body state '
+          '(0 = none) [Hz]', 0.0, 10000.0),
+    Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (with controller '
+          'external: of every thread) (1..99; 0 = normal scheduling); only with '
+          'real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
+    Param('log_max_s', 600.0, 'Longest body history kept for the ISO 2631-1 figures [s]',
+          0.0, 3600.0),
+    Param('log_file', '', 'At the end write the body accelerations (t, acc) to this .npz file '
+          '("" = none)'),
+)
+
+
+class FullCarNode(Node):
+    """
+    Thin ROS adapter over :class:`~quarter_car_sim.runtime.full_car.FullCarRuntime`.
+
+    Topics and status: see the module docstring. Keyword arguments (e.g. ``context``,
+    ``parameter_overrides``) go to ``rclpy.node.Node``.
+    """
+
+    def __init__(self, **node_kwargs):
+        super().__init__('full_car_node', **node_kwargs)
+        self.lock = threading.Lock()
+        p = self.p = declare_parameters(self, PARAMETERS)
+        self.rate_hz = p['rate_hz']
+        self.rtf = p['real_time_factor']
+        self.log_file = p['log_file']
+        dt = 1.0 / self.rate_hz
+        road = make_two_track_road(p['road'], PASSENGER_CAR, speed_m_s=p['speed_m_s'],
+                                   duration_s=p['road_duration_s'], dt=dt,
+                                   rng=int(p['road_seed']))
+        plants = [make_plant(p['plant'], p['truth_file']) for _ in CORNERS]
+        self.external = p['controller'].strip().lower() == 'external'
+        self.lockstep = self.external and p['lockstep']
+        self.lockstep_timeout_s = p['lockstep_timeout_s']
+        self.lockstep_timeouts = 0
+        law = f'passive@{p["safe_current_a"]:g}A' if self.external else p['controller']
+        self.rt = FullCarRuntime(
+            PASSENGER_CAR, road, plants, law, dt=dt,
+            timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
+            i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
+            min_current_span_a=p['min_current_span_a'], hold_on_reject=p['hold_on_reject'],
+            settle_s=p['settle_s'], log_max_s=p['log_max_s'])
+        self.drops = DropCounter(self.get_logger())
+        self.state_pubs, self.cmd_pubs, self.state_msgs, self.cmd_subs = [], [], [], []
+        # the external controller's four 1 kHz command streams on a lane of their own: the
+        # node's executor would rebuild its whole wait set for each command (docs/hil.md,
+        # Timing; the same for the quarter car's external commands)
+        self.lane = FastLane(self, 'commands') if self.external else None
+        if self.external:
+            self.cmd_ins = [CommandInput(p['command_timeout_s'], p['safe_current_a'],
+                                         p['i_min_a'], p['i_max_a']) for _ in CORNERS]
+            self.answered = threading.Event()     # lock-step: the four commands came
+            self.n_answers = 0
+        for i, c in enumerate(CORNERS):
+            self.state_pubs.append(self.create_publisher(
+                QuarterCarState, f'{c}/quarter_car/car_state', CONTROL_QOS))
+            msg = QuarterCarState()
+            msg.header.frame_id = f'{c}/quarter_car'
+            self.state_msgs.append(msg)
+            if self.external:
+                self.cmd_subs.append(self.drops.subscribe(
+                    self.lane.node, Float64, f'{c}/mr_damper/current_command',
+                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS, 'commands_lost'))
+                continue
+            self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
+                                                       10))
+            self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
+                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
+                                 'parameters_lost')
+        self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
+        self.body_msg = JointState()
+        self.body_msg.header.frame_id = 'full_car'
+        self.body_msg.name = list(BODY_JOINTS)
+        self.cmd_msg = Float64()
+        self.every = (max(1, int(round(self.rate_hz / p['state_rate_hz'])))
+                      if p['state_rate_hz'] > 0 else 0)
+        self.diagnostics = DiagnosticsPublisher(self, self.health,
+                                                period_s=p['diagnostics_period_s'],
+                                                hardware_id='full_car', drops=self.drops)
+        self.control = ControlThread(
+            self._step_external if self.external else self._step,
+            live_loop.Pacer(dt, self.rtf),
+            live_loop.LoopTiming(dt / self.rtf if self.rtf > 0 else None),
+            before_first=self._wait_for_controller if self.lockstep else None,
+            on_error=lambda failed: end_on_control_error(self, failed),
+            priority=int(p['realtime_priority']) if self.rtf > 0 else 0)
+        if self.lane is not None:
+            self.lane.start()
+        self.control.start()
+        if self.external and p['realtime_priority'] > 0 and self.rtf > 0:
+            # the commands arrive in the lane's and the middleware's threads and every thread
+            # shares the GIL: a normal-priority thread preempted while it holds the GIL would
+            # stall the control thread (as the quarter car's external and HIL modes)
+            set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        name = 'external controller' if self.external else self.rt.controller.name
+        self.get_logger().info(
+            f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
+            f'{road.name}, plants {p["plant"]}; fail-safe {p["safe_current_a"]:g} A, timeout '
+            f'{p["param_timeout_s"]:g} s')
+
+    def on_params(self, i, msg):
+        """Offer a parameter message to corner ``i``'s supervisor (at the node clock's now)."""
+        now = node_time_s(self)
+        with self.lock:
+            offer_parameters(self.rt.supervisor(i), msg, now, self.get_logger())
+
+    def _wait_for_controller(self):
+        """Lock-step: hold step 0 until the controller's topics are matched both ways."""
+        self.get_logger().info('lock-step: waiting for the controller to connect')
+        while self.control.running and not all(
+                pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0
+                for pub, sub in zip(self.state_pubs, self.cmd_subs)):
+            time.sleep(0.005)
+
+    def on_command(self, i, msg):
+        """Take one current command of the external controller for corner ``i``."""
+        now = node_time_s(self)
+        with self.lock:
+            outcome = self.cmd_ins[i].offer(msg.data, now)
+            self.n_answers += 1
+            if self.n_answers >= 4:
+                self.answered.set()
+        if outcome != 'accepted':
+            self.get_logger().warning(f'{CORNERS[i]}: current command {msg.data!r} {outcome}',
+                                      throttle_duration_sec=1.0)
+
+    def _external_reason(self, i):
+        cmd_in = self.cmd_ins[i]
+        if not cmd_in.timed_out:
+            return 'ok'
+        return 'no_command_yet' if cmd_in.received_at is None else 'command_timeout'
+
+    def _step_external(self, wall):
+        """Plant step: publish the four corners, (lock-step: wait for answers), apply, advance."""
+        state = self.rt.state
+        with self.lock:
+            flags = [(not ci.timed_out, self._external_reason(i), self.rt.currents[i])
+                     for i, ci in enumerate(self.cmd_ins)]
+            self.answered.clear()
+            self.n_answers = 0
+        for i, (normal, reason, current) in enumerate(flags):
+            self.drops.publish(self.state_pubs[i], messages.corner_state_to_msg(
+                state.corner(i), current, normal, reason, self.state_msgs[i]))
+        if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
+            self.lockstep_timeouts += 1
+            self.get_logger().warning(
+                f'no four commands within {self.lockstep_timeout_s:g} s of state t = '
+                f'{state.t:.3f} s ({self.lockstep_timeouts} in all)', throttle_duration_sec=1.0)
+        now = node_time_s(self)
+        with self.lock:
+            currents = [ci.current(now) for ci in self.cmd_ins]
+            _, _, new = self.rt.step(now, currents)
+        self.control.command_sent()
+        if self.every and not self.rt.steps % self.every:
+            self._publish_body(new)
+
+    def _step(self, wall):
+        """One control step (control thread): command, advance, publish at the state rate."""
+        now = node_time_s(self)
+        with self.lock:
+            _, currents, new = self.rt.step(now)
+            modes = [core.mode_reason() for core in self.rt.controller.cores]
+        self.control.command_sent()
+        if not self.every or self.rt.steps % self.every:
+            return
+        for i in range(4):
+            mode, reason = modes[i]
+            self.drops.publish(self.state_pubs[i], messages.corner_state_to_msg(
+                new.corner(i), currents[i], mode == 'normal', reason,
+                self.state_msgs[i]))
+            self.cmd_msg.data = float(currents[i])
+            self.drops.publish(self.cmd_pubs[i], self.cmd_msg)
+        self._publish_body(new)
+
+    def _publish_body(self, new):
+        messages.seconds_to_stamp(max(new.t, 0.0), self.body_msg.header.stamp)
+        self.body_msg.position = [float(x) for x in new.q[:3]]
+        self.body_msg.velocity = [float(x) for x in new.v[:3]]
+        self.body_msg.effort = [float(x) for x in new.acc[:3]]
+        self.drops.publish(self.body_pub, self.body_msg)
+
+    @property
+    def failed(self):
+        """Why the control thread died (None while it did not)."""
+        return self.control.failed
+
+    def status(self):
+        """Return the status dict (the values of the diagnostics)."""
+        with self.lock:
+            st = self.rt.status()
+            t, acc = self.rt.body_log()
+            if self.external:
+                st['controller'] = 'external'
+                for i, c in enumerate(CORNERS):
+                    ci = self.cmd_ins[i]
+                    st['corners'][c] = dict(
+                        ci.status(), mode='failsafe' if ci.timed_out else 'normal',
+                        reason=self._external_reason(i), current_a=float(self.rt.currents[i]))
+                st['corners_normal'] = sum(not ci.timed_out for ci in self.cmd_ins)
+                st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts)
+        if t.size >= 2:
+            from quarter_car_sim.metrics.full_car import iso2631_seat
+            st['iso2631'] = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
+            st['iso2631']['duration_s'] = float(t[-1] - t[0] + self.rt.dt)
+        loop = self.control.status()
+        st.update(rate_hz=self.rate_hz, real_time_factor=self.rtf,
+                  late_reanchors=loop.pop('late_reanchors'), loop=loop,
+                  dropped=self.drops.counts())
+        return st
+
+    def health(self):
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
+        st = self.status()
+        problems = []
+        if self.control.failed:
+            problems.append((ERROR, f'control loop stopped: {self.control.failed}'))
+        safe = [c for c, d in st['corners'].items() if d['mode'] != 'normal']
+        if safe:
+            problems.append((WARN, 'fail-safe at ' + ', '.join(
+                f'{c} ({st["corners"][c]["reason"]})' for c in safe)))
+        return worst(problems, st)
+
+    def stop(self):
+        """Stop the control thread, publish the final status, write the body log."""
+        self.control.stop(2.0)
+        if self.lane is not None:
+            self.lane.close()
+        try:
+            self.diagnostics.publish_final()
+        except Exception as exc:  # noqa: B902 - the context may be gone after Ctrl-C
+            print(f'full_car_node: no final status: {exc}', file=sys.stderr)
+        if self.log_file:
+            with self.lock:
+                t, acc = self.rt.body_log()
+            try:
+                np.savez(self.log_file, t=t, acc=acc, joints=np.array(BODY_JOINTS))
+                print(f'full_car_node: wrote {len(t)} body samples to {self.log_file}',
+                      file=sys.stderr)
+            except OSError as exc:
+                print(f'full_car_node: cannot write {self.log_file}: {exc}', file=sys.stderr)
+
+
+def main(args=None):
+    """Entry point of ``full_car_node``."""
+    return run_car_node(FullCarNode, 'full_car_node', args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

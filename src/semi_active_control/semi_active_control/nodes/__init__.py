@@ -1,0 +1,15 @@
+"""
+The vehicle's nodes: thin ROS adapters over the ROS-free cores.
+
+- ``semi_active_controller_node``: a corner's state in, a supervised coil current out
+  (:class:`semi_active_control.runtime.ControllerCore`);
+- ``state_estimator_node``: the corner's sensors in, its estimated state out
+  (:class:`semi_active_control.estimation.StateEstimatorCore`);
+- ``full_car_controller_node``: four corner states in, four supervised currents out
+  (:class:`semi_active_control.runtime.FullCarControllerCore`).
+
+``common`` holds what these nodes and the simulator's car nodes share (parameter tables,
+offering a parameter message to a supervisor); ``entry_points`` the console scripts
+(``ros2 run semi_active_control <node>``). No node module imports another
+(tests/test_node_imports.py).
+"""

@@ -1,0 +1,21 @@
+"""
+Console scripts of the semi_active_control nodes: stop handlers first, then the node module.
+
+See :func:`mr_damper_common.stop_flag.early_main` for why the order matters.
+"""
+from mr_damper_common.stop_flag import early_main
+
+
+def semi_active_controller_node():
+    """``ros2 run semi_active_control semi_active_controller_node``."""
+    return early_main('semi_active_control.nodes.semi_active_controller_node')
+
+
+def state_estimator_node():
+    """``ros2 run semi_active_control state_estimator_node``."""
+    return early_main('semi_active_control.nodes.state_estimator_node')
+
+
+def full_car_controller_node():
+    """``ros2 run semi_active_control full_car_controller_node``."""
+    return early_main('semi_active_control.nodes.full_car_controller_node')
