@@ -60,12 +60,12 @@ def _ride_states(n):
 
 def _built_in_loop():
     from mr_damper_model.models.plant import make_plant
-    from quarter_car_sim import live_loop
+    from quarter_car_sim.simulate import live_loop
     from semi_active_control.laws import make_controller
-    from quarter_car_sim.dynamics import QuarterCar
+    from quarter_car_sim.plant.quarter_car import QuarterCar
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.road import make_road
+    from quarter_car_sim.plant.road import make_road
     params = QuarterCarParams()
     road = make_road('iso8608', road_class='C', speed_m_s=20.0, rng=SEED,
                      duration_s=300.0, dt=1e-3)
@@ -107,7 +107,7 @@ def _wait(pred, timeout):
 
 def live_settle():
     """Return the car's settling time [s] before the road starts."""
-    from quarter_car_sim.live_loop import SETTLE_S
+    from quarter_car_sim.simulate.live_loop import SETTLE_S
     return SETTLE_S
 
 
@@ -226,7 +226,7 @@ def external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep)
 def ride_figures(columns):
     """Return (Wk RMS body acceleration [m/s^2], RMS dynamic tyre load ratio) for t >= 0."""
     from semi_active_control.car.quarter_car import QuarterCarParams
-    from quarter_car_sim.ride_metrics import ride_metrics
+    from quarter_car_sim.metrics.quarter_car import ride_metrics
     keep = columns['t'] >= 0.0
     m = ride_metrics({c: np.asarray(columns[c])[keep] for c in
                       ('t', 'a_s', 'travel', 'tyre_force', 'damper_force')},

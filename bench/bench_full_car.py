@@ -16,7 +16,7 @@ through that corner's supervised inverse. Roads: ISO 8608 class C at 20 m/s on t
    SH-ADD and clipped-optimal-wk, modal skyhook (default and tuned ratios), full-car
    clipped-optimal and full-car clipped-optimal-wk (default and tuned weights).
    ``--only-lqr``: passive 0 A and the two LQRs only.
-3. ``--bound``: also the offline optimal semi-active bound (``quarter_car_sim.full_car.bound``:
+3. ``--bound``: also the offline optimal semi-active bound (``quarter_car_sim.bound.full_car``:
    full road preview, each corner's identified force map; its currents replayed on the Spencer
    plants) at each ``--bound-rho``, with its model prediction as a row of its own.
    ``--only-bound``: passive 0 / 0.5 A, modal skyhook, the ISO-weighted full-car LQR and the
@@ -42,8 +42,9 @@ import time
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from semi_active_control.laws import DEFAULT_C_P, Skyhook
-from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
-from quarter_car_sim.full_car import compare_laws, make_two_track_road
+from quarter_car_sim.bound.full_car import corner_force_model, full_car_bound
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.simulate.full_car import compare_laws
 from semi_active_control.laws.full_car import ModalSkyhook, PerCornerLaws
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR

@@ -21,7 +21,8 @@ import time
 
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.full_car import compare_laws, make_two_track_road
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.simulate.full_car import compare_laws
 from semi_active_control.car.full_car import PASSENGER_CAR
 
 LAWS = ('passive@0A', 'per-corner-skyhook', 'per-corner-sh-add',

@@ -26,13 +26,14 @@ from pathlib import Path
 
 from mr_damper_model.models.plant import make_plant
 from mr_damper_bringup import car_in_the_loop as cil
-from quarter_car_sim import hil, live_loop
+from quarter_car_sim.runtime import hil
+from quarter_car_sim.simulate import live_loop
 from semi_active_control.laws import make_controller
-from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.plant.quarter_car import QuarterCar
 from semi_active_control.supervision.failsafe import ModelSupervisor
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.probing import CurrentProbe
-from quarter_car_sim.road import make_road
+from quarter_car_sim.runtime.probing import CurrentProbe
+from quarter_car_sim.plant.road import make_road
 
 DT = 1e-3
 

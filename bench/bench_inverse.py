@@ -35,10 +35,10 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
 from mr_damper_model.models.plant import make_plant
 from semi_active_control.laws import Skyhook
-from quarter_car_sim.dynamics import QuarterCar
-from quarter_car_sim.live_loop import ClosedLoop
+from quarter_car_sim.plant.quarter_car import QuarterCar
+from quarter_car_sim.simulate.live_loop import ClosedLoop
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import iso8608
+from quarter_car_sim.plant.road import iso8608
 
 SEED = 1
 TOL_A = 1e-4            # the car's inverse tolerance (``inverse_tol_a``)

@@ -11,7 +11,8 @@ body acceleration [m/s^2] and the RMS dynamic tyre load / static load. Runs:
 - SH-ADD (c_max x switching frequency) and clipped-optimal (LQR weight sets);
 - frequency-shaped clipped-optimal (``clipped-optimal-wk``: LQR on the Wk-weighted body
   acceleration) at its default weights and a few weight sets;
-- the bound (``quarter_car_sim.bound``) at tyre-load weights rho, replayed on the plant.
+- the bound (``quarter_car_sim.bound.quarter_car``) at tyre-load weights rho, replayed on the
+plant.
 
 ``--quick`` runs only 0 A passive, the default clipped-optimal and the clipped-optimal-wk rows
 (no bound: the verdict then compares with ``--bound-wk``, the bound's figure of a full run on
@@ -36,11 +37,11 @@ import time
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from semi_active_control import laws as ctl
-from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
+from quarter_car_sim.bound.quarter_car import bound_name, KwokForceModel, semi_active_bound
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.plots import plot_tradeoff
-from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import make_inverse, simulate
+from quarter_car_sim.analysis.plots import plot_tradeoff
+from quarter_car_sim.plant.road import iso8608
+from quarter_car_sim.simulate.quarter_car import make_inverse, simulate
 
 PASSIVE_A = (0.0, 0.25, 0.5, 1.0, 1.5, 2.0)
 SKY_GAINS = (1000.0, 2000.0, 3000.0, 5000.0)

@@ -35,11 +35,11 @@ from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from semi_active_control import laws as ctl
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.plots import plot_tradeoff
-from quarter_car_sim.ride_metrics import ride_metrics
+from quarter_car_sim.analysis.plots import plot_tradeoff
+from quarter_car_sim.metrics.quarter_car import ride_metrics
 from semi_active_control.iso2631 import wk_filter
-from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import make_inverse, simulate
+from quarter_car_sim.plant.road import iso8608
+from quarter_car_sim.simulate.quarter_car import make_inverse, simulate
 
 PLANTS = {'kwok': 'kwok-current', 'spencer': 'spencer'}
 PASSIVE_A = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0)

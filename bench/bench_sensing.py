@@ -7,8 +7,8 @@ bench_laws.py), ISO 8608 class C at 20 m/s, 60 s, seeds 1 2 3, medians over the 
 skyhook, SH-ADD, clipped-optimal and clipped-optimal-wk: Wk RMS body acceleration [m/s^2] and
 RMS dynamic tyre load / static load with the law on the true state ("ideal") and on the state
 estimated from the default modelled sensors (ADXL313-like body accelerometer, ride-height
-sensor; ``quarter_car_sim.sensors``) by ``semi_active_control.estimation.quarter_car`` ("vehicle"),
-and the RMS estimation error of each state. Conditions:
+sensor; ``quarter_car_sim.plant.sensors``) by ``semi_active_control.estimation.quarter_car``
+("vehicle"), and the RMS estimation error of each state. Conditions:
 
 - ``nominal``: the simulated car is the one the estimator (and the LQR laws) assume;
 - ``m_s +-20%``, ``k_s +-20%``, ``k_t +-20%``: the simulated car's body mass, spring or tyre
@@ -37,10 +37,10 @@ from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.virtual_rig import identify_damper
 from semi_active_control.laws import make_controller, Passive
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import iso8608
-from quarter_car_sim.sensed_loop import ERROR_STATES, simulate_sensed, true_values
+from quarter_car_sim.plant.road import iso8608
+from quarter_car_sim.simulate.sensed_loop import ERROR_STATES, simulate_sensed, true_values
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, default_specs
-from quarter_car_sim.simulate import make_inverse, simulate
+from quarter_car_sim.simulate.quarter_car import make_inverse, simulate
 
 LAWS = ('skyhook', 'sh-add', 'clipped-optimal', 'clipped-optimal-wk')
 NOMINAL = QuarterCarParams()

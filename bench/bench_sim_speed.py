@@ -5,9 +5,9 @@ Simulation speed of the quarter car: real-time factor on ISO 8608 class C, 20 m/
 Targets (issue 3): kwok-current plant >= 50x faster than real time, Spencer plant >= 5x, with
 the controller and the inverse model in the loop. Also printed: the cost of one plant step alone
 (``DamperPlant.step`` on the thesis cam motion at 1 kHz, the rig's and the car's inner call).
-Timing: median of ``--repeats`` runs of ``quarter_car_sim.simulate.simulate`` (whole call: car,
-plant, controller, inverse, logging and conversion to arrays; road generation excluded). The
-machine is shared: figures are noisy.
+Timing: median of ``--repeats`` runs of ``quarter_car_sim.simulate.quarter_car.simulate`` (whole
+call: car, plant, controller, inverse, logging and conversion to arrays; road generation excluded).
+The machine is shared: figures are noisy.
 
 Usage::
 
@@ -23,8 +23,8 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from semi_active_control.laws import Passive, Skyhook
 from semi_active_control.car.quarter_car import QuarterCarParams
-from quarter_car_sim.road import iso8608
-from quarter_car_sim.simulate import make_inverse, simulate
+from quarter_car_sim.plant.road import iso8608
+from quarter_car_sim.simulate.quarter_car import make_inverse, simulate
 
 TARGETS = {'kwok-current': 50.0, 'spencer': 5.0}
 
