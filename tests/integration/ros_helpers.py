@@ -13,6 +13,7 @@ Usage::
         lis.wait_for(lambda: len(status) > 0, timeout=10)
 """
 import ast
+import contextlib
 import os
 from pathlib import Path
 import signal
@@ -22,6 +23,7 @@ import threading
 import time
 
 from conftest import REPO, VENV_BIN
+from ros_context import ros_context
 
 DISCOVERY_TIMEOUT_S = 8.0
 
@@ -164,20 +166,26 @@ class Listener:
     """
     An rclpy node in the test process, spun in a background thread, recording messages.
 
-    ``subscribe`` returns a list that fills with ``(receive_time, msg)`` tuples.
+    ``subscribe`` returns a list that fills with ``(receive_time, msg)`` tuples. The node lives
+    in an rclpy context of its own (``context``; :func:`ros_context.ros_context`), shut down by
+    :meth:`close`, also when the construction fails half-way.
     """
 
     def __init__(self, name='test_listener'):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
-        if not rclpy.ok():
-            rclpy.init()
-        self.node = rclpy.create_node(name)
-        self._executor = SingleThreadedExecutor()
-        self._executor.add_node(self.node)
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
+        self._thread = None
+        with contextlib.ExitStack() as stack:
+            self.context = stack.enter_context(ros_context())
+            self.node = rclpy.create_node(name, context=self.context)
+            stack.callback(self.node.destroy_node)
+            self._executor = SingleThreadedExecutor(context=self.context)
+            stack.callback(self._executor.shutdown)
+            self._executor.add_node(self.node)
+            self._thread = threading.Thread(target=self._spin, daemon=True)
+            self._thread.start()
+            self._closing = stack.pop_all()
 
     def _spin(self):
         while not self._stop.is_set():
@@ -226,11 +234,10 @@ class Listener:
         return bool(predicate())
 
     def close(self):
-        """Stop spinning and destroy the node."""
+        """Stop spinning, destroy the node and shut its context down."""
         self._stop.set()
         self._thread.join(timeout=5)
-        self._executor.shutdown()
-        self.node.destroy_node()
+        self._closing.close()
 
     def __enter__(self):
         return self
