@@ -21,13 +21,13 @@ from mr_damper_model.io import bag_types
 from mr_damper_model.models.kwok_current import KwokCurrent
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from conftest import REPO
+from ros_context import ros_context
 
 SRC_MSG = REPO / 'src' / 'mr_damper_interfaces' / 'msg'
 HANG_GUARD_S = 30.0
@@ -63,6 +63,7 @@ def state_message():
     msg = QuarterCarState()
     msg.header.stamp = Time(sec=3, nanosec=7)
     msg.header.frame_id = 'front_left'
+    msg.sequence = 2**64 - 3                    # the whole uint64 range survives the wire
     for n, name in enumerate(STATE_FLOATS):
         setattr(msg, name, -0.125 * (n + 1))
     msg.fail_safe_mode = QuarterCarState.MODE_FAIL_SAFE
@@ -86,7 +87,8 @@ def test_generated_classes_come_from_the_venv_install():
     assert KwokParameters.get_fields_and_field_types()['window_end'] == 'builtin_interfaces/Time'
     assert tuple(KwokParameters.get_fields_and_field_types()) == ('header',) + KWOK_FIELDS
     assert tuple(QuarterCarState.get_fields_and_field_types()) == (
-        ('header',) + STATE_FLOATS + ('fail_safe_mode', 'fail_safe_reason'))
+        ('header', 'sequence') + STATE_FLOATS + ('fail_safe_mode', 'fail_safe_reason'))
+    assert QuarterCarState.get_fields_and_field_types()['sequence'] == 'uint64'
     assert (QuarterCarState.MODE_NORMAL, QuarterCarState.MODE_FAIL_SAFE) == (0, 1)
 
 
@@ -139,25 +141,29 @@ def test_rclpy_serialization_round_trip(make, cls):
 class Participant:
     """One node in a context of its own (a separate DDS participant) with its executor."""
 
-    def __init__(self, name):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+    def __init__(self, name, context):
+        self.context = context
+        self.node = rclpy.create_node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
     def close(self):
         self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
 
 @pytest.fixture
 def two_nodes():
-    talker, listener = Participant('iface_talker'), Participant('iface_listener')
-    yield talker, listener
-    talker.close()
-    listener.close()
+    with ros_context() as talking, ros_context() as listening:
+        talker = Participant('iface_talker', talking)
+        try:
+            listener = Participant('iface_listener', listening)
+            try:
+                yield talker, listener
+            finally:
+                listener.close()
+        finally:
+            talker.close()
 
 
 def spin_until(participants, condition, what):

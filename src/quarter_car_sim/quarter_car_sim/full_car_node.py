@@ -166,13 +166,12 @@ class FullCarNode(Node):
             if self.external:
                 self.cmd_subs.append(self.drops.subscribe(
                     self.lane.node, Float64, f'{c}/mr_damper/current_command',
-                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS, 'commands_lost'))
+                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS))
                 continue
             self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
                                                        10))
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
-                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
-                                 'parameters_lost')
+                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
         self.body_msg = JointState()
         self.body_msg.header.frame_id = 'full_car'
@@ -245,7 +244,7 @@ class FullCarNode(Node):
             self.answered.clear()
             self.n_answers = 0
         for i, (normal, reason, current) in enumerate(flags):
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+            self.drops.publish_next(self.state_pubs[i], car_state_to_msg(
                 corner_car_state(state, i), current, normal, reason, self.state_msgs[i]))
         if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
             self.lockstep_timeouts += 1
@@ -271,7 +270,7 @@ class FullCarNode(Node):
             return
         for i in range(4):
             mode, reason = modes[i]
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+            self.drops.publish_next(self.state_pubs[i], car_state_to_msg(
                 corner_car_state(new, i), currents[i], mode == 'normal', reason,
                 self.state_msgs[i]))
             self.cmd_msg.data = float(currents[i])

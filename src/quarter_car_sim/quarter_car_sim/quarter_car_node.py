@@ -75,8 +75,9 @@ in fail-safe, so the identifier sees every current bin); the diagnostics carry `
 
 Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
 blocks the control loop; a ``publish()`` that fails anyway is counted
-(``dropped.publish_failed``) and logged, throttled, and the loop goes on. Parameter sets the
-middleware reports lost before this node took them count as ``dropped.parameters_lost``.
+(``dropped.publish_failed``) and logged, throttled, and the loop goes on. The car state is
+numbered (``sequence``, +1 per message) so its readers count the states they never got; the
+parameter reader keeps the newest set only (docs/faults.md, Lost messages).
 """
 import sys
 
@@ -225,11 +226,11 @@ class QuarterCarNode(Node, CarOutputs):
         if rt.external:
             self.cmd_sub = self.drops.subscribe(self.lane.node, Float64,
                                                 'mr_damper/current_command', self.on_command,
-                                                CONTROL_QOS, 'commands_lost')
+                                                CONTROL_QOS)
         else:
             self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', 10)
             self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters',
-                                 self.on_params, LATCHED_QOS, 'parameters_lost')
+                                 self.on_params, LATCHED_QOS)
         if rt.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
             self.hil_sub = self.drops.subscribe(
@@ -295,7 +296,7 @@ class QuarterCarNode(Node, CarOutputs):
 
     def publish_car_state(self, state, current_a, normal, reason):
         """Publish the typed state."""
-        self.drops.publish(self.car_state_pub, car_state_to_msg(
+        self.drops.publish_next(self.car_state_pub, car_state_to_msg(
             state, current_a, normal, reason, self.car_state_msg))
 
     def publish_state(self, state):

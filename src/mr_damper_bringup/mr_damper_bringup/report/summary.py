@@ -161,11 +161,14 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         'safe_current_a')}
     ctrl_status = rec.get('status', {}).get('controller')
     if ctrl_status is not None or 'command_timeouts' in qc_status:
-        # --external-controller: the link car state -> controller -> current command
+        # --external-controller: the link car state -> controller -> current command; the
+        # commands lost on it are the controller's `commands` less the car's received ones
+        # (Float64 carries no number: docs/faults.md, Lost messages)
         summary['controller_link'] = {
             'command_timeouts': qc_status.get('command_timeouts'),
             'command_timeout_s_total': qc_status.get('command_timeout_s_total'),
             'commands_received': qc_status.get('commands_received'),
+            'controller_commands': (ctrl_status or {}).get('commands'),
             'controller_dropped': (ctrl_status or {}).get('dropped') or {},
             'controller_mode': (ctrl_status or {}).get('mode'),
             'controller_reason': (ctrl_status or {}).get('reason')}

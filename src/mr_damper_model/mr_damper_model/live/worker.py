@@ -178,7 +178,7 @@ class IdentifierHealth:
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
       the last report; samples lost (buffer, transport: exact, from the batches' stream index)
-      since the last report; measurement messages the middleware reports lost; failed
+      since the last report; measurement messages lost (their sequence numbers); failed
       publishes of its own topics since the last report; other drops since the last report
       (by reason); windows passed over in in-order mode
       (``windows_overflow``); some fit errors; no valid model yet although windows were
@@ -206,8 +206,8 @@ class IdentifierHealth:
             + sum(v.get('out_of_range', {}).values()),
             # samples only: a failed publish of our own is not a lost sample (it is counted
             # under its own reason in ``dropped``); the transport's losses are counted exactly
-            # in samples from the batches' stream index (the middleware's ``message_lost``
-            # counts messages of any size: it stays in ``dropped``)
+            # in samples from the batches' stream index (``message_lost``, from the batches'
+            # sequence numbers, counts messages of any size: it stays in ``dropped``)
             'lost': v.get('samples_lost', 0) + v.get('stream', {}).get('lost', 0),
             'messages_lost': dropped.get('message_lost', 0),
             'publish_failed': sum(n for r, n in dropped.items() if _publish_failed(r)),
@@ -262,7 +262,7 @@ class IdentifierHealth:
             if n > 0:
                 found.append((WARN, f'{n} window(s) skipped: {reason}'))
         for key, what in (('rejected', 'sample(s) rejected'), ('lost', 'sample(s) lost'),
-                          ('messages_lost', 'message(s) lost (middleware report)'),
+                          ('messages_lost', 'message(s) lost (sequence gaps)'),
                           ('publish_failed', 'publish(es) failed'),
                           ('overflow', 'window(s) passed over (backlog full)')):
             n = rose[key]

@@ -194,13 +194,14 @@ class IdentifierNode(Node):
         # ready to fit before subscribing: the fit process imports numpy, scipy and the models
         # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
         self.runtime.fit_ready = self._warm_up(fit)
-        # samples the rig's bounded history dropped before this node took them (stalled or
-        # restarted identifier) are reported by the middleware and counted as `message_lost`
+        # batches that never reached this node (stalled or restarted identifier, a writer the
+        # rig replaced) are counted from their sequence numbers as `message_lost`
         self.drops.subscribe(self, DamperSamples, MEASUREMENT, self._on_samples,
                              MEASUREMENT_QOS, 'message_lost')
-        # a DAQ driver that publishes one sensor_msgs/JointState per sample (suite layout)
+        # a DAQ driver that publishes one sensor_msgs/JointState per sample (suite layout): no
+        # sequence; a gap in its stamps skips the window (`windows_skipped.gap`)
         self.drops.subscribe(self, JointState, JOINT_MEASUREMENT, self._on_measurement,
-                             MEASUREMENT_QOS, 'joint_message_lost')
+                             MEASUREMENT_QOS)
         # wall-time timer: the count paces the rig's transport (a stopped /clock must not stop
         # it, or a rig waiting for the count before it advances the clock would wait forever)
         self.create_timer(SAMPLES_RECEIVED_PERIOD_S, self._publish_received,
