@@ -142,6 +142,24 @@ def test_publish_failure_is_counted_not_raised(ros):
     node.destroy_node()
 
 
+def test_publish_next_numbers_each_message_from_0_also_past_a_failed_publish():
+    """The readers of a numbered stream count the failed one lost: its number is used."""
+    from mr_damper_interfaces.msg import QuarterCarState
+    drops = node_utils.DropCounter(_Logger())
+    sent = []
+
+    class Flaky:
+        topic_name = '/numbered'
+
+        def publish(self, msg):
+            if msg.sequence == 1:
+                raise _rclpy.RCLError('Failed to publish: cannot publish data')
+            sent.append(msg.sequence)
+    msg = QuarterCarState()
+    assert [drops.publish_next(Flaky(), msg) for _ in range(3)] == [True, False, True]
+    assert sent == [0, 2] and msg.sequence == 3 and drops.counts() == {'publish_failed': 1}
+
+
 class _Executor:
     """spin_once counts calls, raises ``error`` at call ``fail_at``, stops at ``stop_at``."""
 
