@@ -3,7 +3,9 @@ import signal
 
 import pytest
 
-from mr_damper_bringup.supervisor import describe_exit, RestartPolicy, Supervisor
+from fake_clock import FakeClock
+from mr_damper_bringup.supervisor import (describe_exit, HANG_PERIODS, hang_timeout, HangWatch,
+                                          RestartPolicy, Supervisor)
 
 
 class FakeNode:
@@ -79,7 +81,8 @@ def test_a_node_dying_too_often_within_the_window_ends_the_run():
     assert end == pytest.approx(6.0)                     # the third death within 20 s
     assert sup.counts() == {'car': 2}
     assert sup.gave_up == {'node': 'car', 'death_s': pytest.approx(6.0), 'exit_code': 2,
-                           'signal': None, 'deaths_in_window': 3, 'restart_window_s': 20.0}
+                           'signal': None, 'reason': 'died', 'deaths_in_window': 3,
+                           'restart_window_s': 20.0}
 
 
 def test_deaths_outside_the_window_are_forgotten():
@@ -121,3 +124,113 @@ def test_bad_policies_are_refused(kwargs, name):
 def test_describe_exit():
     assert describe_exit(-signal.SIGKILL) == (None, 'SIGKILL')
     assert describe_exit(3) == (3, None)
+
+
+class Heart:
+    """A node's heartbeat and the listener, on one fake clock: beats every ``period_s``."""
+
+    def __init__(self, watch, clock, nodes, period_s=1.0, step_s=0.1):
+        self.watch, self.clock, self.period_s, self.step_s = watch, clock, period_s, step_s
+        self.beating = dict.fromkeys(nodes, True)
+        self.next = dict.fromkeys(nodes, clock.now + period_s)
+
+    def run(self, seconds, listening=True):
+        """Advance the clock by ``seconds``; return ``[(t, node)]`` of the hang verdicts."""
+        out = []
+        end = self.clock.now + seconds
+        while self.clock.now < end - 1e-9:
+            self.clock.now = round(self.clock.now + self.step_s, 9)
+            for node, beating in self.beating.items():
+                if self.clock.now >= self.next[node]:
+                    self.next[node] += self.period_s
+                    if beating:
+                        self.watch.beat(node, self.clock.now)
+            if listening:
+                self.watch.listening(self.clock.now)
+            for node, _ in self.watch.hung():
+                out.append((self.clock.now, node))
+                self.watch.forget(node)
+        return out
+
+
+def test_a_node_whose_heartbeat_stops_is_hung_after_its_timeout_and_no_other():
+    clock = FakeClock(0.0)
+    watch = HangWatch({'car': 5.0, 'rig': 5.0})
+    for n in ('car', 'rig'):
+        watch.started(n, clock.now)
+    heart = Heart(watch, clock, ('car', 'rig'))
+    assert heart.run(30.0) == []                            # both beating: never hung
+    heart.beating['car'] = False                            # the car's spin thread blocks
+    last = heart.next['car'] - 1.0                          # its last beat
+    verdicts = heart.run(30.0)
+    assert [n for _, n in verdicts] == ['car']              # once (then forgotten), not the rig
+    t, _ = verdicts[0]
+    assert 5.0 < t - last <= 5.0 + heart.step_s + 1e-9      # the first check past the timeout
+
+
+def test_the_watch_is_armed_by_the_first_heartbeat_after_each_start():
+    clock = FakeClock(0.0)
+    watch = HangWatch({'ident': 5.0})
+    watch.started('ident', 0.0)
+    heart = Heart(watch, clock, ('ident',))
+    heart.beating['ident'] = False              # a long start-up (a large file, a busy machine)
+    assert heart.run(120.0) == [] and not watch.armed('ident')
+    heart.beating['ident'] = True
+    assert heart.run(3.0) == [] and watch.armed('ident')
+    # a restart disarms it; a heartbeat of the old process (received before) does not re-arm
+    watch.started('ident', clock.now)
+    watch.beat('ident', clock.now - 0.5)
+    assert not watch.armed('ident') and watch.silence('ident') is None
+
+
+def test_a_stalled_listener_does_not_make_hung_nodes():
+    """The launcher itself stopped (SIGSTOP, starved): silence it did not hear is not counted."""
+    clock = FakeClock(0.0)
+    watch = HangWatch({'car': 5.0}, gap_s=1.0)
+    watch.started('car', 0.0)
+    heart = Heart(watch, clock, ('car',))
+    assert heart.run(10.0) == []
+    # 60 s without listening: the node's beats of that time are only delivered afterwards
+    clock.now += 60.0
+    watch.listening(clock.now)                  # first turn after the stall: a new stretch
+    assert watch.hung() == [] and watch.silence('car') == 0.0
+    heart.next['car'] = clock.now + 0.2         # the queued beats arrive
+    assert heart.run(20.0) == []
+    # a node that really stopped is still found, the timeout counted from the new stretch
+    heart.beating['car'] = False
+    assert [n for _, n in heart.run(20.0)] == ['car']
+
+
+def test_a_forgotten_node_is_not_watched_until_restarted():
+    watch = HangWatch({'rec': 2.0})
+    watch.started('rec', 0.0)
+    watch.beat('rec', 1.0)
+    watch.forget('rec')                         # it died: the supervisor restarts it
+    for t in range(2, 30):
+        watch.listening(float(t))
+    assert watch.hung() == [] and not watch.armed('rec')
+
+
+def test_hang_timeout_covers_slow_statuses_and_zero_is_off():
+    assert hang_timeout(15.0, 1.0) == 15.0
+    assert hang_timeout(15.0, 10.0) == HANG_PERIODS * 10.0     # a node set to a 10 s status
+    assert hang_timeout(15.0, None) == 15.0
+    assert hang_timeout(0.0, 1.0) == 0.0
+    watch = HangWatch({'car': 0.0})
+    watch.started('car', 0.0)
+    watch.beat('car', 0.5)
+    for t in range(1, 100):
+        watch.listening(float(t))
+    assert watch.hung() == [] and watch.silence('car') > 90.0
+
+
+def test_a_hung_node_counts_as_a_death_with_its_reason():
+    sup = Supervisor(RestartPolicy(max_restarts=1, restart_window_s=60.0), t0=0.0)
+    assert sup.died('car', -signal.SIGKILL, 20.0, reason='hung', silent_s=15.3)
+    r = sup.restarts[-1]
+    assert (r['reason'], r['signal'], r['silent_s']) == ('hung', 'SIGKILL', 15.3)
+    sup.restarted('car', 21.0)
+    assert not sup.died('car', 1, 30.0)          # hung + died: two deaths in the window
+    assert sup.gave_up['reason'] == 'died' and sup.gave_up['deaths_in_window'] == 2
+    with pytest.raises(ValueError, match='reason'):
+        Supervisor(RestartPolicy(), 0.0).died('x', 1, 0.0, reason='bored')

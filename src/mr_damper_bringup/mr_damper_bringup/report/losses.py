@@ -202,7 +202,11 @@ def restart_lines(s):
             f'{n} {c}' for n, c in (s.get('restart_counts') or {}).items()) + ')')
     for r in restarts:
         how = r.get('signal') or f'exit {r.get("exit_code")}'
-        line = f'  {r["node"]} died at {r["death_s"]:.1f} s ({how}), '
+        what = 'died'
+        if r.get('reason') == 'hung':
+            what = 'hung'
+            how = f'no status for {r.get("silent_s", float("nan")):.1f} s, killed'
+        line = f'  {r["node"]} {what} at {r["death_s"]:.1f} s ({how}), '
         line += ('not restarted before the end' if r.get('restart_s') is None
                  else f'restarted at {r["restart_s"]:.1f} s')
         if r.get('failsafe_s') is not None:
