@@ -172,23 +172,19 @@ def corner_progress_line(monitor, elapsed, corners):
 
 def corner_summary(monitor, corners):
     """
-    Return each corner's figures from the last diagnostics of its recorder, identifier, car.
+    Return each corner's figures from the last diagnostics of its identifier and car.
 
-    ``samples_lost``: measurements the recorder took from the corner's rig that its identifier
-    did not receive (0 when it received them all).
+    The counts of samples (recorded, received, lost: every life of the recorder and of the
+    identifier) come from the recording afterwards (:func:`mr_damper_bringup.report.corners.
+    add_corner_losses`); here ``samples_received`` is the identifier's last status only.
     """
     status = monitor.snapshot()[0]
-    recorded = (status.get('recorder') or {}).get('measurements_by_namespace') or {}
     out = {}
     for c in corners:
         ident = status.get(f'{c}/identifier') or {}
         qc = status.get(f'{c}/quarter_car') or {}
-        received = ident.get('samples_received')
-        seen = recorded.get(c)
         out[c] = {
-            'samples_recorded': seen, 'samples_received': received,
-            'samples_lost': (max(seen - received, 0) if isinstance(seen, int)
-                             and isinstance(received, int) else None),
+            'samples_received': ident.get('samples_received'),
             'windows_valid': ident.get('windows_valid'),
             'last_nrmse_percent': ident.get('last_nrmse_percent'),
             'car_mode': qc.get('mode'), 'failsafe_s': qc.get('failsafe_s'),
@@ -564,16 +560,19 @@ def main(argv=None):
     try:
         from . import report
         if corners:
-            summary.update(duration_s=elapsed, recording=RECORDING,
-                           exit_codes={n: c for n, c in codes.items()},
-                           restarts=supervisor.restarts if supervisor else [],
-                           gave_up=supervisor.gave_up if supervisor else None)
+            from .report.corners import add_corner_losses
+            summary.update(duration_s=elapsed, exit_codes={n: c for n, c in codes.items()})
+            add_corner_losses(summary, out, {
+                'restarts': supervisor.restarts if supervisor else [],
+                'gave_up': supervisor.gave_up if supervisor else None})
             if full_car:
                 summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
                                                        out, plots=not args.no_plots)
             (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
+            for line in report.restart_lines(summary):
+                print(line, flush=True)
             if full_car:
                 print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
         else:

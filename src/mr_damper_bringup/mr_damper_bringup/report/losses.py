@@ -30,7 +30,8 @@ def messages_summary(rec, qc_status):
     published = _first(rig, ('samples_published', 'published'))
     received = _first(ident, ('samples_received', 'received'))
     lives = rec.get('identifier_lives') or []
-    if len(lives) > 1:      # a restarted identifier counts from 0: add up its lives
+    if len(lives) > 1 or (lives and received is None):
+        # a restarted identifier counts from 0: add up its lives (its status may be missing)
         received = (sum(life['last_count'] for life in lives[:-1])
                     + max(lives[-1]['last_count'], received or 0))
         br['identifier_lives'] = len(lives)
