@@ -25,7 +25,7 @@ from conftest import VENV_BIN
 from integration.ros_helpers import SuiteRun
 from mr_damper_bringup.config import IDENT, QC, RECORDER, RIG
 from mr_damper_bringup.processes import DomainLock
-from mr_damper_bringup.supervisor import HANG_TIMEOUT_S
+from mr_damper_bringup.supervisor import HANG_IDLE_SHARE, HANG_TIMEOUT_S
 from process_helpers import run, wait_gone
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -72,6 +72,7 @@ def test_a_frozen_node_is_killed_and_restarted_as_hung_while_the_others_run(tmp_
     assert [(r['node'], r['reason'], r['signal']) for r in sup['restarts']] == \
         [(QC, 'hung', 'SIGKILL')]
     assert sup['restarts'][0]['silent_s'] > HANG_TIMEOUT_S
+    assert sup['restarts'][0]['cpu_share'] < HANG_IDLE_SHARE          # stopped: idle
     assert sup['gave_up'] is None
     assert set(sup['exit_codes']) == {QC, RIG, IDENT, RECORDER}
     assert all(c == 0 for c in sup['exit_codes'].values()), sup['exit_codes']

@@ -453,6 +453,10 @@ class ProcessStats:
 
     CPU_BIN = 0.5       # [%]
 
+    #: ``{name: (time.monotonic(), CPU seconds)}``: user + system CPU time of each running
+    #: node's process at its latest sample (the launcher's hang watch reads it)
+    cpu_seconds = None
+
     def __init__(self, suite, out):
         import psutil
         from mr_damper_model.io.columnlog import ColumnWriter
@@ -462,6 +466,7 @@ class ProcessStats:
         self.stats = {}
         self.names = list(NODES) + [RECORDER, 'launcher']
         self.t0 = time.monotonic()
+        self.cpu_seconds = {}
         self.log = ColumnWriter(Path(out) / 'process_samples',
                                 ('t_s', 'process', 'cpu_percent', 'rss_mb'), chunk_rows=256,
                                 meta={'processes': self.names})
@@ -471,14 +476,20 @@ class ProcessStats:
         procs = {name: self.suite.procs[name].pid for name in self.suite.procs
                  if self.suite.alive(name)}
         procs['launcher'] = os.getpid()
-        now = time.monotonic() - self.t0
+        t = time.monotonic()
+        now = t - self.t0
+        self.cpu_seconds = {n: v for n, v in self.cpu_seconds.items() if n in procs}
         for name, pid in procs.items():
             try:
                 h = self.handles.get(name)
                 if h is None or h.pid != pid:
                     h = self.handles[name] = self.psutil.Process(pid)
                     h.cpu_percent(None)           # first call primes the counter
+                    times = h.cpu_times()
+                    self.cpu_seconds[name] = (t, times.user + times.system)
                     continue
+                times = h.cpu_times()
+                self.cpu_seconds[name] = (t, times.user + times.system)
                 cpu = h.cpu_percent(None)
                 rss = h.memory_info().rss / 2 ** 20
             except self.psutil.Error:

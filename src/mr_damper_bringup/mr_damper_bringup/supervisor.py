@@ -25,10 +25,15 @@ import signal
 
 #: Why a node was restarted: it ``died`` by itself, or the launcher killed it as ``hung``.
 REASONS = ('died', 'hung')
-#: Default ``--hang-timeout-s`` [s]: a node's heartbeat silent this long means hung. About 15
-#: periods of the 1 Hz status; the longest gap between two statuses of a live node measured in
-#: a loaded suite run is far below it (docs/faults.md), and a frozen node is frozen for good.
+#: Default ``--hang-timeout-s`` [s]: a node's heartbeat silent this long while its process is idle
+#: means frozen (15 periods of the 1 Hz status; a frozen node stays frozen, docs/faults.md).
 HANG_TIMEOUT_S = 15.0
+#: A silent node that used less than this share of one core meanwhile counts as idle (frozen or
+#: stopped). A live node that is only behind on a loaded machine keeps working: at a load of 36
+#: on 2 cores a runnable process still gets about 2/36 = 5.5 % of a core.
+HANG_IDLE_SHARE = 0.02
+#: A silent node that keeps using CPU is hung after this many timeouts (livelock).
+HANG_BUSY_FACTOR = 8.0
 #: The heartbeat timeout is never shorter than this many periods of the node's own status.
 HANG_PERIODS = 3.0
 
@@ -106,7 +111,8 @@ class Supervisor:
         ``restart_epoch_s`` (the last two None until the restart is done), ``count`` (this
         node's restarts so far, this one included), ``reason`` (``died``: it exited by
         itself; ``hung``: killed for a stopped heartbeat, then also ``silent_s``, the
-        heartbeat's silence when it was killed).
+        heartbeat's silence when it was killed, and ``cpu_share``, the CPU share of one core its
+        process used meanwhile, when known).
     gave_up : dict or None
         The death that ended the run: ``node``, ``death_s``, ``exit_code``, ``signal``,
         ``deaths_in_window``; None while every death could be restarted.
@@ -133,7 +139,8 @@ class Supervisor:
         """Tell whether a restart of ``node`` is scheduled (it is dead, not given up)."""
         return node in self._pending
 
-    def died(self, node, code, now, epoch_s=None, *, reason='died', silent_s=None):
+    def died(self, node, code, now, epoch_s=None, *, reason='died', silent_s=None,
+             cpu_share=None):
         """
         Record a death of ``node`` at ``now``; return True if it will be restarted.
 
@@ -152,6 +159,8 @@ class Supervisor:
             death against ``max_restarts``).
         silent_s : float, optional
             For ``hung``: how long its heartbeat had been silent [s].
+        cpu_share : float, optional
+            For ``hung``: the CPU share of one core it used while silent.
 
         Returns
         -------
@@ -180,6 +189,8 @@ class Supervisor:
                   'restart_s': None, 'restart_epoch_s': None, 'count': done + 1}
         if silent_s is not None:
             record['silent_s'] = float(silent_s)
+        if cpu_share is not None:
+            record['cpu_share'] = float(cpu_share)
         self.restarts.append(record)
         self._pending[node] = (now + backoff, len(self.restarts) - 1)
         return True
@@ -217,16 +228,25 @@ def hang_timeout(timeout_s, period_s=None):
 
 class HangWatch:
     """
-    Which nodes are hung: their heartbeat stopped for longer than their timeout.
+    Which nodes are hung: their heartbeat stopped, and they are idle or stopped for very long.
 
-    Feed it the heartbeats (:meth:`beat`) and the listener's own progress (:meth:`listening`)
-    with times of one clock [s]; :meth:`hung` returns the nodes to kill. A node is watched from
-    its first heartbeat after :meth:`started` (never during its start-up); :meth:`forget`
-    stops watching it (it died, finished or is being stopped).
+    Feed it the heartbeats (:meth:`beat`), the listener's own progress (:meth:`listening`) and
+    the CPU time of the node processes (:meth:`cpu`) with times of one clock [s]; :meth:`hung`
+    returns the nodes to kill. A node is hung when its heartbeat has been silent
 
-    Silence is counted only over the time the listener was listening without a break: a
-    listener that stalled (a loaded machine, the launcher stopped and continued) starts a new
-    stretch when it comes back, so the heartbeats still queued for it cannot read as missing.
+    - longer than its timeout while its process used less than ``idle_share`` of one core
+      (frozen: a deadlock in the middleware leaves every thread in a futex wait at 0 % CPU; a
+      stopped process uses none), or
+    - longer than ``busy_factor`` times its timeout whatever its CPU (a livelock, a callback
+      that never returns).
+
+    A node that is only behind (a loaded machine: its status timer waits behind thousands of
+    messages while it works through them) uses CPU, and is given the longer limit. A node is
+    watched from its first heartbeat after :meth:`started` (never during its start-up);
+    :meth:`forget` stops watching it (it died, finished or is being stopped). Silence is counted
+    only over the time the listener was listening without a break: a listener that stalled (a
+    loaded machine, the launcher stopped and continued) starts a new stretch when it comes
+    back, so the heartbeats still queued for it cannot read as missing.
 
     Parameters
     ----------
@@ -236,30 +256,42 @@ class HangWatch:
     gap_s : float
         A pause between two :meth:`listening` calls longer than this [s] breaks the
         listener's stretch.
+    idle_share : float
+        CPU share of one core below which a silent node counts as idle (frozen).
+    busy_factor : float
+        A silent node that keeps using CPU is hung after this many timeouts.
 
     """
 
-    def __init__(self, timeouts, gap_s=1.0):
+    def __init__(self, timeouts, gap_s=1.0, idle_share=HANG_IDLE_SHARE,
+                 busy_factor=HANG_BUSY_FACTOR):
         self.timeouts = {n: float(t) for n, t in dict(timeouts).items()}
         if any(not t >= 0 for t in self.timeouts.values()):
             raise ValueError(f'`timeouts` must be >= 0, got {self.timeouts}')
-        if not gap_s > 0:
-            raise ValueError(f'`gap_s` must be > 0, got {gap_s}')
+        for name, value, low in (('gap_s', gap_s, 0.0), ('idle_share', idle_share, 0.0),
+                                 ('busy_factor', busy_factor, 1.0)):
+            if not value > low:
+                raise ValueError(f'`{name}` must be > {low:g}, got {value}')
         self.gap_s = float(gap_s)
+        self.idle_share = float(idle_share)
+        self.busy_factor = float(busy_factor)
         self._started = {}      # node -> time of its (re)start (not armed yet)
         self._last = {}         # node -> time of its last heartbeat (armed)
+        self._cpu = {}          # node -> (time, CPU seconds) of its latest CPU sample
+        self._cpu_mark = {}     # node -> (time, CPU seconds): first sample after its last beat
         self._since = None      # start of the listener's current stretch
         self._heard = None      # the listener's latest progress
 
     def started(self, node, now):
         """Node ``node`` was (re)started at ``now``: watch it from its next heartbeat."""
         self._started[node] = float(now)
-        self._last.pop(node, None)
+        for d in (self._last, self._cpu, self._cpu_mark):
+            d.pop(node, None)
 
     def forget(self, node):
         """Stop watching ``node`` (dead, finished, stopping)."""
-        self._started.pop(node, None)
-        self._last.pop(node, None)
+        for d in (self._started, self._last, self._cpu, self._cpu_mark):
+            d.pop(node, None)
 
     def beat(self, node, t):
         """
@@ -273,9 +305,16 @@ class HangWatch:
             if t < self._started[node]:
                 return
             del self._started[node]
-            self._last[node] = t
-        elif node in self._last:
-            self._last[node] = max(self._last[node], t)
+        elif node not in self._last or t <= self._last[node]:
+            return
+        self._last[node] = t
+        self._cpu_mark.pop(node, None)      # CPU is counted from the next sample on
+
+    def cpu(self, node, t, seconds):
+        """Record the CPU time ``seconds`` (user + system) of the process of ``node`` at ``t``."""
+        self._cpu[node] = (float(t), float(seconds))
+        if node in self._last and node not in self._cpu_mark:
+            self._cpu_mark[node] = (float(t), float(seconds))
 
     def listening(self, t):
         """Record that the listener of the heartbeats was working at ``t``."""
@@ -294,12 +333,33 @@ class HangWatch:
             return None
         return max(self._heard - max(self._last[node], self._since), 0.0)
 
+    def busy(self, node):
+        """
+        Return the CPU share of one core ``node`` used since its last heartbeat (None: unknown).
+
+        Measured between the first CPU sample after the heartbeat and the latest one (known
+        from the second sample on), so work done before the heartbeat is never counted.
+        """
+        if node not in self._cpu_mark or node not in self._cpu:
+            return None
+        t, seconds = self._cpu[node]
+        t0, seconds0 = self._cpu_mark[node]
+        return (seconds - seconds0) / (t - t0) if t > t0 else None
+
     def hung(self):
-        """Return ``[(node, silent_s)]`` of the nodes silent beyond their timeout, in order."""
+        """
+        Return ``[(node, silent_s, cpu_share)]`` of the hung nodes, in the order watched.
+
+        ``cpu_share`` is the node's CPU use during its silence (None: no CPU samples, then the
+        timeout alone decides).
+        """
         out = []
         for node in self._last:
             timeout = self.timeouts.get(node, 0.0)
             silent = self.silence(node)
-            if timeout > 0 and silent is not None and silent > timeout:
-                out.append((node, silent))
+            if not timeout > 0 or silent is None or not silent > timeout:
+                continue
+            share = self.busy(node)
+            if share is None or share < self.idle_share or silent > self.busy_factor * timeout:
+                out.append((node, silent, share))
         return out
