@@ -16,6 +16,7 @@ Order of events and counts only; every wait is a hang guard.
 """
 import json
 import os
+import re
 import signal
 
 import psutil
@@ -31,6 +32,11 @@ from process_helpers import run, wait_gone
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 PROGRESS = r'^\[ *\d+\.\d s\] recorded [1-9]'
+
+
+def t_sim(line):
+    """Return the car's simulated time [s] of a progress line."""
+    return float(re.search(r't_sim (-?\d+\.\d+) s', line).group(1))
 
 
 def inet_sockets(pids):
@@ -55,10 +61,14 @@ def test_a_frozen_node_is_killed_and_restarted_as_hung_while_the_others_run(tmp_
         assert set(socks) == {suite.proc.pid, *before.values()}
         assert all(socks.values()), socks                           # each one has sockets
         assert {ip for ips in socks.values() for ip in ips} == {'127.0.0.1'}, socks
+        t_before = 0.0
+        while t_before < 3.0:                        # a few s of the car's time: a new car's
+            t_before = t_sim(suite.wait_for(r't_sim'))      # statuses start below it
         os.kill(before[QC], signal.SIGSTOP)          # the car freezes, as in the middleware
         suite.wait_for(f'{QC} hung: no status for')
         suite.wait_for(f'restarted {QC}')
-        suite.wait_for(r't_sim')                     # the new car's status
+        while not t_sim(suite.wait_for(r't_sim')) < t_before:
+            pass                                     # the new car's status: its time anew
         rc = suite.stop()
     assert suite.left == [], 'nodes outlived the launcher'
     text = suite.text()

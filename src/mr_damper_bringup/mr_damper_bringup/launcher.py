@@ -20,7 +20,7 @@ id of each node's latest start.
 
 A node whose status (``/diagnostics``, about 1 Hz) stops for ``--hang-timeout-s`` (15 s; at
 least three of its status periods) while its process is idle (frozen, e.g. a deadlock in the
-middleware), or for eight times that while it keeps using CPU, is hung: it is SIGKILLed and
+middleware), or for 40 times that while it keeps using CPU, is hung: it is SIGKILLed and
 restarted like a dead node, with the reason ``hung`` in ``restarts.json``
 (:class:`~mr_damper_bringup.supervisor.HangWatch`). A node is watched from its first status
 after each start, never during its start-up.
@@ -385,7 +385,7 @@ def parse_args(argv):
                        help=f'{text} (default %(default)s)')
     p.add_argument('--hang-timeout-s', type=float, default=HANG_TIMEOUT_S,
                    help='a node whose /diagnostics status stops this long [s] (at least three '
-                        'of its status periods) while it is idle, or 8 times as long while it '
+                        'of its status periods) while it is idle, or 40 times as long while it '
                         'uses CPU, is hung: SIGKILLed and restarted, counted with the reason '
                         '"hung"; watched from its first status (0: no hang watch; default '
                         '%(default)s)')

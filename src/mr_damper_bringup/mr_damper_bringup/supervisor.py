@@ -32,8 +32,11 @@ HANG_TIMEOUT_S = 15.0
 #: stopped). A live node that is only behind on a loaded machine keeps working: at a load of 36
 #: on 2 cores a runnable process still gets about 2/36 = 5.5 % of a core.
 HANG_IDLE_SHARE = 0.02
-#: A silent node that keeps using CPU is hung after this many timeouts (livelock).
-HANG_BUSY_FACTOR = 8.0
+#: A silent node that keeps using CPU is hung after this many timeouts (a livelock; 10 min with
+#: the default timeout). A node only behind stays silent long on a loaded machine: at load 22-29
+#: on 2 cores the recorder got 6.5 % of a core, less than its stream needs, and its status timer
+#: waited behind its backlog for more than 120 s (docs/nodes.md, Launcher).
+HANG_BUSY_FACTOR = 40.0
 #: The heartbeat timeout is never shorter than this many periods of the node's own status.
 HANG_PERIODS = 3.0
 
