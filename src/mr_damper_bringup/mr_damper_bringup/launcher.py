@@ -281,7 +281,10 @@ def hang_timeouts(names, timeout_s, cfg, corners=None, car_cfg=None):
         src = ((corners or {}).get(corner) if corner
                else car_cfg if car_cfg is not None and base in (FULL_CAR, FULL_CAR_CTRL)
                else cfg)
-        period = node_params(src or {}, base).get('diagnostics_period_s')
+        params = node_params(src or {}, base)
+        if corner:          # a corner's file keys its sections by the fully qualified name
+            params.update(node_params(src or {}, f'/{corner}/{base}'))
+        period = params.get('diagnostics_period_s')
         try:
             period = float(period) if period is not None else None
         except (TypeError, ValueError):
