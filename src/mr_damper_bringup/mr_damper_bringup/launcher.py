@@ -246,7 +246,8 @@ def supervise(suite, supervisor, recording, watch=None, monitor=None):
         if not supervisor.died(name, rc, now, epoch_s=time.time(), reason=reason,
                                silent_s=silent, cpu_share=share):
             gave = supervisor.gave_up
-            print(f'{PROG}: {name} died or hung {gave["deaths_in_window"]} times within '
+            what = 'died' if reason == 'died' else 'died or hung'
+            print(f'{PROG}: {name} {what} {gave["deaths_in_window"]} times within '
                   f'{gave["restart_window_s"]:g} s: stopping the run', file=sys.stderr)
             return False
         print(f'{PROG}: restarting {name} in {supervisor.restarts[-1]["backoff_s"]:g} s',

@@ -30,10 +30,12 @@ def messages_summary(rec, qc_status):
     published = _first(rig, ('samples_published', 'published'))
     received = _first(ident, ('samples_received', 'received'))
     lives = rec.get('identifier_lives') or []
-    if len(lives) > 1 or (lives and received is None):
-        # a restarted identifier counts from 0: add up its lives (its status may be missing)
+    if lives:
+        # a restarted identifier counts from 0: add up its lives; the last life's count is the
+        # newer of its last status and its last samples_received message (10 Hz)
         received = (sum(life['last_count'] for life in lives[:-1])
                     + max(lives[-1]['last_count'], received or 0))
+    if len(lives) > 1:
         br['identifier_lives'] = len(lives)
     if published is not None:
         br['measurements_published_by_rig_last_status'] = published
