@@ -52,10 +52,10 @@ def stop_group(proc, sig=signal.SIGINT, timeout_s=10.0):
 
 def run(cmd, timeout, **kwargs):
     """
-    Run ``cmd`` to its end as ``subprocess.run(capture_output=True, text=True)`` does, grouped.
+    Run ``cmd`` to its end in a process group of its own, its output captured as text.
 
-    In a process group of its own: on ``timeout`` [s] (a hang guard) the whole group is
-    killed and ``TimeoutExpired`` raised.
+    As ``subprocess`` does with ``capture_output=True, text=True``, but on ``timeout`` [s] (a
+    hang guard) the whole group is killed and ``TimeoutExpired`` raised.
     """
     proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
     try:
