@@ -119,5 +119,8 @@ def test_a_killed_launcher_takes_every_node_with_it_and_frees_its_domain(tmp_pat
         assert lock.acquire()                       # released with the last process
     finally:
         lock.release()
+    # the stopped node was SIGKILLed by the reaper (on a loaded machine others may have been too:
+    # their clean stop took longer than the grace)
     log = (out / 'logs' / 'reaper.log').read_text()
-    assert f'SIGKILL after 5 s to [{pids[IDENT]}]' in log, log
+    killed = re.search(r'SIGKILL after [\d.]+ s to \[([\d, ]*)\]', log)
+    assert killed and str(pids[IDENT]) in killed.group(1).split(', '), log

@@ -25,7 +25,7 @@ restarted like a dead node, with the reason ``hung`` in ``restarts.json``
 (:class:`~mr_damper_bringup.supervisor.HangWatch`). A node is watched from its first status
 after each start, never during its start-up.
 
-The nodes die with the launcher: SIGTERM from the kernel when it dies, SIGKILL after 5 s from a
+The nodes die with the launcher: SIGTERM from the kernel when it dies, SIGKILL after 10 s from a
 small watcher for those that ignore it (:mod:`mr_damper_bringup.processes`, ``reaper``). One
 suite per ROS domain on this machine: a launcher whose ``--domain-id`` another suite here uses
 (any of its processes still running) exits 2; without ``--domain-id`` it draws a free one.

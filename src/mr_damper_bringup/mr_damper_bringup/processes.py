@@ -29,8 +29,9 @@ from .config import (CAN_BRIDGE, CAN_DRIVER, CTRL, EST, IDENT, NODES, QC, RECORD
 CLEAN_EXIT = (0,)
 #: prctl(2) option: the signal a process gets when the thread that created it exits
 PR_SET_PDEATHSIG = 1
-#: Seconds the nodes of a launcher that died get to end on SIGTERM before the reaper's SIGKILL.
-REAPER_GRACE_S = 5.0
+#: Seconds the nodes of a launcher that died get to end on SIGTERM before the reaper's SIGKILL
+#: (as long as the launcher's own stop gives a node after SIGINT).
+REAPER_GRACE_S = 10.0
 
 
 def die_with_parent(sig=signal.SIGTERM):

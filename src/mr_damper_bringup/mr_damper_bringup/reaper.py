@@ -116,7 +116,7 @@ def read_nodes(stream):
 def main(argv=None):
     """Wait for the launcher's end (EOF on stdin), then reap its nodes; return 0."""
     argv = sys.argv[1:] if argv is None else argv
-    grace_s = float(argv[0]) if argv else 5.0
+    grace_s = float(argv[0]) if argv else 10.0
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # only the pipe's end matters
     nodes = read_nodes(sys.stdin.buffer)
     done = reap(nodes, grace_s)
