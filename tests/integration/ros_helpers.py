@@ -1,9 +1,11 @@
 """
 Helpers for multi-process ROS 2 tests: start console-script nodes, listen to topics, wait.
 
-Node processes inherit ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the private ROS_DOMAIN_ID
-that tests/conftest.py sets.  Discovery usually takes < 50 ms but sometimes ~3 s, so every
-wait here uses a timeout of at least 5 s.
+Node processes inherit the loopback DDS settings and the private ROS_DOMAIN_ID that
+tests/conftest.py sets.  Discovery usually takes < 50 ms but sometimes ~3 s, so every
+wait here uses a timeout of at least 5 s. Every process started here runs in a process group
+of its own that gets SIGTERM if the test process dies, and is stopped as a group
+(``process_helpers``).
 
 Usage::
 
@@ -23,6 +25,7 @@ import threading
 import time
 
 from conftest import REPO, VENV_BIN
+from process_helpers import end_suite, popen, run, stop_group
 from ros_context import ros_context
 
 DISCOVERY_TIMEOUT_S = 8.0
@@ -126,9 +129,9 @@ class NodeProcess:
                                                delete=False)
         full_env = dict(os.environ, PYTHONUNBUFFERED='1')
         full_env.update(env or {})
-        assert full_env.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT,
-                                     env=full_env)
+        from mr_damper_bringup.network import on_loopback
+        assert on_loopback(full_env), 'DDS must stay on loopback (tests/conftest.py)'
+        self.proc = popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, env=full_env)
 
     def output(self):
         """Return what the process printed so far."""
@@ -144,15 +147,10 @@ class NodeProcess:
         return self.proc.wait(timeout=timeout)
 
     def stop(self, timeout=10.0):
-        """Stop with SIGINT (then SIGKILL after ``timeout``); return the exit status."""
+        """Stop with SIGINT (then SIGKILL after ``timeout``), its group too; return the status."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(timeout=5)
-        return self.proc.returncode
+        return stop_group(self.proc, signal.SIGINT, timeout)
 
     def __enter__(self):
         return self
@@ -316,17 +314,17 @@ def pump_lines(stream, lines):
     lines.put(None)
 
 
-def run_until_ready(cmd, env, is_ready, guard_s=300.0):
+def run_until_ready(cmd, env, is_ready, guard_s=300.0, out=None):
     """
     Start ``cmd``, read its output until ``is_ready(line)``, then stop it with SIGINT (Ctrl-C).
 
     ``guard_s`` is a hang guard only (also without output). Returns ``(ready, returncode,
-    seen, rest)``: whether a line made it ready (else the process is killed), the exit status,
-    the lines read before and the text after the SIGINT.
+    seen, rest)``: whether a line made it ready (else the process group is killed), the exit
+    status, the lines read before and the text after the SIGINT. With ``out`` (the folder of a
+    ``mr-damper-suite`` run) it also makes sure every node of the run has gone.
     """
     import queue
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=env)
+    proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     seen, ready, rest = [], False, ''
     lines = queue.Queue()
     reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
@@ -351,10 +349,92 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
             rest = ''.join(parts)
             proc.wait(timeout=guard_s)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        if proc.poll() is None or out is not None:
+            end_suite(proc, out)
     return ready, proc.returncode, seen, rest
+
+
+class SuiteRun:
+    """
+    ``mr-damper-suite`` running until stopped, its output read line by line (context manager).
+
+    Started in a process group of its own (:func:`process_helpers.popen`); on exit the launcher
+    is stopped and every node it started has to be gone (``left`` lists any that outlived it).
+
+    Parameters
+    ----------
+    out : path
+        Its ``--out`` folder.
+    options : str
+        More command-line options (``--duration 0`` and the test's domain are given).
+    guard_s : float
+        Hang guard of every wait [s] (also without output).
+
+    """
+
+    def __init__(self, out, *options, guard_s=400.0):
+        import queue
+        self.out = Path(out)
+        cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0', '--out', str(out),
+               '--progress-s', '1', '--no-plots', '--domain-id', os.environ['ROS_DOMAIN_ID'],
+               *options]
+        self.proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          env=dict(os.environ))
+        self.lines = queue.Queue()
+        self.seen = []
+        self.left = None
+        self.deadline = time.monotonic() + guard_s
+        threading.Thread(target=pump_lines, args=(self.proc.stdout, self.lines),
+                         daemon=True).start()
+
+    def wait_for(self, pattern, n=1):
+        """Read the output until the regular expression ``pattern`` matched ``n`` more lines."""
+        import queue
+        import re
+        found = 0
+        while found < n:
+            try:
+                line = self.lines.get(timeout=max(self.deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                line = None
+            assert line is not None, f'no {pattern!r}:\n' + ''.join(self.seen[-40:])
+            self.seen.append(line)
+            found += bool(re.search(pattern, line))
+        return self.seen[-1]
+
+    def pids(self):
+        """Return ``{node: pid}`` of the latest start of each node (``pids.json``)."""
+        import json
+        return json.loads((self.out / 'pids.json').read_text())
+
+    def stop(self):
+        """Stop the run with SIGINT (Ctrl-C) and wait for its end; return the exit status."""
+        self.proc.send_signal(signal.SIGINT)
+        self.wait_for('outputs in')
+        return self.proc.wait(timeout=max(self.deadline - time.monotonic(), 1.0))
+
+    def text(self):
+        """Return every line read so far."""
+        return ''.join(self.seen)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.left = end_suite(self.proc, self.out)
+        return False
+
+
+def end_suite_nodes(out, guard_s=60.0):
+    """Wait until the nodes of the suite run in ``out`` are gone; return those that were not."""
+    from process_helpers import suite_pids, wait_gone
+    left = wait_gone(suite_pids(out), guard_s)
+    for pid in left:
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return left
 
 
 def run_suite(out, *options, timeout_s=240):
@@ -367,7 +447,11 @@ def run_suite(out, *options, timeout_s=240):
     env = dict(os.environ)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), *options, '--out', str(out), '--progress-s', '5',
            '--no-plots', '--domain-id', env['ROS_DOMAIN_ID']]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env)
+    try:
+        proc = run(cmd, timeout_s, env=env)
+    finally:
+        left = end_suite_nodes(out)
+    assert not left, f'nodes outlived the launcher: {left}'
     text = proc.stdout[-3000:] + proc.stderr[-3000:]
     # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
     assert proc.returncode == 0, text

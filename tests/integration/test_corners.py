@@ -34,7 +34,7 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
         corners = dict(re.findall(r'(fl|fr): \d+ samples, [1-9]\d* valid, car (\w+)', line))
         return corners.get('fl') == corners.get('fr') == 'normal'
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())

@@ -18,18 +18,18 @@ import json
 import math
 import os
 import signal
-import subprocess
 import time
 
 import numpy as np
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import fault_test_suite, NodeProcess
+from integration.ros_helpers import end_suite_nodes, fault_test_suite, NodeProcess
 from kwok_messages import thesis_parameter_values
 from mr_damper_bringup.config import IDENT, QC, RIG
 from mr_damper_bringup.processes import CLEAN_EXIT
 from mr_damper_model.io.columnlog import ColumnReader
+from process_helpers import run
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -113,7 +113,11 @@ def test_full_suite_short_run(tmp_path):
            # at twice real time on a busy machine a fit can stall > 1 s: this test is about
            # leaving fail-safe and the ride, the timeout itself is tested below
            '--set', 'quarter_car_node.param_timeout_s=2.0']
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=150, env=env)
+    try:
+        proc = run(cmd, 150, env=env)
+    finally:
+        left = end_suite_nodes(out)
+    assert not left, f'nodes outlived the launcher: {left}'
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert 'MR damper suite summary' in proc.stdout
     summary = json.loads((out / 'summary.json').read_text())
@@ -216,7 +220,11 @@ def test_launcher_exits_non_zero_when_a_node_dies(tmp_path):
            '--out', str(out), '--no-plots', '--set', 'quarter_car_node.road_class=Z',
            '--domain-id', os.environ['ROS_DOMAIN_ID'], '--max-restarts', '2',
            '--restart-backoff-s', '0.1']
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    try:
+        proc = run(cmd, 120)
+    finally:
+        left = end_suite_nodes(out)
+    assert not left, f'nodes outlived the launcher: {left}'
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert proc.stderr.count('quarter_car_node died (exit 2)') == 3     # restarted twice
     assert proc.stderr.count('restarted quarter_car_node') == 2

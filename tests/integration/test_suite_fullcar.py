@@ -43,7 +43,7 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
         # then let the car drive 2 s of simulated time on its four models
         return t_normal is not None and float(t_car.group(1)) >= t_normal + 2.0
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
@@ -91,7 +91,7 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
         # supervisor taking a set comes before its first command on it: wait for the command)
         return re.search(r'on models 4/4', line) is not None
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())

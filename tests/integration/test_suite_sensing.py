@@ -73,7 +73,7 @@ def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
         t_car = re.search(r't_sim (-?[\d.]+) s', line)
         return t_car is not None and float(t_car.group(1)) >= end_s
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     stdout = ''.join(seen) + rest

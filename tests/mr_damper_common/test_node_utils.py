@@ -19,6 +19,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from mr_damper_common import node_utils
+from process_helpers import popen, stop_group
 from ros_context import ros_context
 
 
@@ -233,15 +234,15 @@ _NODE_SCRIPT = textwrap.dedent('''
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_run_node_exits_0_on_signal_after_finish(sig):
-    proc = subprocess.Popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    proc = popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
+                 stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
     try:
         assert proc.stdout.readline().strip() == 'ready'
         proc.send_signal(sig)
         out, _ = proc.communicate(timeout=30)          # hang guard only
     finally:
         if proc.poll() is None:
-            proc.kill()
+            stop_group(proc, signal.SIGKILL)
     assert proc.returncode == 0, out
     assert out.startswith('finish after') and 'Traceback' not in out, out
 

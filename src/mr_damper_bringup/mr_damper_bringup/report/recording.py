@@ -4,8 +4,8 @@ from pathlib import Path
 import numpy as np
 
 from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
-                                      NODE_PARAMETERS_TOPIC, SENSING_TOPICS, STATUS_KEYS,
-                                      SUITE_TOPICS)
+                                      namespaced_table, NODE_PARAMETERS_TOPIC, SENSING_TOPICS,
+                                      STATUS_KEYS, SUITE_TOPICS)
 from mr_damper_model.io.columnlog import ColumnWriter, JsonLines
 from mr_damper_model.live.sample_stream import BatchIndex
 
@@ -17,7 +17,7 @@ RECORDING = 'suite.mcap'
 MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, namespace=None):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
@@ -40,6 +40,11 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     car_modes_from : float, optional
         Epoch time [s] from which the car states are decoded into ``car_modes`` (the first
         death of a node; None: not at all, a 1 kHz topic the rest of the report does not need).
+    namespace : str, optional
+        Read the topics of the nodes in this namespace (a car corner of ``--corners`` or
+        ``--config full-car``: ``/fl/mr_damper/measurement``, ...) under the keys of the root
+        namespace's; ``status`` then holds the statuses of that namespace's nodes under their
+        short names (``rig``, ``identifier``), the other statuses under their own keys.
 
     Returns
     -------
@@ -67,6 +72,9 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     from mr_damper_bringup.topics import decode_measurement
     work = Path(work)
     tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
+    if namespace:
+        tables = {key.rpartition('/')[2]: row
+                  for key, row in namespaced_table(tables, [namespace]).items()}
     keys = {row.name: key for key, row in tables.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
@@ -142,6 +150,11 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     finally:
         meas.close()
         params.close()
+    if namespace:
+        mine = {k.partition('/')[2]: d for k, d in rec['status'].items()
+                if k.startswith(f'{namespace}/')}
+        rec['status'] = {**{k: d for k, d in rec['status'].items()
+                            if not k.startswith(f'{namespace}/')}, **mine}
     return rec
 
 
