@@ -118,6 +118,9 @@ class SuiteRecorder:
     ----------
     counts : dict
         Messages written per topic key.
+    undecodable : dict
+        Measurement messages per key written as received but not readable here (their samples
+        are not counted; the report counts them as bad messages too).
 
     """
 
@@ -144,6 +147,7 @@ class SuiteRecorder:
         self.counts = {key: 0 for key in self.topics}
         #: samples written per measurement key (a DamperSamples message holds many)
         self.samples = {key: 0 for key in self.topics if _is_measurement(key)}
+        self.undecodable = {}
         self._writer = None
         self._conns = {}
         if not chunk_s >= 0:
@@ -193,7 +197,11 @@ class SuiteRecorder:
     def _samples_in(self, key, raw):
         """Count the samples of one serialised measurement message (1 for a JointState)."""
         row = self.topics[key]
-        msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        try:
+            msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        except Exception:  # noqa: B902 - rosbags' SerdeError: one bad message, counted
+            self.undecodable[key] = self.undecodable.get(key, 0) + 1
+            return 0
         return len(msg.t_offset_s) if hasattr(msg, 't_offset_s') else 1
 
     def write(self, key, raw, log_time_ns):

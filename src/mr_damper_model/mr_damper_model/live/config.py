@@ -64,12 +64,16 @@ class LiveConfig:
     restart_samples : int
         Consecutive increasing out-of-order samples that restart the stream.
     max_future_s : float
-        Samples stamped more than this [s] ahead of the node clock (the stamps advancing this
-        much further than the clock, :class:`~mr_damper_common.stamps.StampGuard`) are
-        refused (``rejected['future_stamp']``) and never become the reference; 0: no such
-        check (the default: a replay at ``rate_factor`` > 1 on wall time stamps its samples
-        ahead of the clock by design). Set it when the samples are stamped on the node's clock
-        (a DAQ at real time, or a replay under ``use_sim_time``).
+        Horizon [s] on the stream's own clock: a batch (or a single sample) stamped more than
+        this ahead of where the stream's clock says the stream is (its newest stamp advanced at
+        the stream's recent rate against the node clock,
+        :class:`~mr_damper_common.stamps.StampGuard` with ``stream_clock``) is refused whole
+        (``rejected['future_stamp']``, every sample) and never becomes the reference; a
+        stream that really jumped ahead is followed after ``restart_samples`` such samples in
+        consecutive batches that follow each other. The stream's rate is measured, so this
+        holds at any ``rate_factor`` (a replay at 4x on wall time, as fast as the reader takes
+        it, under ``use_sim_time``); before the stream's first sample nothing is in the
+        future. 0: no such check.
     force_limit_n : float
         Samples with ``|f|`` above this [N] are rejected (``out_of_range['force']``); dampers
         of this class make 1-2 kN (thesis damper about 850 N at 2 A, Quiroz damper 1.7 kN).
@@ -174,7 +178,7 @@ class LiveConfig:
     min_force_std_n: float = 2.0
     min_direction_fraction: float = 0.1
     restart_samples: int = 500
-    max_future_s: float = 0.0
+    max_future_s: float = 1.0
     force_limit_n: float = 5000.0
     velocity_limit_m_s: float = 2.0
     displacement_limit_m: float = 0.15

@@ -81,9 +81,10 @@ class LiveIdentifier:
         self._last_t = -math.inf
         self._t_origin = None      # first stamp of the current stream
         self._next_index = 0       # index m of the next due window end
-        # stamp sanity (order, duplicates, future stamps, re-base after a clock jump)
+        # stamp sanity (order, duplicates, future stamps on the stream's own clock, re-base
+        # after a clock jump)
         self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
-                                  rebase_after=cfg.restart_samples)
+                                  rebase_after=cfg.restart_samples, stream_clock=True)
         self._seq = 0              # samples accepted into the buffer so far (all streams)
         self._handed = 0           # sequence number of the first sample not yet handed out
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
@@ -189,9 +190,14 @@ class LiveIdentifier:
         """
         Offer a batch of consecutive samples (one measurement message), in order.
 
-        The result is exactly that of :meth:`add_sample` called on each sample in turn; a batch
-        that is clean (finite, in range, stamps increasing past the newest accepted one) is
-        taken with array operations, others sample by sample.
+        The batch is first judged as a whole against the stream's own clock
+        (:meth:`~mr_damper_common.stamps.StampGuard.batch_verdict`): a batch reaching more than
+        ``max_future_s`` ahead of it is refused whole (every sample ``future_stamp``), so one
+        message cannot carry the stream ahead and displace it.  Otherwise the result is
+        that of :meth:`add_sample` called on each sample in turn (without its own future
+        check: the batch was judged); a batch that is clean (finite, in range, stamps
+        increasing past the newest accepted one) is taken with array operations, others
+        sample by sample.
 
         Parameters
         ----------
@@ -210,6 +216,13 @@ class LiveIdentifier:
         n = t.shape[0]
         cfg = self.config
         with self._lock:
+            verdict = self._stamps.batch_verdict(t, now) if n else ACCEPTED
+            if verdict == 'future_stamp':
+                self.counters['samples_received'] += n
+                self.counters['rejected']['future_stamp'] += n
+                return [(k, 'future_stamp') for k in range(n)]
+            if verdict == REBASED:
+                self._restart_stream()
             if n and self._clean_batch(t, x, v, f, i, cfg, now):
                 self._append_batch(t, x, v, f, i, cfg)
                 self._stamps.take_clean(t, now)
@@ -217,7 +230,7 @@ class LiveIdentifier:
             rejected = []
             for k in range(n):
                 reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
-                                       float(i[k]), now)
+                                       float(i[k]), now, judged=True)
                 if reason:
                     rejected.append((k, reason))
             return rejected
@@ -267,8 +280,8 @@ class LiveIdentifier:
         self._seq += m
         c['samples_accepted'] += n
 
-    def _add_one(self, t, x, v, f, i, now=None):
-        """:meth:`add_sample` with the lock held."""
+    def _add_one(self, t, x, v, f, i, now=None, judged=False):
+        """:meth:`add_sample` with the lock held (``judged``: its batch passed the future test)."""
         cfg = self.config
         c = self.counters
         c['samples_received'] += 1
@@ -276,7 +289,8 @@ class LiveIdentifier:
                 and math.isfinite(f) and math.isfinite(i)):
             c['rejected']['nonfinite'] += 1
             return 'nonfinite'
-        verdict = self._stamps.check(t, now)   # order, duplicates, future, clock jumps
+        # order, duplicates, future (unless judged with its batch), clock jumps
+        verdict = self._stamps.check(t, None if judged else now)
         if verdict == REBASED:
             self._restart_stream()
         elif verdict != ACCEPTED:
