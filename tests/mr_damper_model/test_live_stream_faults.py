@@ -143,3 +143,54 @@ def test_an_absurd_first_index_is_a_stream_restart_not_lost_samples():
     s = runtime.stream.as_dict()
     assert (s['lost'], s['restarts'], s['jumps']) == (10, 2, 1)
     assert runtime.live.counters['samples_accepted'] == 5 * BATCH
+
+
+def _two_level_identifier():
+    """An identifier that took valid sets of a 0.5 A / 1 A cam record for 5 s."""
+    data, model, truth = cam_record(currents=(0.5, 1.0) * 4, hold_s=1.0, t0=1000.0)
+    li = LiveIdentifier(LiveConfig(backlog_windows=50, maxiter=10, budget_s=0.0))
+    ests, now = _feed(li, data.select(slice(0, 5000)), 1.0, t_wall0=1000.0)
+    assert ests and ests[-1].valid and ests[-1].current_max_a == pytest.approx(1.0)
+    return li, data, model, truth, ests, now
+
+
+def test_a_batch_the_set_in_use_cannot_explain_is_refused_before_it_displaces_the_stream():
+    """
+    One batch of 1 s at 1 A with 3x the force, stamped where the stream goes on: refused whole.
+
+    Before: the batch was taken, the live samples of the same second were refused as out of
+    order until ``restart_samples`` of them restarted the stream, which dropped the reference,
+    the bins and the set in use.
+    """
+    li, data, model, truth, ests, now = _two_level_identifier()
+    t = data.t[4999] + 1e-3 * (1 + np.arange(1000))
+    w = 2 * np.pi * 1.1
+    x, v = 0.03 * np.sin(w * (t - 1000.0)), 0.03 * w * np.cos(w * (t - 1000.0))
+    i = np.full(1000, 1.0)
+    f = 3.0 * model.force(np.array([truth[k] for k in model.param_names]), x, v, i=i)
+    rejected = li.add_samples(t, x, v, f, i, now=now)
+    assert len(rejected) == 1000 and {r for _, r in rejected} == {'inconsistent_batch'}
+    more, _ = _feed(li, data.select(slice(5000, None)), 1.0, t_wall0=now + 1e-3)
+    c = li.counters
+    assert c['rejected']['inconsistent_batch'] == 1000
+    assert c['rejected']['out_of_order'] == 0 and c['stream_restarts'] == 0
+    assert c['samples_accepted'] == data.n
+    # the sets after it are the stream's: close to the ones before
+    for est in more:
+        assert est.valid
+        for name in ('c0', 'c1', 'alpha0', 'alpha1'):
+            assert est.parameters[name] == pytest.approx(ests[-1].parameters[name], rel=0.1)
+
+
+def test_a_lasting_change_goes_on_to_the_window_gate_after_max_gap_s():
+    """A persistent +400 N offset: batches refused for max_gap_s only, then judged by windows."""
+    li, data, _, _, _, now = _two_level_identifier()
+    rest = data.select(slice(5000, None))
+    shifted = type(rest)(rest.t, rest.x, rest.v, rest.f + 400.0, rest.i)
+    _feed(li, shifted, 1.0, t_wall0=now + 1e-3)
+    c = li.counters
+    # 50 ms of samples (max_gap_s) at most refused as they arrived; the rest reached the
+    # buffer, where the gate kept them out of the bins (no valid set from the offset)
+    assert 0 < c['rejected']['inconsistent_batch'] <= 60
+    assert c['samples_flagged']['inconsistent'] > 2000
+    assert c['windows_skipped']['gap'] == 0

@@ -6,7 +6,7 @@ from mr_damper_model.models.validity import PINNED_FRACTION
 
 #: Keys of the sample rejection counters.
 REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'future_stamp', 'joint_names',
-                  'layout')
+                  'layout', 'inconsistent_batch')
 #: Keys of the out-of-range sample counters (the channel whose range check failed).
 RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 #: Keys of the skipped-window counters.
