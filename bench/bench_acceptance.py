@@ -2,14 +2,16 @@
 Acceptance of live parameter sets on the shared Quiroz files: clean and with sensor faults.
 
     .venv/bin/python bench/bench_acceptance.py [--data-dir DIR] [--files GLOB]
-        [--only before|after] [--cases steady|start|all]
+        [--configs previous,issue20,after] [--cases steady|start|all]
 
 Every shared Quiroz record (sine tests that start and stop) is replayed sample by sample through
 :class:`mr_damper_model.live.LiveIdentifier` with the identifier node's defaults as under
 ``use_sim_time`` (every window fitted in order, seeded per window, no wall-time budget), clean and
 with four injected load-cell faults in its steady part: a 1e30 N spike, the force stuck for
-0.3 s, a 0.2 s dropout to 0 N and a 1 s +400 N offset step.  Each configuration is run with the
-acceptance rules off (``acceptance_checks=False``: the previous rules) and on, in the same run.
+0.3 s, a 0.2 s dropout to 0 N and a 1 s +400 N offset step.  The rule sets compared in one run
+(``--configs``): ``previous`` (``acceptance_checks=False``, the rules before issue 20),
+``issue20`` (the acceptance review, without the force-step check: ``force_step_percent=0``) and
+``after`` (the node's defaults: with the force-step check of issue 32); by default the last two.
 Start-of-stream cases (issue 32): the same record with a 1 s +400 N offset 1.5 s after its
 start and a 1e30 N spike at 4 s (``live_records.inject_start_faults``), shifted into the first,
 second and third window: faults that arrive before a good set exists, which no comparison with
@@ -23,7 +25,8 @@ Per file it prints, for each configuration:
   steady-part error to that of the set the clean replay held at the same window (goal <= 1.25;
   nan when the faulted replay published no valid set: the 2 mm records are so short that the
   faults fill every window);
-- ``at``: the window end of that set [s]; ``s``: seconds of all replays;
+- ``at``: the window end of that set [s]; ``s``: seconds of all replays; ``fs``: windows of
+  the clean replay whose set the force-step check refused (false alarms on clean data);
 - ``start w/c``: the same ratio over the valid sets of the three start-of-stream replays
   (judged against the clean replay's set at the same window, or its first valid set when it
   had none yet), worst of the three (goal <= 1.25; nan when none published a valid set);
@@ -61,8 +64,11 @@ GOAL_FINAL = 1.1
 GOAL_FAULT = 1.25
 #: the start-of-stream faults in the first, second and third window (issue 32)
 START_WINDOWS = (1, 2, 3)
-#: the rule sets compared (LiveConfig changes): the previous rules, issue 20's acceptance review
-CONFIGS = {'before': {'acceptance_checks': False}, 'after': {'acceptance_checks': True}}
+#: the rule sets compared (LiveConfig changes): the rules before issue 20, its acceptance review
+#: without issue 32's force-step check, the node's defaults
+CONFIGS = {'previous': {'acceptance_checks': False, 'force_step_percent': 0.0},
+           'issue20': {'acceptance_checks': True, 'force_step_percent': 0.0},
+           'after': {}}
 
 
 def default_data_dir():
@@ -109,7 +115,8 @@ def evaluate(path, config_changes, cases='all'):
         clean = steady_errors(clean_pub, data, steady, config.i_ref_a)
         fault = steady_errors(fault_pub, data, steady, config.i_ref_a)
         row = {'seconds': seconds, 'n_valid_clean': len(clean), 'n_valid_fault': len(fault),
-               'clean_status': clean_status, 'fault_status': fault_status}
+               'clean_status': clean_status, 'fault_status': fault_status,
+               'clean_force_steps': clean_status['windows_refused'].get('force_step', 0)}
         if clean:
             errs = [e for _, e in clean]
             row.update(final=errs[-1], best=min(errs), final_best=errs[-1] / min(errs),
@@ -143,21 +150,20 @@ def main(argv=None):
     p.add_argument('--data-dir', default=None,
                    help='Quiroz files (default: the tests\' QUIROZ_DIR)')
     p.add_argument('--files', default='quiroz_sine_*.csv*', help='glob inside the directory')
-    p.add_argument('--only', choices=tuple(CONFIGS), default=None)
+    p.add_argument('--configs', default='issue20,after',
+                   help=f'comma-separated rule sets of {tuple(CONFIGS)}')
     p.add_argument('--cases', choices=('steady', 'start', 'all'), default='all',
                    help='faults in the steady part, at the start of the stream, or both')
     args = p.parse_args(argv)
     os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
     data_dir = Path(args.data_dir) if args.data_dir else default_data_dir()
     paths = sorted(data_dir.glob(args.files))
-    configs = dict(CONFIGS)
-    if args.only:
-        configs = {args.only: configs[args.only]}
+    configs = {name: CONFIGS[name] for name in args.configs.split(',')}
     print(f'load average at start: {os.getloadavg()[0]:.2f}; {len(paths)} files from {data_dir}')
     head = f'{"file":<40} {"steady":>6} {"kwok":>6}'
     for label in configs:
         head += (f' | {label + " final/best":>17} {"f/kwok":>6} {"worst f/c":>9} {"at":>6}'
-                 f' {"start w/c":>9} {"w":>2} {"s":>5}')
+                 f' {"start w/c":>9} {"w":>2} {"fs":>3} {"s":>5}')
     print(head)
     results = []
     for path in paths:
@@ -171,7 +177,8 @@ def main(argv=None):
                      f' {row.get("worst_fault", float("nan")):9.3f}'
                      f' {row.get("worst_at", float("nan")):6.1f}'
                      f' {row.get("worst_start", float("nan")):9.3f}'
-                     f' {row.get("worst_start_window", 0):2d} {row["seconds"]:5.1f}')
+                     f' {row.get("worst_start_window", 0):2d} {row["clean_force_steps"]:3d}'
+                     f' {row["seconds"]:5.1f}')
         print(line, flush=True)
     for label in configs:
         fb = [r['rows'][label].get('final_best', np.nan) for r in results]

@@ -146,7 +146,7 @@ def test_an_absurd_first_index_is_a_stream_restart_not_lost_samples():
 
 
 def _two_level_identifier():
-    """An identifier that took valid sets of a 0.5 A / 1 A cam record for 5 s."""
+    """Return an identifier that took valid sets of a 0.5 A / 1 A cam record for 5 s."""
     data, model, truth = cam_record(currents=(0.5, 1.0) * 4, hold_s=1.0, t0=1000.0)
     li = LiveIdentifier(LiveConfig(backlog_windows=50, maxiter=10, budget_s=0.0))
     ests, now = _feed(li, data.select(slice(0, 5000)), 1.0, t_wall0=1000.0)

@@ -155,6 +155,14 @@ class LiveConfig:
         cell) beyond this times its RMS error, plus the error floor.
     drift_window_s : float
         The f0 trend is the slope over the accepted sets of this long [s].
+    force_step_percent : float
+        A set whose own fit data holds a force step is refused (``force_step``; published not
+        valid when no set is in use, else the set in use re-published): comparable whole cycles
+        whose mean forces differ, or a persistent mid-stroke jump of its residual, beyond this
+        [% of the level's robust force range] (:func:`~mr_damper_model.live.screening.
+        force_step`).  Needs no earlier set: a sensor offset that begins or ends inside the
+        first windows of a stream, before any set can be compared with, is refused; 0: no
+        such check.
 
     """
 
@@ -205,6 +213,7 @@ class LiveConfig:
     offset_window_s: float = 0.2
     offset_ratio: float = 3.0
     drift_window_s: float = 300.0
+    force_step_percent: float = 6.0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
@@ -221,7 +230,7 @@ class LiveConfig:
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
                      'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
                      'max_future_s', 'min_amplitude_ratio', 'min_velocity_bin_share',
-                     'replace_margin'):
+                     'replace_margin', 'force_step_percent'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -262,4 +271,4 @@ DYNAMIC_FIELDS = (
     'min_bin_fraction', 'bin_max_age_s', 'acceptance_checks', 'min_amplitude_ratio',
     'velocity_bins', 'min_velocity_bin_share', 'max_condition_number', 'replace_margin',
     'holdout_s', 'holdout_max_s', 'offset_window_s', 'offset_ratio',
-    'drift_window_s')
+    'drift_window_s', 'force_step_percent')

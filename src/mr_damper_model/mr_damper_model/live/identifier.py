@@ -26,7 +26,7 @@ from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
 from mr_damper_model.live.reference import (batch_consistency, consistency_figures,
                                             make_reference, MIN_CHECK_SAMPLES, model_force)
 from mr_damper_model.live.screening import (check_excitation, continued_runs, flag_samples,
-                                            robust_range)
+                                            force_step, robust_range)
 from mr_damper_model.live.window import LiveEstimate, Window
 from mr_damper_model.models.validity import check_model_parameters
 
@@ -674,11 +674,18 @@ class LiveIdentifier:
         f_new = self._force(params, fit)
         reason = self._judge(model, result.parameters, robust_nrmse, fit, f_new, scale,
                              max(levels) - min(levels))
+        # a force step in the set's own data (an offset no earlier set could catch): its
+        # samples are no evidence for the held-back comparisons either
+        step = '' if reason else force_step(fit, fit.f - f_new, cfg)
+        if step:
+            self._accept.forget(float(fit.t[0]), float(fit.t[-1]))
         held = ''
         if not reason and cfg.acceptance_checks:
-            held = self._accept.review(params, fit, data)
+            held = step or self._accept.review(params, fit, data)
             if held and self._accept.current is None:
                 reason, held = held, ''      # nothing to hold: published as not valid
+        elif not reason:
+            reason = step
         seconds = time.perf_counter() - t_start
         est = LiveEstimate(
             parameters=params, valid=not (reason or held), reason=reason or held,

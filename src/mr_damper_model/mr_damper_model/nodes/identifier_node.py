@@ -127,6 +127,9 @@ _LIVE = (
      '(plus the error floor) [1]', 1e-3, 1e6),
     ('drift_window_s', 'The f0 trend (status) is the slope over the accepted sets of this long '
      '[s]', 1.0, _BIG),
+    ('force_step_percent', 'Refuse a set whose own fit data holds a force step: comparable '
+     'whole cycles whose mean forces differ, or a lasting mid-stroke jump of its residual, '
+     'beyond this [% of the robust force range] (0: no check)', 0.0, 100.0),
 )
 
 #: Every parameter of the node (the one place they are declared).
