@@ -83,14 +83,15 @@ def make_reference(est, fit, f_new, scale, bin_a):
     return ref
 
 
-def consistency_figures(ref, new, config):
+def consistency_figures(ref, new, config, average=np.mean):
     """
     Return (RMSE of the reference set on ``new``, its limit) [N], or None (not judged).
 
     The limit: ``max_shift_ratio`` times the set's RMS error on its own data in the same
     cells, plus ``error_floor_percent`` of its robust force range.  Samples in cells the set
     was not fitted on are not judged; fewer than :data:`MIN_CHECK_SAMPLES` judged samples (or
-    no reference): None.
+    no reference): None.  ``average``: of the squares (``np.median``: a robust figure, which a
+    few spikes, the outlier screen's business, cannot move).
     """
     if ref is None or new.n < MIN_CHECK_SAMPLES:
         return None
@@ -102,8 +103,8 @@ def consistency_figures(ref, new, config):
     part = new.select(known)
     r = part.f - model_force(ref['parameters'], part, config.i_ref_a)
     expected = np.array([cell_ms[int(k)] for k in codes[known]])
-    e_new = float(np.sqrt(np.mean(r * r)))
-    limit = (config.max_shift_ratio * float(np.sqrt(np.mean(expected)))
+    e_new = float(np.sqrt(average(r * r)))
+    limit = (config.max_shift_ratio * float(np.sqrt(average(expected)))
              + 0.01 * config.error_floor_percent * ref['scale'])
     return e_new, limit
 
@@ -113,10 +114,11 @@ def batch_consistency(ref, t, x, v, f, i, config):
     Judge a measurement batch against the set in use, as it arrives.
 
     Judged as :func:`consistency_figures` on the batch's finite samples within the sensor
-    ranges, only against a reference of the stream's recent past (its window ended at most
-    one window length before the batch's first stamp: as the window gate judges no sample
-    against a set fitted longer before it, not one left behind by a fitter that lags a
-    replay).
+    ranges, with medians of the squared errors (a spike or two in a batch is left to the
+    outlier screen, which keeps the rest of the batch), only against a reference of the
+    stream's recent past (its window ended at most one window length before the batch's first
+    stamp: as the window gate judges no sample against a set fitted longer before it, not one
+    left behind by a fitter that lags a replay).
 
     Parameters
     ----------
@@ -149,5 +151,5 @@ def batch_consistency(ref, t, x, v, f, i, config):
     if not (first - end <= config.window_s):
         return None
     figures = consistency_figures(ref, DamperData(t[ok], x[ok], v[ok], f[ok], i[ok],
-                                                  source='batch'), config)
+                                                  source='batch'), config, np.median)
     return None if figures is None else figures[0] > figures[1]
