@@ -194,3 +194,16 @@ def test_a_lasting_change_goes_on_to_the_window_gate_after_max_gap_s():
     assert 0 < c['rejected']['inconsistent_batch'] <= 60
     assert c['samples_flagged']['inconsistent'] > 2000
     assert c['windows_skipped']['gap'] == 0
+
+
+def test_a_batch_with_a_spike_is_taken_for_the_outlier_screen():
+    """One in-range spike in a batch: the batch is consistent; the spike is flagged alone."""
+    li, data, _, _, _, now = _two_level_identifier()
+    rest = data.select(slice(5000, None))
+    f = rest.f.copy()
+    f[np.arange(10) * 173 + 45] = 3000.0            # ten single-sample spikes
+    _feed(li, type(rest)(rest.t, rest.x, rest.v, f, rest.i), 1.0, t_wall0=now + 1e-3)
+    c = li.counters
+    assert c['rejected']['inconsistent_batch'] == 0
+    assert c['samples_accepted'] == data.n
+    assert 10 <= c['samples_flagged']['outlier'] <= 12
