@@ -292,3 +292,17 @@ def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
     assert n - per_chunk <= len(got) < n
     with pytest.raises(ValueError, match='chunk_s'):
         SuiteRecorder(tmp_path / 'x.mcap', chunk_s=-1.0)
+
+
+def test_a_measurement_message_it_cannot_read_is_written_and_counted(tmp_path):
+    """An empty batch from rclpy does not deserialise with rosbags: written, counted, no raise."""
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_common import messages as mm
+    from mr_damper_interfaces.msg import DamperSamples
+    with SuiteRecorder(tmp_path / 'e.mcap', typestore=TS) as rec:
+        rec.write('measurement', serialize_message(DamperSamples()), 5)
+        batch = mm.samples_to_msg([1.5], [0.0], [0.1], [8.0], [0.5], sequence=1, first_index=0)
+        rec.write('measurement', serialize_message(batch), 6)
+    assert rec.counts['measurement'] == 2 and rec.measurements() == 1
+    assert rec.undecodable == {'measurement': 1}

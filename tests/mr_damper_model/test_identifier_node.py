@@ -126,7 +126,7 @@ def test_measurement_batches_are_taken_whole_and_lost_samples_counted_exactly(ma
     v = h.values
     assert v['samples_accepted'] == 80 and v['rejected']['layout'] == 1
     assert v['stream'] == {'batches': 4, 'samples': 80, 'lost': 20, 'restarts': 0,
-                           'skipped_at_start': 0}
+                           'jumps': 0, 'skipped_at_start': 0}
     assert h.level == WARN and '20 sample(s) lost' in h.message
     assert v['stamp_age_ms']['n'] == 4                    # one transport age per batch
 

@@ -188,6 +188,7 @@ def main(argv=None):
                            'measurements_by_namespace': {
                                k.split('/')[0]: n for k, n in recorder.samples.items()
                                if '/' in k},
+                           'undecodable': dict(recorder.undecodable),
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,

@@ -124,6 +124,9 @@ class SuiteRecorder:
         Measurement messages that never reached the recorder, per measurement key, counted from
         the batches' ``sequence`` (:class:`~mr_damper_common.sequence_gaps.SequenceGaps`; a
         per-sample ``JointState`` stream has no sequence: its gaps are in its stamps).
+    undecodable : dict
+        Measurement messages per key written as received but not readable here (their samples
+        are not counted; the report counts them as bad messages too).
 
     """
 
@@ -152,6 +155,7 @@ class SuiteRecorder:
         self.samples = {key: 0 for key in self.topics if _is_measurement(key)}
         self.lost = dict.fromkeys(self.samples, 0)
         self._gaps = {key: SequenceGaps() for key in self.samples}
+        self.undecodable = {}
         self._writer = None
         self._conns = {}
         if not chunk_s >= 0:
@@ -201,7 +205,11 @@ class SuiteRecorder:
     def _measurement_in(self, key, raw):
         """Return (samples in, messages lost before) one serialised measurement message."""
         row = self.topics[key]
-        msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        try:
+            msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        except Exception:  # noqa: B902 - rosbags' SerdeError: one bad message, counted
+            self.undecodable[key] = self.undecodable.get(key, 0) + 1
+            return 0, 0
         if not hasattr(msg, 't_offset_s'):
             return 1, 0                 # a JointState: one sample, no sequence
         return len(msg.t_offset_s), self._gaps[key].offer(msg.sequence, msg.header.frame_id)

@@ -119,7 +119,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                'plant': qc_params.get('plant', 'spencer'),
                'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
                              'statuses': rec['status_messages'],
-                             'undecodable': rec['undecodable'],
+                             'bad_messages': rec['bad_messages'],
                              'node_parameters': sorted(rec.get('node_parameters') or {}),
                              **recording_state(rec)}}
     if rec.get('restarts') or rec.get('gave_up'):
@@ -294,6 +294,11 @@ def format_summary(s):
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
                  f'refused parameter sets: {(s.get("failsafe") or {}).get("params_rejected")}')
     lines.append(f'messages lost: {s.get("messages_lost")} ({s.get("messages")})')
+    bad = (s.get('recording') or {}).get('bad_messages')
+    if bad:
+        lines.append('bad recorded messages, left out of the figures: ' + '; '.join(
+            f'{key} ' + ', '.join(f'{n} {reason}' for reason, n in sorted(reasons.items()))
+            for key, reasons in sorted(bad.items())))
     can = s.get('can')
     if can:
         lines.append(f'CAN ({can["corner"]}): bridge sent {can["frames_sent"]} command frames '

@@ -331,7 +331,7 @@ class IdentifierRuntime:
         self.ages.add(now - t)
         return reason
 
-    def receive_batch(self, t, x, v, f, i, first_index=None):
+    def receive_batch(self, t, x, v, f, i, first_index=None, period_s=0.0):
         """
         Offer a batch of samples (``LiveIdentifier.add_samples``); return the rejected ones.
 
@@ -341,7 +341,12 @@ class IdentifierRuntime:
             Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
         first_index : int, optional
             Stream index of the first sample (``DamperSamples.first_index``): samples missing
-            before it are counted in :attr:`stream` (``lost``).
+            before it are counted in :attr:`stream` (``lost``; an index jump the stamps do not
+            show is a restart there). A batch refused whole (stamped in the future) takes no
+            place in the stream.
+        period_s : float
+            The batch's nominal sample period [s] (``DamperSamples.sample_period_s``; 0:
+            irregular): judges index jumps against the stamps.
 
         Returns
         -------
@@ -349,10 +354,11 @@ class IdentifierRuntime:
             ``(index in the batch, reason)`` of each rejected sample.
 
         """
-        if first_index is not None:
-            self.stream.update(first_index, len(t))
         now = self.clock()
         rejected = self.live.add_samples(t, x, v, f, i, now=now)
+        refused = len(t) and len(rejected) == len(t) and rejected[0][1] == 'future_stamp'
+        if first_index is not None and not refused:
+            self.stream.update(first_index, len(t), t, period_s)
         if len(t):
             self.ages.add(now - float(t[-1]))   # the batch's transport latency
         return rejected

@@ -77,8 +77,9 @@ _LIVE = (
      0.0, 0.5),
     ('restart_samples', 'Consecutive increasing out-of-order samples that restart the stream '
      '[samples]', 1, 10 ** 8),
-    ('max_future_s', 'Refuse samples stamped more than this ahead of the node clock [s] '
-     '(future_stamp; 0: no check, e.g. replays at rate_factor > 1 on wall time)', 0.0, _BIG),
+    ('max_future_s', 'Refuse a batch stamped more than this ahead of the stream\'s own clock '
+     '(its newest stamp advanced at its measured rate) [s] (future_stamp; 0: no check)', 0.0,
+     _BIG),
     ('force_limit_n', 'Reject samples with a force magnitude above this [N]', 1e-6, _BIG),
     ('velocity_limit_m_s', 'Reject samples with a velocity magnitude above this [m/s]',
      1e-9, 1e6),
@@ -126,6 +127,9 @@ _LIVE = (
      '(plus the error floor) [1]', 1e-3, 1e6),
     ('drift_window_s', 'The f0 trend (status) is the slope over the accepted sets of this long '
      '[s]', 1.0, _BIG),
+    ('force_step_percent', 'Refuse a set whose own fit data holds a force step: comparable '
+     'whole cycles whose mean forces differ, or a lasting mid-stroke jump of its residual, '
+     'beyond this [% of the robust force range] (0: no check)', 0.0, 100.0),
 )
 
 #: Every parameter of the node (the one place they are declared).
@@ -262,7 +266,8 @@ class IdentifierNode(Node):
             self.get_logger().warning(f'rejected measurement batch: {exc}',
                                       throttle_duration_sec=1.0)
             return
-        rejected = self.runtime.receive_batch(t, x, v, f, i, first_index=msg.first_index)
+        rejected = self.runtime.receive_batch(t, x, v, f, i, first_index=msg.first_index,
+                                              period_s=msg.sample_period_s)
         if rejected:
             k, reason = rejected[0]
             self.get_logger().warning(
