@@ -436,11 +436,13 @@ def main(argv=None):
             if full_car:
                 summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
                                                        out, plots=not args.no_plots)
+            summary['control'] = report.control_from_recording(out, summary, list(corners))
             (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
             if full_car:
                 print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
+            print(report.format_control(summary['control']), flush=True)
         else:
             summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
                                          fallback={'config': cfg, 'status': last_status})

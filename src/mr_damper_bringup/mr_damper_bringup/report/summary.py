@@ -8,6 +8,7 @@ import tempfile
 import numpy as np
 
 from mr_damper_bringup.config import IDENT, node_params, QC, RIG
+from mr_damper_bringup.report.control import control_summary, format_control
 from mr_damper_bringup.report.identification import (identification_summary,
                                                      measurement_to_parameters)
 from mr_damper_bringup.report.losses import (attribute_losses, can_summary, messages_summary,
@@ -195,6 +196,8 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                                      (summary.get('identification') or {}).get('parameters'),
                                      plant=rig_params.get('plant', 'spencer'),
                                      truth_file=rig_params.get('truth_file', ''))
+    summary['control'] = control_summary(rec['control'], rec.get('start_epoch_s'), summary,
+                                         logs={'': log})
     summary = finite_or_none(summary)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, allow_nan=False))
     if plots:
@@ -303,6 +306,8 @@ def format_summary(s):
         from mr_damper_bringup.sensing_report import format_sensing
         lines.extend(format_sensing(s['sensing']))
     lines.extend(restart_lines(s))
+    if s.get('control'):
+        lines.append(format_control(s['control']))
     loop = s.get('loop_full_run') or {}
     m2p = s.get('measurement_to_parameters_s')
     if m2p:
