@@ -95,6 +95,12 @@ def progress_line(monitor, elapsed):
         wk = (metrics or {}).get('rms_body_accel_wk')
         if wk is not None:
             car += f', Wk {wk:.3f} m/s^2'
+    ctrl = status.get('controller') or {}
+    if ctrl:
+        # the law runs in the controller node: its mode says whether it has a model (the car's
+        # says only whether commands come)
+        car += (f' | controller {ctrl.get("mode", "?")}'
+                + (f' ({ctrl.get("reason")})' if ctrl.get('mode') == 'failsafe' else ''))
     return f'[{elapsed:6.1f} s] recorded {n_meas} samples | {ident} | {car}'
 
 

@@ -84,8 +84,10 @@ class CurrentProbe:
         self.outside = 0
         self.probing = False
         self.windows = 0
+        self.unreachable = np.zeros(self.keys.size, dtype=bool)
         self._window = None
         self._target = None
+        self._target_count = 0
 
     def observe(self, current_a):
         """Count a measured coil current [A] into its bin (outside the range: ``outside``)."""
@@ -98,11 +100,16 @@ class CurrentProbe:
             self.outside += 1
 
     def as_dict(self):
-        """Return ``levels_a``, ``counts``, ``covered`` / ``bins``, ``covered_s``, ``windows``."""
+        """
+        Return the status: ``levels_a``, ``counts``, ``covered`` / ``bins``, ``covered_s``.
+
+        Also ``windows``, ``outside`` (samples outside the bins), ``unreachable_a`` (levels a
+        probe window could not reach) and ``duty``.
+        """
         return {'levels_a': self.levels_a.tolist(), 'counts': self.counts.tolist(),
                 'covered': int(self.counts.size - self.starving), 'bins': int(self.counts.size),
                 'covered_s': self.covered_s, 'windows': self.windows, 'outside': self.outside,
-                'duty': self.duty}
+                'unreachable_a': self.levels_a[self.unreachable].tolist(), 'duty': self.duty}
 
     def covered(self):
         """
@@ -143,15 +150,29 @@ class CurrentProbe:
         The starving bin farthest from every covered bin (ties: the least-filled, then the
         lowest); before any bin is covered, the farthest from the fullest one (where the car's
         current sits: its safe current in fail-safe); with all covered, or no sample yet, the
-        least-filled bin.
+        least-filled bin. A target whose window brought it no sample (the coil current cannot
+        reach it) is not targeted again (``unreachable``) while another bin can be.
         """
         counts = self.counts
+        if self._target is not None:
+            k = int(np.argmin(np.abs(self.levels_a - self._target)))
+            if counts[k] == self._target_count:
+                # its window brought it nothing (the coil current cannot get there): skip it
+                self.unreachable[k] = True
         anchor = counts >= self.min_samples
-        if anchor.all() or not counts.any():
-            return float(self.levels_a[int(np.argmin(counts))])
+        open_ = ~anchor & ~self.unreachable
+        if not open_.any() or not counts.any():
+            # least-filled, of the bins a window can reach
+            reach = np.where(self.unreachable & ~self.unreachable.all(), np.inf, counts)
+            target = int(np.argmin(reach))
+            self._target_count = int(counts[target])
+            return float(self.levels_a[target])
         if not anchor.any():
             anchor = counts == counts.max()
+            open_ &= ~anchor
         gap = np.min(np.abs(self.levels_a[:, None] - self.levels_a[None, anchor]), axis=1)
-        gap[anchor] = -1.0
+        gap[~open_] = -1.0
         far = np.flatnonzero(gap >= gap.max() - 1e-9 * self.bin_a)
-        return float(self.levels_a[far[int(np.argmin(counts[far]))]])
+        target = int(far[int(np.argmin(counts[far]))])
+        self._target_count = int(counts[target])
+        return float(self.levels_a[target])
