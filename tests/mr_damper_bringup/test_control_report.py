@@ -35,7 +35,9 @@ def test_built_in_quarter_car_from_its_statuses_and_log():
         'passive_0a': {'rms_body_accel_wk': 1.0}, 'passive_current_a': 0.5,
         'window_s': [2.5, 9.0]}}
     c = control_summary(w, start, summary, logs={'': log})
-    assert c['first_valid_set_s'] == 3.0 and c['first_normal_s'] == 5.0
+    # the log's first normal step (car time 2.5 s) on the car's clock (car time k - 1 at
+    # 1000 + k s): 3.5 s, between the statuses
+    assert c['first_valid_set_s'] == 3.0 and c['first_normal_s'] == pytest.approx(3.5)
     assert c['first_normal_t_sim'] == pytest.approx(2.5)
     assert c['failsafe_fraction'] == pytest.approx(500 / 6501, rel=1e-9)
     # car time 0..9 s over wall 1001..1010 s
@@ -43,7 +45,16 @@ def test_built_in_quarter_car_from_its_statuses_and_log():
     assert c['samples_lost'] == 0
     assert c['ride'] == {'metric': 'wk', 'live': 0.9, 'passive': 1.1, 'passive_0a': 1.0,
                          'window_s': [2.5, 9.0], 'passive_current_a': 0.5}
-    assert 'first normal step 5.0 s' in format_control(c)
+    assert 'first normal step 3.5 s' in format_control(c)
+    # a recorder that fell behind lost the car's statuses after 5 s of car time, the one
+    # saying it was normal among them: its log's first normal step (6.0 s of car time) is
+    # placed past the last status at the real-time factor (1)
+    w2 = ControlWatch()
+    for k in range(7):
+        w2.update({'identifier': {'windows_valid': 1}, 'quarter_car': _car(k - 1.0)}, start + k)
+    late = ArrayLog({'t': t, 'mode': (t >= 6.0).astype(float)})
+    c2 = control_summary(w2, start, summary, logs={'': late})
+    assert c2['first_normal_s'] == pytest.approx(7.0) and c2['first_normal_t_sim'] == 6.0
 
 
 def test_external_controller_counts_its_commands_and_the_car_timeouts():
@@ -83,13 +94,13 @@ def test_full_car_needs_every_corner():
                             'passive_current_a': 0.5}}
     c = control_summary(w, 100.0, summary)
     assert c['first_valid_set_s'] == 4.0             # rr's identifier last
-    assert c['first_normal_s'] == 4.0                 # rr normal last
-    assert c['first_normal_t_sim'] == 3.0
+    # rr's first normal step (car time 3.0 s) on the car's clock (car time k at 100 + k s)
+    assert c['first_normal_s'] == 3.0 and c['first_normal_t_sim'] == 3.0
     assert c['units']['fl']['failsafe_fraction'] == pytest.approx(0.0)
     assert c['samples_lost'] == 0 + 1 + 2 + 3
     assert c['ride']['metric'] == 'a_v' and c['ride']['passive_0a'] == 0.7
     # one corner never normal: the car never reached control
-    w.laws['rr'].first_rx = None
+    w.laws['rr'].first_rx, w.laws['rr'].first_t_sim = None, NAN
     assert control_summary(w, 100.0, summary)['first_normal_s'] is None
 
 

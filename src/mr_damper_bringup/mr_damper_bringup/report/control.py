@@ -17,9 +17,11 @@ configurations (``bench/bench_configs.py``) compares like with like:
 
 Times are seconds since the recording began (the recorder is the first node up) at which the
 nodes' ``/diagnostics`` (one status per ``diagnostics_period_s``, 1 s by default) first said so,
-by the statuses' stamps (the nodes' wall clock): their resolution is one status period. A
-quarter car's built-in law is judged exactly from its step log instead (first normal step in car
-time, fail-safe fraction). :class:`ControlWatch` is fed every decoded status by
+by the statuses' stamps (the nodes' wall clock): their resolution is one status period. Where the
+car time of the first normal step is known (the quarter car's step log, the full car's corners),
+it is placed on the car's clock (its statuses' car time against their stamps) instead. A quarter
+car's built-in law is judged exactly from its step log (first normal step, fail-safe fraction).
+:class:`ControlWatch` is fed every decoded status by
 :func:`mr_damper_bringup.report.recording.read_recording`.
 """
 import math
@@ -29,6 +31,10 @@ import numpy as np
 #: the summary keys of the rows a configuration matrix prints (``bench/bench_configs.py``)
 CONTROL_KEYS = ('first_valid_set_s', 'first_normal_s', 'first_normal_t_sim', 'failsafe_fraction',
                 'samples_lost', 'real_time_factor', 'ride')
+
+
+#: car time / stamp pairs kept per car (one a second; thinned out beyond)
+MAX_CLOCK_POINTS = 4096
 
 
 def _finite(x):
@@ -59,7 +65,7 @@ class ControlWatch:
         self.first_valid = {}      # identifier unit -> receive time [s] of its first valid set
         self.identifiers = set()
         self.laws = {}             # law unit -> _Law
-        self.car_clock = {}        # car node -> [(t_rx, t_sim) first, last] with t_sim > 0
+        self.car_clock = {}        # law unit -> [(t, t_sim), ...] of its car on the road
         self._car_side = {}        # law unit -> (t_sim, command-timeout time [s]) of the plant
 
     def _law(self, unit):
@@ -76,10 +82,13 @@ class ControlWatch:
         if law.first_rx is not None:
             law.counts_last = counts
 
-    def _clock(self, node, t_rx, t_sim):
+    def _clock(self, unit, t_rx, t_sim):
         if _finite(t_sim) and t_sim > 0:
-            span = self.car_clock.setdefault(node, [(t_rx, t_sim), (t_rx, t_sim)])
-            span[1] = (t_rx, t_sim)
+            points = self.car_clock.setdefault(unit, [])
+            if not points or t_sim > points[-1][1]:     # a restarted car's road starts anew
+                points.append((t_rx, float(t_sim)))
+                if len(points) > MAX_CLOCK_POINTS:      # one a second: thin out a long run
+                    del points[1:-1:2]
 
     def update(self, statuses, t_rx):
         """
@@ -102,7 +111,7 @@ class ControlWatch:
                 if (d.get('windows_valid') or 0) > 0:
                     self.first_valid.setdefault(ns, t_rx)
             elif short == 'quarter_car':
-                self._clock(node, t_rx, d.get('t_sim'))
+                self._clock(ns, t_rx, d.get('t_sim'))
                 if d.get('controller') == 'external':
                     self._car_side[ns] = (d.get('t_sim'), d.get('failsafe_s'))
                 else:
@@ -116,7 +125,8 @@ class ControlWatch:
     def _full_car(self, short, d, t_rx):
         corners = d.get('corners') or {}
         if short == 'full_car_node':
-            self._clock(short, t_rx, d.get('t_sim'))
+            for c in corners:
+                self._clock(c, t_rx, d.get('t_sim'))
             if d.get('controller') == 'external':
                 for c, cd in corners.items():
                     self._car_side[c] = (d.get('t_sim'), cd.get('command_timeout_s_total'))
@@ -129,12 +139,31 @@ class ControlWatch:
             self._normal(c, t_rx, cd.get('first_normal_t_sim'), counts)
 
     # ------------------------------------------------------------------ figures
-    def real_time_factor(self):
+    def real_time_factor(self, unit=None):
         """Car time over wall time between the car's first and last status on the road."""
-        for (rx0, t0), (rx1, t1) in self.car_clock.values():
-            if rx1 > rx0:
+        for key, points in sorted(self.car_clock.items()):
+            (rx0, t0), (rx1, t1) = points[0], points[-1]
+            if (unit is None or key == unit) and rx1 > rx0:
                 return (t1 - t0) / (rx1 - rx0)
         return None
+
+    def wall_at(self, unit, t_sim):
+        """
+        Return when [s, the statuses' clock] ``unit``'s car reached car time ``t_sim``, or None.
+
+        Interpolated between the car's statuses (car time and stamp); past the last one,
+        extrapolated at the real-time factor (a recorder that fell behind may lack the last
+        statuses of a run).
+        """
+        points = self.car_clock.get(unit)
+        if not points or not _finite(t_sim):
+            return None
+        rx = np.array([p[0] for p in points])
+        ts = np.array([p[1] for p in points])
+        if t_sim <= ts[-1]:
+            return float(np.interp(t_sim, ts, rx))
+        rtf = self.real_time_factor(unit)
+        return None if not rtf else float(rx[-1] + (t_sim - ts[-1]) / rtf)
 
     def unit_failsafe_fraction(self, unit):
         """
@@ -230,6 +259,13 @@ def control_summary(watch, start_epoch_s, summary, *, logs=None):
         if log is not None and log.rows > 1 and law is not None and law.counts_first is None:
             first, fraction = quarter_car_log_figures(log)
             units[unit or 'car'].update(first_normal_t_sim=first, failsafe_fraction=fraction)
+    for unit, law in watch.laws.items():
+        # the car time of the first normal step, where known, on the car's clock: exact, and
+        # also when the recording lacks the statuses after it
+        u = units[unit or 'car']
+        at = watch.wall_at(unit, u.get('first_normal_t_sim'))
+        if at is not None:
+            u['first_normal_s'] = since(at)
 
     def last(key, group):
         values = [u.get(key) for u in units.values() if key in u]
