@@ -67,7 +67,8 @@ def test_external_controller_counts_its_commands_and_the_car_timeouts():
                   'quarter_car': _car(1.0 + k, controller='external', failsafe_s=timeout_s)},
                  10.0 + k)
     c = control_summary(w, 10.0, {'messages_lost': 3, 'ride': {}})
-    assert c['first_normal_s'] == 2.0 and c['first_normal_t_sim'] is None
+    # the controller reports no car time: the car's at the controller's first normal status
+    assert c['first_normal_s'] == 2.0 and c['first_normal_t_sim'] == 3.0
     # commands after the first normal status: 3600 of 4000 normal; the car's statuses from
     # the one before it (t_sim 2 s) to the last (4 s): 0.5 s of 2 s on the safe current
     normal = (4500 - 900) / (6000 - 2000) * (1.0 - 0.5 / (4.0 - 2.0))

@@ -67,6 +67,7 @@ class ControlWatch:
         self.laws = {}             # law unit -> _Law
         self.car_clock = {}        # law unit -> [(t, t_sim), ...] of its car on the road
         self._car_side = {}        # law unit -> (t_sim, command-timeout time [s]) of the plant
+        self.built_in = set()      # law units that are a quarter car with its own law
 
     def _law(self, unit):
         return self.laws.setdefault(unit, _Law())
@@ -115,6 +116,7 @@ class ControlWatch:
                 if d.get('controller') == 'external':
                     self._car_side[ns] = (d.get('t_sim'), d.get('failsafe_s'))
                 else:
+                    self.built_in.add(ns)
                     self._normal(ns, t_rx, d.get('first_normal_t_sim'), None)
             elif short == 'controller':
                 self._normal(ns, t_rx, math.nan,
@@ -146,6 +148,23 @@ class ControlWatch:
             if (unit is None or key == unit) and rx1 > rx0:
                 return (t1 - t0) / (rx1 - rx0)
         return None
+
+    def law_first_t_sim(self, unit):
+        """
+        Car time [s] of ``unit``'s first step on a model, or None (never).
+
+        The law's own report where it has one; else (an external quarter-car controller) the
+        car's time at its first normal status, on the car's clock (to one status period).
+        """
+        law = self.laws.get(unit)
+        if law is None or law.first_rx is None:
+            return None
+        if _finite(law.first_t_sim):
+            return law.first_t_sim
+        points = self.car_clock.get(unit)
+        if not points:
+            return None
+        return float(np.interp(law.first_rx, [p[0] for p in points], [p[1] for p in points]))
 
     def wall_at(self, unit, t_sim):
         """
@@ -252,11 +271,12 @@ def control_summary(watch, start_epoch_s, summary, *, logs=None):
     for unit, law in sorted(watch.laws.items()):
         u = units.setdefault(unit or 'car', {})
         u.update(first_normal_s=since(law.first_rx),
-                 first_normal_t_sim=law.first_t_sim if _finite(law.first_t_sim) else None,
+                 first_normal_t_sim=watch.law_first_t_sim(unit),
                  failsafe_fraction=watch.unit_failsafe_fraction(unit))
     for unit, log in (logs or {}).items():
-        law = watch.laws.get(unit)
-        if log is not None and log.rows > 1 and law is not None and law.counts_first is None:
+        # the log's mode is the law's only where the car runs it (with an external controller
+        # it says whether commands came)
+        if log is not None and log.rows > 1 and unit in watch.built_in:
             first, fraction = quarter_car_log_figures(log)
             units[unit or 'car'].update(first_normal_t_sim=first, failsafe_fraction=fraction)
     for unit, law in watch.laws.items():

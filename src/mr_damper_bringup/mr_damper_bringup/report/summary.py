@@ -15,7 +15,8 @@ from mr_damper_bringup.report.losses import (attribute_losses, can_summary, mess
                                              restart_figures, restart_lines)
 from mr_damper_bringup.report.recording import (MEAS_COLUMNS, ParamsLog,
                                                 read_recording, RECORDING, recording_state)
-from mr_damper_bringup.report.ride import hil_report_config, loop_figures, ride_summary
+from mr_damper_bringup.report.ride import (FROM_LOG, hil_report_config, loop_figures,
+                                           ride_summary)
 from mr_damper_bringup.topics import CONFIG_TOPIC
 from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_common.health import finite_or_none
@@ -143,7 +144,10 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         (rec.get('status', {}).get('quarter_car') or {})
     passive_trace = None
     if log is not None and log.rows > 10:
-        ride = ride_summary(log, qc_params)
+        # with an external controller the law's first step on a model is the controller's
+        law_t0 = (rec['control'].law_first_t_sim('') if qc_params.get('controller') == 'external'
+                  else FROM_LOG)
+        ride = ride_summary(log, qc_params, law_t0)
         passive_trace = ride.pop('passive_trace')
         summary['ride'] = ride
         if duration_s is None:
