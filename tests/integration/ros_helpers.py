@@ -339,12 +339,14 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
             ready = bool(is_ready(line))
         if ready:
             proc.send_signal(signal.SIGINT)
+            # the stop and the report may take long on a loaded machine: the process first
+            # (the reader thread keeps taking its output), then what it wrote
+            proc.wait(timeout=guard_s)
             reader.join(timeout=guard_s)
             parts = []
             while not lines.empty():
                 parts.append(lines.get() or '')
             rest = ''.join(parts)
-            proc.wait(timeout=guard_s)
     finally:
         if proc.poll() is None:
             proc.kill()
