@@ -316,8 +316,9 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
     Start ``cmd``, read its output until ``is_ready(line)``, then stop it with SIGINT (Ctrl-C).
 
     ``guard_s`` is a hang guard only (also without output). Returns ``(ready, returncode,
-    seen, rest)``: whether a line made it ready (else the process is killed), the exit status,
-    the lines read before and the text after the SIGINT.
+    seen, rest)``: whether a line made it ready (else it gets a SIGINT too, to stop what it
+    started, and is killed after :data:`STOP_GRACE_S`), the exit status, the lines read before
+    and the text after the SIGINT.
     """
     import queue
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -349,9 +350,20 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
             rest = ''.join(parts)
     finally:
         if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+            # not ready (or the test failed): a Ctrl-C first, so that the launcher stops the
+            # nodes it started in sessions of their own; then the launcher's own kill
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=STOP_GRACE_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
     return ready, proc.returncode, seen, rest
+
+
+#: how long a launcher that was not ready gets to stop its nodes after a Ctrl-C [s] (it kills
+#: a node that does not stop within 10 s)
+STOP_GRACE_S = 120.0
 
 
 def run_suite(out, *options, timeout_s=240):
