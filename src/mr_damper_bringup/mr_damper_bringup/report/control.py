@@ -86,7 +86,8 @@ class ControlWatch:
     def _clock(self, unit, t_rx, t_sim):
         if _finite(t_sim) and t_sim > 0:
             points = self.car_clock.setdefault(unit, [])
-            if not points or t_sim > points[-1][1]:     # a restarted car's road starts anew
+            # a restarted car's road starts at 0 again: the clock goes on past the old one only
+            if not points or t_sim > points[-1][1]:
                 points.append((t_rx, float(t_sim)))
                 if len(points) > MAX_CLOCK_POINTS:      # one a second: thin out a long run
                     del points[1:-1:2]
