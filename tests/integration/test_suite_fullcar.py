@@ -14,7 +14,7 @@ import re
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import run_until_ready
+from integration.ros_helpers import assert_reached_control, run_until_ready
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -62,6 +62,7 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
         d = car['corners'][c]
         assert d['params_accepted'] > 0 and d['samples_lost'] == 0, (c, d)
         assert d['first_normal_t_sim'] is not None, (c, d)
+    assert_reached_control(summary, units=CORNERS)
     # ISO 2631-1 of the live body and of the passive car on the same road, same window
     assert car['live']['duration_s'] == pytest.approx(car['passive']['duration_s'], rel=1e-6)
     for key in ('live', 'passive'):
@@ -106,3 +107,4 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
         d = car['corners'][c]
         assert d['params_accepted'] > 0 and d['first_normal_t_sim'] is not None, (c, d)
         assert summary['corners'][c]['samples_lost'] == 0, (c, summary['corners'][c])
+    assert_reached_control(summary, units=CORNERS)

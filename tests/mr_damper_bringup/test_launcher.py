@@ -51,6 +51,12 @@ def test_progress_line_from_the_statuses():
     line = progress_line(mon, 10.0)
     assert 'recorded 5000 samples' in line and '3 updates (2 valid), nrmse 1.2 %' in line
     assert 'failsafe (stale)' in line and 'Wk 0.900' in line
+    assert 'controller' not in line
+    # an external controller: its mode (has it a model?) next to the car's (do commands come?)
+    mon.add('controller', {'mode': 'failsafe', 'reason': 'no_parameters_yet'})
+    assert progress_line(mon, 11.0).endswith('| controller failsafe (no_parameters_yet)')
+    mon.add('controller', {'mode': 'normal', 'reason': 'ok'})
+    assert progress_line(mon, 12.0).endswith('| controller normal')
 
 
 @pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],

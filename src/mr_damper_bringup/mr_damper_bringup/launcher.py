@@ -114,6 +114,12 @@ def progress_line(monitor, elapsed):
         wk = (metrics or {}).get('rms_body_accel_wk')
         if wk is not None:
             car += f', Wk {wk:.3f} m/s^2'
+    ctrl = status.get('controller') or {}
+    if ctrl:
+        # the law runs in the controller node: its mode says whether it has a model (the car's
+        # says only whether commands come)
+        car += (f' | controller {ctrl.get("mode", "?")}'
+                + (f' ({ctrl.get("reason")})' if ctrl.get('mode') == 'failsafe' else ''))
     return f'[{elapsed:6.1f} s] recorded {n_meas} samples | {ident} | {car}'
 
 
@@ -580,6 +586,7 @@ def main(argv=None):
             if full_car:
                 summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
                                                        out, plots=not args.no_plots)
+            summary['control'] = report.control_from_recording(out, summary, list(corners))
             (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
@@ -587,6 +594,7 @@ def main(argv=None):
                 print(line, flush=True)
             if full_car:
                 print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
+            print(report.format_control(summary['control']), flush=True)
         else:
             summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
                                          fallback={'config': cfg, 'status': last_status})

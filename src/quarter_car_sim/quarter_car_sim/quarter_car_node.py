@@ -70,8 +70,9 @@ latest force of the rig's lockstep link (``mr_damper/hil_measurement``, one Damp
 per command; best effort, depth 10: only the newest matters); the diagnostics carry ``hil``
 (tracking RMS / peak of desired vs measured displacement, link counts). With ``hil_wait_s > 0``
 each step first waits (at most that long, counted) for the rig's answer to the previous command.
-``probe:=true`` overrides the law's current now and then with the least-filled current bin (also
-in fail-safe, so the identifier sees every current bin); the diagnostics carry ``probe``.
+``probe:=true`` overrides the law's current now and then with a starving current bin, the one
+farthest from the covered ones first (also in fail-safe, so the identifier sees every current
+bin); the diagnostics carry ``probe``.
 
 Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
 blocks the control loop; a ``publish()`` that fails anyway is counted
@@ -153,8 +154,8 @@ PARAMETERS = (
           'last command before the next step (0 = never wait: hard real time; > 0: the loop '
           'slows down to the rig instead of running on stale forces) [s, wall clock]',
           0.0, 1.0),
-    Param('probe', False, 'Probe the least-filled current bin now and then so the identifier '
-          'sees every current (quarter_car_sim.probing)'),
+    Param('probe', False, 'Probe a starving current bin (the farthest from the covered ones '
+          'first) now and then so the identifier sees every current (quarter_car_sim.probing)'),
     Param('probe_bin_a', 0.1, 'Probe bin width (the identifier\'s current_bin_a) [A]',
           0.001, 10.0),
     Param('probe_period_s', 1.0, 'Time between probe windows [s]', 0.01, 3600.0),

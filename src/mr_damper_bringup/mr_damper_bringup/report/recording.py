@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mr_damper_bringup.report.control import ControlWatch
 from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
                                       namespaced_table, NODE_PARAMETERS_TOPIC, SENSING_TOPICS,
                                       STATUS_KEYS, SUITE_TOPICS)
@@ -68,7 +69,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
         or one that goes down starts a life; ``counts``: its ``(t, count)`` series),
         ``gap_events`` (``(receive time, samples missing)`` of each stamp gap) and
         ``car_modes`` (runs ``[first_s, last_s, fail_safe_mode]`` of the car state, split at a
-        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]).
+        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]) and
+        ``control`` (:class:`~mr_damper_bringup.report.control.ControlWatch` of the statuses).
 
     """
     import yaml
@@ -89,7 +91,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
            'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
            'measurement_out_of_order': 0, 'bad_messages': {}, 'start_epoch_s': None,
            'end_epoch_s': None, 'parts': [], 'identifier_lives': [], 'car_modes': [],
-           'gap_events': []}
+           'gap_events': [], 'control': ControlWatch()}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
     params = JsonLines(work / 'parameters.jsonl')
     gaps = _Gaps()
@@ -134,7 +136,9 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                     elif key in ('parameters', 'truth', 'truth_spencer'):
                         d = decode_parameters(msg)
                     else:
-                        for node, d in decode_status(key, msg).items():
+                        statuses = decode_status(key, msg)
+                        rec['control'].update(statuses, _sent_at(msg, t_rx))
+                        for node, d in statuses.items():
                             rec['status'][node] = d
                             rec['status_messages'][node] = \
                                 rec['status_messages'].get(node, 0) + 1
@@ -169,6 +173,25 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
         rec['status'] = {**{k: d for k, d in rec['status'].items()
                             if not k.startswith(f'{namespace}/')}, **mine}
     return rec
+
+
+def _sent_at(msg, t_rx):
+    """
+    Time [s] a status was sent: its stamp, or the receive time ``t_rx``.
+
+    The stamp is the node's clock: wall time, unless the node runs on a replay's ``/clock``
+    (then far from the receive time, which is used instead). A recorder that fell behind
+    receives statuses late and in bursts; their stamps keep the nodes' own timing.
+    """
+    stamp = getattr(getattr(msg, 'header', None), 'stamp', None)
+    if stamp is None:
+        return t_rx
+    t = stamp.sec + stamp.nanosec * 1e-9
+    return t if abs(t - t_rx) < STAMP_TRUST_S else t_rx
+
+
+#: a status stamp further than this from its receive time [s] is not wall time (sim time)
+STAMP_TRUST_S = 60.0
 
 
 #: a silence of the car state longer than this [s] ends a run of its mode (the car was down)
