@@ -1,4 +1,6 @@
 """Setup for the semi_active_control ament_python package."""
+import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'semi_active_control'
@@ -15,6 +17,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/models', glob.glob('config/models/*.json')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
