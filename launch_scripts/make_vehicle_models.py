@@ -1,6 +1,8 @@
 """
-Regenerate the four damper models the vehicle configuration ships (``src/semi_active_control/
-config/models/<corner>.json``) with ``mr-damper-identify --batch`` from the repository's data.
+Regenerate the vehicle configuration's four damper models with ``mr-damper-identify --batch``.
+
+The files are ``src/semi_active_control/config/models/<corner>.json``, made from the
+repository's data.
 
 Usage: ``.venv/bin/python launch_scripts/make_vehicle_models.py [--out DIR]``
 
