@@ -65,18 +65,20 @@ STATE_GROUPS = {'travel': slice(0, 4), 'tyre_def': slice(4, 8), 'body_rates': sl
 N_CAR = 15
 N_E = N_CAR + len(ACCEL_CORNERS)
 #: Typical size of each state kind [SI] (scaling of the observability test).
-STATE_SCALES = {'travel': 0.01, 'tyre_def': 0.002, 'rate': 0.1, 'wheel_v': 0.3, 'bias': 0.1}
+STATE_SCALES = {'travel': 0.01, 'tyre_def': 0.002, 'rate': 0.1, 'wheel_v': 0.3, 'bias': 0.1,
+                'force': 300.0}
 
 
 def _accel_rows(params, accel_corners=ACCEL_CORNERS):
     return [CORNERS.index(c) for c in accel_corners]
 
 
-def state_names(accel_corners=ACCEL_CORNERS):
-    """Return the estimator's state names (``travel_fl``, ..., ``bias_accel_<c>``)."""
+def state_names(accel_corners=ACCEL_CORNERS, force_states=False):
+    """Return the estimator's state names (``travel_fl``, ..., ``bias_accel_<c>``, ...)."""
     return ([f'travel_{c}' for c in CORNERS] + [f'tyre_def_{c}' for c in CORNERS]
             + ['rate_heave', 'rate_pitch', 'rate_roll'] + [f'wheel_v_{c}' for c in CORNERS]
-            + [f'bias_accel_{c}' for c in accel_corners])
+            + [f'bias_accel_{c}' for c in accel_corners]
+            + ([f'force_{c}' for c in CORNERS] if force_states else []))
 
 
 def body_accelerations(params, accel):
@@ -155,7 +157,8 @@ class FullCarDesign:
 
 
 def design_full_car_estimator(params, dt, *, accel=None, travel=None, road_class='C',
-                              speed_m_s=20.0, q_bias=1.0e-4, accel_corners=ACCEL_CORNERS):
+                              speed_m_s=20.0, q_bias=1.0e-4, accel_corners=ACCEL_CORNERS,
+                              force_states=False, q_force=1.0e8, force_tau_s=0.05):
     """
     Design the full-car Kalman filter (``control.dlqe`` on the exactly discretised model).
 
@@ -175,6 +178,20 @@ def design_full_car_estimator(params, dt, *, accel=None, travel=None, road_class
     accel_corners : sequence of str
         Corners whose body point carries an accelerometer (at least three, not on one line;
         default :data:`ACCEL_CORNERS`; a vehicle bus may carry all four).
+    force_states : bool
+        Estimate the four damper forces as states (first-order Gauss-Markov processes of
+        correlation time ``force_tau_s`` driven by white noise of intensity ``q_force``
+        [N^2/s], seen through the accelerometers and the travels' dynamics) instead of taking
+        them as a known input only: for a vehicle, whose damper force is not measured and whose
+        identified model, evaluated at the estimate and held over a cycle, is a stiff feedback
+        that makes the filter diverge (an MR damper's force changes by tens of kN per m/s near
+        zero velocity). The known input (``forces`` of a step) is then added to them.
+    q_force : float
+        Driving intensity of the force states [N^2/s] (1e8: a 2 ms cycle's force change of
+        about 450 N, one standard deviation; 1.6 kN stationary at 0.05 s).
+    force_tau_s : float
+        Correlation time of the force states [s] (a random walk, the limit of a long one,
+        leaves the Riccati equation ill-conditioned: ``dlqe`` then finds no solution).
 
     Returns
     -------
@@ -193,6 +210,10 @@ def design_full_car_estimator(params, dt, *, accel=None, travel=None, road_class
     A, B, G, C, D = _continuous(params, accel_corners)
     W = np.diag([road_velocity_intensity(road_class, speed_m_s)] * 4 + [q_bias] * na)
     n = N_CAR + na
+    if force_states:
+        A, G, C, W = _with_force_states(A, B, G, C, D, W, q_force, force_tau_s)
+        B = np.vstack([B, np.zeros((4, 4))])
+        n += 4
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n] = -A * dt
     M[:n, n:] = G @ W @ G.T * dt
@@ -217,7 +238,23 @@ def design_full_car_estimator(params, dt, *, accel=None, travel=None, road_class
     return FullCarDesign(dt=float(dt), Ad=Ad, Bd=Bd, Qd=Qd, H=C, Dm=D, R=R, L=np.asarray(L),
                          P=P, M=Mg, A=A, B=B, params=params, accel=accel, travel=travel,
                          sensors=sensors, accel_corners=accel_corners,
-                         names=state_names(accel_corners))
+                         names=state_names(accel_corners, force_states),
+                         force_slice=slice(n - 4, n) if force_states else None)
+
+
+def _with_force_states(A, B, G, C, D, W, q_force, tau_s):
+    """Append four Gauss-Markov force states to ``A, G, C, W`` (they act as ``B`` does)."""
+    n = A.shape[0]
+    A2 = np.zeros((n + 4, n + 4))
+    A2[:n, :n] = A
+    A2[:n, n:] = B
+    A2[n:, n:] = -np.eye(4) / float(tau_s)
+    G2 = np.zeros((n + 4, G.shape[1] + 4))
+    G2[:n, :G.shape[1]] = G
+    G2[n:, G.shape[1]:] = np.eye(4)
+    C2 = np.hstack([C, D])
+    W2 = np.diag(np.concatenate([np.diag(W), [float(q_force)] * 4]))
+    return A2, G2, C2, W2
 
 
 def observes_the_car(design, sensors):
@@ -467,14 +504,16 @@ class FullCarEstimator:
                                       self._same)
                 stuck |= frozen
             bad = stuck
+        out = None
         if self._lo is not None:
             out = (y <= self._lo) | (y >= self._hi)       # NaN: False (not a reading)
             bad = out if bad is None else bad | out
         if bad is None:
             return np.zeros(len(y), dtype=bool)
         if bad.any():
-            self._why = np.where(self._same + 1 >= self._stuck_n, 'stuck', 'range') \
-                if self._stuck_n is not None else np.full(len(y), 'range')
+            # a saturated reading also repeats: it is named out of range
+            self._why = np.where(out, 'range', 'stuck') if out is not None else \
+                np.full(len(y), 'stuck')
         return bad
 
     def _judge(self, t, use, got):
@@ -534,6 +573,16 @@ class FullCarEstimator:
                   and observes_the_car(self.d, [s for s, u in zip(self.sensors, live) if u]))
             self._observable[key] = ok
         return ok
+
+    @property
+    def forces(self):
+        """Damper forces of the last step on the body [N] (held over the period after it)."""
+        return self._f
+
+    def prediction(self):
+        """Return the state predicted one period on from the last step, before its readings."""
+        d = self.d
+        return d.Ad @ self.x + d.Bd @ self._f
 
     def _predict(self):
         d = self.d
