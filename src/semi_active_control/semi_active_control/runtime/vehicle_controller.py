@@ -174,7 +174,9 @@ class VehicleControllerCore:
         sequence : int
             The cycle's number.
         valid : bool
-            The estimate's validity; ``reason`` why it is not valid.
+            The estimate's validity.
+        reason : str
+            Why it is not valid ('' when valid).
         t_now : float
             The caller's clock [s] (same clock as the stamps): supervisors and deadline.
 
@@ -257,7 +259,7 @@ class VehicleControllerCore:
 
     def status(self, t_now=None):
         """
-        Return the status (``/diagnostics`` values; JSON-ready).
+        Summarise the controller (``/diagnostics`` values; JSON-ready).
 
         Returns
         -------
