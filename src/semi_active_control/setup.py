@@ -27,6 +27,11 @@ setup(
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'vehicle_estimator_node = semi_active_control.entry_points:vehicle_estimator_node',
+            'vehicle_controller_node = '
+            'semi_active_control.entry_points:vehicle_controller_node',
+            'lifecycle_manager = semi_active_control.entry_points:lifecycle_manager',
+        ],
     },
 )

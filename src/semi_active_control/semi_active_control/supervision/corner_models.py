@@ -118,11 +118,22 @@ class CornerModels:
         return out
 
     def offer_live(self, corner, values, t_clock):
-        """Offer a live identifier's decoded set to a live corner (a file corner ignores it)."""
+        """
+        Offer a live identifier's set to a live corner (a file corner ignores it: None).
+
+        ``values`` is the decoded set, or the ``ValueError`` its decoder raised: refused with
+        the decoder's reason when the supervisor knows it (``bad_i_ref``), else as
+        ``undecodable``. Returns the supervisor's ``Verdict``.
+        """
         i = self.index(corner)
         if self.files[i]:
             return None
-        return self.supervisors[i].offer(values, t_clock)
+        sup = self.supervisors[i]
+        if isinstance(values, ValueError):
+            reason = getattr(values, 'reason', None)
+            return sup.refuse(reason if reason in sup.rejected else 'undecodable',
+                              str(values), t_clock)
+        return sup.offer(values, t_clock)
 
     def update(self, t_clock):
         """Advance every supervisor to ``t_clock`` [s]; return the modes."""
