@@ -246,6 +246,14 @@ class SimulatedEcu:
         for ch in self.ch.values():
             ch.current_a += decay * (self._target(ch, now) - ch.current_a)
 
+    def commanded(self, now=None):
+        """Return True when every channel has a fresh command without its fail-safe bit."""
+        now = self.clock() if now is None else now
+        with self.lock:
+            return all(ch.fault is None and ch.last_command_t is not None
+                       and now - ch.last_command_t <= self.command_timeout_s
+                       and not ch.failsafe_bit for ch in self.ch.values())
+
     def drive_targets(self, now=None):
         """
         Return each channel's coil current set point now [A] (``corners`` order).
@@ -344,11 +352,16 @@ class SimulatedEcu:
             due = min(self._next_status, self._next_sensor if self.sensors else math.inf)
             self._stop.wait(max(min(due - self.clock(), period), 0.0))
 
-    def start(self):
-        """Read the bus (Notifier) and run the ECU cycle in a thread of its own."""
+    def start(self, cycle=True):
+        """
+        Read the bus (Notifier) and run the ECU cycle in a thread of its own.
+
+        With ``cycle`` False only the reader starts: the caller runs the cycle with
+        :meth:`step` (a simulated car steps its ECU with its own time).
+        """
         if self.bus is not None and self._notifier is None:
             self._notifier = can.Notifier(self.bus, [self.on_frame], timeout=0.1)
-        if self._thread is None:
+        if cycle and self._thread is None:
             self._stop.clear()
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
@@ -377,6 +390,7 @@ class SimulatedEcu:
         """Return the status dict: per corner counts, command, current, fault; frame counts."""
         with self.lock:
             corners = {c: {'received': ch.received, 'command_timeouts': ch.timeouts,
+                           'timed_out': ch._timed_out or ch.last_command_t is None,
                            'bad_checksum': ch.bad_checksum,
                            'counter_jumps': ch.counter_jumps, 'frames_missed': ch.frames_missed,
                            'repeated': ch.repeated,

@@ -136,7 +136,10 @@ def autostart(node):
 
 def end_managed(node):
     """
-    Bring a managed node to its end: deactivate (the safe state) if active, then shut down.
+    Bring a managed node to its end: deactivate (the safe state), final status, shut down.
+
+    The final ``/diagnostics`` status (``DiagnosticsPublisher.publish_final``: it waits for
+    the readers' acknowledgement) holds the counts of the whole run.
 
     For the process's end (``run_node``'s ``finish``); errors of a context already going down
     are ignored.
@@ -144,6 +147,9 @@ def end_managed(node):
     try:
         if is_active(node):
             node.trigger_deactivate()
+        diagnostics = getattr(node, 'diagnostics', None)
+        if diagnostics is not None:       # the final counts, before the core goes
+            diagnostics.publish_final()
         if node._state_machine.current_state[0] != State.PRIMARY_STATE_FINALIZED:
             node.trigger_shutdown()
     except Exception as exc:  # noqa: B902 - the context may be gone after Ctrl-C

@@ -192,6 +192,13 @@ class VehicleEstimatorCore:
         self.readings_received = dict.fromkeys(BUS_SENSORS, 0)
         self.readings_replaced = dict.fromkeys(BUS_SENSORS, 0)
 
+    def reset(self):
+        """Start again (a new configuration): the filter at rest, the counts kept."""
+        self.filter.reset()
+        self.cycles = SequenceTracker()
+        self._pending = {}
+        self.last = None
+
     def step(self, sequence, t, body_accel, travel):
         """
         Run one sensor cycle; return the :class:`VehicleEstimate` (None: cycle not used).

@@ -19,9 +19,10 @@ Inputs (``input``):
   ``state_estimator_node`` takes them; a cycle runs at each reading of the ``clock_corner``'s
   position sensor, at its stamp.
 
-Lifecycle: **configure** designs the filter (a few seconds: ``control.dlqe``) and subscribes;
+Lifecycle: the filter is designed when the node starts (a few seconds: ``control.dlqe``);
+**configure** starts it at rest and subscribes;
 **activate** starts publishing; **deactivate** stops publishing (the controller then falls
-back on its sensor timeout); **cleanup** drops the topics and the filter.
+back on its sensor timeout); **cleanup** drops the topics.
 
 Topics out: ``vehicle/state`` (mr_damper_interfaces/FullCarState; reliable, KEEP_LAST 2),
 ``~/heartbeat``, ``/diagnostics`` (status ``vehicle_estimator``: validity, sensor faults with
@@ -36,7 +37,7 @@ from sensor_msgs.msg import Imu, JointState
 
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
-from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
+from mr_damper_common.lifecycle_utils import (MANAGED_PARAMETERS, managed_services,
                                               run_managed, state_label, SUCCESS)
 from mr_damper_common.node_utils import (declare_parameters, FastLane, Param, SENSOR_QOS,
                                          set_realtime_priority, VEHICLE_QOS)
@@ -72,6 +73,17 @@ class VehicleEstimatorNode(LifecycleNode):
         super().__init__('vehicle_estimator', **node_kwargs)
         self.p = declare_parameters(self, PARAMETERS)
         self.lock = threading.Lock()
+        p = self.p
+        if p['input'] not in INPUTS or p['clock_corner'] not in CORNERS:
+            raise ValueError(f'input must be one of {INPUTS} and clock_corner one of '
+                             f'{CORNERS}, got {p["input"]!r}, {p["clock_corner"]!r}')
+        # the filter's design (control.dlqe: seconds on a small computer) before the node is
+        # up, so a transition never blocks the node's heartbeat for that long
+        self.filter_core = VehicleEstimatorCore(PASSENGER_CAR, EstimatorSettings(
+            cycle_s=p['cycle_s'], accel_noise_density=p['accel_noise_density'],
+            travel_noise_density=p['travel_noise_density'], road_class=p['road_class'],
+            speed_m_s=p['speed_m_s'], dropout_s=p['dropout_s'],
+            stuck_accel_s=p['stuck_accel_s'], stuck_travel_s=p['stuck_travel_s']))
         self.core = None
         self.active = False
         self.lane = None
@@ -82,22 +94,10 @@ class VehicleEstimatorNode(LifecycleNode):
 
     # --- lifecycle ------------------------------------------------------------------------------
     def on_configure(self, state):
-        """Design the filter and subscribe to the sensors."""
+        """Start the filter at rest and subscribe to the sensors."""
         p = self.p
-        if p['input'] not in INPUTS or p['clock_corner'] not in CORNERS:
-            self.get_logger().error(f'input must be one of {INPUTS} and clock_corner one of '
-                                    f'{CORNERS}, got {p["input"]!r}, {p["clock_corner"]!r}')
-            return FAILURE
-        try:
-            settings = EstimatorSettings(
-                cycle_s=p['cycle_s'], accel_noise_density=p['accel_noise_density'],
-                travel_noise_density=p['travel_noise_density'], road_class=p['road_class'],
-                speed_m_s=p['speed_m_s'], dropout_s=p['dropout_s'],
-                stuck_accel_s=p['stuck_accel_s'], stuck_travel_s=p['stuck_travel_s'])
-            core = VehicleEstimatorCore(PASSENGER_CAR, settings)
-        except ValueError as exc:
-            self.get_logger().error(f'configure refused: {exc}')
-            return FAILURE
+        core = self.filter_core
+        core.reset()
         with self.lock:
             self.core = core
         self.pub = self.create_publisher(FullCarState, 'vehicle/state', VEHICLE_QOS)
@@ -133,7 +133,7 @@ class VehicleEstimatorNode(LifecycleNode):
         return SUCCESS
 
     def on_cleanup(self, state):
-        """Drop the topics and the filter."""
+        """Drop the topics."""
         self._teardown()
         return SUCCESS
 

@@ -5,7 +5,9 @@ The order of a chain of managed (lifecycle) nodes, as nav2's lifecycle manager k
 next: ``configure`` every node in the chain's order, then ``activate`` every node in that order
 (the vehicle: bridge, estimator, controller, so the controller starts commanding only when the
 whole chain is there). Each node is watched through a heartbeat that carries its lifecycle
-state: a node whose heartbeat stops for ``heartbeat_timeout_s`` is dead, and a dead node
+state: a node whose heartbeat stops for ``heartbeat_timeout_s`` is dead (not while a
+transition it was asked for runs: the node's executor is busy with it, up to
+``service_timeout_s``), and a dead node
 deactivates the chain: every active node left is deactivated in the reverse order (the
 controller first: its deactivation puts every corner on the safe current; the bridge last: it
 then sends the safe current itself). When the node is back (restarted: its heartbeat says
@@ -113,8 +115,11 @@ class LifecycleChain:
 
     # --- decisions ------------------------------------------------------------------------------
     def _check_alive(self, t):
+        busy = self.pending[0] if self.pending is not None else None
         for n in self.nodes:
             seen = self.seen[n]
+            if n == busy:
+                continue        # a transition runs in the node's executor: no heartbeat then
             if self.alive[n] and (seen is None or t - seen > self.heartbeat_timeout_s):
                 self.alive[n] = False
                 self.state[n] = 'unknown'
