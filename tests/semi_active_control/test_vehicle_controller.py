@@ -31,7 +31,7 @@ def states(n, seed=1, t0=10.0):
     """Plausible estimates: body rates, travels and their rates (random, smooth enough)."""
     rng = np.random.default_rng(seed)
     for k in range(n):
-        yield full_car_state(PASSENGER_CAR, t0 + k * P, rng.normal(size=3) * 0.01,
+        yield full_car_state(PASSENGER_CAR.geometry, t0 + k * P, rng.normal(size=3) * 0.01,
                              rng.normal(size=3) * 0.1, rng.normal(size=3), rng.normal(size=4)
                              * 0.01, rng.normal(size=4) * 0.1, rng.normal(size=4) * 0.002,
                              rng.normal(size=4) * 0.2, rng.normal(size=4) * 300)

@@ -258,7 +258,8 @@ class VehicleBridge(CanBridge):
         for c, v, f in zip(CORNERS, values, flags):
             signals[f'CMD_CURRENT_{c.upper()}'] = v
             signals[f'CMD_FAILSAFE_{c.upper()}'] = f
-        frame_id, data = self.codec.encode(VEHICLE_COMMAND, signals)
+        # every value is inside its range: the limiter clamped the currents, the bits are 0 / 1
+        frame_id, data = self.codec.encode(VEHICLE_COMMAND, signals, strict=False)
         self._last_all_t = now
         if not self._transmit(frame_id, data):
             return False

@@ -87,6 +87,7 @@ class VehicleControllerNode(LifecycleNode):
         self.cmd_pub = None
         self.timer = None
         self.cmd_msg = FullCarCommand()
+        self.geometry = PASSENGER_CAR.geometry
         managed_services(self, self.p, 'vehicle_controller')
 
     # --- lifecycle ------------------------------------------------------------------------------
@@ -183,7 +184,7 @@ class VehicleControllerNode(LifecycleNode):
     def on_state(self, msg):
         """Answer one state (the lane's thread)."""
         f = messages.full_car_state_fields(msg)
-        state = full_car_state(PASSENGER_CAR, f['t'], f['body'], f['body_rates'],
+        state = full_car_state(self.geometry, f['t'], f['body'], f['body_rates'],
                                f['body_acc'], f['travel'], f['travel_velocity'],
                                f['tyre_deflection'], f['wheel_velocity'], f['damper_force'])
         now = node_time_s(self)

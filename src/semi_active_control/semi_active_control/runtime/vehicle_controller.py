@@ -70,16 +70,17 @@ class VehicleCommand:
     reasons: list = field(default_factory=list)
 
 
-def full_car_state(params, t, body, body_rates, body_acc, travel, travel_velocity,
+def full_car_state(geometry, t, body, body_rates, body_acc, travel, travel_velocity,
                    tyre_deflection, wheel_velocity, damper_force):
     """
     Build the laws' :class:`~quarter_car_sim.full_car.dynamics.FullCarState` from an estimate.
 
+    ``geometry`` is the car's corner map ``T`` (``FullCarParams.geometry``, shape (4, 3)).
     Road heights are 0 (the wheel height is the tyre deflection, as the estimator gives it);
     tyre forces and coil currents, which no law reads, are NaN. All arrays SI, corners
     ``fl, fr, rl, rr``; ``body`` is heave [m], pitch, roll [rad].
     """
-    T = params.geometry
+    T = geometry
     rates = np.asarray(body_rates, dtype=float)
     acc3 = np.asarray(body_acc, dtype=float)
     tyre = np.asarray(tyre_deflection, dtype=float)
@@ -126,6 +127,7 @@ class VehicleControllerCore:
         if isinstance(law, str):
             law = make_full_car_law(law, params, dt=cycle_s)
         self.params = params
+        self.geometry = params.geometry
         self.models = models
         self.controller = FullCarController(law, models.supervisors)
         self.monitor = DeadlineMonitor(cycle_s, deadline_s=deadline_s,
