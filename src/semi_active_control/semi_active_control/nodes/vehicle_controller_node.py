@@ -109,9 +109,13 @@ class VehicleControllerNode(LifecycleNode):
             return FAILURE
         verdicts = core.configure(node_time_s(self))
         for corner, verdict in verdicts.items():
-            log = self.get_logger().info if verdict.accepted else self.get_logger().warning
-            detail = f': {verdict.detail}' if verdict.detail else ''
-            log(f'{corner}: model file {verdict.reason}{detail}')
+            # (one severity per call site: rclpy refuses a line that logs at two)
+            if verdict.accepted:
+                self.get_logger().info(f'{corner}: model file ok')
+            else:
+                self.get_logger().warning(f'{corner}: model file refused ({verdict.reason}): '
+                                          f'{verdict.detail}; the corner stays on its safe '
+                                          'current')
         with self.lock:
             self.core = core
         self.cmd_pub = self.create_publisher(FullCarCommand, 'vehicle/command', VEHICLE_QOS)
@@ -140,9 +144,8 @@ class VehicleControllerNode(LifecycleNode):
     def on_deactivate(self, state):
         """Put every corner on the safe current (one command), then stop commanding."""
         now = node_time_s(self)
-        with self.lock:
-            cmd = self.core.deactivate(now)
-        self._publish(cmd, now)
+        with self.lock:         # published under the lock: no law command after this one
+            self._publish(self.core.deactivate(now), now)
         return SUCCESS
 
     def on_cleanup(self, state):
@@ -192,16 +195,16 @@ class VehicleControllerNode(LifecycleNode):
             if self.core is None:
                 return
             cmd = self.core.command(state, f['sequence'], f['valid'], f['reason'], now)
-        if cmd is not None:
-            self._publish(cmd, now)
+            if cmd is not None:
+                self._publish(cmd, now)
 
     def on_check(self):
         """Sensor timeout: the safe command while no state comes (timer)."""
         now = node_time_s(self)
         with self.lock:
             cmd = self.core.check(now) if self.core is not None else None
-        if cmd is not None:
-            self._publish(cmd, now)
+            if cmd is not None:
+                self._publish(cmd, now)
 
     def on_params(self, i, msg):
         """Offer a live identifier's set to corner ``i``."""
