@@ -222,8 +222,15 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         t, acc = z['t'], z['acc']
     t0 = can.get('t_normal')
     t0 = float(t0) if isinstance(t0, (int, float)) and t0 == t0 else None
-    if t0 is None or len(t) < 10 or t[-1] <= t0 + 1.0:
-        section['note'] = 'the vehicle computer never took control long enough: no a_v'
+    if t0 is None:
+        # the law never had every corner: the whole recorded ride (t >= 0) is compared
+        section['note'] = 'every driver never had a law command at once: whole run compared'
+        t0 = 0.0
+        if section['driver_command_timeouts'] is None:
+            section['driver_command_timeouts'] = sum(d.get('command_timeouts') or 0
+                                                     for d in drivers.values())
+    if len(t) < 10 or t[-1] <= t0 + 1.0:
+        section['note'] = f'{len(t)} body samples after t = {t0:g} s: no a_v'
         return finite_or_none(section)
     w = t >= t0
     section.update(window_s=[t0, float(t[-1])], a_v=_a_v(t[w], acc[w]))

@@ -119,7 +119,13 @@ def run_managed(make_node, name, errors=(ValueError,), args=None):
 
     ``make_node()`` builds the node (its parameters in ``node.p``, with ``autostart``); at the
     end an active node is deactivated (its safe state) and shut down (:func:`end_managed`).
+    A short GIL switch interval (0.5 ms, as the car nodes): a managed node's hot input runs in
+    a lane thread of its own next to the executor's and the middleware's, and a thread that
+    becomes ready waits for the one holding the GIL at most that long instead of 5 ms.
     """
+    import sys
+    sys.setswitchinterval(0.0005)
+
     def run(node):
         if node.p['autostart']:
             autostart(node)
