@@ -88,7 +88,8 @@ def test_inactive_bridge_forwards_nothing_and_keeps_the_drivers_on_the_safe_curr
         rig.step()
     assert rig.bridge.command_all([1.0] * 4, [False] * 4, 3) is None
     st = rig.bridge.status()
-    assert st['cycles']['commands_inactive'] == 1 and st['cycles']['safe_frames'] == 10
+    # 20 ms inactive: a safe frame every safe_period_s (10 ms), the first at once
+    assert st['cycles']['commands_inactive'] == 1 and st['cycles']['safe_frames'] == 2
     ecu = rig.ecu.status()['corners']
     assert all(ecu[c]['target_a'] == 0.5 and ecu[c]['failsafe_bit'] == 1 for c in ecu)
     assert all(st['corners'][c]['reason'] == 'inactive' for c in codec.CORNERS)

@@ -21,7 +21,8 @@ on a full car's bus (``codec.bus_layout('vehicle')``):
   counted (:class:`~mr_damper_common.latency.LatencyHistogram`; on time when within
   ``cycle_s``), and cycles never answered are counted too;
 - **managed**: while not :attr:`active` (configured, or deactivated) the bridge forwards no
-  command and sends the safe current with every fail-safe bit each ``cycle_s`` (:meth:`tick`;
+  command and sends the safe current with every fail-safe bit each ``safe_period_s``
+  (:meth:`tick`, well inside the drivers' own command timeout;
   :meth:`deactivate` sends it at once, so the drivers get the safe current within one cycle,
   not the last command). While active it only forwards: a controller that falls silent gets
   nothing re-sent in its name, and the drivers fall back on their own command timeout.
@@ -86,8 +87,9 @@ class VehicleBridge(CanBridge):
     bus : can.BusABC or None
         The bus (None: frames are only collected, :attr:`sent`).
     cycle_s : float
-        Sensor and command cycle [s] (the deadline of an answer; the safe frames' period
-        while inactive).
+        Sensor and command cycle [s] (the deadline of an answer).
+    safe_period_s : float
+        Period of the safe frames while inactive [s].
     safe_current_a, rx_timeout_s, command_timeout_s, db, on_driver, clock
         As :class:`~mr_damper_can.bridge.CanBridge` (``command_timeout_s`` only reports a
         silent controller, ``command_timeout``; nothing is sent in its name).
@@ -98,7 +100,8 @@ class VehicleBridge(CanBridge):
 
     """
 
-    def __init__(self, bus, *, cycle_s=0.002, safe_current_a=0.5, rx_timeout_s=0.05,
+    def __init__(self, bus, *, cycle_s=0.002, safe_period_s=0.01, safe_current_a=0.5,
+                 rx_timeout_s=0.05,
                  command_timeout_s=0.02, db=None, on_cycle=None, on_driver=None,
                  clock=time.monotonic, wall=time.time):
         if not (math.isfinite(cycle_s) and cycle_s > 0):
@@ -107,6 +110,9 @@ class VehicleBridge(CanBridge):
                          command_timeout_s=command_timeout_s, rx_timeout_s=rx_timeout_s,
                          resend_period_s=cycle_s, db=db, on_driver=on_driver, clock=clock)
         self.cycle_s = float(cycle_s)
+        if not (math.isfinite(safe_period_s) and safe_period_s > 0):
+            raise ValueError(f'`safe_period_s` must be > 0, got {safe_period_s}')
+        self.safe_period_s = float(safe_period_s)
         self.on_cycle = on_cycle
         self.wall = wall
         self.active = False
@@ -276,9 +282,10 @@ class VehicleBridge(CanBridge):
 
     def tick(self, now=None):
         """
-        Check the timeouts; while inactive send the safe frame each cycle. Frames sent.
+        Check the timeouts; while inactive send the safe frame each ``safe_period_s``.
 
-        Call it at least every ``cycle_s`` (a timer of half the cycle).
+        Call it at least every ``safe_period_s`` (a timer of half that). Returns the frames
+        sent.
         """
         now = self.clock() if now is None else now
         with self.lock:
@@ -286,7 +293,7 @@ class VehicleBridge(CanBridge):
             for c in self.corners:
                 self._update_mode(c, now)
             if self.active or (self._last_all_t is not None
-                               and now - self._last_all_t < 0.99 * self.cycle_s):
+                               and now - self._last_all_t < 0.99 * self.safe_period_s):
                 return 0
             return int(self._send_safe(now))
 

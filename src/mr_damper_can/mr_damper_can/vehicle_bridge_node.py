@@ -10,10 +10,11 @@ the sensor cycle it answers. See docs/can.md and docs/vehicle.md.
 
 Lifecycle: **configure** opens the bus (python-can) and starts reading it; the bridge is then
 inactive: it publishes the sensor cycles and sends the safe current with every fail-safe bit
-each cycle, whatever comes on ``vehicle/command``. **activate** forwards the commands (and
-nothing else: a silent controller leaves the drivers to their own timeout). **deactivate**
-sends the safe current at once and each cycle after. **cleanup** stops reading and closes the
-bus (the drivers then fall back on their own timeout and safe current).
+every ``safe_period_s``, whatever comes on ``vehicle/command``. **activate** forwards the
+commands (and nothing else: a silent controller leaves the drivers to their own timeout).
+**deactivate** sends the safe current at once and every ``safe_period_s`` after. **cleanup**
+stops reading and closes the bus (the drivers then fall back on their own timeout and safe
+current).
 
 Topics (relative)
 -----------------
@@ -48,8 +49,9 @@ PARAMETERS = (
     Param('channel', '239.74.163.2:43113', 'Bus channel (udp_loopback: group:port; socketcan: '
           'can0)'),
     Param('bitrate', 1000000, 'CAN bit rate of hardware interfaces [bit/s]', 10000, 1000000),
-    Param('cycle_s', 0.002, 'Sensor and command cycle [s]: an answer\'s deadline, the period of '
-          'the safe frames while inactive', 1e-4, 1.0),
+    Param('cycle_s', 0.002, 'Sensor and command cycle [s]: an answer\'s deadline', 1e-4, 1.0),
+    Param('safe_period_s', 0.01, 'Period of the safe frames while inactive [s] (inside the '
+          'drivers\' command timeout)', 1e-3, 1.0),
     Param('safe_current_a', 0.5, 'Current sent for every corner while inactive, and for a '
           'corner the bridge holds in fail-safe (driver fault, bus off, driver silent) [A]',
           0.0, 2.55),
@@ -86,7 +88,7 @@ class VehicleBridgeNode(LifecycleNode):
         p = self.p
         try:
             self.bus = make_bus(p['interface'], p['channel'], p['bitrate'])
-            core = VehicleBridge(self.bus, cycle_s=p['cycle_s'],
+            core = VehicleBridge(self.bus, cycle_s=p['cycle_s'], safe_period_s=p['safe_period_s'],
                                  safe_current_a=p['safe_current_a'],
                                  rx_timeout_s=p['rx_timeout_s'],
                                  command_timeout_s=p['command_timeout_s'],
@@ -101,7 +103,7 @@ class VehicleBridgeNode(LifecycleNode):
         self.lane = FastLane(self, 'commands')
         self.cmd_sub = self.lane.node.create_subscription(FullCarCommand, 'vehicle/command',
                                                           self.on_command, VEHICLE_QOS)
-        self.timer = self.create_timer(p['cycle_s'] / 2.0, lambda: core.tick())
+        self.timer = self.create_timer(p['safe_period_s'] / 2.0, lambda: core.tick())
         core.start(log_file=p['log_file'] or None)
         self.lane.start()
         set_realtime_priority(int(p['realtime_priority']), self.get_logger())

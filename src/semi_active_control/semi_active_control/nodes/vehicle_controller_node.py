@@ -68,8 +68,8 @@ PARAMETERS = (
     Param('recover_cycles', 50, 'Cycles in a row on time that end deadline_misses', 1, 100000),
     Param('sensor_timeout_s', 0.02, 'No state for this long: every corner on the safe current '
           '(sensor_timeout) [s]', 1e-3, 60.0),
-    Param('check_period_s', 0.005, 'Period of the sensor timeout check and of the safe '
-          'commands while it lasts [s]', 1e-3, 1.0),
+    Param('check_period_s', 0.01, 'Period of the sensor timeout check and of the safe '
+          'commands while it lasts [s] (inside the drivers\' command timeout)', 1e-3, 1.0),
 ) + MANAGED_PARAMETERS
 
 
