@@ -342,3 +342,34 @@ def test_batch_usage_errors(tmp_path, capsys, extra, message):
 def test_without_files_or_batch_the_tool_says_what_is_missing(capsys):
     assert cli_run([]) == 2
     assert 'required: FILE' in capsys.readouterr().err
+
+
+def test_params_files_of_the_table_load_through_params_file(tmp_path):
+    # each damper's end-of-line record as a parameter file: what a vehicle controller loads
+    from mr_damper_model.identification.batch import row_params, write_params_files
+    from mr_damper_model.io.params_file import load_params
+    from mr_damper_model.models import get_model
+    names = get_model('kwok-current').param_names
+    base = {'model': 'kwok-current', 'current_min_a': '0.0', 'current_max_a': '1.0',
+            'nrmse_percent': '2.5', 'seed': '7', 'reason': '', 'test_time': ''}
+    rows = [dict(base, record='a/1', serial='SN1', status='pass',
+                 **{f'p_{n}': repr(float(k + 1)) for k, n in enumerate(names)}),
+            dict(base, record='b', serial='SN2', status='fail', reason='envelope: 3 of 9',
+                 **{f'p_{n}': '2.0' for n in names}),
+            dict(base, record='c', serial='SN3', status='error', model='', error='truncated'),
+            dict(base, record='a/0', serial='SN1', status='pass', test_time='2026-01-01',
+                 **{f'p_{n}': '9.0' for n in names})]
+    written = write_params_files(rows, tmp_path)
+    assert sorted(written) == ['SN1', 'SN2']             # the error row has no model
+    one = load_params(written['SN1'], model='kwok-current')
+    # SN1 tested twice: the newer record (by test time) is the damper's
+    assert one.parameters == {n: 9.0 for n in names}
+    assert one.valid and one.model_options == {'i_ref_a': 2.0}
+    assert (one.current_min_a, one.current_max_a) == (0.0, 1.0)
+    assert one.metrics['nrmse_percent'] == 2.5 and 'record a/0' in one.source
+    two = load_params(written['SN2'])
+    assert two.valid is False and 'envelope: 3 of 9' in two.source
+    master = {'model': 'kwok-current', 'model_options': {'i_ref_a': 1.0}}
+    assert row_params(rows[0], master)['model_options'] == {'i_ref_a': 1.0}
+    with pytest.raises(ValueError, match='no model'):
+        row_params(rows[2])

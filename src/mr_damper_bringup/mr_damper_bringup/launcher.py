@@ -89,6 +89,8 @@ from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL, FULL_CAR_CTRL_NODE, FULL_C
                              full_car_progress_line, full_car_summary, start_full_car)
 from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
 from .processes import CLEAN_EXIT, DomainLock, ProcessStats, Suite
+from .vehicle_suite import (start_vehicle, STOP_ORDER as VEHICLE_STOP_ORDER, VEHICLE_NODES,
+                            vehicle_configs, vehicle_progress_line, vehicle_summary)
 from .recorder import part_path, remove_recording
 from .report import RECORDING
 from .supervisor import HANG_TIMEOUT_S, hang_timeout, HangWatch, RestartPolicy, Supervisor
@@ -346,13 +348,18 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can', 'full-car'),
+    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can', 'full-car', 'vehicle'),
                    default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
                         'hil: the rig follows the car (hardware in the loop, docs/hil.md); '
                         'can: sim with the damper current through a CAN bridge and a simulated '
                         'driver (docs/can.md); full-car: four rig / identifier pairs (fl, fr, '
-                        'rl, rr) and the 7-DOF full_car_node (docs/full-car.md)')
+                        'rl, rr) and the 7-DOF full_car_node (docs/full-car.md); vehicle: the '
+                        'vehicle computer (bridge, estimator, controller) against the car on a '
+                        'CAN bus (docs/vehicle.md)')
+    p.add_argument('--live-identification', action='store_true',
+                   help='vehicle: the models from four rig / identifier stacks instead of the '
+                        'shipped end-of-line records')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -439,6 +446,10 @@ def main(argv=None):
         if full_car:
             corners, car_cfg = full_car_configs(cfg, out, args.duration,
                                                 external=args.external_controller)
+        vehicle = args.config == 'vehicle'
+        if vehicle:
+            corners, car_cfg = vehicle_configs(cfg, out, args.duration, args.domain_id,
+                                               args.live_identification)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -454,19 +465,19 @@ def main(argv=None):
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
     record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
-    if corners:
+    if corners or vehicle:
         # the full car starts before the corners: on its safe currents until their models come
         # (with --external-controller the full car's controller before the car)
         ext_car = full_car and external_full_car(car_cfg)
         nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODE if ext_car else {}),
-                 **(FULL_CAR_NODE if full_car else {})}
+                 **(FULL_CAR_NODE if full_car else {}), **(VEHICLE_NODES if vehicle else {})}
         node_args = {}
         for corner, corner_cfg in corners.items():
             corner_file = out / f'suite_params_{corner}.yaml'
             corner_file.write_text(yaml.safe_dump(corner_cfg, sort_keys=False))
             record_args += ['--namespace', corner]
             for name, exe in suite_nodes(cfg).items():
-                if full_car and name not in (RIG, IDENT):
+                if (full_car or vehicle) and name not in (RIG, IDENT):
                     continue
                 nodes[f'{corner}.{name}'] = exe
                 node_args[f'{corner}.{name}'] = ['--ros-args', '-r', f'__ns:=/{corner}',
@@ -476,6 +487,8 @@ def main(argv=None):
             node_args[FULL_CAR] = start_full_car(car_cfg, out)
             if ext_car:
                 node_args[FULL_CAR_CTRL] = node_args[FULL_CAR]
+        if vehicle:
+            node_args.update(dict.fromkeys(VEHICLE_NODES, start_vehicle(car_cfg, out)))
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args,
                       keep_fds=(lock.fd,), dds=dds)
     else:
@@ -537,6 +550,7 @@ def main(argv=None):
                 next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
                 print(full_car_progress_line(monitor, elapsed) if full_car
+                      else vehicle_progress_line(monitor, elapsed) if vehicle
                       else corner_progress_line(monitor, elapsed, list(corners)) if corners
                       else progress_line(monitor, elapsed), flush=True)
                 next_progress += args.progress_s
@@ -545,9 +559,9 @@ def main(argv=None):
             print(f'{PROG}: interrupted, stopping the nodes', flush=True)
         elapsed = time.monotonic() - t_start
     finally:
-        if corners:
-            order = [FULL_CAR, FULL_CAR_CTRL] + [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT)
-                                                 for c in corners]
+        if corners or vehicle:
+            order = [*VEHICLE_STOP_ORDER, FULL_CAR, FULL_CAR_CTRL] + [
+                f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
             codes = suite.stop(order=order,
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
@@ -577,7 +591,7 @@ def main(argv=None):
              'gave_up': supervisor.gave_up, 'exit_codes': codes}, indent=2))
     try:
         from . import report
-        if corners:
+        if corners or vehicle:
             from .report.corners import add_corner_losses
             summary.update(duration_s=elapsed, exit_codes={n: c for n, c in codes.items()})
             add_corner_losses(summary, out, {
@@ -586,7 +600,10 @@ def main(argv=None):
             if full_car:
                 summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
                                                        out, plots=not args.no_plots)
-            summary['control'] = report.control_from_recording(out, summary, list(corners))
+            if vehicle:
+                summary['vehicle'] = vehicle_summary(monitor, car_cfg, out)
+            if corners:
+                summary['control'] = report.control_from_recording(out, summary, list(corners))
             (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
@@ -594,7 +611,10 @@ def main(argv=None):
                 print(line, flush=True)
             if full_car:
                 print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
-            print(report.format_control(summary['control']), flush=True)
+            if 'control' in summary:
+                print(report.format_control(summary['control']), flush=True)
+            if vehicle:
+                print(f'vehicle: {json.dumps(finite_or_none(summary["vehicle"]))}', flush=True)
         else:
             summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
                                          fallback={'config': cfg, 'status': last_status})

@@ -74,6 +74,13 @@ SENSOR_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
 
+#: The vehicle computer's per-cycle topics (chassis sensors, full-car state, command):
+#: reliable, KEEP_LAST 2. A control loop wants the newest cycle, not a backlog: a reader that
+#: was starved takes at most two old cycles (answered late: counted as deadline misses) and
+#: the rest is counted as lost from the messages' sequence numbers.
+VEHICLE_QOS = QoSProfile(depth=2, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
+
 #: ``/diagnostics``: KEEP_LAST 10, reliable (as ROS 2's diagnostic_updater publishes it).
 DIAGNOSTICS_QOS = STATUS_QOS
 
