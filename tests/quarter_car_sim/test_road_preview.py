@@ -143,3 +143,27 @@ def test_speed_signal_and_timeline():
         SpeedSignal(-1.0)
     with pytest.raises(ValueError, match='speed'):
         TrackTimeline([0.0, 1.0], [0.0, 0.0], math.nan)
+
+
+def test_the_map_averages_the_noise_of_the_frames_that_saw_a_point():
+    # 3 mm noise per frame; a point 2-5 m ahead has been seen by about 10 frames at 18 Hz;
+    # a running mean weighting the newest 1/4 keeps about sqrt(0.25 / 1.75) = 0.38 of the
+    # noise the newest frame alone has (the same frames into both maps)
+    road = _ramp_road(duration=6.0)
+    sensor = LookAheadSensor(LookAheadSpec(height_noise_m=0.003), road, rng=2)
+    sensor.reset(t0=0.0)
+    maps = {f: RoadPreview(1, [(0, 0.0)], fuse=f) for f in (1, 4)}
+    err = {f: [] for f in maps}
+    s = np.linspace(0.1, 0.25, 100)
+    for k in range(5001):
+        t = 1e-3 * k
+        frames = sensor.frames_until(t)
+        for f, rp in maps.items():
+            rp.offer_speed(t, 20.0)
+            for fr in frames:
+                rp.offer_frame(fr)
+            if k > 1000 and k % 50 == 0:
+                err[f].append(rp.window(s)[:, 0] - 0.01 * (rp.position + 20.0 * s))
+    std = {f: np.std(np.concatenate(e)) for f, e in err.items()}
+    assert 0.8 < std[1] / 0.003 < 1.05          # interpolation between points averages a bit
+    assert 0.25 < std[4] / std[1] < 0.5

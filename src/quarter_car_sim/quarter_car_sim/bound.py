@@ -70,11 +70,14 @@ class KwokForceModel:
     """
 
     def __init__(self, inverse):
-        from mr_damper_model.models.kwok_current import KwokCurrent
+        from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_coefficients
         self.inverse = inverse
         self.i_min, self.i_max = inverse.i_min, inverse.i_max
-        self._model = KwokCurrent(i_ref_a=inverse.i_ref_a)
         self._p = np.array([inverse.params[n] for n in KwokCurrent.param_names])
+        # c, alpha, beta at the two ends of the current range (rows: i_min, i_max)
+        c, alpha, beta = kwok_current_coefficients(
+            self._p[None, :], np.array([self.i_min, self.i_max]) / inverse.i_ref_a)
+        self._ends = np.column_stack([c[0], alpha[0], beta[0]])
 
     def body_force_range(self, travel, v_rel):
         """Reachable damper forces on the body ``(lo, hi)`` [N] at one state (floats)."""
@@ -84,8 +87,11 @@ class KwokForceModel:
         """Like :meth:`body_force_range`, vectorised over arrays of shape (n,)."""
         x = np.asarray(travel, dtype=float)
         v = np.asarray(v_rel, dtype=float)
-        a = -self._model.force(self._p, x, v, np.full(x.shape, self.i_min))
-        b = -self._model.force(self._p, x, v, np.full(x.shape, self.i_max))
+        p = self._p
+        static = p[2] * x + p[9]                      # k x + f0
+        arg = p[8] * np.sign(x)                       # delta sign(x)
+        a, b = (-(c * v + static + alpha * np.tanh(beta * v + arg))
+                for c, alpha, beta in self._ends)     # the kwok-current force at each end
         return np.minimum(a, b), np.maximum(a, b)
 
     def currents(self, f_body, travel, v_rel):

@@ -12,7 +12,11 @@ settings:
   (:data:`~quarter_car_sim.preview_sensor.IDEAL_LOOK_AHEAD`), exact speed;
 - ``preview-look-ahead``: the sensor with realistic errors
   (:data:`~quarter_car_sim.preview_sensor.REALISTIC_LOOK_AHEAD` unless changed: 20 ms latency,
-  3 mm RMS height noise) and a speed signal 2 % off.
+  3 mm RMS height noise) and a speed signal 2 % off;
+- ``preview-mpc-look-ahead-ideal``, ``preview-mpc-look-ahead`` (full car only): the same two
+  sensors feeding the receding-horizon MPC with the dampers' limits
+  (:mod:`quarter_car_sim.full_car.preview_mpc`) instead of the LQ preview; it needs each
+  corner's identified set (its force map).
 
 :class:`PreviewOptions` holds the settings; :meth:`PreviewOptions.to_dict` is what the tools'
 ``--json`` reports with each row.
@@ -26,7 +30,8 @@ from quarter_car_sim.preview_sensor import (FedController, IDEAL_LOOK_AHEAD, Pre
                                             SpeedSignal)
 
 #: Preview rows of the full car, in table order.
-FULL_CAR_ROWS = ('preview-wheelbase', 'preview-look-ahead-ideal', 'preview-look-ahead')
+FULL_CAR_ROWS = ('preview-wheelbase', 'preview-look-ahead-ideal', 'preview-look-ahead',
+                 'preview-mpc-look-ahead-ideal', 'preview-mpc-look-ahead')
 #: Preview rows of the quarter car (no wheelbase: one wheel).
 QUARTER_CAR_ROWS = ('preview-look-ahead-ideal', 'preview-look-ahead')
 
@@ -60,19 +65,29 @@ class PreviewOptions:
         """Return ``(sensor spec or None, speed scale error)`` of a row."""
         if name == 'preview-wheelbase':
             return None, self.speed_error
-        if name == 'preview-look-ahead-ideal':
+        if name.endswith('look-ahead-ideal') and name in FULL_CAR_ROWS:
             return IDEAL_LOOK_AHEAD, 0.0
-        if name == 'preview-look-ahead':
+        if name.endswith('look-ahead') and name in FULL_CAR_ROWS:
             return self.sensor, self.speed_error
         raise ValueError(f'unknown preview row {name!r} (use {", ".join(FULL_CAR_ROWS)})')
 
     def to_dict(self, name):
         """Return the settings of one row (JSON-ready)."""
         spec, err = self.row(name)
-        return {'source': 'wheelbase' if spec is None else 'look-ahead',
-                'horizon_s': self.horizon_s, 'step_s': self.step_s,
-                'sensor': None if spec is None else spec.to_dict(),
-                'speed_scale_error': err, 'seed': self.seed}
+        out = {'source': 'wheelbase' if spec is None else 'look-ahead',
+               'law': 'mpc' if is_mpc(name) else 'lq', 'horizon_s': self.horizon_s,
+               'step_s': self.step_s, 'sensor': None if spec is None else spec.to_dict(),
+               'speed_scale_error': err, 'seed': self.seed}
+        if is_mpc(name):
+            from quarter_car_sim.full_car.preview_mpc import DEFAULT_MPC
+            out.update(horizon_s=DEFAULT_MPC['horizon_s'], step_s=None,
+                       mpc={k: v for k, v in DEFAULT_MPC.items() if k != 'horizon_s'})
+        return out
+
+
+def is_mpc(name):
+    """Return True for the MPC rows."""
+    return name.startswith('preview-mpc-')
 
 
 def quarter_car_preview_row(name, params, road, inverse, options=PreviewOptions(), *,
@@ -118,7 +133,8 @@ def quarter_car_preview_row(name, params, road, inverse, options=PreviewOptions(
     return FedController(law, PreviewFeed(rp, road, spec, SpeedSignal(err), rng=options.seed))
 
 
-def full_car_preview_row(name, params, road, options=PreviewOptions(), *, dt=1e-3):
+def full_car_preview_row(name, params, road, options=PreviewOptions(), *, dt=1e-3,
+                         damper=None):
     """
     Build a full-car preview row: ``full-car-clipped-optimal-wk`` with LQ preview, fed by ``road``.
 
@@ -132,6 +148,9 @@ def full_car_preview_row(name, params, road, options=PreviewOptions(), *, dt=1e-
         The true road (with its speed).
     options, dt
         As :func:`quarter_car_preview_row`.
+    damper : sequence of 4, optional
+        Each corner's identified set (``fl, fr, rl, rr``; the MPC rows' force maps,
+        :func:`~quarter_car_sim.full_car.bound.corner_force_model`).
 
     Returns
     -------
@@ -141,8 +160,17 @@ def full_car_preview_row(name, params, road, options=PreviewOptions(), *, dt=1e-
     """
     from quarter_car_sim.full_car.preview import FedFullCarLaw, make_full_car_preview_law
     spec, err = options.row(name)
-    law = make_full_car_preview_law(params, source='wheelbase' if spec is None else 'look-ahead',
-                                    horizon_s=options.horizon_s, step_s=options.step_s, dt=dt,
-                                    name=name)
+    if is_mpc(name):
+        from quarter_car_sim.full_car.bound import corner_force_model
+        from quarter_car_sim.full_car.preview_mpc import make_full_car_mpc_preview
+        if damper is None or len(damper) != 4:
+            raise ValueError(f'{name} needs the four corners\' identified sets')
+        law = make_full_car_mpc_preview(params, [corner_force_model(d, params) for d in damper],
+                                        dt=dt, name=name)
+    else:
+        law = make_full_car_preview_law(params,
+                                        source='wheelbase' if spec is None else 'look-ahead',
+                                        horizon_s=options.horizon_s, step_s=options.step_s,
+                                        dt=dt, name=name)
     return FedFullCarLaw(law, PreviewFeed(law.road, road, spec, SpeedSignal(err),
                                           rng=options.seed))

@@ -14,9 +14,17 @@ loop:
   wheelbase preview's estimate, :class:`FrontRoadEstimate`), placed at the front axle.
 
 The map holds one height profile per track on a grid of ``spacing_m`` (a ring buffer
-``behind_m`` behind and ``ahead_m`` ahead of the front axle); a new measurement overwrites the
-cells it covers. :meth:`RoadPreview.window` samples it for each wheel (front axle at distance 0,
-rear at ``-wheelbase``) at the times ``t + j h`` ahead, the spacing from the speed signal. A
+``behind_m`` behind and ``ahead_m`` ahead of the front axle). A look-ahead sensor sees each
+road point in many frames (15 m of range, about 1.1 m driven between frames at 20 m/s and
+18 Hz: some 13 times); each cell keeps a running mean of its observations, the newest
+weighted ``1 / min(n, fuse)``, so the frames' independent height noise averages out. The
+memory is short (``fuse`` 4) because a speed-signal error places the same road point a little
+further on in each frame (2 % of the distance driven between them): on the full car with the
+MPC, 3 s of ISO C at 20 m/s, 3 mm noise and a 2 % speed error, a_v 0.500 / 0.479 / 0.479 /
+0.495 / 0.502 with ``fuse`` 1 / 2 / 4 / 8 / 16 (3 mm noise alone: 0.508 / 0.485 / 0.470 /
+0.464 / 0.463; no error: 0.458). The wheelbase estimate is written as it is.
+:meth:`RoadPreview.window` samples the map for each wheel (front axle at distance 0, rear at
+``-wheelbase``) at the times ``t + j h`` ahead, the spacing from the speed signal. A
 window is valid when the road under every wheel is in the map; beyond the measured part the
 last measured height is held (no road velocity), which is also what the preview law assumes
 after its horizon. Nothing here knows the true road.
@@ -137,11 +145,17 @@ class RoadPreview:
         Extent of the map behind and ahead of the front axle [m].
     history_s : float
         Odometer history kept to place frames by their stamps [s] (longer than the latency).
+    fuse : int
+        Observations of a cell averaged (running mean over at most ``fuse``; 1: the newest
+        frame only).
 
     """
 
     def __init__(self, n_tracks, wheels, *, spacing_m=0.02, behind_m=4.0, ahead_m=20.0,
-                 history_s=2.0):
+                 history_s=2.0, fuse=4):
+        self.fuse = int(fuse)
+        if self.fuse < 1:
+            raise ValueError(f'`fuse` must be >= 1, got {fuse}')
         self.n_tracks = int(n_tracks)
         self.wheels = [(int(k), float(a)) for k, a in wheels]
         if self.n_tracks < 1 or not self.wheels:
@@ -164,6 +178,7 @@ class RoadPreview:
         self._h = np.full((self.n_tracks, self.n_cells), math.nan)
         self._cell = np.full((self.n_tracks, self.n_cells), np.iinfo(np.int64).min,
                              dtype=np.int64)         # absolute cell index written, per cell
+        self._n = np.zeros((self.n_tracks, self.n_cells))    # observations averaged
         self._odo = collections.deque()
         self._t = None
         self._x = 0.0
@@ -225,7 +240,11 @@ class RoadPreview:
         k = np.arange(k0, k1 + 1)
         vals = np.interp(k * self.spacing_m, x, h)
         idx = k % self.n_cells
-        self._h[track, idx] = vals
+        seen = self._cell[track, idx] == k
+        n = np.where(seen, np.minimum(self._n[track, idx] + 1.0, self.fuse), 1.0)
+        old = np.where(seen, self._h[track, idx], vals)
+        self._h[track, idx] = old + (vals - old) / n
+        self._n[track, idx] = n
         self._cell[track, idx] = k
         return k.size
 
@@ -282,6 +301,7 @@ class RoadPreview:
         k = int(round(self._x / self.spacing_m))
         idx = k % self.n_cells
         self._h[:, idx] = z
+        self._n[:, idx] = 1.0
         self._cell[:, idx] = k
         # fill the cells the axle crossed since its last sample (linear in between)
         for track in range(self.n_tracks):
@@ -292,6 +312,7 @@ class RoadPreview:
                 ks = np.arange(j + 1, k)
                 hj = self._h[track, j % self.n_cells]
                 self._h[track, ks % self.n_cells] = hj + (z[track] - hj) * (ks - j) / (k - j)
+                self._n[track, ks % self.n_cells] = 1.0
                 self._cell[track, ks % self.n_cells] = ks
         return True
 

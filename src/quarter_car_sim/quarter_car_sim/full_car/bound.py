@@ -52,7 +52,7 @@ from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
 from quarter_car_sim.ride_metrics import wk_sos
 
 
-class _Mimo:
+class MimoConv:
     """Causal multi-input multi-output convolution (FFT) and its transpose, length n."""
 
     def __init__(self, kernels, n):
@@ -307,7 +307,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     nk = min(n, max(2, int(round(kernel_s / dt))))
     h = impulse_responses(params, dt, c_ref, nk)
     h_comfort = comfort(h[:3])                        # (3, 4, nk): the filters are linear
-    conv_tv = _Mimo(h[3:11], n)                       # travels and rates, for the limits
+    conv_tv = MimoConv(h[3:11], n)                       # travels and rates, for the limits
 
     free = _rollout(params, road, dt, n, t0, [Unlimited] * 4, np.zeros((4, n)), c_ref)
     start = _rollout(params, road, dt, n, t0, models, np.zeros((4, n)), 0.0)
@@ -324,7 +324,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     if rho > 0:
         kern.append(h[11:15] * scale_t[:, None, None])
         y_free.append((free['tyre_force'] - w_load).T * scale_t[:, None])
-    conv_j = _Mimo(np.concatenate(kern), n)
+    conv_j = MimoConv(np.concatenate(kern), n)
     y_free = np.concatenate(y_free)
 
     def rows_of(run):

@@ -21,7 +21,8 @@ its current sequences replayed on the plants. The road-preview rows
 (:mod:`quarter_car_sim.preview_rows`: ``preview-wheelbase``, ``preview-look-ahead-ideal``,
 ``preview-look-ahead``, in ``--compare`` before the bound) are ``full-car-clipped-optimal-wk``
 with LQ preview, fed by a simulated look-ahead sensor (``--preview-*`` options: the realistic
-row's errors) or by the front wheels' road alone. Bad input exits with status 2 and one line on
+row's errors) or by the front wheels' road alone, and the receding-horizon MPC with the dampers'
+limits on the same sensors (``preview-mpc-*``). Bad input exits with status 2 and one line on
 stderr.
 """
 import json
@@ -171,7 +172,7 @@ def _preview(name, params, road, plants, damper, options, args):
     """Run one preview row; return its metrics with its settings and counters."""
     from quarter_car_sim.full_car.simulate import simulate_full_car
     from quarter_car_sim.preview_rows import full_car_preview_row
-    law = full_car_preview_row(name, params, road, options, dt=args.dt)
+    law = full_car_preview_row(name, params, road, options, dt=args.dt, damper=damper)
     res = simulate_full_car(params, road, law, plants, damper, dt=args.dt, sensing=args.sensing,
                             sensor_seed=args.seed)
     m = res.metrics(params)
