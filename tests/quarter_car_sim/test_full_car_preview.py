@@ -98,8 +98,7 @@ def test_full_car_preview_equals_the_brute_force_qp_with_the_warp_as_a_state(des
         moves.append(_dp_first_move(design, x0, zdot, dtf, 3.0))
     coarse, fine = moves
     assert np.linalg.norm(fine - closed) < 0.6 * np.linalg.norm(coarse - closed)
-    np.testing.assert_allclose(2.0 * fine - coarse, closed, rtol=0,
-                               atol=3e-3 * np.abs(closed).max())
+    assert np.linalg.norm(2.0 * fine - coarse - closed) < 4e-3 * np.linalg.norm(closed)
 
 
 def test_common_and_track_offsets_of_the_road_give_no_feedforward(design):

@@ -21,8 +21,9 @@ state, every ``update_every`` control periods, and applies the plan in between:
   plan's prediction; a box on ``w`` as in the bound;
 - **solver**: the bound's projected accelerated gradient (:func:`quarter_car_sim.bound.
   fista_box`) warm-started from the previous plan shifted, ``maxiter`` iterations. The box QP
-  is a convolution: FFTs make each iteration O(H log H), where a general QP solver (OSQP)
-  would take the dense or the banded problem (see docs/preview.md for the timing);
+  is a convolution: FFTs make each iteration O(H log H), with no matrix of the horizon's size
+  formed (a general QP solver such as OSQP would take the dense condensed problem or the
+  banded one with the states as variables; not tried, docs/preview.md);
 - **applied**: a command acts from the next control period on (the damper makes its force at
   the end of a period, as the bound's replay schedules it), so the plan keeps the present
   period's force (the one acting) and each period the law asks for the next period's planned
