@@ -9,7 +9,8 @@ from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.plant.two_track_road import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
 from mr_damper_common.contract import CornerState, IdentifiedSet
-from semi_active_control.runtime.full_car_controller_core import (body_coordinates, full_car_state,
+from semi_active_control.runtime.full_car_controller_core import (body_coordinates,
+                                                                  full_car_state_of_corners,
                                                                   FullCarControllerCore)
 from quarter_car_sim.runtime.full_car import FullCarRuntime
 
@@ -46,7 +47,7 @@ def test_assembled_state_gives_the_car_body_rates():
         [make_plant('kwok-current') for _ in range(4)], 'passive@0.5A', settle_s=0.0)
     for k in range(300):
         _, _, new = rt.step(k * 1e-3)
-    s = full_car_state(PASSENGER_CAR, corners_of(new))
+    s = full_car_state_of_corners(PASSENGER_CAR, corners_of(new))
     np.testing.assert_allclose(s.v[:3], new.v[:3], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(s.q, new.q, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(s.v_rel, new.v_rel, rtol=0, atol=0)

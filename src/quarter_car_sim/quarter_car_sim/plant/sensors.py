@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from semi_active_control.car.full_car import CORNERS
-from semi_active_control.estimation.full_car import ACCEL_CORNERS, SENSORS
+from semi_active_control.estimation.full_car import ACCEL_CORNERS
 from semi_active_control.estimation.quarter_car import EstimatorError
 from semi_active_control.estimation.sensor_specs import (accelerometer_spec, default_specs, Fault,
                                                          ride_height_spec, SensorError,
@@ -272,27 +272,37 @@ class FullCarSensors:
     accel, travel : SensorSpec, optional
     dropout : (str, float, float), optional
         ``(sensor, start_s, duration_s)`` of an injected dropout.
+    accel_corners : sequence of str
+        Corners with a body accelerometer (default :data:`ACCEL_CORNERS`).
+    faults : sequence of (str, Fault)
+        More faults injected, each on the named sensor.
 
     """
 
-    def __init__(self, dt, seed=1, *, accel=None, travel=None, dropout=None):
+    def __init__(self, dt, seed=1, *, accel=None, travel=None, dropout=None,
+                 accel_corners=ACCEL_CORNERS, faults=()):
         accel = accelerometer_spec() if accel is None else accel
         travel = ride_height_spec() if travel is None else travel
-        specs = {s: (accel if s.startswith('accel') else travel) for s in SENSORS}
+        self.accel_corners = tuple(accel_corners)
+        self.sensors = (tuple(f'accel_{c}' for c in self.accel_corners)
+                        + tuple(f'travel_{c}' for c in CORNERS))
+        specs = {s: (accel if s.startswith('accel') else travel) for s in self.sensors}
+        faults = list(faults)
         if dropout is not None:
             name, start, dur = dropout
+            faults.append((name, Fault('dropout', start, start + dur)))
+        for name, fault in faults:
             if name not in specs:
-                raise EstimatorError(f'unknown sensor {name!r} (use {", ".join(SENSORS)})')
-            specs[name] = specs[name].replace(
-                faults=specs[name].faults + (Fault('dropout', start, start + dur),))
-        streams = np.random.SeedSequence(int(seed)).spawn(len(SENSORS))
+                raise EstimatorError(f'unknown sensor {name!r} (use {", ".join(self.sensors)})')
+            specs[name] = specs[name].replace(faults=specs[name].faults + (fault,))
+        streams = np.random.SeedSequence(int(seed)).spawn(len(self.sensors))
         self.samplers = {s: SensorSampler(specs[s], dt, np.random.default_rng(r))
-                         for s, r in zip(SENSORS, streams)}
-        self._rows = [CORNERS.index(c) for c in ACCEL_CORNERS]
+                         for s, r in zip(self.sensors, streams)}
+        self._rows = [CORNERS.index(c) for c in self.accel_corners]
 
     def step(self, t, state):
         """Return ``{sensor: reading}`` delivered at this step from a true state."""
-        true = {f'accel_{c}': state.body_a[i] for c, i in zip(ACCEL_CORNERS, self._rows)}
+        true = {f'accel_{c}': state.body_a[i] for c, i in zip(self.accel_corners, self._rows)}
         true.update({f'travel_{c}': state.travel[i] for i, c in enumerate(CORNERS)})
         return sample_due(self.samplers, t, true)
 

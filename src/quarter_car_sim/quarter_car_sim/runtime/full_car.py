@@ -45,7 +45,7 @@ class FullCarRuntime:
     plants : sequence of 4 DamperPlant
         True dampers of ``fl, fr, rl, rr``.
     law : str or law object
-        Full-car law (:func:`~semi_active_control.laws.full_car.make_full_car_law` names:
+        Full-car law (:func:`~semi_active_control.laws.registry.make_full_car_law` names:
         ``modal-skyhook``, ``per-corner-<law>``, ``passive@<I>A``, ...).
     dt : float
         Control period [s].

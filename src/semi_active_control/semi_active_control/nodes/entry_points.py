@@ -19,3 +19,18 @@ def state_estimator_node():
 def full_car_controller_node():
     """``ros2 run semi_active_control full_car_controller_node``."""
     return early_main('semi_active_control.nodes.full_car_controller_node')
+
+
+def vehicle_estimator_node():
+    """``ros2 run semi_active_control vehicle_estimator_node``."""
+    return early_main('semi_active_control.nodes.vehicle_estimator_node')
+
+
+def vehicle_controller_node():
+    """``ros2 run semi_active_control vehicle_controller_node``."""
+    return early_main('semi_active_control.nodes.vehicle_controller_node')
+
+
+def lifecycle_manager():
+    """``ros2 run semi_active_control lifecycle_manager``."""
+    return early_main('semi_active_control.nodes.lifecycle_manager_node')

@@ -6,11 +6,13 @@ Public API::
     from semi_active_control.runtime import ControllerCore, LAW_FIELDS, STATE_REJECTIONS
     from semi_active_control.runtime import make_node_law, reconfigure, SUPERVISOR_PARAMETERS
     from semi_active_control.runtime import FullCarControllerCore, FullCarController
+    from semi_active_control.runtime import VehicleControllerCore, VehicleCommand
 
 Modules: ``controller_core`` (a corner: law + the inverse of the identified model + the
 fail-safe supervisor, the state checks; the node's law and parameter changes),
 ``full_car_controller_core`` (the whole car: four corner states in, four supervised currents
-out, each corner under its own supervisor).
+out, each corner under its own supervisor), ``vehicle_controller`` (the vehicle computer's
+full-car controller on one estimated state per cycle, with deadlines and an inactive state).
 """
 from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa: F401
                                                          LAW_FIELDS, make_node_law,
@@ -18,5 +20,10 @@ from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa
                                                          reconfigure, STATE_REJECTIONS,
                                                          SUPERVISOR_PARAMETERS)
 from semi_active_control.runtime.full_car_controller_core import (  # noqa: F401
-    body_coordinates, corner_supervisors, full_car_state, FullCarController,
+    body_coordinates, corner_supervisors, full_car_state_of_corners, FullCarController,
     FullCarControllerCore)
+from semi_active_control.runtime.vehicle_controller import (full_car_state,  # noqa: F401
+                                                            MODE_FAIL_SAFE, MODE_INACTIVE,
+                                                            MODE_NORMAL,
+                                                            VehicleCommand,
+                                                            VehicleControllerCore)

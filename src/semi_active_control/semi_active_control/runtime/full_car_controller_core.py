@@ -58,7 +58,7 @@ def body_coordinates(geometry, values):
     return sol
 
 
-def full_car_state(params, corners):
+def full_car_state_of_corners(params, corners):
     """
     Assemble a :class:`~quarter_car_sim.plant.full_car.FullCarState` from four corners.
 
@@ -102,7 +102,7 @@ class FullCarControllerCore:
     params : FullCarParams
         Car (corner map; the law's design).
     law : str or law object
-        Full-car law (:func:`~semi_active_control.laws.full_car.make_full_car_law` names:
+        Full-car law (:func:`~semi_active_control.laws.registry.make_full_car_law` names:
         ``modal-skyhook``, ``per-corner-<law>``, ``full-car-clipped-optimal``, ...).
     dt : float
         Period of the states [s] (laws with a filter inside).
@@ -193,7 +193,8 @@ class FullCarControllerCore:
                     self.dropped['incomplete'] += 1
             return None
         corners, self._pending = self._pending, [None] * 4
-        currents = self.controller.command(full_car_state(self.params, corners), t_clock)
+        state = full_car_state_of_corners(self.params, corners)
+        currents = self.controller.command(state, t_clock)
         for j, mode in enumerate(self.controller.modes):
             if mode == 'normal':
                 self.normal_commands[j] += 1
