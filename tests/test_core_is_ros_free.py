@@ -16,7 +16,7 @@ from conftest import REPO
 
 ROS_MODULES = {'messages', 'node_utils'}
 PACKAGES = ('mr_damper_common', 'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim',
-            'mr_damper_bringup', 'mr_damper_can')
+            'mr_damper_bringup', 'mr_damper_can', 'mr_damper_gym')
 
 
 def _core_modules():
