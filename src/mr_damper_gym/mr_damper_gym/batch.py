@@ -13,6 +13,7 @@ Random numbers of the sensors are drawn in numpy, per car from its own generator
 sample), so the compiled step never touches a random state.
 """
 import math
+import os
 
 import numpy as np
 
@@ -20,6 +21,8 @@ from mr_damper_gym import kernel as K
 
 #: Sensor samples whose random numbers are drawn at once.
 DRAW_BLOCK = 1024
+#: Cars from which a batch steps them on several threads by default.
+PARALLEL_MIN = 8
 
 
 class CarBatch:
@@ -32,6 +35,10 @@ class CarBatch:
         The car.
     n : int
         Number of cars.
+    threads : int or None
+        Threads that step the cars side by side, each a contiguous share of them (the
+        compiled step releases the GIL); None: one per core from :data:`PARALLEL_MIN` cars
+        on, else one.
 
     Attributes
     ----------
@@ -46,7 +53,7 @@ class CarBatch:
 
     """
 
-    def __init__(self, model, n=1):
+    def __init__(self, model, n=1, threads=None):
         m = model
         self.model = m
         self.n = int(n)
@@ -82,6 +89,15 @@ class CarBatch:
         self._all = np.ones(self.n, dtype=np.uint8)
         self._one = np.zeros(self.n, dtype=np.uint8)
         self._kernel = K.compiled_step()
+        if threads is None:
+            threads = (os.cpu_count() or 1) if self.n >= PARALLEL_MIN else 1
+        self.threads = max(1, min(int(threads), self.n))
+        self._pool = None
+        if self.threads > 1:
+            from concurrent.futures import ThreadPoolExecutor
+            self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix='car_batch')
+            bounds = np.linspace(0, self.n, self.threads + 1).astype(int)
+            self._shares = [(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
     # --- roads and resets ------------------------------------------------------------------
     def set_road(self, k, tracks, delay_s=0.0):
@@ -164,8 +180,23 @@ class CarBatch:
 
     def _call(self, active, nsteps, record_first, record, sense):
         m = self.model
-        self._kernel(nsteps, record_first, record, sense, active, m.G, m.mf, m.mi, self.S,
-                     self.road, self.draws)
+        if self._pool is None or np.count_nonzero(active) < 2:
+            self._kernel(nsteps, record_first, record, sense, active, m.G, m.mf, m.mi, self.S,
+                         self.road, self.draws)
+            return
+        # each thread a contiguous share of the cars (their rows of S, road and draws)
+        jobs = [self._pool.submit(self._kernel, nsteps, record_first, record, sense,
+                                  active[a:b], m.G, m.mf, m.mi, self.S[a:b], self.road[a:b],
+                                  self.draws[a:b])
+                for a, b in self._shares]
+        for job in jobs:
+            job.result()
+
+    def close(self):
+        """Stop the batch's threads (if any)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
 
     def _run(self, active, nsteps, *, record_first, record):
         """Advance the active cars ``nsteps`` periods, sensing where a car has a generator."""

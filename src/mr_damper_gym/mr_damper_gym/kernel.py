@@ -6,7 +6,7 @@ One function, :func:`advance_cars`, compiled with numba through
 the models' own: ``spencer.heun_substeps`` / ``z_step_rooted`` / ``z_roots`` / ``_row`` and
 ``kwok_current.kwok_current_force_scalar``). It mirrors, for arrays of cars, the simulator's
 plain-Python step, and the tests prove the two agree to round-off
-(``tests/mr_damper_gym/test_kernel.py``):
+(``tests/gym_envs/test_kernel.py``):
 
 - the car (:class:`quarter_car_sim.dynamics.QuarterCar` / :class:`quarter_car_sim.full_car.
   dynamics.FullCar` ``_advance`` and ``_make_state``): the exact discretisation of the linear
@@ -425,81 +425,98 @@ def _advance_cars(nsteps, record_first, record, sense, active, G, mf, mi, S, roa
     pp = mf[o:o + nc * PP_N].reshape((nc, PP_N))
     clip_slot = 3 * nw + 6 * nc + nb + 1          # sum_slots(nw, nc, nb)['clipped']
     ncol = G.shape[2]
-    vec = np.empty(ncol)
-    vec[ncol - 1] = 1.0
-    xn = np.empty(nx)
-    zr0 = np.empty(nc)
-    zd0 = np.empty(nc)
-    zr1 = np.empty(nc)
-    zd1 = np.empty(nc)
-    travel = np.empty(nc)
-    vrel = np.empty(nc)
-    tyre = np.empty(nc)
-    body_v = np.empty(nc)
-    body_a = np.empty(nc)
-    acc_b = np.empty(nb)
+    # each car's scratch: its own row (a call's own array: calls on other cars may run at the
+    # same time in other threads, the GIL released)
+    work = np.empty((x.shape[0], ncol + nx + 9 * nc + nb))
     for k in range(x.shape[0]):
         if not active[k]:
             continue
-        t = clock[k, CL_T]
-        _road_at(road, road_meta, k, t, track, delayed, rdt, zr0, zd0)
-        if record_first:
-            _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0,
-                     travel, vrel, tyre, acc_b, body_v, body_a)
-            _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho, rew)
-        for _ in range(nsteps):
-            for _ in range(nsub):
-                t1 = t + h
-                _road_at(road, road_meta, k, t1, track, delayed, rdt, zr1, zd1)
-                pattern = 0
-                for i in range(nc):
-                    if W[i] + kt * (zr0[i] - x[k, zu[i]]) + ct * (zd0[i] - x[k, vu[i]]) > 0.0:
-                        pattern += 1 << i
-                for j in range(nx):
-                    vec[j] = x[k, j]
-                for i in range(nc):
-                    vec[nx + i] = zr0[i]
-                    vec[nx + nc + i] = zr1[i]
-                    vec[nx + 2 * nc + i] = (zr1[i] - zr0[i]) / h
-                    vec[nx + 3 * nc + i] = f[k, i]
-                g = G[pattern]
-                for r in range(nx):
-                    acc = 0.0
-                    for j in range(ncol):
-                        acc += g[r, j] * vec[j]
-                    xn[r] = acc
-                for j in range(nx):
-                    x[k, j] = xn[j]
-                _corner_motion(k, x, T, qb, vb, zu, vu, travel, vrel, body_v)
-                for i in range(nc):
-                    f[k, i] = -_plant_step(pp, i, plant, k, h, travel[i], vrel[i], cmd[k, i])
-                t = t1
-                for i in range(nc):
-                    zr0[i] = zr1[i]
-                    zd0[i] = zd1[i]
-            clock[k, CL_T] = t
-            clock[k, CL_STEPS] += 1.0
-            if sense or record:
-                _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0,
-                         travel, vrel, tyre, acc_b, body_v, body_a)
-            if sense:
-                _sense(k, clock, sens, sf, kind, corner, lat, period, draws, body_a, travel)
-            if record:
-                _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho,
-                        rew)
-        _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0, travel,
-                 vrel, tyre, acc_b, body_v, body_a)
-        _observe(k, obs, lo, hi, nobs_state, sums, clip_slot, x, f, plant, sens, cmd, qb, vb,
-                 zu, vu, zr0, travel, vrel, body_v, body_a, acc_b)
+        w = work[k]
+        # grouped: CPython passes a call of more than 30 arguments as *args, which numba's
+        # inliner refuses
+        _advance_car(k, nsteps, record_first, record, sense, G,
+                     (h, rdt, a0, t0, rho, kt, ct), (nsub, nobs_state, clip_slot),
+                     (T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp),
+                     (qb, vb, zu, vu, track, delayed, kind, corner, lat, period),
+                     (x, f, clock, road_meta, cmd, plant, filt, sums, sens, obs, rew), road,
+                     draws, w[:ncol], w[ncol:ncol + nx], w[ncol + nx:])
     return 0
 
 
+def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, model, index,
+                 car, road, draws, vec, xn, rest):
+    """Advance car ``k`` (the body of :func:`_advance_cars`'s loop; scratch in its own row)."""
+    h, rdt, a0, t0, rho, kt, ct = scalars
+    nsub, nobs_state, clip_slot = counts
+    T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp = model
+    qb, vb, zu, vu, track, delayed, kind, corner, lat, period = index
+    x, f, clock, road_meta, cmd, plant, filt, sums, sens, obs, rew = car
+    nc, nb = T.shape
+    nx = xn.shape[0]
+    ncol = vec.shape[0]
+    vec[ncol - 1] = 1.0
+    zr0, zd0, zr1, zd1 = rest[:nc], rest[nc:2 * nc], rest[2 * nc:3 * nc], rest[3 * nc:4 * nc]
+    travel, vrel, tyre = rest[4 * nc:5 * nc], rest[5 * nc:6 * nc], rest[6 * nc:7 * nc]
+    body_v, body_a = rest[7 * nc:8 * nc], rest[8 * nc:9 * nc]
+    acc_b = rest[9 * nc:9 * nc + nb]
+    t = clock[k, CL_T]
+    _road_at(road, road_meta, k, t, track, delayed, rdt, zr0, zd0)
+    _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0, travel, vrel,
+             tyre, acc_b, body_v, body_a)
+    if record_first:
+        _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho, rew)
+    for _ in range(nsteps):
+        for _ in range(nsub):
+            t1 = t + h
+            _road_at(road, road_meta, k, t1, track, delayed, rdt, zr1, zd1)
+            pattern = 0
+            for i in range(nc):
+                if W[i] + kt * (zr0[i] - x[k, zu[i]]) + ct * (zd0[i] - x[k, vu[i]]) > 0.0:
+                    pattern += 1 << i
+            for j in range(nx):
+                vec[j] = x[k, j]
+            for i in range(nc):
+                vec[nx + i] = zr0[i]
+                vec[nx + nc + i] = zr1[i]
+                vec[nx + 2 * nc + i] = (zr1[i] - zr0[i]) / h
+                vec[nx + 3 * nc + i] = f[k, i]
+            g = G[pattern]
+            for r in range(nx):
+                acc = 0.0
+                for j in range(ncol):
+                    acc += g[r, j] * vec[j]
+                xn[r] = acc
+            for j in range(nx):
+                x[k, j] = xn[j]
+            _corner_motion(k, x, T, qb, vb, zu, vu, travel, vrel, body_v)
+            for i in range(nc):
+                f[k, i] = -_plant_step(pp, i, plant, k, h, travel[i], vrel[i], cmd[k, i])
+            t = t1
+            for i in range(nc):
+                zr0[i] = zr1[i]
+                zd0[i] = zd1[i]
+        clock[k, CL_T] = t
+        clock[k, CL_STEPS] += 1.0
+        _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0, travel, vrel,
+                 tyre, acc_b, body_v, body_a)
+        if sense:
+            _sense(k, clock, sens, sf, kind, corner, lat, period, draws, body_a, travel)
+        if record:
+            _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho, rew)
+    _observe(k, obs, lo, hi, nobs_state, sums, clip_slot, x, f, plant, sens, cmd, qb, vb, zu,
+             vu, zr0, travel, vrel, body_v, body_a, acc_b)
+
+
 #: Functions the compiled step inlines (this module's, then the models' own).
-HELPERS = ('_road_sample', '_road_at', '_plant_step', '_corner_motion', '_outputs', '_sense',
-           '_record', '_observe', _row, heun_substeps, substeps, z_roots, z_step_rooted,
-           kwok_current_force_scalar, _coefficients)
+HELPERS = ('_advance_car', '_road_sample', '_road_at', '_plant_step', '_corner_motion',
+           '_outputs', '_sense', '_record', '_observe', _row, heun_substeps, substeps, z_roots,
+           z_step_rooted, kwok_current_force_scalar, _coefficients)
 
 
 def compiled_step():
-    """Return the compiled :func:`_advance_cars` (compiled on first use, cached on disk)."""
-    return compiled.kernel(_advance_cars, helpers=HELPERS)
+    """
+    Return the compiled :func:`_advance_cars` (compiled on first use, cached on disk).
+
+    It releases the GIL: threads may step disjoint sets of cars of one batch side by side.
+    """
+    return compiled.kernel(_advance_cars, helpers=HELPERS, nogil=True)

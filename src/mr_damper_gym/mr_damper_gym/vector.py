@@ -33,6 +33,8 @@ class SemiActiveVectorEnv(VectorEnv):
         ``render()`` returns the side view of each car.
     episode_end : {'passive', 'bound', 'none'}
         References at each episode's end (default passive at ``i_min``).
+    threads : int or None
+        Threads stepping the cars side by side (None: one per core from 8 cars on).
     **options
         Options of :class:`mr_damper_gym.core.EnvCore`.
 
@@ -47,7 +49,7 @@ class SemiActiveVectorEnv(VectorEnv):
     metadata = {'render_modes': ['rgb_array'], 'autoreset_mode': AutoresetMode.NEXT_STEP}
 
     def __init__(self, car='quarter', num_envs=1, render_mode=None, episode_end='passive',
-                 **options):
+                 threads=None, **options):
         if int(num_envs) < 1:
             raise ValueError(f'`num_envs` must be >= 1, got {num_envs}')
         if render_mode not in (None, 'rgb_array'):
@@ -60,7 +62,7 @@ class SemiActiveVectorEnv(VectorEnv):
         self.observation_space = batch_space(obs, self.num_envs)
         self.action_space = batch_space(act, self.num_envs)
         n = self.num_envs
-        self.batch = CarBatch(self.core.model, n)
+        self.batch = CarBatch(self.core.model, n, threads=threads)
         self._sl = self.core.obs_slice
         self._rngs = [None] * n
         self._steps = np.zeros(n, dtype=np.int64)
@@ -154,6 +156,10 @@ class SemiActiveVectorEnv(VectorEnv):
                                          'gap_closed': gap_closed(fig['cost'], refs)}, i)
         self._autoreset = truncated
         return (b.obs[:, self._sl].copy(), reward, terminated, truncated, info)
+
+    def close_extras(self, **kwargs):
+        """Stop the batch's threads."""
+        self.batch.close()
 
     def render(self):
         """Side views of the cars (a tuple of RGB uint8 arrays), with ``rgb_array``."""

@@ -67,7 +67,7 @@ def _helper_namespaces(func, helpers, namespace):
     return found, sorted(foreign)
 
 
-def _build(func, helpers):
+def _build(func, helpers, nogil):
     import numba
 
     namespace = dict(func.__globals__)
@@ -86,16 +86,16 @@ def _build(func, helpers):
         for path in foreign:
             with open(path, 'rb') as fh:
                 digest.update(fh.read())
-        loop.__qualname__ = f'{func.__qualname__}_src{digest.hexdigest()[:12]}'
+        loop.__qualname__ = f'{loop.__qualname__}_src{digest.hexdigest()[:12]}'
     key = f'{func.__module__}.{func.__qualname__}'
     try:
-        return numba.njit(cache=True)(loop)
+        return numba.njit(cache=True, nogil=nogil)(loop)
     except RuntimeError as exc:     # numba found no writable cache folder
         _CACHE_ERRORS[key] = str(exc)
-        return numba.njit(cache=False)(loop)
+        return numba.njit(cache=False, nogil=nogil)(loop)
 
 
-def kernel(func, helpers=()):
+def kernel(func, helpers=(), nogil=False):
     """
     Return the compiled (numba, ``cache=True``) version of a plain-Python loop.
 
@@ -108,6 +108,9 @@ def kernel(func, helpers=()):
         inlined: names of module-level functions of the same module (bound in the loop's
         namespace), or the functions themselves, of any module (each bound in its own
         module's namespace; the helpers of a foreign helper must be listed too).
+    nogil : bool
+        Release the GIL while the loop runs (threads may then run it side by side on
+        disjoint data). A loop is compiled with one setting, the first one asked for.
 
     Returns
     -------
@@ -119,7 +122,7 @@ def kernel(func, helpers=()):
     with _LOCK:
         disp = _KERNELS.get(key)
         if disp is None:
-            disp = _KERNELS[key] = _build(func, tuple(helpers))
+            disp = _KERNELS[key] = _build(func, tuple(helpers), bool(nogil))
     return disp
 
 
