@@ -148,8 +148,8 @@ def test_sensor_model_is_the_simulators(kind, spec):
     # the same numbers: the turn-on bias, then the first block (random walk, noise, loss)
     g = np.random.default_rng(11)
     bias = spec.bias + (g.normal(0.0, spec.bias_std) if spec.bias_std else 0.0)
-    normal = g.standard_normal((1, 2, DRAW_BLOCK))[0]
-    loss = g.random((1, DRAW_BLOCK))[0]
+    normal = g.standard_normal((DRAW_BLOCK, 1, 2))[:, 0].T
+    loss = g.random((DRAW_BLOCK, 1))[:, 0]
     sensor = Sensor(spec.replace(bias=bias, bias_std=0.0))
     normals, uniforms = [], []
     for j in range(n):

@@ -82,7 +82,7 @@ class CarBatch:
         self.reward = block('reward')
         self.road = np.zeros((self.n, 4 if m.nc > 1 else 2, 2))
         self.road_meta[:, K.RD_N] = 2.0
-        self.draws = np.zeros((self.n, m.ns, 3, DRAW_BLOCK))
+        self.draws = np.zeros((self.n, DRAW_BLOCK, m.ns, 3))
         self.rngs = [None] * self.n
         self._sensing = np.zeros(self.n, dtype=bool)
         self._left = 0          # steps every sensing car can take before a block refill
@@ -175,8 +175,8 @@ class CarBatch:
     def _refill(self, k):
         rng = self.rngs[k]
         m = self.model
-        self.draws[k, :, K.DR_RW:K.DR_NOISE + 1] = rng.standard_normal((m.ns, 2, DRAW_BLOCK))
-        self.draws[k, :, K.DR_LOSS] = rng.random((m.ns, DRAW_BLOCK))
+        self.draws[k, :, :, K.DR_RW:K.DR_NOISE + 1] = rng.standard_normal((DRAW_BLOCK, m.ns, 2))
+        self.draws[k, :, :, K.DR_LOSS] = rng.random((DRAW_BLOCK, m.ns))
 
     def _call(self, active, nsteps, record_first, record, sense):
         m = self.model

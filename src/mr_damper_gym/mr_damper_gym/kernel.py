@@ -82,7 +82,8 @@ PL_N = 7
 #: reading, held reading (observation), fresh (0/1), then the ring of readings in flight
 SE_BIAS, SE_RW, SE_STARTED, SE_LAST, SE_HELD, SE_FRESH = range(6)
 SE_BUF = 6
-#: draws (N, ns, 3, B): random-walk normal, noise normal, loss uniform of each sample
+#: draws (N, B, ns, 3): random-walk normal, noise normal, loss uniform of each sample (a
+#: car's numbers of one sample side by side in memory)
 DR_RW, DR_NOISE, DR_LOSS = range(3)
 
 
@@ -214,7 +215,7 @@ def _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr, zd, trav
 def _sense(k, clock, sens, sf, kind, corner, lat, period, draws, body_a, travel):
     """Sample the sensors of car ``k`` on its present state; deliver what arrives now."""
     idx = int(clock[k, CL_SAMPLES])
-    col = idx % draws.shape[3]
+    col = idx % draws.shape[1]
     t = clock[k, CL_T]
     ns = kind.shape[0]
     length = sens.shape[1] // ns
@@ -225,11 +226,11 @@ def _sense(k, clock, sens, sf, kind, corner, lat, period, draws, body_a, travel)
             x = body_a[corner[s]] if kind[s] == 0 else travel[corner[s]]
             noise_std, rw_scale, drift, scale, offset, quantum, p_loss, hold = sf[s]
             if st[SE_STARTED] != 0.0 and rw_scale > 0.0:
-                st[SE_RW] += rw_scale * draws[k, s, DR_RW, col]
+                st[SE_RW] += rw_scale * draws[k, col, s, DR_RW]
             st[SE_STARTED] = 1.0
             bias = st[SE_BIAS] + drift * t + st[SE_RW]
-            noise = noise_std * draws[k, s, DR_NOISE, col] if noise_std > 0.0 else 0.0
-            lost = p_loss > 0.0 and draws[k, s, DR_LOSS, col] < p_loss
+            noise = noise_std * draws[k, col, s, DR_NOISE] if noise_std > 0.0 else 0.0
+            lost = p_loss > 0.0 and draws[k, col, s, DR_LOSS] < p_loss
             y = (1.0 + scale) * (x + offset) + bias + noise
             if quantum > 0.0:
                 y = quantum * np.round(y / quantum)
@@ -367,7 +368,7 @@ def _advance_cars(nsteps, record_first, record, sense, active, G, mf, mi, S, roa
         place: commands in, state, sums, observation and reward out.
     road : ndarray (N, 2 tracks, samples)
         Each car's tracks: height [m] and vertical velocity [m/s] rows.
-    draws : ndarray (N, ns, 3, B)
+    draws : ndarray (N, B, ns, 3)
         Each car's sensor random numbers of its present block.
 
     """
