@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
-"""
+r"""
 Example: train a soft actor-critic (stable-baselines3) on a semi-active car (optional extra).
 
 Not part of the suite's environment: torch and stable-baselines3 are not in requirements.txt.
-Install them in a venv of their own that sees the suite's packages, e.g.::
+Install them in a venv of their own that sees the suite's packages (``site.addsitedir`` also
+runs the suite venv's own .pth files: the editable installs), e.g.::
 
     python3 -m venv /tmp/sb3
-    echo "$PWD/.venv/lib/python3.11/site-packages" > /tmp/sb3/lib/python3.11/site-packages/s.pth
+    echo "import site; site.addsitedir('$PWD/.venv/lib/python3.11/site-packages')" \\
+        > /tmp/sb3/lib/python3.11/site-packages/suite.pth
     /tmp/sb3/bin/pip install torch==2.13.0 stable-baselines3==2.9.2 pandas==3.1.1
     /tmp/sb3/bin/python bench/train_sb3.py [--car quarter] [--steps 100000]
 
@@ -64,8 +66,10 @@ def main():
     torch.set_num_threads(1)
     print(f'load average at start: {os.getloadavg()}', flush=True)
     env = make_env(args.car, args.episode_s, episode_end='none')
-    model = SAC('MlpPolicy', env, seed=args.seed, verbose=0,
-                policy_kwargs={'net_arch': [64, 64]})
+    # one gradient step per 8 env steps (train_freq 32, 4 steps): a 1 kHz env gives many
+    # correlated samples per second of driving
+    model = SAC('MlpPolicy', env, seed=args.seed, verbose=0, train_freq=32, gradient_steps=4,
+                learning_starts=2000, policy_kwargs={'net_arch': [64, 64]})
     t = time.perf_counter()
     model.learn(total_timesteps=args.steps)
     train_s = time.perf_counter() - t
