@@ -12,7 +12,12 @@ while the launcher writes the summary (the report phase). Printed:
 
 - per process: RSS at the start (first sample after ``--warmup``) and at the end of the node
   run, and the least-squares slope [MB/s] over that span, against the target of at most
-  0.01 MB/s;
+  0.01 MB/s (a restarted node is a new process: each life is fitted apart, the longest one is
+  printed with the number of lives);
+- how far the recorder was behind the stream (receive time less stamp of its own status,
+  p50 / p99 / max) and the restarts (reason, silence, CPU share): a recorder that falls behind
+  on a loaded machine holds its backlog in its DDS queues, whose memory keeps its high-water
+  mark;
 - the launcher's RSS peak while it writes the summary and plots from the streamed files;
 - messages lost (summary.json, target 0) and the fail-safe after start-up: control steps in
   fail-safe after the first step in normal mode (from the quarter car's streamed log, target 0);
@@ -62,7 +67,7 @@ def classify(proc):
 
 
 def sample(root):
-    """Return {name: rss_mb} of the launcher and its descendants."""
+    """Return {(name, pid): rss_mb} of the launcher and its descendants (one key per life)."""
     out = {}
     try:
         procs = [root] + root.children(recursive=True)
@@ -73,10 +78,34 @@ def sample(root):
         if name is None:
             continue
         try:
-            rss = p.memory_info().rss / 2 ** 20
+            out[(name, p.pid)] = p.memory_info().rss / 2 ** 20
         except psutil.Error:
             continue
-        out[name] = out.get(name, 0.0) + rss
+    return out
+
+
+def life_slopes(times, rows, warmup):
+    """
+    Return {name: (slope MB/s, start MB, end MB, span s, lives)} of each process kind.
+
+    A restarted node is a new process (a new pid, memory from its start): the slope is fitted
+    over each life after ``warmup`` [s] and the longest life's is reported, with the number of
+    lives (a sum over lives would read a restart as a drop).
+    """
+    series = {}
+    for t, row in zip(times, rows):
+        for key, rss in row.items():
+            series.setdefault(key, []).append((t, rss))
+    out = {}
+    for (name, _), pts in series.items():
+        lives = sum(1 for key in series if key[0] == name)
+        pts = [(t, y) for t, y in pts if t >= warmup]
+        if len(pts) < 3:
+            continue
+        ts, ys = zip(*pts)
+        span = ts[-1] - ts[0]
+        if name not in out or span > out[name][3]:
+            out[name] = (slope(ts, ys), ys[0], ys[-1], span, lives)
     return out
 
 
@@ -101,6 +130,30 @@ def failsafe_after_startup(out):
             started = True
         steps += int(np.count_nonzero(~normal))
     return steps, steps * float(log.meta.get('dt', 1e-3)), started
+
+
+def recorder_lag(out):
+    """
+    Return (p50, p99, max) [s] of how far the recorder was behind, or None without a recording.
+
+    Its own status is stamped when its timer fires and logged when its subscription takes it
+    back: the difference is the backlog it was working through.
+    """
+    from mr_damper_bringup.recorder import recording_parts
+    from mr_damper_model.io.bag_types import suite_typestore
+    from mr_damper_model.io.mcap_scan import McapScan
+    ts = suite_typestore()
+    lags = []
+    for _, part in recording_parts(Path(out) / 'suite.mcap'):
+        scan = McapScan(part)
+        for _, msgtype, t_ns, raw in scan.messages({'/diagnostics'}):
+            msg = scan.deserialize(raw, msgtype, ts)
+            if any(st.name == 'mr_damper_record' for st in msg.status):
+                stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                lags.append(t_ns * 1e-9 - stamp)
+    if not lags:
+        return None
+    return tuple(float(v) for v in np.percentile(lags, [50, 99, 100]))
 
 
 def slope(t, y):
@@ -140,35 +193,42 @@ def main(argv=None):
     while proc.poll() is None:
         now = time.monotonic() - t_start
         s = sample(root)
-        nodes = {k: v for k, v in s.items() if k != 'launcher'}
+        nodes = {k: v for k, v in s.items() if k[0] != 'launcher'}
+        launcher = [v for k, v in s.items() if k[0] == 'launcher']
         if nodes:
             nodes_seen = True
             times.append(now)
             rows.append(s)
-        elif nodes_seen and 'launcher' in s:
-            report_peak = max(report_peak, s['launcher'])      # nodes gone: the report
+        elif nodes_seen and launcher:
+            report_peak = max(report_peak, max(launcher))     # nodes gone: the report
         time.sleep(args.sample_s if nodes or not nodes_seen else 0.5)
     rc = proc.returncode
     load_end = os.getloadavg()
     t = np.asarray(times)
-    names = sorted({k for r in rows for k in r})
     print(f'\nSoak: {args.duration:.0f} s of the main job (sim rig 2 kHz -> identifier -> quarter '
-          f'car 1 kHz), RSS every {args.sample_s:g} s, slope fitted after {args.warmup:g} s; '
-          f'load at end {load_end[0]:.2f}/{load_end[1]:.2f}/{load_end[2]:.2f}')
+          f'car 1 kHz), RSS every {args.sample_s:g} s, slope fitted after {args.warmup:g} s '
+          f'over the longest life of each process; load at end '
+          f'{load_end[0]:.2f}/{load_end[1]:.2f}/{load_end[2]:.2f}')
     print(f'{"process":24s} {"RSS start MB":>12s} {"RSS end MB":>11s} {"slope MB/s":>11s} '
-          f'{"before MB/s":>11s}  target <= {TARGET_MB_S} MB/s')
+          f'{"span s":>7s} {"lives":>5s} {"before MB/s":>11s}  target <= {TARGET_MB_S} MB/s')
     ok = rc == 0
-    for name in names:
-        sel = [(ti, r[name]) for ti, r in zip(t, rows) if name in r and ti >= args.warmup]
-        if not sel:
-            continue
-        ts, ys = zip(*sel)
-        sl = slope(ts, ys)
+    for name, (sl, y0, y1, span, lives) in sorted(life_slopes(t, rows, args.warmup).items()):
         good = sl <= TARGET_MB_S
         ok &= bool(good)
         before = BEFORE.get(name)
-        print(f'{name:24s} {ys[0]:12.1f} {ys[-1]:11.1f} {sl:11.5f} '
+        print(f'{name:24s} {y0:12.1f} {y1:11.1f} {sl:11.5f} {span:7.0f} {lives:5d} '
               f'{"" if before is None else f"{before:.2f}":>11s}  {"ok" if good else "OVER"}')
+    behind = recorder_lag(args.out)
+    if behind is not None:
+        print(f'recorder behind the stream (receive time - stamp of its own status): '
+              f'p50 {behind[0]:.2f} s, p99 {behind[1]:.2f} s, max {behind[2]:.2f} s')
+    try:
+        sup = json.loads((Path(args.out) / 'restarts.json').read_text())
+        print('restarts: ' + (', '.join(
+            f'{r["node"]} ({r.get("reason")}, silent {r.get("silent_s", 0):.1f} s, CPU '
+            f'{100 * (r.get("cpu_share") or 0):.1f} %)' for r in sup['restarts']) or 'none'))
+    except (OSError, ValueError, KeyError):
+        pass
     print(f'launcher RSS peak while writing the summary: {report_peak:.0f} MB '
           f'(before: 858 MB after 10 minutes)')
     try:

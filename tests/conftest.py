@@ -1,8 +1,10 @@
 """
-Test-wide set-up: keep ROS 2 discovery on loopback and on a domain of this run's own.
+Test-wide set-up: keep ROS 2 on loopback and on a domain of this run's own.
 
 This runs before any test module imports rclpy, so every node a test creates (in this process or
-in a subprocess that inherits the environment) uses LOCALHOST discovery and a private domain.
+in a subprocess that inherits the environment) uses a private domain and the suite's Fast DDS
+loopback profile (``mr_damper_bringup.network``: every DDS socket on 127.0.0.1; or LOCALHOST
+discovery when the profile cannot be used), as mr-damper-suite gives its nodes.
 """
 import gzip
 import os
@@ -11,7 +13,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+from mr_damper_bringup.network import apply, dds_environment  # no ROS import
+
+apply(dds_environment(environ={}))
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(20, 220)))
 os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
 

@@ -104,6 +104,51 @@ def inject_faults(data, steady):
     return DamperData(t, data.x, data.v, f, data.i, source=data.source), spans
 
 
+#: The start-of-stream fault of issue 32: a 1 s +400 N load-cell offset 1.5 s after the start
+#: of the stream, a 1e30 N spike 4 s after it; ``inject_start_faults`` shifts both by whole
+#: windows (the fault in the first, second, third window, before a good set exists).
+START_OFFSET = (1.5, 1.0, 400.0)
+START_SPIKE_S = 4.0
+
+
+def inject_start_faults(data, window, window_s=2.0):
+    """
+    Return the record with the start-of-stream faults in its ``window``-th window (1, 2, 3...).
+
+    A ``START_OFFSET`` step (1 s of +400 N from 1.5 s) and a 1e30 N spike at 4 s, both
+    ``(window - 1) * window_s`` later, times from the record's first stamp; the parts beyond
+    the record's end are left out. Returns ``(data, spans)`` as :func:`inject_faults`.
+    """
+    t = data.t
+    shift = float(t[0]) + (int(window) - 1) * float(window_s)
+    start, length, offset = START_OFFSET
+    f = data.f.copy()
+    idx = np.flatnonzero((t >= shift + start) & (t < shift + start + length))
+    spans = {}
+    if idx.size:
+        f[idx] += offset
+        spans['offset'] = (float(t[idx[0]]), float(t[idx[-1]]))
+    k = int(np.searchsorted(t, shift + START_SPIKE_S))
+    if k < data.n:
+        f[k] = 1e30
+        spans['spike'] = (float(t[k]), float(t[k]))
+    return DamperData(t, data.x, data.v, f, data.i, source=data.source), spans
+
+
+def clean_reference(errors, end):
+    """
+    Error of the clean replay's set to judge a faulted set published at window end ``end``.
+
+    The set the clean replay held then, or, before its first valid set, that first set (a
+    faulted replay that publishes a set earlier than the clean one is judged against the
+    clean replay's first); None if the clean replay never published a valid set.
+    """
+    held = held_at(errors, end)
+    if held is None and errors:
+        held = errors[0][1]
+    return held
+
+
 def replay_published(li, data):
     """Feed a record sample by sample; return [(window end [s], published estimate)]."""
     out = []

@@ -5,7 +5,8 @@ Style rule: thin nodes on a pure core.
 
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor),
-``messages.py`` (message conversions) and ``node_utils.py`` are the only modules allowed to.
+``messages.py`` (message conversions), ``node_utils.py`` and ``lifecycle_utils.py`` are the only
+modules allowed to.
 """
 import subprocess
 import sys
@@ -14,9 +15,9 @@ import pytest
 
 from conftest import REPO
 
-ROS_MODULES = {'messages', 'node_utils'}
+ROS_MODULES = {'messages', 'node_utils', 'lifecycle_utils'}
 PACKAGES = ('mr_damper_common', 'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim',
-            'mr_damper_bringup', 'mr_damper_can', 'mr_damper_gym')
+            'mr_damper_bringup', 'mr_damper_can', 'semi_active_control', 'mr_damper_gym')
 
 
 def _core_modules():

@@ -27,6 +27,10 @@ NODE_MODULES = (
     'quarter_car_sim.state_estimator_node',
     'quarter_car_sim.full_car_node',
     'quarter_car_sim.full_car_controller_node',
+    'mr_damper_can.vehicle_bridge_node',
+    'semi_active_control.nodes.vehicle_estimator_node',
+    'semi_active_control.nodes.vehicle_controller_node',
+    'semi_active_control.nodes.lifecycle_manager_node',
 )
 HEADER = ('| parameter | default | range | while running | meaning |', '|---|---|---|---|---|')
 

@@ -19,7 +19,10 @@ NODES = ('mr_damper_rig.rig_node', 'quarter_car_sim.quarter_car_node',
          'quarter_car_sim.semi_active_controller_node', 'quarter_car_sim.state_estimator_node',
          'quarter_car_sim.full_car_node', 'quarter_car_sim.full_car_controller_node',
          'mr_damper_can.can_bridge_node',
-         'mr_damper_can.can_driver_sim_node')
+         'mr_damper_can.can_driver_sim_node', 'mr_damper_can.vehicle_bridge_node',
+         'semi_active_control.nodes.vehicle_estimator_node',
+         'semi_active_control.nodes.vehicle_controller_node',
+         'semi_active_control.nodes.lifecycle_manager_node')
 
 
 def loaded(modules, watch):

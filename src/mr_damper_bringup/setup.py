@@ -17,7 +17,9 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/launch', glob.glob('launch/*.launch.py')),
-        ('share/' + package_name + '/config', glob.glob('config/*.yaml')),
+        # the parameter YAMLs and the Fast DDS loopback profile (config/fastdds_loopback.xml)
+        ('share/' + package_name + '/config',
+         glob.glob('config/*.yaml') + glob.glob('config/*.xml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -30,6 +30,7 @@ setup(
         'console_scripts': [
             'can_bridge_node = mr_damper_can.entry_points:can_bridge_node',
             'can_driver_sim = mr_damper_can.entry_points:can_driver_sim',
+            'vehicle_bridge_node = mr_damper_can.entry_points:vehicle_bridge_node',
         ],
     },
 )

@@ -1,4 +1,6 @@
 """Setup for the semi_active_control ament_python package."""
+import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'semi_active_control'
@@ -15,6 +17,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/models', glob.glob('config/models/*.json')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -24,6 +27,11 @@ setup(
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'vehicle_estimator_node = semi_active_control.entry_points:vehicle_estimator_node',
+            'vehicle_controller_node = '
+            'semi_active_control.entry_points:vehicle_controller_node',
+            'lifecycle_manager = semi_active_control.entry_points:lifecycle_manager',
+        ],
     },
 )

@@ -1,9 +1,11 @@
 """
 Helpers for multi-process ROS 2 tests: start console-script nodes, listen to topics, wait.
 
-Node processes inherit ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the private ROS_DOMAIN_ID
-that tests/conftest.py sets.  Discovery usually takes < 50 ms but sometimes ~3 s, so every
-wait here uses a timeout of at least 5 s.
+Node processes inherit the loopback DDS settings and the private ROS_DOMAIN_ID that
+tests/conftest.py sets.  Discovery usually takes < 50 ms but sometimes ~3 s, so every
+wait here uses a timeout of at least 5 s. Every process started here runs in a process group
+of its own that gets SIGTERM if the test process dies, and is stopped as a group
+(``process_helpers``).
 
 Usage::
 
@@ -13,7 +15,10 @@ Usage::
         lis.wait_for(lambda: len(status) > 0, timeout=10)
 """
 import ast
+import contextlib
+import json
 import os
+import re
 from pathlib import Path
 import signal
 import subprocess
@@ -22,6 +27,8 @@ import threading
 import time
 
 from conftest import REPO, VENV_BIN
+from process_helpers import end_suite, popen, run, stop_group
+from ros_context import ros_context
 
 DISCOVERY_TIMEOUT_S = 8.0
 
@@ -124,9 +131,9 @@ class NodeProcess:
                                                delete=False)
         full_env = dict(os.environ, PYTHONUNBUFFERED='1')
         full_env.update(env or {})
-        assert full_env.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
-        self.proc = subprocess.Popen(cmd, stdout=self.log, stderr=subprocess.STDOUT,
-                                     env=full_env)
+        from mr_damper_bringup.network import on_loopback
+        assert on_loopback(full_env), 'DDS must stay on loopback (tests/conftest.py)'
+        self.proc = popen(cmd, stdout=self.log, stderr=subprocess.STDOUT, env=full_env)
 
     def output(self):
         """Return what the process printed so far."""
@@ -142,15 +149,10 @@ class NodeProcess:
         return self.proc.wait(timeout=timeout)
 
     def stop(self, timeout=10.0):
-        """Stop with SIGINT (then SIGKILL after ``timeout``); return the exit status."""
+        """Stop with SIGINT (then SIGKILL after ``timeout``), its group too; return the status."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(timeout=5)
-        return self.proc.returncode
+        return stop_group(self.proc, signal.SIGINT, timeout)
 
     def __enter__(self):
         return self
@@ -164,20 +166,26 @@ class Listener:
     """
     An rclpy node in the test process, spun in a background thread, recording messages.
 
-    ``subscribe`` returns a list that fills with ``(receive_time, msg)`` tuples.
+    ``subscribe`` returns a list that fills with ``(receive_time, msg)`` tuples. The node lives
+    in an rclpy context of its own (``context``; :func:`ros_context.ros_context`), shut down by
+    :meth:`close`, also when the construction fails half-way.
     """
 
     def __init__(self, name='test_listener'):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
-        if not rclpy.ok():
-            rclpy.init()
-        self.node = rclpy.create_node(name)
-        self._executor = SingleThreadedExecutor()
-        self._executor.add_node(self.node)
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
+        self._thread = None
+        with contextlib.ExitStack() as stack:
+            self.context = stack.enter_context(ros_context())
+            self.node = rclpy.create_node(name, context=self.context)
+            stack.callback(self.node.destroy_node)
+            self._executor = SingleThreadedExecutor(context=self.context)
+            stack.callback(self._executor.shutdown)
+            self._executor.add_node(self.node)
+            self._thread = threading.Thread(target=self._spin, daemon=True)
+            self._thread.start()
+            self._closing = stack.pop_all()
 
     def _spin(self):
         while not self._stop.is_set():
@@ -226,11 +234,10 @@ class Listener:
         return bool(predicate())
 
     def close(self):
-        """Stop spinning and destroy the node."""
+        """Stop spinning, destroy the node and shut its context down."""
         self._stop.set()
         self._thread.join(timeout=5)
-        self._executor.shutdown()
-        self.node.destroy_node()
+        self._closing.close()
 
     def __enter__(self):
         return self
@@ -309,17 +316,17 @@ def pump_lines(stream, lines):
     lines.put(None)
 
 
-def run_until_ready(cmd, env, is_ready, guard_s=300.0):
+def run_until_ready(cmd, env, is_ready, guard_s=300.0, out=None):
     """
     Start ``cmd``, read its output until ``is_ready(line)``, then stop it with SIGINT (Ctrl-C).
 
     ``guard_s`` is a hang guard only (also without output). Returns ``(ready, returncode,
-    seen, rest)``: whether a line made it ready (else the process is killed), the exit status,
-    the lines read before and the text after the SIGINT.
+    seen, rest)``: whether a line made it ready (else the process group is killed), the exit
+    status, the lines read before and the text after the SIGINT. With ``out`` (the folder of a
+    ``mr-damper-suite`` run) it also makes sure every node of the run has gone.
     """
     import queue
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=env)
+    proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     seen, ready, rest = [], False, ''
     lines = queue.Queue()
     reader = threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True)
@@ -337,17 +344,101 @@ def run_until_ready(cmd, env, is_ready, guard_s=300.0):
             ready = bool(is_ready(line))
         if ready:
             proc.send_signal(signal.SIGINT)
+            # the stop and the report may take long on a loaded machine: the process first
+            # (the reader thread keeps taking its output), then what it wrote
+            proc.wait(timeout=guard_s)
             reader.join(timeout=guard_s)
             parts = []
             while not lines.empty():
                 parts.append(lines.get() or '')
             rest = ''.join(parts)
-            proc.wait(timeout=guard_s)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        if proc.poll() is None or out is not None:
+            end_suite(proc, out)
     return ready, proc.returncode, seen, rest
+
+
+class SuiteRun:
+    """
+    ``mr-damper-suite`` running until stopped, its output read line by line (context manager).
+
+    Started in a process group of its own (:func:`process_helpers.popen`); on exit the launcher
+    is stopped and every node it started has to be gone (``left`` lists any that outlived it).
+
+    Parameters
+    ----------
+    out : path
+        Its ``--out`` folder.
+    options : str
+        More command-line options (``--duration 0`` and the test's domain are given).
+    guard_s : float
+        Hang guard of every wait [s] (also without output).
+
+    """
+
+    def __init__(self, out, *options, guard_s=400.0):
+        import queue
+        self.out = Path(out)
+        cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0', '--out', str(out),
+               '--progress-s', '1', '--no-plots', '--domain-id', os.environ['ROS_DOMAIN_ID'],
+               *options]
+        self.proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          env=dict(os.environ))
+        self.lines = queue.Queue()
+        self.seen = []
+        self.left = None
+        self.deadline = time.monotonic() + guard_s
+        threading.Thread(target=pump_lines, args=(self.proc.stdout, self.lines),
+                         daemon=True).start()
+
+    def wait_for(self, pattern, n=1):
+        """Read the output until the regular expression ``pattern`` matched ``n`` more lines."""
+        import queue
+        import re
+        found = 0
+        while found < n:
+            try:
+                line = self.lines.get(timeout=max(self.deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                line = None
+            assert line is not None, f'no {pattern!r}:\n' + ''.join(self.seen[-40:])
+            self.seen.append(line)
+            found += bool(re.search(pattern, line))
+        return self.seen[-1]
+
+    def pids(self):
+        """Return ``{node: pid}`` of the latest start of each node (``pids.json``)."""
+        import json
+        return json.loads((self.out / 'pids.json').read_text())
+
+    def stop(self):
+        """Stop the run with SIGINT (Ctrl-C) and wait for its end; return the exit status."""
+        self.proc.send_signal(signal.SIGINT)
+        self.wait_for('outputs in')
+        return self.proc.wait(timeout=max(self.deadline - time.monotonic(), 1.0))
+
+    def text(self):
+        """Return every line read so far."""
+        return ''.join(self.seen)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.left = end_suite(self.proc, self.out)
+        return False
+
+
+def end_suite_nodes(out, guard_s=60.0):
+    """Wait until the nodes of the suite run in ``out`` are gone; return those that were not."""
+    from process_helpers import suite_pids, wait_gone
+    left = wait_gone(suite_pids(out), guard_s)
+    for pid in left:
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return left
 
 
 def run_suite(out, *options, timeout_s=240):
@@ -360,9 +451,69 @@ def run_suite(out, *options, timeout_s=240):
     env = dict(os.environ)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), *options, '--out', str(out), '--progress-s', '5',
            '--no-plots', '--domain-id', env['ROS_DOMAIN_ID']]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=env)
+    try:
+        proc = run(cmd, timeout_s, env=env)
+    finally:
+        left = end_suite_nodes(out)
+    assert not left, f'nodes outlived the launcher: {left}'
     text = proc.stdout[-3000:] + proc.stderr[-3000:]
     # exit 0: every node ran to the end and exited 0 (CLEAN_EXIT), else the launcher says 1
     assert proc.returncode == 0, text
     assert 'exited with' not in proc.stderr and 'died (exit' not in proc.stderr, text
     return proc
+
+
+#: car time in a progress line of ``mr-damper-suite``: ``t_sim 12.3 s`` (a quarter car) or
+#: ``car t 12.34 s`` (the full car)
+CAR_TIME = re.compile(r'(?:t_sim|car t) (-?[\d.]+) s')
+
+
+def run_suite_until_controlled(out, *options, controlled, car_s=2.0, guard_s=300.0,
+                               plots=False):
+    """
+    Run ``mr-damper-suite`` until its car drove ``car_s`` of car time on models, then Ctrl-C.
+
+    No wall-clock duration (``--duration 0``): the suite runs until a progress line (one a
+    second) says ``controlled(line)`` (the car, or every corner, commands on a model) and the car
+    time of a later line is ``car_s`` past the first such line's, so a slow machine runs to the
+    same events. ``guard_s`` is a hang guard only; ``plots``: the report's plots too. Asserts
+    exit status 0 and no node died;
+    returns ``(summary, output)``: the run's ``summary.json`` and the launcher's output.
+    """
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), *options, '--duration', '0', '--out', str(out),
+           '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
+           *([] if plots else ['--no-plots'])]
+    t_first = []
+
+    def ready(line):
+        t_car = CAR_TIME.search(line)
+        if t_car is None:
+            return False
+        if not t_first and controlled(line):
+            t_first.append(float(t_car.group(1)))
+        return bool(t_first) and float(t_car.group(1)) >= t_first[0] + car_s
+
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, guard_s=guard_s, out=out)
+    text = ''.join(seen[-20:]) + rest[-3000:]
+    assert ok, text
+    assert returncode == 0, text
+    assert 'exited with' not in rest and 'died (exit' not in rest, text
+    return json.loads((Path(out) / 'summary.json').read_text()), ''.join(seen) + rest
+
+
+def assert_reached_control(summary, units=('car',)):
+    """
+    Assert the summary's ``control`` section: the car reached control.
+
+    Every identifier published a valid set, every law unit (``'car'``, or the corners)
+    commanded on a model, and the car was not in fail-safe throughout after that.
+    """
+    c = summary['control']
+    assert set(c['units']) == set(units), c['units']
+    for unit in units:
+        u = c['units'][unit]
+        assert u.get('first_valid_set_s') is not None, (unit, c)
+        assert u.get('first_normal_s') is not None, (unit, c)
+    assert c['failsafe_fraction'] is None or c['failsafe_fraction'] < 1.0, c
+    assert c['real_time_factor'] > 0, c

@@ -19,6 +19,7 @@ import pytest
 
 from conftest import REPO, VENV_BIN
 from integration.ros_helpers import console_scripts, python_packages
+from process_helpers import popen, run, stop_group
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -85,8 +86,7 @@ def test_bringup_launch_file_and_configs_come_from_the_install(install, tmp_path
     # both console scripts start from the install: a bad command line is refused (exit 2)
     for exe, args in (('mr-damper-suite', '--duration -1'),
                       ('mr-damper-record', f'--out {tmp_path / "not_mcap.txt"}')):
-        out = subprocess.run(in_install(install, f'{install / pkg / "lib" / pkg / exe} {args}'),
-                             capture_output=True, text=True, timeout=60)
+        out = run(in_install(install, f'{install / pkg / "lib" / pkg / exe} {args}'), 60)
         assert out.returncode == 2, (exe, out.stdout + out.stderr)
         assert 'Traceback' not in out.stderr, out.stderr
 
@@ -127,9 +127,7 @@ def test_can_dbc_comes_from_the_install(install):
 def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):
     exe = install / 'mr_damper_rig' / 'lib' / 'mr_damper_rig' / 'rig_node'
     missing = tmp_path / 'missing.csv'
-    out = subprocess.run(in_install(install, f'{exe} --ros-args -p mode:=csv '
-                                    f'-p file:={missing}'),
-                         capture_output=True, text=True, timeout=60)
+    out = run(in_install(install, f'{exe} --ros-args -p mode:=csv -p file:={missing}'), 60)
     assert out.returncode == 2, out.stdout + out.stderr
     assert f'{missing}: cannot read file' in out.stderr
 
@@ -141,8 +139,8 @@ def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):
 def test_long_running_nodes_start_from_install(install, tmp_path, pkg, exe, ready):
     log = tmp_path / f'{exe}.log'
     with open(log, 'w') as fh:
-        proc = subprocess.Popen(in_install(install, f'exec {install / pkg / "lib" / pkg / exe}'),
-                                stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+        proc = popen(in_install(install, f'exec {install / pkg / "lib" / pkg / exe}'),
+                     stdout=fh, stderr=subprocess.STDOUT)
     try:
         end = time.monotonic() + 30.0
         while time.monotonic() < end and proc.poll() is None:
@@ -152,12 +150,6 @@ def test_long_running_nodes_start_from_install(install, tmp_path, pkg, exe, read
         assert proc.poll() is None, log.read_text()
         assert ready in log.read_text()
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+        stop_group(proc, signal.SIGINT, 15.0)
     assert 'Traceback' not in log.read_text(), log.read_text()
     assert proc.returncode == 0, log.read_text()

@@ -16,7 +16,7 @@ import re
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import run_until_ready
+from integration.ros_helpers import assert_reached_control, run_until_ready
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -34,7 +34,7 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
         corners = dict(re.findall(r'(fl|fr): \d+ samples, [1-9]\d* valid, car (\w+)', line))
         return corners.get('fl') == corners.get('fr') == 'normal'
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
@@ -43,6 +43,7 @@ def test_two_corners_run_in_their_namespaces(tmp_path):
         assert d['samples_recorded'] > 1000, (corner, d)
         assert d['samples_lost'] == 0, (corner, d)
         assert d['windows_valid'] > 0 and d['params_accepted'] > 0, (corner, d)
+    assert_reached_control(summary, units=('fl', 'fr'))
     assert all(code == 0 for code in summary['exit_codes'].values()), summary['exit_codes']
     # per-corner parameter files and logs; one recording with both corners' topics
     assert (out / 'identifier_params_fl.json').is_file()

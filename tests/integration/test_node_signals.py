@@ -17,6 +17,7 @@ import time
 import pytest
 
 from conftest import VENV_BIN
+from process_helpers import popen, stop_group
 
 pytestmark = [pytest.mark.integration]
 
@@ -49,8 +50,7 @@ def test_signal_during_start_up_exits_0(tmp_path, script, sig):
     args = [a.replace('{tmp}', str(tmp_path)) for a in SCRIPTS[script]]
     log = tmp_path / 'node.log'
     with open(log, 'w') as fh:
-        proc = subprocess.Popen([str(VENV_BIN / script), *args], stdout=fh,
-                                stderr=subprocess.STDOUT, start_new_session=True)
+        proc = popen([str(VENV_BIN / script), *args], stdout=fh, stderr=subprocess.STDOUT)
     try:
         end = time.monotonic() + GUARD_S
         while not _catches(proc.pid, signal.SIGTERM) and proc.poll() is None \
@@ -61,9 +61,7 @@ def test_signal_during_start_up_exits_0(tmp_path, script, sig):
         os.kill(proc.pid, sig)
         rc = proc.wait(timeout=GUARD_S)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        stop_group(proc, signal.SIGKILL)
     text = log.read_text()
     assert 'Traceback' not in text, text
     assert rc == 0, text

@@ -20,6 +20,7 @@ import pytest
 
 from conftest import VENV_BIN
 from integration.ros_helpers import pump_lines
+from process_helpers import end_suite, popen
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -31,8 +32,8 @@ def test_killed_nodes_are_restarted_and_the_run_completes(tmp_path):
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--duration', '0', '--out', str(out),
            '--progress-s', '1', '--no-plots', '--domain-id', os.environ['ROS_DOMAIN_ID'],
            '--restart-backoff-s', '0.2']
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=dict(os.environ))
+    proc = popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                 env=dict(os.environ))
     lines = queue.Queue()
     seen = []
     threading.Thread(target=pump_lines, args=(proc.stdout, lines), daemon=True).start()
@@ -92,9 +93,8 @@ def test_killed_nodes_are_restarted_and_the_run_completes(tmp_path):
         wait_for('outputs in')
         proc.wait(timeout=max(deadline - time.monotonic(), 1.0))
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        left = end_suite(proc, out)
+    assert not left, f'nodes outlived the launcher: {left}'
     text = ''.join(seen)
     assert proc.returncode == 0, text[-4000:]
     now = json.loads((out / 'pids.json').read_text())

@@ -42,14 +42,14 @@ def _write_csv(path, n, t0_s=10.0):
 class SimTimeNode:
     """A node with ``use_sim_time`` (spun in a thread): measurements with its ROS time, /clock."""
 
-    def __init__(self, topic):
+    def __init__(self, topic, context):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.parameter import Parameter
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
         from mr_damper_interfaces.msg import DamperSamples
-        self.node = rclpy.create_node('sim_time_listener', parameter_overrides=[
+        self.node = rclpy.create_node('sim_time_listener', context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True)])
         self.clocks = []
         self.received = []    # (stamp ns, ROS time ns at receipt)
@@ -59,7 +59,7 @@ class SimTimeNode:
             Clock, '/clock', lambda m: self.clocks.append(
                 m.clock.sec * 1_000_000_000 + m.clock.nanosec), keep_all)
         self._meas = (DamperSamples, topic, keep_all)
-        self._executor = SingleThreadedExecutor()
+        self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
@@ -93,7 +93,7 @@ def test_replay_clock_drives_a_sim_time_node_at_rate_factor_4(listener, tmp_path
     n = 600                                      # 3 s of record, 0.75 s at rate_factor 4
     stamps_ns = (_write_csv(tmp_path / 'rec.csv', n) * 1e9).round().astype(np.int64)
     diag = listener.diagnostics()
-    sim = SimTimeNode('/clk/mr_damper/measurement')
+    sim = SimTimeNode('/clk/mr_damper/measurement', listener.context)
     try:
         params = {'mode': 'csv', 'file': str(tmp_path / 'rec.csv'), 'rate_factor': 4.0,
                   'publish_clock': True, 'tick_s': 0.005, 'wait_for_subscribers': 1,

@@ -4,19 +4,18 @@ The suite over CAN: ``mr-damper-suite --config can`` (docs/can.md, "With the sui
 - the configuration alone (no nodes): the CAN nodes start first and stop in reverse, one bus per
   domain, the bridge's safe current is the car's, the car's remap, the recorder's CAN topics,
   every YAML parameter declared by its node;
-- the whole run (20 s, real node processes, ``udp_loopback`` in the test's network namespace):
-  exit 0, command frames reach the simulated driver and a lost one is counted by the rolling
-  counter (UDP on loopback may drop a datagram under load), the car took the driver's
-  measured current as its command, and the frame log ``can.blf`` reads back with python-can.
-  Counts only, no wall-clock thresholds.
+- the whole run (real node processes, ``udp_loopback`` in the test's network namespace; stopped
+  once the controller drove the car 2 s of car time on its model): exit 0, the controller left
+  fail-safe on the identifier's set, command frames reach the simulated driver and a lost one is
+  counted by the rolling counter (UDP on loopback may drop a datagram under load), the car took
+  the driver's measured current as its command, and the frame log ``can.blf`` reads back with
+  python-can. Events and counts only, no wall-clock thresholds.
 """
-import json
-
 import pytest
 import yaml
 
 from conftest import REPO
-from integration.ros_helpers import run_suite
+from integration.ros_helpers import assert_reached_control, run_suite_until_controlled
 from mr_damper_bringup.config import (CAN_BRIDGE, CAN_DRIVER, CAN_PORT_BASE, CTRL,
                                       external_controller, IDENT, node_arguments, node_params,
                                       QC, recorder_arguments, resolve_config, RIG, suite_nodes)
@@ -84,14 +83,16 @@ def test_can_rejects_corners(tmp_path, capsys):
 @pytest.mark.integration
 @pytest.mark.slow
 def test_suite_over_can_loses_no_command(tmp_path):
-    """mr-damper-suite --config can end to end: 0 lost frames, the measured current back."""
+    """mr-damper-suite --config can end to end: the law on a model, the measured current back."""
     out = tmp_path / 'suite'
-    proc = run_suite(out, '--config', 'can', '--duration', '20')
+    # stopped once the controller drove the car 2 s of car time on its model (no wall clock)
+    summary, stdout = run_suite_until_controlled(
+        out, '--config', 'can', controlled=lambda line: '| controller normal' in line)
     for node in (CAN_DRIVER, CAN_BRIDGE, RIG, IDENT, CTRL, QC):
         assert (out / 'logs' / f'{node}.log').read_text().startswith('--- start'), node
-    assert 'CAN (fl): bridge sent' in proc.stdout
-    summary = json.loads((out / 'summary.json').read_text())
+    assert 'CAN (fl): bridge sent' in stdout
     assert summary['config'] == 'can'
+    assert_reached_control(summary)
     can_ = summary['can']
     # frames went from the bridge to the driver. The simulated bus is UDP on loopback and may
     # drop a datagram when a starved receiver's buffer is full; a frame lost mid-run is never

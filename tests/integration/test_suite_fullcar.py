@@ -14,7 +14,7 @@ import re
 import pytest
 
 from conftest import VENV_BIN
-from integration.ros_helpers import run_until_ready
+from integration.ros_helpers import assert_reached_control, run_until_ready
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -43,7 +43,7 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
         # then let the car drive 2 s of simulated time on its four models
         return t_normal is not None and float(t_car.group(1)) >= t_normal + 2.0
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
@@ -62,6 +62,7 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
         d = car['corners'][c]
         assert d['params_accepted'] > 0 and d['samples_lost'] == 0, (c, d)
         assert d['first_normal_t_sim'] is not None, (c, d)
+    assert_reached_control(summary, units=CORNERS)
     # ISO 2631-1 of the live body and of the passive car on the same road, same window
     assert car['live']['duration_s'] == pytest.approx(car['passive']['duration_s'], rel=1e-6)
     for key in ('live', 'passive'):
@@ -91,7 +92,7 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
         # supervisor taking a set comes before its first command on it: wait for the command)
         return re.search(r'on models 4/4', line) is not None
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     summary = json.loads((out / 'summary.json').read_text())
@@ -106,3 +107,4 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
         d = car['corners'][c]
         assert d['params_accepted'] > 0 and d['first_normal_t_sim'] is not None, (c, d)
         assert summary['corners'][c]['samples_lost'] == 0, (c, summary['corners'][c])
+    assert_reached_control(summary, units=CORNERS)

@@ -58,7 +58,7 @@ def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
     import os
     import re
     from conftest import VENV_BIN
-    from integration.ros_helpers import run_until_ready
+    from integration.ros_helpers import assert_reached_control, run_until_ready
     out = tmp_path / 'suite'
     env = dict(os.environ)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--sensing', 'vehicle', '--duration', '0',
@@ -73,7 +73,7 @@ def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
         t_car = re.search(r't_sim (-?[\d.]+) s', line)
         return t_car is not None and float(t_car.group(1)) >= end_s
 
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready)
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
     stdout = ''.join(seen) + rest
@@ -90,6 +90,7 @@ def test_suite_on_estimated_states_counts_a_sensor_dropout(tmp_path):
     # the estimator published (one estimate per reading it took) and the controller answered
     assert s['estimator']['steps'] > 0 and s['estimates'] > 0 and s['valid_estimates'] > 0
     assert s['controller']['commands'] > s['controller']['commands_normal'] > 0
+    assert_reached_control(summary)
     # lock-step: every reading taken (none lost, none predicted through), a filter step and an
     # estimate for each (the estimator's last status, one snapshot)
     est = s['estimator']

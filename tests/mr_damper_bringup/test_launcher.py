@@ -51,6 +51,12 @@ def test_progress_line_from_the_statuses():
     line = progress_line(mon, 10.0)
     assert 'recorded 5000 samples' in line and '3 updates (2 valid), nrmse 1.2 %' in line
     assert 'failsafe (stale)' in line and 'Wk 0.900' in line
+    assert 'controller' not in line
+    # an external controller: its mode (has it a model?) next to the car's (do commands come?)
+    mon.add('controller', {'mode': 'failsafe', 'reason': 'no_parameters_yet'})
+    assert progress_line(mon, 11.0).endswith('| controller failsafe (no_parameters_yet)')
+    mon.add('controller', {'mode': 'normal', 'reason': 'ok'})
+    assert progress_line(mon, 12.0).endswith('| controller normal')
 
 
 @pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],
@@ -76,3 +82,14 @@ def test_restart_options_make_the_policy():
     assert got == (5, 30.0, 0.25, 2.0)
     from mr_damper_bringup.supervisor import RestartPolicy
     assert parse_args([]).restart_policy == RestartPolicy()
+
+
+def test_hang_timeouts_cover_each_nodes_own_status_period():
+    from mr_damper_bringup.launcher import hang_timeouts
+    cfg = {'/**': {'ros__parameters': {}},
+           'quarter_car_node': {'ros__parameters': {'diagnostics_period_s': 10.0}}}
+    corners = {'fl': {'/fl/mr_damper_rig': {'ros__parameters': {'diagnostics_period_s': 20.0}}}}
+    got = hang_timeouts(['quarter_car_node', 'mr_damper_record', 'fl.mr_damper_rig'], 15.0,
+                        cfg, corners)
+    assert got == {'quarter_car_node': 30.0, 'mr_damper_record': 15.0, 'fl.mr_damper_rig': 60.0}
+    assert set(hang_timeouts(['quarter_car_node'], 0.0, cfg).values()) == {0.0}

@@ -67,9 +67,10 @@ def _diagnostics(k):
 def _car_state(k):
     cls = TS.types[topics.CAR_STATE]
     values = {name: float(j + k) for j, name in enumerate(cls.__dataclass_fields__)
-              if name not in ('header', 'fail_safe_mode', 'fail_safe_reason')
+              if name not in ('header', 'sequence', 'fail_safe_mode', 'fail_safe_reason')
               and not name.isupper() and name != '__msgtype__'}
-    return cls(header=_stamp(0.001 * k), fail_safe_mode=1, fail_safe_reason='stale', **values)
+    return cls(header=_stamp(0.001 * k), sequence=k, fail_safe_mode=1, fail_safe_reason='stale',
+               **values)
 
 
 #: a message builder for every type of the topic table (a new type needs one here)
@@ -236,6 +237,23 @@ def test_measurements_are_counted_in_every_namespace(tmp_path):
         assert rec.measurements() == 3 * 20          # samples: batches of 20
 
 
+def test_measurement_batches_lost_on_the_way_are_counted_from_their_sequence(tmp_path):
+    """Batches 3, 4 and 7 of one namespace never came, the other lost none: 3 counted there."""
+    table = topics.namespaced_table(topics.topic_table(['measurement', 'car_state']),
+                                    ['fl', 'fr'])
+    with SuiteRecorder(tmp_path / 'g.mcap', table, typestore=TS) as rec:
+        got = [rec.write('fl/measurement', TS.serialize_cdr(_samples(k), topics.DAMPER_SAMPLES),
+                         k) for k in (0, 1, 2, 5, 6, 8)]
+        got += [rec.write('fr/measurement', TS.serialize_cdr(_samples(k), topics.DAMPER_SAMPLES),
+                          k) for k in range(4)]
+        # a car state with a gap in its numbers is recorded as it came (not a measurement)
+        got += [rec.write('fl/car_state', TS.serialize_cdr(_car_state(k), topics.CAR_STATE), k)
+                for k in (0, 5)]
+    assert got == [0, 0, 0, 2, 0, 1] + [0] * 6
+    assert rec.lost == {'fl/measurement': 3, 'fr/measurement': 0}
+    assert rec.measurements() == 10 * 20
+
+
 def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path):
     rec = tmp_path / 'suite.mcap'
     assert part_path(rec, 0) == rec and part_path(rec, 2) == tmp_path / 'suite.2.mcap'
@@ -274,3 +292,17 @@ def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
     assert n - per_chunk <= len(got) < n
     with pytest.raises(ValueError, match='chunk_s'):
         SuiteRecorder(tmp_path / 'x.mcap', chunk_s=-1.0)
+
+
+def test_a_measurement_message_it_cannot_read_is_written_and_counted(tmp_path):
+    """An empty batch from rclpy does not deserialise with rosbags: written, counted, no raise."""
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_common import messages as mm
+    from mr_damper_interfaces.msg import DamperSamples
+    with SuiteRecorder(tmp_path / 'e.mcap', typestore=TS) as rec:
+        rec.write('measurement', serialize_message(DamperSamples()), 5)
+        batch = mm.samples_to_msg([1.5], [0.0], [0.1], [8.0], [0.5], sequence=1, first_index=0)
+        rec.write('measurement', serialize_message(batch), 6)
+    assert rec.counts['measurement'] == 2 and rec.measurements() == 1
+    assert rec.undecodable == {'measurement': 1}

@@ -125,14 +125,15 @@ def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
 
 
 def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_params=None,
-               first_index=0):
+               first_index=0, extra=()):
     """
     Write a synthetic ``suite.mcap`` the way the recorder node does (rclpy CDR bytes).
 
     ``params_msgs``: (receive time [s], dict); ``statuses``: (receive time [s], node, dict);
     ``drop``: measurement indices not recorded (gaps); ``node_params``: {node: parameters} as
     the recorder asks them from the nodes; ``first_index``: the stream index of the first sample
-    (a later part of a recording goes on with the rig's index).
+    (a later part of a recording goes on with the rig's index); ``extra``: more messages
+    ``(receive time [s], key, rclpy message)``, written after the rest.
     """
     from rclpy.serialization import serialize_message
 
@@ -162,6 +163,8 @@ def _write_run(path, meas, params_msgs, statuses, truth, cfg, *, drop=(), node_p
             diag = mm.diagnostic_array_msg([mm.diagnostic_status_msg(names[node], Health(
                 OK, 'ok', d))], stamp_s=t)
             rec.write('diagnostics', serialize_message(diag), int(round(t * 1e9)))
+        for t, key, msg in extra:
+            rec.write(key, serialize_message(msg), int(round(t * 1e9)))
     return path
 
 
@@ -188,7 +191,7 @@ def test_read_recording_counts_gaps_and_decodes_every_kind(tmp_path):
     assert rec['status_messages'] == {'rig': 2, 'identifier': 1}
     assert rec['truth']['c0'] == params['c0'] and rec['truth']['valid'] == 1.0
     assert rec['parameter_messages'] == 1
-    assert rec['topic_messages']['measurement'] == 497 and rec['undecodable'] == {}
+    assert rec['topic_messages']['measurement'] == 497 and rec['bad_messages'] == {}
     got = ColumnReader(tmp_path / 'measurement').read()
     keep = np.setdiff1d(np.arange(500), [100, 101, 300])
     for c in ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s'):
@@ -453,3 +456,68 @@ def test_no_recording_gives_a_summary_from_the_statuses(tmp_path):
     assert s['messages']['measurements_received_by_identifier'] == 700
     assert json.loads((tmp_path / 'summary.json').read_text()) == s
     assert not list(tmp_path.glob('*.png'))
+
+
+def _batch(t, x, v, f, i, *, first_index, sequence=0):
+    """Return a ``DamperSamples`` batch as the rig publishes it (no checks of the values)."""
+    from mr_damper_common import messages as mm
+    return mm.samples_to_msg(t, x, v, f, i, sequence=sequence, first_index=first_index,
+                             sample_period_s=1e-3)
+
+
+def test_no_recorded_message_breaks_the_report(tmp_path):
+    """
+    Bad recorded messages are counted by reason and skipped; the summary is written.
+
+    Each of these raised (``ModelError``, ``TypeError``) or wrote a false figure before: a NaN
+    or infinite sample, a NaN parameter in a valid set, a batch whose arrays differ in length,
+    samples stamped out of order, a batch whose ``first_index`` jumps by 2**64 - 1.
+    """
+    from mr_damper_interfaces.msg import DamperSamples
+    params, msg = _truth_msg()
+    meas = _measurements(params, n=3000)
+    n = meas['t'].size
+    bad_t = 1000.0 + 3.5          # receive times of the bad messages: after the good ones
+    # the good samples among them are the model's force (the figures below are its noise)
+    good = float(kwok_current_force(dict(params, i_ref_a=2.0), 0.0, 0.1, 0.5)[0])
+    nan_sample = _batch([3.001, 3.002], [0.0, float('nan')], [0.1, 0.1], [good, good],
+                        [0.5, 0.5], first_index=n)
+    inf_sample = _batch([3.003], [0.0], [0.1], [float('inf')], [0.5], first_index=n + 2)
+    short = _batch([3.004, 3.005], [0.0, 0.0], [0.1, 0.1], [1.0, 1.0], [0.5, 0.5],
+                   first_index=n + 3)
+    short.f_n = [1.0]                                    # arrays of different lengths
+    late = _batch([1.0], [0.0], [0.1], [1.0], [0.5], first_index=n + 5)    # before the newest
+    absurd = _batch([3.006], [0.0], [0.1], [good], [0.5], first_index=2 ** 64 - 1)
+    empty = DamperSamples()
+    nan_set = dict(msg, c0=float('nan'), window_end_s=3.0)
+    extra = [(bad_t, 'measurement', m) for m in (nan_sample, inf_sample, short, late, absurd,
+                                                 empty)]
+    from mr_damper_common import messages as mm
+    extra.append((bad_t + 0.1, 'parameters', mm.kwok_parameters_msg(nan_set)))
+    _write_run(tmp_path / 'suite.mcap', meas, [(1000.5, dict(msg))], [], msg, _cfg(),
+               extra=extra)
+    s = report.make_report(tmp_path, duration_s=4.0, plots=True)
+    assert json.loads((tmp_path / 'summary.json').read_text()) == s
+    bad = s['recording']['bad_messages']
+    assert bad['measurement'] == {'nonfinite_samples': 2, 'out_of_order_samples': 1,
+                                  'layout': 1, 'undecodable': 1}
+    assert bad['parameters'] == {'nonfinite_parameters': 1}
+    # the good samples and the good set make the figures; the NaN set is no update
+    ident = s['identification']
+    assert ident['updates'] == 1 and ident['valid_updates'] == 1
+    assert ident['rmse_n'] == pytest.approx(1.0, rel=0.1)
+    assert s['messages']['measurements_received_by_recorder'] == n + 2   # 3.001 and 3.006
+    # the absurd index jump is a restart of the stream, not 1.8e19 samples lost
+    assert s['messages']['measurement_gaps_at_recorder'] == 0
+    assert 'bad recorded messages' in report.format_summary(s)
+
+
+def test_a_recording_with_empty_topics_makes_a_summary(tmp_path):
+    """No measurement and no parameter message at all: figures are None, nothing raises."""
+    _, msg = _truth_msg()
+    _write_run(tmp_path / 'suite.mcap', {k: np.zeros(0) for k in 'txvfi'} |
+               {'recv_epoch_s': np.zeros(0)}, [], [], msg, _cfg())
+    s = report.make_report(tmp_path, duration_s=1.0, plots=True)
+    assert s['identification']['updates'] == 0 and s['identification']['parameters'] is None
+    assert s['recording']['bad_messages'] == {}
+    assert json.loads((tmp_path / 'summary.json').read_text()) == s

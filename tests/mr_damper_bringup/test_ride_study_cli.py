@@ -30,7 +30,8 @@ def test_compare_json(params_file, capsys):
             'sh-add', 'clipped-optimal', 'clipped-optimal-wk', 'skyhook-ideal', 'lqr-active',
             'bound'} <= names
     assert names == set(f'passive@{i:.1f}A' for i in cli.COMPARE_CURRENTS_A) | set(
-        cli.COMPARE_NAMES) | {'bound'}
+        cli.COMPARE_NAMES) | set(cli.PREVIEW_ROWS) | {'bound'}
+    assert out['controllers']['preview-look-ahead']['preview']['sensor']['latency_s'] == 0.02
     assert 0.0 <= out['controllers']['bound']['mean_current_a'] <= 2.0
     for m in out['controllers'].values():
         for key in ('rms_body_accel_wk', 'rms_body_accel', 'rms_suspension_travel',
@@ -45,8 +46,27 @@ def test_compare_table_names_the_new_laws_and_the_bound(params_file, capsys):
                    '--damper-params', str(params_file)])
     assert rc == 0
     rows = [line.split()[0] for line in capsys.readouterr().out.splitlines()[2:-1]]
-    assert rows[-3:] == ['skyhook-ideal', 'lqr-active', 'bound']
+    assert rows[-5:] == ['skyhook-ideal', 'lqr-active', 'preview-look-ahead-ideal',
+                         'preview-look-ahead', 'bound']
     assert 'sh-add' in rows and 'clipped-optimal' in rows
+
+
+def test_a_preview_row_reports_its_settings_and_counters(params_file, capsys):
+    rc = cli.main(['--controller', 'preview-look-ahead', '--duration', '0.5', '--plant', 'kwok',
+                   '--damper-params', str(params_file), '--json', '--preview-noise', '0.002',
+                   '--preview-horizon', '0.2', '--speed-error', '-0.01'])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    (name, m), = out['controllers'].items()
+    pv = m['preview']
+    assert name == 'preview-look-ahead' and pv['source'] == 'look-ahead'
+    assert pv['horizon_s'] == 0.2 and pv['speed_scale_error'] == -0.01
+    assert pv['sensor']['height_noise_m'] == 0.002 and pv['sensor']['range_m'] == [0.5, 15.0]
+    assert pv['law']['steps'] == 1001                           # 0.5 s settling + 0.5 s
+    assert pv['road_preview']['frames_taken'] == pv['sensor_frames']['delivered'] > 0
+    # a road in time only has no distances to preview
+    assert cli.main(['--controller', 'preview-look-ahead', '--road', 'sine', '--plant', 'kwok',
+                     '--damper-params', str(params_file)]) == 2
 
 
 def test_single_controller_table(params_file, capsys):

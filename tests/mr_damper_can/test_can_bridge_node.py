@@ -6,19 +6,15 @@ import can
 import pytest
 
 from mr_damper_can.driver_sim import SimulatedEcu
+from ros_context import ros_context
 
 
 @pytest.fixture
 def ctx():
-    """Return a context of its own and a list; shutting the context down destroys its nodes."""
-    import rclpy
-    from rclpy.context import Context
-    context = Context()
-    rclpy.init(context=context)
-    try:
-        yield context, []
-    finally:
-        rclpy.try_shutdown(context=context)
+    """Return a context of its own and a list of the nodes made in it (destroyed after)."""
+    made = []
+    with ros_context(made) as context:
+        yield context, made
 
 
 def _make(ctx, **params):

@@ -31,6 +31,15 @@ def test_dbc_has_every_frame_with_cycle_times(db):
         assert m.get_signal_by_name('COUNTER').length == 4
     cmd = db.get_message_by_name('DAMPER_CMD_FL').get_signal_by_name('CMD_CURRENT')
     assert (cmd.minimum, cmd.maximum, cmd.scale, cmd.length) == (0, 2.55, 0.01, 8)
+    # the vehicle computer's frame: the four currents at the same resolution, one id that
+    # wins arbitration over every other frame, the sensor cycle it answers
+    all4 = db.get_message_by_name(codec.VEHICLE_COMMAND)
+    assert (all4.frame_id, all4.length, all4.cycle_time) == (0x100, 8, 2)
+    assert min(m.frame_id for m in db.messages) == all4.frame_id
+    for c in CORNERS:
+        sig = all4.get_signal_by_name(f'CMD_CURRENT_{c.upper()}')
+        assert (sig.minimum, sig.maximum, sig.scale, sig.length) == (0, 2.55, 0.01, 8)
+    assert all4.get_signal_by_name('SENSOR_CYCLE').length == 8
 
 
 def _grid(sig, n=7):
@@ -101,8 +110,17 @@ def test_counter_jumps_and_repeats(db):
 def test_bus_load_of_the_dbc(db):
     # worst-case stuffed frame lengths: 4 bytes 95 bits, 5 bytes 105, 8 bytes 135
     assert [codec.frame_bits(n) for n in (0, 4, 5, 8)] == [55, 95, 105, 135]
-    full = codec.bus_load(db, 1_000_000)
+    corner = codec.bus_load(db, 1_000_000, cycle_times_ms=codec.bus_layout('corner'))
     expected = (4 * 95 * 1000 + 4 * 105 * 500 + 3 * 135 * 500) / 1e6
-    assert full == pytest.approx(expected)
+    assert corner == pytest.approx(expected)                  # 79 %
+    # the vehicle computer's bus: one 8-byte command and the three sensor frames per 2 ms
+    # cycle, the four driver statuses every 10 ms: 31 % of 1 Mbit/s
+    vehicle = codec.bus_load(db, 1_000_000, cycle_times_ms=codec.bus_layout('vehicle'))
+    assert vehicle == pytest.approx((135 * 500 + 3 * 135 * 500 + 4 * 105 * 100) / 1e6)
+    assert vehicle == pytest.approx(0.312)
+    at_1khz = codec.bus_load(db, 1_000_000, cycle_times_ms=codec.bus_layout('vehicle', 0.001))
+    assert at_1khz == pytest.approx(0.582)
     with pytest.raises(ValueError, match='bitrate'):
         codec.bus_load(db, 0)
+    with pytest.raises(ValueError, match='layout'):
+        codec.bus_layout('truck')

@@ -2,7 +2,8 @@
 Tests of node_utils: QoS choices, drop counter, spin loop, SIGINT / SIGTERM in run_node.
 
 The spin loop's stop and error handling, and run_node's signal handling in a real process
-(exit 0 after finish and destroy, in that order).
+(exit 0 after finish and destroy, in that order). The drop counter's subscriptions count lost
+messages from their sequence numbers and never arm the middleware's MESSAGE_LOST event.
 """
 import os
 import signal
@@ -13,10 +14,13 @@ import textwrap
 import pytest
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.qos import HistoryPolicy, ReliabilityPolicy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from mr_damper_common import node_utils
+from process_helpers import popen, stop_group
+from ros_context import ros_context
 
 
 class _Logger:
@@ -29,12 +33,19 @@ class _Logger:
 
 @pytest.fixture(scope='module')
 def ros():
-    started = not rclpy.ok()   # the integration tests' listener may have initialised it
-    if started:
-        rclpy.init()
-    yield
-    if started:
-        rclpy.try_shutdown()
+    """Return this module's rclpy context (its own; shut down after the module)."""
+    with ros_context() as context:
+        yield context
+
+
+def _spin_once(node, timeout_sec):
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        executor.spin_once(timeout_sec=timeout_sec)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
 
 
 def test_measurement_stream_is_reliable_keep_all_and_other_topics_keep_last():
@@ -56,20 +67,66 @@ def test_drop_counter_counts_by_reason_and_warns():
     assert len(log.lines) == 2 and '3 in all' in log.lines[0] and 'publish_failed' in log.lines[1]
 
 
-def test_lost_callback_adds_the_reported_change():
-    drops = node_utils.DropCounter(_Logger())
-    on_lost = drops.lost_callbacks('command_lost').message_lost
+def _wait_for(condition, spin, what):
+    for _ in range(3000):   # a hang guard, not a time bound
+        if condition():
+            return
+        spin()
+    raise AssertionError(f'hang guard: {what}')
 
-    class Info:
-        total_count, total_count_change = 7, 7
-    on_lost(Info)
-    Info.total_count, Info.total_count_change = 9, 2
-    on_lost(Info)
-    assert drops.counts() == {'command_lost': 9}
+
+def test_subscribe_counts_sequence_gaps_per_stream_and_never_arms_message_lost(ros):
+    from rclpy.event_handler import QoSSubscriptionEventType
+    from mr_damper_interfaces.msg import DamperSamples
+    node = rclpy.create_node('gaps_test', context=ros)
+    executor = SingleThreadedExecutor(context=ros)
+    executor.add_node(node)
+    try:
+        drops = node_utils.DropCounter(_Logger())
+        got, text = [], []
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        sub = drops.subscribe(node, DamperSamples, 'gaps_topic', got.append, qos,
+                              'samples_lost')
+        plain = drops.subscribe(node, String, 'gaps_text', text.append, qos)
+        with pytest.raises(ValueError, match='no sequence'):    # no count it cannot keep
+            drops.subscribe(node, String, 'gaps_text', text.append, qos, 'text_lost')
+        for s in (sub, plain):
+            types = {h.event_type for h in s.event_handlers}
+            assert QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST not in types, types
+        pub = node.create_publisher(DamperSamples, 'gaps_topic', qos)
+        text_pub = node.create_publisher(String, 'gaps_text', qos)
+        _wait_for(lambda: pub.get_subscription_count() == text_pub.get_subscription_count() == 1,
+                  lambda: executor.spin_once(timeout_sec=0.01), 'discovery')
+        # two publishers (frames) interleaved; 'fl' skips 3, 4 and 7, 'fr' restarts at 0
+        sent = [('fl', 0), ('fr', 10), ('fl', 1), ('fl', 2), ('fr', 11), ('fl', 5), ('fl', 6),
+                ('fr', 0), ('fl', 8), ('fr', 1)]
+        for frame, k in sent:
+            msg = DamperSamples(sequence=k)
+            msg.header.frame_id = frame
+            pub.publish(msg)
+            text_pub.publish(String(data=str(k)))
+        _wait_for(lambda: len(got) == len(text) == len(sent),
+                  lambda: executor.spin_once(timeout_sec=0.01), 'delivery')
+        assert [(m.header.frame_id, m.sequence) for m in got] == sent
+        assert drops.counts() == {'samples_lost': 3}     # types without a sequence: nothing
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
+def test_no_subscription_in_src_arms_the_message_lost_event():
+    """Fast DDS 3.2.3 can deadlock a node taking MESSAGE_LOST (ros2/rmw_fastrtps#890)."""
+    import re
+    from conftest import REPO
+    armed = re.compile(r'message_lost\s*=|RCL_SUBSCRIPTION_MESSAGE_LOST|lost_callbacks')
+    found = [f'{path.relative_to(REPO)}:{n}: {line.strip()}'
+             for path in sorted((REPO / 'src').rglob('*.py'))
+             for n, line in enumerate(path.read_text().splitlines(), 1) if armed.search(line)]
+    assert not found, found
 
 
 def test_publish_failure_is_counted_not_raised(ros):
-    node = rclpy.create_node('node_utils_test')
+    node = rclpy.create_node('node_utils_test', context=ros)
     drops = node_utils.DropCounter(_Logger())
     pub = node.create_publisher(String, '/node_utils_test/status', node_utils.STATUS_QOS)
     assert drops.publish(pub, String(data='x')) is True
@@ -84,6 +141,24 @@ def test_publish_failure_is_counted_not_raised(ros):
     assert drops.publish(Refusing(), String(data='z')) is False
     assert drops.counts() == {'publish_failed': 2}
     node.destroy_node()
+
+
+def test_publish_next_numbers_each_message_from_0_also_past_a_failed_publish():
+    """The readers of a numbered stream count the failed one lost: its number is used."""
+    from mr_damper_interfaces.msg import QuarterCarState
+    drops = node_utils.DropCounter(_Logger())
+    sent = []
+
+    class Flaky:
+        topic_name = '/numbered'
+
+        def publish(self, msg):
+            if msg.sequence == 1:
+                raise _rclpy.RCLError('Failed to publish: cannot publish data')
+            sent.append(msg.sequence)
+    msg = QuarterCarState()
+    assert [drops.publish_next(Flaky(), msg) for _ in range(3)] == [True, False, True]
+    assert sent == [0, 2] and msg.sequence == 3 and drops.counts() == {'publish_failed': 1}
 
 
 class _Executor:
@@ -102,10 +177,14 @@ class _Executor:
 
 
 @pytest.fixture
-def stop_flag(ros):
+def stop_flag():
+    """Clear the stop flag; rclpy's default context up (the spin loop asks ``rclpy.ok()``)."""
     node_utils._STOP.clear()
-    yield
-    node_utils._STOP.clear()
+    try:
+        with ros_context(default=True):
+            yield
+    finally:
+        node_utils._STOP.clear()
 
 
 def test_spin_returns_on_stop_request_and_on_done(stop_flag):
@@ -155,15 +234,15 @@ _NODE_SCRIPT = textwrap.dedent('''
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_run_node_exits_0_on_signal_after_finish(sig):
-    proc = subprocess.Popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    proc = popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
+                 stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
     try:
         assert proc.stdout.readline().strip() == 'ready'
         proc.send_signal(sig)
         out, _ = proc.communicate(timeout=30)          # hang guard only
     finally:
         if proc.poll() is None:
-            proc.kill()
+            stop_group(proc, signal.SIGKILL)
     assert proc.returncode == 0, out
     assert out.startswith('finish after') and 'Traceback' not in out, out
 
@@ -172,9 +251,8 @@ def test_resettable_publisher_replaces_a_writer_a_reader_stopped_acknowledging(r
     # a KEEP_ALL reader whose callbacks never run (never spun) stops taking samples once its
     # history is full; the reliable writer then keeps everything unacknowledged until its own
     # resource limit (5,000) and publish() fails: the writer is replaced, nothing raises
-    from rclpy.qos import QoSProfile
-    node = rclpy.create_node('resettable_pub')
-    stalled = rclpy.create_node('stalled_reader')
+    node = rclpy.create_node('resettable_pub', context=ros)
+    stalled = rclpy.create_node('stalled_reader', context=ros)
     qos = QoSProfile(depth=10, history=HistoryPolicy.KEEP_ALL,
                      reliability=ReliabilityPolicy.RELIABLE)
     stalled.create_subscription(String, 'stall_topic', lambda m: None, qos)
@@ -183,7 +261,7 @@ def test_resettable_publisher_replaces_a_writer_a_reader_stopped_acknowledging(r
     for _ in range(3000):   # discovery: a hang guard, not a time bound
         if pub.get_subscription_count() == 1:
             break
-        rclpy.spin_once(node, timeout_sec=0.01)
+        _spin_once(node, timeout_sec=0.01)
     assert pub.get_subscription_count() == 1
     old = pub.publisher
     sent = 0
@@ -208,7 +286,7 @@ _SPECS = (
 
 def test_parameters_have_descriptions_ranges_and_refuse_what_cannot_change(ros):
     from rclpy.parameter import Parameter
-    node = rclpy.create_node('param_spec_test')
+    node = rclpy.create_node('param_spec_test', context=ros)
     applied = []
 
     def on_set(changes):
@@ -246,7 +324,7 @@ def test_parameters_have_descriptions_ranges_and_refuse_what_cannot_change(ros):
 def test_a_value_out_of_range_at_start_up_is_a_parameter_error(ros):
     from rclpy.exceptions import ParameterException
     from rclpy.parameter import Parameter
-    node = rclpy.create_node('param_range_test', parameter_overrides=[
+    node = rclpy.create_node('param_range_test', context=ros, parameter_overrides=[
         Parameter('window', value=0)])
     with pytest.raises(ParameterException):
         node_utils.declare_parameters(node, _SPECS[2:])
@@ -254,7 +332,7 @@ def test_a_value_out_of_range_at_start_up_is_a_parameter_error(ros):
 
 
 def test_dynamic_parameters_need_an_on_set_callback(ros):
-    node = rclpy.create_node('param_no_callback')
+    node = rclpy.create_node('param_no_callback', context=ros)
     with pytest.raises(ValueError, match='on_set'):
         node_utils.declare_parameters(node, _SPECS[:1])
     node.destroy_node()
@@ -264,8 +342,8 @@ def test_diagnostics_publisher_sends_named_levels_and_survives_a_status_error(ro
     from diagnostic_msgs.msg import DiagnosticArray
     from mr_damper_common.health import Health, STALE, WARN
     from mr_damper_common.messages import health_from_diagnostic
-    node = rclpy.create_node('diag_test', namespace='fl')
-    listener = rclpy.create_node('diag_listener')
+    node = rclpy.create_node('diag_test', namespace='fl', context=ros)
+    listener = rclpy.create_node('diag_listener', context=ros)
     got = []
     listener.create_subscription(DiagnosticArray, '/diagnostics', got.append,
                                  node_utils.DIAGNOSTICS_QOS)
@@ -285,13 +363,13 @@ def test_diagnostics_publisher_sends_named_levels_and_survives_a_status_error(ro
         if listener.count_publishers('/diagnostics') >= 1 and \
                 node.count_subscribers('/diagnostics') >= 1:
             break
-        rclpy.spin_once(listener, timeout_sec=0.01)
+        _spin_once(listener, timeout_sec=0.01)
     assert diag.publish().level == WARN
     assert diag.publish().level == STALE         # the error became a STALE status
     for _ in range(3000):
         if len(got) == 2:
             break
-        rclpy.spin_once(listener, timeout_sec=0.01)
+        _spin_once(listener, timeout_sec=0.01)
     statuses = [s for msg in got for s in msg.status]
     assert [s.name for s in statuses] == ['fl/diag_test'] * 2
     first, second = (health_from_diagnostic(s) for s in statuses)
@@ -315,8 +393,7 @@ def test_log_throttle_gates_per_key():
 def test_fast_lane_takes_its_topic_in_its_own_thread_with_the_parents_namespace(ros):
     import threading
     import time
-    from rclpy.qos import QoSProfile
-    parent = rclpy.create_node('lane_parent', namespace='/corner_fl')
+    parent = rclpy.create_node('lane_parent', namespace='/corner_fl', context=ros)
     lane = node_utils.FastLane(parent, 'link')
     assert (lane.node.get_name(), lane.node.get_namespace()) == ('lane_parent_link',
                                                                  '/corner_fl')

@@ -262,3 +262,31 @@ def test_same_semantics_as_the_identifier_sample_rule():
     assert restarts == li.counters['stream_restarts'] > 0
     for r in ('out_of_order', 'duplicate'):
         assert g.counts[r] == li.counters['rejected'][r] > 0
+
+
+def test_stream_clock_judges_a_batch_as_a_whole_at_the_stream_rate():
+    """A batch may reach the horizon past where the stream's own clock is, at any rate."""
+    g = StampGuard(max_future_s=0.5, rebase_after=1000, stream_clock=True)
+    # before any reference the stream's clock is unknown: nothing is in the future
+    assert g.batch_verdict(5e6 + np.arange(20) * 1e-3, NOW0) == ACCEPTED
+    g = StampGuard(max_future_s=0.5, rebase_after=1000, stream_clock=True)
+    # a replay at 4x: 20 ms of stamps every 5 ms of node time, for 1 s
+    for k in range(200):
+        t = 100.0 + (20 * k + np.arange(20)) * 1e-3
+        now = NOW0 + 5e-3 * (k + 1)
+        assert g.batch_verdict(t, now) == ACCEPTED and g.screen(t, now).n_refused == 0
+    assert g.rate == pytest.approx(4.0, rel=0.02)
+    # 0.2 s of node time later the stream may be 0.8 s further, plus the horizon
+    now = NOW0 + 1.2
+    t = g.last + 0.8 + 0.5 - 1e-3 + np.arange(2) * 1e-4
+    assert g.limit(now) == pytest.approx(g.last + 1.3)
+    assert g.batch_verdict(t, now) == ACCEPTED
+    # one batch whose samples follow each other at 1 ms but reach 100 s ahead: refused whole
+    last = g.last
+    far = last + 1e-3 + np.linspace(0.0, 100.0, 100_000)
+    assert g.batch_verdict(far, now) == 'future_stamp'
+    assert g.counts['future_stamp'] == 100_000 and g.last == last
+    # the per-stamp horizon of a guard without stream_clock lets such a batch through
+    plain = StampGuard(max_future_s=0.5)
+    plain.offer(99.0, NOW0)
+    assert plain.screen(far - far[0] + 99.001, NOW0).n_refused == 0

@@ -16,18 +16,20 @@ import time
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from mr_damper_interfaces.msg import (ChassisSensors, FullCarCommand, FullCarState,
+                                      KwokParameters, QuarterCarState)
 from mr_damper_model.io import bag_types
 from mr_damper_model.models.kwok_current import KwokCurrent
+import numpy as np
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from conftest import REPO
+from ros_context import ros_context
 
 SRC_MSG = REPO / 'src' / 'mr_damper_interfaces' / 'msg'
 HANG_GUARD_S = 30.0
@@ -63,10 +65,64 @@ def state_message():
     msg = QuarterCarState()
     msg.header.stamp = Time(sec=3, nanosec=7)
     msg.header.frame_id = 'front_left'
+    msg.sequence = 2**64 - 3                    # the whole uint64 range survives the wire
     for n, name in enumerate(STATE_FLOATS):
         setattr(msg, name, -0.125 * (n + 1))
     msg.fail_safe_mode = QuarterCarState.MODE_FAIL_SAFE
     msg.fail_safe_reason = 'stale'
+    return msg
+
+
+def chassis_message():
+    """Return a ChassisSensors with a distinct value in every field (NaN: a frame missing)."""
+    msg = ChassisSensors()
+    msg.header.stamp = Time(sec=4, nanosec=2_000_000)
+    msg.header.frame_id = 'chassis'
+    msg.sequence = 2 ** 40 + 3
+    msg.cycle_period_s = 0.002
+    msg.body_acceleration_m_s2 = [0.25, -0.5, 1.0, -2.0]
+    msg.wheel_acceleration_m_s2 = [float('nan')] * 4
+    msg.suspension_travel_m = [0.001, -0.002, 0.003, -0.004]
+    msg.current_command_a = [0.5, 0.75, 1.0, 1.25]
+    msg.coil_current_a = [0.49, 0.74, 0.99, 1.24]
+    msg.frames_missing = ChassisSensors.MISSING_WHEEL_ACCELERATION
+    return msg
+
+
+def full_car_state_message():
+    """Return a FullCarState with a distinct value in every field."""
+    msg = FullCarState()
+    msg.header.stamp = Time(sec=4, nanosec=2_000_000)
+    msg.header.frame_id = 'base_link'
+    msg.sequence = 17
+    for n, name in enumerate(('heave_m', 'pitch_rad', 'roll_rad', 'heave_velocity_m_s',
+                              'pitch_rate_rad_s', 'roll_rate_rad_s', 'heave_acceleration_m_s2',
+                              'pitch_acceleration_rad_s2', 'roll_acceleration_rad_s2')):
+        setattr(msg, name, 0.01 * (n + 1))
+    for n, name in enumerate(('suspension_travel_m', 'suspension_velocity_m_s',
+                              'tyre_deflection_m', 'wheel_velocity_m_s', 'damper_force_n')):
+        setattr(msg, name, [n + 0.1 * k for k in range(4)])
+    msg.valid = False
+    msg.reason = 'too_few_sensors'
+    msg.sensor_faults = ['dropout_accel_fr', 'stuck_travel_rl']
+    msg.travel_std_m, msg.heave_velocity_std_m_s = 5e-5, 1e-3
+    msg.tyre_deflection_std_m, msg.wheel_velocity_std_m_s = 2e-3, 0.03
+    return msg
+
+
+def full_car_command_message():
+    """Return a FullCarCommand with a distinct value in every field."""
+    msg = FullCarCommand()
+    msg.header.stamp = Time(sec=4, nanosec=3_000_000)
+    msg.header.frame_id = 'base_link'
+    msg.sequence = 9
+    msg.state_sequence = 17
+    msg.state_stamp = Time(sec=4, nanosec=2_000_000)
+    msg.current_a = [0.1, 0.5, 0.9, 0.5]
+    msg.demanded_force_n = [-120.0, float('nan'), 300.0, float('nan')]
+    msg.mode = [FullCarCommand.MODE_NORMAL, FullCarCommand.MODE_FAIL_SAFE,
+                FullCarCommand.MODE_NORMAL, FullCarCommand.MODE_INACTIVE]
+    msg.reason = ['ok', 'stale', 'ok', 'inactive']
     return msg
 
 
@@ -86,7 +142,8 @@ def test_generated_classes_come_from_the_venv_install():
     assert KwokParameters.get_fields_and_field_types()['window_end'] == 'builtin_interfaces/Time'
     assert tuple(KwokParameters.get_fields_and_field_types()) == ('header',) + KWOK_FIELDS
     assert tuple(QuarterCarState.get_fields_and_field_types()) == (
-        ('header',) + STATE_FLOATS + ('fail_safe_mode', 'fail_safe_reason'))
+        ('header', 'sequence') + STATE_FLOATS + ('fail_safe_mode', 'fail_safe_reason'))
+    assert QuarterCarState.get_fields_and_field_types()['sequence'] == 'uint64'
     assert (QuarterCarState.MODE_NORMAL, QuarterCarState.MODE_FAIL_SAFE) == (0, 1)
 
 
@@ -112,7 +169,8 @@ def test_installed_definitions_are_the_sources():
     """A stale venv (sources changed, not rebuilt) fails here."""
     installed = bag_types.interfaces_msg_dir()
     names = sorted(p.name for p in SRC_MSG.glob('*.msg'))
-    assert names == ['DamperModel.msg', 'DamperSamples.msg', 'KwokParameters.msg',
+    assert names == ['ChassisSensors.msg', 'DamperModel.msg', 'DamperSamples.msg',
+                     'FullCarCommand.msg', 'FullCarState.msg', 'KwokParameters.msg',
                      'QuarterCarState.msg']
     assert sorted(p.name for p in installed.glob('*.msg')) == names
     for name in names:
@@ -127,37 +185,67 @@ def test_ament_index_finds_the_package(monkeypatch):
 
 
 @pytest.mark.parametrize('make, cls', [(kwok_message, KwokParameters),
-                                       (state_message, QuarterCarState)])
+                                       (state_message, QuarterCarState),
+                                       (chassis_message, ChassisSensors),
+                                       (full_car_state_message, FullCarState),
+                                       (full_car_command_message, FullCarCommand)])
 def test_rclpy_serialization_round_trip(make, cls):
     msg = make()
-    raw = serialize_message(msg)
-    back = deserialize_message(raw, cls)
-    assert back == msg
+    back = deserialize_message(serialize_message(msg), cls)
     assert back is not msg
+    assert_values_equal(back, msg)
+
+
+def assert_values_equal(have, want):
+    """Assert two rclpy messages hold the same values, recursively (NaN equals NaN)."""
+    for name in want.get_fields_and_field_types():
+        a, b = getattr(have, name), getattr(want, name)
+        if hasattr(b, 'get_fields_and_field_types'):
+            assert_values_equal(a, b)
+        elif isinstance(b, (str, bytes, bool, int)) or (
+                isinstance(b, list) and b and isinstance(b[0], str)):
+            assert a == b, name
+        else:
+            np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def test_full_car_messages_carry_four_corners_and_the_modes():
+    cmd = FullCarCommand()
+    assert len(cmd.current_a) == len(cmd.mode) == len(cmd.reason) == 4
+    assert (FullCarCommand.MODE_NORMAL, FullCarCommand.MODE_FAIL_SAFE,
+            FullCarCommand.MODE_INACTIVE) == (0, 1, 2)
+    state = FullCarState()
+    assert all(len(getattr(state, f)) == 4 for f in (
+        'suspension_travel_m', 'suspension_velocity_m_s', 'tyre_deflection_m',
+        'wheel_velocity_m_s', 'damper_force_n'))
 
 
 class Participant:
     """One node in a context of its own (a separate DDS participant) with its executor."""
 
-    def __init__(self, name):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+    def __init__(self, name, context):
+        self.context = context
+        self.node = rclpy.create_node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
 
     def close(self):
         self.executor.shutdown()
         self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
 
 @pytest.fixture
 def two_nodes():
-    talker, listener = Participant('iface_talker'), Participant('iface_listener')
-    yield talker, listener
-    talker.close()
-    listener.close()
+    with ros_context() as talking, ros_context() as listening:
+        talker = Participant('iface_talker', talking)
+        try:
+            listener = Participant('iface_listener', listening)
+            try:
+                yield talker, listener
+            finally:
+                listener.close()
+        finally:
+            talker.close()
 
 
 def spin_until(participants, condition, what):
@@ -261,3 +349,26 @@ def test_mcap_has_typed_schema_and_round_trips(tmp_path):
     typed_kwok = received['/mr_damper/kwok_parameters'][0][0]
     assert (typed_kwok.window_end.sec, typed_kwok.window_end.nanosec) == (12, 999_999_999)
     assert typed_kwok.reason == 'nrmse_too_high'
+
+
+def test_full_car_messages_in_a_typed_mcap(tmp_path):
+    # the vehicle computer's three messages are recorded with their ros2msg schema and read
+    # back by rosbags byte for byte (NaN fields included)
+    typestore = bag_types.suite_typestore()
+    bag = tmp_path / 'vehicle_bag'
+    sent = {'/vehicle/chassis_sensors': (ChassisSensors, chassis_message()),
+            '/vehicle/state': (FullCarState, full_car_state_message()),
+            '/vehicle/command': (FullCarCommand, full_car_command_message())}
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for k, (topic, (cls, msg)) in enumerate(sent.items()):
+            conn = writer.add_connection(topic, f'mr_damper_interfaces/msg/{cls.__name__}',
+                                         typestore=typestore)
+            writer.write(conn, 1_000_000 * (k + 1), serialize_message(msg))
+    schemas = read_mcap_schemas(next(bag.glob('*.mcap')))
+    assert 'string[4] reason' in schemas['mr_damper_interfaces/msg/FullCarCommand'][1]
+    with AnyReader([bag], default_typestore=typestore) as reader:
+        for conn, _, raw in reader.messages(connections=reader.connections):
+            cls, msg = sent[conn.topic]
+            typed = reader.deserialize(raw, conn.msgtype)
+            assert typed.sequence == msg.sequence
+            assert_values_equal(deserialize_message(bytes(raw), cls), msg)

@@ -10,8 +10,9 @@ replay with ``acceptance_checks=False`` (the previous rules) is shown to publish
 import numpy as np
 import pytest
 
-from live_records import (alpha_scaled_fit, cam_record, held_at, inject_faults, quiroz,
-                          replay_published, steady_errors, steady_mask)
+from live_records import (alpha_scaled_fit, cam_record, clean_reference, held_at,
+                          inject_faults, inject_start_faults, quiroz, replay_published,
+                          steady_errors, steady_mask)
 from mr_damper_model.identification.acceptance import (condition_number, cycle_start,
                                                        excitation_shortfall,
                                                        half_cycle_amplitude, level_figures,
@@ -82,6 +83,31 @@ def test_four_faults_stay_within_the_clean_runs_sets(record, clean_run):
     before = steady_errors(replay(faulty, acceptance_checks=False)[1], data, steady)
     assert max(err / held_at(clean_before, end) for end, err in before
                if held_at(clean_before, end) is not None) > FAULT_FACTOR
+
+
+def test_a_start_of_stream_offset_stays_within_the_clean_runs_sets(record, clean_run):
+    """
+    Issue 32's case on a shared record: 1 s of +400 N from 1.5 s, a 1e30 N spike at 4 s.
+
+    No set existed to compare with: every window holding the offset published a valid set
+    (7.9x the clean replay's at worst), and the samples it was fitted on kept it in use.  Now
+    the force-step check refuses those sets; the faulted replay's valid sets stay within
+    1.25x of the clean replay's (its first set where the clean one had none yet).
+    """
+    data, steady = record
+    _, _, clean = clean_run
+    faulty, spans = inject_start_faults(data, 1)
+    assert spans['offset'][0] == pytest.approx(float(data.t[0]) + 1.5, abs=0.01)
+
+    def worst(published):
+        errors = steady_errors(published, data, steady)
+        return max(err / clean_reference(clean, end) for end, err in errors)
+
+    li, published = replay(faulty)
+    assert worst(published) <= FAULT_FACTOR
+    assert li.counters['windows_refused']['force_step'] > 0
+    # without it (issue 20's rules) the offset's sets are valid and stay
+    assert worst(replay(faulty, force_step_percent=0.0)[1]) > 3.0
 
 
 @pytest.mark.parametrize('stem', ['quiroz_sine_10mm1Hz_0p75A_preproc',

@@ -208,7 +208,7 @@ def test_interrupted_run_resumes_from_its_journal(archive, tmp_path):
 
 
 def _listening_addresses():
-    """Addresses of the TCP sockets this process and its children listen on."""
+    """Addresses ``(ip, port)`` of the TCP sockets this process and its children listen on."""
     procs = [psutil.Process()] + psutil.Process().children(recursive=True)
     out = []
     for p in procs:
@@ -216,9 +216,30 @@ def _listening_addresses():
             conns = p.net_connections(kind='inet')
         except (psutil.NoSuchProcess, psutil.AccessDenied):
             continue
-        out += [c.laddr.ip for c in conns if c.status == psutil.CONN_LISTEN
+        out += [(c.laddr.ip, c.laddr.port) for c in conns if c.status == psutil.CONN_LISTEN
                 and c.family in (socket.AF_INET, socket.AF_INET6)]
     return out, len(procs) - 1
+
+
+#: Pages a Dask scheduler or worker serves over HTTP (dashboard, health, Prometheus, JSON, info)
+HTTP_PAGES = ('/status', '/health', '/metrics', '/json/counts.json', '/info/main/workers.html')
+
+
+def _http_pages(addresses):
+    """Return ``{(port, page): HTTP status}`` of the pages served on ``addresses``."""
+    import http.client
+    got = {}
+    for ip, port in addresses:
+        for page in HTTP_PAGES:
+            conn = http.client.HTTPConnection(ip, port, timeout=10.0)   # a hang guard
+            try:
+                conn.request('GET', page)
+                got[(port, page)] = conn.getresponse().status
+            except (OSError, http.client.HTTPException):
+                break                                   # not an HTTP server (a Dask comm)
+            finally:
+                conn.close()
+    return got
 
 
 @pytest.mark.slow
@@ -233,15 +254,20 @@ def test_workers_and_a_scheduler_give_the_serial_table_on_loopback_only(
 
     def look(row):
         if not seen:
-            seen.append(_listening_addresses())
+            addresses, children = _listening_addresses()
+            seen.append((addresses, children, _http_pages(addresses)))
 
-    # the batch's own LocalCluster: two worker processes, every socket on loopback
+    # the batch's own LocalCluster: two worker processes, every socket on loopback, and no
+    # page served (distributed's HTTP servers run with no routes: 404 for every page)
     two = tmp_path / 'two.csv'
     out = batch.run_batch(root, s, table=two, progress=False, workers=2, callback=look)
     assert out['workers'] == 2
-    addresses, children = seen[0]
+    addresses, children, pages = seen[0]
     assert children >= 2 and addresses, 'no cluster processes or sockets seen'
-    assert set(addresses) == {'127.0.0.1'}, addresses
+    assert {ip for ip, _ in addresses} == {'127.0.0.1'}, addresses
+    assert 8787 not in {port for _, port in addresses}
+    assert len({port for port, _ in pages}) >= 3, pages     # the scheduler's and 2 workers'
+    assert set(pages.values()) == {404}, pages
     # the command line on an existing scheduler with one worker
     one = tmp_path / 'one.csv'
     with LocalCluster(n_workers=1, threads_per_worker=1, host='127.0.0.1',
@@ -316,3 +342,34 @@ def test_batch_usage_errors(tmp_path, capsys, extra, message):
 def test_without_files_or_batch_the_tool_says_what_is_missing(capsys):
     assert cli_run([]) == 2
     assert 'required: FILE' in capsys.readouterr().err
+
+
+def test_params_files_of_the_table_load_through_params_file(tmp_path):
+    # each damper's end-of-line record as a parameter file: what a vehicle controller loads
+    from mr_damper_model.identification.batch import row_params, write_params_files
+    from mr_damper_model.io.params_file import load_params
+    from mr_damper_model.models import get_model
+    names = get_model('kwok-current').param_names
+    base = {'model': 'kwok-current', 'current_min_a': '0.0', 'current_max_a': '1.0',
+            'nrmse_percent': '2.5', 'seed': '7', 'reason': '', 'test_time': ''}
+    rows = [dict(base, record='a/1', serial='SN1', status='pass',
+                 **{f'p_{n}': repr(float(k + 1)) for k, n in enumerate(names)}),
+            dict(base, record='b', serial='SN2', status='fail', reason='envelope: 3 of 9',
+                 **{f'p_{n}': '2.0' for n in names}),
+            dict(base, record='c', serial='SN3', status='error', model='', error='truncated'),
+            dict(base, record='a/0', serial='SN1', status='pass', test_time='2026-01-01',
+                 **{f'p_{n}': '9.0' for n in names})]
+    written = write_params_files(rows, tmp_path)
+    assert sorted(written) == ['SN1', 'SN2']             # the error row has no model
+    one = load_params(written['SN1'], model='kwok-current')
+    # SN1 tested twice: the newer record (by test time) is the damper's
+    assert one.parameters == {n: 9.0 for n in names}
+    assert one.valid and one.model_options == {'i_ref_a': 2.0}
+    assert (one.current_min_a, one.current_max_a) == (0.0, 1.0)
+    assert one.metrics['nrmse_percent'] == 2.5 and 'record a/0' in one.source
+    two = load_params(written['SN2'])
+    assert two.valid is False and 'envelope: 3 of 9' in two.source
+    master = {'model': 'kwok-current', 'model_options': {'i_ref_a': 1.0}}
+    assert row_params(rows[0], master)['model_options'] == {'i_ref_a': 1.0}
+    with pytest.raises(ValueError, match='no model'):
+        row_params(rows[2])

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import csv_text, QUIROZ_DIR, VENV_BIN
-from mr_damper_model.tools.cli import run
+from mr_damper_model.tools.cli import EXIT_TRUNCATED, run
 from mr_damper_model.io.params_file import load_params
 
 QFILE = QUIROZ_DIR / 'quiroz_sine_2mm5Hz_0p5A.csv.gz'
@@ -370,9 +370,21 @@ def test_a_recording_cut_by_a_killed_recorder_is_fitted_with_a_warning(tmp_path,
     raw = (tmp_path / 'bag' / 'bag.mcap').read_bytes()
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(raw[:len(raw) // 2])
-    assert run([str(cut), '--json']) == 0
+    assert run([str(cut), '--json']) == EXIT_TRUNCATED == 3
     out = capsys.readouterr()
     doc = json.loads(out.out)
     got = doc['samples'] if 'samples' in doc else doc['files'][0]['samples']
     assert n <= got < reps * n
     assert f'warning: {cut}: truncated' in out.err and f'{got} messages read' in out.err
+    assert f'{got} samples used (exit code 3)' in out.err
+    (entry,) = doc['truncated_inputs']
+    assert entry['file'] == str(cut) and entry['samples'] == entry['messages'] == got
+    assert entry['last_log_time_s'] > entry['first_log_time_s']
+    # the saved set validates on the cut file too: the same exit code; on the whole file 0
+    params = tmp_path / 'p.json'
+    assert run([str(cut), '--out', str(params)]) == 3
+    capsys.readouterr()
+    assert run(['--validate', str(params), str(cut), '--json']) == 3
+    assert json.loads(capsys.readouterr().out)['truncated_inputs'][0]['samples'] == got
+    assert run(['--validate', str(params), str(tmp_path / 'bag'), '--json']) == 0
+    assert 'truncated_inputs' not in json.loads(capsys.readouterr().out)

@@ -68,7 +68,8 @@ def test_the_child_ends_when_its_node_is_killed():
     import sys
     code = ('import time\nfrom mr_damper_model.live import FitProcess\np = FitProcess()\n'
             'p.warm_up()\nprint(p._proc.pid, flush=True)\ntime.sleep(600)\n')
-    node = subprocess.Popen([sys.executable, '-c', code], stdout=subprocess.PIPE, text=True)
+    from process_helpers import popen, stop_group
+    node = popen([sys.executable, '-c', code], stdout=subprocess.PIPE, text=True)
     try:
         child = int(node.stdout.readline())
         assert not _ended(child)
@@ -80,5 +81,4 @@ def test_the_child_ends_when_its_node_is_killed():
             time.sleep(0.01)
         assert _ended(child)
     finally:
-        node.kill()
-        node.wait()
+        stop_group(node, signal.SIGKILL)

@@ -18,16 +18,14 @@ from mr_damper_common.health import ERROR, OK, WARN
 from mr_damper_model.nodes.identifier_node import IdentifierNode, PARAMETERS
 from mr_damper_model.live import DYNAMIC_FIELDS
 from mr_damper_common.messages import measurement_to_msg, samples_to_msg
+from ros_context import ros_context
 
 
 @pytest.fixture(scope='module')
 def ros():
-    started = not rclpy.ok()
-    if started:
-        rclpy.init()
-    yield
-    if started:
-        rclpy.try_shutdown()
+    """Return this module's rclpy context (its own; shut down after the module)."""
+    with ros_context() as context:
+        yield context
 
 
 @pytest.fixture
@@ -36,13 +34,15 @@ def make_node(ros):
 
     def make(*overrides, **kw):
         params = [Parameter('fit_in_process', value=False)] + list(overrides)
-        node = IdentifierNode(parameter_overrides=params, **kw)
+        node = IdentifierNode(parameter_overrides=params, context=ros, **kw)
         nodes.append(node)
         return node
-    yield make
-    for node in nodes:
-        node.shutdown()
-        node.destroy_node()
+    try:
+        yield make
+    finally:
+        for node in nodes:
+            node.shutdown()
+            node.destroy_node()
 
 
 def test_dynamic_parameters_reach_the_core(make_node):
@@ -96,10 +96,10 @@ def test_relative_names_samples_received_and_diagnostics(make_node):
     assert v['rejected']['joint_names'] == 1 and v['stamp_age_ms']['n'] == 5
     # the count on mr_damper/samples_received
     got = []
-    sub_node = rclpy.create_node('samples_received_probe')
+    sub_node = rclpy.create_node('samples_received_probe', context=node.context)
     sub_node.create_subscription(UInt64, '/fl/mr_damper/samples_received',
                                  lambda m: got.append(m.data), 10)
-    ex = SingleThreadedExecutor()
+    ex = SingleThreadedExecutor(context=node.context)
     ex.add_node(node)
     ex.add_node(sub_node)
     end = time.monotonic() + 15.0                    # hang guard (discovery)
@@ -126,7 +126,7 @@ def test_measurement_batches_are_taken_whole_and_lost_samples_counted_exactly(ma
     v = h.values
     assert v['samples_accepted'] == 80 and v['rejected']['layout'] == 1
     assert v['stream'] == {'batches': 4, 'samples': 80, 'lost': 20, 'restarts': 0,
-                           'skipped_at_start': 0}
+                           'jumps': 0, 'skipped_at_start': 0}
     assert h.level == WARN and '20 sample(s) lost' in h.message
     assert v['stamp_age_ms']['n'] == 4                    # one transport age per batch
 

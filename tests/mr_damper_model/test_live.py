@@ -88,7 +88,8 @@ def test_bad_samples_are_counted_and_do_not_change_the_estimate():
     n_nan = sum(1 for k in range(data.n) if k % 97 == 5)
     n_dup = sum(1 for k in range(data.n) if k % 89 == 7 and k > 10)
     assert rej == {'nonfinite': 2 * n_nan, 'out_of_order': n_dup, 'duplicate': n_dup,
-                   'future_stamp': 0, 'joint_names': n_dup, 'layout': 0}
+                   'future_stamp': 0, 'joint_names': n_dup, 'layout': 0,
+                   'inconsistent_batch': 0}
     assert dirty.counters['samples_accepted'] == data.n
     assert dirty.counters['samples_received'] == data.n + 2 * n_nan + 3 * n_dup
     assert last.parameters == ref.parameters

@@ -100,7 +100,7 @@ def test_health_warns_while_problems_rise_and_recovers():
                             windows_overflow=1)), 4.0)
     assert h.level == WARN
     assert h.message == ('last estimate not valid: pinned:f0; 70 sample(s) lost; '
-                         '7 message(s) lost (middleware report); '
+                         '7 message(s) lost (sequence gaps); '
                          '1 window(s) passed over (backlog full)')
     # rig at rest (no_motion skips only), nothing else rising: no warning
     idle = dict(skipped, windows_due=9, stream={'lost': 70}, dropped={'message_lost': 7},

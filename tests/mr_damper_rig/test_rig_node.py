@@ -13,29 +13,23 @@ import numpy as np
 import pytest
 
 from conftest import QUIROZ_DIR
+from ros_context import ros_context
 
 QUIROZ = QUIROZ_DIR / 'quiroz_sine_5mm3Hz_0p5A.csv.gz'
 
 
 @pytest.fixture
 def make_node():
-    import rclpy
-    from rclpy.context import Context
     from rclpy.parameter import Parameter
     from mr_damper_rig.rig_node import RigNode
-    ctx = Context()
-    rclpy.init(context=ctx)
     made = []
-
-    def make(**params):
-        node = RigNode(context=ctx, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        made.append(node)
-        return node
-    yield make
-    for node in made:
-        node.destroy_node()
-    rclpy.try_shutdown(context=ctx)
+    with ros_context(made) as ctx:
+        def make(**params):
+            node = RigNode(context=ctx, parameter_overrides=[
+                Parameter(k, value=v) for k, v in params.items()])
+            made.append(node)
+            return node
+        yield make
 
 
 def _set(node, name, value):

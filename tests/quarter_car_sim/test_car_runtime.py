@@ -124,7 +124,7 @@ def test_external_commands_are_checked_and_counted_without_lockstep():
                                        'refused_non_finite': 1}
 
 
-def test_probe_overrides_the_fail_safe_current_with_the_least_filled_bin(tmp_path):
+def test_probe_overrides_the_fail_safe_current_with_the_farthest_starving_bin(tmp_path):
     clock, out = FakeClock(100.0), Recorder()
     # bins 0, 0.5, ..., 2 A; a 32-step window every 128 steps
     probe = CurrentProbe(0.0, 2.0, bin_a=0.5, period_s=0.125, hold_s=0.03125,
@@ -132,17 +132,18 @@ def test_probe_overrides_the_fail_safe_current_with_the_least_filled_bin(tmp_pat
     trace = TraceLog(tmp_path / 'log', DT)
     rt = _runtime(out, clock, probe=probe, state_every=1, trace=trace)
     assert rt.control.run(max_steps=640) is None       # in this thread, as fast as possible
-    # no parameters: the law is in fail-safe (0.5 A) outside the windows; in them, the
-    # emptiest bin at the window's start (ties: the lowest)
+    # no parameters: the law is in fail-safe (0.5 A) outside the windows; in them, first the
+    # emptiest bin (no sample yet; ties: the lowest), then the bin farthest from the fullest
+    # one (the safe current's), held while it starves (no bin ever covered here)
     expected = np.full(640, SAFE_A)
-    for w, level in enumerate((0.0, 1.0, 1.5, 2.0, 0.0)):
+    for w, level in enumerate((0.0, 2.0, 2.0, 2.0, 2.0)):
         expected[128 * w:128 * w + 32] = level
     np.testing.assert_array_equal(out.commands, expected)
     np.testing.assert_array_equal([s.coil_current for s in out.states], expected)
     assert all(not normal and reason == 'no_parameters_yet'
                for _, _, normal, reason in out.car_states)
     st = rt.status()
-    assert st['probe']['windows'] == 5 and st['probe']['counts'] == [64, 480, 32, 32, 32]
+    assert st['probe']['windows'] == 5 and st['probe']['counts'] == [32, 480, 0, 0, 128]
     assert (st['steps'], st['loop']['steps'], st['mode']) == (640, 640, 'failsafe')
     assert rt.close_log() == 640
     np.testing.assert_array_equal(trace.arrays()['i_cmd'], expected)

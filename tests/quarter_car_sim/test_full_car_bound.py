@@ -46,7 +46,8 @@ def _weighted(acc, dt):
 def test_wide_linear_dampers_reproduce_the_unconstrained_optimum():
     # analytic limit: with no binding limit the bound is the least-squares optimum of the
     # quadratic cost over the four force sequences, built column by column from the car itself
-    # (class A road: the wheels stay on the road, so the car is linear)
+    # (class A road: the wheels stay on the road, so the car is linear); the first period's
+    # forces are the car's initial ones (0: no command reaches them), so they are no columns
     dt, rho = 2e-3, 0.5
     p = PASSENGER_CAR
     road = make_two_track_road('iso8608-A', p, speed_m_s=20.0, duration_s=0.2, dt=dt, rng=4)
@@ -60,6 +61,9 @@ def test_wide_linear_dampers_reproduce_the_unconstrained_optimum():
                          (t0 * scale_t).ravel(order='F')])
     cols = []
     for j in range(4 * n):
+        if j % n == 0:
+            cols.append(np.zeros(y0.size))
+            continue
         e = np.zeros((n, 4))
         e[j % n, j // n] = 1.0
         acc, ft = _run_forces(p, road, dt, e)
@@ -150,11 +154,14 @@ def test_replayed_currents_make_the_planned_ride(kwok_case):
     k0 = res.force.shape[0] - rep.t.size                   # the settling samples
     assert res.t0 == pytest.approx(-0.5) and k0 == 500
     np.testing.assert_allclose(rep.current_cmd[:-1], res.current[k0 + 1:], atol=1e-12)
-    err = np.abs(rep.damper_force[1:] - res.force[k0 + 1:])
-    assert np.median(err) < 1.0 and np.percentile(err, 95) < 20.0
+    # the plants are the model and the plan starts where the replay does (the first period's
+    # forces the car's own), so the replay follows the plan to the inverse's tolerance
+    # (1e-6 A), on any machine: before, a first force the replay could not make started it
+    # off the plan, and the model's jump at zero travel spread that by round-off (issue 32)
+    assert np.max(np.abs(rep.damper_force[1:] - res.force[k0 + 1:])) < 1e-3
     m_rep = rep.metrics(PASSENGER_CAR)
     for key in ('a_v', 'a_wz', 'a_w_pitch', 'a_w_roll'):
-        assert m_rep[key] == pytest.approx(res.predicted_metrics[key], rel=0.02)
+        assert m_rep[key] == pytest.approx(res.predicted_metrics[key], rel=1e-5)
     # the cost is the metric: J = a_v^2 / a_v(start)^2, the start being every damper at 0 A
     # (here the plant is the model, so passive 0 A on the plants is that start, up to the
     # simulation's force timing: the plant's force reaches the record one sample later)
@@ -174,7 +181,7 @@ def test_heave_only_symmetric_car_gives_the_quarter_car_bound():
     _, truth = presets.thesis_kwok_current()
     model = KwokForceModel(KwokCurrentInverse(truth, tol_a=1e-6, sign_convention='body'))
     full = full_car_bound(car, same_road_all_wheels(prof), [model] * 4, settle_s=0.0)
-    quarter = semi_active_bound(qc, prof, model)
+    quarter = semi_active_bound(qc, prof, model, settle_s=0.0)
     # (the corner forces need not be equal: a warp pattern (+ - - +) moves no body mode and
     # is free in a comfort-only cost, so only the body's motion is compared)
     m = full.predicted_metrics

@@ -41,7 +41,9 @@ def test_default_compare_set_and_table(capsys):
     assert names[:5] == ['passive@0A', 'passive@0.5A', 'passive@1A', 'passive@1.5A',
                          'passive@2A']
     assert 'modal-skyhook' in names and 'per-corner-skyhook' in names
-    assert names[-3:] == ['full-car-clipped-optimal', 'full-car-clipped-optimal-wk', 'bound']
+    assert names[-8:] == ['full-car-clipped-optimal', 'full-car-clipped-optimal-wk',
+                          'preview-wheelbase', 'preview-look-ahead-ideal', 'preview-look-ahead',
+                          'preview-mpc-look-ahead-ideal', 'preview-mpc-look-ahead', 'bound']
     assert main(['--law', 'modal-skyhook', '--road', 'pothole', '--speed', '10',
                  '--duration', '0.3']) == 0
     out = capsys.readouterr().out

@@ -121,3 +121,111 @@ def test_cli_sensing_vehicle_json(capsys):
     assert set(est['rms_error']) == set(fe.STATE_GROUPS)
     assert est['steps'] == 501
     assert m['a_v'] > 0
+
+
+# --- the vehicle computer's use: four accelerometers, faulty sensors left out (degrade) ------
+
+DT2 = 2e-3
+ALL4 = ('fl', 'fr', 'rl', 'rr')
+STUCK = {'accel': 0.05, 'travel': 0.25}
+
+
+def _specs_500hz():
+    from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec
+    return (accelerometer_spec(rate_hz=500.0, latency_s=0.0),
+            ride_height_spec(rate_hz=500.0, latency_s=0.0))
+
+
+@pytest.fixture(scope='module')
+def design4():
+    acc, pos = _specs_500hz()
+    return fe.design_full_car_estimator(PASSENGER_CAR, DT2, accel_corners=ALL4, accel=acc,
+                                        travel=pos)
+
+
+def _run_degrade(design, faults, n, *, seed=4):
+    """Run the filter with ``degrade`` on a road; return the estimator, errors, truths, valid."""
+    road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
+                               duration_s=n * DT2 + 0.1, dt=DT2, rng=seed)
+    car = FullCar(PASSENGER_CAR, None, road)
+    acc, pos = _specs_500hz()
+    sens = fe.FullCarSensors(DT2, seed=seed, accel=acc, travel=pos, accel_corners=ALL4,
+                             faults=faults)
+    est = fe.FullCarEstimator(design, degrade=True, stuck_s=STUCK, repeat_gate=5.0,
+                              steady_tol=1e-3)
+    s = car.state
+    err, true, valid = [], [], []
+    for _ in range(n):
+        f = -C_PASSIVE * s.v_rel
+        x = est.step(s.t, sens.step(s.t, s), s.damper_force)
+        err.append(x[:15] - fe.true_vector(s))
+        true.append(fe.true_vector(s))
+        valid.append(est.valid)
+        s = car.step_force(DT2, f)
+    return est, np.array(err), np.array(true), np.array(valid)
+
+
+def test_four_accelerometers_any_three_fix_the_rigid_body(design4):
+    # the rigid body's heave, pitch and roll accelerations from any three of the four points
+    p = PASSENGER_CAR
+    acc_b = np.random.default_rng(5).normal(size=3)
+    a = p.geometry @ acc_b
+    for left_out in range(4):
+        rows = [k for k in range(4) if k != left_out]
+        got = np.linalg.solve(p.geometry[rows], a[rows])
+        np.testing.assert_allclose(got, acc_b, rtol=1e-12, atol=1e-12)
+    assert design4.sensors == ('accel_fl', 'accel_fr', 'accel_rl', 'accel_rr', 'travel_fl',
+                               'travel_fr', 'travel_rl', 'travel_rr')
+    # every set of three accelerometers and three position sensors observes the car; two
+    # accelerometers are not enough for the rule, nor is a set without position sensors
+    every = set(design4.sensors)
+    for a_out in [None] + [f'accel_{c}' for c in ALL4]:
+        for t_out in [None] + [f'travel_{c}' for c in ALL4]:
+            assert fe.observes_the_car(design4, every - {a_out, t_out})
+    assert not fe.observes_the_car(design4, [s for s in every if s.startswith('accel')])
+    with pytest.raises(ValueError, match='not\n? ?on one line|three points'):
+        fe.design_full_car_estimator(PASSENGER_CAR, DT2, accel_corners=('fl', 'fr'))
+
+
+def test_one_accelerometer_and_one_position_sensor_out_the_estimate_goes_on(design4):
+    # a frozen accelerometer disagrees with the converged filter at once (the repeat gate);
+    # a position sensor drops out: both named and left out, the estimate stays valid
+    from quarter_car_sim.sensors import Fault
+    faults = [('accel_fr', Fault('stuck', 0.5, 1.5)),
+              ('travel_rl', Fault('dropout', 0.8, 2.0))]
+    est, err, true, valid = _run_degrade(design4, faults, 1500)
+    assert est.fault_entries.get('stuck_accel_fr') == 1
+    assert est.fault_entries.get('dropout_travel_rl') == 1
+    assert 490 <= est.fault_steps['stuck_accel_fr'] <= 500         # 1 s at 2 ms
+    assert 580 <= est.fault_steps['dropout_travel_rl'] <= 592      # 1.2 s - dropout_s
+    assert valid[5:].all(), est.n_invalid
+    # and the estimate stays usable while both are out: errors well below the states' RMS
+    w = slice(int(0.85 / DT2), int(1.5 / DT2))
+    for group in ('travel', 'body_rates', 'wheel_v'):
+        sl = fe.STATE_GROUPS[group]
+        ratio = (np.sqrt((err[w, sl] ** 2).mean(0))
+                 / np.sqrt((true[w, sl] ** 2).mean(0)))
+        assert np.all(ratio < 0.35), (group, ratio)
+    assert est.faults == []                    # both back by the end
+
+
+def test_two_accelerometers_out_too_few_sensors_then_back(design4):
+    from quarter_car_sim.sensors import Fault
+    faults = [('accel_fl', Fault('dropout', 0.4, 0.8)), ('accel_rr', Fault('dropout', 0.4, 0.8))]
+    est, _, _, valid = _run_degrade(design4, faults, 600)
+    n_bad = est.n_invalid.get('too_few_sensors', 0)
+    assert 170 <= n_bad <= 200                 # 0.4 s - dropout_s, at 2 ms
+    assert valid[-1] and not valid[int(0.6 / DT2)]
+    assert est.fault_entries == {'dropout_accel_fl': 1, 'dropout_accel_rr': 1}
+
+
+def test_out_of_range_readings_are_not_used(design4):
+    est = fe.FullCarEstimator(design4, gravity=0.0, degrade=True,
+                              ranges={'accel': (-20.48, 20.47), 'travel': (-0.2048, 0.2047)})
+    y = np.zeros(8)
+    for k in range(20):
+        y[5] = 0.2047 if k >= 10 else 0.0       # travel_fr at the end of the frame's range
+        est.step(k * DT2, y, np.zeros(4))
+    assert est.faults == ['range_travel_fr'] and est.valid
+    assert est.fault_steps['range_travel_fr'] == 10
+    assert abs(est.x[1]) < 1e-3                # the saturated reading was not taken

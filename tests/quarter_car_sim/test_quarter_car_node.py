@@ -10,27 +10,24 @@ from kwok_messages import thesis_parameters_msg
 
 @pytest.fixture
 def node_factory(tmp_path):
-    import rclpy
-    from rclpy.context import Context
     from rclpy.parameter import Parameter
     from quarter_car_sim.quarter_car_node import QuarterCarNode
-    ctx = Context()
-    rclpy.init(context=ctx)
+    from ros_context import ros_context
     made = []
-
-    def make(**params):
-        values = {'real_time_factor': 5.0, 'plant': 'kwok-current', 'road_duration_s': 30.0,
-                  'log_file': str(tmp_path / 'log')}
-        values.update(params)
-        node = QuarterCarNode(context=ctx, namespace='h5unit', parameter_overrides=[
-            Parameter(k, value=v) for k, v in values.items()])
-        made.append(node)
-        return node
-    yield make
-    for node in made:
-        node.stop()
-        node.destroy_node()
-    rclpy.try_shutdown(context=ctx)
+    with ros_context(made) as ctx:
+        def make(**params):
+            values = {'real_time_factor': 5.0, 'plant': 'kwok-current',
+                      'road_duration_s': 30.0, 'log_file': str(tmp_path / 'log')}
+            values.update(params)
+            node = QuarterCarNode(context=ctx, namespace='h5unit', parameter_overrides=[
+                Parameter(k, value=v) for k, v in values.items()])
+            made.append(node)
+            return node
+        try:
+            yield make
+        finally:
+            for node in made:
+                node.stop()
 
 
 def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):

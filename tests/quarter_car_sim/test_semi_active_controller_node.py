@@ -5,21 +5,19 @@ import time
 import pytest
 
 from kwok_messages import thesis_parameters_msg
+from ros_context import ros_context
 
 
 @pytest.fixture
 def ctx():
-    import rclpy
-    from rclpy.context import Context
-    context = Context()
-    rclpy.init(context=context)
     made = []
-    yield context, made
-    for node in made:
-        if hasattr(node, 'stop'):
-            node.stop()
-        node.destroy_node()
-    rclpy.try_shutdown(context=context)
+    with ros_context(made) as context:
+        try:
+            yield context, made
+        finally:
+            for node in made:
+                if hasattr(node, 'stop'):
+                    node.stop()
 
 
 def _make(ctx, cls, **params):

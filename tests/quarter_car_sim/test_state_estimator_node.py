@@ -5,30 +5,22 @@ import numpy as np
 import pytest
 
 from kwok_messages import thesis_parameters_msg
+from ros_context import ros_context
 
 
 @pytest.fixture
 def make_node():
     """Build estimator nodes in a private rclpy context; destroyed after the test."""
-    import rclpy
-    from rclpy.context import Context
     from rclpy.parameter import Parameter
     from quarter_car_sim.state_estimator_node import StateEstimatorNode
-    context = Context()
-    rclpy.init(context=context)
     nodes = []
-
-    def make(**params):
-        overrides = [Parameter(k, value=v) for k, v in params.items()]
-        nodes.append(StateEstimatorNode(context=context, namespace='seunit',
-                                        parameter_overrides=overrides))
-        return nodes[-1]
-    try:
+    with ros_context(nodes) as context:
+        def make(**params):
+            overrides = [Parameter(k, value=v) for k, v in params.items()]
+            nodes.append(StateEstimatorNode(context=context, namespace='seunit',
+                                            parameter_overrides=overrides))
+            return nodes[-1]
         yield make
-    finally:
-        while nodes:
-            nodes.pop().destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
 def _position(x, t=None):

@@ -130,9 +130,9 @@ def full_car_progress_line(monitor, elapsed):
     return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
 
 
-def passive_body(car_params, t_end, dt):
+def passive_body(car_params, t_end, dt, current=None):
     """
-    Simulate the car at its safe current on the node's road and plants, offline.
+    Simulate the car at its safe current (or ``current``) on the node's road and plants, offline.
 
     Parameters
     ----------
@@ -143,6 +143,8 @@ def passive_body(car_params, t_end, dt):
         Last recorded time [s].
     dt : float
         Control period [s].
+    current : float, optional
+        Coil current of all four dampers [A] (default: the node's ``safe_current_a``).
 
     Returns
     -------
@@ -157,7 +159,7 @@ def passive_body(car_params, t_end, dt):
                                           simulate_full_car)
     from quarter_car_sim.full_car.simulate import OFFLINE_TIMEOUT_S
     g = car_params.get
-    safe = float(g('safe_current_a', 0.5))
+    safe = float(g('safe_current_a', 0.5) if current is None else current)
     road = make_two_track_road(g('road', 'iso8608-C'), PASSENGER_CAR,
                                speed_m_s=float(g('speed_m_s', 20.0)),
                                duration_s=float(g('road_duration_s', 300.0)), dt=dt,
@@ -205,9 +207,9 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
         ``corners`` {corner: ``windows_valid``, ``samples_lost``, ``params_accepted``,
         ``params_rejected``, ``failsafe_s``, ``first_normal_t_sim``, ``mode``},
         ``controller``, ``steps``, ``iso2631`` (the node's figures of the whole run, body
-        centre), ``live`` / ``passive`` (ISO 2631-1 of the body log and of the safe current
-        offline, on the window after all four corners were first normal, ``window_s``),
-        ``passive_current_a``, ``plot``.
+        centre), ``live`` / ``passive`` / ``passive_0a`` (ISO 2631-1 of the body log, of the
+        safe current and of 0 A, the softest setting, offline, on the window after all four
+        corners were first normal, ``window_s``), ``passive_current_a``, ``plot``.
 
     """
     out = Path(out)
@@ -252,8 +254,11 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
     firsts = [f for f in firsts if _finite(f)]
     t0 = max(max(firsts), 0.0) if len(firsts) == 4 else 0.0
     live_w, pas_w = t >= t0, t_p >= t0
+    t_0a, acc_0a = passive_body(params, float(t[-1]), dt, current=0.0)
+    soft_w = t_0a >= t0
     section.update(window_s=[t0, float(t[-1])], live=_iso(t[live_w], acc[live_w]),
                    passive=_iso(t_p[pas_w], acc_p[pas_w]),
+                   passive_0a=_iso(t_0a[soft_w], acc_0a[soft_w]),
                    passive_current_a=float(params.get('safe_current_a', 0.5)))
     if len(firsts) < 4:
         section['note'] = 'not every corner left fail-safe: the whole run is compared'

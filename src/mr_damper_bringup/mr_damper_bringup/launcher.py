@@ -4,7 +4,7 @@
 Starts ``mr-damper-record`` (every topic into ``OUT/suite.mcap``) and the console scripts
 ``rig_node``, ``identifier_node`` and ``quarter_car_node`` of the venv with ONE parameter YAML
 (``--ros-args --params-file FILE``), on loopback-only discovery
-(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and a domain ID of its own; prints progress from
+(:mod:`mr_damper_bringup.network`) and a domain ID of its own; prints progress from
 the nodes' statuses, forwards Ctrl-C (SIGINT) to the children, shuts everything down in order
 (car, rig, then the identifier once it has drained the stream, the recorder last). At the end
 it computes ``summary.json`` and plots into ``--out`` from the recording
@@ -18,6 +18,23 @@ in ``restarts.json`` and listed in the summary with what it cost; a restarted re
 new part (``suite.1.mcap``, ...) and the report reads them all. ``pids.json`` holds the process
 id of each node's latest start.
 
+A node whose status (``/diagnostics``, about 1 Hz) stops for ``--hang-timeout-s`` (15 s; at
+least three of its status periods) while its process is idle (frozen, e.g. a deadlock in the
+middleware), or for 40 times that while it keeps using CPU, is hung: it is SIGKILLed and
+restarted like a dead node, with the reason ``hung`` in ``restarts.json``
+(:class:`~mr_damper_bringup.supervisor.HangWatch`). A node is watched from its first status
+after each start, never during its start-up.
+
+The nodes die with the launcher: SIGTERM from the kernel when it dies, SIGKILL after 10 s from a
+small watcher for those that ignore it (:mod:`mr_damper_bringup.processes`, ``reaper``). One
+suite per ROS domain on this machine: a launcher whose ``--domain-id`` another suite here uses
+(any of its processes still running) exits 2; without ``--domain-id`` it draws a free one.
+
+DDS binds to loopback only: the nodes get ``FASTDDS_DEFAULT_PROFILES_FILE`` of
+``config/fastdds_loopback.xml`` (UDPv4 on 127.0.0.1 and shared memory), unless the environment
+already names a profile file or ``--dds-profile`` names another (or ``none``); those run with
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (:mod:`mr_damper_bringup.network`).
+
 Usage::
 
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
@@ -26,7 +43,7 @@ Usage::
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]
         [--external-controller] [--sensing ideal|vehicle] [--corners fl,fr,rl,rr]
         [--max-restarts 3] [--restart-window-s 60] [--restart-backoff-s 0.5]
-        [--restart-backoff-max-s 8]
+        [--restart-backoff-max-s 8] [--hang-timeout-s 15] [--dds-profile FILE|none]
 
 ``--external-controller`` (or ``quarter_car_node.controller: external`` in the YAML / --set)
 also starts ``semi_active_controller_node`` (YAML key ``semi_active_controller``): the car is
@@ -64,15 +81,19 @@ import yaml
 
 from mr_damper_common.health import finite_or_none
 
-from .config import (corner_configs, CTRL, IDENT, node_arguments, QC, RECORDER, RECORDER_NODE,
-                     recorder_arguments, REPO, resolve_config, RIG, suite_nodes, SuiteError)
+from .config import (corner_configs, CTRL, DOMAIN_IDS, IDENT, node_arguments, node_params, QC,
+                     RECORDER, RECORDER_NODE, recorder_arguments, REPO, resolve_config, RIG,
+                     suite_nodes, SuiteError)
 from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL, FULL_CAR_CTRL_NODE, FULL_CAR_NODE,
                              external_full_car, full_car_configs,
                              full_car_progress_line, full_car_summary, start_full_car)
-from .processes import CLEAN_EXIT, ProcessStats, Suite
+from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
+from .processes import CLEAN_EXIT, DomainLock, ProcessStats, Suite
+from .vehicle_suite import (start_vehicle, STOP_ORDER as VEHICLE_STOP_ORDER, VEHICLE_NODES,
+                            vehicle_configs, vehicle_progress_line, vehicle_summary)
 from .recorder import part_path, remove_recording
 from .report import RECORDING
-from .supervisor import RestartPolicy, Supervisor
+from .supervisor import HANG_TIMEOUT_S, hang_timeout, HangWatch, RestartPolicy, Supervisor
 
 PROG = 'mr-damper-suite'
 
@@ -95,6 +116,12 @@ def progress_line(monitor, elapsed):
         wk = (metrics or {}).get('rms_body_accel_wk')
         if wk is not None:
             car += f', Wk {wk:.3f} m/s^2'
+    ctrl = status.get('controller') or {}
+    if ctrl:
+        # the law runs in the controller node: its mode says whether it has a model (the car's
+        # says only whether commands come)
+        car += (f' | controller {ctrl.get("mode", "?")}'
+                + (f' ({ctrl.get("reason")})' if ctrl.get('mode') == 'failsafe' else ''))
     return f'[{elapsed:6.1f} s] recorded {n_meas} samples | {ident} | {car}'
 
 
@@ -155,23 +182,19 @@ def corner_progress_line(monitor, elapsed, corners):
 
 def corner_summary(monitor, corners):
     """
-    Return each corner's figures from the last diagnostics of its recorder, identifier, car.
+    Return each corner's figures from the last diagnostics of its identifier and car.
 
-    ``samples_lost``: measurements the recorder took from the corner's rig that its identifier
-    did not receive (0 when it received them all).
+    The counts of samples (recorded, received, lost: every life of the recorder and of the
+    identifier) come from the recording afterwards (:func:`mr_damper_bringup.report.corners.
+    add_corner_losses`); here ``samples_received`` is the identifier's last status only.
     """
     status = monitor.snapshot()[0]
-    recorded = (status.get('recorder') or {}).get('measurements_by_namespace') or {}
     out = {}
     for c in corners:
         ident = status.get(f'{c}/identifier') or {}
         qc = status.get(f'{c}/quarter_car') or {}
-        received = ident.get('samples_received')
-        seen = recorded.get(c)
         out[c] = {
-            'samples_recorded': seen, 'samples_received': received,
-            'samples_lost': (max(seen - received, 0) if isinstance(seen, int)
-                             and isinstance(received, int) else None),
+            'samples_received': ident.get('samples_received'),
             'windows_valid': ident.get('windows_valid'),
             'last_nrmse_percent': ident.get('last_nrmse_percent'),
             'car_mode': qc.get('mode'), 'failsafe_s': qc.get('failsafe_s'),
@@ -180,22 +203,59 @@ def corner_summary(monitor, corners):
     return out
 
 
-def supervise(suite, supervisor, recording):
-    """
-    Restart the dead nodes of ``suite`` as ``supervisor`` decides; return False to end the run.
+def status_name(name):
+    """Return the ``/diagnostics`` status name of suite node ``name`` (``fl.x`` -> ``fl/x``)."""
+    return name.replace('.', '/')
 
-    A death is printed with the end of the node's log; a restart is done once its back-off is
-    over. A restarted recorder gets the next part of ``recording`` (never an earlier file).
+
+def feed_heartbeats(watch, monitor, names):
+    """Give ``watch`` the monitor's heartbeats of the nodes ``names`` and its own progress."""
+    beats, spun = monitor.heartbeats()
+    if spun is not None:
+        watch.listening(spun)
+    for name in names:
+        t = beats.get(status_name(name))
+        if t is not None:
+            watch.beat(name, t)
+
+
+def supervise(suite, supervisor, recording, watch=None, monitor=None):
+    """
+    Restart the dead and hung nodes of ``suite`` as ``supervisor`` decides; False ends the run.
+
+    A death is printed with the end of the node's log; a node whose heartbeat ``watch`` (fed
+    from ``monitor``) calls hung is SIGKILLed (its process group) and counts as a death with
+    the reason ``hung``; a restart is done once its back-off is over. A restarted recorder gets
+    the next part of ``recording`` (never an earlier file).
     """
     now = time.monotonic()
-    for name, rc in suite.poll().items():
-        if supervisor.pending(name):
-            continue
-        print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
-              f'{suite.log_tail(name)}', file=sys.stderr)
-        if not supervisor.died(name, rc, now, epoch_s=time.time()):
+    deaths = [(name, rc, 'died', None) for name, rc in suite.poll().items()
+              if not supervisor.pending(name)]
+    if watch is not None:
+        for name in {d[0] for d in deaths} | suite.finished:
+            watch.forget(name)
+        feed_heartbeats(watch, monitor, suite.nodes)
+        for name, silent, share in watch.hung():
+            watch.forget(name)
+            if not suite.alive(name) or supervisor.pending(name):
+                continue
+            cpu = 'CPU unknown' if share is None else f'{100 * share:.1f} % CPU meanwhile'
+            print(f'{PROG}: {name} hung: no status for {silent:.1f} s ({cpu}; timeout '
+                  f'{watch.timeouts.get(name, 0.0):g} s); killing it (SIGKILL); last lines of '
+                  f'its log:\n{suite.log_tail(name)}', file=sys.stderr)
+            rc = suite.kill(name, signal.SIGKILL)
+            deaths.append((name, rc if rc is not None else -signal.SIGKILL, 'hung',
+                           (silent, share)))
+    for name, rc, reason, hang in deaths:
+        if reason == 'died':
+            print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
+                  f'{suite.log_tail(name)}', file=sys.stderr)
+        silent, share = hang or (None, None)
+        if not supervisor.died(name, rc, now, epoch_s=time.time(), reason=reason,
+                               silent_s=silent, cpu_share=share):
             gave = supervisor.gave_up
-            print(f'{PROG}: {name} died {gave["deaths_in_window"]} times within '
+            what = 'died' if reason == 'died' else 'died or hung'
+            print(f'{PROG}: {name} {what} {gave["deaths_in_window"]} times within '
                   f'{gave["restart_window_s"]:g} s: stopping the run', file=sys.stderr)
             return False
         print(f'{PROG}: restarting {name} in {supervisor.restarts[-1]["backoff_s"]:g} s',
@@ -207,11 +267,76 @@ def supervise(suite, supervisor, recording):
                         if r['node'] == name and r['restart_s'] is not None)
             args[args.index('--out') + 1] = str(part_path(recording, k))
             suite.args[name] = args
+        if watch is not None:
+            watch.started(name, time.monotonic())
         suite.start(name)
         r = supervisor.restarted(name, time.monotonic(), epoch_s=time.time())
         print(f'{PROG}: restarted {name} (restart {r["count"]}, pid {suite.pid(name)})',
               file=sys.stderr, flush=True)
     return True
+
+
+def hang_timeouts(names, timeout_s, cfg, corners=None, car_cfg=None):
+    """
+    Return each node's heartbeat timeout [s] (:func:`~mr_damper_bringup.supervisor.hang_timeout`).
+
+    ``timeout_s`` (``--hang-timeout-s``), or three periods of the node's own status
+    (``diagnostics_period_s`` in its parameters: ``cfg``, its corner's in ``corners``, the
+    full car's ``car_cfg``) if that is longer.
+    """
+    out = {}
+    for name in names:
+        corner, _, base = name.rpartition('.')
+        src = ((corners or {}).get(corner) if corner
+               else car_cfg if car_cfg is not None and base in (FULL_CAR, FULL_CAR_CTRL)
+               else cfg)
+        params = node_params(src or {}, base)
+        if corner:          # a corner's file keys its sections by the fully qualified name
+            params.update(node_params(src or {}, f'/{corner}/{base}'))
+        period = params.get('diagnostics_period_s')
+        try:
+            period = float(period) if period is not None else None
+        except (TypeError, ValueError):
+            period = None
+        out[name] = hang_timeout(timeout_s, period)
+    return out
+
+
+def take_domain(requested=None, folder=None):
+    """
+    Return ``(domain_id, lock)``: the ROS domain of this run and its :class:`DomainLock`, held.
+
+    Parameters
+    ----------
+    requested : int, optional
+        ``--domain-id``: this one or an error. None: a random free one in
+        :data:`~mr_damper_bringup.config.DOMAIN_IDS`.
+    folder : path, optional
+        Folder of the lock files (tests).
+
+    Raises
+    ------
+    SuiteError
+        When another suite on this machine uses the requested domain (or every one drawn).
+
+    """
+    if requested is not None:
+        lock = DomainLock(requested, folder)
+        if not lock.acquire():
+            raise SuiteError(
+                f'ROS_DOMAIN_ID {requested} is in use by another mr-damper-suite on this '
+                f'machine (launcher pid {lock.holder()}, or nodes it left running): its nodes '
+                'would share this run\'s topics and two controllers could command one damper; '
+                'stop it or choose another --domain-id')
+        return int(requested), lock
+    ids = list(range(DOMAIN_IDS[0], DOMAIN_IDS[1] + 1))
+    random.shuffle(ids)
+    for domain_id in ids:
+        lock = DomainLock(domain_id, folder)
+        if lock.acquire():
+            return domain_id, lock
+    raise SuiteError(f'every ROS domain in {DOMAIN_IDS[0]}..{DOMAIN_IDS[1]} is in use by a '
+                     'suite on this machine')
 
 
 def parse_args(argv):
@@ -223,13 +348,18 @@ def parse_args(argv):
                    help='run time [s, wall clock] (default 30; 0 = until Ctrl-C)')
     p.add_argument('--out', default=str(REPO / 'runs' / 'suite'),
                    help='output folder (default runs/suite in the repository)')
-    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can', 'full-car'),
+    p.add_argument('--config', choices=('sim', 'replay', 'hil', 'can', 'full-car', 'vehicle'),
                    default='sim',
                    help='sim: virtual rig; replay: a CSV or bag replayed into the identifier; '
                         'hil: the rig follows the car (hardware in the loop, docs/hil.md); '
                         'can: sim with the damper current through a CAN bridge and a simulated '
                         'driver (docs/can.md); full-car: four rig / identifier pairs (fl, fr, '
-                        'rl, rr) and the 7-DOF full_car_node (docs/full-car.md)')
+                        'rl, rr) and the 7-DOF full_car_node (docs/full-car.md); vehicle: the '
+                        'vehicle computer (bridge, estimator, controller) against the car on a '
+                        'CAN bus (docs/vehicle.md)')
+    p.add_argument('--live-identification', action='store_true',
+                   help='vehicle: the models from four rig / identifier stacks instead of the '
+                        'shipped end-of-line records')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -270,6 +400,17 @@ def parse_args(argv):
         field = flag[2:].replace('-', '_').replace('restart_backoff', 'backoff')
         p.add_argument(flag, type=kind, default=getattr(RestartPolicy, field),
                        help=f'{text} (default %(default)s)')
+    p.add_argument('--hang-timeout-s', type=float, default=HANG_TIMEOUT_S,
+                   help='a node whose /diagnostics status stops this long [s] (at least three '
+                        'of its status periods) while it is idle, or 40 times as long while it '
+                        'uses CPU, is hung: SIGKILLed and restarted, counted with the reason '
+                        '"hung"; watched from its first status (0: no hang watch; default '
+                        '%(default)s)')
+    p.add_argument('--dds-profile', metavar='FILE|none',
+                   help='Fast DDS XML profile of every node (default: $FASTDDS_DEFAULT_PROFILES_'
+                        'FILE if set, else config/fastdds_loopback.xml: every DDS socket on '
+                        '127.0.0.1); none: rmw\'s own transports; any profile but the shipped '
+                        'one runs with LOCALHOST discovery')
     p.add_argument('--no-plots', action='store_true', help='summary.json only')
     p.add_argument('--quiet', action='store_true', help='no progress lines')
     args = p.parse_args(argv)
@@ -279,6 +420,8 @@ def parse_args(argv):
         p.error('--domain-id must be in 0..232')
     if args.rate_factor is not None and not args.rate_factor > 0:
         p.error('--rate-factor must be > 0')
+    if not args.hang_timeout_s >= 0:
+        p.error('--hang-timeout-s must be >= 0')
     try:
         args.restart_policy = RestartPolicy(args.max_restarts, args.restart_window_s,
                                             args.restart_backoff_s, args.restart_backoff_max_s)
@@ -293,12 +436,20 @@ def main(argv=None):
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     try:
+        # first: a second launcher on a domain in use must not touch the running suite's files
+        domain_id, lock = take_domain(args.domain_id)
+        args.domain_id = domain_id          # the CAN bus port of --config can follows it
+        dds = dds_environment(args.dds_profile)
         cfg = resolve_config(args, out)
         corners = corner_configs(cfg, args.corners, out) if args.corners else {}
         full_car = args.config == 'full-car'
         if full_car:
             corners, car_cfg = full_car_configs(cfg, out, args.duration,
                                                 external=args.external_controller)
+        vehicle = args.config == 'vehicle'
+        if vehicle:
+            corners, car_cfg = vehicle_configs(cfg, out, args.duration, args.domain_id,
+                                               args.live_identification)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -309,25 +460,24 @@ def main(argv=None):
     for old in ('restarts.json', 'pids.json'):
         if (out / old).exists():
             (out / old).unlink()
-    domain_id = args.domain_id if args.domain_id is not None else random.randint(20, 220)
     # the monitor node of this process must use the same discovery settings as the children
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    apply_dds(dds)
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ.setdefault('ROS_LOG_DIR', str(out / 'ros_log'))
     record_args = ['--out', recording, '--suite-config', params_file, *recorder_arguments(cfg)]
-    if corners:
+    if corners or vehicle:
         # the full car starts before the corners: on its safe currents until their models come
         # (with --external-controller the full car's controller before the car)
         ext_car = full_car and external_full_car(car_cfg)
         nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODE if ext_car else {}),
-                 **(FULL_CAR_NODE if full_car else {})}
+                 **(FULL_CAR_NODE if full_car else {}), **(VEHICLE_NODES if vehicle else {})}
         node_args = {}
         for corner, corner_cfg in corners.items():
             corner_file = out / f'suite_params_{corner}.yaml'
             corner_file.write_text(yaml.safe_dump(corner_cfg, sort_keys=False))
             record_args += ['--namespace', corner]
             for name, exe in suite_nodes(cfg).items():
-                if full_car and name not in (RIG, IDENT):
+                if (full_car or vehicle) and name not in (RIG, IDENT):
                     continue
                 nodes[f'{corner}.{name}'] = exe
                 node_args[f'{corner}.{name}'] = ['--ros-args', '-r', f'__ns:=/{corner}',
@@ -337,13 +487,20 @@ def main(argv=None):
             node_args[FULL_CAR] = start_full_car(car_cfg, out)
             if ext_car:
                 node_args[FULL_CAR_CTRL] = node_args[FULL_CAR]
-        suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args)
+        if vehicle:
+            node_args.update(dict.fromkeys(VEHICLE_NODES, start_vehicle(car_cfg, out)))
+        suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args,
+                      keep_fds=(lock.fd,), dds=dds)
     else:
         suite = Suite(params_file, out, domain_id, args.bin_dir,
                       {**RECORDER_NODE, **suite_nodes(cfg)},
-                      args={RECORDER: record_args, **node_arguments(cfg, params_file)})
+                      args={RECORDER: record_args, **node_arguments(cfg, params_file)},
+                      keep_fds=(lock.fd,), dds=dds)
+    watch = HangWatch(hang_timeouts(suite.nodes, args.hang_timeout_s, cfg, corners,
+                                    car_cfg if full_car else None))
     print(f'{PROG}: config {args.config}, domain {domain_id}, '
-          f'duration {args.duration:g} s, output {out}', flush=True)
+          f'duration {args.duration:g} s, output {out}; DDS discovery '
+          f'{dds[RANGE_VAR]}, profile {dds[PROFILE_VAR]}', flush=True)
 
     interrupted = threading.Event()
 
@@ -366,11 +523,14 @@ def main(argv=None):
     supervisor = None
     last_status = {}
     try:
+        t_launch = time.monotonic()
         try:
             suite.start_all()
         except SuiteError as exc:
             print(f'{PROG}: {exc}', file=sys.stderr)
             return 2
+        for name in suite.nodes:
+            watch.started(name, t_launch)
         t_start = time.monotonic()
         supervisor = Supervisor(args.restart_policy, t_start)
         next_progress = args.progress_s
@@ -380,14 +540,17 @@ def main(argv=None):
             elapsed = time.monotonic() - t_start
             if args.duration and elapsed >= args.duration:
                 break
-            if not supervise(suite, supervisor, recording):
+            if not supervise(suite, supervisor, recording, watch, monitor):
                 status = 1
                 break
             if elapsed >= next_stats:
                 stats.sample()
+                for name, (t, seconds) in stats.cpu_seconds.items():
+                    watch.cpu(name, t, seconds)
                 next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
                 print(full_car_progress_line(monitor, elapsed) if full_car
+                      else vehicle_progress_line(monitor, elapsed) if vehicle
                       else corner_progress_line(monitor, elapsed, list(corners)) if corners
                       else progress_line(monitor, elapsed), flush=True)
                 next_progress += args.progress_s
@@ -396,9 +559,9 @@ def main(argv=None):
             print(f'{PROG}: interrupted, stopping the nodes', flush=True)
         elapsed = time.monotonic() - t_start
     finally:
-        if corners:
-            order = [FULL_CAR, FULL_CAR_CTRL] + [f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT)
-                                                 for c in corners]
+        if corners or vehicle:
+            order = [*VEHICLE_STOP_ORDER, FULL_CAR, FULL_CAR_CTRL] + [
+                f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
             codes = suite.stop(order=order,
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
@@ -428,19 +591,30 @@ def main(argv=None):
              'gave_up': supervisor.gave_up, 'exit_codes': codes}, indent=2))
     try:
         from . import report
-        if corners:
-            summary.update(duration_s=elapsed, recording=RECORDING,
-                           exit_codes={n: c for n, c in codes.items()},
-                           restarts=supervisor.restarts if supervisor else [],
-                           gave_up=supervisor.gave_up if supervisor else None)
+        if corners or vehicle:
+            from .report.corners import add_corner_losses
+            summary.update(duration_s=elapsed, exit_codes={n: c for n, c in codes.items()})
+            add_corner_losses(summary, out, {
+                'restarts': supervisor.restarts if supervisor else [],
+                'gave_up': supervisor.gave_up if supervisor else None})
             if full_car:
                 summary['full_car'] = full_car_summary(monitor, summary['corners'], car_cfg,
                                                        out, plots=not args.no_plots)
+            if vehicle:
+                summary['vehicle'] = vehicle_summary(monitor, car_cfg, out)
+            if corners:
+                summary['control'] = report.control_from_recording(out, summary, list(corners))
             (out / 'summary.json').write_text(json.dumps(finite_or_none(summary), indent=2))
             for c, d in summary['corners'].items():
                 print(f'{c}: {d}', flush=True)
+            for line in report.restart_lines(summary):
+                print(line, flush=True)
             if full_car:
                 print(f'full_car: {json.dumps(finite_or_none(summary["full_car"]))}', flush=True)
+            if 'control' in summary:
+                print(report.format_control(summary['control']), flush=True)
+            if vehicle:
+                print(f'vehicle: {json.dumps(finite_or_none(summary["vehicle"]))}', flush=True)
         else:
             summary = report.make_report(out, duration_s=elapsed, plots=not args.no_plots,
                                          fallback={'config': cfg, 'status': last_status})

@@ -6,10 +6,13 @@ A small rclpy node spun in a thread of ``mr-damper-suite``: it subscribes to ``/
 :data:`mr_damper_bringup.topics.SUITE_TOPICS` (low rate; never the measurement stream, which
 the recorder process takes) and keeps only the latest decoded message of each, for the progress
 lines and the drain at shutdown. Decoding goes
-through :mod:`mr_damper_bringup.topics` (one decoder per payload kind).
+through :mod:`mr_damper_bringup.topics` (one decoder per payload kind). It also keeps when each
+node's status last arrived and when its own spin loop last turned: the heartbeats the launcher's
+hang watch (:class:`mr_damper_bringup.supervisor.HangWatch`) is fed with.
 """
 import sys
 import threading
+import time
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -33,11 +36,19 @@ class Monitor:
         Node -> the last two statuses (oldest first), to tell a count that stopped moving.
     parameters, n_parameters, n_valid, metrics
         Latest parameter dict, parameter messages, valid ones, latest ride metrics.
+    beats : dict
+        Status name (the node's fully qualified name without the leading slash, e.g.
+        ``'fl/mr_damper_rig'``) -> ``time.monotonic()`` when its latest status arrived, whether
+        it could be decoded or not (a node that sends a status is alive).
+    spun : float or None
+        ``time.monotonic()`` at the end of the monitor's latest turn of its spin loop.
 
     """
 
     def __init__(self):
         self.lock = threading.Lock()
+        self.beats = {}
+        self.spun = None
         self.status = {}
         self.history = {}
         self.parameters = None
@@ -46,7 +57,11 @@ class Monitor:
         self.metrics = None
 
     def on_status(self, key, msg):
-        """Store one status message of topic ``key`` (undecodable ones are ignored)."""
+        """Store one status message of topic ``key`` (undecodable ones only count as a beat)."""
+        now = time.monotonic()
+        with self.lock:
+            for st in getattr(msg, 'status', ()):
+                self.beats[str(st.name).split(':')[0].strip()] = now
         try:
             statuses = decode_status(key, msg)
         except ValueError:
@@ -72,6 +87,11 @@ class Monitor:
             self.parameters = d
             self.n_parameters += 1
             self.n_valid += d.get('valid') == 1.0
+
+    def heartbeats(self):
+        """Return ``(beats, spun)``: a copy of :attr:`beats` and :attr:`spun`."""
+        with self.lock:
+            return dict(self.beats), self.spun
 
     def snapshot(self):
         """Return a copy: ``(status, history, parameters, n_params, n_valid, metrics)``."""
@@ -109,6 +129,7 @@ def start_monitor(monitor):
         try:
             while running.is_set():
                 executor.spin_once(timeout_sec=0.1)
+                monitor.spun = time.monotonic()
         except (ExternalShutdownException, KeyboardInterrupt):
             pass
         except Exception as exc:  # noqa: B902 - report and stop monitoring, never kill the run

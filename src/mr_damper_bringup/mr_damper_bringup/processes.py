@@ -5,12 +5,20 @@ The node processes of one suite run: start, watch, stop in order, CPU and memory
 parameter YAML, on loopback-only discovery and a domain ID of its own, forwards the stop in the
 shutdown order and tells a death from a finished node; :class:`ProcessStats` samples their CPU
 and memory (psutil). Neither imports ROS.
+
+The nodes die with the process that started them: each gets SIGTERM from the kernel when it
+goes (:func:`die_with_parent`, ``PR_SET_PDEATHSIG``), and a small watcher process
+(:mod:`mr_damper_bringup.reaper`) SIGKILLs what is left after a grace (a node frozen in the
+middleware ignores SIGTERM). :class:`DomainLock` keeps a second suite off a ROS domain that a
+suite on this machine (this network namespace) already uses.
 """
+import errno
 import os
 from pathlib import Path
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 from .config import (CAN_BRIDGE, CAN_DRIVER, CTRL, EST, IDENT, NODES, QC, RECORDER, RIG,
@@ -19,6 +27,166 @@ from .config import (CAN_BRIDGE, CAN_DRIVER, CTRL, EST, IDENT, NODES, QC, RECORD
 #: Exit statuses of a clean stop: every node handles SIGINT and SIGTERM (node_utils.run_node)
 #: and exits 0, so death by a signal or a traceback on the way out is an unclean shutdown.
 CLEAN_EXIT = (0,)
+#: prctl(2) option: the signal a process gets when the thread that created it exits
+PR_SET_PDEATHSIG = 1
+#: Seconds the nodes of a launcher that died get to end on SIGTERM before the reaper's SIGKILL
+#: (as long as the launcher's own stop gives a node after SIGINT).
+REAPER_GRACE_S = 10.0
+
+
+def die_with_parent(sig=signal.SIGTERM):
+    """
+    Return a ``preexec_fn`` that makes a child process get ``sig`` when this process dies.
+
+    ``prctl(PR_SET_PDEATHSIG, sig)`` in the child between fork and exec (kept across exec).
+    The parent may die before the call: the child then finds another parent (``getppid``) and
+    kills itself at once. The kernel sends the signal when the *thread* that started the child
+    ends: start nodes from a thread that lives as long as the process (the launcher's main
+    thread). Returns None where prctl is not available (not Linux).
+
+    Parameters
+    ----------
+    sig : int
+        The signal (SIGTERM: the suite's nodes stop cleanly and exit 0 on it).
+
+    """
+    try:
+        import ctypes
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
+                      ctypes.c_ulong]
+    prctl.restype = ctypes.c_int
+    parent = os.getpid()
+
+    def child():
+        # between fork and exec: no locks, no imports, nothing that allocates much
+        prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
+        if os.getppid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)    # the parent is already gone
+    return child
+
+
+class Reaper:
+    """
+    The watcher that ends the nodes when their starter is gone (:mod:`mr_damper_bringup.reaper`).
+
+    Parameters
+    ----------
+    log : path
+        Its stderr (one line when it had to stop nodes).
+    grace_s : float
+        Time [s] the nodes get to end on SIGTERM before SIGKILL.
+    pass_fds : tuple of int
+        File descriptors it keeps open (the :class:`DomainLock`, held until it exits).
+
+    """
+
+    def __init__(self, log, grace_s=REAPER_GRACE_S, pass_fds=()):
+        self.log = open(log, 'a')
+        self.proc = subprocess.Popen(
+            [sys.executable, '-m', 'mr_damper_bringup.reaper', f'{float(grace_s):g}'],
+            stdin=subprocess.PIPE, stdout=self.log, stderr=self.log, start_new_session=True,
+            pass_fds=tuple(pass_fds))
+
+    def watch(self, pid):
+        """Tell the reaper of one more node process (it leads its own process group)."""
+        try:
+            self.proc.stdin.write(f'{int(pid)}\n'.encode())
+            self.proc.stdin.flush()
+        except (BrokenPipeError, ValueError):
+            pass            # the reaper is gone: the nodes still have their PDEATHSIG
+
+    def close(self, timeout_s=10.0):
+        """End the reaper (EOF: it signals the nodes still running, none after a clean stop)."""
+        try:
+            self.proc.stdin.close()
+        except BrokenPipeError:
+            pass
+        try:
+            self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self.log.close()
+
+
+def network_namespace():
+    """Return an id of this process's network namespace (DDS LOCALHOST discovery's reach)."""
+    try:
+        return ''.join(c for c in os.readlink('/proc/self/ns/net') if c.isdigit()) or 'host'
+    except OSError:
+        return 'host'
+
+
+class DomainLock:
+    """
+    This machine's lock of one ROS domain ID: one suite per domain and network namespace.
+
+    A ``flock`` on ``<tmp>/mr-damper-suite.net<NS>.domain<ID>.lock``; the kernel drops it when
+    the last process holding the open file ends, whatever the way. The suite's nodes and the
+    reaper inherit it, so it is held until every process of the suite has gone: a second
+    launcher on the same domain is refused while any of them runs (two controllers would
+    command one damper). Loopback discovery (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``)
+    reaches exactly the processes of this network namespace, hence the lock's scope.
+
+    Parameters
+    ----------
+    domain_id : int
+        ROS_DOMAIN_ID (0..232).
+    folder : path, optional
+        Where the lock files are (default: the temporary folder).
+
+    Attributes
+    ----------
+    fd : int or None
+        The open lock file (None until :meth:`acquire` succeeded).
+
+    """
+
+    def __init__(self, domain_id, folder=None):
+        self.domain_id = int(domain_id)
+        folder = Path(folder) if folder is not None else Path(tempfile.gettempdir())
+        self.path = folder / (f'mr-damper-suite.net{network_namespace()}'
+                              f'.domain{self.domain_id}.lock')
+        self.fd = None
+
+    def acquire(self):
+        """Take the lock; return True, or False when another suite holds it."""
+        import fcntl
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except PermissionError:             # another user's lock file: lock it read-only
+            fd = os.open(self.path, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                return False
+            raise
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f'{os.getpid()}\n'.encode())
+        except OSError:
+            pass                            # read-only: the holder's pid is not written
+        os.set_inheritable(fd, False)
+        self.fd = fd
+        return True
+
+    def holder(self):
+        """Return the process id written by the suite that holds the lock ('?' if unknown)."""
+        try:
+            return self.path.read_text().strip() or '?'
+        except OSError:
+            return '?'
+
+    def release(self):
+        """Close this process's copy of the lock (children started with it keep theirs)."""
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
 
 
 class Suite:
@@ -41,10 +209,17 @@ class Suite:
     args : dict, optional
         Node name -> its command-line arguments, instead of ``--ros-args --params-file
         PARAMS_FILE`` (the recorder).
+    keep_fds : tuple of int, optional
+        File descriptors every node and the reaper keep open (the launcher's
+        :class:`DomainLock`).
+    dds : dict, optional
+        The DDS variables of the nodes (:func:`mr_damper_bringup.network.dds_environment`;
+        default: its default, the loopback profile).
 
     """
 
-    def __init__(self, params_file, out, domain_id, bin_dir=None, nodes=None, args=None):
+    def __init__(self, params_file, out, domain_id, bin_dir=None, nodes=None, args=None,
+                 keep_fds=(), dds=None):
         self.params_file = Path(params_file)
         self.out = Path(out)
         self.domain_id = int(domain_id)
@@ -57,15 +232,21 @@ class Suite:
         self.deaths = {}          # name -> return code of a death we did not ask for
         self.stopping = set()
         self.finished = set()
+        self.keep_fds = tuple(keep_fds)
+        if dds is None:
+            from .network import dds_environment
+            dds = dds_environment()
+        self.dds = dict(dds)
+        self.reaper = None
         (self.out / 'logs').mkdir(parents=True, exist_ok=True)
         (self.out / 'ros_log').mkdir(parents=True, exist_ok=True)
         for name in self.nodes:       # a new run starts new logs (a restart appends)
             (self.out / 'logs' / f'{name}.log').write_text('')
 
     def env(self):
-        """Return the environment of the children (LOCALHOST discovery, own domain, log dir)."""
-        env = dict(os.environ)
-        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        """Return the environment of the children (DDS on loopback, own domain, log dir)."""
+        from .network import apply
+        env = apply(self.dds, dict(os.environ))
         env['ROS_DOMAIN_ID'] = str(self.domain_id)
         env['ROS_LOG_DIR'] = str(self.out / 'ros_log')
         env['PYTHONUNBUFFERED'] = '1'
@@ -91,10 +272,15 @@ class Suite:
         log = open(self.out / 'logs' / f'{name}.log', 'a')
         log.write(f'--- start {time.strftime("%H:%M:%S")}: {" ".join(self.command(name))}\n')
         log.flush()
+        if self.reaper is None:
+            self.reaper = Reaper(self.out / 'logs' / 'reaper.log', pass_fds=self.keep_fds)
         # own session: a Ctrl-C on the terminal reaches the launcher only; it forwards SIGINT
-        # to each child itself, in the shutdown order
+        # to each child itself, in the shutdown order. SIGTERM when this process dies.
         self.procs[name] = subprocess.Popen(self.command(name), env=self.env(), stdout=log,
-                                            stderr=subprocess.STDOUT, start_new_session=True)
+                                            stderr=subprocess.STDOUT, start_new_session=True,
+                                            preexec_fn=die_with_parent(),
+                                            pass_fds=self.keep_fds)
+        self.reaper.watch(self.procs[name].pid)
         self.logs[name] = log
         self.starts[name] = time.monotonic()
         self.stopping.discard(name)
@@ -124,11 +310,18 @@ class Suite:
         return name in self.procs and self.procs[name].poll() is None
 
     def kill(self, name, sig=signal.SIGKILL, wait_s=10.0):
-        """Send ``sig`` to node ``name`` (a deliberate kill: not counted as a death)."""
+        """
+        Send ``sig`` to node ``name`` and its process group; wait for its end.
+
+        A deliberate kill: not counted as a death (:meth:`poll`). Returns its return code.
+        """
         self.stopping.add(name)
         proc = self.procs[name]
         if proc.poll() is None:
-            proc.send_signal(sig)
+            try:
+                os.killpg(proc.pid, sig)        # the node leads its own group (own session)
+            except (ProcessLookupError, PermissionError):
+                proc.send_signal(sig)
             try:
                 proc.wait(wait_s)
             except subprocess.TimeoutExpired:
@@ -197,7 +390,14 @@ class Suite:
             for name in group:
                 if name in self.procs:
                     codes[name] = self._wait(name, timeout_s)
+        self.close()
         return codes
+
+    def close(self):
+        """End the reaper (after the stop: it finds nothing left to end)."""
+        if self.reaper is not None:
+            reaper, self.reaper = self.reaper, None
+            reaper.close()
 
     def _wait(self, name, timeout_s):
         """Wait for node ``name`` to exit (SIGTERM, SIGKILL if it hangs); return its code."""
@@ -254,6 +454,10 @@ class ProcessStats:
 
     CPU_BIN = 0.5       # [%]
 
+    #: ``{name: (time.monotonic(), CPU seconds)}``: user + system CPU time of each running
+    #: node's process at its latest sample (the launcher's hang watch reads it)
+    cpu_seconds = None
+
     def __init__(self, suite, out):
         import psutil
         from mr_damper_model.io.columnlog import ColumnWriter
@@ -263,6 +467,7 @@ class ProcessStats:
         self.stats = {}
         self.names = list(NODES) + [RECORDER, 'launcher']
         self.t0 = time.monotonic()
+        self.cpu_seconds = {}
         self.log = ColumnWriter(Path(out) / 'process_samples',
                                 ('t_s', 'process', 'cpu_percent', 'rss_mb'), chunk_rows=256,
                                 meta={'processes': self.names})
@@ -272,14 +477,20 @@ class ProcessStats:
         procs = {name: self.suite.procs[name].pid for name in self.suite.procs
                  if self.suite.alive(name)}
         procs['launcher'] = os.getpid()
-        now = time.monotonic() - self.t0
+        t = time.monotonic()
+        now = t - self.t0
+        self.cpu_seconds = {n: v for n, v in self.cpu_seconds.items() if n in procs}
         for name, pid in procs.items():
             try:
                 h = self.handles.get(name)
                 if h is None or h.pid != pid:
                     h = self.handles[name] = self.psutil.Process(pid)
                     h.cpu_percent(None)           # first call primes the counter
+                    times = h.cpu_times()
+                    self.cpu_seconds[name] = (t, times.user + times.system)
                     continue
+                times = h.cpu_times()
+                self.cpu_seconds[name] = (t, times.user + times.system)
                 cpu = h.cpu_percent(None)
                 rss = h.memory_info().rss / 2 ** 20
             except self.psutil.Error:

@@ -167,12 +167,12 @@ def main(argv=None):
     start = time.monotonic()
     with recorder:
         def subscribe(key, row):
+            # measurement batches lost on the way are counted from their sequence numbers
+            # (never the middleware's MESSAGE_LOST event: docs/faults.md)
             def on_msg(raw):
-                recorder.write(key, raw, clock.now().nanoseconds)
-            events = (drops.lost_callbacks('measurements_lost') if row.qos == 'measurement'
-                      else None)
+                drops.count('measurements_lost', recorder.write(key, raw, clock.now().nanoseconds))
             node.create_subscription(message_class(row.type), row.name, on_msg, QOS[row.qos],
-                                     raw=True, event_callbacks=events)
+                                     raw=True)
 
         for key, row in recorder.topics.items():
             subscribe(key, row)
@@ -188,6 +188,7 @@ def main(argv=None):
                            'measurements_by_namespace': {
                                k.split('/')[0]: n for k, n in recorder.samples.items()
                                if '/' in k},
+                           'undecodable': dict(recorder.undecodable),
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,

@@ -24,6 +24,8 @@ run in order, finished or left by a killed writer.
 from pathlib import Path
 import re
 
+from mr_damper_common.sequence_gaps import SequenceGaps
+
 from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
 
 
@@ -118,6 +120,13 @@ class SuiteRecorder:
     ----------
     counts : dict
         Messages written per topic key.
+    lost : dict
+        Measurement messages that never reached the recorder, per measurement key, counted from
+        the batches' ``sequence`` (:class:`~mr_damper_common.sequence_gaps.SequenceGaps`; a
+        per-sample ``JointState`` stream has no sequence: its gaps are in its stamps).
+    undecodable : dict
+        Measurement messages per key written as received but not readable here (their samples
+        are not counted; the report counts them as bad messages too).
 
     """
 
@@ -144,6 +153,9 @@ class SuiteRecorder:
         self.counts = {key: 0 for key in self.topics}
         #: samples written per measurement key (a DamperSamples message holds many)
         self.samples = {key: 0 for key in self.topics if _is_measurement(key)}
+        self.lost = dict.fromkeys(self.samples, 0)
+        self._gaps = {key: SequenceGaps() for key in self.samples}
+        self.undecodable = {}
         self._writer = None
         self._conns = {}
         if not chunk_s >= 0:
@@ -190,11 +202,17 @@ class SuiteRecorder:
         """Return the measurement samples written, of every namespace (``[NS/]measurement``)."""
         return sum(self.samples.values())
 
-    def _samples_in(self, key, raw):
-        """Count the samples of one serialised measurement message (1 for a JointState)."""
+    def _measurement_in(self, key, raw):
+        """Return (samples in, messages lost before) one serialised measurement message."""
         row = self.topics[key]
-        msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
-        return len(msg.t_offset_s) if hasattr(msg, 't_offset_s') else 1
+        try:
+            msg = self.typestore.deserialize_cdr(bytes(raw), row.type)
+        except Exception:  # noqa: B902 - rosbags' SerdeError: one bad message, counted
+            self.undecodable[key] = self.undecodable.get(key, 0) + 1
+            return 0, 0
+        if not hasattr(msg, 't_offset_s'):
+            return 1, 0                 # a JointState: one sample, no sequence
+        return len(msg.t_offset_s), self._gaps[key].offer(msg.sequence, msg.header.frame_id)
 
     def write(self, key, raw, log_time_ns):
         """
@@ -209,13 +227,22 @@ class SuiteRecorder:
         log_time_ns : int
             Receive time [ns] (the recorder's clock).
 
+        Returns
+        -------
+        int
+            Messages of a measurement stream lost before this one (0 for other topics).
+
         """
         raw = bytes(raw)
         self._writer.write(self._conns[key], int(log_time_ns), raw)
         self._end_chunk_after(int(log_time_ns))
         self.counts[key] += 1
-        if key in self.samples:
-            self.samples[key] += self._samples_in(key, raw)
+        if key not in self.samples:
+            return 0
+        samples, lost = self._measurement_in(key, raw)
+        self.samples[key] += samples
+        self.lost[key] += lost
+        return lost
 
     def _end_chunk_after(self, log_time_ns):
         """Close and flush the open chunk once it spans ``chunk_s`` (rosbags 0.11.9 MCAP)."""

@@ -10,8 +10,11 @@ Examples::
 Without ``--damper-params`` the tool first runs a simulated rig test of the plant and identifies
 kwok-current parameters with ``mr_damper_model.identification.identify``; the controllers only
 ever see those.
-``--compare`` also runs the offline optimal semi-active bound (``quarter_car_sim.bound``, full
-road preview, comfort only) and lists its current sequence replayed on the plant as ``bound``.
+``--compare`` also runs the road-preview rows (``quarter_car_sim.preview_rows``:
+``clipped-optimal-wk`` with LQ preview fed by a simulated look-ahead sensor, ideal and with the
+``--preview-*`` errors) and the offline optimal semi-active bound (``quarter_car_sim.bound``,
+full road preview, comfort only), listing its current sequence replayed on the plant as
+``bound``.
 Bad input exits with status 2 and one line on stderr.
 
 It lives in ``mr_damper_bringup``, above the rig and the car, because it needs both the rig
@@ -21,8 +24,10 @@ the car; neither of those two packages imports the other.
 import json
 import sys
 
-from quarter_car_sim.cli_args import OneLineParser, positive
+from quarter_car_sim.cli_args import (add_preview_arguments, OneLineParser, positive,
+                                      preview_options)
 from quarter_car_sim.controllers import CONTROLLER_NAMES
+from quarter_car_sim.preview_rows import QUARTER_CAR_ROWS as PREVIEW_ROWS
 
 PLANTS = {'kwok': 'kwok-current', 'kwok-current': 'kwok-current', 'spencer': 'spencer'}
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
@@ -41,9 +46,10 @@ def build_parser():
         prog='quarter-car-sim',
         description='Quarter car with a semi-active MR damper: ride comparison of controllers.')
     p.add_argument('--controller', default='skyhook',
-                   help=f'{", ".join(CONTROLLER_NAMES)} (default skyhook)')
+                   help=f'{", ".join(CONTROLLER_NAMES + PREVIEW_ROWS)} (default skyhook)')
     p.add_argument('--compare', action='store_true',
-                   help='run every controller and the offline semi-active bound on the same road')
+                   help='run every controller, the road-preview rows and the offline semi-active '
+                        'bound on the same road')
     p.add_argument('--road', default='iso8608-C',
                    help='iso8608-A..H, bump, sine, step or FILE.csv (default iso8608-C)')
     p.add_argument('--speed', type=positive('--speed'), default=20.0, metavar='M_PER_S',
@@ -61,6 +67,7 @@ def build_parser():
                    help='ideal: the laws read the true car state; vehicle: they read the state '
                         'a Kalman filter estimates from modelled automotive sensors (body '
                         'accelerometer, ride-height sensor; docs/sensing.md)')
+    add_preview_arguments(p)
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.add_argument('--plot', metavar='OUT.png', help='write time traces, PSD, '
                    'transmissibility and current plots')
@@ -75,13 +82,24 @@ def run(args):
     from quarter_car_sim.bound import bound_name, KwokForceModel, semi_active_bound
     from quarter_car_sim.controllers import make_controller, Passive
     from quarter_car_sim.params import QuarterCarParams
+    from quarter_car_sim.preview_rows import quarter_car_preview_row
     from quarter_car_sim.road import make_road
     from quarter_car_sim.simulate import compare, make_inverse
 
     params = QuarterCarParams()
     road = make_road(args.road, speed_m_s=args.speed, duration_s=args.duration, dt=args.dt,
                      rng=args.seed)
-    if not args.compare:
+    popts = preview_options(args)
+    has_speed = road.speed_m_s > 0          # nan for a road in time only
+    if args.compare:
+        rows = list(PREVIEW_ROWS) if has_speed else []   # no preview on a road without speed
+    elif args.controller in PREVIEW_ROWS:
+        rows = [args.controller]
+        if not has_speed:
+            raise ValueError(f'road {args.road!r} has no speed: the preview rows need one')
+    else:
+        rows = []
+    if not args.compare and not rows:
         make_controller(args.controller, params=params)     # bad name: fail before identifying
     plant = make_plant(PLANTS[args.plant])
     if args.damper_params:
@@ -99,9 +117,14 @@ def run(args):
         controllers = [Passive(i) for i in COMPARE_CURRENTS_A]
         controllers += [make_controller(n, params=params, inverse=inverse, dt=args.dt)
                         for n in COMPARE_NAMES]
-    else:
+    elif not rows:
         controllers = [make_controller(args.controller, params=params, inverse=inverse,
                                        dt=args.dt)]
+    else:
+        controllers = []
+    previewed = {n: quarter_car_preview_row(n, params, road, inverse, popts, dt=args.dt)
+                 for n in rows}
+    controllers += list(previewed.values())
     sensed = {}
     if args.sensing == 'vehicle':
         from quarter_car_sim.sensed_loop import simulate_sensed
@@ -121,6 +144,8 @@ def run(args):
         'sensing': args.sensing, 'damper_params': finite_or_none(ident),
         'controllers': {n: finite_or_none(_metrics(n, r, sensed)) for n, r in results.items()},
     }
+    for n, c in previewed.items():
+        out['controllers'][n]['preview'] = finite_or_none({**popts.to_dict(n), **c.status()})
     return out, results
 
 

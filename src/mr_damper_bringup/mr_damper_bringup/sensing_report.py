@@ -56,8 +56,9 @@ def read_estimates(parts, dropout_window=None):
         estimates with the same ``fail_safe_reason``, ``'ok'`` when valid), ``dropout_seen``
         (``[first_s, last_s, n]`` of the lost (NaN) body accelerometer readings stamped inside
         the dropout window, or None), ``estimates``, ``valid``, ``truncated`` (estimates past
-        :data:`MAX_ROWS`). Times in seconds since the first message of these topics (receive
-        times of the recorder).
+        :data:`MAX_ROWS`), ``imu_last_stamp_s`` (the latest stamp of a body accelerometer
+        reading [s, car time], None without any: how far the car got). Times in seconds since
+        the first message of these topics (receive times of the recorder).
 
     """
     from mr_damper_model.io.bag_types import suite_typestore
@@ -68,7 +69,7 @@ def read_estimates(parts, dropout_window=None):
     window = None
     if dropout_window is not None and len(dropout_window) == 2:
         window = (float(dropout_window[0]), float(dropout_window[0]) + float(dropout_window[1]))
-    seen = None
+    seen = imu_last = None
     typestore = suite_typestore()
     cols = {side: {k: array('d') for k in ('t', 'stamp', *STATES)} for side in ('est', 'true')}
     runs = []
@@ -82,6 +83,7 @@ def read_estimates(parts, dropout_window=None):
             msg = reader.deserialize(raw, msgtype, typestore)
             if topic == imu_topic:
                 stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                imu_last = stamp if imu_last is None else max(imu_last, stamp)
                 if (window is not None and window[0] <= stamp < window[1]
                         and msg.linear_acceleration.z != msg.linear_acceleration.z):
                     seen = [t - t0, t - t0, 0] if seen is None else seen
@@ -113,7 +115,7 @@ def read_estimates(parts, dropout_window=None):
     arrays = {side: {k: np.frombuffer(v, dtype=float) if len(v) else np.zeros(0)
                      for k, v in c.items()} for side, c in cols.items()}
     return {**arrays, 'runs': runs, 'dropout_seen': seen, 'estimates': n, 'valid': n_valid,
-            'truncated': truncated}
+            'truncated': truncated, 'imu_last_stamp_s': imu_last}
 
 
 def estimation_errors(est, true):
@@ -182,7 +184,11 @@ def sensing_summary(status, car_status, parts):
         ``car_sensors``, ``estimate_runs`` and ``dropout_seen`` (:func:`read_estimates`),
         ``estimates``, ``valid_estimates``,
         ``dropout_failsafe`` (an invalid ``dropout_*`` entry counted by the estimator and states
-        refused by the controller), ``estimation_error`` (:func:`estimation_errors`).
+        refused by the controller; None when the car never reached the dropout window),
+        ``dropout_reached`` (the car's time got to the window's start: the latest body
+        accelerometer stamp recorded, else the car's final ``t_sim``; None when neither is
+        known; only with a dropout window), ``car_time_end_s`` (that time),
+        ``estimation_error`` (:func:`estimation_errors`).
 
     """
     est = status.get('estimator') or {}
@@ -206,6 +212,15 @@ def sensing_summary(status, car_status, parts):
     refused = ((out['controller'].get('state_rejected') or {}).get('non_finite') or 0)
     out['dropout_failsafe'] = bool(any(k.startswith('dropout_') and v for k, v in
                                        entries.items()) and refused > 0)
+    if window:
+        end = data.get('imu_last_stamp_s') if data is not None else None
+        if end is None:
+            end = (car_status or {}).get('t_sim')
+        reached = (None if not isinstance(end, (int, float)) or end != end
+                   else bool(end >= float(window[0])))
+        out.update(dropout_reached=reached, car_time_end_s=end)
+        if reached is False:            # nothing to count: the car never got there
+            out['dropout_failsafe'] = None
     return out
 
 
@@ -218,9 +233,14 @@ def format_sensing(s):
              f'{ctrl.get("state_rejected")}, fail-safe entries {ctrl.get("failsafe_entries")}']
     cs = s.get('car_sensors') or {}
     if cs.get('dropout_window_s'):
-        lines.append(f'  injected dropout {cs["dropout_sensors"]} at {cs["dropout_window_s"][0]:g}'
-                     f' s for {cs["dropout_window_s"][1]:g} s: counted as fail-safe '
-                     f'{"yes" if s.get("dropout_failsafe") else "NO"}')
+        head = (f'  injected dropout {cs["dropout_sensors"]} at {cs["dropout_window_s"][0]:g}'
+                f' s for {cs["dropout_window_s"][1]:g} s: ')
+        if s.get('dropout_reached') is False:
+            lines.append(head + f'not reached (the car\'s time ended at '
+                                f'{s["car_time_end_s"]:.2f} s)')
+        else:
+            lines.append(head + 'counted as fail-safe '
+                         f'{"yes" if s.get("dropout_failsafe") else "NO"}')
     err = s.get('estimation_error')
     if err:
         lines.append(f'  estimation error (RMS, {err["pairs"]} valid estimates, lag '

@@ -180,6 +180,15 @@ class CanBridge:
         frame_id, data = self.codec.encode(command_name(corner), {
             'CMD_CURRENT': value, 'CMD_FAILSAFE': int(st.mode != 'normal')})
         st.last_sent_t = now
+        if not self._transmit(frame_id, data):
+            return False
+        st.sent_a = value
+        st.frames_sent += 1
+        st.resent += int(resend)
+        return True
+
+    def _transmit(self, frame_id, data):
+        """Put one frame on the bus (or into :attr:`sent`); False (counted) when refused."""
         try:
             if self.bus is None:
                 self.sent.append((frame_id, data))
@@ -189,9 +198,6 @@ class CanBridge:
         except can.CanError:
             self.faults['send_failed'] += 1
             return False
-        st.sent_a = value
-        st.frames_sent += 1
-        st.resent += int(resend)
         return True
 
     # --- receiving ---------------------------------------------------------------------------
@@ -227,16 +233,20 @@ class CanBridge:
                 status = self._on_status(corner, dec.values, now)
                 callback, args = self.on_driver, (status,)
             elif dec.name in SENSOR_FRAMES:
-                quantity, prefix = SENSOR_FRAMES[dec.name]
-                values = {c: float(dec.values[f'{prefix}_{c.upper()}']) for c in self.corners}
-                for corner, value in values.items():
-                    self._sensors[corner][quantity] = value
-                args, callback = (quantity, values, now), self.on_sensors
+                callback, args = self._sensor_frame(dec, msg, now)
             else:
                 return dec
         if callback is not None:
             callback(*args)
         return dec
+
+    def _sensor_frame(self, dec, msg, now):
+        """Keep a sensor frame's values; return the callback and its arguments (lock held)."""
+        quantity, prefix = SENSOR_FRAMES[dec.name]
+        values = {c: float(dec.values[f'{prefix}_{c.upper()}']) for c in self.corners}
+        for corner, value in values.items():
+            self._sensors[corner][quantity] = value
+        return self.on_sensors, (quantity, values, now)
 
     def _on_status(self, corner, values, now):
         st = self.state[corner]
@@ -289,18 +299,22 @@ class CanBridge:
         now = self.clock() if now is None else now
         sent = 0
         with self.lock:
-            for name in self._cyclic_rx:
-                last = self._rx_last.get(name, self.started_t)
-                if now - last > self.rx_timeout_s and name not in self._rx_timed_out:
-                    self._rx_timed_out.add(name)
-                    self.faults['timeout'] += 1
-                    self.timeouts[name] = self.timeouts.get(name, 0) + 1
+            self._check_rx_timeouts(now)
             for corner in self.corners:
                 st = self.state[corner]
                 self._update_mode(corner, now)
                 if st.last_sent_t is None or now - st.last_sent_t >= self.resend_period_s:
                     sent += int(self._send(corner, now, resend=True))
         return sent
+
+    def _check_rx_timeouts(self, now):
+        """Count each cyclic frame missing for ``rx_timeout_s``, once per outage (lock held)."""
+        for name in self._cyclic_rx:
+            last = self._rx_last.get(name, self.started_t)
+            if now - last > self.rx_timeout_s and name not in self._rx_timed_out:
+                self._rx_timed_out.add(name)
+                self.faults['timeout'] += 1
+                self.timeouts[name] = self.timeouts.get(name, 0) + 1
 
     def reconfigure(self, *, safe_current_a=None, command_timeout_s=None):
         """Change the safe current or the command timeout; '' or the reason (nothing changed)."""

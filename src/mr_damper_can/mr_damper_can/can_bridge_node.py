@@ -100,11 +100,11 @@ class CanBridgeNode(Node):
                               on_driver=self.on_driver, on_sensors=self.on_sensors)
         self.health_rules = BridgeHealth()
         self.measured_pub, self.state_pub, self.imu_pub = {}, {}, {}
+        self.state_msg = {}     # corner -> its QuarterCarState, reused (its sequence counts)
         for c in corners:
             pre = self.prefix[c]
             self.drops.subscribe(self, Float64, f'{pre}mr_damper/current_command',
-                                 lambda msg, c=c: self.core.command(c, msg.data),
-                                 COMMAND_QOS, 'commands_lost')
+                                 lambda msg, c=c: self.core.command(c, msg.data), COMMAND_QOS)
             self.measured_pub[c] = self.create_publisher(
                 Float64, f'{pre}mr_damper/measured_current', STATUS_QOS)
             if p['publish_sensors']:
@@ -142,12 +142,12 @@ class CanBridgeNode(Node):
                 self.drops.publish(self.imu_pub[corner][kind],
                                    imu_msg(value, stamp, f'{corner}_{kind}'))
             else:
-                self.drops.publish(self.state_pub[corner],
-                                   self.car_state(corner, self.core.latest(corner), stamp))
+                self.drops.publish_next(self.state_pub[corner],
+                                        self.car_state(corner, self.core.latest(corner), stamp))
 
     def car_state(self, corner, latest, stamp_s):
-        """Return the ``QuarterCarState`` of a corner's latest bus values."""
-        msg = QuarterCarState()
+        """Fill and return the corner's own (numbered) ``QuarterCarState`` from its bus values."""
+        msg = self.state_msg.setdefault(corner, QuarterCarState())
         messages.seconds_to_stamp(stamp_s, msg.header.stamp)
         msg.header.frame_id = corner
         for field in ('body_displacement_m', 'body_velocity_m_s', 'wheel_displacement_m',

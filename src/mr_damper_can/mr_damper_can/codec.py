@@ -28,6 +28,9 @@ HARDWARE_FAULTS = ('open_load', 'short', 'overcurrent', 'overtemp', 'undervoltag
 #: ``DRV_STATE`` values of the driver.
 DRV_INIT, DRV_NORMAL, DRV_FAILSAFE, DRV_FAULT = 0, 1, 2, 3
 
+#: The vehicle computer's command frame: the four corners' currents in one frame per cycle.
+VEHICLE_COMMAND = 'DAMPER_CMD_ALL'
+
 #: Sensor cluster frames: message name -> (quantity, signal prefix).
 SENSOR_FRAMES = {'CHASSIS_BODY_ACCEL': ('body_accel', 'BODY_ACCEL'),
                  'CHASSIS_WHEEL_ACCEL': ('wheel_accel', 'WHEEL_ACCEL'),
@@ -153,7 +156,7 @@ class FrameCodec:
         sig = self.message(message_name).get_signal_by_name(signal_name)
         return float(sig.minimum), float(sig.maximum)
 
-    def encode(self, name, values, counter=None):
+    def encode(self, name, values, counter=None, strict=True):
         """
         Encode message ``name`` with its next rolling counter and its checksum.
 
@@ -166,6 +169,9 @@ class FrameCodec:
             its DBC range (cantools raises otherwise: the caller clamps first).
         counter : int, optional
             Force this counter (fault injection); default the id's next one.
+        strict : bool
+            Check every value against its DBC range (cantools raises outside it). False: the
+            caller has already clamped them (the bridge's limiter): half the encoding time.
 
         Returns
         -------
@@ -177,7 +183,7 @@ class FrameCodec:
         if counter is None:
             counter = self._tx_counter.get(msg.frame_id, -1) + 1 & 0x0F
             self._tx_counter[msg.frame_id] = counter
-        data = bytearray(msg.encode(dict(values, COUNTER=counter, CHECKSUM=0), strict=True))
+        data = bytearray(msg.encode(dict(values, COUNTER=counter, CHECKSUM=0), strict=strict))
         data[-1] = frame_checksum(msg.frame_id, data)
         return msg.frame_id, bytes(data)
 
@@ -223,7 +229,7 @@ def frame_bits(length):
     return 47 + 8 * length + (34 + 8 * length - 1) // 4
 
 
-def bus_load(db, bitrate, *, rate_scale=None):
+def bus_load(db, bitrate, *, rate_scale=None, cycle_times_ms=None):
     """
     Worst-case bus load of the DBC's cyclic frames at ``bitrate``.
 
@@ -235,6 +241,9 @@ def bus_load(db, bitrate, *, rate_scale=None):
         Bit rate [bit/s].
     rate_scale : dict, optional
         Message name -> factor on its rate (e.g. corners not present: 0).
+    cycle_times_ms : dict, optional
+        Message name -> cycle time [ms] instead of the DBC's (0: not sent), e.g. a
+        :func:`bus_layout`.
 
     Returns
     -------
@@ -244,10 +253,48 @@ def bus_load(db, bitrate, *, rate_scale=None):
     """
     bits = 0.0
     for msg in db.messages:
-        if not msg.cycle_time:
+        cycle = msg.cycle_time if cycle_times_ms is None else cycle_times_ms.get(
+            msg.name, msg.cycle_time)
+        if not cycle:
             continue
         scale = 1.0 if rate_scale is None else rate_scale.get(msg.name, 1.0)
-        bits += scale * frame_bits(msg.length) * 1000.0 / msg.cycle_time
+        bits += scale * frame_bits(msg.length) * 1000.0 / cycle
     if not (math.isfinite(bitrate) and bitrate > 0):
         raise ValueError(f'`bitrate` must be positive, got {bitrate}')
     return bits / float(bitrate)
+
+
+#: The bus layouts of the DBC (:func:`bus_layout`).
+LAYOUTS = ('corner', 'vehicle')
+
+
+def bus_layout(layout, cycle_s=0.002, status_period_s=0.01):
+    """
+    Cycle times [ms] of the frames on one of the DBC's two buses (for :func:`bus_load`).
+
+    Parameters
+    ----------
+    layout : str
+        ``'corner'``: a controller's command per corner (``DAMPER_CMD_<C>``, the DBC's cycle
+        times; ``can_bridge_node``); ``'vehicle'``: the vehicle computer's one command frame
+        (``DAMPER_CMD_ALL``) and the sensor frames every ``cycle_s``, the driver status every
+        ``status_period_s``, no per-corner commands (``vehicle_bridge_node``).
+    cycle_s, status_period_s : float
+        The vehicle layout's sensor / command cycle and driver status period [s].
+
+    Returns
+    -------
+    dict
+        Message name -> cycle time [ms] (0: not on this bus).
+
+    """
+    if layout == 'corner':
+        out = {VEHICLE_COMMAND: 0}
+    elif layout == 'vehicle':
+        out = {command_name(c): 0 for c in CORNERS}
+        out[VEHICLE_COMMAND] = 1000.0 * cycle_s
+        out.update({status_name(c): 1000.0 * status_period_s for c in CORNERS})
+        out.update({name: 1000.0 * cycle_s for name in SENSOR_FRAMES})
+    else:
+        raise ValueError(f'`layout` must be one of {", ".join(LAYOUTS)}, got {layout!r}')
+    return out

@@ -8,7 +8,9 @@ to its own ``safe_current_a`` when no valid command came for ``command_timeout_s
 ``FLT_CMD_TIMEOUT``), and sends ``DAMPER_STATUS_<C>`` every ``status_period_s`` and the three
 ``CHASSIS_*`` sensor frames every ``sensor_period_s``. Sensor values are those last given to
 :meth:`SimulatedEcu.set_sensors` (e.g. from a simulated car), else a synthetic ride: sines of
-known amplitude and frequency per corner (:func:`synthetic_sensors`).
+known amplitude and frequency per corner (:func:`synthetic_sensors`). A vehicle computer's
+``DAMPER_CMD_ALL`` frame commands every channel at once (one counter and checksum for the
+frame; the sensor cycle it answers is kept, ``last_sensor_cycle``).
 
 Faults are injected on request (:meth:`SimulatedEcu.inject`): driver faults (``open_load``,
 ``short``, ``overcurrent``, ``overtemp``, ``undervoltage``; the channel switches off, reports
@@ -24,7 +26,7 @@ import can
 
 from mr_damper_can.codec import (CAN_ERR_BUSOFF, command_name, CORNERS, DRV_FAULT,
                                  DRV_FAILSAFE, DRV_NORMAL, FAULT_SIGNALS, FrameCodec,
-                                 HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
+                                 HARDWARE_FAULTS, SENSOR_FRAMES, status_name, VEHICLE_COMMAND)
 from mr_damper_common.health import ERROR, Rising, WARN, worst
 
 #: Driver faults that :meth:`SimulatedEcu.inject` can set (persistent until ``none``).
@@ -64,6 +66,8 @@ class _Channel:
         self.failsafe_bit = 0
         self.fault = None             # injected driver fault
         self.received = 0             # valid command frames
+        self.timeouts = 0             # entries into the command timeout after a command
+        self._timed_out = False
         self.bad_checksum = 0
         self.counter_jumps = 0
         self.frames_missed = 0
@@ -123,6 +127,9 @@ class SimulatedEcu:
         self.lock = threading.RLock()
         self.ch = {c: _Channel() for c in self.corners}
         self._cmd_ids = {self.codec.message(command_name(c)).frame_id: c for c in self.corners}
+        self._all_id = self.codec.message(VEHICLE_COMMAND).frame_id
+        self.all_frames = 0           # valid DAMPER_CMD_ALL frames
+        self.last_sensor_cycle = None
         self._sensor_values = {}
         self.sent = []
         self.frames_sent = 0
@@ -139,32 +146,51 @@ class SimulatedEcu:
     def on_frame(self, msg, now=None):
         """Take one received frame (the Notifier's listener); commands of its corners only."""
         now = self.clock() if now is None else now
-        corner = self._cmd_ids.get(msg.arbitration_id)
-        if corner is None or msg.is_error_frame:
-            self.other_frames += 1
-            return
-        with self.lock:
-            ch = self.ch[corner]
-            dec = self.codec.decode(msg.arbitration_id, msg.data)
-            if dec.problem is not None:
-                ch.bad_checksum += int(dec.problem == 'bad_checksum')
-                ch.invalid_since_status = True
+        if msg.arbitration_id == self._all_id and not msg.is_error_frame:
+            corners, suffix = self.corners, '_{}'
+        else:
+            corner = self._cmd_ids.get(msg.arbitration_id)
+            if corner is None or msg.is_error_frame:
+                self.other_frames += 1
                 return
-            if dec.counter_jump > 0:
-                ch.counter_jumps += 1
-                ch.frames_missed += dec.counter_jump
-                ch.invalid_since_status = True
-            elif dec.counter_jump < 0:
-                ch.repeated += 1
-                ch.invalid_since_status = True
-                return                   # a repeated counter: the frame is stale
-            ch.received += 1
-            ch.target_a = float(dec.values['CMD_CURRENT'])
-            ch.failsafe_bit = int(dec.values['CMD_FAILSAFE'])
-            ch.last_command_t = now
-            counter = int(dec.values['COUNTER'])
+            corners, suffix = (corner,), ''
+        done = []
+        with self.lock:
+            dec = self.codec.decode(msg.arbitration_id, msg.data)
+            for corner in corners:
+                end = suffix.format(corner.upper())
+                if self._take(self.ch[corner], dec, f'CMD_CURRENT{end}', f'CMD_FAILSAFE{end}',
+                              now):
+                    ch = self.ch[corner]
+                    done.append((corner, ch.target_a, int(dec.values['COUNTER']),
+                                 ch.failsafe_bit))
+            if suffix and dec.problem is None and dec.counter_jump >= 0:
+                self.all_frames += 1
+                self.last_sensor_cycle = int(dec.values['SENSOR_CYCLE'])
         if self.on_command is not None:
-            self.on_command(corner, ch.target_a, counter, ch.failsafe_bit, now)
+            for corner, target, counter, failsafe in done:
+                self.on_command(corner, target, counter, failsafe, now)
+
+    @staticmethod
+    def _take(ch, dec, current, failsafe, now):
+        """Check a decoded command frame for one channel; True when its command was taken."""
+        if dec.problem is not None:
+            ch.bad_checksum += int(dec.problem == 'bad_checksum')
+            ch.invalid_since_status = True
+            return False
+        if dec.counter_jump > 0:
+            ch.counter_jumps += 1
+            ch.frames_missed += dec.counter_jump
+            ch.invalid_since_status = True
+        elif dec.counter_jump < 0:
+            ch.repeated += 1
+            ch.invalid_since_status = True
+            return False                 # a repeated counter: the frame is stale
+        ch.received += 1
+        ch.target_a = float(dec.values[current])
+        ch.failsafe_bit = int(dec.values[failsafe])
+        ch.last_command_t = now
+        return True
 
     # --- faults --------------------------------------------------------------------------------
     def inject(self, corner, fault, silence_s=0.2):
@@ -200,18 +226,45 @@ class SimulatedEcu:
             self._sensor_values[corner] = {'body_accel': body_accel,
                                            'wheel_accel': wheel_accel, 'susp_pos': susp_pos}
 
+    def _target(self, ch, now):
+        """Return the current channel ``ch`` drives its coil to at ``now`` [A]; count timeouts."""
+        if ch.fault is not None:
+            return 0.0                    # the channel is switched off
+        timed_out = ch.last_command_t is not None and now - ch.last_command_t > \
+            self.command_timeout_s
+        if timed_out and not ch._timed_out:
+            ch.timeouts += 1
+        ch._timed_out = timed_out
+        if ch.last_command_t is None or timed_out:
+            return self.safe_current_a
+        return ch.target_a
+
     def _advance(self, now):
         dt = max(now - self._t, 0.0)
         self._t = now
         decay = 1.0 - math.exp(-dt / self.tau_s)
         for ch in self.ch.values():
-            if ch.fault is not None:
-                target = 0.0              # the channel is switched off
-            elif ch.last_command_t is None or now - ch.last_command_t > self.command_timeout_s:
-                target = self.safe_current_a
-            else:
-                target = ch.target_a
-            ch.current_a += decay * (target - ch.current_a)
+            ch.current_a += decay * (self._target(ch, now) - ch.current_a)
+
+    def commanded(self, now=None):
+        """Return True when every channel has a fresh command without its fail-safe bit."""
+        now = self.clock() if now is None else now
+        with self.lock:
+            return all(ch.fault is None and ch.last_command_t is not None
+                       and now - ch.last_command_t <= self.command_timeout_s
+                       and not ch.failsafe_bit for ch in self.ch.values())
+
+    def drive_targets(self, now=None):
+        """
+        Return each channel's coil current set point now [A] (``corners`` order).
+
+        The command in force, the driver's own safe current once no valid command came for
+        ``command_timeout_s`` (or none yet), 0 A with a driver fault: what a simulated car's
+        damper plants take as their coil command (the plants have their coil lag).
+        """
+        now = self.clock() if now is None else now
+        with self.lock:
+            return [self._target(self.ch[c], now) for c in self.corners]
 
     def _status_values(self, corner, now):
         ch = self.ch[corner]
@@ -299,11 +352,16 @@ class SimulatedEcu:
             due = min(self._next_status, self._next_sensor if self.sensors else math.inf)
             self._stop.wait(max(min(due - self.clock(), period), 0.0))
 
-    def start(self):
-        """Read the bus (Notifier) and run the ECU cycle in a thread of its own."""
+    def start(self, cycle=True):
+        """
+        Read the bus (Notifier) and run the ECU cycle in a thread of its own.
+
+        With ``cycle`` False only the reader starts: the caller runs the cycle with
+        :meth:`step` (a simulated car steps its ECU with its own time).
+        """
         if self.bus is not None and self._notifier is None:
             self._notifier = can.Notifier(self.bus, [self.on_frame], timeout=0.1)
-        if self._thread is None:
+        if cycle and self._thread is None:
             self._stop.clear()
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
@@ -331,7 +389,9 @@ class SimulatedEcu:
     def status(self):
         """Return the status dict: per corner counts, command, current, fault; frame counts."""
         with self.lock:
-            corners = {c: {'received': ch.received, 'bad_checksum': ch.bad_checksum,
+            corners = {c: {'received': ch.received, 'command_timeouts': ch.timeouts,
+                           'timed_out': ch._timed_out or ch.last_command_t is None,
+                           'bad_checksum': ch.bad_checksum,
                            'counter_jumps': ch.counter_jumps, 'frames_missed': ch.frames_missed,
                            'repeated': ch.repeated,
                            'target_a': math.nan if ch.target_a is None else ch.target_a,
@@ -339,6 +399,7 @@ class SimulatedEcu:
                            'fault': ch.fault or ''}
                        for c, ch in self.ch.items()}
             return {'corners': corners, 'frames_sent': self.frames_sent,
+                    'all_frames': self.all_frames, 'last_sensor_cycle': self.last_sensor_cycle,
                     'send_failed': self.send_failed, 'other_frames': self.other_frames,
                     'tau_s': self.tau_s, 'safe_current_a': self.safe_current_a}
 

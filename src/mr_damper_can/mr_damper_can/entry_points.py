@@ -14,3 +14,8 @@ def can_bridge_node():
 def can_driver_sim():
     """``ros2 run mr_damper_can can_driver_sim``."""
     return early_main('mr_damper_can.can_driver_sim_node')
+
+
+def vehicle_bridge_node():
+    """``ros2 run mr_damper_can vehicle_bridge_node``."""
+    return early_main('mr_damper_can.vehicle_bridge_node')

@@ -25,7 +25,8 @@ import array
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from mr_damper_interfaces.msg import DamperModel, DamperSamples, KwokParameters
+from mr_damper_interfaces.msg import (ChassisSensors, DamperModel, DamperSamples,
+                                      FullCarCommand, FullCarState, KwokParameters)
 import numpy as np
 from sensor_msgs.msg import JointState
 
@@ -467,6 +468,134 @@ def damper_model_from_msg(msg):
     return {'model': msg.model,
             'parameters': {n: float(v) for n, v in zip(names, values)},
             'model_options': {n: float(v) for n, v in zip(onames, ovalues)}}
+
+
+# --- the vehicle computer's three messages (ChassisSensors, FullCarState, FullCarCommand) ---
+
+def _stamp_or_zero(t, stamp):
+    """Write ``t`` [s] into ``stamp``, or 0 s for a NaN (no time)."""
+    return seconds_to_stamp(t if t == t and t >= 0 else 0.0, stamp)
+
+
+def chassis_sensors_msg(cycle, cycle_period_s, msg=None, frame_id='chassis'):
+    """
+    Fill a ``ChassisSensors`` from one sensor cycle of the bus.
+
+    Parameters
+    ----------
+    cycle : object
+        With ``sequence``, ``t_bus`` [s], ``body_accel``, ``wheel_accel`` [m/s^2],
+        ``susp_pos`` [m], ``current_sent_a``, ``current_measured_a`` [A] (four each) and
+        ``missing`` (the ``MISSING_*`` bits), e.g. ``mr_damper_can.vehicle_bridge.
+        ChassisCycle``.
+    cycle_period_s : float
+        Nominal cycle [s].
+    msg : ChassisSensors, optional
+        Filled in place (a publisher's reused message).
+    frame_id : str
+        The header's frame.
+
+    """
+    msg = ChassisSensors() if msg is None else msg
+    seconds_to_stamp(cycle.t_bus, msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.sequence = int(cycle.sequence)
+    msg.cycle_period_s = float(cycle_period_s)
+    msg.body_acceleration_m_s2 = cycle.body_accel
+    msg.wheel_acceleration_m_s2 = cycle.wheel_accel
+    msg.suspension_travel_m = cycle.susp_pos
+    msg.current_command_a = cycle.current_sent_a
+    msg.coil_current_a = cycle.current_measured_a
+    msg.frames_missing = int(cycle.missing)
+    return msg
+
+
+def full_car_state_msg(est, msg=None, frame_id='base_link'):
+    """
+    Fill a ``FullCarState`` from an estimate.
+
+    ``est`` has ``sequence``, ``t`` [s], ``body`` (heave, pitch, roll), ``body_rates``,
+    ``body_acc``, ``travel``, ``travel_velocity``, ``tyre_deflection``, ``wheel_velocity``,
+    ``damper_force``, ``valid``, ``reason``, ``faults`` and the four standard deviations, e.g.
+    ``semi_active_control.estimation.VehicleEstimate``.
+    """
+    msg = FullCarState() if msg is None else msg
+    seconds_to_stamp(est.t, msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.sequence = int(est.sequence)
+    msg.heave_m, msg.pitch_rad, msg.roll_rad = (float(v) for v in est.body)
+    (msg.heave_velocity_m_s, msg.pitch_rate_rad_s,
+     msg.roll_rate_rad_s) = (float(v) for v in est.body_rates)
+    (msg.heave_acceleration_m_s2, msg.pitch_acceleration_rad_s2,
+     msg.roll_acceleration_rad_s2) = (float(v) for v in est.body_acc)
+    msg.suspension_travel_m = est.travel
+    msg.suspension_velocity_m_s = est.travel_velocity
+    msg.tyre_deflection_m = est.tyre_deflection
+    msg.wheel_velocity_m_s = est.wheel_velocity
+    msg.damper_force_n = est.damper_force
+    msg.valid = bool(est.valid)
+    msg.reason = str(est.reason)
+    msg.sensor_faults = list(est.faults)
+    msg.travel_std_m = float(est.travel_std_m)
+    msg.heave_velocity_std_m_s = float(est.heave_velocity_std_m_s)
+    msg.tyre_deflection_std_m = float(est.tyre_deflection_std_m)
+    msg.wheel_velocity_std_m_s = float(est.wheel_velocity_std_m_s)
+    return msg
+
+
+def full_car_state_fields(msg):
+    """
+    Return a ``FullCarState``'s values as a dict (SI; arrays of four per corner).
+
+    Keys ``sequence``, ``t`` [s], ``body``, ``body_rates``, ``body_acc`` (arrays of three),
+    ``travel``, ``travel_velocity``, ``tyre_deflection``, ``wheel_velocity``,
+    ``damper_force``, ``valid``, ``reason``.
+    """
+    return {'sequence': int(msg.sequence), 't': stamp_to_seconds(msg.header.stamp),
+            'body': np.array([msg.heave_m, msg.pitch_rad, msg.roll_rad]),
+            'body_rates': np.array([msg.heave_velocity_m_s, msg.pitch_rate_rad_s,
+                                    msg.roll_rate_rad_s]),
+            'body_acc': np.array([msg.heave_acceleration_m_s2, msg.pitch_acceleration_rad_s2,
+                                  msg.roll_acceleration_rad_s2]),
+            'travel': np.asarray(msg.suspension_travel_m, dtype=float),
+            'travel_velocity': np.asarray(msg.suspension_velocity_m_s, dtype=float),
+            'tyre_deflection': np.asarray(msg.tyre_deflection_m, dtype=float),
+            'wheel_velocity': np.asarray(msg.wheel_velocity_m_s, dtype=float),
+            'damper_force': np.asarray(msg.damper_force_n, dtype=float),
+            'valid': bool(msg.valid), 'reason': str(msg.reason)}
+
+
+def full_car_command_msg(cmd, stamp_s, msg=None, frame_id='base_link'):
+    """
+    Fill a ``FullCarCommand`` from a command.
+
+    ``cmd`` has ``sequence``, ``state_sequence``, ``state_t`` [s] (NaN: none),
+    ``currents_a``, ``demanded_n``, ``modes`` and ``reasons`` (four each), e.g.
+    ``semi_active_control.runtime.VehicleCommand``; ``stamp_s`` is when it was computed.
+    """
+    msg = FullCarCommand() if msg is None else msg
+    seconds_to_stamp(stamp_s, msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.sequence = int(cmd.sequence)
+    msg.state_sequence = int(cmd.state_sequence)
+    _stamp_or_zero(cmd.state_t, msg.state_stamp)
+    msg.current_a = cmd.currents_a
+    msg.demanded_force_n = cmd.demanded_n
+    msg.mode = [int(m) for m in cmd.modes]
+    msg.reason = [str(r) for r in cmd.reasons]
+    return msg
+
+
+def full_car_command_fields(msg):
+    """
+    Return a ``FullCarCommand``'s values: ``(sequence, state_sequence, currents, failsafe)``.
+
+    ``currents`` [A] as an array of four; ``failsafe`` a list of four bools (any mode but
+    NORMAL).
+    """
+    return (int(msg.sequence), int(msg.state_sequence),
+            np.asarray(msg.current_a, dtype=float),
+            [int(m) != FullCarCommand.MODE_NORMAL for m in msg.mode])
 
 
 def diagnostic_status_msg(name, health, hardware_id=''):

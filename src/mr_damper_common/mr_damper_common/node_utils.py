@@ -12,7 +12,6 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidHandle, ParameterException
@@ -25,6 +24,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 
 from mr_damper_common.health import Health, STALE
 from mr_damper_common.messages import diagnostic_array_msg, diagnostic_status_msg
+from mr_damper_common.sequence_gaps import SequenceGaps
 
 from mr_damper_common.stop_flag import (  # noqa: F401 (re-exported for the nodes)
     _STOP, install_stop_handlers, request_stop, stop_requested)
@@ -42,8 +42,8 @@ from mr_damper_common.stop_flag import (  # noqa: F401 (re-exported for the node
 #: replaces its writer with :class:`ResettablePublisher` (the stuck history goes with the old
 #: one), waits until the new writer has matched its readers again and publishes the samples due
 #: meanwhile: healthy readers lose nothing, the dead or stopped reader loses what it missed
-#: (it counts them: ``message_lost``), and the rig never blocks for more than one failed
-#: ``publish()`` (Fast DDS's max_blocking_time, 100 ms).
+#: (it counts them from the batches' sequence numbers: ``message_lost``), and the rig never
+#: blocks for more than one failed ``publish()`` (Fast DDS's max_blocking_time, 100 ms).
 MEASUREMENT_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                              reliability=ReliabilityPolicy.RELIABLE)
 #: Latched readers (car, controller: KEEP_LAST 1, only the newest set matters) and latched
@@ -73,6 +73,13 @@ STATUS_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
 SENSOR_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
+
+#: The vehicle computer's per-cycle topics (chassis sensors, full-car state, command):
+#: reliable, KEEP_LAST 2. A control loop wants the newest cycle, not a backlog: a reader that
+#: was starved takes at most two old cycles (answered late: counted as deadline misses) and
+#: the rest is counted as lost from the messages' sequence numbers.
+VEHICLE_QOS = QoSProfile(depth=2, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
 
 #: ``/diagnostics``: KEEP_LAST 10, reliable (as ROS 2's diagnostic_updater publishes it).
 DIAGNOSTICS_QOS = STATUS_QOS
@@ -137,22 +144,52 @@ class DropCounter:
             self.count(reason, 1, f'{topic}: {exc}')
             return False
 
-    def lost_callbacks(self, reason):
+    def publish_next(self, publisher, msg, reason='publish_failed'):
         """
-        Return subscription event callbacks that count ``message_lost`` under ``reason``.
+        :meth:`publish` a numbered message, then advance its ``sequence`` (+1 per message).
 
-        Fast DDS reports samples a reliable writer dropped before this reader took them (its
-        history was full) and, for best-effort readers, sequence gaps.
+        ``msg`` is the publisher's own message object, reused for each message it sends, so its
+        ``sequence`` is the publisher's running count from 0; a failed publish advances it too
+        (its readers count that message lost, as they should).
         """
-        def on_lost(info):
-            self.count(reason, int(info.total_count_change), f'total {info.total_count}')
-        return SubscriptionEventCallbacks(message_lost=on_lost)
+        sent = self.publish(publisher, msg, reason)
+        msg.sequence += 1
+        return sent
 
-    def subscribe(self, node, msg_type, topic, callback, qos, reason='message_lost', *,
-                  raw=False):
-        """``node.create_subscription`` whose lost samples are counted under ``reason``."""
-        return node.create_subscription(msg_type, topic, callback, qos,
-                                        event_callbacks=self.lost_callbacks(reason), raw=raw)
+    def subscribe(self, node, msg_type, topic, callback, qos, reason=None, *, raw=False):
+        """
+        ``node.create_subscription``; lost messages of a numbered type counted under ``reason``.
+
+        A message type with its own running ``sequence`` and a ``header``
+        (``mr_damper_interfaces/DamperSamples``, ``QuarterCarState``) is counted here: the
+        jumps of the sequence of each publisher's stream (its ``header.frame_id``) are the
+        messages that never reached the callback (:class:`~mr_damper_common.sequence_gaps.
+        SequenceGaps`), counted under ``reason`` (default ``'message_lost'``); a publisher's
+        restart is logged, not counted. The middleware's MESSAGE_LOST event is never armed: on
+        this Fast DDS taking it can deadlock the node (ros2/rmw_fastrtps#890).
+
+        Other types, and raw subscriptions, carry no number to count here: ``docs/faults.md``
+        (Lost messages) says where their losses are counted; a ``reason`` for one of them is a
+        ValueError, so no count is promised that cannot be kept.
+        """
+        fields = msg_type.get_fields_and_field_types()
+        if raw or 'sequence' not in fields or 'header' not in fields:
+            if reason is not None:
+                raise ValueError(f'{topic}: {msg_type.__name__}{" (raw)" if raw else ""} has '
+                                 f'no sequence to count {reason!r} from')
+            return node.create_subscription(msg_type, topic, callback, qos, raw=raw)
+        reason = 'message_lost' if reason is None else reason
+        gaps = SequenceGaps()
+
+        def numbered(msg):
+            restarts = gaps.restarts
+            self.count(reason, gaps.offer(msg.sequence, msg.header.frame_id),
+                       f'{topic} sequence jumped to {msg.sequence}')
+            if gaps.restarts != restarts and self._warn.due(f'restart {topic}'):
+                self._logger.warning(f'{topic}: the publisher of {msg.header.frame_id!r} '
+                                     f'restarted (sequence {msg.sequence}): not counted as lost')
+            callback(msg)
+        return node.create_subscription(msg_type, topic, numbered, qos)
 
 
 class LogThrottle:

@@ -23,6 +23,17 @@ about every stamp, with its own clock's now. The guard refuses, and counts by na
     catches streams stamped on the node's time base. Without a usable clock (``now`` None,
     not finite or <= 0: a simulated clock not started yet) nothing is in the future.
 
+With ``stream_clock`` (the identifier's measurement stream, stamped on a clock of its own and
+replayed at any rate: a rig at ``rate_factor`` 4 on wall time, a replay as fast as the reader
+takes it) the horizon is measured on the stream's own clock instead: the stamps are taken to
+advance ``rate`` times as fast as the node clock, ``rate`` the stream's recent advance (its
+newest stamp over the last :data:`RATE_WINDOW_S` of node time, at least 1), so a stamp ``t``
+is in the future when ``t > t_ref + rate * (now - now_ref) + max_future_s``; before any
+reference nothing is (the stream's clock is not known yet). A batch of samples received at
+once is judged as a whole (:meth:`StampGuard.batch_verdict`): its newest stamp against that
+limit, so a batch cannot carry the stream ahead by more than the horizon however plausibly its
+own samples follow each other (one message of 100 s of samples stamped ahead).
+
 A refused stamp never becomes the reference, so one bad stamp costs one message, not the rest
 of the run. A vehicle clock that really jumps is followed instead of refused for good: after
 ``rebase_after`` consecutive out-of-order stamps that increase among themselves (a clock
@@ -56,6 +67,12 @@ ACCEPTED = ''
 
 #: Verdict of an accepted stamp that re-based the stream (a clock jump followed).
 REBASED = 'rebased'
+
+#: Node time over which a ``stream_clock`` guard measures the stream's rate [s].
+RATE_WINDOW_S = 2.0
+#: Shortest node time a rate is measured over [s] (a burst of batches received at once has
+#: no rate of its own).
+MIN_RATE_SPAN_S = 0.1
 
 
 def _clock(now):
@@ -110,6 +127,9 @@ class StampGuard:
         Take a stamp equal to the reference as in order (the controller: a vehicle may send a
         state twice) instead of refusing it as ``duplicate`` (the identifier: one sample per
         stamp).
+    stream_clock : bool
+        Measure the horizon on the stream's own clock (its recent rate against the node
+        clock; nothing is in the future before a reference), see the module docstring.
 
     Attributes
     ----------
@@ -124,6 +144,9 @@ class StampGuard:
         Re-bases after a backward / a forward clock jump.
     last_rebase : dict or None
         ``{'direction', 'from_s', 'to_s'}`` of the latest re-base.
+    rate : float
+        ``stream_clock``: stream time per node time of the recent stamps (>= 1; 1 without
+        ``stream_clock`` or before it is measured).
 
     Raises
     ------
@@ -132,7 +155,8 @@ class StampGuard:
 
     """
 
-    def __init__(self, *, max_future_s=1.0, rebase_after=50, accept_equal=False):
+    def __init__(self, *, max_future_s=1.0, rebase_after=50, accept_equal=False,
+                 stream_clock=False):
         max_future_s = float(max_future_s)
         if not max_future_s > 0:
             raise ValueError(f'`max_future_s` must be > 0 s, got {max_future_s}')
@@ -141,6 +165,7 @@ class StampGuard:
         self.max_future_s = max_future_s
         self.rebase_after = int(rebase_after)
         self.accept_equal = bool(accept_equal)
+        self.stream_clock = bool(stream_clock)
         self.reset()
 
     def reset(self):
@@ -153,6 +178,11 @@ class StampGuard:
         self.rebases_forward = 0
         self.last_rebase = None
         self._clear_runs()
+        self._clear_rate()
+
+    def _clear_rate(self):
+        self.rate = 1.0
+        self._rate_points = []     # (node time, newest stamp), one per RATE_WINDOW_S / 32
 
     def _clear_runs(self):
         self._ooo_run = 0
@@ -185,7 +215,9 @@ class StampGuard:
         if now is None:
             return math.inf
         if self._ref_now is not None:
-            return self.last + (now - self._ref_now) + self.max_future_s
+            return self.last + self.rate * (now - self._ref_now) + self.max_future_s
+        if self.stream_clock:
+            return math.inf           # the stream's clock is not known yet
         return now + self.max_future_s
 
     # ---------------------------------------------------------------- one stamp
@@ -226,8 +258,8 @@ class StampGuard:
             return self._rebase(t, 'backward')
         if t > self.limit(now):
             clock = _clock(now)
-            if (self._fut_run and t > self._fut_last
-                    and t <= self._fut_last + (clock - self._fut_now) + self.max_future_s):
+            if (self._fut_run and t > self._fut_last and t <= self._fut_last
+                    + self.rate * (clock - self._fut_now) + self.max_future_s):
                 self._fut_run += 1
             else:
                 self._fut_run = 1
@@ -249,6 +281,7 @@ class StampGuard:
         self.last = -math.inf
         self._ref_now = None
         self._clear_runs()
+        self._clear_rate()
         self.n_accepted += 1
         return REBASED
 
@@ -266,6 +299,19 @@ class StampGuard:
         """
         self.last = float(t)
         self._ref_now = _clock(now)
+        if self.stream_clock and self._ref_now is not None:
+            self._measure_rate()
+
+    def _measure_rate(self):
+        """Note the newest (node time, stamp) and measure the stream's rate (stream_clock)."""
+        now, pts = self._ref_now, self._rate_points
+        if not pts or now - pts[-1][0] >= RATE_WINDOW_S / 32:
+            pts.append((now, self.last))
+        while len(pts) > 2 and now - pts[1][0] >= RATE_WINDOW_S:
+            pts.pop(0)
+        span = now - pts[0][0]
+        if span >= MIN_RATE_SPAN_S:
+            self.rate = max(1.0, (self.last - pts[0][1]) / span)
 
     def offer(self, t, now=None):
         """
@@ -283,6 +329,53 @@ class StampGuard:
         return verdict
 
     # ---------------------------------------------------------------- a batch
+    def batch_verdict(self, t, now=None):
+        """
+        Judge how far a batch received at once reaches ahead, as a whole (nothing is taken).
+
+        Only the future: the batch's newest finite stamp against :meth:`limit` at ``now``
+        (order, duplicates and non-finite stamps are for the stamp-by-stamp checks). A batch
+        refused here is counted whole (``future_stamp``, every stamp) and never becomes the
+        reference. Consecutive refused batches that follow each other as a stream would (each
+        spanning at most the horizon, and continuing the previous one within the horizon plus
+        the stream's advance) re-base the stream once they hold ``rebase_after`` stamps: a
+        clock that really jumped ahead is followed; a single batch spanning more than the
+        horizon never is.
+
+        Parameters
+        ----------
+        t : array_like with shape (n,)
+            The batch's stamps [s].
+        now : float, optional
+            Node clock [s] at receipt (None: nothing is in the future).
+
+        Returns
+        -------
+        str
+            :data:`ACCEPTED`, ``'future_stamp'`` (the batch refused) or :data:`REBASED` (the
+            batch begins a re-based stream: the reference is cleared; offer its stamps next).
+
+        """
+        t = np.asarray(t, dtype=float)
+        t = t[np.isfinite(t)]
+        if not t.size:
+            return ACCEPTED
+        first, newest = float(t.min()), float(t.max())
+        if newest <= self.limit(now):
+            return ACCEPTED
+        clock = _clock(now)
+        own = newest - first <= self.max_future_s
+        follows = bool(self._fut_run and first > self._fut_last and newest <= self._fut_last
+                       + self.rate * (clock - self._fut_now) + self.max_future_s)
+        self._fut_run = (self._fut_run + t.size if follows else t.size) if own else 0
+        self._fut_last, self._fut_now = newest, clock
+        if follows and self._fut_run >= self.rebase_after:
+            self._rebase(first, 'forward')
+            self.n_accepted -= 1          # its stamps are counted as they are offered
+            return REBASED
+        self.counts['future_stamp'] += int(t.size)
+        return 'future_stamp'
+
     def clean(self, t, now=None):
         """
         Tell whether a batch passes as a whole: increasing, after the reference, in the horizon.
@@ -372,11 +465,12 @@ class StampGuard:
         dict
             ``stamps_accepted``, ``stamps_refused`` ({reason: count}), ``rebases``,
             ``rebases_backward``, ``rebases_forward``, ``last_stamp_s`` (NaN before the first),
-            ``max_future_s``, ``rebase_after``.
+            ``max_future_s``, ``rebase_after``, ``rate`` (:attr:`rate`).
 
         """
         return {'stamps_accepted': self.n_accepted, 'stamps_refused': dict(self.counts),
                 'rebases': self.rebases, 'rebases_backward': self.rebases_backward,
                 'rebases_forward': self.rebases_forward,
                 'last_stamp_s': self.last if math.isfinite(self.last) else math.nan,
-                'max_future_s': self.max_future_s, 'rebase_after': self.rebase_after}
+                'max_future_s': self.max_future_s, 'rebase_after': self.rebase_after,
+                'rate': self.rate}

@@ -75,7 +75,9 @@ from .rig_health import RigHealth
 from .virtual_rig import build_virtual_rig
 
 #: Current and displacement commands: only the newest matters; a command the rig could not
-#: take in time is lost and counted (``dropped.command_lost``), the writer never waits.
+#: take in time is overwritten by the next (the writer never waits). ``std_msgs/Float64``
+#: carries no number: the rig counts the commands it took (``current_commands``), to set
+#: against the sender's count (docs/faults.md, Lost messages).
 COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: ``/clock``: reliable keep-last (rclpy's time source reads it best effort, depth 1).
 CLOCK_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
@@ -232,7 +234,7 @@ class RigNode(Node):
             self._publish_truth()
             if p['current_source'] == 'command':
                 self.drops.subscribe(self, Float64, CURRENT_COMMAND, self._on_command,
-                                     COMMAND_QOS, 'command_lost')
+                                     COMMAND_QOS)
         self._link_msg = None
         if self.follower is not None:
             self._link_pub = self.create_publisher(DamperSamples, HIL_MEASUREMENT, COMMAND_QOS)
@@ -333,8 +335,7 @@ class RigNode(Node):
         """
         if self.pacer.accepting(self._meas.get_subscription_count()):
             self._displacement_sub = self.drops.subscribe(
-                self, Float64, DISPLACEMENT_COMMAND, self._on_displacement, COMMAND_QOS,
-                'displacement_command_lost')
+                self, Float64, DISPLACEMENT_COMMAND, self._on_displacement, COMMAND_QOS)
             self.get_logger().info(
                 f'taking displacement commands ({self._meas.get_subscription_count()} '
                 f'measurement readers, {self._wait_subs} awaited)')

@@ -26,10 +26,21 @@ sequence of the whole run at once. Method (docs/control-laws.md):
    (so the final force sequence respects the limits at every step, by construction), the
    limits are taken again along that trajectory, and the QP is solved again (sequential convex
    programming). The best projected run (including the start, the ``i_min`` passive car) is
-   kept, so the bound is never worse than the softest passive setting in ``J``.
+   kept, so the bound is never worse than the softest passive setting in ``J``. This outer
+   loop (:func:`sequential_projection`) serves the full car's bound too
+   (:mod:`quarter_car_sim.full_car.bound`).
 4. **Honest evaluation.** The projected forces are turned into coil currents by the inverse
    model and that current sequence is replayed open loop through the real simulation
    (:func:`quarter_car_sim.simulate.simulate`, any plant, coil lag included).
+
+The plan starts where the replay starts: the car at rest on the road's first height ``settle_s``
+before the road (the settling every simulation runs, planned but not scored), and over the first
+control period the car's initial damper force (no command reaches that period: a command acts
+from the next period on, :class:`CurrentSchedule`). So the replay on a plant equal to the model
+follows the plan to the inverse's tolerance, on any machine: a plan that chose a first force the
+replay cannot make would start the replay off the plan, and the model's ``sign(travel)`` term
+(a jump of the force at zero travel) then spreads that difference through the run by whichever
+side of zero each round-off falls (issue 32).
 
 Assumptions: the prediction knows the road exactly and uses the damper model's force map (for
 the MR damper: the identified kwok-current model, a static map of travel, velocity and current,
@@ -59,11 +70,14 @@ class KwokForceModel:
     """
 
     def __init__(self, inverse):
-        from mr_damper_model.models.kwok_current import KwokCurrent
+        from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_coefficients
         self.inverse = inverse
         self.i_min, self.i_max = inverse.i_min, inverse.i_max
-        self._model = KwokCurrent(i_ref_a=inverse.i_ref_a)
         self._p = np.array([inverse.params[n] for n in KwokCurrent.param_names])
+        # c, alpha, beta at the two ends of the current range (rows: i_min, i_max)
+        c, alpha, beta = kwok_current_coefficients(
+            self._p[None, :], np.array([self.i_min, self.i_max]) / inverse.i_ref_a)
+        self._ends = np.column_stack([c[0], alpha[0], beta[0]])
 
     def body_force_range(self, travel, v_rel):
         """Reachable damper forces on the body ``(lo, hi)`` [N] at one state (floats)."""
@@ -73,8 +87,11 @@ class KwokForceModel:
         """Like :meth:`body_force_range`, vectorised over arrays of shape (n,)."""
         x = np.asarray(travel, dtype=float)
         v = np.asarray(v_rel, dtype=float)
-        a = -self._model.force(self._p, x, v, np.full(x.shape, self.i_min))
-        b = -self._model.force(self._p, x, v, np.full(x.shape, self.i_max))
+        p = self._p
+        static = p[2] * x + p[9]                      # k x + f0
+        arg = p[8] * np.sign(x)                       # delta sign(x)
+        a, b = (-(c * v + static + alpha * np.tanh(beta * v + arg))
+                for c, alpha, beta in self._ends)     # the kwok-current force at each end
         return np.minimum(a, b), np.maximum(a, b)
 
     def currents(self, f_body, travel, v_rel):
@@ -133,13 +150,14 @@ class BoundResult:
     Attributes
     ----------
     force : ndarray (n,)
-        Damper force on the body over each control period [N] (the projected optimum).
+        Damper force on the body over each control period from ``t0`` [N] (the projected
+        optimum).
     current : ndarray (n,)
         Coil currents giving those forces on the damper model [A].
     predicted : dict
-        Time series of the projected run on the damper model (``t``, ``a_s``, ``travel``,
-        ``v_rel``, ``tyre_force``, ``damper_force``, ``force_lo``, ``force_hi``,
-        ``static_tyre_load``).
+        Time series of the recorded part of the projected run on the damper model (``t``,
+        ``a_s``, ``travel``, ``v_rel``, ``tyre_force``, ``damper_force``, ``force_lo``,
+        ``force_hi``, ``static_tyre_load``).
     predicted_metrics : dict
         :func:`quarter_car_sim.ride_metrics.ride_metrics` of the projected run.
     cost, cost_start : float
@@ -152,6 +170,8 @@ class BoundResult:
         Tyre-load weight.
     nit : int
         Outer (projection) iterations done.
+    t0 : float
+        Time of the first planned sample [s] (the settling's start, before the road).
 
     """
 
@@ -165,6 +185,7 @@ class BoundResult:
     replay: object
     rho: float
     nit: int
+    t0: float = 0.0
 
     def metrics(self):
         """Ride metrics of the replay on the plant (else of the prediction)."""
@@ -207,16 +228,21 @@ class _Conv:
         return signal.oaconvolve(r[::-1], self.h)[:self.n][::-1]
 
 
-def _rollout(params, road, dt, n, model, w, c_ref):
-    """Run the car sample by sample with ``F_k = clip(-c_ref v_rel,k + w_k, lo_k, hi_k)``."""
-    car = QuarterCar(params, None, road, t0=float(road.t[0]))
+def _rollout(params, road, dt, n, t0, model, w, c_ref):
+    """
+    Run the car from rest at ``t0`` with ``F_k = clip(-c_ref v_rel,k + w_k, lo_k, hi_k)``.
+
+    Over the first period the force is the car's initial one, whatever ``w_0`` (no command
+    reaches it; its limits are that force).
+    """
+    car = QuarterCar(params, None, road, t0=t0)
     rng = model.body_force_range
     out = np.empty((8, n))
     wl = np.asarray(w, dtype=float).tolist()
     step = car.step_force
     s = car.state
     for k in range(n):
-        lo, hi = rng(s.travel, s.v_rel)
+        lo, hi = rng(s.travel, s.v_rel) if k else (s.damper_force, s.damper_force)
         f = -c_ref * s.v_rel + wl[k]
         f = lo if f < lo else (hi if f > hi else f)
         out[:, k] = (s.t, s.z_s, s.z_u, s.travel, s.v_rel, s.tyre_force, lo, hi)
@@ -240,9 +266,9 @@ class Unlimited:
         return -math.inf, math.inf
 
 
-def _free_response(params, road, dt, n, c_ref):
+def _free_response(params, road, dt, n, t0, c_ref):
     """Run the car with ``F = -c_ref v_rel`` only (``w = 0``, no limits)."""
-    return _rollout(params, road, dt, n, Unlimited, np.zeros(n), c_ref)
+    return _rollout(params, road, dt, n, t0, Unlimited, np.zeros(n), c_ref)
 
 
 def largest_eigenvalue(hess, n, iters=30):
@@ -283,6 +309,60 @@ def check_bound_options(rho, dt, outer, maxiter, settle_s=0.0):
         raise ValueError('`outer` must be >= 0 and `maxiter` >= 1')
 
 
+def sequential_projection(start, cost_of, box_along, rollout, grad, lipschitz, *, outer=6,
+                          maxiter=100, callback=None):
+    """
+    Run the outer loop of the bounds (quarter car and full car): linearise, solve, project.
+
+    From ``start`` (the projected run of the ``i_min`` passive car), each round takes the
+    force limits along the linear prediction of the present run (``box_along``), solves the
+    box-constrained QP by :func:`fista_box` from the present forces, and projects the plan on
+    the nonlinear car (``rollout``). The best projected run, the start included, is kept.
+
+    Parameters
+    ----------
+    start : dict
+        Projected run to start from.
+    cost_of : callable
+        ``cost_of(run) -> J`` of a projected run.
+    box_along : callable
+        ``box_along(run) -> (w, lb, ub)``: the run's QP variables and the box of the QP
+        around it (flat arrays of one length).
+    rollout : callable
+        ``rollout(w) -> run``: the plan ``w`` projected on the nonlinear car.
+    grad : callable
+        Gradient of the QP's cost in ``w``.
+    lipschitz : float
+        Upper bound of the QP's Hessian eigenvalues (:func:`largest_eigenvalue`).
+    outer, maxiter : int
+        Rounds; projected-gradient iterations per QP.
+    callback : callable, optional
+        ``callback(k, cost)`` after each projected run; returning True stops.
+
+    Returns
+    -------
+    best : dict
+        The best projected run.
+    history : list of float
+        ``J`` of the start and of each projected run (``min(history)`` is ``best``'s).
+
+    """
+    best, j_best = start, cost_of(start)
+    history = [j_best]
+    run = start
+    for k in range(int(outer)):
+        w, lb, ub = box_along(run)
+        w = fista_box(grad, lipschitz, np.clip(w, lb, ub), lb, ub, int(maxiter))
+        run = rollout(w)
+        j = cost_of(run)
+        history.append(j)
+        if j < j_best:
+            best, j_best = run, j
+        if callback is not None and callback(k + 1, j):
+            break
+    return best, history
+
+
 def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3,
                       c_ref=1500.0, outer=6, maxiter=100, kernel_s=4.0, settle_s=0.5,
                       callback=None):
@@ -316,80 +396,80 @@ def semi_active_bound(params, road, force_model, plant=None, *, rho=0.0, dt=1e-3
     kernel_s : float
         Length of the impulse responses [s] (they decay with ``c_ref``).
     settle_s : float
-        Settling time of the replay (as :func:`simulate`).
+        Time planned before the road starts, on its first height, and run by the replay's
+        settling (as :func:`simulate`); not scored.
     callback : callable, optional
         ``callback(k, cost)`` after each projected run; returning True stops.
 
     Returns
     -------
     BoundResult
+        ``force`` and ``current`` cover the planned samples from ``t0`` (the settling
+        first); ``predicted`` the recorded part.
 
     """
-    check_bound_options(rho, dt, outer, maxiter)
-    n = int(round(road.duration / dt)) + 1
+    check_bound_options(rho, dt, outer, maxiter, settle_s)
+    n_settle = int(round(settle_s / dt))
+    t0 = float(road.t[0]) - n_settle * dt
+    n = n_settle + int(round(road.duration / dt)) + 1
+    mask = np.arange(n) >= n_settle
+    n_rec = float(mask.sum())
     sos = wk_sos(1.0 / dt)
     nk = min(n, max(2, int(round(kernel_s / dt))))
     h = _impulse_responses(params, dt, c_ref, nk)
     conv_a = _Conv(signal.sosfilt(sos, h[0]), n)
     conv_tr, conv_vr, conv_t = _Conv(h[1], n), _Conv(h[2], n), _Conv(h[3], n)
-    free = _free_response(params, road, dt, n, c_ref)
+    free = _free_response(params, road, dt, n, t0, c_ref)
     w_load = params.static_tyre_load
     a_free = signal.sosfilt(sos, free['a_s'])
     t_free = free['tyre_force'] - w_load
 
-    start = _rollout(params, road, dt, n, force_model, np.zeros(n), 0.0)
-    a0 = np.mean(signal.sosfilt(sos, start['a_s']) ** 2)
-    t0 = np.mean((start['tyre_force'] - w_load) ** 2)
+    def rollout(w, model=force_model, c=c_ref):
+        return _rollout(params, road, dt, n, t0, model, w, c)
+
+    start = rollout(np.zeros(n), c=0.0)
+    a0 = np.sum(signal.sosfilt(sos, start['a_s'])[mask] ** 2) / n_rec
+    t0_load = np.sum((start['tyre_force'] - w_load)[mask] ** 2) / n_rec
 
     def cost_of(run):
-        return float(np.mean(signal.sosfilt(sos, run['a_s']) ** 2) / a0
-                     + rho * np.mean((run['tyre_force'] - w_load) ** 2) / t0)
+        return float(np.sum(signal.sosfilt(sos, run['a_s'])[mask] ** 2) / (n_rec * a0)
+                     + rho * np.sum((run['tyre_force'] - w_load)[mask] ** 2) / (n_rec * t0_load))
 
     def grad(w):
-        ea = a_free + conv_a(w)
-        et = t_free + conv_t(w)
-        g = (2.0 / (n * a0)) * conv_a.T(ea)
+        g = (2.0 / (n_rec * a0)) * conv_a.T((a_free + conv_a(w)) * mask)
         if rho > 0:
-            g += (2.0 * rho / (n * t0)) * conv_t.T(et)
+            g += (2.0 * rho / (n_rec * t0_load)) * conv_t.T((t_free + conv_t(w)) * mask)
         return g
 
     def hess(v):
-        hv = (2.0 / (n * a0)) * conv_a.T(conv_a(v))
+        hv = (2.0 / (n_rec * a0)) * conv_a.T(conv_a(v) * mask)
         if rho > 0:
-            hv += (2.0 * rho / (n * t0)) * conv_t.T(conv_t(v))
+            hv += (2.0 * rho / (n_rec * t0_load)) * conv_t.T(conv_t(v) * mask)
         return hv
 
-    lipschitz = largest_eigenvalue(hess, n)
-
-    best, j_best = start, cost_of(start)
-    history = [j_best]
-    run = start
-    k_done = 0
-    for k in range(int(outer)):
+    def box_along(run):
         w = run['damper_force'] + c_ref * run['v_rel']
         tr = free['travel'] + conv_tr(w)
         vr = free['v_rel'] + conv_vr(w)
         lo, hi = force_model.body_force_range_array(tr, vr)
         lb, ub = lo + c_ref * vr, hi + c_ref * vr
-        w = fista_box(grad, lipschitz, np.clip(w, lb, ub), lb, ub, int(maxiter))
-        run = _rollout(params, road, dt, n, force_model, w, c_ref)
-        j = cost_of(run)
-        history.append(j)
-        k_done = k + 1
-        if j < j_best:
-            best, j_best = run, j
-        if callback is not None and callback(k_done, j):
-            break
+        lb[0] = ub[0] = w[0]                    # the first period's force is the car's own
+        return w, lb, ub
+
+    best, history = sequential_projection(start, cost_of, box_along, rollout, grad,
+                                          largest_eigenvalue(hess, n), outer=outer,
+                                          maxiter=maxiter, callback=callback)
     cur = force_model.currents(best['damper_force'], best['travel'], best['v_rel'])
     replay = None
     if plant is not None:
         from quarter_car_sim.simulate import simulate
-        sched = CurrentSchedule(cur, float(road.t[0]), dt, name=bound_name(rho))
+        sched = CurrentSchedule(cur, t0, dt, name=bound_name(rho))
         replay = simulate(params, road, sched, plant, dt=dt, settle_s=settle_s)
-    return BoundResult(force=best['damper_force'], current=np.asarray(cur), predicted=best,
-                       predicted_metrics=ride_metrics(best), cost=j_best,
+    predicted = {k: (v[mask] if isinstance(v, np.ndarray) else v) for k, v in best.items()}
+    return BoundResult(force=best['damper_force'], current=np.asarray(cur), predicted=predicted,
+                       predicted_metrics=ride_metrics(predicted), cost=min(history),
                        cost_start=history[0], cost_history=history, replay=replay,
-                       rho=float(rho), nit=k_done)
+                       rho=float(rho), nit=len(history) - 1, t0=t0)
 
 
 def bound_name(rho=0.0):

@@ -190,23 +190,56 @@ def _continuous(params, sensors, estimate_force, estimate_bias, q_road, q_force,
     return names, A, B, G, W, C, D
 
 
-def _check_observable(names, A, C_rows):
-    """PBH test on the scaled continuous model; raise EstimatorError naming unseen states."""
+def unobserved_states(names, A, C_rows, scales=None):
+    """
+    PBH test of a continuous model: the states a sensor set cannot see (empty: observable).
+
+    Parameters
+    ----------
+    names : sequence of str
+        State names (their order in ``A``).
+    A : ndarray with shape (n, n)
+        State matrix.
+    C_rows : sequence of ndarray with shape (n,)
+        Measurement rows of the sensor set.
+    scales : dict, optional
+        Typical size of each state by name (SI) to scale the test; default this filter's.
+
+    Returns
+    -------
+    list of str
+        The states of the first unobservable mode, largest part first; ``mode`` of the
+        error message is in :func:`_check_observable`.
+
+    """
+    found = _unobservable_mode(names, A, C_rows, _SCALES if scales is None else scales)
+    return [] if found is None else found[0]
+
+
+def _unobservable_mode(names, A, C_rows, scales):
     n = len(names)
-    T = np.diag([_SCALES.get(nm, 1.0) for nm in names])
+    T = np.diag([scales.get(nm, 1.0) for nm in names])
     As = np.linalg.solve(T, A @ T)
-    Cs = (np.vstack(C_rows) @ T) if C_rows else np.zeros((0, n))
+    Cs = (np.vstack(C_rows) @ T) if len(C_rows) else np.zeros((0, n))
     scale = max(np.linalg.norm(As, 2), np.linalg.norm(Cs, 2) if Cs.size else 0.0, 1.0)
     for lam in np.linalg.eigvals(As):
         M = np.vstack([lam * np.eye(n) - As, Cs])
         _, sv, vh = np.linalg.svd(M)
         if sv[-1] < 1e-9 * scale:
             v = np.abs(vh[-1])
-            seen = [names[i] for i in np.argsort(-v) if v[i] > 0.1 * v.max()]
-            raise EstimatorError(
-                f'the sensor set cannot observe the state(s) {", ".join(seen)} (mode '
-                f'{complex(lam):.3g} rad/s); add a sensor (e.g. the suspension position '
-                'sensor) or drop the state (estimate_force / estimate_bias)')
+            return [names[i] for i in np.argsort(-v) if v[i] > 0.1 * v.max()], lam
+    return None
+
+
+def _check_observable(names, A, C_rows):
+    """PBH test on the scaled continuous model; raise EstimatorError naming unseen states."""
+    found = _unobservable_mode(names, A, C_rows, _SCALES)
+    if found is not None:
+        seen, lam = found
+        raise EstimatorError(
+            f'the sensor set cannot observe the state(s) {", ".join(seen)} (mode '
+            f'{complex(lam):.3g} rad/s); add a sensor (e.g. the suspension position '
+            'sensor) or drop the state (estimate_force / estimate_bias)')
 
 
 def design_estimator(params, dt, sensors, *, road_class='C', speed_m_s=20.0,

@@ -108,8 +108,7 @@ class FullCarControllerNode(Node):
             self.drops.subscribe(self, QuarterCarState, f'{c}/quarter_car/car_state',
                                  lambda m, i=i: self.on_state(i, m), CONTROL_QOS, 'states_lost')
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
-                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
-                                 'parameters_lost')
+                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='full_car_controller',

@@ -82,8 +82,9 @@ PARAMETERS = (
           'possible) [-]', 0.0, 1000.0),
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
           'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
-          'passive@<I>A, or external (plant only: currents on <c>/mr_damper/current_command, '
-          'e.g. full_car_controller_node)'),
+          'passive@<I>A, external (plant only: currents on <c>/mr_damper/current_command, '
+          'e.g. full_car_controller_node) or can (plant only: its sensor cluster and four '
+          'damper drivers on a CAN bus, for a vehicle computer: docs/vehicle.md)'),
     Param('command_timeout_s', 0.05, 'External controller: a corner\'s safe current when no '
           'command came for it for this long [s, node clock]', 0.001, 3600.0),
     Param('lockstep', False, 'External controller: each step waits for the four commands '
@@ -102,6 +103,21 @@ PARAMETERS = (
           'or kwok-current'),
     Param('truth_file', '', 'JSON parameter file of the true dampers, as the rigs (default: '
           'preset)'),
+    Param('truth_files', ['', '', '', ''], 'Per corner (fl, fr, rl, rr) the true damper\'s '
+          'parameter file ("" = truth_file)'),
+    Param('can_interface', 'udp_loopback', 'controller can: python-can interface of the car\'s '
+          'bus (udp_loopback: this host only)'),
+    Param('can_channel', '239.74.163.2:43113', 'controller can: bus channel'),
+    Param('can_cycle_s', 0.002, 'controller can: sensor frame cycle [s, car time]', 1e-4, 1.0),
+    Param('driver_status_period_s', 0.01, 'controller can: driver status period [s, car time]',
+          1e-4, 1.0),
+    Param('driver_command_timeout_s', 0.05, 'controller can: a driver without a valid command '
+          'for this long takes its own safe current [s, car time]', 1e-3, 3600.0),
+    Param('driver_safe_current_a', 0.5, 'controller can: the drivers\' own safe current [A]',
+          0.0, 2.55),
+    Param('sensor_noise', True, 'controller can: the sensors\' automotive errors (seeded), '
+          'else exact readings'),
+    Param('sensor_seed', 1, 'controller can: sensor seed [-]', 0, 2 ** 31 - 1),
     Param('state_rate_hz', 100.0, 'Rate of the corner states, current commands and body state '
           '(0 = none) [Hz]', 0.0, 10000.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
@@ -134,12 +150,14 @@ class FullCarNode(Node):
         road = make_two_track_road(p['road'], PASSENGER_CAR, speed_m_s=p['speed_m_s'],
                                    duration_s=p['road_duration_s'], dt=dt,
                                    rng=int(p['road_seed']))
-        plants = [make_plant(p['plant'], p['truth_file']) for _ in CORNERS]
+        plants = [make_plant(p['plant'], f or p['truth_file']) for f in p['truth_files']]
         self.external = p['controller'].strip().lower() == 'external'
+        self.can = p['controller'].strip().lower() == 'can'
         self.lockstep = self.external and p['lockstep']
         self.lockstep_timeout_s = p['lockstep_timeout_s']
         self.lockstep_timeouts = 0
-        law = f'passive@{p["safe_current_a"]:g}A' if self.external else p['controller']
+        law = f'passive@{p["safe_current_a"]:g}A' if self.external or self.can \
+            else p['controller']
         self.rt = FullCarRuntime(
             PASSENGER_CAR, road, plants, law, dt=dt,
             timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
@@ -147,6 +165,16 @@ class FullCarNode(Node):
             min_current_span_a=p['min_current_span_a'], hold_on_reject=p['hold_on_reject'],
             settle_s=p['settle_s'], log_max_s=p['log_max_s'])
         self.drops = DropCounter(self.get_logger())
+        self.link = self.can_bus = None
+        if self.can:
+            from mr_damper_can.bus import make_bus
+            from quarter_car_sim.full_car.can_link import CanCarLink
+            self.can_bus = make_bus(p['can_interface'], p['can_channel'])
+            self.link = CanCarLink(self.can_bus, dt=dt, cycle_s=p['can_cycle_s'],
+                                   status_period_s=p['driver_status_period_s'],
+                                   driver_timeout_s=p['driver_command_timeout_s'],
+                                   driver_safe_current_a=p['driver_safe_current_a'],
+                                   sensor_noise=p['sensor_noise'], seed=p['sensor_seed'])
         self.state_pubs, self.cmd_pubs, self.state_msgs, self.cmd_subs = [], [], [], []
         # the external controller's four 1 kHz command streams on a lane of their own: the
         # node's executor would rebuild its whole wait set for each command (docs/hil.md,
@@ -163,16 +191,17 @@ class FullCarNode(Node):
             msg = QuarterCarState()
             msg.header.frame_id = f'{c}/quarter_car'
             self.state_msgs.append(msg)
+            if self.can:
+                continue
             if self.external:
                 self.cmd_subs.append(self.drops.subscribe(
                     self.lane.node, Float64, f'{c}/mr_damper/current_command',
-                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS, 'commands_lost'))
+                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS))
                 continue
             self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
                                                        10))
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
-                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS,
-                                 'parameters_lost')
+                                 lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
         self.body_msg = JointState()
         self.body_msg.header.frame_id = 'full_car'
@@ -184,7 +213,7 @@ class FullCarNode(Node):
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='full_car', drops=self.drops)
         self.control = ControlThread(
-            self._step_external if self.external else self._step,
+            self._step_can if self.can else self._step_external if self.external else self._step,
             live_loop.Pacer(dt, self.rtf),
             live_loop.LoopTiming(dt / self.rtf if self.rtf > 0 else None),
             before_first=self._wait_for_controller if self.lockstep else None,
@@ -192,13 +221,17 @@ class FullCarNode(Node):
             priority=int(p['realtime_priority']) if self.rtf > 0 else 0)
         if self.lane is not None:
             self.lane.start()
+        if self.link is not None:
+            self.link.start()
         self.control.start()
         if self.external and p['realtime_priority'] > 0 and self.rtf > 0:
             # the commands arrive in the lane's and the middleware's threads and every thread
             # shares the GIL: a normal-priority thread preempted while it holds the GIL would
             # stall the control thread (as the quarter car's external and HIL modes)
             set_realtime_priority(int(p['realtime_priority']), self.get_logger())
-        name = 'external controller' if self.external else self.rt.controller.name
+        name = ('external controller' if self.external else 'vehicle computer on CAN '
+                f'{p["can_interface"]} {p["can_channel"]}' if self.can
+                else self.rt.controller.name)
         self.get_logger().info(
             f'{name} at {self.rate_hz:g} Hz (x{self.rtf:g} real time) on '
             f'{road.name}, plants {p["plant"]}; fail-safe {p["safe_current_a"]:g} A, timeout '
@@ -245,7 +278,7 @@ class FullCarNode(Node):
             self.answered.clear()
             self.n_answers = 0
         for i, (normal, reason, current) in enumerate(flags):
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+            self.drops.publish_next(self.state_pubs[i], car_state_to_msg(
                 corner_car_state(state, i), current, normal, reason, self.state_msgs[i]))
         if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
             self.lockstep_timeouts += 1
@@ -255,6 +288,16 @@ class FullCarNode(Node):
         now = node_time_s(self)
         with self.lock:
             currents = [ci.current(now) for ci in self.cmd_ins]
+            _, _, new = self.rt.step(now, currents)
+        self.control.command_sent()
+        if self.every and not self.rt.steps % self.every:
+            self._publish_body(new)
+
+    def _step_can(self, wall):
+        """Plant step: the sensors and drivers on the bus, the drivers' currents, advance."""
+        now = node_time_s(self)
+        with self.lock:
+            currents = self.link.step(self.rt.state)
             _, _, new = self.rt.step(now, currents)
         self.control.command_sent()
         if self.every and not self.rt.steps % self.every:
@@ -271,7 +314,7 @@ class FullCarNode(Node):
             return
         for i in range(4):
             mode, reason = modes[i]
-            self.drops.publish(self.state_pubs[i], car_state_to_msg(
+            self.drops.publish_next(self.state_pubs[i], car_state_to_msg(
                 corner_car_state(new, i), currents[i], mode == 'normal', reason,
                 self.state_msgs[i]))
             self.cmd_msg.data = float(currents[i])
@@ -304,6 +347,19 @@ class FullCarNode(Node):
                         reason=self._external_reason(i), current_a=float(self.rt.currents[i]))
                 st['corners_normal'] = sum(not ci.timed_out for ci in self.cmd_ins)
                 st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts)
+            if self.can:
+                st['controller'] = 'can'
+                st['can'] = self.link.status()
+                for i, c in enumerate(CORNERS):
+                    ch = st['can']['corners'][c]
+                    reason = ('driver_fault' if ch['fault'] else 'driver_timeout'
+                              if ch['timed_out'] else 'commanded_safe' if ch['failsafe_bit']
+                              else 'ok')
+                    st['corners'][c] = dict(ch, current_a=float(self.rt.currents[i]),
+                                            mode='normal' if reason == 'ok' else 'failsafe',
+                                            reason=reason)
+                st['corners_normal'] = sum(d['mode'] == 'normal'
+                                           for d in st['corners'].values())
         if t.size >= 2:
             from quarter_car_sim.full_car.metrics import iso2631_seat
             st['iso2631'] = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
@@ -331,6 +387,9 @@ class FullCarNode(Node):
         self.control.stop(2.0)
         if self.lane is not None:
             self.lane.close()
+        if self.link is not None:
+            self.link.stop()
+            self.can_bus.shutdown()
         try:
             self.diagnostics.publish_final()
         except Exception as exc:  # noqa: B902 - the context may be gone after Ctrl-C

@@ -4,14 +4,24 @@ Current probing: make every current bin of the live identifier get data while th
 Skyhook-like laws sit at the ends of the coil range (0 and 2 A) most of the time, so the
 identifier's middle current bins (``mr_damper_model.live``: bins of ``current_bin_a`` = 0.1 A,
 keyed by ``round(i / current_bin_a)``) starve. :class:`CurrentProbe` overrides the law's command
-for ``hold_s`` once every ``period_s`` with the centre of the least-filled bin (counted from the
-measured coil current), a scheduled sweep that visits starving bins first. Its cost is bounded
-by the duty cycle ``hold_s / period_s`` (capped by ``max_duty``): outside the probe windows the
-law is untouched. Stated cost (defaults: 0.1 s every 1 s, duty 10 %, cap 20 %), skyhook on an
-ISO 8608 class C road at 20 m/s, kwok-current truth: Wk-weighted body acceleration RMS +18 %
-(``bench/bench_hil.py``, 100 s), all 21 bins of 0..2 A hold the identifier's 500 samples after
-46 s, against 11 of 21 bins in 100 s without probing; the test bounds the cost at 22 % and the
-cover time at 100 s. Halving the duty roughly halves the cost and doubles the cover time.
+for ``hold_s`` once every ``period_s`` with the centre of a starving bin (counted from the
+measured coil current): the one farthest from every covered bin first, until it is covered, then
+the next; once all are covered, the least-filled. Its cost is bounded by the duty cycle
+``hold_s / period_s`` (capped by ``max_duty``): outside the probe windows the law is untouched.
+
+Why farthest first: the identifier uses a bin once it holds ``min_samples`` (its
+``min_bin_fraction`` of a window, 500 samples at 1 kHz), and the car takes a model only over a
+current span of ``min_current_span_a`` (1 A). In fail-safe the car sits at its safe current
+(0.5 A), so that bin fills by itself; the first probe level that makes a span is the far end of
+the coil range. Visiting the least-filled bin instead went round all starving bins in turn
+(0.2 s holds at 0.25 A bins: 200 samples per visit, eight bins), so no second bin reached 500
+samples before about 17 s of probing, and then several at once (``--config hil``, docs/hil.md).
+
+Stated cost (defaults: 0.1 s every 1 s, duty 10 %, cap 20 %), skyhook on an ISO 8608 class C road
+at 20 m/s, kwok-current truth: Wk-weighted body acceleration RMS +18 % (``bench/bench_hil.py``,
+100 s), all 21 bins of 0..2 A hold the identifier's 500 samples after 46 s, against 11 of 21
+bins in 100 s without probing; the test bounds the cost at 22 % and the cover time at 100 s.
+Halving the duty roughly halves the cost and doubles the cover time.
 """
 import math
 
@@ -24,7 +34,7 @@ class ProbeError(ValueError):
 
 class CurrentProbe:
     """
-    Scheduled probe of the least-filled current bin.
+    Scheduled probe of the current bins: farthest starving bin first, then the least-filled.
 
     Parameters
     ----------
@@ -74,8 +84,10 @@ class CurrentProbe:
         self.outside = 0
         self.probing = False
         self.windows = 0
+        self.unreachable = np.zeros(self.keys.size, dtype=bool)
         self._window = None
         self._target = None
+        self._target_count = 0
 
     def observe(self, current_a):
         """Count a measured coil current [A] into its bin (outside the range: ``outside``)."""
@@ -88,11 +100,16 @@ class CurrentProbe:
             self.outside += 1
 
     def as_dict(self):
-        """Return ``levels_a``, ``counts``, ``covered`` / ``bins``, ``covered_s``, ``windows``."""
+        """
+        Return the status: ``levels_a``, ``counts``, ``covered`` / ``bins``, ``covered_s``.
+
+        Also ``windows``, ``outside`` (samples outside the bins), ``unreachable_a`` (levels a
+        probe window could not reach) and ``duty``.
+        """
         return {'levels_a': self.levels_a.tolist(), 'counts': self.counts.tolist(),
                 'covered': int(self.counts.size - self.starving), 'bins': int(self.counts.size),
                 'covered_s': self.covered_s, 'windows': self.windows, 'outside': self.outside,
-                'duty': self.duty}
+                'unreachable_a': self.levels_a[self.unreachable].tolist(), 'duty': self.duty}
 
     def covered(self):
         """
@@ -123,5 +140,39 @@ class CurrentProbe:
         if window != self._window:
             self._window = window
             self.windows += 1
-            self._target = float(self.levels_a[int(np.argmin(self.counts))])
+            self._target = self.next_level()
         return self._target
+
+    def next_level(self):
+        """
+        Return the level [A] of the next probe window.
+
+        The starving bin farthest from every covered bin (ties: the least-filled, then the
+        lowest); before any bin is covered, the farthest from the fullest one (where the car's
+        current sits: its safe current in fail-safe); with all covered, or no sample yet, the
+        least-filled bin. A target whose window brought it no sample (the coil current cannot
+        reach it) is not targeted again (``unreachable``) while another bin can be.
+        """
+        counts = self.counts
+        if self._target is not None:
+            k = int(np.argmin(np.abs(self.levels_a - self._target)))
+            if counts[k] == self._target_count:
+                # its window brought it nothing (the coil current cannot get there): skip it
+                self.unreachable[k] = True
+        anchor = counts >= self.min_samples
+        open_ = ~anchor & ~self.unreachable
+        if not open_.any() or not counts.any():
+            # least-filled, of the bins a window can reach
+            reach = np.where(self.unreachable & ~self.unreachable.all(), np.inf, counts)
+            target = int(np.argmin(reach))
+            self._target_count = int(counts[target])
+            return float(self.levels_a[target])
+        if not anchor.any():
+            anchor = counts == counts.max()
+            open_ &= ~anchor
+        gap = np.min(np.abs(self.levels_a[:, None] - self.levels_a[None, anchor]), axis=1)
+        gap[~open_] = -1.0
+        far = np.flatnonzero(gap >= gap.max() - 1e-9 * self.bin_a)
+        target = int(far[int(np.argmin(counts[far]))])
+        self._target_count = int(counts[target])
+        return float(self.levels_a[target])

@@ -70,13 +70,15 @@ latest force of the rig's lockstep link (``mr_damper/hil_measurement``, one Damp
 per command; best effort, depth 10: only the newest matters); the diagnostics carry ``hil``
 (tracking RMS / peak of desired vs measured displacement, link counts). With ``hil_wait_s > 0``
 each step first waits (at most that long, counted) for the rig's answer to the previous command.
-``probe:=true`` overrides the law's current now and then with the least-filled current bin (also
-in fail-safe, so the identifier sees every current bin); the diagnostics carry ``probe``.
+``probe:=true`` overrides the law's current now and then with a starving current bin, the one
+farthest from the covered ones first (also in fail-safe, so the identifier sees every current
+bin); the diagnostics carry ``probe``.
 
 Every publisher is KEEP_LAST (depth 10, latest value topics), so a dead or stalled reader never
 blocks the control loop; a ``publish()`` that fails anyway is counted
-(``dropped.publish_failed``) and logged, throttled, and the loop goes on. Parameter sets the
-middleware reports lost before this node took them count as ``dropped.parameters_lost``.
+(``dropped.publish_failed``) and logged, throttled, and the loop goes on. The car state is
+numbered (``sequence``, +1 per message) so its readers count the states they never got; the
+parameter reader keeps the newest set only (docs/faults.md, Lost messages).
 """
 import sys
 
@@ -152,8 +154,8 @@ PARAMETERS = (
           'last command before the next step (0 = never wait: hard real time; > 0: the loop '
           'slows down to the rig instead of running on stale forces) [s, wall clock]',
           0.0, 1.0),
-    Param('probe', False, 'Probe the least-filled current bin now and then so the identifier '
-          'sees every current (quarter_car_sim.probing)'),
+    Param('probe', False, 'Probe a starving current bin (the farthest from the covered ones '
+          'first) now and then so the identifier sees every current (quarter_car_sim.probing)'),
     Param('probe_bin_a', 0.1, 'Probe bin width (the identifier\'s current_bin_a) [A]',
           0.001, 10.0),
     Param('probe_period_s', 1.0, 'Time between probe windows [s]', 0.01, 3600.0),
@@ -225,11 +227,11 @@ class QuarterCarNode(Node, CarOutputs):
         if rt.external:
             self.cmd_sub = self.drops.subscribe(self.lane.node, Float64,
                                                 'mr_damper/current_command', self.on_command,
-                                                CONTROL_QOS, 'commands_lost')
+                                                CONTROL_QOS)
         else:
             self.cmd_pub = self.create_publisher(Float64, 'mr_damper/current_command', 10)
             self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters',
-                                 self.on_params, LATCHED_QOS, 'parameters_lost')
+                                 self.on_params, LATCHED_QOS)
         if rt.remote is not None:
             self.disp_pub = self.create_publisher(Float64, 'mr_damper/displacement_command', 10)
             self.hil_sub = self.drops.subscribe(
@@ -295,7 +297,7 @@ class QuarterCarNode(Node, CarOutputs):
 
     def publish_car_state(self, state, current_a, normal, reason):
         """Publish the typed state."""
-        self.drops.publish(self.car_state_pub, car_state_to_msg(
+        self.drops.publish_next(self.car_state_pub, car_state_to_msg(
             state, current_a, normal, reason, self.car_state_msg))
 
     def publish_state(self, state):

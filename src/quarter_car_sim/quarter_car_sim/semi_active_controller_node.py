@@ -197,7 +197,7 @@ class SemiActiveControllerNode(Node):
         self.drops.subscribe(self, QuarterCarState, 'quarter_car/car_state', self.on_state,
                              CONTROL_QOS, 'states_lost')
         self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters', self.on_params,
-                             LATCHED_QOS, 'parameters_lost')
+                             LATCHED_QOS)
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='semi_active_controller',

@@ -172,18 +172,17 @@ class StateEstimatorNode(Node):
         # in place: building the message objects cost more than the filter (sensor_cdr)
         self.drops.subscribe(self, Imu, 'quarter_car/body_imu',
                              lambda data: self.on_accel('body_accel', data), SENSOR_QOS,
-                             'imu_lost', raw=True)
+                             raw=True)
         if p['wheel_accel']:
             self.drops.subscribe(self, Imu, 'quarter_car/wheel_imu',
                                  lambda data: self.on_accel('wheel_accel', data), SENSOR_QOS,
-                                 'wheel_imu_lost', raw=True)
+                                 raw=True)
         self.drops.subscribe(self, JointState, 'quarter_car/suspension_position',
-                             self.on_position, SENSOR_QOS, 'position_lost', raw=True)
+                             self.on_position, SENSOR_QOS, raw=True)
         self.drops.subscribe(self, Float64, 'mr_damper/current_command',
-                             lambda m: self.core.offer_current(m.data), CONTROL_QOS,
-                             'commands_lost')
+                             lambda m: self.core.offer_current(m.data), CONTROL_QOS)
         self.drops.subscribe(self, KwokParameters, 'mr_damper/kwok_parameters', self.on_params,
-                             LATCHED_QOS, 'parameters_lost')
+                             LATCHED_QOS)
         self.diagnostics = DiagnosticsPublisher(self, self.health,
                                                 period_s=p['diagnostics_period_s'],
                                                 hardware_id='state_estimator', drops=self.drops)
@@ -243,7 +242,7 @@ class StateEstimatorNode(Node):
     def _publish(self, est):
         if est is None:
             return
-        self.drops.publish(self.pub, estimate_to_msg(est, self.core.current_a, self.msg))
+        self.drops.publish_next(self.pub, estimate_to_msg(est, self.core.current_a, self.msg))
         if not est.valid and self.warn_invalid.due():
             self.get_logger().warning(f'estimate invalid: {est.reason}')
 

@@ -34,15 +34,19 @@ valid model on every recorded measurement), ``updates``, ``valid_updates``, ``fi
 ``ride`` {``skyhook`` (the live controller, whatever its name), ``passive`` (the safe current on
 the same road, seed and plant, simulated offline here), ``passive_0a`` (the softest setting,
 best for comfort), same metric keys, ``window_s``};
-``failsafe_s``; ``messages_lost`` (total) and ``messages`` (breakdown); ``loop`` (timing).
+``failsafe_s``; ``messages_lost`` (total) and ``messages`` (breakdown); ``loop`` (timing);
+``control`` (whether and when the run reached control, the same keys for every configuration:
+:mod:`mr_damper_bringup.report.control`).
 
 Command line (regenerate from a finished run): ``python -m mr_damper_bringup.report OUT``.
 
 Modules: ``recording`` (the recording read back), ``identification``, ``ride``, ``losses``
-(lost messages, restarts, the CAN link) and ``summary`` (:func:`make_report`,
-:func:`format_summary`). ``python -m mr_damper_bringup.report OUT`` remakes the summary of a
-finished run.
+(lost messages, restarts, the CAN link), ``control`` (reaching control) and ``summary``
+(:func:`make_report`, :func:`format_summary`). ``python -m mr_damper_bringup.report OUT``
+remakes the summary of a finished run.
 """
+from mr_damper_bringup.report.control import (control_from_recording,  # noqa: F401
+                                              control_summary, ControlWatch, format_control)
 from mr_damper_bringup.report.identification import (fit_error,  # noqa: F401
                                                      identification_summary,
                                                      measurement_to_parameters,

@@ -28,8 +28,13 @@ def record_error(meas, params):
     Same figures as :func:`fit_error` on the whole arrays (NRMSE by the measured force range).
     """
     meas = open_log(meas)
+    if not _finite_set(params):
+        return math.nan, math.nan
     n, se, fmin, fmax = 0, 0.0, math.inf, -math.inf
     for c in meas.chunks(recording.CHUNK_ROWS, ('x', 'v', 'f', 'i')):
+        c = _finite_rows(c)
+        if not c['f'].size:
+            continue
         with np.errstate(over='ignore', invalid='ignore'):
             e = kwok_current_force(params, c['x'], c['v'], c['i']) - c['f']
         se += float(e @ e)
@@ -40,6 +45,19 @@ def record_error(meas, params):
     rmse = math.sqrt(se / n)
     span = fmax - fmin
     return rmse, (100.0 * rmse / span if span > 0 else math.nan)
+
+
+def _finite_set(params):
+    """Tell whether the ten kwok-current parameters of ``params`` are finite numbers."""
+    return all(isinstance(params.get(n), (int, float)) and math.isfinite(params[n])
+               for n in KWOK_CURRENT_NAMES)
+
+
+def _finite_rows(cols):
+    """Return the columns of ``cols`` (dict of equal-length arrays) at their all-finite rows."""
+    cols = {k: np.asarray(v, dtype=float) for k, v in cols.items() if k != 'stride'}
+    ok = np.all(np.isfinite(np.vstack(list(cols.values()))), axis=0)
+    return cols if ok.all() else {k: v[ok] for k, v in cols.items()}
 
 
 def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
@@ -63,8 +81,8 @@ def offline_best_fit(meas, *, budget_s=5.0, max_samples=8000, seed=1):
     from mr_damper_model.io.data import DamperData
     from mr_damper_model.identification.identify import identify
     meas = open_log(meas)
-    sub = meas.strided(max_samples, ('t', 'x', 'v', 'f', 'i'))
-    t, x, v, f, i = (np.asarray(sub[k], dtype=float) for k in ('t', 'x', 'v', 'f', 'i'))
+    sub = _finite_rows(meas.strided(max_samples, ('t', 'x', 'v', 'f', 'i')))
+    t, x, v, f, i = (sub[k] for k in ('t', 'x', 'v', 'f', 'i'))
     if np.unique(np.round(i / 0.05)).size < 2:
         return None
     try:
@@ -108,7 +126,7 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
     n_upd, n_valid, first_valid, final = 0, 0, None, None
     for t, p in params_log:
         n_upd += 1
-        if p.get('valid') == 1.0:
+        if p.get('valid') == 1.0 and _finite_set(p):
             n_valid += 1
             final = p
             if first_valid is None:
@@ -140,15 +158,15 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
         out['offline_best_fit'] = offline_best_fit(meas, budget_s=offline_budget_s)
     step = max(1, int(math.ceil(n_upd / max_history)))
     picks = set(range(0, n_upd, step)) | ({n_upd - 1} if n_upd else set())
-    dec = meas.strided(20000, ('x', 'v', 'f', 'i'))      # <= ~20k samples per evaluation
-    x, v, f, i = (np.asarray(dec[k], dtype=float) for k in 'xvfi')
+    dec = _finite_rows(meas.strided(20000, ('x', 'v', 'f', 'i')))   # <= ~20k samples each
+    x, v, f, i = (dec[k] for k in 'xvfi')
     for k, (t, p) in enumerate(params_log):
         if k not in picks:
             continue
         entry = {'t_s': t, 'valid': p.get('valid') == 1.0, 'rmse_n': p.get('rmse_n'),
                  'nrmse_percent': p.get('nrmse_percent'),
                  'parameters': {n: p.get(n) for n in KWOK_CURRENT_NAMES}}
-        if f.size and all(math.isfinite(p.get(n, math.nan)) for n in KWOK_CURRENT_NAMES):
+        if f.size and _finite_set(p):
             with np.errstate(over='ignore', invalid='ignore'):
                 fm = kwok_current_force(p, x, v, i)
             if np.all(np.isfinite(fm)):

@@ -30,9 +30,12 @@ def messages_summary(rec, qc_status):
     published = _first(rig, ('samples_published', 'published'))
     received = _first(ident, ('samples_received', 'received'))
     lives = rec.get('identifier_lives') or []
-    if len(lives) > 1:      # a restarted identifier counts from 0: add up its lives
+    if lives:
+        # a restarted identifier counts from 0: add up its lives; the last life's count is the
+        # newer of its last status and its last samples_received message (10 Hz)
         received = (sum(life['last_count'] for life in lives[:-1])
                     + max(lives[-1]['last_count'], received or 0))
+    if len(lives) > 1:
         br['identifier_lives'] = len(lives)
     if published is not None:
         br['measurements_published_by_rig_last_status'] = published
@@ -202,7 +205,11 @@ def restart_lines(s):
             f'{n} {c}' for n, c in (s.get('restart_counts') or {}).items()) + ')')
     for r in restarts:
         how = r.get('signal') or f'exit {r.get("exit_code")}'
-        line = f'  {r["node"]} died at {r["death_s"]:.1f} s ({how}), '
+        what = 'died'
+        if r.get('reason') == 'hung':
+            what = 'hung'
+            how = f'no status for {r.get("silent_s", float("nan")):.1f} s, killed'
+        line = f'  {r["node"]} {what} at {r["death_s"]:.1f} s ({how}), '
         line += ('not restarted before the end' if r.get('restart_s') is None
                  else f'restarted at {r["restart_s"]:.1f} s')
         if r.get('failsafe_s') is not None:

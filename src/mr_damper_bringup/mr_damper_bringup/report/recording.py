@@ -1,11 +1,14 @@
 """Reading a suite recording back: one streamed pass over its MCAP parts into column logs."""
+import math
 from pathlib import Path
 
 import numpy as np
 
+from mr_damper_bringup.report.control import ControlWatch
 from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameters, decode_status,
-                                      NODE_PARAMETERS_TOPIC, SENSING_TOPICS, STATUS_KEYS,
-                                      SUITE_TOPICS)
+                                      namespaced_table, NODE_PARAMETERS_TOPIC, SENSING_TOPICS,
+                                      STATUS_KEYS, SUITE_TOPICS)
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_model.io.columnlog import ColumnWriter, JsonLines
 from mr_damper_model.live.sample_stream import BatchIndex
 
@@ -17,7 +20,7 @@ RECORDING = 'suite.mcap'
 MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, namespace=None):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
@@ -40,6 +43,11 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     car_modes_from : float, optional
         Epoch time [s] from which the car states are decoded into ``car_modes`` (the first
         death of a node; None: not at all, a 1 kHz topic the rest of the report does not need).
+    namespace : str, optional
+        Read the topics of the nodes in this namespace (a car corner of ``--corners`` or
+        ``--config full-car``: ``/fl/mr_damper/measurement``, ...) under the keys of the root
+        namespace's; ``status`` then holds the statuses of that namespace's nodes under their
+        short names (``rig``, ``identifier``), the other statuses under their own keys.
 
     Returns
     -------
@@ -49,15 +57,20 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
         ``truth_spencer`` (decoded true parameters), ``status`` (last status per node),
         ``status_messages``, ``ride_metrics`` (last), ``topic_messages`` (messages per topic
         key), ``parameter_messages``, ``measurements_received``, ``measurement_gaps`` (samples
-        missing between consecutive stamps), ``measurement_out_of_order``, ``undecodable``
-        (messages per key whose payload did not decode), ``start_epoch_s``, ``end_epoch_s``,
+        missing between consecutive stamps), ``measurement_out_of_order``, ``bad_messages``
+        (key -> {reason: count} of what was left out: messages whose payload did not decode,
+        ``undecodable`` or the decoder's reason such as ``layout``; measurement samples with a
+        NaN or infinite value, ``nonfinite_samples``, or stamped before the newest kept one,
+        ``out_of_order_samples``; valid parameter sets with a NaN or infinite parameter,
+        ``nonfinite_parameters``), ``start_epoch_s``, ``end_epoch_s``,
         ``parts`` (per file: ``complete``, ``messages``, first and last log time, ``error``;
         ``McapScan.summary``), ``identifier_lives`` (the identifier's ``samples_received``
         counts, one entry per process life: a count after a restart in ``identifier_starts``
         or one that goes down starts a life; ``counts``: its ``(t, count)`` series),
         ``gap_events`` (``(receive time, samples missing)`` of each stamp gap) and
         ``car_modes`` (runs ``[first_s, last_s, fail_safe_mode]`` of the car state, split at a
-        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]).
+        mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]) and
+        ``control`` (:class:`~mr_damper_bringup.report.control.ControlWatch` of the statuses).
 
     """
     import yaml
@@ -67,15 +80,18 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
     from mr_damper_bringup.topics import decode_measurement
     work = Path(work)
     tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
+    if namespace:
+        tables = {key.rpartition('/')[2]: row
+                  for key, row in namespaced_table(tables, [namespace]).items()}
     keys = {row.name: key for key, row in tables.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
     rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
            'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
            'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
-           'measurement_out_of_order': 0, 'undecodable': {}, 'start_epoch_s': None,
+           'measurement_out_of_order': 0, 'bad_messages': {}, 'start_epoch_s': None,
            'end_epoch_s': None, 'parts': [], 'identifier_lives': [], 'car_modes': [],
-           'gap_events': []}
+           'gap_events': [], 'control': ControlWatch()}
     meas = ColumnWriter(work / 'measurement', MEAS_COLUMNS, chunk_rows=4096)
     params = JsonLines(work / 'parameters.jsonl')
     gaps = _Gaps()
@@ -95,7 +111,11 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
                                *STATUS_KEYS) or (key == 'car_state' and (
                                    car_modes_from is None or t_rx < car_modes_from)):
                     continue
-                msg = reader.deserialize(raw, msgtype, typestore)
+                try:
+                    msg = reader.deserialize(raw, msgtype, typestore)
+                except Exception:  # noqa: B902 - rosbags' SerdeError and others: counted
+                    _count_bad(rec, key, 'undecodable')
+                    continue
                 try:
                     if key == 'measurement':
                         sample = decode_measurement(msg)
@@ -116,15 +136,20 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
                     elif key in ('parameters', 'truth', 'truth_spencer'):
                         d = decode_parameters(msg)
                     else:
-                        for node, d in decode_status(key, msg).items():
+                        statuses = decode_status(key, msg)
+                        rec['control'].update(statuses, _sent_at(msg, t_rx))
+                        for node, d in statuses.items():
                             rec['status'][node] = d
                             rec['status_messages'][node] = \
                                 rec['status_messages'].get(node, 0) + 1
                             if node == 'quarter_car' and d.get('ride_metrics'):
                                 rec['ride_metrics'] = d['ride_metrics']
                         continue
-                except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError):
-                    rec['undecodable'][key] = rec['undecodable'].get(key, 0) + 1
+                except (ValueError, yaml.YAMLError, AttributeError, KeyError, TypeError) as exc:
+                    _count_bad(rec, key, getattr(exc, 'reason', 'undecodable'))
+                    continue
+                if key == 'parameters' and not _usable_set(d):
+                    _count_bad(rec, key, 'nonfinite_parameters')
                     continue
                 if key == 'parameters':
                     d['recv_epoch_s'] = t_rx
@@ -135,14 +160,38 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None):
                 else:
                     missing = rec['measurement_gaps']
                     _take_measurement(rec, gaps, sample, getattr(msg, 'first_index', None),
-                                      meas, t_rx)
+                                      meas, t_rx, getattr(msg, 'sample_period_s', 0.0))
                     if rec['measurement_gaps'] > missing:
                         rec['gap_events'].append((t_rx, rec['measurement_gaps'] - missing))
             rec['parts'].append(reader.summary())
     finally:
         meas.close()
         params.close()
+    if namespace:
+        mine = {k.partition('/')[2]: d for k, d in rec['status'].items()
+                if k.startswith(f'{namespace}/')}
+        rec['status'] = {**{k: d for k, d in rec['status'].items()
+                            if not k.startswith(f'{namespace}/')}, **mine}
     return rec
+
+
+def _sent_at(msg, t_rx):
+    """
+    Time [s] a status was sent: its stamp, or the receive time ``t_rx``.
+
+    The stamp is the node's clock: wall time, unless the node runs on a replay's ``/clock``
+    (then far from the receive time, which is used instead). A recorder that fell behind
+    receives statuses late and in bursts; their stamps keep the nodes' own timing.
+    """
+    stamp = getattr(getattr(msg, 'header', None), 'stamp', None)
+    if stamp is None:
+        return t_rx
+    t = stamp.sec + stamp.nanosec * 1e-9
+    return t if abs(t - t_rx) < STAMP_TRUST_S else t_rx
+
+
+#: a status stamp further than this from its receive time [s] is not wall time (sim time)
+STAMP_TRUST_S = 60.0
 
 
 #: a silence of the car state longer than this [s] ends a run of its mode (the car was down)
@@ -183,6 +232,19 @@ def _mode_runs(runs, t, mode):
     runs.append([t, t, mode])
 
 
+def _count_bad(rec, key, reason, n=1):
+    """Count ``n`` bad recorded items of topic ``key`` by ``reason`` (``bad_messages``)."""
+    if n:
+        per_key = rec['bad_messages'].setdefault(key, {})
+        per_key[reason] = per_key.get(reason, 0) + int(n)
+
+
+def _usable_set(d):
+    """Tell whether a decoded parameter message can be evaluated (or is marked not valid)."""
+    return not d.get('valid') or all(
+        isinstance(d.get(n), (int, float)) and math.isfinite(d[n]) for n in KWOK_CURRENT_NAMES)
+
+
 class _Gaps:
     """Samples missing from the recorded measurement stream (see :func:`_take_measurement`)."""
 
@@ -192,24 +254,33 @@ class _Gaps:
         self.dt = None
 
 
-def _take_measurement(rec, gaps, cols, first_index, meas, t_rx):
+def _take_measurement(rec, gaps, cols, first_index, meas, t_rx, period_s=0.0):
     """
     Append one recorded measurement message (arrays ``t, x, v, f, i``) to the column log.
 
-    Samples not after the newest kept stamp are counted (``measurement_out_of_order``) and
-    left out. Missing samples (``measurement_gaps``) are counted exactly from the batches'
-    stream index (``first_index``); for single-sample JointState recordings, from stamp steps
-    longer than 1.5 sample periods (the period: the shortest step of the first 20 samples).
+    Samples with a NaN or infinite value are counted (``bad_messages`` ``nonfinite_samples``)
+    and left out, and so are samples not after the newest kept stamp
+    (``measurement_out_of_order``, ``out_of_order_samples``). Missing samples
+    (``measurement_gaps``) are counted exactly from the batches' stream index (``first_index``,
+    judged against the stamps: :class:`~mr_damper_model.live.sample_stream.BatchIndex`); for
+    single-sample JointState recordings, from stamp steps longer than 1.5 sample periods (the
+    period: the shortest step of the first 20 samples).
     """
     t = cols[0]
+    finite = np.all(np.isfinite(np.vstack(cols)), axis=0)
+    _count_bad(rec, 'measurement', 'nonfinite_samples', finite.size - np.count_nonzero(finite))
     prev = -np.inf if gaps.last_t is None else gaps.last_t
-    keep = t > np.maximum.accumulate(np.concatenate(([prev], t)))[:-1]
-    rec['measurement_out_of_order'] += int(keep.size - np.count_nonzero(keep))
+    stamps = np.where(finite, t, -np.inf)
+    keep = finite & (t > np.maximum.accumulate(np.concatenate(([prev], stamps)))[:-1])
+    late = int(np.count_nonzero(finite) - np.count_nonzero(keep))
+    rec['measurement_out_of_order'] += late
+    _count_bad(rec, 'measurement', 'out_of_order_samples', late)
+    if first_index is not None and (keep.any() or not late):
+        # a batch of bad values still took its place in the stream: no samples lost there
+        rec['measurement_gaps'] += gaps.index.update(first_index, t.size, t, period_s)
     if not keep.any():
         return
-    if first_index is not None:
-        rec['measurement_gaps'] += gaps.index.update(first_index, t.size)
-    else:
+    if first_index is None:
         t0 = float(t[keep][0])
         if gaps.last_t is not None:
             step = t0 - gaps.last_t

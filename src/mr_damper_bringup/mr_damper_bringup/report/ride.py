@@ -106,7 +106,11 @@ def _trace_blocks(log, columns):
         yield c
 
 
-def ride_summary(log, qc_params):
+#: ``ride_summary(law_first_normal_t=FROM_LOG)``: the law's first normal step from the log
+FROM_LOG = 'log'
+
+
+def ride_summary(log, qc_params, law_first_normal_t=FROM_LOG):
     """
     Ride metrics of the live controller against the passive damper on the same road.
 
@@ -120,6 +124,10 @@ def ride_summary(log, qc_params):
         The quarter-car trace (``live_loop.TRACE_COLUMNS``; ``dt`` in its header or a key).
     qc_params : dict
         The quarter-car node's parameters.
+    law_first_normal_t : float, None or :data:`FROM_LOG`
+        Car time [s] of the law's first step on a model: from the log's ``mode`` (the car runs
+        the law), or given (an external controller: the car's mode says only that commands
+        came; None: the controller never had a model).
 
     Returns
     -------
@@ -146,6 +154,8 @@ def ride_summary(log, qc_params):
         n_pos_normal += int((normal & pos).sum())
         t_last = float(t[-1])
     dt = float(log.meta.get('dt', dt))
+    if law_first_normal_t != FROM_LOG:
+        t_first_normal = math.inf if law_first_normal_t is None else float(law_first_normal_t)
     t0 = max(0.0, t_first_normal)
     out = {'controller': g('controller', 'skyhook'),
            'passive_current_a': float(g('safe_current_a', 0.0)), 'window_s': [t0, t_last],

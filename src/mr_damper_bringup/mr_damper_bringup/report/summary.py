@@ -8,13 +8,15 @@ import tempfile
 import numpy as np
 
 from mr_damper_bringup.config import IDENT, node_params, QC, RIG
+from mr_damper_bringup.report.control import control_summary, format_control
 from mr_damper_bringup.report.identification import (identification_summary,
                                                      measurement_to_parameters)
 from mr_damper_bringup.report.losses import (attribute_losses, can_summary, messages_summary,
                                              restart_figures, restart_lines)
 from mr_damper_bringup.report.recording import (MEAS_COLUMNS, ParamsLog,
                                                 read_recording, RECORDING, recording_state)
-from mr_damper_bringup.report.ride import hil_report_config, loop_figures, ride_summary
+from mr_damper_bringup.report.ride import (FROM_LOG, hil_report_config, loop_figures,
+                                           ride_summary)
 from mr_damper_bringup.topics import CONFIG_TOPIC
 from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_common.health import finite_or_none
@@ -119,7 +121,7 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                'plant': qc_params.get('plant', 'spencer'),
                'recording': {'file': RECORDING, 'messages': rec['topic_messages'],
                              'statuses': rec['status_messages'],
-                             'undecodable': rec['undecodable'],
+                             'bad_messages': rec['bad_messages'],
                              'node_parameters': sorted(rec.get('node_parameters') or {}),
                              **recording_state(rec)}}
     if rec.get('restarts') or rec.get('gave_up'):
@@ -142,7 +144,10 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         (rec.get('status', {}).get('quarter_car') or {})
     passive_trace = None
     if log is not None and log.rows > 10:
-        ride = ride_summary(log, qc_params)
+        # with an external controller the law's first step on a model is the controller's
+        law_t0 = (rec['control'].law_first_t_sim('') if qc_params.get('controller') == 'external'
+                  else FROM_LOG)
+        ride = ride_summary(log, qc_params, law_t0)
         passive_trace = ride.pop('passive_trace')
         summary['ride'] = ride
         if duration_s is None:
@@ -161,11 +166,14 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
         'safe_current_a')}
     ctrl_status = rec.get('status', {}).get('controller')
     if ctrl_status is not None or 'command_timeouts' in qc_status:
-        # --external-controller: the link car state -> controller -> current command
+        # --external-controller: the link car state -> controller -> current command; the
+        # commands lost on it are the controller's `commands` less the car's received ones
+        # (Float64 carries no number: docs/faults.md, Lost messages)
         summary['controller_link'] = {
             'command_timeouts': qc_status.get('command_timeouts'),
             'command_timeout_s_total': qc_status.get('command_timeout_s_total'),
             'commands_received': qc_status.get('commands_received'),
+            'controller_commands': (ctrl_status or {}).get('commands'),
             'controller_dropped': (ctrl_status or {}).get('dropped') or {},
             'controller_mode': (ctrl_status or {}).get('mode'),
             'controller_reason': (ctrl_status or {}).get('reason')}
@@ -195,6 +203,8 @@ def _report(out, rec, cfg, meas, params_log, duration_s, plots):
                                      (summary.get('identification') or {}).get('parameters'),
                                      plant=rig_params.get('plant', 'spencer'),
                                      truth_file=rig_params.get('truth_file', ''))
+    summary['control'] = control_summary(rec['control'], rec.get('start_epoch_s'), summary,
+                                         logs={'': log})
     summary = finite_or_none(summary)
     (out / 'summary.json').write_text(json.dumps(summary, indent=2, allow_nan=False))
     if plots:
@@ -291,6 +301,11 @@ def format_summary(s):
     lines.append(f'fail-safe: {s.get("failsafe_s") or 0:.2f} s in total; '
                  f'refused parameter sets: {(s.get("failsafe") or {}).get("params_rejected")}')
     lines.append(f'messages lost: {s.get("messages_lost")} ({s.get("messages")})')
+    bad = (s.get('recording') or {}).get('bad_messages')
+    if bad:
+        lines.append('bad recorded messages, left out of the figures: ' + '; '.join(
+            f'{key} ' + ', '.join(f'{n} {reason}' for reason, n in sorted(reasons.items()))
+            for key, reasons in sorted(bad.items())))
     can = s.get('can')
     if can:
         lines.append(f'CAN ({can["corner"]}): bridge sent {can["frames_sent"]} command frames '
@@ -303,6 +318,8 @@ def format_summary(s):
         from mr_damper_bringup.sensing_report import format_sensing
         lines.extend(format_sensing(s['sensing']))
     lines.extend(restart_lines(s))
+    if s.get('control'):
+        lines.append(format_control(s['control']))
     loop = s.get('loop_full_run') or {}
     m2p = s.get('measurement_to_parameters_s')
     if m2p:

@@ -308,6 +308,19 @@ class Acceptance:
             if k:
                 self._held = self._held.select(slice(k, None))
 
+    def forget(self, first_s, last_s):
+        """
+        Drop the held-back samples stamped in ``[first_s, last_s]`` [s].
+
+        Samples around a force step found in a set's own data (one side of the step is wrong,
+        which side no set can tell at the start of a stream) must not keep a set fitted on them
+        in use: the held-back comparison favours the set the samples were fitted on.
+        """
+        if self._held is not None:
+            keep = (self._held.t < first_s) | (self._held.t > last_s)
+            if not keep.all():
+                self._held = self._held.select(keep) if keep.any() else None
+
     def heldback(self, before_s):
         """
         Admitted samples before ``before_s``: the held-back part of a comparison.

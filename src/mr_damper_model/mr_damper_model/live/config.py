@@ -6,7 +6,7 @@ from mr_damper_model.models.validity import PINNED_FRACTION
 
 #: Keys of the sample rejection counters.
 REJECT_REASONS = ('nonfinite', 'out_of_order', 'duplicate', 'future_stamp', 'joint_names',
-                  'layout')
+                  'layout', 'inconsistent_batch')
 #: Keys of the out-of-range sample counters (the channel whose range check failed).
 RANGE_CHANNELS = ('force', 'velocity', 'displacement', 'current')
 #: Keys of the skipped-window counters.
@@ -64,12 +64,16 @@ class LiveConfig:
     restart_samples : int
         Consecutive increasing out-of-order samples that restart the stream.
     max_future_s : float
-        Samples stamped more than this [s] ahead of the node clock (the stamps advancing this
-        much further than the clock, :class:`~mr_damper_common.stamps.StampGuard`) are
-        refused (``rejected['future_stamp']``) and never become the reference; 0: no such
-        check (the default: a replay at ``rate_factor`` > 1 on wall time stamps its samples
-        ahead of the clock by design). Set it when the samples are stamped on the node's clock
-        (a DAQ at real time, or a replay under ``use_sim_time``).
+        Horizon [s] on the stream's own clock: a batch (or a single sample) stamped more than
+        this ahead of where the stream's clock says the stream is (its newest stamp advanced at
+        the stream's recent rate against the node clock,
+        :class:`~mr_damper_common.stamps.StampGuard` with ``stream_clock``) is refused whole
+        (``rejected['future_stamp']``, every sample) and never becomes the reference; a
+        stream that really jumped ahead is followed after ``restart_samples`` such samples in
+        consecutive batches that follow each other. The stream's rate is measured, so this
+        holds at any ``rate_factor`` (a replay at 4x on wall time, as fast as the reader takes
+        it, under ``use_sim_time``); before the stream's first sample nothing is in the
+        future. 0: no such check.
     force_limit_n : float
         Samples with ``|f|`` above this [N] are rejected (``out_of_range['force']``); dampers
         of this class make 1-2 kN (thesis damper about 850 N at 2 A, Quiroz damper 1.7 kN).
@@ -151,6 +155,14 @@ class LiveConfig:
         cell) beyond this times its RMS error, plus the error floor.
     drift_window_s : float
         The f0 trend is the slope over the accepted sets of this long [s].
+    force_step_percent : float
+        A set whose own fit data holds a force step is refused (``force_step``; published not
+        valid when no set is in use, else the set in use re-published): comparable whole cycles
+        whose mean forces differ, or a persistent mid-stroke jump of its residual, beyond this
+        [% of the level's robust force range] (:func:`~mr_damper_model.live.screening.
+        force_step`).  Needs no earlier set: a sensor offset that begins or ends inside the
+        first windows of a stream, before any set can be compared with, is refused; 0: no
+        such check.
 
     """
 
@@ -174,7 +186,7 @@ class LiveConfig:
     min_force_std_n: float = 2.0
     min_direction_fraction: float = 0.1
     restart_samples: int = 500
-    max_future_s: float = 0.0
+    max_future_s: float = 1.0
     force_limit_n: float = 5000.0
     velocity_limit_m_s: float = 2.0
     displacement_limit_m: float = 0.15
@@ -201,6 +213,7 @@ class LiveConfig:
     offset_window_s: float = 0.2
     offset_ratio: float = 3.0
     drift_window_s: float = 300.0
+    force_step_percent: float = 6.0
 
     def __post_init__(self):
         positive = ('window_s', 'hop_s', 'i_ref_a', 'max_nrmse_percent', 'current_bin_a',
@@ -217,7 +230,7 @@ class LiveConfig:
                      'min_bin_fraction', 'min_direction_fraction', 'outlier_floor_fraction',
                      'error_floor_percent', 'pinned_fraction', 'inconsistent_reset_s',
                      'max_future_s', 'min_amplitude_ratio', 'min_velocity_bin_share',
-                     'replace_margin'):
+                     'replace_margin', 'force_step_percent'):
             value = float(getattr(self, name))
             if not math.isfinite(value) or value < 0:
                 raise ValueError(f'`{name}` must be >= 0, got {value!r}')
@@ -258,4 +271,4 @@ DYNAMIC_FIELDS = (
     'min_bin_fraction', 'bin_max_age_s', 'acceptance_checks', 'min_amplitude_ratio',
     'velocity_bins', 'min_velocity_bin_share', 'max_condition_number', 'replace_margin',
     'holdout_s', 'holdout_max_s', 'offset_window_s', 'offset_ratio',
-    'drift_window_s')
+    'drift_window_s', 'force_step_percent')

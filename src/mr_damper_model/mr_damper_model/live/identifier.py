@@ -23,19 +23,14 @@ from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfi
                                          REJECT_REASONS, SKIP_REASONS)
 from mr_damper_model.live.conversions import kwok_current_at, kwok_to_kwok_current
 from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
+from mr_damper_model.live.reference import (batch_consistency, consistency_figures,
+                                            make_reference, MIN_CHECK_SAMPLES, model_force)
 from mr_damper_model.live.screening import (check_excitation, continued_runs, flag_samples,
-                                            robust_range)
+                                            force_step, robust_range)
 from mr_damper_model.live.window import LiveEstimate, Window
-from mr_damper_model.models.kwok_current import kwok_current_force
 from mr_damper_model.models.validity import check_model_parameters
 
 
-#: Fewest screened samples on which the last valid set's consistency is judged.
-MIN_CHECK_SAMPLES = 20
-#: Cells per axis of the (displacement, velocity) grid of the consistency reference.
-STATE_CELLS = 8
-#: Fewest fitted samples in a reference cell for its error to count as known.
-MIN_CELL_SAMPLES = 10
 #: Samples per block when an inconsistent part is judged block by block.
 BLOCK_SAMPLES = 2 * MIN_CHECK_SAMPLES
 
@@ -81,9 +76,10 @@ class LiveIdentifier:
         self._last_t = -math.inf
         self._t_origin = None      # first stamp of the current stream
         self._next_index = 0       # index m of the next due window end
-        # stamp sanity (order, duplicates, future stamps, re-base after a clock jump)
+        # stamp sanity (order, duplicates, future stamps on the stream's own clock, re-base
+        # after a clock jump)
         self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
-                                  rebase_after=cfg.restart_samples)
+                                  rebase_after=cfg.restart_samples, stream_clock=True)
         self._seq = 0              # samples accepted into the buffer so far (all streams)
         self._handed = 0           # sequence number of the first sample not yet handed out
         self.counters = {'samples_received': 0, 'samples_accepted': 0,
@@ -99,6 +95,7 @@ class LiveIdentifier:
                          'reference_resets': 0, 'catch_up_fits': 0, 'fit_errors': 0}
         self._bins = {}
         self._ref = None           # last valid set of this stream, as a consistency reference
+        self._refused_since = None  # newest stamp taken before a run of inconsistent batches
         self._inconsistent_since = None   # window end of the first of consecutive rejections
         self._excluded_s = -math.inf      # newest stamp of a sample kept out (flag, gate)
         self._prev_whole = True           # the last judged part was consistent as a whole
@@ -189,9 +186,14 @@ class LiveIdentifier:
         """
         Offer a batch of consecutive samples (one measurement message), in order.
 
-        The result is exactly that of :meth:`add_sample` called on each sample in turn; a batch
-        that is clean (finite, in range, stamps increasing past the newest accepted one) is
-        taken with array operations, others sample by sample.
+        The batch is first judged as a whole against the stream's own clock
+        (:meth:`~mr_damper_common.stamps.StampGuard.batch_verdict`): a batch reaching more than
+        ``max_future_s`` ahead of it is refused whole (every sample ``future_stamp``), so one
+        message cannot carry the stream ahead and displace it.  Otherwise the result is
+        that of :meth:`add_sample` called on each sample in turn (without its own future
+        check: the batch was judged); a batch that is clean (finite, in range, stamps
+        increasing past the newest accepted one) is taken with array operations, others
+        sample by sample.
 
         Parameters
         ----------
@@ -210,6 +212,17 @@ class LiveIdentifier:
         n = t.shape[0]
         cfg = self.config
         with self._lock:
+            verdict = self._stamps.batch_verdict(t, now) if n else ACCEPTED
+            if verdict == 'future_stamp':
+                self.counters['samples_received'] += n
+                self.counters['rejected']['future_stamp'] += n
+                return [(k, 'future_stamp') for k in range(n)]
+            if verdict == REBASED:
+                self._restart_stream()
+            elif self._refuse_inconsistent(t, x, v, f, i, cfg):
+                self.counters['samples_received'] += n
+                self.counters['rejected']['inconsistent_batch'] += n
+                return [(k, 'inconsistent_batch') for k in range(n)]
             if n and self._clean_batch(t, x, v, f, i, cfg, now):
                 self._append_batch(t, x, v, f, i, cfg)
                 self._stamps.take_clean(t, now)
@@ -217,10 +230,33 @@ class LiveIdentifier:
             rejected = []
             for k in range(n):
                 reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
-                                       float(i[k]), now)
+                                       float(i[k]), now, judged=True)
                 if reason:
                     rejected.append((k, reason))
             return rejected
+
+    def _refuse_inconsistent(self, t, x, v, f, i, cfg):
+        """
+        Tell whether to refuse a batch the set in use cannot explain (lock held).
+
+        :func:`~mr_damper_model.live.reference.batch_consistency` against the consistency
+        reference.  The first inconsistent batch after a consistent one is refused whatever
+        its length (one message that would carry the stream's stamps); the ones after it only
+        while the stamps they would leave out stay within ``max_gap_s`` of the newest sample
+        taken before them: a lasting change goes on to the window's gate (which keeps it out
+        of the bins and may reset the reference) without a stamp gap that skips windows.
+        """
+        verdict = batch_consistency(self._ref, t, x, v, f, i, cfg)
+        if not verdict:
+            if verdict is not None:         # consistent (not merely unjudged)
+                self._refused_since = None
+            return False
+        if self._refused_since is None:
+            self._refused_since = self._last_t
+            return True
+        finite = t[np.isfinite(t)]
+        step = float(np.median(np.diff(finite))) if finite.size > 1 else 0.0
+        return float(finite.max()) + step - self._refused_since <= cfg.max_gap_s
 
     def _clean_batch(self, t, x, v, f, i, cfg, now):
         """Tell whether every sample of the batch would be accepted as it is (lock held)."""
@@ -267,8 +303,8 @@ class LiveIdentifier:
         self._seq += m
         c['samples_accepted'] += n
 
-    def _add_one(self, t, x, v, f, i, now=None):
-        """:meth:`add_sample` with the lock held."""
+    def _add_one(self, t, x, v, f, i, now=None, judged=False):
+        """:meth:`add_sample` with the lock held (``judged``: its batch passed the future test)."""
         cfg = self.config
         c = self.counters
         c['samples_received'] += 1
@@ -276,7 +312,8 @@ class LiveIdentifier:
                 and math.isfinite(f) and math.isfinite(i)):
             c['rejected']['nonfinite'] += 1
             return 'nonfinite'
-        verdict = self._stamps.check(t, now)   # order, duplicates, future, clock jumps
+        # order, duplicates, future (unless judged with its batch), clock jumps
+        verdict = self._stamps.check(t, None if judged else now)
         if verdict == REBASED:
             self._restart_stream()
         elif verdict != ACCEPTED:
@@ -637,11 +674,18 @@ class LiveIdentifier:
         f_new = self._force(params, fit)
         reason = self._judge(model, result.parameters, robust_nrmse, fit, f_new, scale,
                              max(levels) - min(levels))
+        # a force step in the set's own data (an offset no earlier set could catch): its
+        # samples are no evidence for the held-back comparisons either
+        step = '' if reason else force_step(fit, fit.f - f_new, cfg)
+        if step:
+            self._accept.forget(float(fit.t[0]), float(fit.t[-1]))
         held = ''
         if not reason and cfg.acceptance_checks:
-            held = self._accept.review(params, fit, data)
+            held = step or self._accept.review(params, fit, data)
             if held and self._accept.current is None:
                 reason, held = held, ''      # nothing to hold: published as not valid
+        elif not reason:
+            reason = step
         seconds = time.perf_counter() - t_start
         est = LiveEstimate(
             parameters=params, valid=not (reason or held), reason=reason or held,
@@ -680,8 +724,7 @@ class LiveIdentifier:
     # ---------------------------------------------------------------- validity
     def _force(self, params, data):
         """Kwok-current force [N] of a parameter dict on ``data``."""
-        return kwok_current_force(dict(params, i_ref_a=self.config.i_ref_a), data.x, data.v,
-                                  data.i)
+        return model_force(params, data, self.config.i_ref_a)
 
     def _covered(self, ref, data):
         """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
@@ -723,40 +766,9 @@ class LiveIdentifier:
                     return 'worse_than_last_valid'
         return ''
 
-    def _cells(self, ref, data):
-        """Return the cell codes (current, x, v cell) of samples in ``ref``; -1 off its grid."""
-        xe, ve = ref['x_edges'], ref['v_edges']
-        ix = np.searchsorted(xe, data.x, side='right') - 1
-        iv = np.searchsorted(ve, data.v, side='right') - 1
-        ix[data.x == xe[-1]] = STATE_CELLS - 1
-        iv[data.v == ve[-1]] = STATE_CELLS - 1
-        inside = (ix >= 0) & (ix < STATE_CELLS) & (iv >= 0) & (iv < STATE_CELLS)
-        keys = np.round(data.i / self.config.current_bin_a).astype(np.int64)
-        code = (keys * STATE_CELLS + ix) * STATE_CELLS + iv
-        return np.where(inside, code, -1)
-
     def _set_reference(self, est, fit, f_new, scale):
-        """
-        Keep a valid set with its mean square error on its fit data per state cell.
-
-        Cells: current bin x ``STATE_CELLS`` displacement cells x ``STATE_CELLS`` velocity
-        cells over the fit data's range; the model error of a Kwok fit depends on the phase of
-        the cycle (e.g. larger on one stroke of a real damper), so new samples are compared
-        with the error the set made at the same current and state.
-        """
-        x_edges = np.linspace(float(fit.x.min()), float(fit.x.max()), STATE_CELLS + 1)
-        v_edges = np.linspace(float(fit.v.min()), float(fit.v.max()), STATE_CELLS + 1)
-        ref = {'parameters': dict(est.parameters), 'current_min_a': est.current_min_a,
-               'current_max_a': est.current_max_a, 'x_edges': x_edges, 'v_edges': v_edges,
-               'scale': scale, 'cell_ms': {}}
-        codes = self._cells(ref, fit)
-        sq = (fit.f - f_new) ** 2
-        ok = codes >= 0
-        uniq, inverse, counts = np.unique(codes[ok], return_inverse=True, return_counts=True)
-        sums = np.bincount(inverse, weights=sq[ok], minlength=uniq.size)
-        ref['cell_ms'] = {int(u): float(m) for u, m, n in zip(uniq, sums / counts, counts)
-                          if n >= MIN_CELL_SAMPLES}
-        self._ref = ref
+        """Keep a valid set as the consistency reference (:func:`make_reference`)."""
+        self._ref = make_reference(est, fit, f_new, scale, self.config.current_bin_a)
 
     def _consistency(self, new):
         """
@@ -777,22 +789,7 @@ class LiveIdentifier:
 
     def _consistency_figures(self, new):
         """Return (RMSE of the last valid set on ``new``, its limit) [N], or None (unjudged)."""
-        ref = self._ref
-        if ref is None or new.n < MIN_CHECK_SAMPLES:
-            return None
-        cfg = self.config
-        codes = self._cells(ref, new)
-        cell_ms = ref['cell_ms']
-        known = np.array([int(k) in cell_ms for k in codes], dtype=bool)
-        if np.count_nonzero(known) < MIN_CHECK_SAMPLES:
-            return None
-        part = new.select(known)
-        r = part.f - self._force(ref['parameters'], part)
-        expected = np.array([cell_ms[int(k)] for k in codes[known]])
-        e_new = float(np.sqrt(np.mean(r * r)))
-        limit = (cfg.max_shift_ratio * float(np.sqrt(np.mean(expected)))
-                 + 0.01 * cfg.error_floor_percent * ref['scale'])
-        return e_new, limit
+        return consistency_figures(self._ref, new, self.config)
 
     def _consistent_blocks(self, new):
         """

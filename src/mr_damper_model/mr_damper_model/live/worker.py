@@ -178,7 +178,7 @@ class IdentifierHealth:
     - WARN: last estimate not valid (its reason); windows skipped for ``gap``, ``inconsistent``
       or ``no_bins`` since the last report; samples rejected (bad messages, out of range) since
       the last report; samples lost (buffer, transport: exact, from the batches' stream index)
-      since the last report; measurement messages the middleware reports lost; failed
+      since the last report; measurement messages lost (their sequence numbers); failed
       publishes of its own topics since the last report; other drops since the last report
       (by reason); windows passed over in in-order mode
       (``windows_overflow``); some fit errors; no valid model yet although windows were
@@ -206,8 +206,8 @@ class IdentifierHealth:
             + sum(v.get('out_of_range', {}).values()),
             # samples only: a failed publish of our own is not a lost sample (it is counted
             # under its own reason in ``dropped``); the transport's losses are counted exactly
-            # in samples from the batches' stream index (the middleware's ``message_lost``
-            # counts messages of any size: it stays in ``dropped``)
+            # in samples from the batches' stream index (``message_lost``, from the batches'
+            # sequence numbers, counts messages of any size: it stays in ``dropped``)
             'lost': v.get('samples_lost', 0) + v.get('stream', {}).get('lost', 0),
             'messages_lost': dropped.get('message_lost', 0),
             'publish_failed': sum(n for r, n in dropped.items() if _publish_failed(r)),
@@ -262,7 +262,7 @@ class IdentifierHealth:
             if n > 0:
                 found.append((WARN, f'{n} window(s) skipped: {reason}'))
         for key, what in (('rejected', 'sample(s) rejected'), ('lost', 'sample(s) lost'),
-                          ('messages_lost', 'message(s) lost (middleware report)'),
+                          ('messages_lost', 'message(s) lost (sequence gaps)'),
                           ('publish_failed', 'publish(es) failed'),
                           ('overflow', 'window(s) passed over (backlog full)')):
             n = rose[key]
@@ -331,7 +331,7 @@ class IdentifierRuntime:
         self.ages.add(now - t)
         return reason
 
-    def receive_batch(self, t, x, v, f, i, first_index=None):
+    def receive_batch(self, t, x, v, f, i, first_index=None, period_s=0.0):
         """
         Offer a batch of samples (``LiveIdentifier.add_samples``); return the rejected ones.
 
@@ -341,7 +341,12 @@ class IdentifierRuntime:
             Stamps [s], displacement [m], velocity [m/s], force [N], current [A].
         first_index : int, optional
             Stream index of the first sample (``DamperSamples.first_index``): samples missing
-            before it are counted in :attr:`stream` (``lost``).
+            before it are counted in :attr:`stream` (``lost``; an index jump the stamps do not
+            show is a restart there). A batch refused whole (stamped in the future) takes no
+            place in the stream.
+        period_s : float
+            The batch's nominal sample period [s] (``DamperSamples.sample_period_s``; 0:
+            irregular): judges index jumps against the stamps.
 
         Returns
         -------
@@ -349,10 +354,11 @@ class IdentifierRuntime:
             ``(index in the batch, reason)`` of each rejected sample.
 
         """
-        if first_index is not None:
-            self.stream.update(first_index, len(t))
         now = self.clock()
         rejected = self.live.add_samples(t, x, v, f, i, now=now)
+        refused = len(t) and len(rejected) == len(t) and rejected[0][1] == 'future_stamp'
+        if first_index is not None and not refused:
+            self.stream.update(first_index, len(t), t, period_s)
         if len(t):
             self.ages.add(now - float(t[-1]))   # the batch's transport latency
         return rejected

@@ -77,8 +77,9 @@ _LIVE = (
      0.0, 0.5),
     ('restart_samples', 'Consecutive increasing out-of-order samples that restart the stream '
      '[samples]', 1, 10 ** 8),
-    ('max_future_s', 'Refuse samples stamped more than this ahead of the node clock [s] '
-     '(future_stamp; 0: no check, e.g. replays at rate_factor > 1 on wall time)', 0.0, _BIG),
+    ('max_future_s', 'Refuse a batch stamped more than this ahead of the stream\'s own clock '
+     '(its newest stamp advanced at its measured rate) [s] (future_stamp; 0: no check)', 0.0,
+     _BIG),
     ('force_limit_n', 'Reject samples with a force magnitude above this [N]', 1e-6, _BIG),
     ('velocity_limit_m_s', 'Reject samples with a velocity magnitude above this [m/s]',
      1e-9, 1e6),
@@ -126,6 +127,9 @@ _LIVE = (
      '(plus the error floor) [1]', 1e-3, 1e6),
     ('drift_window_s', 'The f0 trend (status) is the slope over the accepted sets of this long '
      '[s]', 1.0, _BIG),
+    ('force_step_percent', 'Refuse a set whose own fit data holds a force step: comparable '
+     'whole cycles whose mean forces differ, or a lasting mid-stroke jump of its residual, '
+     'beyond this [% of the robust force range] (0: no check)', 0.0, 100.0),
 )
 
 #: Every parameter of the node (the one place they are declared).
@@ -194,13 +198,14 @@ class IdentifierNode(Node):
         # ready to fit before subscribing: the fit process imports numpy, scipy and the models
         # (1-4 s on a busy machine); a publisher waiting for subscribers waits for this node
         self.runtime.fit_ready = self._warm_up(fit)
-        # samples the rig's bounded history dropped before this node took them (stalled or
-        # restarted identifier) are reported by the middleware and counted as `message_lost`
+        # batches that never reached this node (stalled or restarted identifier, a writer the
+        # rig replaced) are counted from their sequence numbers as `message_lost`
         self.drops.subscribe(self, DamperSamples, MEASUREMENT, self._on_samples,
                              MEASUREMENT_QOS, 'message_lost')
-        # a DAQ driver that publishes one sensor_msgs/JointState per sample (suite layout)
+        # a DAQ driver that publishes one sensor_msgs/JointState per sample (suite layout): no
+        # sequence; a gap in its stamps skips the window (`windows_skipped.gap`)
         self.drops.subscribe(self, JointState, JOINT_MEASUREMENT, self._on_measurement,
-                             MEASUREMENT_QOS, 'joint_message_lost')
+                             MEASUREMENT_QOS)
         # wall-time timer: the count paces the rig's transport (a stopped /clock must not stop
         # it, or a rig waiting for the count before it advances the clock would wait forever)
         self.create_timer(SAMPLES_RECEIVED_PERIOD_S, self._publish_received,
@@ -261,7 +266,8 @@ class IdentifierNode(Node):
             self.get_logger().warning(f'rejected measurement batch: {exc}',
                                       throttle_duration_sec=1.0)
             return
-        rejected = self.runtime.receive_batch(t, x, v, f, i, first_index=msg.first_index)
+        rejected = self.runtime.receive_batch(t, x, v, f, i, first_index=msg.first_index,
+                                              period_s=msg.sample_period_s)
         if rejected:
             k, reason = rejected[0]
             self.get_logger().warning(

@@ -69,6 +69,10 @@ def add_arguments(p):
     g.add_argument('--table', metavar='FILE.csv', default='batch.csv',
                    help='result table (default batch.csv); the JSON summary goes next to it '
                    '(FILE.json)')
+    g.add_argument('--params-dir', metavar='DIR',
+                   help='also write each damper\'s end-of-line record as a parameter file, '
+                   'DIR/<serial>.json (the format of --out; a failed damper\'s is marked '
+                   'invalid), e.g. for a vehicle controller\'s model_files')
     g.add_argument('--trend', action='store_true',
                    help='also write FILE_trend.csv and FILE_trend.png: each parameter and '
                    'envelope force against test time per serial number')
@@ -160,6 +164,9 @@ def run(args, fail):
                               pattern=args.serial_pattern or args.folder_pattern,
                               workers=workers, scheduler=args.scheduler, force=args.force)
         trend_rows = None
+        if args.params_dir:
+            out['params_files'] = batch.write_params_files(batch.read_table(table),
+                                                           args.params_dir, master)
         if args.trend:
             rows = batch.read_table(table)
             trend_rows = batch.write_trend(
@@ -186,6 +193,8 @@ def run(args, fail):
         print(f'error {e["record"]}: {e["error"]}')
     for f in out['failed'][:10]:
         print(f'fail  {f["record"]}: {f["reason"]}')
+    if out.get('params_files'):
+        print(f'parameter files: {len(out["params_files"])} in {args.params_dir}')
     if trend_rows is not None:
         print(f'trend: {len({r["serial"] for r in trend_rows})} serial(s) with dated records; '
               f'{table.stem}_trend.csv / .png')

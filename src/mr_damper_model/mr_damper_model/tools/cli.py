@@ -22,7 +22,11 @@ over all files.
 Default model: ``kwok-current-amp`` when the records hold several coil-current levels (the
 model that predicts held-out tests best, docs/cross-validation.md), ``kwok`` otherwise (and
 with ``--per-current``). Bad input exits with code 2 and one line on stderr naming
-the file and the problem.
+the file and the problem. A ``.mcap`` recording cut short (its writer was killed: no footer) is
+read up to its last complete chunk: the fit or validation runs on that part, a warning on stderr
+says how many messages and samples were used and where the file ends, the ``--json`` output
+lists it under ``truncated_inputs``, and the exit code is 3 (:data:`EXIT_TRUNCATED`; 0 when
+every input was complete).
 """
 import os
 
@@ -39,6 +43,8 @@ import sys  # noqa: E402
 import time  # noqa: E402
 
 PROG = 'mr-damper-identify'
+#: Exit code of a run that used only the readable part of a truncated recording (outputs written).
+EXIT_TRUNCATED = 3
 MODEL_CHOICES = ('kwok', 'kwok-current', 'kwok-current-lag', 'kwok-current-amp', 'bingham',
                  'bouc-wen', 'spencer')
 #: Default model for records at several coil-current levels: the best cross-validated model
@@ -162,7 +168,7 @@ def expand_inputs(args):
     return [n for n in out if not (Path(n).resolve() in seen or seen.add(Path(n).resolve()))]
 
 
-def read_record(path, *, topic=None):
+def read_record(path, *, topic=None, truncated=None):
     """
     Read and check one record for identification (CSV or bag, by its form).
 
@@ -172,6 +178,10 @@ def read_record(path, *, topic=None):
         CSV file, rosbag2 directory, ``.mcap`` or ``.db3`` bag.
     topic : str, optional
         Measurement topic of a bag (see ``bag_io.read_bag``).
+    truncated : list, optional
+        A truncated ``.mcap`` file read up to its last complete chunk is appended to it
+        (``file``, ``messages``, ``samples``, first and last log time, ``error``); a warning
+        with the counts goes to stderr either way.
 
     Returns
     -------
@@ -188,7 +198,14 @@ def read_record(path, *, topic=None):
     recovery = {}
     data = read_bag(path, topic, recovery=recovery) if is_bag(path) else read_csv(path)
     if recovery:        # a recording whose writer was killed: say what is used of it
-        print(f'{PROG}: warning: {recovery["note"]}', file=sys.stderr)
+        print(f'{PROG}: warning: {recovery["note"]}; {data.n} samples used (exit code '
+              f'{EXIT_TRUNCATED})', file=sys.stderr)
+        if truncated is not None:
+            truncated.append({'file': str(path), 'messages': recovery.get('messages'),
+                              'samples': int(data.n),
+                              'first_log_time_s': recovery.get('first_log_time_s'),
+                              'last_log_time_s': recovery.get('last_log_time_s'),
+                              'error': recovery.get('error')})
     return validate(data, name=path)
 
 
@@ -285,13 +302,13 @@ def _files_json(rows):
     return [{'source': src, 'samples': n, 'metrics': _metrics_json(m)} for src, n, m in rows]
 
 
-def _read_all(names, topic):
+def _read_all(names, topic, truncated=None):
     """Read every record; return ``(parts, None)`` or ``(None, exit code)``."""
     from mr_damper_model.io.data import DataError
     parts = []
     for name in names:
         try:
-            parts.append(read_record(name, topic=topic))
+            parts.append(read_record(name, topic=topic, truncated=truncated))
         except DataError as exc:
             msg = str(exc)
             return None, _fail('', msg if name in msg else f'{name}: {msg}')
@@ -349,7 +366,8 @@ def run(argv=None):
                      f'{", ".join(MODEL_CHOICES)}')
     if args.method not in ('separable', 'full'):
         return _fail(name, f'unknown method {args.method!r}; expected separable or full')
-    parts, code = _read_all(names, args.topic)
+    truncated = []
+    parts, code = _read_all(names, args.topic, truncated)
     if code is not None:
         return code
     # several files: one record, each part on its own time base (stateful models restart)
@@ -434,6 +452,8 @@ def run(argv=None):
     except OSError as exc:
         return _fail(name, f'cannot write output ({exc.strerror or exc})')
 
+    if truncated:
+        out['truncated_inputs'] = truncated
     if args.json:
         print(json.dumps(out, indent=2))
     else:
@@ -452,7 +472,7 @@ def run(argv=None):
             if len(parts) > 1:
                 print('\nmetrics of the joint fit per file')
                 print(_files_table(file_rows, file_all))
-    return 0
+    return EXIT_TRUNCATED if truncated else 0
 
 
 def _run_validate(args):
@@ -480,7 +500,8 @@ def _run_validate(args):
         names = expand_inputs(args.files)
     except _InputError as exc:
         return _fail(*exc.args)
-    parts, code = _read_all(names, args.topic)
+    truncated = []
+    parts, code = _read_all(names, args.topic, truncated)
     if code is not None:
         return code
     forces, rows, overall = _per_file(pf.model, pf.model_options, x, parts)
@@ -491,16 +512,18 @@ def _run_validate(args):
         except OSError as exc:
             return _fail(args.plot, f'cannot write output ({exc.strerror or exc})')
     if args.json:
-        print(json.dumps({'model': pf.model, 'params_file': args.validate,
-                          'files': _files_json(rows), 'metrics': _metrics_json(overall)},
-                         indent=2))
+        doc = {'model': pf.model, 'params_file': args.validate, 'files': _files_json(rows),
+               'metrics': _metrics_json(overall)}
+        if truncated:
+            doc['truncated_inputs'] = truncated
+        print(json.dumps(doc, indent=2))
     else:
         lo, hi = pf.current_min_a, pf.current_max_a
         fitted = f', fitted on {lo:.2f}-{hi:.2f} A' if np.isfinite([lo, hi]).all() else ''
         print(f'{args.validate}: model {pf.model}{fitted}; {len(parts)} file(s), '
               f'{sum(p.n for p in parts)} samples')
         print(_files_table(rows, overall))
-    return 0
+    return EXIT_TRUNCATED if truncated else 0
 
 
 def _plot_files(path, parts, forces, *, title):

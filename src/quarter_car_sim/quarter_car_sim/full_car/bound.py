@@ -26,7 +26,9 @@ sequences of the whole run at once; this is the same method with four inputs.
    (:func:`quarter_car_sim.bound.fista_box`), the plan is **projected** by running the
    nonlinear car (:class:`FullCar`, tyres may lift) sample by sample with each corner's force
    clipped to its limits at the state reached, and the QP is solved again along that run. The
-   best projected run, the ``i_min`` start included, is kept.
+   best projected run, the ``i_min`` start included, is kept. The outer loop is the quarter
+   car's (:func:`quarter_car_sim.bound.sequential_projection`), and so is the start of the
+   plan: over the first period the car's own initial forces, which no command reaches.
 4. **Honest evaluation.** Each corner's forces become coil currents through its force model's
    inverse; the four current sequences are replayed open loop through
    :func:`quarter_car_sim.full_car.simulate.simulate_full_car` on the "true" plants (coil lag
@@ -43,13 +45,14 @@ import numpy as np
 from scipy import fft as sfft, signal
 
 from quarter_car_sim.bound import (bound_name, BoundResult, check_bound_options,
-                                   CurrentSchedule, fista_box, largest_eigenvalue, Unlimited)
+                                   CurrentSchedule, largest_eigenvalue, sequential_projection,
+                                   Unlimited)
 from quarter_car_sim.full_car.dynamics import corner_maps, discretise, FullCar, N_Q
 from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
 from quarter_car_sim.ride_metrics import wk_sos
 
 
-class _Mimo:
+class MimoConv:
     """Causal multi-input multi-output convolution (FFT) and its transpose, length n."""
 
     def __init__(self, kernels, n):
@@ -118,7 +121,9 @@ def _rollout(params, road, dt, n, t0, models, w, c_ref):
     """
     Run the nonlinear car with ``F_i,k = clip(-c_ref v_rel + w_i,k, lo, hi)`` per corner.
 
-    Returns the series of the run as a dict of arrays (time first).
+    Over the first period the forces are the car's initial ones, whatever ``w[:, 0]`` (no
+    command reaches it; their limits are those forces). Returns the series of the run as a
+    dict of arrays (time first).
     """
     car = FullCar(params, None, road, t0=t0)
     rng = [m.body_force_range for m in models]
@@ -129,12 +134,13 @@ def _rollout(params, road, dt, n, t0, models, w, c_ref):
     wt = np.asarray(w, dtype=float).T.tolist()
     s = car.state
     step = car.step_force
+    f_init = s.damper_force.tolist()
     for k in range(n):
         tr, vr = s.travel.tolist(), s.v_rel.tolist()
         wk = wt[k]
         f = [0.0] * 4
         for i in range(4):
-            a, b = rng[i](tr[i], vr[i])
+            a, b = rng[i](tr[i], vr[i]) if k else (f_init[i], f_init[i])
             fi = -c_ref * vr[i] + wk[i]
             f[i] = a if fi < a else (b if fi > b else fi)
             lo[k, i], hi[k, i] = a, b
@@ -169,18 +175,16 @@ class FullCarBoundResult(BoundResult):
     ``predicted`` is the projected run's recorded part (``t >= 0``) as a ``FullCarResult``,
     ``predicted_metrics`` its :func:`full_car_metrics`, ``replay`` the currents replayed on
     the plants by :func:`simulate_full_car` (None without plants), ``cost_start`` the cost
-    with every damper at ``i_min``; and:
+    with every damper at ``i_min``, ``t0`` the time of the first planned sample
+    (``-settle_s``); and:
 
     Attributes
     ----------
-    t0 : float
-        Time of the first planned sample [s] (``-settle_s``).
     force_lo, force_hi : ndarray (n, 4)
         Each corner's force limits along the kept run [N].
 
     """
 
-    t0: float = 0.0
     force_lo: np.ndarray = None
     force_hi: np.ndarray = None
 
@@ -303,7 +307,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     nk = min(n, max(2, int(round(kernel_s / dt))))
     h = impulse_responses(params, dt, c_ref, nk)
     h_comfort = comfort(h[:3])                        # (3, 4, nk): the filters are linear
-    conv_tv = _Mimo(h[3:11], n)                       # travels and rates, for the limits
+    conv_tv = MimoConv(h[3:11], n)                       # travels and rates, for the limits
 
     free = _rollout(params, road, dt, n, t0, [Unlimited] * 4, np.zeros((4, n)), c_ref)
     start = _rollout(params, road, dt, n, t0, models, np.zeros((4, n)), 0.0)
@@ -320,7 +324,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     if rho > 0:
         kern.append(h[11:15] * scale_t[:, None, None])
         y_free.append((free['tyre_force'] - w_load).T * scale_t[:, None])
-    conv_j = _Mimo(np.concatenate(kern), n)
+    conv_j = MimoConv(np.concatenate(kern), n)
     y_free = np.concatenate(y_free)
 
     def rows_of(run):
@@ -339,12 +343,7 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
     def hess(vf):
         return ((2.0 / n_rec) * conv_j.T(conv_j(vf.reshape(4, n)) * mask)).ravel()
 
-    lipschitz = largest_eigenvalue(hess, 4 * n)
-    best, j_best = start, cost_of(start)
-    history = [j_best]
-    run = start
-    k_done = 0
-    for k in range(int(outer)):
+    def box_along(run):
         w = (run['damper_force'] + c_ref * run['v_rel']).T
         tv = np.concatenate([free['travel'].T, free['v_rel'].T]) + conv_tv(w)
         tr, vr = tv[:4], tv[4:]
@@ -352,16 +351,15 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
         for i, m in enumerate(models):
             lo, hi = m.body_force_range_array(tr[i], vr[i])
             lb[i], ub[i] = lo + c_ref * vr[i], hi + c_ref * vr[i]
-        lb, ub = lb.ravel(), ub.ravel()
-        wf = fista_box(grad, lipschitz, np.clip(w.ravel(), lb, ub), lb, ub, int(maxiter))
-        run = _rollout(params, road, dt, n, t0, models, wf.reshape(4, n), c_ref)
-        j = cost_of(run)
-        history.append(j)
-        k_done = k + 1
-        if j < j_best:
-            best, j_best = run, j
-        if callback is not None and callback(k_done, j):
-            break
+        lb[:, 0] = ub[:, 0] = w[:, 0]           # the first period's forces are the car's own
+        return w.ravel(), lb.ravel(), ub.ravel()
+
+    def rollout(wf):
+        return _rollout(params, road, dt, n, t0, models, wf.reshape(4, n), c_ref)
+
+    best, history = sequential_projection(start, cost_of, box_along, rollout, grad,
+                                          largest_eigenvalue(hess, 4 * n), outer=outer,
+                                          maxiter=maxiter, callback=callback)
     force = best['damper_force']
     current = np.column_stack([np.asarray(m.currents(force[:, i], best['travel'][:, i],
                                                      best['v_rel'][:, i]), dtype=float)
@@ -378,6 +376,6 @@ def full_car_bound(params, road, force_models, plants=None, damper_params=None, 
                                    settle_s=settle_s)
     return FullCarBoundResult(
         force=force, current=current, predicted=predicted,
-        predicted_metrics=predicted.metrics(params, seat=seat), cost=j_best,
+        predicted_metrics=predicted.metrics(params, seat=seat), cost=min(history),
         cost_start=history[0], cost_history=history, replay=replay, rho=float(rho),
-        nit=k_done, t0=t0, force_lo=best['force_lo'], force_hi=best['force_hi'])
+        nit=len(history) - 1, t0=t0, force_lo=best['force_lo'], force_hi=best['force_hi'])

@@ -17,7 +17,12 @@ Each corner has its own "true" damper plant (``--plant kwok|spencer`` or four na
 inverse then gets the plant's own parameters (a perfect identification; the JSON says so).
 ``bound`` (in ``--compare``, or ``--law bound``) is the offline optimal semi-active bound
 (:mod:`quarter_car_sim.full_car.bound`: full road preview, each corner's identified force map),
-its current sequences replayed on the plants. Bad input exits with status 2 and one line on
+its current sequences replayed on the plants. The road-preview rows
+(:mod:`quarter_car_sim.preview_rows`: ``preview-wheelbase``, ``preview-look-ahead-ideal``,
+``preview-look-ahead``, in ``--compare`` before the bound) are ``full-car-clipped-optimal-wk``
+with LQ preview, fed by a simulated look-ahead sensor (``--preview-*`` options: the realistic
+row's errors) or by the front wheels' road alone, and the receding-horizon MPC with the dampers'
+limits on the same sensors (``preview-mpc-*``). Bad input exits with status 2 and one line on
 stderr.
 """
 import json
@@ -25,8 +30,10 @@ import math
 import sys
 import time
 
-from quarter_car_sim.cli_args import OneLineParser, positive
+from quarter_car_sim.cli_args import (add_preview_arguments, OneLineParser, positive,
+                                      preview_options)
 from quarter_car_sim.controllers import DAMPER_LAW_NAMES
+from quarter_car_sim.preview_rows import FULL_CAR_ROWS as PREVIEW_ROWS
 
 COMPARE_CURRENTS_A = (0.0, 0.5, 1.0, 1.5, 2.0)
 #: Name of the offline bound among the laws.
@@ -49,12 +56,13 @@ def build_parser():
     p.add_argument('--law', default='modal-skyhook',
                    help='modal-skyhook, full-car-clipped-optimal(-wk), passive@<I>A, '
                         'per-corner-<law> with <law> one of '
-                        f'{", ".join(DAMPER_LAW_NAMES[1:])}, or bound (the offline optimal '
-                        'semi-active bound) (default modal-skyhook)')
+                        f'{", ".join(DAMPER_LAW_NAMES[1:])}, {", ".join(PREVIEW_ROWS)} (road '
+                        'preview), or bound (the offline optimal semi-active bound) (default '
+                        'modal-skyhook)')
     p.add_argument('--compare', action='store_true',
                    help='passive at each current, per-corner laws, modal skyhook, the '
-                        'full-car clipped-optimal LQR (plain and ISO-weighted) and the offline '
-                        'bound')
+                        'full-car clipped-optimal LQR (plain and ISO-weighted), the road-preview '
+                        'rows and the offline bound')
     p.add_argument('--bound-rho', type=float, default=0.0, metavar='RHO',
                    help='weight of the dynamic tyre loads in the bound\'s cost (default 0: '
                         'comfort only)')
@@ -78,6 +86,7 @@ def build_parser():
                    help='ideal: the laws read the true state; vehicle: they read the full-car '
                         'Kalman estimate from three body accelerometers (fl, fr, rl) and four '
                         'position sensors (default ideal)')
+    add_preview_arguments(p)
     p.add_argument('--json', action='store_true', help='print one JSON object')
     return p
 
@@ -97,8 +106,8 @@ def _laws(args):
             return [s.strip() for s in args.laws.split(',') if s.strip()]
         return ([f'passive@{i:g}A' for i in COMPARE_CURRENTS_A]
                 + [f'per-corner-{n}' for n in COMPARE_CORNER_LAWS]
-                + ['modal-skyhook', 'full-car-clipped-optimal', 'full-car-clipped-optimal-wk',
-                   BOUND])
+                + ['modal-skyhook', 'full-car-clipped-optimal', 'full-car-clipped-optimal-wk']
+                + list(PREVIEW_ROWS) + [BOUND])
     return [args.law]
 
 
@@ -129,9 +138,10 @@ def run(args):
         zeta = dict(zip(('heave', 'pitch', 'roll'), z))
     if not (math.isfinite(args.bound_rho) and args.bound_rho >= 0):
         raise ValueError(f'--bound-rho must be >= 0, got {args.bound_rho}')
-    names = _laws(args)
+    names = [n.strip().lower() for n in _laws(args)]
+    popts = preview_options(args)
     laws = [make_full_car_law(name, params, dt=args.dt, zeta=zeta)
-            for name in names if name.strip().lower() != BOUND]
+            for name in names if name != BOUND and name not in PREVIEW_ROWS]
     road = make_two_track_road(args.road, params, speed_m_s=args.speed,
                                duration_s=args.duration, dt=args.dt, rng=args.seed)
     plants = [make_plant(n) for n in plant_names]
@@ -146,7 +156,9 @@ def run(args):
         source = 'kwok-current plant truth (no identification run)'
     metrics = compare_laws(params, road, laws, plants, damper, dt=args.dt,
                            sensing=args.sensing, sensor_seed=args.seed)
-    if any(name.strip().lower() == BOUND for name in names):
+    for name in (n for n in names if n in PREVIEW_ROWS):
+        metrics[name] = _preview(name, params, road, plants, damper, popts, args)
+    if BOUND in names:
         metrics.update(_bound(params, road, plants, damper, args))
     return finite_or_none({
         'road': road.name, 'speed_m_s': args.speed, 'duration_s': args.duration,
@@ -154,6 +166,23 @@ def run(args):
         'plants': dict(zip(CORNERS, plant_names)),
         'damper_params': source, 'car': params.to_dict(), 'laws': metrics,
     })
+
+
+def _preview(name, params, road, plants, damper, options, args):
+    """Run one preview row; return its metrics with its settings and counters."""
+    from quarter_car_sim.full_car.simulate import simulate_full_car
+    from quarter_car_sim.preview_rows import full_car_preview_row
+    law = full_car_preview_row(name, params, road, options, dt=args.dt, damper=damper)
+    res = simulate_full_car(params, road, law, plants, damper, dt=args.dt, sensing=args.sensing,
+                            sensor_seed=args.seed)
+    m = res.metrics(params)
+    est = res.status.pop('estimation', None)
+    if est is not None:
+        m['estimation'] = est
+    m['failsafe_corners'] = [c for c, st in res.status.items() if st['mode'] != 'normal']
+    m['wall_time_s'] = res.wall_time_s
+    m['preview'] = {**options.to_dict(name), **law.status()}
+    return m
 
 
 def _bound(params, road, plants, damper, args):

@@ -110,12 +110,18 @@ class FullCarLqrWkDesign:
         Seat point of the vertical acceleration [m].
     weights : dict
         The weights used.
+    model : dict or None
+        The design problem on the reduced augmented state ``X = [V' x, w]``: ``A``, ``B``,
+        ``Q``, ``R``, ``N`` (``control.lqr``'s), ``V`` (the warp-free basis, (15, 14)), ``Cz``,
+        ``Dz``, ``W`` (cost outputs and weights) and ``Ca``, ``Cy`` (seat and body
+        accelerations on the full state), for the preview design
+        (:mod:`quarter_car_sim.full_car.preview`).
 
     """
 
-    def __init__(self, gain, poles, filt, seat, weights):
+    def __init__(self, gain, poles, filt, seat, weights, model=None):
         self.gain, self.poles, self.filter = gain, poles, filt
-        self.seat, self.weights = seat, weights
+        self.seat, self.weights, self.model = seat, weights, model
 
 
 def full_car_lqr_wk_design(params, *, weighting='iso', seat=(0.0, 0.0), **weights):
@@ -171,7 +177,9 @@ def full_car_lqr_wk_design(params, *, weighting='iso', seat=(0.0, 0.0), **weight
     K_g, _, E = control.lqr(Ag, Bg, Q, R, N)
     K_g = np.asarray(K_g)
     gain = np.hstack([K_g[:, :14] @ V.T, K_g[:, 14:]])
-    return FullCarLqrWkDesign(gain, np.asarray(E), (Aw, Bw, Cw, Dw), (sx, sy), w)
+    model = {'A': Ag, 'B': Bg, 'Q': Q, 'R': R, 'N': N, 'V': V, 'Cz': Cz, 'Dz': Dz, 'W': W,
+             'Ca': Ca, 'Cy': Cy}
+    return FullCarLqrWkDesign(gain, np.asarray(E), (Aw, Bw, Cw, Dw), (sx, sy), w, model)
 
 
 class FullCarClippedOptimalWk(ForceLaw):

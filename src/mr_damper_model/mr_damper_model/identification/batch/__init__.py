@@ -29,12 +29,14 @@ from mr_damper_model.identification.batch.envelope import (envelope_columns, env
                                                            master_currents)
 from mr_damper_model.identification.batch.archive import (DamperTask, discover)
 from mr_damper_model.identification.batch.damper import (process_damper)
-from mr_damper_model.identification.batch.table import (read_table)
+from mr_damper_model.identification.batch.table import (read_table, row_params,
+                                                        write_params_files)
 from mr_damper_model.identification.batch.run import (process_dampers, run_batch)
 from mr_damper_model.identification.batch.trend import (trend, trend_figure, write_trend)
 
 __all__ = ['BatchSettings', 'DamperTask', 'discover', 'process_damper', 'process_dampers',
            'force_envelope', 'envelope_ratio', 'envelope_columns', 'run_batch', 'read_table',
+           'row_params', 'write_params_files',
            'trend',
            'write_trend', 'trend_figure', 'load_master', 'master_currents',
            'DEFAULT_VELOCITIES_MPS', 'DEFAULT_CURRENTS_A', 'DEFAULT_STROKE_M', 'DEFAULT_REL_TOL',

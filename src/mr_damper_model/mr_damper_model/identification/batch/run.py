@@ -1,4 +1,5 @@
 """Running a batch: serially or on a Dask cluster, with progress, resume and summary."""
+import contextlib
 from dataclasses import asdict
 import json
 import math
@@ -74,8 +75,7 @@ def _chunks(tasks, n_workers):
 
 def _run_dask(tasks, settings, on_row, *, workers, scheduler):
     """Run the tasks on Dask in chunks; a chunk lost with its worker gives error rows."""
-    import logging
-    from dask.distributed import as_completed, Client, LocalCluster
+    from dask.distributed import as_completed, Client
 
     def drain(client, n_workers):
         futures = {client.submit(process_dampers, chunk, settings, pure=False,
@@ -104,13 +104,38 @@ def _run_dask(tasks, settings, on_row, *, workers, scheduler):
         with client:
             drain(client, len(client.scheduler_info().get('workers', {})))
         return
-    with tempfile.TemporaryDirectory(prefix='mr_damper_dask_') as scratch:
-        # loopback only, no dashboards: nothing of the cluster is reachable off this machine
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          host='127.0.0.1', dashboard_address=None,
-                          worker_dashboard_address=None, silence_logs=logging.ERROR,
-                          local_directory=scratch) as cluster, Client(cluster) as client:
-            drain(client, workers)
+    with tempfile.TemporaryDirectory(prefix='mr_damper_dask_') as scratch, \
+            local_cluster(workers, scratch) as cluster, Client(cluster) as client:
+        drain(client, workers)
+
+
+#: Dask settings of the batch's own cluster: no HTTP routes on the scheduler and the workers.
+#: distributed (2026.8) starts an HTTP server in the scheduler and in every worker whatever the
+#: dashboard settings (health, Prometheus metrics, JSON and info pages); with no routes it
+#: answers every request with 404.
+QUIET_HTTP = {'distributed.scheduler.http.routes': [], 'distributed.worker.http.routes': []}
+
+
+@contextlib.contextmanager
+def local_cluster(workers, scratch):
+    """
+    Start the batch's ``LocalCluster``: loopback only, no dashboard, no HTTP pages.
+
+    ``workers`` single-threaded worker processes; the scheduler, nannies and workers listen on
+    127.0.0.1 only; the dashboards are off and the HTTP servers distributed always starts have
+    no routes (:data:`QUIET_HTTP`; the scheduler's on a free port, not 8787), so nothing of the
+    cluster is reachable off this machine and nothing is served on it. ``scratch`` is its
+    local directory.
+    """
+    import dask
+    import logging
+    from dask.distributed import LocalCluster
+    with dask.config.set(QUIET_HTTP), LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, host='127.0.0.1',
+            dashboard_address='127.0.0.1:0', scheduler_kwargs={'dashboard': False},
+            worker_dashboard_address=None, silence_logs=logging.ERROR,
+            local_directory=scratch) as cluster:
+        yield cluster
 
 
 def run_batch(root, settings, *, table, per_file=False, pattern=None, workers=0,

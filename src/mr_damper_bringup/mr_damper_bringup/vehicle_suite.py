@@ -1,0 +1,251 @@
+"""
+The vehicle run of ``mr-damper-suite --config vehicle``: configuration, progress, summary.
+
+On one side of a loopback CAN bus the simulated car: ``full_car_node`` as the plant
+(``controller: can``: its sensor cluster and four damper drivers on the bus). On the other the
+vehicle computer, each node its own managed process: ``vehicle_bridge_node``,
+``vehicle_estimator_node``, ``vehicle_controller_node``, brought up in that order by
+``lifecycle_manager`` (docs/vehicle.md). Each corner's true damper is its shipped end-of-line
+record (``semi_active_control/config/models``), which the controller also loads as its model;
+with ``--live-identification`` four rig / identifier stacks (namespaces ``fl`` .. ``rr``, each
+rig's damper the corner's record) give the controller its models instead.
+
+The summary's ``vehicle`` section (:func:`vehicle_summary`) comes from the nodes' final statuses
+and the car's body log: control cycles and how many were answered within their period
+(bus to bus, at the bridge), the controller's deadline misses, the drivers' command timeouts
+after the vehicle computer took control, sensor frame to command frame latency, frames and
+messages lost, and the body's ISO 2631-1 a_v against the same car at the safe current
+(``a_v_passive``) and the same law on the true states in lock-step (``a_v_lockstep``), both
+simulated offline on the same road and dampers over the same window.
+"""
+from pathlib import Path
+
+import numpy as np
+
+from mr_damper_common.health import finite_or_none
+
+from .config import CAN_GROUP, CAN_PORT_BASE, IDENT, node_params, REPO, RIG, set_param
+from .full_car_suite import BODY_LOG, FULL_CAR, FULL_CAR_CORNERS
+
+#: The vehicle computer's nodes (YAML section = node name -> console script), in start order.
+BRIDGE, ESTIMATOR, CONTROLLER, MANAGER = ('vehicle_bridge', 'vehicle_estimator',
+                                          'vehicle_controller', 'lifecycle_manager')
+VEHICLE_NODES = {FULL_CAR: 'full_car_node', BRIDGE: 'vehicle_bridge_node',
+                 ESTIMATOR: 'vehicle_estimator_node', CONTROLLER: 'vehicle_controller_node',
+                 MANAGER: 'lifecycle_manager'}
+#: Stop order: the manager (it would bring nodes back), the controller (its end: the safe
+#: command), the estimator, the bridge (its end: the safe frame, then the bus closes), the car.
+STOP_ORDER = (MANAGER, CONTROLLER, ESTIMATOR, BRIDGE, FULL_CAR)
+#: The shipped end-of-line records of the four dampers.
+MODELS_DIR = REPO / 'src' / 'semi_active_control' / 'config' / 'models'
+
+
+def model_files(folder=MODELS_DIR):
+    """Return the four corners' record files (``fl, fr, rl, rr``)."""
+    return [str(Path(folder) / f'{c}.json') for c in FULL_CAR_CORNERS]
+
+
+def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False):
+    """
+    Split a vehicle run's parameters: the corners' stacks (live only) and the rest.
+
+    Parameters
+    ----------
+    cfg : dict
+        The run's parameters (``config/suite_vehicle.yaml`` after ``--set``).
+    out : path
+        Output folder.
+    duration_s : float
+        Run time [s] (the car's road and body log are made long enough).
+    domain_id : int
+        The run's domain (the bus port is ``CAN_PORT_BASE`` + it).
+    live_identification : bool
+        Four rig / identifier stacks give the models instead of the files.
+
+    Returns
+    -------
+    corners : dict
+        corner -> its rig / identifier parameter dict (empty without live identification).
+    vehicle : dict
+        The car's and the vehicle computer's parameter dict.
+
+    """
+    from .config import corner_configs
+    files = model_files()
+    channel = f'{CAN_GROUP}:{CAN_PORT_BASE + int(domain_id)}'
+    vehicle = {k: v for k, v in cfg.items() if k not in (RIG, IDENT)}
+    car = node_params(vehicle, FULL_CAR)
+    if not any(car.get('truth_files') or ()):
+        set_param(vehicle, FULL_CAR, 'truth_files', list(files))
+    set_param(vehicle, FULL_CAR, 'can_channel', channel)
+    set_param(vehicle, BRIDGE, 'channel', channel)
+    set_param(vehicle, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
+    rtf = float(node_params(vehicle, FULL_CAR).get('real_time_factor', 1.0)) or 20.0
+    need = float(duration_s) * rtf + 30.0 if duration_s else 600.0
+    set_param(vehicle, FULL_CAR, 'road_duration_s', min(max(need, 60.0), 3600.0))
+    set_param(vehicle, FULL_CAR, 'log_max_s', min(need, 3600.0))
+    ctrl = node_params(vehicle, CONTROLLER)
+    if not live_identification and not any(ctrl.get('model_files') or ()):
+        set_param(vehicle, CONTROLLER, 'model_files', list(files))
+    corners = {}
+    if live_identification:
+        set_param(vehicle, CONTROLLER, 'model_files', [''] * 4)
+        stacks = {k: v for k, v in cfg.items() if k in ('/**', RIG, IDENT)}
+        corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
+        truths = list(node_params(vehicle, FULL_CAR)['truth_files'])
+        for corner, truth in zip(FULL_CAR_CORNERS, truths):
+            set_param(corners[corner], f'/{corner}/{RIG}', 'truth_file', truth)
+    return corners, vehicle
+
+
+def start_vehicle(vehicle_cfg, out):
+    """Write the vehicle's parameter file into ``out``; return its command-line arguments."""
+    import yaml
+    path = Path(out) / 'suite_params_vehicle.yaml'
+    path.write_text(yaml.safe_dump(vehicle_cfg, sort_keys=False))
+    return ['--ros-args', '--params-file', str(path)]
+
+
+def vehicle_progress_line(monitor, elapsed):
+    """Return a progress line: the chain's states, cycles answered, car time."""
+    st = monitor.snapshot()[0]
+    chain = (st.get(MANAGER) or {}).get('state') or {}
+    bridge = st.get(BRIDGE) or {}
+    ctrl = st.get(CONTROLLER) or {}
+    car = st.get(FULL_CAR) or {}
+    cycles = bridge.get('cycles') or {}
+    parts = ['chain ' + ','.join(f'{n.split("_")[1]} {chain.get(n, "?")}'
+                                 for n in (BRIDGE, ESTIMATOR, CONTROLLER)),
+             f'cycles {cycles.get("cycles_active", 0)} answered {cycles.get("answered", 0)} '
+             f'on time {cycles.get("answered_in_time", 0)}',
+             f'misses {(ctrl.get("deadline") or {}).get("deadline_misses", 0)}',
+             f'corners normal {ctrl.get("corners_normal", "?")}']
+    t_sim = car.get('t_sim')
+    parts.append(f'car t {t_sim:.2f} s' if isinstance(t_sim, (int, float)) else 'car t ?')
+    return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
+
+
+def _simulate_body(car_params, law, damper_files, t_end, dt):
+    """Simulate the body accelerations offline: ``law`` on the true states, the node's road."""
+    from mr_damper_model.models.plant import make_plant
+    from quarter_car_sim.full_car import make_two_track_road, PASSENGER_CAR, simulate_full_car
+    g = car_params.get
+    road = make_two_track_road(g('road', 'iso8608-C'), PASSENGER_CAR,
+                               speed_m_s=float(g('speed_m_s', 20.0)),
+                               duration_s=float(g('road_duration_s', 300.0)), dt=dt,
+                               rng=int(g('road_seed', 1)))
+    truths = g('truth_files') or [''] * 4
+    plants = [make_plant(g('plant', 'spencer'), f or g('truth_file', '')) for f in truths]
+    res = simulate_full_car(PASSENGER_CAR, road, law, plants, damper_files, dt=dt,
+                            settle_s=float(g('settle_s', 0.5)), duration_s=t_end)
+    return res.t, res.acc[:, :3]
+
+
+def _a_v(t, acc):
+    from quarter_car_sim.full_car.metrics import iso2631_seat
+    if len(t) < 10:
+        return None
+    return iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])['a_v']
+
+
+def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
+    """
+    Return the summary's ``vehicle`` section.
+
+    Parameters
+    ----------
+    monitor : mr_damper_bringup.monitor_node.Monitor
+        The launcher's monitor (the nodes' last statuses).
+    vehicle_cfg : dict
+        The vehicle's parameter dict (:func:`vehicle_configs`).
+    out : path
+        Output folder (``full_car_body.npz`` is read from there).
+    offline : bool
+        Also simulate ``a_v_passive`` and ``a_v_lockstep`` (tens of seconds per minute of road).
+
+    Returns
+    -------
+    dict
+        ``control_cycles`` (sensor cycles the bridge received while active, the last in
+        flight left out), ``answered_fraction`` (answered bus to bus within the cycle),
+        ``unanswered``, ``deadline_misses`` (the controller's, with ``lateness``),
+        ``driver_command_timeouts`` (after the vehicle computer took control, all drivers),
+        ``sensor_to_command_s`` (``p50``, ``p99``, ``max`` [s]), ``frames_lost`` (bus frames
+        the counters show missing: sensor and status frames at the bridge, command frames at
+        the drivers), ``messages_lost`` (estimator and controller inputs, from sequence
+        numbers), ``all_safe`` (controller commands with every corner safe, by reason),
+        ``chain`` (the lifecycle manager's counts), ``window_s``, ``a_v``, ``a_v_passive``,
+        ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1).
+
+    """
+    st = monitor.snapshot()[0]
+    bridge = st.get(BRIDGE) or {}
+    ctrl = st.get(CONTROLLER) or {}
+    est = st.get(ESTIMATOR) or {}
+    car = st.get(FULL_CAR) or {}
+    can = car.get('can') or {}
+    cycles = bridge.get('cycles') or {}
+    latency = bridge.get('latency') or {}
+    deadline = ctrl.get('deadline') or {}
+    timeouts = can.get('driver_timeouts_after_normal')
+    drivers = can.get('corners') or {}
+    section = {
+        'control_cycles': max(int(cycles.get('cycles_active') or 0) - 1, 0),
+        'answered_fraction': bridge.get('answered_fraction'),
+        'answered_in_time': cycles.get('answered_in_time'),
+        'unanswered': bridge.get('unanswered'),
+        'deadline_misses': deadline.get('deadline_misses'),
+        'deadline': {k: deadline.get(k) for k in ('cycles', 'lateness', 'entries',
+                                                  'failsafe_s')},
+        'driver_command_timeouts': (sum(timeouts.values()) if isinstance(timeouts, dict)
+                                    else None),
+        'driver_command_timeouts_by_corner': timeouts,
+        'sensor_to_command_s': {'p50': latency.get('p50_s'), 'p99': latency.get('p99_s'),
+                                'max': latency.get('max_s'), 'n': latency.get('n')},
+        'frames_lost': {'sensor_and_status_frames': bridge.get('frames_lost'),
+                        'command_frames': max((d.get('frames_missed') or 0
+                                               for d in drivers.values()), default=None)},
+        'messages_lost': {'chassis_sensors': (est.get('cycles') or {}).get('lost'),
+                          'states': (ctrl.get('states') or {}).get('lost')},
+        'all_safe': ctrl.get('all_safe'),
+        'estimator': {k: est.get(k) for k in ('valid', 'faults', 'invalid_steps',
+                                              'sensor_fault_entries', 'restarts')},
+        'chain': (st.get(MANAGER) or {}).get('counts'),
+        't_normal': can.get('t_normal')}
+    section['frames_lost']['total'] = sum(v for v in section['frames_lost'].values()
+                                          if isinstance(v, int))
+    path = Path(out) / BODY_LOG
+    if not path.is_file():
+        section['note'] = f'no {BODY_LOG}: no a_v'
+        return finite_or_none(section)
+    with np.load(path) as z:
+        t, acc = z['t'], z['acc']
+    t0 = can.get('t_normal')
+    t0 = float(t0) if isinstance(t0, (int, float)) and t0 == t0 else None
+    if t0 is None:
+        # the law never had every corner: the whole recorded ride (t >= 0) is compared
+        section['note'] = 'every driver never had a law command at once: whole run compared'
+        t0 = 0.0
+        if section['driver_command_timeouts'] is None:
+            section['driver_command_timeouts'] = sum(d.get('command_timeouts') or 0
+                                                     for d in drivers.values())
+    if len(t) < 10 or t[-1] <= t0 + 1.0:
+        section['note'] = f'{len(t)} body samples after t = {t0:g} s: no a_v'
+        return finite_or_none(section)
+    w = t >= t0
+    section.update(window_s=[t0, float(t[-1])], a_v=_a_v(t[w], acc[w]))
+    if offline:
+        params = node_params(vehicle_cfg, FULL_CAR)
+        ctrl_p = node_params(vehicle_cfg, CONTROLLER)
+        dt = 1.0 / float(params.get('rate_hz', 1000.0))
+        safe = float(ctrl_p.get('safe_current_a', 0.5))
+        files = ctrl_p.get('model_files') or model_files()
+        files = [f or m for f, m in zip(files, model_files())]
+        for key, law in (('a_v_passive', f'passive@{safe:g}A'),
+                         ('a_v_lockstep', ctrl_p.get('controller', 'modal-skyhook'))):
+            t_o, acc_o = _simulate_body(params, law, files, float(t[-1]), dt)
+            wo = t_o >= t0
+            section[key] = _a_v(t_o[wo], acc_o[wo])
+        if section.get('a_v') and section.get('a_v_lockstep'):
+            section['a_v_vs_lockstep'] = section['a_v'] / section['a_v_lockstep'] - 1.0
+    return finite_or_none(section)

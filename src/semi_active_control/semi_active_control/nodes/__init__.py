@@ -1,0 +1,1 @@
+"""The vehicle computer's nodes: estimator, controller (managed) and the lifecycle manager."""

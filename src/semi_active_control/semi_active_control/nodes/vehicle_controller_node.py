@@ -1,0 +1,261 @@
+"""
+Vehicle controller node (managed): one full-car state per cycle in, one four-damper command out.
+
+``ros2 run semi_active_control vehicle_controller_node --ros-args -p autostart:=true``
+
+A lifecycle node over the ROS-free
+:class:`semi_active_control.runtime.VehicleControllerCore`: the full-car law, each corner's
+inverse model under its supervisor, deadline supervision. Each ``FullCarState`` is answered by
+one ``FullCarCommand`` (four currents, the cycle answered, per corner the mode and the reason).
+
+Lifecycle (docs/vehicle.md): **configure** builds the law and loads each corner's model
+(``model_files``: an end-of-line parameter file per corner, "" for the corner's live
+identifier), subscribes and publishes; a file that cannot be read or a record marked invalid
+leaves its corner on the safe current (named in the status), the other corners go on.
+**activate** starts commanding. **deactivate** publishes one command with every corner on
+the safe current (``INACTIVE``), not the last command, and stops. **cleanup** drops the
+topics; **error** (a callback that failed) publishes the safe command if it can and cleans up.
+
+Topics (relative; remap with ``--ros-args -r``)
+------------------------------------------------
+- sub ``vehicle/state`` (mr_damper_interfaces/FullCarState; reliable, KEEP_LAST 2), on a lane
+  of its own (an EventsExecutor thread);
+- sub ``<c>/mr_damper/kwok_parameters`` (KwokParameters; latched) for each live corner;
+- pub ``vehicle/command`` (mr_damper_interfaces/FullCarCommand; reliable, KEEP_LAST 2): one per
+  state, one per ``check_period_s`` while no state came for ``sensor_timeout_s``
+  (``sensor_timeout``), one at deactivation;
+- pub ``~/heartbeat`` (std_msgs/Header, the lifecycle state in ``frame_id``);
+- pub ``/diagnostics`` (status ``vehicle_controller``): the core's status (per corner mode,
+  reason, model source and supervisor figures; ``deadline`` with misses and their lateness).
+"""
+import sys
+import threading
+
+from rclpy.lifecycle import LifecycleNode
+
+from mr_damper_common import messages
+from mr_damper_common.health import ERROR, OK, WARN, worst
+from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
+                                              run_managed, state_label, SUCCESS)
+from mr_damper_common.node_utils import (declare_parameters, FastLane, LATCHED_QOS, node_time_s,
+                                         Param, set_realtime_priority, VEHICLE_QOS)
+from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters
+from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
+from semi_active_control.runtime import full_car_state, VehicleControllerCore
+from semi_active_control.supervision import CornerModels
+
+#: The node's parameters (the one place they are declared).
+PARAMETERS = (
+    Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook) or '
+          'passive@<I>A'),
+    Param('cycle_s', 0.002, 'Control cycle: the sensor cycle, each answer\'s deadline [s]',
+          1e-4, 1.0),
+    Param('model_files', ['', '', '', ''], 'Per corner (fl, fr, rl, rr) the damper\'s '
+          'parameter file (end-of-line record: mr-damper-identify --batch --params-dir), or '
+          '"" for the live identifier on <c>/mr_damper/kwok_parameters'),
+    Param('safe_current_a', 0.5, 'Coil current of a corner in fail-safe [A]', 0.0, 10.0),
+    Param('param_timeout_s', 1.0, 'A live corner\'s identified parameters older than this are '
+          'stale [s, node clock]', 0.01, 3600.0),
+    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
+    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
+    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
+          '[A]', 0.0, 10.0),
+    Param('hold_on_reject', False, 'Keep a live corner\'s model when a later set is refused '
+          '(until stale)'),
+    Param('max_consecutive_misses', 5, 'Cycles in a row answered after their deadline that put '
+          'every corner on the safe current (deadline_misses)', 1, 100000),
+    Param('recover_cycles', 50, 'Cycles in a row on time that end deadline_misses', 1, 100000),
+    Param('sensor_timeout_s', 0.02, 'No state for this long: every corner on the safe current '
+          '(sensor_timeout) [s]', 1e-3, 60.0),
+    Param('check_period_s', 0.01, 'Period of the sensor timeout check and of the safe '
+          'commands while it lasts [s] (inside the drivers\' command timeout)', 1e-3, 1.0),
+) + MANAGED_PARAMETERS
+
+
+class VehicleControllerNode(LifecycleNode):
+    """Thin lifecycle node over :class:`VehicleControllerCore` (see the module docstring)."""
+
+    def __init__(self, **node_kwargs):
+        super().__init__('vehicle_controller', **node_kwargs)
+        self.p = declare_parameters(self, PARAMETERS)
+        self.lock = threading.Lock()
+        self.core = None
+        self.lane = None
+        self.state_sub = None
+        self.params_subs = []
+        self.cmd_pub = None
+        self.timer = None
+        self.cmd_msg = FullCarCommand()
+        self.geometry = PASSENGER_CAR.geometry
+        managed_services(self, self.p, 'vehicle_controller')
+
+    # --- lifecycle ------------------------------------------------------------------------------
+    def on_configure(self, state):
+        """Build the law and load the models; subscribe and publish."""
+        p = self.p
+        try:
+            models = CornerModels(p['model_files'], timeout_s=p['param_timeout_s'],
+                                  safe_current_a=p['safe_current_a'], i_min_a=p['i_min_a'],
+                                  i_max_a=p['i_max_a'],
+                                  min_current_span_a=p['min_current_span_a'],
+                                  hold_on_reject=p['hold_on_reject'])
+            core = VehicleControllerCore(
+                PASSENGER_CAR, p['controller'], models, cycle_s=p['cycle_s'],
+                max_consecutive_misses=p['max_consecutive_misses'],
+                recover_cycles=p['recover_cycles'], input_timeout_s=p['sensor_timeout_s'])
+        except ValueError as exc:
+            self.get_logger().error(f'configure refused: {exc}')
+            return FAILURE
+        verdicts = core.configure(node_time_s(self))
+        for corner, verdict in verdicts.items():
+            # (one severity per call site: rclpy refuses a line that logs at two)
+            if verdict.accepted:
+                self.get_logger().info(f'{corner}: model file ok')
+            else:
+                self.get_logger().warning(f'{corner}: model file refused ({verdict.reason}): '
+                                          f'{verdict.detail}; the corner stays on its safe '
+                                          'current')
+        with self.lock:
+            self.core = core
+        self.cmd_pub = self.create_publisher(FullCarCommand, 'vehicle/command', VEHICLE_QOS)
+        self.lane = FastLane(self, 'states')
+        self.state_sub = self.lane.node.create_subscription(FullCarState, 'vehicle/state',
+                                                            self.on_state, VEHICLE_QOS)
+        self.params_subs = [
+            self.create_subscription(KwokParameters, f'{c}/mr_damper/kwok_parameters',
+                                     lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
+            for i, c in enumerate(CORNERS) if models.source(i) == 'live']
+        self.timer = self.create_timer(p['check_period_s'], self.on_check)
+        self.lane.start()
+        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        self.get_logger().info(
+            f'{core.controller.name}: vehicle/state -> vehicle/command every '
+            f'{p["cycle_s"] * 1e3:g} ms; models: '
+            + ', '.join(f'{c} {models.source(c)}' for c in CORNERS))
+        return SUCCESS
+
+    def on_activate(self, state):
+        """Start commanding."""
+        with self.lock:
+            self.core.activate(node_time_s(self))
+        return SUCCESS
+
+    def on_deactivate(self, state):
+        """Put every corner on the safe current (one command), then stop commanding."""
+        now = node_time_s(self)
+        with self.lock:         # published under the lock: no law command after this one
+            self._publish(self.core.deactivate(now), now)
+        return SUCCESS
+
+    def on_cleanup(self, state):
+        """Drop the topics and the core."""
+        self._teardown()
+        return SUCCESS
+
+    def on_shutdown(self, state):
+        """Deactivate first if active (the safe command), then clean up."""
+        if self.core is not None and self.core.active:
+            self.on_deactivate(state)
+        self._teardown()
+        return SUCCESS
+
+    def on_error(self, state):
+        """Publish the safe command if possible, clean up: back to unconfigured."""
+        if self.core is not None and self.cmd_pub is not None:
+            self.on_deactivate(state)
+        self._teardown()
+        return SUCCESS
+
+    def _teardown(self):
+        if self.lane is not None:
+            self.lane.close()
+            self.lane = None
+        for sub in self.params_subs:
+            self.destroy_subscription(sub)
+        self.params_subs = []
+        if self.timer is not None:
+            self.destroy_timer(self.timer)
+            self.timer = None
+        if self.cmd_pub is not None:
+            self.destroy_publisher(self.cmd_pub)
+            self.cmd_pub = None
+        with self.lock:
+            self.core = None
+
+    # --- callbacks ------------------------------------------------------------------------------
+    def on_state(self, msg):
+        """Answer one state (the lane's thread)."""
+        f = messages.full_car_state_fields(msg)
+        state = full_car_state(self.geometry, f['t'], f['body'], f['body_rates'],
+                               f['body_acc'], f['travel'], f['travel_velocity'],
+                               f['tyre_deflection'], f['wheel_velocity'], f['damper_force'])
+        now = node_time_s(self)
+        with self.lock:
+            if self.core is None:
+                return
+            cmd = self.core.command(state, f['sequence'], f['valid'], f['reason'], now)
+            if cmd is not None:
+                self._publish(cmd, now)
+
+    def on_check(self):
+        """Sensor timeout: the safe command while no state comes (timer)."""
+        now = node_time_s(self)
+        with self.lock:
+            cmd = self.core.check(now) if self.core is not None else None
+            if cmd is not None:
+                self._publish(cmd, now)
+
+    def on_params(self, i, msg):
+        """Offer a live identifier's set to corner ``i``."""
+        try:
+            values = messages.kwok_parameters_flat(msg)
+        except ValueError as exc:
+            values = exc
+        with self.lock:
+            if self.core is None:
+                return
+            verdict = self.core.offer_parameters(i, values, node_time_s(self))
+        if verdict is not None and not verdict.accepted:
+            self.get_logger().warning(f'{CORNERS[i]}: parameters refused ({verdict.reason}): '
+                                      f'{verdict.detail}', throttle_duration_sec=1.0)
+
+    def _publish(self, cmd, now):
+        if self.cmd_pub is None:
+            return
+        self.drops.publish(self.cmd_pub, messages.full_car_command_msg(cmd, now, self.cmd_msg))
+
+    # --- status ---------------------------------------------------------------------------------
+    def status(self):
+        """Return the status dict (the core's, the lifecycle state and the drop counts)."""
+        with self.lock:
+            st = self.core.status(node_time_s(self)) if self.core is not None else {}
+        st.update(lifecycle=state_label(self), dropped=self.drops.counts())
+        return st
+
+    def health(self):
+        """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
+        st = self.status()
+        problems = []
+        if 'corners' not in st:
+            problems.append((WARN, f'{st["lifecycle"]}: not configured'))
+        elif not st['active']:
+            problems.append((WARN, f'{st["lifecycle"]}: every corner on the safe current'))
+        else:
+            reason = st['deadline']['reason']
+            if reason:
+                problems.append((ERROR, f'every corner on the safe current: {reason}'))
+            safe = [c for c, d in st['corners'].items() if d.get('mode') != 'normal']
+            if safe and not reason:
+                problems.append((WARN, 'fail-safe at ' + ', '.join(
+                    f'{c} ({st["corners"][c].get("reason")})' for c in safe)))
+        return worst(problems or [(OK, 'ok')], st)
+
+
+def main(args=None):
+    """Entry point of ``vehicle_controller_node``."""
+    return run_managed(VehicleControllerNode, 'vehicle_controller_node', args=args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,53 @@
+"""
+``mr-damper-suite --config vehicle``: the vehicle computer against the car on a CAN bus.
+
+Order and counts only: the suite runs until the lifecycle manager has brought the chain up and
+the bridge has answered 500 sensor cycles (then it is stopped with SIGINT, as Ctrl-C); every
+node exits 0; the summary's ``vehicle`` section has its keys, the cycles it counted, the
+bridge's answers among them, the chain's six transitions, and the body's a_v with the offline
+references on the same window.
+"""
+import json
+import os
+import re
+
+import pytest
+
+from conftest import VENV_BIN
+from integration.ros_helpers import run_until_ready
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+KEYS = ('control_cycles', 'answered_fraction', 'deadline_misses', 'driver_command_timeouts',
+        'sensor_to_command_s', 'frames_lost', 'a_v', 'a_v_passive', 'a_v_lockstep')
+
+
+def test_vehicle_suite_chain_comes_up_and_reports(tmp_path):
+    out = tmp_path / 'vehicle'
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'vehicle', '--duration', '0',
+           '--out', str(out), '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
+           '--no-plots', '--set', 'lifecycle_manager.heartbeat_timeout_s=10.0']
+
+    def ready(line):
+        m = re.search(r'chain bridge active,estimator active,controller active \| cycles \d+ '
+                      r'answered (\d+)', line)
+        return m is not None and int(m.group(1)) >= 500
+
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, guard_s=600.0)
+    assert ok, ''.join(seen[-20:])
+    assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
+    summary = json.loads((out / 'summary.json').read_text())
+    codes = summary['exit_codes']
+    assert set(codes) == {'mr_damper_record', 'full_car_node', 'vehicle_bridge',
+                          'vehicle_estimator', 'vehicle_controller', 'lifecycle_manager'}
+    assert all(code == 0 for code in codes.values()), codes
+    v = summary['vehicle']
+    assert set(KEYS) <= set(v), sorted(v)
+    assert v['control_cycles'] >= 500 and v['chain']['transitions'] >= 6, v
+    assert 0.0 <= v['answered_fraction'] <= 1.0
+    assert v['sensor_to_command_s']['n'] >= 500
+    assert v['deadline_misses'] <= v['deadline']['cycles']
+    assert isinstance(v['frames_lost']['total'], int)
+    assert v['a_v'] > 0 and v['a_v_passive'] > 0 and v['a_v_lockstep'] > 0, v
+    assert (out / 'full_car_body.npz').is_file()
