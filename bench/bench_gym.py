@@ -42,10 +42,15 @@ import time
 import gymnasium
 import numpy as np
 
+from mr_damper_bringup import ride_study_cli
 import mr_damper_gym
 from mr_damper_gym import roads
 from mr_damper_gym.baselines import FULL_BASELINES, LawPolicy, QUARTER_BASELINES, run_episode
+from mr_damper_gym.core import EnvCore
 from mr_damper_model.models.plant import make_plant
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.full_car import cli as full_car_cli
+from quarter_car_sim.full_car.dynamics import FullCar
 
 IDS = {'quarter': mr_damper_gym.QUARTER_CAR_ID, 'full': mr_damper_gym.FULL_CAR_ID}
 
@@ -77,17 +82,14 @@ def _env_rate(car, steps, repeats, **kw):
 
 def _simulator_rate(car, steps, repeats):
     """Time the alternative: the simulator's Python car step with the same plants."""
-    from mr_damper_gym.core import EnvCore
     core = EnvCore(car, plant='spencer', episode_end='none')
     spec = roads.road_spec(core.defaults, {'road_seed': 1, 'duration_s': steps * 1e-3 + 1},
                            None)
     road = roads.build_road(car, core.params, spec, core.dt)
     if car == 'quarter':
-        from quarter_car_sim.dynamics import QuarterCar
         sim = QuarterCar(core.params, make_plant('spencer'), road)
         cmd = 0.0
     else:
-        from quarter_car_sim.full_car.dynamics import FullCar
         sim = FullCar(core.params, [make_plant('spencer') for _ in range(4)], road)
         cmd = [0.0] * 4
 
@@ -150,18 +152,28 @@ def speed(args):
 
 
 def _offline(car, name, seed, duration, params_file):
-    """Return the law's figures from the offline tool's ``run()`` on the same road."""
+    """
+    Return the law's figures from the offline tool's ``run()`` on the same road.
+
+    The tool names a result by its law object (``passive@0A`` runs as ``passive@0.0A``): the
+    run has one law, its one entry is the figures.
+    """
     if car == 'quarter':
-        from mr_damper_bringup import ride_study_cli as cli
-        args = cli.build_parser().parse_args(
+        args = ride_study_cli.build_parser().parse_args(
             ['--controller', name, '--plant', 'spencer', '--damper-params', params_file,
              '--seed', str(seed), '--duration', str(duration), '--json'])
-        return cli.run(args)[0]['controllers'][name]
-    from quarter_car_sim.full_car import cli
-    args = cli.build_parser().parse_args(
+        return _only(ride_study_cli.run(args)[0]['controllers'])
+    args = full_car_cli.build_parser().parse_args(
         ['--law', name, '--plant', 'spencer', '--damper-params', params_file,
          '--seed', str(seed), '--duration', str(duration), '--json'])
-    return cli.run(args)['laws'][name]
+    return _only(full_car_cli.run(args)['laws'])
+
+
+def _only(results):
+    """Return the one value of a one-law result dict."""
+    if len(results) != 1:
+        raise RuntimeError(f'expected one law in the tool\'s result, got {sorted(results)}')
+    return next(iter(results.values()))
 
 
 def baselines(args):

@@ -17,6 +17,11 @@ import math
 
 import numpy as np
 
+from quarter_car_sim.controllers import make_controller
+from quarter_car_sim.dynamics import CarState
+from quarter_car_sim.full_car.control import make_full_car_law
+from quarter_car_sim.full_car.dynamics import FullCarState
+
 #: Baselines of each car: name -> (law name of the offline tool, action kind).
 QUARTER_BASELINES = {'passive@0A': 'current', 'skyhook': 'force', 'clipped-optimal-wk': 'force'}
 FULL_BASELINES = {'passive@0A': 'current', 'per-corner-skyhook': 'force',
@@ -52,12 +57,10 @@ class LawPolicy:
         self.dt = core.dt
         p = core.params
         if core.car == 'quarter':
-            from quarter_car_sim.controllers import make_controller
             self.law = make_controller(name, params=p, inverse=core.inverses[0], dt=self.dt,
                                        damper_only=True)
             self.laws = [self.law]
         else:
-            from quarter_car_sim.full_car.control import make_full_car_law
             self.law = make_full_car_law(name, p, dt=self.dt)
             self.laws = self.law.corner_laws
         kinds = {law.kind for law in self.laws}
@@ -74,7 +77,6 @@ class LawPolicy:
 
     def state(self, obs):
         """Return the simulator's state type the law reads, from a true-state observation."""
-        from quarter_car_sim.dynamics import CarState
         o = np.asarray(obs, dtype=float).tolist()
         nan = math.nan
         if self.core.car == 'quarter':
@@ -82,7 +84,6 @@ class LawPolicy:
             # road height 0: the wheel height is the tyre deflection (only z_u - z_r is read)
             return CarState(self.t, tr + tyre, vs, a_s, tyre, vu, nan, 0.0, tr, vr, nan, fd,
                             cur)
-        from quarter_car_sim.full_car.dynamics import FullCarState
         a = np.asarray(obs, dtype=float)
         c = [a[4 * j:4 * j + 4] for j in range(9)]
         body = a[36:45]

@@ -12,6 +12,7 @@ Random numbers of the sensors are drawn in numpy, per car from its own generator
 :data:`DRAW_BLOCK` samples (the random-walk and noise normals and the loss uniform of each
 sample), so the compiled step never touches a random state.
 """
+from concurrent.futures import ThreadPoolExecutor
 import math
 import os
 
@@ -94,7 +95,6 @@ class CarBatch:
         self.threads = max(1, min(int(threads), self.n))
         self._pool = None
         if self.threads > 1:
-            from concurrent.futures import ThreadPoolExecutor
             self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix='car_batch')
             bounds = np.linspace(0, self.n, self.threads + 1).astype(int)
             self._shares = [(a, b) for a, b in zip(bounds[:-1], bounds[1:])]

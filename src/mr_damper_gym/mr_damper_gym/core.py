@@ -27,7 +27,21 @@ on other roads of that class and speed. The mean of ``-r`` over an episode is th
 import functools
 import math
 
+from gymnasium import spaces
 import numpy as np
+
+from mr_damper_model.identification import presets
+from mr_damper_model.models.inverse import KwokCurrentInverse
+from mr_damper_model.models.plant import make_plant
+from mr_damper_rig.virtual_rig import identify_damper
+from quarter_car_sim.bound import KwokForceModel, semi_active_bound
+from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
+from quarter_car_sim.full_car.estimator import ACCEL_CORNERS
+from quarter_car_sim.full_car.params import CORNERS, PASSENGER_CAR
+from quarter_car_sim.full_car.simulate import corner_message
+from quarter_car_sim.params import QuarterCarParams
+from quarter_car_sim.sensors import accelerometer_spec, default_specs, ride_height_spec
+from quarter_car_sim.simulate import INVERSE_TOL_A, make_inverse
 
 from mr_damper_gym.batch import CarBatch
 from mr_damper_gym.model import CarModel, ModelError
@@ -55,8 +69,6 @@ def identified_set(plant_name, seed):
     ``mr_damper_rig.virtual_rig.identify_damper`` (the ``quarter-car-sim`` default): the laws'
     and the force action's inverse never see the plant's true parameters.
     """
-    from mr_damper_model.models.plant import make_plant
-    from mr_damper_rig.virtual_rig import identify_damper
     return identify_damper(make_plant(plant_name), seed=seed)
 
 
@@ -68,7 +80,6 @@ def default_set(plant_name, seed):
     ``full-car-sim`` without ``--damper-params``); a Spencer plant is identified.
     """
     if plant_name == 'kwok-current':
-        from mr_damper_model.identification import presets
         model, params = presets.thesis_kwok_current()
         return {'parameters': params, 'model_options': dict(model.options),
                 'current_min_a': 0.0, 'current_max_a': 2.0,
@@ -125,7 +136,6 @@ class EnvCore:
                  speed_m_s=20.0, events=(), tyre_weight=0.0, episode_end='bound', dt=1e-3,
                  settle_s=0.5, settle_current_a=None, force_limit_n=5000.0,
                  identification_seed=1, substeps=1, sensors=None, params=None):
-        from mr_damper_model.models.plant import make_plant
         if car not in ('quarter', 'full'):
             raise ModelError(f"`car` must be 'quarter' or 'full', got {car!r}")
         for name, value, allowed in (('observation', observation, OBSERVATIONS),
@@ -137,10 +147,8 @@ class EnvCore:
         self.episode_end = episode_end
         if params is None:
             if car == 'quarter':
-                from quarter_car_sim.params import QuarterCarParams
                 params = QuarterCarParams()
             else:
-                from quarter_car_sim.full_car.params import PASSENGER_CAR
                 params = PASSENGER_CAR
         self.params = params
         nc = 1 if car == 'quarter' else 4
@@ -176,13 +184,10 @@ class EnvCore:
     # --- construction ----------------------------------------------------------------------
     def _sensors(self):
         """Return the production sensor set (quarter car: body accelerometer, position sensor)."""
-        from quarter_car_sim.sensors import accelerometer_spec, default_specs, ride_height_spec
         if self.car == 'quarter':
             s = default_specs()
             return [('body_accel', 'accel', 0, s['body_accel']),
                     ('travel', 'travel', 0, s['travel'])]
-        from quarter_car_sim.full_car.estimator import ACCEL_CORNERS
-        from quarter_car_sim.full_car.params import CORNERS
         out = [(f'accel_{c}', 'accel', CORNERS.index(c), accelerometer_spec())
                for c in ACCEL_CORNERS]
         out += [(f'travel_{c}', 'travel', i, ride_height_spec()) for i, c in enumerate(CORNERS)]
@@ -192,11 +197,7 @@ class EnvCore:
         """Each corner's inverse of its identified set, as the offline tools build it."""
         p = self.params
         if self.car == 'quarter':
-            from quarter_car_sim.simulate import make_inverse
             return [make_inverse(self.damper_params[0], i_min=p.i_min, i_max=p.i_max)]
-        from mr_damper_model.models.inverse import KwokCurrentInverse
-        from quarter_car_sim.full_car.simulate import corner_message
-        from quarter_car_sim.simulate import INVERSE_TOL_A
         out = []
         for d in self.damper_params:
             # as the corner's ControllerCore: within the range the set was identified on
@@ -231,7 +232,6 @@ class EnvCore:
 
     def spaces(self):
         """Return ``(observation_space, action_space)`` (gymnasium Boxes, float64, SI)."""
-        from gymnasium import spaces
         m = self.model
         sl = self.obs_slice
         obs = spaces.Box(m.obs_low[sl], m.obs_high[sl], dtype=np.float64)
@@ -389,11 +389,9 @@ class EnvCore:
         Its cost uses the tyre weight of the reward. Returns the figures of the replay (the
         keys of :meth:`CarModel.figures` the offline metrics give) and ``cost``.
         """
-        from mr_damper_model.models.plant import make_plant
         rho = self.model.tyre_weight
         plants = [make_plant(n) for n in self.plant_names]
         if self.car == 'quarter':
-            from quarter_car_sim.bound import KwokForceModel, semi_active_bound
             res = semi_active_bound(self.params, road, KwokForceModel(self.inverses[0]),
                                     plants[0], rho=rho, dt=self.dt,
                                     settle_s=self.settle_steps * self.dt)
@@ -404,7 +402,6 @@ class EnvCore:
                    'max_rms_tyre_load_ratio': m['rms_tyre_load_ratio']}
             comfort, tyre = m['rms_body_accel_wk'] ** 2, m['rms_tyre_load_ratio'] ** 2
         else:
-            from quarter_car_sim.full_car.bound import corner_force_model, full_car_bound
             models = [corner_force_model(d, self.params) for d in self.damper_params]
             res = full_car_bound(self.params, road, models, plants, self.damper_params,
                                  rho=rho, dt=self.dt, settle_s=self.settle_steps * self.dt)

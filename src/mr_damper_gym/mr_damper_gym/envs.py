@@ -16,6 +16,7 @@ import gymnasium
 
 from mr_damper_gym.batch import CarBatch
 from mr_damper_gym.core import EnvCore, gap_closed
+from mr_damper_gym.render import side_view
 
 
 class SemiActiveEnv(gymnasium.Env):
@@ -125,7 +126,6 @@ class SemiActiveEnv(gymnasium.Env):
         if self.render_mode is None:
             gymnasium.logger.warn('render() without render_mode (use render_mode="rgb_array")')
             return None
-        from mr_damper_gym.render import side_view
         return side_view(self.core, self.batch, 0, self.road)
 
     @property

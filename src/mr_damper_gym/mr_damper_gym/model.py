@@ -29,6 +29,11 @@ import numpy as np
 
 from mr_damper_gym import kernel as K
 from mr_damper_model.models.plant import KwokCurrentPlant, SpencerPlant
+from quarter_car_sim.dynamics import discretise as discretise_quarter
+from quarter_car_sim.full_car.dynamics import corner_maps, discretise as discretise_full
+from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
+from quarter_car_sim.full_car.params import CORNERS
+from quarter_car_sim.ride_metrics import wk_sos
 
 #: Envelope of the observation entries by quantity: no physical run reaches these (the
 #: kernel clips to them and counts the entries clipped, info ``obs_clipped``).
@@ -149,7 +154,6 @@ class CarModel:
 
     def __init__(self, kind, params, plants, sensors, *, dt=1e-3, substeps=1, seat=(0.0, 0.0),
                  tyre_weight=0.0):
-        from quarter_car_sim.ride_metrics import wk_sos
         if kind not in ('quarter', 'full'):
             raise ModelError(f"`kind` must be 'quarter' or 'full', got {kind!r}")
         if not (math.isfinite(dt) and dt > 0):
@@ -165,9 +169,9 @@ class CarModel:
         h = self.dt / self.substeps
         fs = 1.0 / self.dt
         if kind == 'quarter':
-            from quarter_car_sim.dynamics import discretise
             nc, nb, nx = 1, 1, 4
-            self.G = np.stack([discretise(params, h, contact=bool(p)) for p in range(2)])
+            self.G = np.stack([discretise_quarter(params, h, contact=bool(p))
+                               for p in range(2)])
             idx = ([0], [1], [2], [3])
             T = np.ones((1, 1))
             Ks = np.array([[params.k_s]])
@@ -178,12 +182,10 @@ class CarModel:
             self.channels = ('wk',)
             self.corners = ('corner',)
         else:
-            from quarter_car_sim.full_car.dynamics import corner_maps, discretise
-            from quarter_car_sim.full_car.metrics import AXIS_FACTORS, we_sos
-            from quarter_car_sim.full_car.params import CORNERS
             nc, nb, nx = 4, 3, 14
-            self.G = np.stack([discretise(params, h, tuple(bool(p >> i & 1) for i in range(4)))
-                               for p in range(16)])
+            self.G = np.stack([
+                discretise_full(params, h, tuple(bool(p >> i & 1) for i in range(4)))
+                for p in range(16)])
             idx = ([0, 1, 2], [7, 8, 9], [3, 4, 5, 6], [10, 11, 12, 13])
             T = corner_maps(params)[0]
             Ks, cs = params.spring_matrix(), params.c_s

@@ -25,7 +25,10 @@ import math
 
 import numpy as np
 
-from quarter_car_sim.road import RoadError
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.full_car.road import event_road, make_two_track_road
+from quarter_car_sim.road import bump, make_road, RoadError
 
 #: Event roads of each car (the offline tools' names).
 EVENT_ROADS = {'quarter': ('bump', 'sine', 'step'), 'full': ('bump', 'pothole', 'single-bump')}
@@ -110,10 +113,8 @@ def build_road(kind, params, spec, dt):
         raise RoadError(f'unknown road {road!r} (use iso8608 or {", ".join(EVENT_ROADS[kind])})')
     name = f'iso8608-{cls}' if road == 'iso8608' else road
     if kind == 'quarter':
-        from quarter_car_sim.road import make_road
         out = make_road(name, speed_m_s=v, duration_s=dur, dt=dt, rng=seed)
     else:
-        from quarter_car_sim.full_car.road import make_two_track_road
         out = make_two_track_road(name, params, speed_m_s=v, duration_s=dur, dt=dt, rng=seed)
     for ev in spec['events']:
         out = _add_event(kind, params, out, ev, v, dur, dt)
@@ -132,12 +133,10 @@ def _add_event(kind, params, road, ev, speed, duration, dt):
         extra['length'] = float(ev['length_m'])
     at = float(ev['at_s'])
     if kind == 'quarter':
-        from quarter_car_sim.road import bump
         e = bump(extra.get('height', 0.05), extra.get('length', 1.0), speed, duration, dt,
                  start_s=at)
         return dataclasses.replace(road, z=road.z + e.z, zdot=road.zdot + e.zdot,
                                    name=f'{road.name} + {k} at {at:.2f} s')
-    from quarter_car_sim.full_car.road import event_road
     e = event_road(k, speed, duration, wheelbase_m=params.wheelbase, dt=dt, start_s=at, **extra)
     return dataclasses.replace(road, z_left=road.z_left + e.z_left,
                                z_right=road.z_right + e.z_right,
@@ -166,9 +165,7 @@ def initial_state(kind, params, road, t0):
     dynamics.FullCar` themselves (static equilibrium on the road's heights at ``t0``).
     """
     if kind == 'quarter':
-        from quarter_car_sim.dynamics import QuarterCar
         s = QuarterCar(params, None, road, t0=t0).state
         return np.array([s.z_s, s.v_s, s.z_u, s.v_u])
-    from quarter_car_sim.full_car.dynamics import FullCar
     s = FullCar(params, None, road, t0=t0).state
     return np.concatenate([s.q, s.v])

@@ -17,6 +17,7 @@ import numpy as np
 
 from mr_damper_gym.batch import CarBatch
 from mr_damper_gym.core import ActionError, EnvCore, gap_closed
+from mr_damper_gym.render import side_view
 
 
 class SemiActiveVectorEnv(VectorEnv):
@@ -166,7 +167,6 @@ class SemiActiveVectorEnv(VectorEnv):
         if self.render_mode is None:
             gymnasium.logger.warn('render() without render_mode (use render_mode="rgb_array")')
             return None
-        from mr_damper_gym.render import side_view
         return tuple(side_view(self.core, self.batch, i, self.roads[i])
                      for i in range(self.num_envs))
 
