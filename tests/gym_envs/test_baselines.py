@@ -14,6 +14,9 @@ import pytest
 import mr_damper_gym
 from mr_damper_gym.baselines import FULL_BASELINES, LawPolicy, QUARTER_BASELINES, run_episode
 from mr_damper_model.models.plant import make_plant
+from quarter_car_sim.controllers import make_controller
+from quarter_car_sim.full_car.simulate import simulate_full_car
+from quarter_car_sim.simulate import simulate
 
 DURATION_S = 2.0
 
@@ -25,8 +28,6 @@ def _env(env_id, action):
 
 @pytest.mark.parametrize('name', list(QUARTER_BASELINES))
 def test_quarter_car_laws_equal_quarter_car_sim(name):
-    from quarter_car_sim.controllers import make_controller
-    from quarter_car_sim.simulate import simulate
     env = _env(mr_damper_gym.QUARTER_CAR_ID, QUARTER_BASELINES[name])
     info = run_episode(env, LawPolicy(env, name), seed=1, options={'road_seed': 2})
     core, road = env.unwrapped.core, env.unwrapped.road
@@ -41,7 +42,6 @@ def test_quarter_car_laws_equal_quarter_car_sim(name):
 
 @pytest.mark.parametrize('name', list(FULL_BASELINES))
 def test_full_car_laws_equal_full_car_sim(name):
-    from quarter_car_sim.full_car.simulate import simulate_full_car
     env = _env(mr_damper_gym.FULL_CAR_ID, FULL_BASELINES[name])
     info = run_episode(env, LawPolicy(env, name), seed=1, options={'road_seed': 2})
     core, road = env.unwrapped.core, env.unwrapped.road

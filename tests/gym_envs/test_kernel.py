@@ -14,7 +14,12 @@ from mr_damper_gym.batch import CarBatch
 from mr_damper_gym.core import EnvCore
 from mr_damper_gym import roads as R
 from mr_damper_model.models.plant import make_plant
+from quarter_car_sim.controllers import Passive
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.full_car.simulate import simulate_full_car
 from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec, Sensor
+from quarter_car_sim.simulate import simulate
 
 
 def _core(car, plant, **kw):
@@ -46,7 +51,6 @@ def _currents(n, nc, seed):
 
 @pytest.mark.parametrize('plant', ['kwok-current', 'spencer'])
 def test_quarter_car_step_is_the_simulators(plant):
-    from quarter_car_sim.dynamics import QuarterCar
     core = _core('quarter', plant)
     road = _road(core, 4)
     n = 600
@@ -74,7 +78,6 @@ def test_quarter_car_step_is_the_simulators(plant):
 
 
 def test_full_car_step_is_the_simulators():
-    from quarter_car_sim.full_car.dynamics import FullCar
     core = _core('full', 'spencer')
     road = _road(core, 7)
     n = 500
@@ -105,14 +108,11 @@ def test_running_iso_figures_are_the_offline_metrics(car):
     fig = core.passive_figures(road, 0.8)
     plants = [make_plant('spencer') for _ in range(core.model.nc)]
     if car == 'quarter':
-        from quarter_car_sim.controllers import Passive
-        from quarter_car_sim.simulate import simulate
         m = simulate(core.params, road, Passive(0.8), plants[0]).metrics()
         keys = ('rms_body_accel_wk', 'rms_tyre_load_ratio', 'rms_suspension_travel',
                 'rms_body_accel')
         assert fig['n_samples'] == m['n_samples']
     else:
-        from quarter_car_sim.full_car.simulate import simulate_full_car
         m = simulate_full_car(core.params, road, 'passive@0.8A', plants,
                               core.damper_params).metrics(core.params)
         keys = ('a_wz', 'a_w_pitch', 'a_w_roll', 'a_v', 'vdv_total', 'crest_max',
