@@ -4,13 +4,13 @@ Make the README's figure ``docs/main_job.png`` from one run of the main job.
 Usage::
 
     .venv/bin/python launch_scripts/make_main_job_figure.py [--duration 40] [--run DIR]
-        [--out docs/main_job.png]
+        [--out docs/main_job.png] [--height 480]
 
 Runs the main job, ``bash launch_scripts/main.sh --duration 40 --out DIR`` (default
 ``runs/main_job_figure``; with ``--duration 0`` no run: the plots already in ``DIR`` are used),
 and joins the run's three plots, ``hysteresis.png``, ``convergence.png`` and ``ride.png``
-(``mr_damper_bringup.plots``), side by side into one PNG, each scaled to the same height. The
-suite's own outputs are unchanged.
+(``mr_damper_bringup.plots``), side by side into one PNG, each scaled to the same height
+(``--height``, default 480 pixels). The suite's own outputs are unchanged.
 """
 import argparse
 from pathlib import Path
@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 PANELS = ('hysteresis.png', 'convergence.png', 'ride.png')
 
 
-def join_side_by_side(paths, out, dpi=110):
+def join_side_by_side(paths, out, height=None, dpi=110):
     """
     Write the PNGs ``paths`` side by side into ``out``, scaled to one height.
 
@@ -31,8 +31,10 @@ def join_side_by_side(paths, out, dpi=110):
         The panels, left to right.
     out : path-like
         The PNG written.
+    height : int, optional
+        Height of ``out`` [pixels]; default the tallest panel's.
     dpi : float
-        Resolution of ``out`` [dots per inch]; the height is the tallest panel's in pixels.
+        Resolution of ``out`` [dots per inch] (sets only the PNG's metadata).
 
     """
     import matplotlib
@@ -40,7 +42,7 @@ def join_side_by_side(paths, out, dpi=110):
     import matplotlib.image as mpimg
     import matplotlib.pyplot as plt
     images = [mpimg.imread(str(p)) for p in paths]
-    height = max(im.shape[0] for im in images)
+    height = height or max(im.shape[0] for im in images)
     widths = [im.shape[1] * height / im.shape[0] for im in images]
     fig = plt.figure(figsize=(sum(widths) / dpi, height / dpi), dpi=dpi)
     left = 0.0
@@ -62,6 +64,8 @@ def main(argv=None):
                    help='the run\'s output folder (default runs/main_job_figure)')
     p.add_argument('--out', default=str(REPO / 'docs' / 'main_job.png'),
                    help='the joined PNG (default docs/main_job.png)')
+    p.add_argument('--height', type=int, default=480,
+                   help='height of the joined PNG [pixels] (default 480)')
     args = p.parse_args(argv)
     run = Path(args.run)
     if args.duration > 0:
@@ -74,7 +78,7 @@ def main(argv=None):
     if missing:
         print(f'make_main_job_figure: {run} has no {", ".join(missing)}', file=sys.stderr)
         return 2
-    join_side_by_side([run / name for name in PANELS], args.out)
+    join_side_by_side([run / name for name in PANELS], args.out, args.height)
     print(f'figure: {args.out}')
     return 0
 

@@ -2,7 +2,7 @@
 ``launch_scripts/make_main_job_figure.py``: the README figure is the run's three plots joined.
 
 Three PNGs of known sizes and colours are joined without a suite run (``--duration 0``); the
-result is as tall as the tallest panel, each panel keeps its aspect ratio, and each colour sits
+result is as tall as asked, each panel keeps its aspect ratio, and each colour sits
 in its panel's column, left to right. A folder without the plots exits 2 and writes nothing.
 """
 import importlib.util
@@ -33,9 +33,10 @@ def test_joins_the_three_plots_side_by_side(tmp_path):
     for name, ((h, w), rgb) in panels.items():
         mpimg.imsave(tmp_path / name, np.tile(np.array(rgb), (h, w, 1)))
     out = tmp_path / 'main_job.png'
-    assert script.main(['--duration', '0', '--run', str(tmp_path), '--out', str(out)]) == 0
+    assert script.main(['--duration', '0', '--run', str(tmp_path), '--out', str(out),
+                        '--height', '200']) == 0
     joined = mpimg.imread(out)[..., :3]
-    # all scaled to the tallest (200 px): widths 400, 200 and 100 px
+    # all scaled to 200 px: widths 400, 200 and 100 px
     assert joined.shape[0] == 200
     assert abs(joined.shape[1] - 700) <= 2
     middle = joined[100]
