@@ -4,26 +4,17 @@ import math
 import numpy as np
 import pytest
 
+from full_car_cases import corners_of
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.full_car import make_two_track_road, PASSENGER_CAR, supervisor_message
 from quarter_car_sim.full_car.controller_core import (body_coordinates, CornerState,
                                                       full_car_state, FullCarControllerCore)
-from quarter_car_sim.full_car.runtime import corner_car_state, FullCarRuntime
+from quarter_car_sim.full_car.runtime import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
 SAFE_A = 0.7
 T = PASSENGER_CAR.geometry
-
-
-def corners_of(state):
-    """Return the four corner states of a full-car state, as the corner messages carry them."""
-    out = []
-    for i in range(4):
-        c = corner_car_state(state, i)
-        out.append(CornerState(c.t, c.z_s, c.v_s, c.a_s, c.z_u, c.v_u, c.travel, c.v_rel,
-                               c.z_r))
-    return out
 
 
 def test_body_coordinates_of_a_rigid_body_are_exact_and_survive_one_missing_corner():

@@ -216,7 +216,10 @@ class FullCarControllerCore:
                     self.dropped['incomplete'] += 1
             return None
         corners, self._pending = self._pending, [None] * 4
-        currents = self.controller.command(full_car_state(self.params, corners), t_clock)
+        state = full_car_state(self.params, corners)
+        self.before_command(state)
+        currents = self.controller.command(state, t_clock)
+        self.after_command(state)
         for j, mode in enumerate(self.controller.modes):
             if mode == 'normal':
                 self.normal_commands[j] += 1
@@ -225,6 +228,12 @@ class FullCarControllerCore:
         self.sets += 1
         self.currents = currents
         return currents
+
+    def before_command(self, state):
+        """Run before the law on a complete set's state (a subclass's hook; nothing here)."""
+
+    def after_command(self, state):
+        """Run after the four currents of a set (a subclass's hook; nothing here)."""
 
     def status(self, t_clock=None):
         """

@@ -26,8 +26,9 @@ that corner's inverse and supervisor as every full-car law does. Two sources of 
 - ``'look-ahead'``: the map is filled by a look-ahead sensor's frames
   (:meth:`RoadPreview.offer_frame`, from a node or, offline, :class:`FedFullCarLaw`).
 
-Without a valid window (no speed yet, a dropout longer than the map ahead) the law is
-``full-car-clipped-optimal-wk`` for that step, counted in ``stats``.
+Without a valid window (no speed yet, a dropout longer than the map ahead, or
+``preview_enabled`` False: the live input's timeout, :mod:`~quarter_car_sim.full_car.
+preview_live`) the law is ``full-car-clipped-optimal-wk`` for that step, counted in ``stats``.
 """
 import math
 
@@ -174,6 +175,8 @@ class FullCarPreviewLaw(ForceLaw):
             self.front.reset()
         self.stats.reset()
         self.feedforward = np.zeros(4)
+        self.preview_enabled = True
+        self.last_previewed = False
 
     def window(self, state):
         """Return the heights (p + 1, 4) under the wheels at the preview times, or None."""
@@ -187,11 +190,15 @@ class FullCarPreviewLaw(ForceLaw):
         """Return the LQR forces plus the feedforward [N] (the LQR's alone without a window)."""
         f = self.base.desired_forces(state)
         if self._trivial:
+            self.last_previewed = True
             self.stats.count(True)
             self.feedforward = np.zeros(4)
             return f
         z = self.window(state)
-        self.stats.count(z is not None)
+        if not self.preview_enabled:            # the live input's timeout (preview_live)
+            z = None
+        self.last_previewed = z is not None
+        self.stats.count(self.last_previewed)
         self.feedforward = np.zeros(4) if z is None else np.einsum('jmw,jw->m', self._taps, z)
         return f + self.feedforward
 
