@@ -124,6 +124,8 @@ def test_full_car_suite_runs_the_preview_law_live(tmp_path):
 
     The sensor is blind from 1.0 to 1.5 s (simulated): the controller falls back to the law
     without preview, counted, and previews again after it; the summary carries the body figures.
+    The car runs in lock-step with the controller (each step waits for the four commands), so
+    on a loaded machine the controller answers every state instead of dropping most of them.
     """
     def ready(line):
         # every corner commanded on its model, and the car past the outage (simulated time)
@@ -132,6 +134,7 @@ def test_full_car_suite_runs_the_preview_law_live(tmp_path):
                 and float(t_car.group(1)) >= 3.0)
 
     summary = run_external(tmp_path / 'full_car_preview', ready, '--preview',
+                           '--set', 'full_car_node.lockstep=true',
                            '--set', 'full_car_node.preview_outage_start_s=1.0',
                            '--set', 'full_car_node.preview_outage_s=0.5')
     car = summary['full_car']
