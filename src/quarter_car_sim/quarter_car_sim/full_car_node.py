@@ -360,7 +360,9 @@ class FullCarNode(Node):
         """Publish the look-ahead frames delivered by ``state.t`` (with the speed signal)."""
         if self.look_ahead is None:
             return
-        for seq, frame in self.look_ahead.frames(state.t, float(state.q[1])):
+        with self.lock:                         # status() reads the sensor's counters
+            frames = self.look_ahead.frames(state.t, float(state.q[1]))
+        for seq, frame in frames:
             self.drops.publish(self.preview_pub, messages.road_preview_msg(
                 frame.stamp, frame.distance_m, frame.heights_m, sequence=seq,
                 speed_m_s=self.look_ahead.speed_m_s, valid=frame.valid,
