@@ -50,7 +50,7 @@ def _dp_first_move(design, x0, zdot, dtf, tail_s):
     Return the first move of the finite-horizon QP with the road known.
 
     Exact discretisation at ``dtf``, rectangle-rule cost, road velocities ``zdot`` (steps, 4)
-    then held still for ``tail_s``, solved by dynamic programming on the unreduced car: the
+    then held still for ``tail_s``; solved by dynamic programming on the unreduced car: the
     warp is a state here.
     """
     af, bf, e, cz, dz, _ = _full_model(design)
