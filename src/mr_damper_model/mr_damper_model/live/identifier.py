@@ -7,7 +7,9 @@ sample buffer and the windows it hands out (``sample_ring.SampleRing``), the sam
 (``current_bins.CurrentBins``), the set in use as a consistency reference
 (``reference.ConsistencyReference``), the acceptance review
 (``identification.acceptance.Acceptance``); what needs no state lives in ``config``,
-``screening``, ``fitting``, ``conversions`` and ``window``.
+``screening``, ``fitting``, ``conversions`` and ``window``.  What stays (about 630 lines, half
+of them docstrings) is the state machine itself: the steps that read and write the shared
+counters and the gate's state under the one lock.
 """
 from dataclasses import replace
 import math
