@@ -16,9 +16,10 @@ Skyhook (true Kwok-current parameters through the supervisor) on an ISO 8608 cla
 - the comfort cost of the current probe (Wk RMS increase) and per-bin sample counts with and
   without probing.
 
-Saves ``bench_out/bench_hil.png``. Usage::
+Saves the tracking and bin-count plot to ``--plot`` (default ``bench_out/bench_hil.png``;
+``docs/hil_bench.png`` is this plot). Usage::
 
-    .venv/bin/python bench/bench_hil.py --seconds 20
+    .venv/bin/python bench/bench_hil.py --seconds 20 [--plot docs/hil_bench.png]
 """
 import argparse
 import os
@@ -35,6 +36,7 @@ from quarter_car_sim.probing import CurrentProbe
 from quarter_car_sim.road import make_road
 
 DT = 1e-3
+BENCH_OUT = Path(__file__).resolve().parents[1] / 'bench_out'
 
 
 def _truth_msg():
@@ -62,6 +64,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--seconds', type=float, default=20.0, help='HIL runs [s]')
     ap.add_argument('--probe-seconds', type=float, default=100.0, help='probing runs [s]')
+    ap.add_argument('--plot', metavar='PNG', default=str(BENCH_OUT / 'bench_hil.png'),
+                    help='tracking and bin-count plot (default bench_out/bench_hil.png)')
     args = ap.parse_args()
     print(f'load (uptime): {os.getloadavg()}')
     ride_keys = ('rms_body_accel_wk', 'rms_suspension_travel', 'rms_tyre_load_ratio')
@@ -116,15 +120,14 @@ def main():
     print('bin [A]   ' + ' '.join(f'{x:6.1f}' for x in probe.levels_a))
     print('law       ' + ' '.join(f'{c:6d}' for c in law.counts))
     print('probed    ' + ' '.join(f'{c:6d}' for c in probe.counts))
-    _plot(records, law, probe)
+    _plot(records, law, probe, Path(args.plot))
 
 
-def _plot(records, law, probe):
+def _plot(records, law, probe, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    out = Path(__file__).resolve().parents[1] / 'bench_out'
-    out.mkdir(exist_ok=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7))
     rec = records[('first', 'none')]
     sl = slice(int(5.0 / DT), int(6.0 / DT))
@@ -146,8 +149,8 @@ def _plot(records, law, probe):
     ax2.set_ylabel('samples')
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / 'bench_hil.png', dpi=100)
-    print(f'plot: {out / "bench_hil.png"}')
+    fig.savefig(path, dpi=100)
+    print(f'plot: {path}')
 
 
 if __name__ == '__main__':

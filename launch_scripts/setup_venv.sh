@@ -86,11 +86,11 @@ pip=("$venv/bin/python" -m pip install --disable-pip-version-check --no-input)
 say "installing the pinned requirements (ROS 2 kilted wheels, numpy, scipy, ...) with pip"
 run 'pip install --upgrade pip' "${pip[@]}" --upgrade pip
 run 'pip install -r requirements.txt' "${pip[@]}" -r "$root/requirements.txt"
-say "installing the seven Python packages of src/ (editable)"
+say "installing the eight Python packages of src/ (editable)"
 run 'pip install -e src/...' "${pip[@]}" --no-deps --no-build-isolation \
   -e "$root/src/mr_damper_common" -e "$root/src/mr_damper_model" -e "$root/src/mr_damper_rig" -e "$root/src/quarter_car_sim" \
   -e "$root/src/mr_damper_bringup" -e "$root/src/mr_damper_can" \
-  -e "$root/src/semi_active_control"
+  -e "$root/src/semi_active_control" -e "$root/src/mr_damper_gym"
 
 # --- mr_damper_interfaces: C/C++ toolchain, mended CMake exports, build, install into the venv
 missing=()

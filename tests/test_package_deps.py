@@ -21,7 +21,7 @@ ROSDEP_KEYS = {'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'control': 'p
                'matplotlib': 'python3-matplotlib', 'numba': 'python3-numba',
                'psutil': 'python3-psutil', 'pytest': 'python3-pytest', 'can': 'python3-can',
                'cantools': 'python3-cantools', 'dask': 'python3-dask',
-               'distributed': 'python3-distributed'}
+               'distributed': 'python3-distributed', 'gymnasium': 'python3-gymnasium'}
 
 PACKAGES = sorted(p.parent for p in (REPO / 'src').glob('*/package.xml')
                   if (p.parent / p.parent.name).is_dir())

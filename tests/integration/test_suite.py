@@ -2,7 +2,7 @@
 The closed loop over ROS 2: quarter-car node, rig, identifier and the suite launcher.
 
 Real nodes in separate processes (console scripts of the venv), LOCALHOST discovery and the
-private domain of tests/conftest.py. Three runs, about 1.5 min together:
+private domain of tests/conftest.py. Four runs, about 3 min together on 2 shared cores at load 13:
 
 - the quarter-car node alone, fed by a test publisher: no model -> fail-safe at the safe current;
   a valid set -> normal; invalid, non-finite, out-of-range, narrow-range and zero ``i_ref_a``
@@ -14,7 +14,8 @@ private domain of tests/conftest.py. Three runs, about 1.5 min together:
   the passive damper on Wk-weighted RMS body acceleration on the same road and seed, exit
   status 0;
 - the suite's processes with the identifier killed mid-run: the car goes fail-safe (stale) after
-  the timeout and keeps running; the identifier restarted, the loop recovers.
+  the timeout and keeps running; the identifier restarted, the loop recovers;
+- a node that dies at every start ends the launcher's run with exit status 1.
 """
 import json
 import math
@@ -155,7 +156,7 @@ def test_full_suite_short_run(tmp_path):
     statuses = summary['recording']['statuses']
     assert all(statuses.get(n, 0) > 0 for n in ('rig', 'identifier', 'quarter_car', 'recorder')), \
         statuses
-    assert summary['recording']['undecodable'] == {}
+    assert summary['recording']['bad_messages'] == {}     # nothing the report left out
     # the settings of the report: what each node ran with, asked from its parameter services
     assert set(summary['recording']['node_parameters']) >= {'mr_damper_rig',
                                                             'mr_damper_identifier',

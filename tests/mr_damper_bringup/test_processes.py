@@ -66,7 +66,7 @@ def test_a_child_whose_parent_died_before_the_prctl_kills_itself():
 
 
 def _stubborn():
-    """A node that ignores SIGTERM (as one frozen in the middleware), in its own group."""
+    """Start a node that ignores SIGTERM (as one frozen in the middleware), in its own group."""
     code = 'import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\nprint(1, ' \
            'flush=True)\ntime.sleep(600)\n'
     proc = subprocess.Popen([sys.executable, '-c', code], stdout=subprocess.PIPE, text=True,

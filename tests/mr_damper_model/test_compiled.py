@@ -96,3 +96,23 @@ def test_read_only_package_folder_degrades_gracefully(patch, tmp_path):
         assert all(again['status'][n]['cache_hits'] == 1 for n in KERNELS)
     else:
         assert not list(tmp_path.rglob('*.nbi'))
+
+
+def test_a_kernel_with_helpers_of_another_module_recompiles_when_they_change(
+        tmp_path, monkeypatch):
+    # numba's cache watches the kernel's own file only: the helper's source keys the name
+    (tmp_path / 'gym_helper_mod.py').write_text('def twice(x):\n    return 2.0 * x\n')
+    (tmp_path / 'gym_kernel_mod.py').write_text(
+        'from gym_helper_mod import twice\n\n\ndef loop(a):\n    return twice(a) + 1.0\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import gym_helper_mod
+    import gym_kernel_mod
+    from mr_damper_model.models import compiled
+    first = compiled._build(gym_kernel_mod.loop, (gym_helper_mod.twice,), False)
+    assert first(3.0) == 7.0
+    name = first.py_func.__qualname__
+    assert name.startswith('loop_src') and len(name) == len('loop_src') + 12
+    (tmp_path / 'gym_helper_mod.py').write_text('def twice(x):\n    return x + x\n')
+    again = compiled._build(gym_kernel_mod.loop, (gym_helper_mod.twice,), False)
+    assert again.py_func.__qualname__ != name
+    assert again(3.0) == 7.0

@@ -25,7 +25,7 @@ def design():
 
 
 def _full_model(design):
-    """The unreduced car (15 states, the road warp kept) with the 20 filter states."""
+    """Return the unreduced car (15 states, the road warp kept) with the 20 filter states."""
     A, B, Cy, Dy, n = relative_model(P)
     aw, bw, cw, dw = design.filter
     ca = design.model['Ca']
@@ -47,9 +47,11 @@ def _full_model(design):
 
 def _dp_first_move(design, x0, zdot, dtf, tail_s):
     """
-    First move of the finite-horizon QP with the road known (exact discretisation at ``dtf``,
-    rectangle-rule cost, road velocities ``zdot`` (steps, 4) then held still for ``tail_s``),
-    solved by dynamic programming on the unreduced car: the warp is a state here.
+    Return the first move of the finite-horizon QP with the road known.
+
+    Exact discretisation at ``dtf``, rectangle-rule cost, road velocities ``zdot`` (steps, 4)
+    then held still for ``tail_s``; solved by dynamic programming on the unreduced car: the
+    warp is a state here.
     """
     af, bf, e, cz, dz, _ = _full_model(design)
     nx, m = bf.shape

@@ -11,7 +11,7 @@ from quarter_car_sim.road_preview import FrontRoadEstimate, PreviewFrame, RoadPr
 
 
 def _ramp_road(speed=20.0, duration=4.0, dt=1e-3):
-    """A road whose height is its distance x 1 % (so a height tells where it was read)."""
+    """Return a road whose height is its distance x 1 % (a height tells where it was read)."""
     t = np.arange(0.0, duration + dt / 2, dt)
     return RoadProfile(t, 0.01 * speed * t, np.full(t.size, 0.01 * speed), speed_m_s=speed)
 

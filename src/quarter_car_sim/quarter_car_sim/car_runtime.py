@@ -329,7 +329,9 @@ class CarRuntime:
             answered = True
             if self.sensors is not None:
                 # the estimator's estimate of the readings is what the controller answers
-                readings = self.sensors.step(state.t, state)
+                # (under the lock: a status read in between sees both sensors' counts alike)
+                with self.lock:
+                    readings = self.sensors.step(state.t, state)
                 answered = state.t >= 0.0   # settling before the road: stamps start at 0
                 if answered:
                     self.out.publish_sensors(state.t, readings)
@@ -450,7 +452,8 @@ class CarRuntime:
         if self.probe is not None:
             st['probe'] = self.probe.as_dict()
         if self.sensors is not None:
-            st['sensing'] = self.sensors.status()
+            with self.lock:
+                st['sensing'] = self.sensors.status()
         return st
 
     def health(self, dropped=None):

@@ -17,7 +17,16 @@ file, editing any of them changes the hash and the next call recompiles. numba p
 in this order: ``NUMBA_CACHE_DIR`` if set; the module's ``__pycache__`` if writable; the user-wide
 cache ``$XDG_CACHE_HOME/numba`` (``~/.cache/numba``); otherwise no cache folder is available and
 the kernel is compiled in memory in every process (:func:`cache_status` says which).
+
+Helpers from other modules. A kernel of another package (the car step of ``mr_damper_gym``)
+reuses the models' own helpers (``spencer.heun_substeps``, ``kwok_current_force_scalar``) by
+passing the functions themselves: each is compiled in its own module's namespace and inlined
+like a local helper. numba's cache only watches the kernel's own source file, so the kernel's
+cache name then carries a digest of the helpers' source files: editing one of them gives a new
+name, and the next call compiles afresh instead of loading stale machine code.
 """
+import hashlib
+import inspect
 import threading
 import types
 
@@ -38,25 +47,55 @@ def _rebind(func, namespace):
     return new
 
 
-def _build(func, helpers):
+def _helper_namespaces(func, helpers, namespace):
+    """Return ``{name: (function, namespace it is compiled in)}`` and the foreign source files."""
+    found = {}
+    foreign = set()
+    for helper in helpers:
+        if isinstance(helper, str):
+            py, ns = func.__globals__[helper], namespace
+        else:
+            py = helper
+            if py.__module__ == func.__module__:
+                ns = namespace
+            else:
+                ns = dict(py.__globals__)
+                foreign.add(inspect.getsourcefile(py))
+        if py.__name__ in found and found[py.__name__][0] is not py:
+            raise ValueError(f'two helpers named {py.__name__!r}')
+        found[py.__name__] = (py, ns)
+    return found, sorted(foreign)
+
+
+def _build(func, helpers, nogil):
     import numba
 
     namespace = dict(func.__globals__)
-    for name in helpers:
+    found, foreign = _helper_namespaces(func, helpers, namespace)
+    built = {}
+    for name, (py, ns) in found.items():
         # inlined in numba's IR: a helper that receives another helper as an argument (as
         # ``spencer.heun_substeps`` receives its z step) then calls it directly, and the kernel
         # holds no pointer to a Python object (which numba cannot cache)
-        namespace[name] = numba.njit(inline='always')(_rebind(func.__globals__[name], namespace))
+        built[name] = numba.njit(inline='always')(_rebind(py, ns))
+    for ns in [namespace] + [ns for _, ns in found.values()]:
+        ns.update(built)
     loop = _rebind(func, namespace)
+    if foreign:
+        digest = hashlib.sha256()
+        for path in foreign:
+            with open(path, 'rb') as fh:
+                digest.update(fh.read())
+        loop.__qualname__ = f'{loop.__qualname__}_src{digest.hexdigest()[:12]}'
     key = f'{func.__module__}.{func.__qualname__}'
     try:
-        return numba.njit(cache=True)(loop)
+        return numba.njit(cache=True, nogil=nogil)(loop)
     except RuntimeError as exc:     # numba found no writable cache folder
         _CACHE_ERRORS[key] = str(exc)
-        return numba.njit(cache=False)(loop)
+        return numba.njit(cache=False, nogil=nogil)(loop)
 
 
-def kernel(func, helpers=()):
+def kernel(func, helpers=(), nogil=False):
     """
     Return the compiled (numba, ``cache=True``) version of a plain-Python loop.
 
@@ -64,9 +103,14 @@ def kernel(func, helpers=()):
     ----------
     func : function
         Loop over scalars and numpy arrays in numba's nopython subset, defined at module level.
-    helpers : sequence of str
-        Names of module-level functions of the same module that ``func`` calls (directly or
-        through its helpers); they are compiled too, bound in the loop's namespace and inlined.
+    helpers : sequence of str or function
+        Functions that ``func`` calls (directly or through its helpers), compiled too and
+        inlined: names of module-level functions of the same module (bound in the loop's
+        namespace), or the functions themselves, of any module (each bound in its own
+        module's namespace; the helpers of a foreign helper must be listed too).
+    nogil : bool
+        Release the GIL while the loop runs (threads may then run it side by side on
+        disjoint data). A loop is compiled with one setting, the first one asked for.
 
     Returns
     -------
@@ -78,7 +122,7 @@ def kernel(func, helpers=()):
     with _LOCK:
         disp = _KERNELS.get(key)
         if disp is None:
-            disp = _KERNELS[key] = _build(func, tuple(helpers))
+            disp = _KERNELS[key] = _build(func, tuple(helpers), bool(nogil))
     return disp
 
 

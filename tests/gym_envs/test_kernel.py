@@ -1,0 +1,169 @@
+"""
+The compiled car step (mr_damper_gym.kernel) against the simulator's own plain-Python step.
+
+The kernel mirrors, for arrays of cars, QuarterCar / FullCar with their damper plants, the road
+sampling, the ISO 2631-1 filters of the metrics and the sensors' error model; these tests drive
+both with the same roads, currents and random numbers and compare sample by sample.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from mr_damper_gym.batch import CarBatch
+from mr_damper_gym.core import EnvCore
+from mr_damper_gym import roads as R
+from mr_damper_model.models.plant import make_plant
+from quarter_car_sim.controllers import Passive
+from quarter_car_sim.dynamics import QuarterCar
+from quarter_car_sim.full_car.dynamics import FullCar
+from quarter_car_sim.full_car.simulate import simulate_full_car
+from quarter_car_sim.sensors import accelerometer_spec, ride_height_spec, Sensor
+from quarter_car_sim.simulate import simulate
+
+
+def _core(car, plant, **kw):
+    return EnvCore(car, plant=plant, episode_end='none', observation='state', **kw)
+
+
+def _road(core, seed, duration_s=0.6):
+    spec = R.road_spec(core.defaults, {'road_seed': seed, 'duration_s': duration_s,
+                                       'road_class': 'D', 'events': [{'kind': 'bump',
+                                                                      'at_s': 0.2}]}, None)
+    return R.build_road(core.car, core.params, spec, core.dt)
+
+
+def _kernel_run(core, road, currents):
+    """Step one car through ``currents`` (n, nc); return the true-state rows after each."""
+    b = CarBatch(core.model, 1)
+    core._load(b, 0, road, float(currents[0][0]), None)
+    rows = [b.obs[0, :core.model.n_state_obs].copy()]
+    for c in currents:
+        b.step(np.asarray(c, dtype=float)[None, :])
+        rows.append(b.obs[0, :core.model.n_state_obs].copy())
+    return np.array(rows), b
+
+
+def _currents(n, nc, seed):
+    rng = np.random.default_rng(seed)
+    return np.repeat(rng.uniform(0.0, 2.0, (n // 20 + 1, nc)), 20, axis=0)[:n]
+
+
+@pytest.mark.parametrize('plant', ['kwok-current', 'spencer'])
+def test_quarter_car_step_is_the_simulators(plant):
+    core = _core('quarter', plant)
+    road = _road(core, 4)
+    n = 600
+    cur = _currents(n, 1, 1)
+    rows, _ = _kernel_run(core, road, cur)
+    t0 = -core.settle_steps * core.dt
+    car = QuarterCar(core.params, make_plant(plant), road, t0=t0)
+    for _ in range(core.settle_steps):
+        car.step(core.dt, cur[0, 0])
+    ref = [car.state]
+    for c in cur:
+        ref.append(car.step(core.dt, c[0]))
+    travel = np.array([s.travel for s in ref])
+    force = np.array([s.damper_force for s in ref])
+    a_s = np.array([s.a_s for s in ref])
+    tyre = np.array([s.z_u - s.z_r for s in ref])
+    # same operations in the same order: equal to the last bit, but for the body
+    # acceleration, formed in another order (round-off)
+    assert np.array_equal(rows[:, 0], travel)
+    assert np.array_equal(rows[:, 6], force)
+    np.testing.assert_allclose(rows[:, 1], tyre, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rows[:, 4], a_s, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(rows[:, 7], [s.coil_current for s in ref])
+    assert np.ptp(force) > 100.0        # the currents and the bump did move the damper
+
+
+def test_full_car_step_is_the_simulators():
+    core = _core('full', 'spencer')
+    road = _road(core, 7)
+    n = 500
+    cur = _currents(n, 4, 2)
+    rows, _ = _kernel_run(core, road, cur)
+    car = FullCar(core.params, [make_plant('spencer') for _ in range(4)], road,
+                  t0=-core.settle_steps * core.dt)
+    for _ in range(core.settle_steps):
+        car.step(core.dt, np.full(4, cur[0, 0]))      # the env settles at one current
+    ref = [car.state]
+    for c in cur:
+        ref.append(car.step(core.dt, c))
+    # the 14 x 31 products are summed in another order than numpy's: round-off only
+    for j, field in ((0, 'travel'), (2, 'v_rel'), (6, 'damper_force'), (7, 'coil_current')):
+        truth = np.array([getattr(s, field) for s in ref])
+        scale = np.max(np.abs(truth))
+        np.testing.assert_allclose(rows[:, 4 * j:4 * j + 4], truth, rtol=0, atol=1e-9 * scale)
+    acc = np.array([s.acc[:3] for s in ref])
+    np.testing.assert_allclose(rows[:, 42:45], acc, rtol=0, atol=1e-9 * np.max(np.abs(acc)))
+    assert np.min([s.tyre_force.min() for s in ref]) < 0.5 * core.params.static_tyre_loads.min()
+
+
+@pytest.mark.parametrize('car', ['quarter', 'full'])
+def test_running_iso_figures_are_the_offline_metrics(car):
+    """The kernel's ISO filters and sums give the offline tools' metrics of the same run."""
+    core = _core(car, 'spencer')
+    road = _road(core, 3, duration_s=1.0)
+    fig = core.passive_figures(road, 0.8)
+    plants = [make_plant('spencer') for _ in range(core.model.nc)]
+    if car == 'quarter':
+        m = simulate(core.params, road, Passive(0.8), plants[0]).metrics()
+        keys = ('rms_body_accel_wk', 'rms_tyre_load_ratio', 'rms_suspension_travel',
+                'rms_body_accel')
+        assert fig['n_samples'] == m['n_samples']
+    else:
+        m = simulate_full_car(core.params, road, 'passive@0.8A', plants,
+                              core.damper_params).metrics(core.params)
+        keys = ('a_wz', 'a_w_pitch', 'a_w_roll', 'a_v', 'vdv_total', 'crest_max',
+                'max_rms_tyre_load_ratio')
+    for key in keys:
+        assert fig[key] == pytest.approx(m[key], rel=1e-9), key
+
+
+@pytest.mark.parametrize('kind, spec', [
+    ('accel', accelerometer_spec(dropout_prob=0.05)),
+    ('travel', ride_height_spec(dropout_prob=0.05, dropout_mode='hold', bias=1e-3,
+                                bias_rw=1e-4)),
+    ('accel', accelerometer_spec(latency_s=0.0, bias_drift=0.01, dropout_prob=0.02))],
+    ids=['accelerometer', 'position_hold', 'no_latency_drift'])
+def test_sensor_model_is_the_simulators(kind, spec):
+    """Readings equal ``quarter_car_sim.sensors.Sensor.sample`` fed the same random numbers."""
+    from mr_damper_gym.batch import DRAW_BLOCK
+    dt = 1e-3
+    core = _core('quarter', 'kwok-current', settle_s=0.0,
+                 sensors=[('s', kind, 0, spec)])
+    road = _road(core, 2)
+    b = CarBatch(core.model, 1)
+    core._load(b, 0, road, 0.0, np.random.default_rng(11))
+    n = 600
+    col = 4 if kind == 'accel' else 0              # body acceleration or travel of the state
+    slot = core.model.n_state_obs
+    truth, got = [], []
+    cur = _currents(n, 1, 3)
+    for c in cur:
+        b.step(c[None, :])
+        truth.append(b.obs[0, col])
+        got.append(b.obs[0, slot] if b.obs[0, slot + 1] else math.nan)
+    # the same numbers: the turn-on bias, then the first block (random walk, noise, loss)
+    g = np.random.default_rng(11)
+    bias = spec.bias + (g.normal(0.0, spec.bias_std) if spec.bias_std else 0.0)
+    normal = g.standard_normal((DRAW_BLOCK, 1, 2))[:, 0].T
+    loss = g.random((DRAW_BLOCK, 1))[:, 0]
+    sensor = Sensor(spec.replace(bias=bias, bias_std=0.0))
+    normals, uniforms = [], []
+    for j in range(n):
+        if j > 0 and spec.bias_rw:
+            normals.append(normal[0, j])
+        normals.append(normal[1, j])
+        uniforms.append(loss[j])
+    sensor._normal, sensor._uniform = normals[::-1], uniforms[::-1]
+    sampled = [sensor.sample((j + 1) * dt, x) for j, x in enumerate(truth)]
+    lat = int(round(spec.latency_s / dt))
+    want = np.array([math.nan] * lat + sampled[:n - lat])
+    got = np.array(got)
+    lost = np.isnan(want)
+    assert lost.sum() >= 5 or spec.dropout_mode == 'hold'
+    np.testing.assert_array_equal(np.isnan(got), lost)
+    np.testing.assert_allclose(got[~lost], want[~lost], rtol=0, atol=1e-12)
+    assert sensor.n_dropped >= 5
