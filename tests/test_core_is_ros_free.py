@@ -5,7 +5,7 @@ Style rule: thin nodes on a pure core.
 
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor),
-``messages.py`` (message conversions), ``node_utils.py`` and ``lifecycle_utils.py`` are the only
+``messages.py`` (message conversions), ``node_utils`` and ``lifecycle_utils.py`` are the only
 modules allowed to.
 """
 import subprocess
@@ -25,7 +25,8 @@ def _core_modules():
         root = REPO / 'src' / pkg / pkg
         for path in sorted(root.glob('*.py')) + sorted(root.glob('*/*.py')):
             stem = path.stem
-            if stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES:
+            if (stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES
+                    or path.parent.name in ROS_MODULES):
                 continue
             yield '.'.join((pkg,) + path.relative_to(root).with_suffix('').parts)
 

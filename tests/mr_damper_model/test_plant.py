@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from mr_damper_model.models.plant import KwokCurrentPlant, make_plant, SpencerPlant
-from mr_damper_model.identification.presets import spencer_thesis_like, thesis_kwok_current
+from mr_damper_model.models.presets import spencer_thesis_like, thesis_kwok_current
 from mr_damper_model.models.spencer import Spencer
 
 FS = 1000.0
@@ -68,15 +68,18 @@ def test_make_plant_errors():
         KwokCurrentPlant({'c0': 1.0})
 
 
-def test_make_plant_reads_a_parameter_file(tmp_path):
+def test_load_plant_reads_a_parameter_file(tmp_path):
     # a truth file (params_file format) gives the same plant as its parameters; '' the preset
-    from mr_damper_model.io.params_file import save_params
+    from mr_damper_model.io.params_file import load_plant, save_params
     model, truth = thesis_kwok_current()
     changed = dict(truth, c0=2.0 * truth['c0'])
     path = tmp_path / 'truth.json'
     save_params(path, {'model': 'kwok-current', 'parameters': changed})
-    a, b = make_plant('kwok-current', str(path)), make_plant('kwok-current', changed)
+    a, b = load_plant('kwok-current', str(path)), make_plant('kwok-current', changed)
     assert a.params == b.params == {k: float(v) for k, v in changed.items()}
-    assert make_plant('kwok-current', '').params == make_plant('kwok-current').params
+    assert load_plant('kwok-current', path).params == a.params
+    assert load_plant('kwok-current', '').params == make_plant('kwok-current').params
     with pytest.raises(ValueError, match='model'):
-        make_plant('spencer', str(path))            # the file holds another model
+        load_plant('spencer', str(path))            # the file holds another model
+    with pytest.raises(ValueError, match='load_plant'):
+        make_plant('kwok-current', path)            # models read no files: it says who does

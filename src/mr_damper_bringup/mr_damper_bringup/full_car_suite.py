@@ -172,7 +172,7 @@ def passive_body(car_params, t_end, dt, current=None):
         Body heave, pitch and roll accelerations.
 
     """
-    from mr_damper_model.models.plant import make_plant
+    from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.full_car import (FullCarController, make_full_car_law,
                                           make_two_track_road, PASSENGER_CAR,
                                           simulate_full_car)
@@ -183,7 +183,7 @@ def passive_body(car_params, t_end, dt, current=None):
                                speed_m_s=float(g('speed_m_s', 20.0)),
                                duration_s=float(g('road_duration_s', 300.0)), dt=dt,
                                rng=int(g('road_seed', 1)))
-    plants = [make_plant(g('plant', 'spencer'), g('truth_file', '')) for _ in range(4)]
+    plants = [load_plant(g('plant', 'spencer'), g('truth_file', '')) for _ in range(4)]
     ctrl = FullCarController(make_full_car_law(f'passive@{safe:g}A', PASSENGER_CAR),
                              timeout_s=OFFLINE_TIMEOUT_S, safe_current_a=safe,
                              i_min_a=PASSENGER_CAR.i_min, i_max_a=PASSENGER_CAR.i_max)

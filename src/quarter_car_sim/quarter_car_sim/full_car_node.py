@@ -63,7 +63,7 @@ from mr_damper_common.health import ERROR, WARN, worst
 from mr_damper_common.node_utils import (declare_parameters, DiagnosticsPublisher, DropCounter,
                                          FastLane, LATCHED_QOS, node_time_s, Param,
                                          set_realtime_priority)
-from mr_damper_model.models.plant import make_plant
+from mr_damper_model.io.params_file import load_plant
 from quarter_car_sim import live_loop
 from quarter_car_sim.control_thread import ControlThread
 from quarter_car_sim.controller_core import CommandInput
@@ -177,7 +177,7 @@ class FullCarNode(Node):
         road = make_two_track_road(p['road'], PASSENGER_CAR, speed_m_s=p['speed_m_s'],
                                    duration_s=p['road_duration_s'], dt=dt,
                                    rng=int(p['road_seed']))
-        plants = [make_plant(p['plant'], f or p['truth_file']) for f in p['truth_files']]
+        plants = [load_plant(p['plant'], f or p['truth_file']) for f in p['truth_files']]
         self.external = p['controller'].strip().lower() == 'external'
         self.can = p['controller'].strip().lower() == 'can'
         self.lockstep = self.external and p['lockstep']

@@ -18,8 +18,8 @@ because it runs in 1 kHz loops.
 """
 import math
 
+from mr_damper_model.models import ModelError, presets
 from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_force_scalar
-from mr_damper_model.models import ModelError
 from mr_damper_model.models.spencer import advance_scalar, Spencer, substeps
 
 PLANT_NAMES = ('spencer', 'kwok-current')
@@ -233,10 +233,11 @@ def make_plant(name='spencer', params=None, **options):
     ----------
     name : {'spencer', 'kwok-current'}
         Plant model.
-    params : dict, str, path or None
-        Parameters, or a parameter file of the plant (``mr_damper_model.io.params_file`` format,
-        read with ``load_params``: the rig's and the car's ``truth_file``); None or ``''``:
-        ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``.
+    params : dict, sequence or None
+        Parameters {name: value} (SI) or a vector in the model's order; None:
+        ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``. A parameter
+        file (the rig's and the car's ``truth_file``) is read by
+        ``mr_damper_model.io.params_file.load_plant``.
     **options
         Keyword options of ``SpencerPlant`` / ``KwokCurrentPlant``. For 'spencer' ``y0_m``
         defaults to 0.0: x is measured from mid-stroke and the internal displacement starts
@@ -248,10 +249,9 @@ def make_plant(name='spencer', params=None, **options):
     DamperPlant
 
     """
-    from mr_damper_model.identification import presets
     if isinstance(params, str) or hasattr(params, '__fspath__'):
-        from mr_damper_model.io.params_file import load_params
-        params = load_params(params, model=name).parameters if str(params) else None
+        raise ModelError(f'make_plant takes parameters, not the file {str(params)!r}: read a '
+                         'parameter file with mr_damper_model.io.params_file.load_plant')
     if name == 'spencer':
         options.setdefault('y0_m', 0.0)
         return SpencerPlant(presets.spencer_thesis_like() if params is None else params,
