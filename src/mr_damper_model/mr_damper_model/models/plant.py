@@ -198,7 +198,12 @@ class SpencerPlant(DamperPlant):
         self.max_substep_s = float(max_substep_s)
         self.y0_m = None if y0_m is None else float(y0_m)
         self._p = tuple(self.params[k] for k in Spencer.param_names)
-        self._advance = advance_step_compiled() if compiled else None
+        self._advance = None
+        if compiled:
+            self._advance = advance_step_compiled()
+            # compiled (or loaded from numba's cache) here, with the argument types of every
+            # step, not in a control loop's first step
+            self._advance(self._p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1)
         super().__init__(slew_a_per_s, initial_current_a)
 
     def reset(self):

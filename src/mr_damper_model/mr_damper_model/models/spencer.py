@@ -340,7 +340,7 @@ def advance_step_compiled():
     Return :func:`advance_step` compiled by numba (``cache=True``; the same arithmetic).
 
     The streaming plant calls it once per sample; compiled, one 1 kHz sample with its ten
-    sub-steps costs about a tenth of the interpreted step (``bench/bench_car_step.py``).
+    sub-steps costs about an eighth of the interpreted step (``bench/bench_car_step.py``).
     """
     return compiled.kernel(advance_step, helpers=('heun_substeps', 'z_roots', 'z_step_rooted'))
 
