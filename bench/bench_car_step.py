@@ -38,7 +38,8 @@ import time
 import numpy as np
 import yaml
 
-from mr_damper_model.identification import presets
+from mr_damper_model.io.params_file import load_plant
+from mr_damper_model.models import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.car_runtime import CarOutputs, make_car_runtime
 from quarter_car_sim.failsafe import clip_current
@@ -79,7 +80,7 @@ def make_car(p, log_dir, *, compiled):
                           controller_options=p['controller_options'])
     if p['plant'] != 'spencer':
         raise SystemExit(f'this bench compares Spencer steps; the suite has plant {p["plant"]}')
-    rt.car.plant = make_plant('spencer', p['truth_file'], compiled=compiled)
+    rt.car.plant = load_plant('spencer', p['truth_file'], compiled=compiled)
     rt.car.reset()
     return rt, clock
 
