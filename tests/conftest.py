@@ -46,3 +46,15 @@ def csv_text(path):
     if path.name.endswith('.gz'):
         return gzip.decompress(path.read_bytes()).decode('utf-8')
     return path.read_text()
+
+
+def pytest_sessionstart(session):
+    """
+    Compile (or load from numba's cache) the Spencer plant's step before the first test.
+
+    The car and rig nodes build a Spencer plant, whose step is compiled on first use; in a fresh
+    checkout a node process would otherwise spend the compilation in its start-up, inside a
+    test's waits. Here it goes into the cache once (``mr_damper_model.models.compiled``).
+    """
+    from mr_damper_model.models.plant import make_plant
+    make_plant('spencer')

@@ -6,7 +6,7 @@ Style rule: thin nodes on a pure core.
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor, and
 every module of a ``nodes`` sub-package: what the nodes share and their console scripts),
-``messages.py`` (message conversions), ``node_utils.py`` and ``lifecycle_utils.py`` are the only
+``messages.py`` (message conversions), ``node_utils`` and ``lifecycle_utils.py`` are the only
 modules allowed to.
 """
 import subprocess
@@ -28,7 +28,7 @@ def _core_modules():
             stem = path.stem
             parts = path.relative_to(root).with_suffix('').parts
             if (stem in ('__init__', '__main__') or stem.endswith('_node') or stem in ROS_MODULES
-                    or 'nodes' in parts[:-1]):
+                    or 'nodes' in parts[:-1] or path.parent.name in ROS_MODULES):
                 continue
             yield '.'.join((pkg,) + parts)
 

@@ -116,7 +116,8 @@ VEHICLE_ALLOWED = ('mr_damper_model.io.params_file',)
 
 
 def imported_names(path):
-    """Return ``[(line, module)]`` of every import of a file, module and function level (ast).
+    """
+    Return ``[(line, module)]`` of every import of a file, module and function level (ast).
 
     ``from package import name`` gives ``package.name`` too (a sub-module imported that way).
     """

@@ -278,7 +278,7 @@ def test_bad_messages_are_counted_and_harmless(listener):
         assert ident.alive()
     status = topics.last_status()
     assert status['samples_accepted'] == data.n
-    assert status['rejected'] == dict(sent, layout=1, future_stamp=0)
+    assert status['rejected'] == dict(sent, layout=1, future_stamp=0, inconsistent_batch=0)
     # the newest set is the fit of its own window (a newer window the identifier refused would
     # leave the set in use published again, with its window)
     final = topics.estimates()[-1]

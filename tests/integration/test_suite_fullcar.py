@@ -79,19 +79,16 @@ def test_full_car_suite_runs_four_corners_and_the_car(tmp_path):
             assert counts.get(f'/{c}/{topic}', 0) > 0, (c, topic, counts)
 
 
-def test_full_car_suite_with_the_external_controller(tmp_path):
-    """``--external-controller``: the law in full_car_controller_node, the car the plant."""
-    out = tmp_path / 'full_car_ext'
+def run_external(out, ready, *flags):
+    """
+    Run the full car with its law in the controller node until ``ready``; return the summary.
+
+    Asserts the run stopped cleanly: every node (the car and the controller among them) exit 0.
+    """
     env = dict(os.environ)
     cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'full-car', '--duration', '0',
            '--out', str(out), '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
-           '--no-plots', '--external-controller', '--set', 'full_car_node.param_timeout_s=5.0']
-
-    def ready(line):
-        # stop once the controller has commanded every corner on its own model (a corner's
-        # supervisor taking a set comes before its first command on it: wait for the command)
-        return re.search(r'on models 4/4', line) is not None
-
+           '--no-plots', *flags, '--set', 'full_car_node.param_timeout_s=5.0']
     ok, returncode, seen, rest = run_until_ready(cmd, env, ready, out=out)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
@@ -99,6 +96,17 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
     codes = summary['exit_codes']
     assert {'full_car_node', 'full_car_controller'} <= set(codes), codes
     assert all(code == 0 for code in codes.values()), codes
+    return summary
+
+
+def test_full_car_suite_with_the_external_controller(tmp_path):
+    """``--external-controller``: the law in full_car_controller_node, the car the plant."""
+    def ready(line):
+        # stop once the controller has commanded every corner on its own model (a corner's
+        # supervisor taking a set comes before its first command on it: wait for the command)
+        return re.search(r'on models 4/4', line) is not None
+
+    summary = run_external(tmp_path / 'full_car_ext', ready, '--external-controller')
     car = summary['full_car']
     assert car['controller'] == 'modal-skyhook', car
     ext = car['external_controller']
@@ -108,3 +116,46 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
         assert d['params_accepted'] > 0 and d['first_normal_t_sim'] is not None, (c, d)
         assert summary['corners'][c]['samples_lost'] == 0, (c, summary['corners'][c])
     assert_reached_control(summary, units=CORNERS)
+
+
+def test_full_car_suite_runs_the_preview_law_live(tmp_path):
+    """
+    ``--preview``: the car publishes its look-ahead frames, the controller runs the LQ preview.
+
+    The sensor is blind from 1.0 to 1.5 s (simulated): the controller falls back to the law
+    without preview, counted, and previews again after it; the summary carries the body figures.
+    The car runs in lock-step with the controller (each step waits for the four commands), so
+    on a loaded machine the controller answers every state instead of dropping most of them.
+    """
+    def ready(line):
+        # every corner commanded on its model, and the car past the outage (simulated time)
+        t_car = re.search(r'car t (-?[\d.]+) s', line)
+        return (re.search(r'on models 4/4', line) is not None and t_car is not None
+                and float(t_car.group(1)) >= 3.0)
+
+    summary = run_external(tmp_path / 'full_car_preview', ready, '--preview',
+                           '--set', 'full_car_node.lockstep=true',
+                           '--set', 'full_car_node.preview_outage_start_s=1.0',
+                           '--set', 'full_car_node.preview_outage_s=0.5')
+    car = summary['full_car']
+    assert car['controller'] == 'preview-look-ahead', car
+    pv = car['preview']
+    law, inp, sensor = pv['law'], pv['input'], pv['sensor']
+    # the preview law commanded, fell back during the outage (counted) and previewed again
+    assert law['previewed_steps'] > 0 and law['fallback_steps'] > 0, pv
+    assert law['steps'] == law['previewed_steps'] + law['fallback_steps'] == \
+        car['external_controller']['sets'], (pv, car['external_controller'])
+    assert law['dropouts'] >= 2, pv                   # the start and the outage
+    assert inp['fallback']['timeout'] > 0 and inp['refused']['invalid'] > 0, inp
+    assert sensor['outage'] > 0 and sensor['delivered'] > sensor['outage'], sensor
+    assert pv['first_previewed_t'] < 1.0 < pv['last_fallback_t'] < pv['last_previewed_t'], pv
+    # frames counted lost by sequence numbers are the frames the car did not deliver (none
+    # in this run) plus any lost on the way: none on loopback with a reliable topic
+    assert inp['messages']['lost'] == 0, inp
+    for c in CORNERS:
+        d = car['corners'][c]
+        assert d['params_accepted'] > 0 and d['first_normal_t_sim'] is not None, (c, d)
+    # the body figures, as every law's summary carries them
+    assert car['iso2631']['a_v'] > 0
+    for key in ('live', 'passive'):
+        assert car[key]['a_v'] >= car[key]['a_wz'] > 0, car[key]

@@ -1,6 +1,8 @@
 """The full-car run's configuration: four rig / identifier stacks and one car, ROS-free."""
 from types import SimpleNamespace
 
+import pytest
+
 from mr_damper_bringup.config import IDENT, QC, resolve_config, RIG
 from mr_damper_bringup.full_car_suite import (BODY_LOG, FULL_CAR, FULL_CAR_CORNERS,
                                               full_car_configs)
@@ -52,3 +54,19 @@ def test_external_controller_takes_the_law_and_the_car_becomes_the_plant(tmp_pat
     # a configuration already external keeps its controller section's law
     _, again = full_car_configs(cfg | car, tmp_path, 30.0)
     assert again[FULL_CAR_CTRL]['ros__parameters']['controller'] == 'per-corner-skyhook'
+
+
+def test_preview_runs_the_preview_law_in_the_controller_on_the_cars_frames(tmp_path):
+    from mr_damper_bringup.full_car_suite import external_full_car, FULL_CAR_CTRL, PREVIEW_LAW
+    from mr_damper_bringup.launcher import parse_args
+    cfg = resolve_config(_args(30.0), tmp_path)
+    _, car = full_car_configs(cfg, tmp_path, 30.0, preview=True)
+    assert external_full_car(car)
+    law = car[FULL_CAR_CTRL]['ros__parameters']
+    plant = car[FULL_CAR]['ros__parameters']
+    assert law['controller'] == PREVIEW_LAW == 'preview-look-ahead'
+    assert plant['controller'] == 'external' and plant['road_preview'] is True
+    assert law['safe_current_a'] == plant['safe_current_a']
+    assert parse_args(['--config', 'full-car', '--preview']).preview
+    with pytest.raises(SystemExit):
+        parse_args(['--config', 'sim', '--preview'])

@@ -187,3 +187,35 @@ def test_corner_state_round_trip_keeps_every_field():
     # a car settling before the road starts (t < 0) is stamped 0; a NaN field stays NaN
     early = m.corner_state_from_msg(m.corner_state_to_msg(CornerState(-0.2), 0.5, True, 'ok'))
     assert early.t == 0.0 and math.isnan(early.v_s) and math.isnan(early.coil_current)
+
+
+def test_road_preview_round_trip_keeps_every_value_through_the_wire():
+    from mr_damper_interfaces.msg import RoadPreview
+    from rclpy.serialization import deserialize_message, serialize_message
+    d = np.array([0.5, 0.6, 0.75, 15.0])
+    h = np.array([[0.001, -0.002, math.nan, 0.004], [0.0, 1e-6, -0.03, 0.02]])
+    msg = m.road_preview_msg(12.345678901, d, h, sequence=2 ** 40 + 7, speed_m_s=20.4)
+    back = m.road_preview_fields(deserialize_message(serialize_message(msg), RoadPreview))
+    assert back['sequence'] == 2 ** 40 + 7
+    assert back['stamp'] == pytest.approx(12.345678901, abs=1e-9)
+    assert back['speed_m_s'] == 20.4 and back['valid'] and back['reason'] == ''
+    np.testing.assert_array_equal(back['distance_m'], d)
+    np.testing.assert_array_equal(back['heights_m'], h)       # NaN: not measured, kept
+    assert msg.track_count == 2 and msg.header.frame_id == 'front_axle'
+    one = m.road_preview_fields(m.road_preview_msg(0.0, d, h[:1], sequence=1,
+                                                   speed_m_s=math.nan, valid=False))
+    assert one['heights_m'].shape == (1, 4) and math.isnan(one['speed_m_s'])
+    assert not one['valid'] and one['reason'] == 'not_valid'
+
+
+def test_road_preview_refuses_bad_layouts():
+    with pytest.raises(ValueError, match='heights_m'):
+        m.road_preview_msg(0.0, [1.0, 2.0], np.zeros((2, 3)), sequence=1, speed_m_s=1.0)
+    msg = m.road_preview_msg(0.0, [1.0, 2.0], np.zeros((2, 2)), sequence=1, speed_m_s=1.0)
+    msg.track_count = 3
+    with pytest.raises(m.MessageError) as err:
+        m.road_preview_fields(msg)
+    assert err.value.reason == 'layout'
+    msg.track_count = 0
+    with pytest.raises(m.MessageError):
+        m.road_preview_fields(msg)

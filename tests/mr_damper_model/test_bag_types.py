@@ -70,7 +70,7 @@ def test_empty_and_broken_definitions_are_errors(tmp_path):
 def test_source_definitions_parse_with_every_field_and_constant():
     types = bag_types.interface_types(SRC_MSG)
     vehicle = [f'mr_damper_interfaces/msg/{n}'
-               for n in ('ChassisSensors', 'FullCarCommand', 'FullCarState')]
+               for n in ('ChassisSensors', 'FullCarCommand', 'FullCarState', 'RoadPreview')]
     assert sorted(types) == sorted([MODEL, SAMPLES, KWOK, STATE] + vehicle)
     consts, _ = types[vehicle[1]]
     assert ('MODE_INACTIVE', 'uint8', 2) in consts
@@ -109,7 +109,7 @@ def test_register_adds_to_an_existing_store():
     store = get_typestore(Stores.ROS2_KILTED)
     assert KWOK not in store.types
     vehicle = tuple(f'mr_damper_interfaces/msg/{n}'
-                    for n in ('ChassisSensors', 'FullCarCommand', 'FullCarState'))
+                    for n in ('ChassisSensors', 'FullCarCommand', 'FullCarState', 'RoadPreview'))
     assert bag_types.register_interface_types(store, SRC_MSG) == tuple(sorted(
         (MODEL, SAMPLES, KWOK, STATE) + vehicle))
     assert STATE in store.types

@@ -25,7 +25,7 @@ from mr_damper_model.tools.cli import run as cli_run
 from mr_damper_model.io.data import DamperData, write_csv
 from mr_damper_model.models import get_model
 from mr_damper_model.io.params_file import save_params
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 
 MODEL = get_model('kwok-current', i_ref_a=1.0)
 _, TRUTH = thesis_kwok_current()

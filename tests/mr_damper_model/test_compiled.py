@@ -19,7 +19,7 @@ import numpy as np
 {patch}
 from mr_damper_model.models import compiled
 from mr_damper_model.models.bouc_wen import BoucWen
-from mr_damper_model.identification.presets import spencer_thesis_like
+from mr_damper_model.models.presets import spencer_thesis_like
 from mr_damper_model.models.spencer import Spencer
 t = np.arange(200) / 1000.0
 x = 0.01 * np.sin(2 * np.pi * 3 * t)

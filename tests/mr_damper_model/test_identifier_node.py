@@ -166,7 +166,7 @@ def test_a_parameter_file_it_cannot_resume_from_is_not_overwritten(
 
 
 def test_its_own_parameter_file_is_resumed_and_saved_to(make_node, tmp_path):
-    from mr_damper_model.identification import presets
+    from mr_damper_model.models import presets
     from mr_damper_model.io.params_file import save_params
     _, truth = presets.thesis_kwok_current()
     path = tmp_path / 'damper.json'

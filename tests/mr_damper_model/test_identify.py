@@ -16,7 +16,7 @@ from mr_damper_model.identification.identify import (compare_models, current_gro
                                                      identify, identify_per_current)
 from mr_damper_model.identification.separable import _full_cost
 from mr_damper_model.models import get_model
-from mr_damper_model.identification.presets import THESIS_TABLE_4_3, thesis_kwok_current
+from mr_damper_model.models.presets import THESIS_TABLE_4_3, thesis_kwok_current
 
 FREQ, AMP = 1.1, 0.03
 
@@ -141,7 +141,7 @@ def test_recover_bouc_wen_from_two_joined_records():
 
 def spencer_record(duration=2.0):
     """Thesis cam at 1 kHz, coil current in four levels, Spencer thesis-like force + 1 % noise."""
-    from mr_damper_model.identification.presets import spencer_thesis_like
+    from mr_damper_model.models.presets import spencer_thesis_like
     m = get_model('spencer')
     truth = spencer_thesis_like()
     t, x, v, _ = cam(duration=duration)
@@ -187,7 +187,7 @@ def test_spencer_default_same_seed_same_answer():
 
 @pytest.mark.slow
 def test_spencer_short_record_small_budget_full_method():
-    from mr_damper_model.identification.presets import spencer_thesis_like
+    from mr_damper_model.models.presets import spencer_thesis_like
     m = get_model('spencer')
     truth = spencer_thesis_like()
     t, x, v, _ = cam(duration=0.25)

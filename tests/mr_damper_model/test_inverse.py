@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from mr_damper_model.models.inverse import inverse_current, KwokCurrentInverse
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 
 
 def _samples(n, seed):

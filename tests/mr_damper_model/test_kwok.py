@@ -2,7 +2,7 @@
 import numpy as np
 
 from mr_damper_model.models.kwok import Kwok
-from mr_damper_model.identification.presets import THESIS_TABLE_4_3
+from mr_damper_model.models.presets import THESIS_TABLE_4_3
 
 
 def test_large_velocity_limit():

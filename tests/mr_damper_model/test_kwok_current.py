@@ -7,7 +7,7 @@ from mr_damper_model.models.kwok_current import (KwokCurrent, kwok_current_coeff
                                                  kwok_current_force_scalar,
                                                  kwok_current_force_slope_at,
                                                  kwok_current_terms_scalar)
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 
 
 def _p():
@@ -126,7 +126,7 @@ def test_scalar_force_and_slope_match_the_model():
 
 def test_force_of_a_named_parameter_set():
     """``kwok_current_force`` on a saved-parameter dict (with ``i_ref_a``) is the model's force."""
-    from mr_damper_model.identification import presets
+    from mr_damper_model.models import presets
     from mr_damper_model.models.kwok_current import kwok_current_force
     model, params = presets.thesis_kwok_current()
     rng = np.random.default_rng(3)

@@ -8,7 +8,7 @@ from mr_damper_model.io.data import DamperData
 from mr_damper_model.identification.identify import identify
 from mr_damper_model.live import (LiveConfig, LiveIdentifier, check_excitation, fit_kwargs,
                                   kwok_current_at, kwok_to_kwok_current)
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 
 from live_records import cam_record
 

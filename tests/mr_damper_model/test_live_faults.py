@@ -20,7 +20,7 @@ from mr_damper_model.live import (constant_runs, continued_runs, fit_data, FLAG_
                                   flag_samples, LiveConfig, LiveIdentifier, robust_range,
                                   running_median)
 from mr_damper_model.models.validity import pinned_parameters
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 
 RATE = 1000.0
 MODEL, TRUTH = thesis_kwok_current()
@@ -485,7 +485,7 @@ def test_samples_of_a_skipped_window_get_another_chance_with_the_next():
 def test_healthy_spencer_damper_raises_no_fault():
     """Model mismatch is no fault: a Bouc-Wen damper, current steps 0..2 A, all valid."""
     from mr_damper_model.models.plant import SpencerPlant
-    from mr_damper_model.identification.presets import spencer_thesis_like
+    from mr_damper_model.models.presets import spencer_thesis_like
     plant = SpencerPlant(spencer_thesis_like())
     t, x, v = cam(10000)
     i_cmd = np.repeat([0.0, 0.5, 1.0, 1.5, 2.0], 2000)

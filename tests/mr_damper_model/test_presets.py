@@ -6,8 +6,8 @@ from mr_damper_model.models.kwok import Kwok
 from mr_damper_model.models.kwok_current import KwokCurrent
 from mr_damper_model.models import get_model
 from mr_damper_model.models.plant import make_plant
-from mr_damper_model.identification.presets import (spencer_thesis_like, THESIS_TABLE_4_3,
-                                                    thesis_kwok_current)
+from mr_damper_model.models.presets import (spencer_thesis_like, THESIS_TABLE_4_3,
+                                            thesis_kwok_current)
 
 FS = 1000.0
 W = 2 * np.pi * 1.1

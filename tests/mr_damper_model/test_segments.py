@@ -10,7 +10,7 @@ import pytest
 
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.models import get_model, MODEL_NAMES, ModelError
-from mr_damper_model.identification.presets import spencer_thesis_like
+from mr_damper_model.models.presets import spencer_thesis_like
 
 
 def _part(n, fs, freq, amp, phase, current, t0=0.0):

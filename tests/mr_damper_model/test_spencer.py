@@ -7,7 +7,7 @@ import pytest
 from conftest import QUIROZ_DIR
 from mr_damper_model.io.data import read_csv
 from mr_damper_model.models.plant import SpencerPlant
-from mr_damper_model.identification.presets import spencer_thesis_like
+from mr_damper_model.models.presets import spencer_thesis_like
 from mr_damper_model.models.spencer import (Spencer, spencer_force, spencer_force_numpy,
                                             spring_fit, z_step_array, z_step_scalar)
 

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from mr_damper_model.identification.presets import thesis_kwok_current
+from mr_damper_model.models.presets import thesis_kwok_current
 from mr_damper_model.live import LiveConfig
 from mr_damper_model.models.validity import (BOUND_TOL, check_model_parameters,
                                              check_parameter_values, PINNED_FRACTION)

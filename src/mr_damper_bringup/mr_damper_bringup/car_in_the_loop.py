@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from mr_damper_model.io.params_file import load_plant
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.actuator import CommandedMotion, ServoActuator
 from mr_damper_rig.commands import CommandFollower, DisplacementCommandGuard
@@ -285,7 +286,7 @@ def cam_rig_record(plant='kwok-current', truth_file='', *, levels_a=(0.0, 0.5, 1
     mr_damper_model.io.data.DamperData
 
     """
-    rig = VirtualRig(make_plant(plant, truth_file), CamSine(), StepSchedule(levels_a, hold_s),
+    rig = VirtualRig(load_plant(plant, truth_file), CamSine(), StepSchedule(levels_a, hold_s),
                      force_noise_n=noise_n, rng=seed)
     return rig.run()
 

@@ -13,6 +13,13 @@ With ``--external-controller`` the law runs in ``full_car_controller_node`` (roo
 subscribing the four corners' states and parameter sets) and ``full_car_node`` is the plant
 only (``controller: external``); the summary then takes the corners' parameter counts and
 modes from the controller.
+
+With ``--preview`` (issue 36, docs/preview.md) the run is external and the controller runs
+``preview-look-ahead`` (LQ road preview) on the frames ``full_car_node`` publishes on
+``full_car/road_preview`` from its road through the look-ahead sensor model (``road_preview:
+true``; the sensor's errors are the car node's ``preview_*`` and ``speed_error`` parameters);
+the summary's ``full_car.preview`` holds the law's, the map's, the input's and the sensor's
+counters (steps previewed, fallbacks by reason, frames lost).
 """
 from pathlib import Path
 
@@ -32,13 +39,15 @@ FULL_CAR_CTRL_NODE = {FULL_CAR_CTRL: 'full_car_controller_node'}
 FULL_CAR_CTRL_PARAMS = ('controller', 'rate_hz', 'safe_current_a', 'param_timeout_s',
                         'i_min_a', 'i_max_a', 'min_current_span_a', 'hold_on_reject',
                         'diagnostics_period_s')
+#: The live preview law of ``--preview``.
+PREVIEW_LAW = 'preview-look-ahead'
 #: The body log the node writes at its end.
 BODY_LOG = 'full_car_body.npz'
 #: The four corner namespaces.
 FULL_CAR_CORNERS = ('fl', 'fr', 'rl', 'rr')
 
 
-def full_car_configs(cfg, out, duration_s, external=False):
+def full_car_configs(cfg, out, duration_s, external=False, preview=False):
     """
     Split a full-car run's parameters: one dict per corner (rig + identifier), one for the car.
 
@@ -56,6 +65,9 @@ def full_car_configs(cfg, out, duration_s, external=False):
         Run the law in ``full_car_controller_node`` (its own section, the car's law and
         supervisor settings unless set there); the car becomes the plant
         (``controller: external``).
+    preview : bool
+        Run the LQ preview law live (implies ``external``): the car publishes its look-ahead
+        frames (``road_preview: true``), the controller runs :data:`PREVIEW_LAW`.
 
     Returns
     -------
@@ -70,7 +82,10 @@ def full_car_configs(cfg, out, duration_s, external=False):
     stacks = {k: v for k, v in cfg.items() if k in ('/**', RIG, IDENT)}
     corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
     car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR, FULL_CAR_CTRL)}
-    if external or external_full_car(car):
+    if preview:
+        set_param(car, FULL_CAR_CTRL, 'controller', PREVIEW_LAW)
+        set_param(car, FULL_CAR, 'road_preview', True)
+    if external or preview or external_full_car(car):
         law = node_params(car, FULL_CAR)
         own = car.setdefault(FULL_CAR_CTRL, {}).setdefault('ros__parameters', {})
         for name in FULL_CAR_CTRL_PARAMS:
@@ -125,6 +140,10 @@ def full_car_progress_line(monitor, elapsed):
     on_models = sum(_finite((car.get(c) or {}).get('first_normal_t_sim'))
                     for c in FULL_CAR_CORNERS)
     parts.append(f'on models {on_models}/{len(FULL_CAR_CORNERS)}')
+    law = ((status.get(FULL_CAR_CTRL) or {}).get('preview') or {}).get('law')
+    if law:
+        parts.append(f'preview {law.get("previewed_steps", 0)} steps, fallback '
+                     f'{law.get("fallback_steps", 0)}')
     t_sim = st.get('t_sim')
     parts.append(f'car t {t_sim:.2f} s' if isinstance(t_sim, (int, float)) else 'car t ?')
     return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
@@ -153,7 +172,7 @@ def passive_body(car_params, t_end, dt, current=None):
         Body heave, pitch and roll accelerations.
 
     """
-    from mr_damper_model.models.plant import make_plant
+    from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.plant.two_track_road import make_two_track_road
     from quarter_car_sim.simulate.full_car import simulate_full_car
     from semi_active_control.runtime.full_car_controller_core import FullCarController
@@ -166,7 +185,7 @@ def passive_body(car_params, t_end, dt, current=None):
                                speed_m_s=float(g('speed_m_s', 20.0)),
                                duration_s=float(g('road_duration_s', 300.0)), dt=dt,
                                rng=int(g('road_seed', 1)))
-    plants = [make_plant(g('plant', 'spencer'), g('truth_file', '')) for _ in range(4)]
+    plants = [load_plant(g('plant', 'spencer'), g('truth_file', '')) for _ in range(4)]
     ctrl = FullCarController(make_full_car_law(f'passive@{safe:g}A', PASSENGER_CAR),
                              timeout_s=OFFLINE_TIMEOUT_S, safe_current_a=safe,
                              i_min_a=PASSENGER_CAR.i_min, i_max_a=PASSENGER_CAR.i_max)
@@ -231,6 +250,8 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
             'dropped': ctrl.get('dropped'),
             'car_command_timeouts': {c: (st.get('corners') or {}).get(c, {}).get(
                 'command_timeouts') for c in FULL_CAR_CORNERS}}
+        if ctrl.get('preview') is not None:
+            section['preview'] = dict(ctrl['preview'], sensor=st.get('road_preview'))
     for c in FULL_CAR_CORNERS:
         d = car_corners.get(c) or {}
         ident = corners_summary.get(c) or {}

@@ -62,7 +62,8 @@ corner's figures from its nodes' diagnostics (no plots).
 ``full_car_node`` (the 7-DOF car on the four identified models, :mod:`mr_damper_bringup.
 full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``. With
 ``--external-controller`` the full car's law runs in ``full_car_controller_node`` and the car
-is the plant only.
+is the plant only; ``--preview`` runs the LQ road-preview law there on the look-ahead frames the
+car publishes (docs/preview.md).
 
 Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
 down, or no summary could be made), 2 bad command line / config.
@@ -383,6 +384,10 @@ def parse_args(argv):
                    help='run the car\'s law in semi_active_controller_node (full-car: '
                         'full_car_controller_node); the car is the plant only '
                         '(controller:=external)')
+    p.add_argument('--preview', action='store_true',
+                   help='full-car: the LQ road-preview law live (preview-look-ahead in '
+                        'full_car_controller_node, implies --external-controller) on the '
+                        'look-ahead frames full_car_node publishes (docs/preview.md)')
     p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
                    help='vehicle: the law runs on the state estimated from the car\'s modelled '
                         'sensors (state_estimator_node + semi_active_controller_node, '
@@ -418,6 +423,8 @@ def parse_args(argv):
         p.error('--duration must be >= 0')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         p.error('--domain-id must be in 0..232')
+    if args.preview and args.config != 'full-car':
+        p.error('--preview needs --config full-car')
     if args.rate_factor is not None and not args.rate_factor > 0:
         p.error('--rate-factor must be > 0')
     if not args.hang_timeout_s >= 0:
@@ -445,7 +452,8 @@ def main(argv=None):
         full_car = args.config == 'full-car'
         if full_car:
             corners, car_cfg = full_car_configs(cfg, out, args.duration,
-                                                external=args.external_controller)
+                                                external=args.external_controller,
+                                                preview=args.preview)
         vehicle = args.config == 'vehicle'
         if vehicle:
             corners, car_cfg = vehicle_configs(cfg, out, args.duration, args.domain_id,

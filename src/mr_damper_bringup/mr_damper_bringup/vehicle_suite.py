@@ -127,7 +127,7 @@ def vehicle_progress_line(monitor, elapsed):
 
 def _simulate_body(car_params, law, damper_files, t_end, dt):
     """Simulate the body accelerations offline: ``law`` on the true states, the node's road."""
-    from mr_damper_model.models.plant import make_plant
+    from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.plant.two_track_road import make_two_track_road
     from quarter_car_sim.simulate.full_car import simulate_full_car
     from semi_active_control.car.full_car import PASSENGER_CAR
@@ -137,7 +137,7 @@ def _simulate_body(car_params, law, damper_files, t_end, dt):
                                duration_s=float(g('road_duration_s', 300.0)), dt=dt,
                                rng=int(g('road_seed', 1)))
     truths = g('truth_files') or [''] * 4
-    plants = [make_plant(g('plant', 'spencer'), f or g('truth_file', '')) for f in truths]
+    plants = [load_plant(g('plant', 'spencer'), f or g('truth_file', '')) for f in truths]
     res = simulate_full_car(PASSENGER_CAR, road, law, plants, damper_files, dt=dt,
                             settle_s=float(g('settle_s', 0.5)), duration_s=t_end)
     return res.t, res.acc[:, :3]

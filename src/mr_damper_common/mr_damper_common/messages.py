@@ -21,6 +21,9 @@ Topic payloads (see the README topic table):
 - a corner's state: ``mr_damper_interfaces/QuarterCarState`` (the fields of
   :class:`mr_damper_common.contract.CornerState`, the current command and the commander's mode):
   :func:`corner_state_to_msg`, :func:`corner_state_from_msg`.
+- road preview: ``mr_damper_interfaces/RoadPreview`` (a look-ahead sensor's frame: heights per
+  track at distances ahead of the front axle, stamp, speed signal, validity):
+  :func:`road_preview_msg`, :func:`road_preview_fields`.
 - health: ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (levels and flat key-values,
   see :mod:`mr_damper_common.health`).
 
@@ -32,7 +35,7 @@ import math
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mr_damper_interfaces.msg import (ChassisSensors, DamperModel, DamperSamples,
                                       FullCarCommand, FullCarState, KwokParameters,
-                                      QuarterCarState)
+                                      QuarterCarState, RoadPreview)
 import numpy as np
 from sensor_msgs.msg import JointState
 
@@ -646,6 +649,89 @@ def full_car_command_fields(msg):
     return (int(msg.sequence), int(msg.state_sequence),
             np.asarray(msg.current_a, dtype=float),
             [int(m) != FullCarCommand.MODE_NORMAL for m in msg.mode])
+
+
+def road_preview_msg(stamp_s, distance_m, heights_m, *, sequence, speed_m_s, valid=True,
+                     reason='', msg=None, frame_id='front_axle'):
+    """
+    Fill a ``RoadPreview`` from one look-ahead frame.
+
+    Parameters
+    ----------
+    stamp_s : float
+        Measurement time of the frame [s], >= 0.
+    distance_m : array_like with shape (m,)
+        Distances ahead of the front axle [m], increasing.
+    heights_m : array_like with shape (tracks, m)
+        Road height of each track [m] (NaN: not measured).
+    sequence : int
+        Frame number of the sensor (+1 per frame).
+    speed_m_s : float
+        The car's speed signal when the frame was sent [m/s] (NaN: unknown).
+    valid : bool
+        The sensor's validity flag.
+    reason : str
+        Why it is not valid (ignored when valid).
+    msg : RoadPreview, optional
+        Filled in place (a publisher's reused message).
+    frame_id : str
+        The header's frame.
+
+    Returns
+    -------
+    mr_damper_interfaces.msg.RoadPreview
+
+    Raises
+    ------
+    ValueError
+        ``heights_m`` not of shape (tracks, m) with 1..255 tracks.
+
+    """
+    d = np.asarray(distance_m, dtype=float).ravel()
+    h = np.asarray(heights_m, dtype=float)
+    if h.ndim != 2 or h.shape[1] != d.size or not 1 <= h.shape[0] <= 255:
+        raise ValueError(f'`heights_m` must have shape (tracks, {d.size}) with 1..255 tracks, '
+                         f'got {h.shape}')
+    msg = RoadPreview() if msg is None else msg
+    seconds_to_stamp(stamp_s, msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.sequence = int(sequence)
+    msg.vehicle_speed_m_s = float(speed_m_s)
+    msg.distance_m = _doubles(d)
+    msg.track_count = int(h.shape[0])
+    msg.height_m = _doubles(h.ravel())
+    msg.valid = bool(valid)
+    msg.reason = '' if msg.valid else (str(reason) or 'not_valid')
+    return msg
+
+
+def road_preview_fields(msg):
+    """
+    Read a ``RoadPreview`` (rclpy class or rosbags dataclass).
+
+    Returns
+    -------
+    dict
+        ``sequence`` (int), ``stamp`` [s], ``speed_m_s`` [m/s], ``distance_m`` (m,),
+        ``heights_m`` (tracks, m) [m], ``valid`` (bool), ``reason`` (str).
+
+    Raises
+    ------
+    MessageError
+        ``reason='layout'`` when the heights do not fill ``track_count`` rows of the
+        distances (or there are no tracks).
+
+    """
+    d = np.asarray(msg.distance_m, dtype=float)
+    h = np.asarray(msg.height_m, dtype=float)
+    k = int(msg.track_count)
+    if k < 1 or h.size != k * d.size:
+        raise MessageError('layout', f'road preview with {h.size} heights for {k} tracks of '
+                           f'{d.size} distances')
+    return {'sequence': int(msg.sequence), 'stamp': stamp_to_seconds(msg.header.stamp),
+            'speed_m_s': float(msg.vehicle_speed_m_s), 'distance_m': d,
+            'heights_m': h.reshape(k, d.size), 'valid': bool(msg.valid),
+            'reason': str(msg.reason)}
 
 
 def diagnostic_status_msg(name, health, hardware_id=''):

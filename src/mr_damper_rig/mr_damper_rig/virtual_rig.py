@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from mr_damper_model.io.params_file import load_plant
 from mr_damper_model.models.plant import make_plant
 from mr_damper_rig.excitation import CamSine, ExcitationError, StepSchedule
 
@@ -223,7 +224,7 @@ def build_virtual_rig(options):
 
     """
     from . import excitation as exc_mod
-    plant = make_plant(options['plant'], options['truth_file'])     # '' : the preset truth
+    plant = load_plant(options['plant'], options['truth_file'])     # '' : the preset truth
     if options['excitation'] == 'commanded':
         from .actuator import CommandedMotion, ServoActuator
         excitation = CommandedMotion(ServoActuator(

@@ -151,8 +151,8 @@ def _run_degrade(design, faults, n, *, seed=4):
                                duration_s=n * DT2 + 0.1, dt=DT2, rng=seed)
     car = FullCar(PASSENGER_CAR, None, road)
     acc, pos = _specs_500hz()
-    sens = fe.FullCarSensors(DT2, seed=seed, accel=acc, travel=pos, accel_corners=ALL4,
-                             faults=faults)
+    sens = FullCarSensors(DT2, seed=seed, accel=acc, travel=pos, accel_corners=ALL4,
+                          faults=faults)
     est = fe.FullCarEstimator(design, degrade=True, stuck_s=STUCK, repeat_gate=5.0,
                               steady_tol=1e-3)
     s = car.state

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from mr_damper_model.models.plant import make_plant
+from mr_damper_model.io.params_file import load_plant
 from quarter_car_sim.plant.full_car import FullCar
-from semi_active_control.car.full_car import PASSENGER_CAR
 from quarter_car_sim.plant.two_track_road import make_two_track_road
+from semi_active_control.car.full_car import PASSENGER_CAR
 from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings,
                                                               VehicleEstimatorCore)
 
@@ -31,7 +31,7 @@ def run(core, n, *, currents=(0.3, 0.5, 0.7, 0.9), skip=(), seed=3):
     """Drive the car at fixed currents; feed the core; return estimates and true states."""
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
                                duration_s=n * DT + 0.2, dt=DT, rng=seed)
-    car = FullCar(PASSENGER_CAR, [make_plant('kwok-current', f) for f in FILES], road)
+    car = FullCar(PASSENGER_CAR, [load_plant('kwok-current', f) for f in FILES], road)
     rng = np.random.default_rng(seed)
     s = car.state
     est, true = [], []

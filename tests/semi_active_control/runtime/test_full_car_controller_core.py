@@ -4,28 +4,21 @@ import math
 import numpy as np
 import pytest
 
+from full_car_cases import corners_of
+from mr_damper_common.contract import CornerState, IdentifiedSet
 from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.runtime.full_car import FullCarRuntime
 from semi_active_control.car.full_car import PASSENGER_CAR
-from mr_damper_common.contract import CornerState, IdentifiedSet
 from semi_active_control.runtime.full_car_controller_core import (body_coordinates,
                                                                   full_car_state_of_corners,
                                                                   FullCarControllerCore)
-from quarter_car_sim.runtime.full_car import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
 IDENTIFIED = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)
 SAFE_A = 0.7
 T = PASSENGER_CAR.geometry
-
-
-def corners_of(state):
-    """Return the four corner states of a full-car state, as the corner messages carry them."""
-    out = []
-    for i in range(4):
-        out.append(state.corner(i))
-    return out
 
 
 def test_body_coordinates_of_a_rigid_body_are_exact_and_survive_one_missing_corner():

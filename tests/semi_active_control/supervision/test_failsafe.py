@@ -187,6 +187,18 @@ def test_clip_current():
     np.testing.assert_array_equal(clip_current([1.0, math.inf], 0.0, 2.0, 0.5), [1.0, 0.5])
 
 
+@pytest.mark.parametrize('lo, hi', [(0.0, 2.0), (0.5, 1.5), (1.0, 1.0), (1.5, 0.5)])
+def test_clip_current_of_a_scalar_equals_the_array_path(lo, hi):
+    # the scalar path (plain floats, every control step) against numpy's, value for value
+    values = [-1.0, 0.0, 0.3, 0.5, 1.0, 1.2, 2.0, 7.0, math.nan, math.inf, -math.inf, 1, 3,
+              np.float64(1.7), True]
+    for value in values:
+        scalar = clip_current(value, lo, hi, 0.25)
+        array = clip_current(np.array(value, dtype=float), lo, hi, 0.25)
+        assert type(scalar) is float and type(array) is float
+        assert scalar == array, value
+
+
 def test_default_bounds_are_the_kwok_current_model_bounds():
     model = get_model('kwok-current')
     lo, hi = model.default_bounds()

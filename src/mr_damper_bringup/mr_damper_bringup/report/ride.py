@@ -83,14 +83,14 @@ def passive_reference(qc_params, t_end, dt, current=None, *, window=None, keep=N
     from quarter_car_sim.simulate.quarter_car import simulate_blocks
     g = qc_params.get
     car = _car_params(qc_params)
-    from mr_damper_model.models.plant import make_plant
+    from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.plant.road import make_road
     road = make_road(g('road', 'iso8608'), road_class=g('road_class', 'C'),
                      speed_m_s=g('speed_m_s', 20.0), rng=int(g('road_seed', 1)),
                      duration_s=g('road_duration_s', 300.0), dt=dt,
                      file=g('road_file', ''), repeat=bool(g('road_repeat', False)))
     current = float(g('safe_current_a', 0.5) if current is None else current)
-    plant = make_plant(g('plant', 'spencer'), g('truth_file', ''))
+    plant = load_plant(g('plant', 'spencer'), g('truth_file', ''))
     duration = max(float(t_end) + dt, dt)
     blocks = simulate_blocks(car, road, Passive(current), plant, dt=dt,
                              settle_s=g('settle_s', live_loop.SETTLE_S), duration_s=duration)

@@ -46,6 +46,7 @@ import math
 
 import numpy as np
 
+from mr_damper_model.identification.signals import running_median
 from mr_damper_model.io.data import DamperData
 from mr_damper_model.models.kwok_current import (kwok_current_coefficients, kwok_current_force,
                                                  KwokCurrent)
@@ -437,7 +438,6 @@ class Acceptance:
         mask = np.zeros(n_new, dtype=bool)
         if cur is None or n_new == 0 or span.n < 3:
             return mask
-        from mr_damper_model.live import running_median
         resid = span.f - kwok_current_force(dict(cur['parameters'], i_ref_a=cfg.i_ref_a),
                                             span.x, span.v, span.i)
         resid = resid - cur['grid'].lookup(span, cur['cell_mean'])

@@ -4,7 +4,7 @@ Reading and writing records: DAQ CSV files, rosbag2 bags, MCAP files, column log
 Public API::
 
     from mr_damper_model.io import DamperData, DataError, read_csv, write_csv, validate
-    from mr_damper_model.io import read_bag, is_bag, load_params, save_params
+    from mr_damper_model.io import read_bag, is_bag, load_params, save_params, load_plant
     from mr_damper_model.io import ColumnWriter, ColumnReader
 
 Modules: ``data`` (the record type and CSV files), ``bag_io`` and ``bag_types`` (bags through
@@ -15,7 +15,7 @@ Names load on first use (a bag reader pulls in rosbags).
 _LAZY = {'DamperData': 'data', 'DataError': 'data', 'read_csv': 'data', 'write_csv': 'data',
          'validate': 'data', 'read_bag': 'bag_io', 'is_bag': 'bag_io',
          'load_params': 'params_file', 'save_params': 'params_file',
-         'ColumnWriter': 'columnlog', 'ColumnReader': 'columnlog'}
+         'load_plant': 'params_file', 'ColumnWriter': 'columnlog', 'ColumnReader': 'columnlog'}
 
 __all__ = list(_LAZY)
 

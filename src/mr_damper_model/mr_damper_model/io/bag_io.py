@@ -22,6 +22,7 @@ import numpy as np
 
 from mr_damper_common.contract import COIL_JOINT, PISTON_JOINT
 from mr_damper_model.io.data import DamperData, DataError
+from mr_damper_model.io.mcap_scan import Channel, McapScan
 
 #: Topic of the rig's measurements (the rig node publishes and the recorder records it).
 MEASUREMENT_TOPIC = '/mr_damper/measurement'
@@ -69,7 +70,7 @@ def _bag_path(path):
 def _typestore():
     """Return the kilted type store with the suite's messages (without them if not installed)."""
     from rosbags.typesys import get_typestore, Stores
-    from mr_damper_model.io.bag_types import BagTypesError, suite_typestore
+    from mr_damper_model.io.bag_types import BagTypesError, suite_typestore  # lazy: rosbags
     try:
         return suite_typestore()
     except BagTypesError:
@@ -190,7 +191,6 @@ def read_bag(path, topic=None, *, recovery=None):
 
 def _read_cut_mcap(path, topic, name, exc, recovery):
     """Read the measurements of an MCAP file rosbags refused (``exc``) up to its last chunk."""
-    from mr_damper_model.io.mcap_scan import Channel, McapScan
     scan = McapScan(path)
     conns = [Channel(t, m) for t, (m, _) in scan.topics().items()]
     if scan.complete or not scan.count:

@@ -28,6 +28,8 @@ import zlib
 
 import numpy as np
 
+from mr_damper_model.models.base import ModelError, segment_starts
+
 COLUMNS = ('t', 'x', 'v', 'f', 'i')
 #: File name endings of DAQ CSV files (plain, gzip-compressed).
 CSV_SUFFIXES = ('.csv', '.csv.gz')
@@ -94,9 +96,8 @@ class DamperData:
         object.__setattr__(self, 'starts', self._check_starts(self.starts, n.pop()))
 
     def _check_starts(self, starts, n):
-        from mr_damper_model.models.base import _segment_starts, ModelError
         try:
-            return _segment_starts(starts, n)
+            return segment_starts(starts, n)
         except ModelError as exc:
             raise DataError(f'{_label(self.source)}{exc}') from None
 

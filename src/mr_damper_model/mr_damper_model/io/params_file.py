@@ -28,6 +28,8 @@ import tempfile
 
 from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.io.data import DataError
+from mr_damper_model.models import get_model
+from mr_damper_model.models.plant import make_plant
 
 
 @dataclass
@@ -129,7 +131,6 @@ def load_params(path, *, model=None):
     if not isinstance(raw['parameters'], dict):
         raise DataError(f'{name}: "parameters" must be an object of name -> value')
     try:
-        from mr_damper_model.models import get_model
         spec = get_model(raw['model'], **dict(raw.get('model_options') or {}))
         expected = spec.param_names
     except (ImportError, KeyError, ValueError) as exc:
@@ -175,6 +176,37 @@ def load_identified_set(path):
 
     """
     return IdentifiedSet.from_params_file(load_params(path, model='kwok-current'))
+
+
+def load_plant(name='spencer', params=None, **options):
+    """
+    Build a streaming plant from a parameter file, by default the thesis-like "true" damper.
+
+    Parameters
+    ----------
+    name : {'spencer', 'kwok-current'}
+        Plant model.
+    params : dict, sequence, str, path or None
+        A parameter file of the plant (:func:`load_params` format: the rig's and the car's
+        ``truth_file``), or parameters as ``make_plant`` takes them; None or ``''``: the
+        preset of the model (``presets.spencer_thesis_like()`` or
+        ``presets.thesis_kwok_current()``).
+    **options
+        Keyword options of the plant (see ``mr_damper_model.models.plant.make_plant``).
+
+    Returns
+    -------
+    DamperPlant
+
+    Raises
+    ------
+    DataError
+        The file cannot be read or holds another model.
+
+    """
+    if isinstance(params, str) or hasattr(params, '__fspath__'):
+        params = load_params(params, model=name).parameters if str(params) else None
+    return make_plant(name, params, **options)
 
 
 def _float_or_nan(v):

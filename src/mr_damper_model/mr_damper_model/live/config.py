@@ -1,5 +1,5 @@
 """Settings of the live identifier and the names of its counters (no ROS)."""
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 import math
 
 from mr_damper_model.models.validity import PINNED_FRACTION
@@ -14,6 +14,21 @@ SKIP_REASONS = ('gap', 'few_samples', 'no_motion', 'no_force', 'one_direction', 
                 'no_bins')
 #: Keys of the flagged-sample counters (samples kept out of the fit and the bins).
 FLAG_REASONS = ('outlier', 'stuck', 'dropout', 'offset', 'inconsistent')
+
+
+def new_counters():
+    """Return the live identifier's counters, all zero (``LiveIdentifier.status`` lists them)."""
+    return {'samples_received': 0, 'samples_accepted': 0,
+            'rejected': {r: 0 for r in REJECT_REASONS},
+            'out_of_range': {r: 0 for r in RANGE_CHANNELS},
+            'stream_restarts': 0, 'stamp_gaps': 0,
+            'windows_due': 0, 'windows_superseded': 0, 'windows_overflow': 0,
+            'windows_fitted': 0, 'windows_valid': 0,
+            'windows_skipped': {r: 0 for r in SKIP_REASONS},
+            'windows_refused': {},
+            'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
+            'samples_flagged': {r: 0 for r in FLAG_REASONS},
+            'reference_resets': 0, 'catch_up_fits': 0, 'fit_errors': 0}
 
 
 @dataclass
@@ -255,6 +270,24 @@ class LiveConfig:
             raise ValueError(f'`replace_margin` must be below 1, got {self.replace_margin}')
         if self.pinned_fraction >= 0.5:
             raise ValueError(f'`pinned_fraction` must be below 0.5, got {self.pinned_fraction}')
+
+    def with_dynamic(self, **changes):
+        """
+        Return a copy with fields of :data:`DYNAMIC_FIELDS` changed (validated as a whole).
+
+        Raises
+        ------
+        ValueError
+            A field that is not dynamic or unknown, or a value the new configuration refuses.
+
+        """
+        names = {f.name for f in fields(self)}
+        for name in changes:
+            if name not in names:
+                raise ValueError(f'`{name}` is not a LiveConfig setting')
+            if name not in DYNAMIC_FIELDS:
+                raise ValueError(f'`{name}` is read at start-up and cannot change while running')
+        return replace(self, **changes)
 
 
 #: LiveConfig fields that may change while the identifier runs

@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 
+from mr_damper_model.identification.identify import identify
 from mr_damper_model.models.validity import check_model_parameters
 
 
@@ -74,7 +75,6 @@ def fit_data(data, model, config, x0=None):
         ``model_options={'i_ref_a': config.i_ref_a}``).
 
     """
-    from mr_damper_model.identification.identify import identify
     options = {'i_ref_a': float(config.i_ref_a)} if model == 'kwok-current' else None
     return identify(data, model, x0=x0, model_options=options, **fit_kwargs(config))
 
@@ -170,8 +170,7 @@ def _serve():
     """Child side of :class:`FitProcess`: answer pickled requests until stdin closes."""
     out = os.fdopen(os.dup(1), 'wb')
     os.dup2(2, 1)            # anything printed goes to stderr, stdout carries results only
-    # load numpy, scipy and the models once
-    from mr_damper_model.identification import identify   # noqa: F401
+    # numpy, scipy and the models are loaded once, with this module
     trim = _malloc_trim()
     src = sys.stdin.buffer
     while True:
@@ -188,17 +187,20 @@ def _serve():
         trim()
 
 
-def _in_bounds(model, params, unbounded, i_ref_a):
+def parameter_reason(model, params, unbounded, i_ref_a, pinned_fraction=None, exempt=()):
     """
-    Check a set's values without the pinned check, in the identifier's words.
+    Check a set's values, in the identifier's words.
 
-    :func:`~mr_damper_model.models.validity.check_model_parameters`: '' or
-    ``nonfinite_parameters`` / ``out_of_bounds:<names>``.
+    :func:`~mr_damper_model.models.validity.check_model_parameters` (``pinned_fraction`` None:
+    no pinned check; ``exempt``: names that may sit at a bound): '' or
+    ``nonfinite_parameters`` / ``out_of_bounds:<names>`` / ``pinned:<names>``.
     """
     check = check_model_parameters(model, params, unbounded=unbounded, i_ref_a=i_ref_a,
-                                   pinned_fraction=None)
+                                   pinned_fraction=pinned_fraction, exempt=exempt)
     if check.reason == 'non_finite':
         return 'nonfinite_parameters'
+    if check.reason == 'pinned_at_bound':
+        return f'pinned:{",".join(check.names)}'
     if check.reason:
         return f'out_of_bounds:{",".join(check.names)}'
     return ''

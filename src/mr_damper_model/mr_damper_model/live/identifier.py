@@ -1,47 +1,41 @@
 """
 The sliding-window identifier of the current-dependent Kwok model (no ROS).
 
-Steps 1-8 of the package docstring as one state machine, :class:`LiveIdentifier`. The module is
-longer than the project's ~600 lines on purpose: the sample buffer, the current bins, the
-consistency reference, the warm start and the counters are state that every step reads and
-writes under one lock discipline (samples in one thread, fits in another), so they stay in one
-class; everything that needs no such state lives in the sibling modules (``config``,
-``screening``, ``fitting``, ``conversions``, ``window``).
+Steps 1-8 of the package docstring as one state machine, :class:`LiveIdentifier`, under one
+lock discipline (samples in one thread, fits in another).  Its parts each have a module: the
+sample buffer and the windows it hands out (``sample_ring.SampleRing``), the samples by current
+(``current_bins.CurrentBins``), the set in use as a consistency reference
+(``reference.ConsistencyReference``), the acceptance review
+(``identification.acceptance.Acceptance``); what needs no state lives in ``config``,
+``screening``, ``fitting``, ``conversions`` and ``window``.  What stays (about 630 lines, half
+of them docstrings) is the state machine itself: the steps that read and write the shared
+counters and the gate's state under the one lock.
 """
-from dataclasses import fields, replace
+from dataclasses import replace
 import math
 import threading
 import time
 
 import numpy as np
 
-from mr_damper_common.contract import KWOK_CURRENT_NAMES
-from mr_damper_common.stamps import ACCEPTED, REBASED, StampGuard
+from mr_damper_common.stamps import ACCEPTED, REBASED
 from mr_damper_model.identification.acceptance import Acceptance
 from mr_damper_model.io.data import DamperData
-from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfig, RANGE_CHANNELS,
-                                         REJECT_REASONS, SKIP_REASONS)
-from mr_damper_model.live.conversions import kwok_current_at, kwok_to_kwok_current
-from mr_damper_model.live.fitting import _in_bounds, fit_data, window_seed
-from mr_damper_model.live.reference import (batch_consistency, consistency_figures,
-                                            make_reference, MIN_CHECK_SAMPLES, model_force)
+from mr_damper_model.live.config import LiveConfig, new_counters
+from mr_damper_model.live.conversions import (initial_estimate, kwok_current_at,
+                                              kwok_to_kwok_current, warm_start)
+from mr_damper_model.live.current_bins import CurrentBins, fit_samples
+from mr_damper_model.live.fitting import fit_data, parameter_reason, window_seed
+from mr_damper_model.live.reference import ConsistencyReference, model_force
+from mr_damper_model.live.sample_ring import SampleRing
 from mr_damper_model.live.screening import (check_excitation, continued_runs, flag_samples,
                                             force_step, robust_range)
-from mr_damper_model.live.window import LiveEstimate, Window
-from mr_damper_model.models.validity import check_model_parameters
+from mr_damper_model.live.window import catch_up_parts, LiveEstimate, Window
 
 
-#: Samples per block when an inconsistent part is judged block by block.
-BLOCK_SAMPLES = 2 * MIN_CHECK_SAMPLES
-
-
-class _Bin:
-    __slots__ = ('level', 'data', 'newest_s')
-
-    def __init__(self, level, data):
-        self.level = level
-        self.data = data
-        self.newest_s = float(data.t[-1])
+def _ring(name):
+    """Read-only view of a ``SampleRing`` attribute under the identifier's former name."""
+    return property(lambda self: getattr(self._ring, name), doc=f'``SampleRing.{name}``')
 
 
 class LiveIdentifier:
@@ -65,35 +59,11 @@ class LiveIdentifier:
         self.config = config if config is not None else LiveConfig()
         self._fit_window = fit_data if fit is None else fit
         self._seed = None          # in-order mode: the seed of the window being processed
-        cfg = self.config
-        # two windows and three hops: room for the samples of superseded windows
-        self._cap = int(math.ceil((2 * cfg.window_s + (3 + int(cfg.backlog_windows)) * cfg.hop_s)
-                                  * cfg.max_rate_hz)) + 16
-        self._buf = np.empty((self._cap, 5))
         self._lock = threading.Lock()
-        self._count = 0            # samples in the buffer (<= cap)
-        self._head = 0             # next write position
-        self._last_t = -math.inf
-        self._t_origin = None      # first stamp of the current stream
-        self._next_index = 0       # index m of the next due window end
-        # stamp sanity (order, duplicates, future stamps on the stream's own clock, re-base
-        # after a clock jump)
-        self._stamps = StampGuard(max_future_s=cfg.max_future_s or math.inf,
-                                  rebase_after=cfg.restart_samples, stream_clock=True)
-        self._seq = 0              # samples accepted into the buffer so far (all streams)
-        self._handed = 0           # sequence number of the first sample not yet handed out
-        self.counters = {'samples_received': 0, 'samples_accepted': 0,
-                         'rejected': {r: 0 for r in REJECT_REASONS},
-                         'out_of_range': {r: 0 for r in RANGE_CHANNELS},
-                         'stream_restarts': 0, 'stamp_gaps': 0,
-                         'windows_due': 0, 'windows_superseded': 0, 'windows_overflow': 0,
-                         'windows_fitted': 0, 'windows_valid': 0,
-                         'windows_skipped': {r: 0 for r in SKIP_REASONS},
-                         'windows_refused': {},
-                         'samples_binned': 0, 'samples_unbinned': 0, 'samples_lost': 0,
-                         'samples_flagged': {r: 0 for r in FLAG_REASONS},
-                         'reference_resets': 0, 'catch_up_fits': 0, 'fit_errors': 0}
-        self._bins = {}
+        self.counters = new_counters()
+        # the samples (stamp sanity, ring, windows handed out) and the bins by current
+        self._ring = SampleRing(self.config, self.counters, self._restart_stream)
+        self._bins = CurrentBins()
         self._ref = None           # last valid set of this stream, as a consistency reference
         self._refused_since = None  # newest stamp taken before a run of inconsistent batches
         self._inconsistent_since = None   # window end of the first of consecutive rejections
@@ -114,40 +84,15 @@ class LiveIdentifier:
         self._restarts_seen = 0    # stream restarts the acceptance state has followed
         self._in_use = None        # the set the acceptance review compares with (taken last)
         if initial is not None:
-            self.estimate = self._initial_estimate(initial)
+            self.estimate = initial_estimate(initial, self.config)
             if self.estimate is not None:
                 self._last_solution['kwok-current'] = dict(self.estimate.parameters)
                 if self.estimate.valid:
                     self.last_good = self.estimate
 
-    # ---------------------------------------------------------------- initial estimate
-    def _initial_estimate(self, initial):
-        d = initial.to_json_dict() if hasattr(initial, 'to_json_dict') else dict(initial)
-        model = d.get('model', 'kwok-current')
-        params = dict(d['parameters'])
-        i_ref = float((d.get('model_options') or {}).get('i_ref_a', self.config.i_ref_a))
-        if model == 'kwok':
-            params = kwok_to_kwok_current(params)
-        elif model != 'kwok-current':
-            raise ValueError(f'`initial`: model {model!r} is not kwok or kwok-current')
-        params = {n: float(params[n]) for n in KWOK_CURRENT_NAMES}
-        metrics = d.get('metrics') or {}
-        nrmse = float(metrics.get('nrmse_percent', math.nan) if metrics.get(
-            'nrmse_percent') is not None else math.nan)
-        rmse = float(metrics.get('rmse_n') if metrics.get('rmse_n') is not None else math.nan)
-        reason = '' if d.get('valid', True) else 'stored_invalid'
-        if not reason and i_ref != self.config.i_ref_a:
-            reason = 'i_ref_mismatch'
-        if not reason:
-            reason = _in_bounds('kwok-current', params, self.config.unbounded, i_ref)
-        if not reason and not (nrmse <= self.config.max_nrmse_percent):
-            reason = 'nrmse_above_threshold'
-        return LiveEstimate(parameters=params, valid=not reason, reason=reason,
-                            model_fitted='file', i_ref_a=i_ref, window_end_s=0.0,
-                            window_start_s=0.0,
-                            current_min_a=float(d.get('current_min_a', math.nan)),
-                            current_max_a=float(d.get('current_max_a', math.nan)),
-                            rmse_n=rmse, nrmse_percent=nrmse)
+    _buf, _cap, _count, _head = _ring('buf'), _ring('cap'), _ring('count'), _ring('head')
+    _last_t, _t_origin, _stamps = _ring('last_t'), _ring('t_origin'), _ring('stamps')
+    _seq, _handed = _ring('seq'), _ring('handed')
 
     # ---------------------------------------------------------------- samples
     def count_rejected(self, reason):
@@ -180,7 +125,8 @@ class LiveIdentifier:
 
         """
         with self._lock:
-            return self._add_one(float(t), float(x), float(v), float(f), float(i), now)
+            return self._ring.add_one(float(t), float(x), float(v), float(f), float(i),
+                                      self.config, now)
 
     def add_samples(self, t, x, v, f, i, now=None):
         """
@@ -212,7 +158,7 @@ class LiveIdentifier:
         n = t.shape[0]
         cfg = self.config
         with self._lock:
-            verdict = self._stamps.batch_verdict(t, now) if n else ACCEPTED
+            verdict = self._ring.stamps.batch_verdict(t, now) if n else ACCEPTED
             if verdict == 'future_stamp':
                 self.counters['samples_received'] += n
                 self.counters['rejected']['future_stamp'] += n
@@ -223,14 +169,13 @@ class LiveIdentifier:
                 self.counters['samples_received'] += n
                 self.counters['rejected']['inconsistent_batch'] += n
                 return [(k, 'inconsistent_batch') for k in range(n)]
-            if n and self._clean_batch(t, x, v, f, i, cfg, now):
-                self._append_batch(t, x, v, f, i, cfg)
-                self._stamps.take_clean(t, now)
+            if n and self._ring.clean_batch(t, x, v, f, i, cfg, now):
+                self._ring.append_batch(t, x, v, f, i, cfg, now)
                 return []
             rejected = []
             for k in range(n):
-                reason = self._add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
-                                       float(i[k]), now, judged=True)
+                reason = self._ring.add_one(float(t[k]), float(x[k]), float(v[k]), float(f[k]),
+                                            float(i[k]), cfg, now, judged=True)
                 if reason:
                     rejected.append((k, reason))
             return rejected
@@ -239,124 +184,28 @@ class LiveIdentifier:
         """
         Tell whether to refuse a batch the set in use cannot explain (lock held).
 
-        :func:`~mr_damper_model.live.reference.batch_consistency` against the consistency
-        reference.  The first inconsistent batch after a consistent one is refused whatever
-        its length (one message that would carry the stream's stamps); the ones after it only
-        while the stamps they would leave out stay within ``max_gap_s`` of the newest sample
-        taken before them: a lasting change goes on to the window's gate (which keeps it out
-        of the bins and may reset the reference) without a stamp gap that skips windows.
+        :meth:`~mr_damper_model.live.reference.ConsistencyReference.judge_batch` against the
+        consistency reference.  The first inconsistent batch after a consistent one is refused
+        whatever its length (one message that would carry the stream's stamps); the ones after
+        it only while the stamps they would leave out stay within ``max_gap_s`` of the newest
+        sample taken before them: a lasting change goes on to the window's gate (which keeps it
+        out of the bins and may reset the reference) without a stamp gap that skips windows.
         """
-        verdict = batch_consistency(self._ref, t, x, v, f, i, cfg)
+        verdict = None if self._ref is None else self._ref.judge_batch(t, x, v, f, i, cfg)
         if not verdict:
             if verdict is not None:         # consistent (not merely unjudged)
                 self._refused_since = None
             return False
         if self._refused_since is None:
-            self._refused_since = self._last_t
+            self._refused_since = self._ring.last_t
             return True
         finite = t[np.isfinite(t)]
         step = float(np.median(np.diff(finite))) if finite.size > 1 else 0.0
         return float(finite.max()) + step - self._refused_since <= cfg.max_gap_s
 
-    def _clean_batch(self, t, x, v, f, i, cfg, now):
-        """Tell whether every sample of the batch would be accepted as it is (lock held)."""
-        if not t[0] > self._last_t or not self._stamps.clean(t, now):
-            return False
-        if t.shape[0] > 1 and not bool(np.all(np.diff(t) > 0.0)):
-            return False
-        with np.errstate(invalid='ignore'):
-            return bool(np.all(np.abs(f) <= cfg.force_limit_n)
-                        and np.all(np.abs(v) <= cfg.velocity_limit_m_s)
-                        and np.all(np.abs(x) <= cfg.displacement_limit_m)
-                        and np.all(i >= cfg.current_limit_min_a)
-                        and np.all(i <= cfg.current_limit_max_a)
-                        and np.all(np.isfinite(t)))
-
-    def _append_batch(self, t, x, v, f, i, cfg):
-        """Take a clean batch (see :meth:`_clean_batch`) into the buffer (lock held)."""
-        c = self.counters
-        n = t.shape[0]
-        c['samples_received'] += n
-        if self._t_origin is None:
-            self._t_origin = float(t[0])
-            steps = np.diff(t)
-        else:
-            steps = np.diff(t, prepend=self._last_t)
-        c['stamp_gaps'] += int(np.count_nonzero(steps > cfg.max_gap_s))
-        cap = self._cap
-        if n > cap:   # only the newest cap samples can stay (older ones are lost below)
-            keep = slice(n - cap, n)
-            skipped = n - cap
-        else:
-            keep, skipped = slice(0, n), 0
-        rows = np.column_stack((t[keep], x[keep], v[keep], f[keep], i[keep]))
-        if skipped:
-            self._seq += skipped   # passed through the buffer at once: never handed out
-        m = rows.shape[0]
-        first = min(m, cap - self._head)
-        self._buf[self._head:self._head + first] = rows[:first]
-        if m > first:
-            self._buf[:m - first] = rows[first:]
-        self._head = (self._head + m) % cap
-        self._count = min(self._count + m, cap)
-        self._last_t = float(t[-1])
-        self._seq += m
-        c['samples_accepted'] += n
-
-    def _add_one(self, t, x, v, f, i, now=None, judged=False):
-        """:meth:`add_sample` with the lock held (``judged``: its batch passed the future test)."""
-        cfg = self.config
-        c = self.counters
-        c['samples_received'] += 1
-        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(v)
-                and math.isfinite(f) and math.isfinite(i)):
-            c['rejected']['nonfinite'] += 1
-            return 'nonfinite'
-        # order, duplicates, future (unless judged with its batch), clock jumps
-        verdict = self._stamps.check(t, None if judged else now)
-        if verdict == REBASED:
-            self._restart_stream()
-        elif verdict != ACCEPTED:
-            c['rejected'][verdict] += 1
-            return verdict
-        # range checks after the stamp checks: a sample is late before it is implausible
-        channel = ('force' if abs(f) > cfg.force_limit_n else
-                   'velocity' if abs(v) > cfg.velocity_limit_m_s else
-                   'displacement' if abs(x) > cfg.displacement_limit_m else
-                   'current' if not (cfg.current_limit_min_a <= i
-                                     <= cfg.current_limit_max_a) else '')
-        if channel:
-            c['out_of_range'][channel] += 1
-            return channel + '_range'
-        if self._t_origin is None:
-            self._t_origin = t
-        elif t - self._last_t > cfg.max_gap_s:
-            # counted once per gap, here: the windows across it may all be superseded
-            c['stamp_gaps'] += 1
-        row = self._buf[self._head]
-        row[0] = t
-        row[1] = x
-        row[2] = v
-        row[3] = f
-        row[4] = i
-        self._head = (self._head + 1) % self._cap
-        if self._count < self._cap:
-            self._count += 1
-        self._last_t = t
-        self._stamps.commit(t, now)
-        self._seq += 1
-        c['samples_accepted'] += 1
-        return ''
-
     def _restart_stream(self):
-        self.counters['stream_restarts'] += 1
-        self.counters['samples_lost'] += self._seq - self._handed
-        self._handed = self._seq
-        self._count = 0
-        self._head = 0
-        self._last_t = -math.inf
-        self._t_origin = None
-        self._next_index = 0
+        """Start a new stream (lock held): restart the ring, drop the bins and the reference."""
+        self._ring.restart()
         self._bins.clear()
         self._ref = None
         self._excluded_s = -math.inf
@@ -377,54 +226,18 @@ class LiveIdentifier:
         windows' samples left the buffer (``backlog_windows`` more hops) are those windows
         passed over, counted in ``windows_overflow``.
         """
-        cfg = self.config
         with self._lock:
-            if self._t_origin is None:
-                return None
-            first_end = self._t_origin + cfg.window_s
-            if self._last_t < first_end + self._next_index * cfg.hop_s:
-                return None
-            m = int(math.floor((self._last_t - first_end) / cfg.hop_s + 1e-9))
-            m = max(m, self._next_index)
-            n = self._count
-            oldest = self._seq - n
-            if cfg.backlog_windows:
-                m = self._in_order_index(m, n)
-            else:
-                self.counters['windows_superseded'] += m - self._next_index
-            self.counters['windows_due'] += 1
-            self._next_index = m + 1
-            end = first_end + m * cfg.hop_s
-            if self._handed < oldest:
-                self.counters['samples_lost'] += oldest - self._handed
-                self._handed = oldest
-            idx = (self._head - n + np.arange(n)) % self._cap
-            t = self._buf[idx, 0]
-            k_end = int(np.searchsorted(t, end + 1e-9, side='right'))
-            k_win = int(np.searchsorted(t, end - cfg.window_s + 1e-9, side='right'))
-            k_new = min(self._handed - oldest, k_end)
-            rows = self._buf[idx[min(k_win, k_new):k_end]]
-            n_new = k_end - k_new
-            self._handed = oldest + k_end
+            taken = self._ring.next_window(self.config)
+        if taken is None:
+            return None
+        rows, k_window, end, n_new, first_new_seq, m = taken
         span = DamperData(*rows.T, source='window')
-        window = span.select(slice(max(k_win - k_new, 0), None))
-        return Window(window, end, span, n_new, oldest + k_new, m)
-
-    def _in_order_index(self, newest, n):
-        """Index of the oldest due window whose samples are all still buffered (lock held)."""
-        m = self._next_index
-        t_old = self._buf[(self._head - n) % self._cap, 0]
-        start = self._t_origin + m * self.config.hop_s      # samples after it form window m
-        if n == self._cap and t_old > start + 1e-9:
-            m_kept = int(math.ceil((t_old - self._t_origin) / self.config.hop_s - 1e-9))
-            m = min(max(m, m_kept), newest)
-            self.counters['windows_overflow'] += m - self._next_index
-        return m
+        return Window(span.select(slice(k_window, None)), end, span, n_new, first_new_seq, m)
 
     def _give_back(self, window, n):
         """Offer the last ``n`` new samples of ``window`` again with the next window."""
         with self._lock:
-            self._handed = min(self._handed, window.first_new_seq + window.n_new - n)
+            self._ring.give_back(window.first_new_seq, window.n_new, n)
 
     # ---------------------------------------------------------------- fitting
     def process(self, window):
@@ -477,15 +290,9 @@ class LiveIdentifier:
             configuration refuses (nothing changed).
 
         """
-        names = {f.name for f in fields(LiveConfig)}
-        for name in changes:
-            if name not in names:
-                raise ValueError(f'`{name}` is not a LiveConfig setting')
-            if name not in DYNAMIC_FIELDS:
-                raise ValueError(f'`{name}` is read at start-up and cannot change while running')
-        config = replace(self.config, **changes)
+        config = self.config.with_dynamic(**changes)
         self.config = config
-        self._stamps.rebase_after = int(config.restart_samples)
+        self._ring.stamps.rebase_after = int(config.restart_samples)
         return config
 
     def _process(self, window):
@@ -527,7 +334,7 @@ class LiveIdentifier:
         clean = new.select(flags == '')
         # new samples older than this window (windows superseded while the fitter was busy)
         # are judged, binned and fitted one window length at a time, in time order
-        parts = self._catch_up_parts(clean, window.end_s)
+        parts = catch_up_parts(clean, window.end_s, cfg.window_s)
         for part_end, part in parts[:-1]:
             if self._admit(part, part_end, data.n) and part.n >= cfg.min_window_samples:
                 t_catch = time.perf_counter()
@@ -538,31 +345,6 @@ class LiveIdentifier:
             self.last_skip = 'inconsistent'
             return None
         return self._fit_bins(data, data.n, t_start)
-
-    def _catch_up_parts(self, clean, end_s):
-        """
-        Split a window's screened new samples into consecutive ``window_s`` spans.
-
-        Returns ``[(span_end_s, samples), ...]`` in time order; the last span is the window's
-        own (after ``end_s - window_s``), the earlier ones end at ``end_s - j * window_s``.
-        Only windows that follow superseded ones carry samples before their own span.  Judging
-        those against the reference one span at a time, with a fit after each, bounds the age
-        of the reference a sample is judged against by ``window_s`` whatever the fitter's
-        delay: the damper's slow memory (e.g. the force shift of a Bouc-Wen damper back at 0 A
-        after a 2 A dwell) is then judged against a set fitted on the levels in between, as a
-        window of its own would have been, not against a set of the first level only.
-        """
-        ws = self.config.window_s
-        lower = end_s - ws + 1e-9                  # the window's own samples: t > lower
-        k_own = int(np.searchsorted(clean.t, lower, side='right'))
-        parts = [(end_s, clean.select(slice(k_own, None)))]
-        if k_own:
-            span = np.floor((lower - clean.t[:k_own]) / ws).astype(np.int64) + 1
-            for j in range(int(span[0]), 0, -1):   # oldest first (stamps increase)
-                part = clean.select(np.flatnonzero(span == j))
-                if part.n:
-                    parts.insert(-1, (end_s - j * ws, part))
-        return parts
 
     def _admit(self, clean, end_s, keep):
         """
@@ -583,7 +365,7 @@ class LiveIdentifier:
         prev_whole, self._prev_whole = self._prev_whole, not inconsistent
         if inconsistent and prev_whole:
             # the onset of a fault inside the part: the blocks before it still count
-            fine = self._consistent_blocks(clean)
+            fine = self._ref.consistent_blocks(clean, cfg)
             if fine.any():
                 c['samples_flagged']['inconsistent'] += int(np.count_nonzero(~fine))
                 self._exclude(clean.t[~fine])
@@ -605,11 +387,11 @@ class LiveIdentifier:
         if cfg.acceptance_checks and clean.n and self._ref is not None:
             # force offsets against the set in use (fitted on the part before this one) that
             # the part's overall consistency hides: a step that begins or ends in it
-            offset = self._accept.offset_flags(clean, clean.n, self._ref['scale'], end_s)
+            offset = self._accept.offset_flags(clean, clean.n, self._ref.scale, end_s)
             if offset.any():
                 c['samples_flagged']['offset'] += int(np.count_nonzero(offset))
                 clean = clean.select(~offset)
-        self._update_bins(clean, keep, end_s)
+        self._bins.update(clean, keep, end_s, cfg.current_bin_a, cfg.bin_max_age_s)
         self._accept.remember(clean, end_s)
         c['samples_binned'] += clean.n
         return True
@@ -620,38 +402,23 @@ class LiveIdentifier:
 
         ``data``: the window (its first and last stamps are the estimate's); ``keep``: samples
         a window holds (a bin is usable with ``min_bin_fraction`` of them).  A catch-up fit
-        (samples of superseded windows, see :meth:`_catch_up_parts`) is counted in
-        ``catch_up_fits`` and, when valid, becomes the consistency reference and warm start;
-        it is not published (:attr:`estimate` is the window's).
+        (samples of superseded windows, see :func:`~mr_damper_model.live.window.catch_up_parts`)
+        is counted in ``catch_up_fits`` and, when valid, becomes the consistency reference and
+        warm start; it is not published (:attr:`estimate` is the window's).
         """
         cfg = self.config
         c = self.counters
         start = float(data.t[0])
+        # samples of the window kept out: each level on the window's remaining samples
         trim = not catch_up and self._excluded_s >= start
-        least = max(cfg.min_bin_fraction * keep, 10)
-        usable = []
-        for b in sorted(self._bins.values(), key=lambda b: b.level):
-            part = b.data
-            if trim and b.newest_s >= start:
-                # samples of the window were kept out: the level is fitted on the window's
-                # remaining samples, not on older ones (a start from rest) filling the gap;
-                # with too few of them, on its whole bin (dropping the level would narrow
-                # the set and with it the consistency reference)
-                own = part.select(part.t >= start)
-                part = own if own.n >= least else part
-            if part.n >= least:
-                usable.append(_Bin(b.level, part))
+        usable = self._bins.usable(max(cfg.min_bin_fraction * keep, 10),
+                                   start if trim else None)
         if not usable:
             if not catch_up:
                 c['windows_skipped']['no_bins'] += 1
                 self.last_skip = 'no_bins'
             return None
-        fit = DamperData.concatenate([b.data for b in usable])
-        order = np.argsort(fit.t, kind='stable')
-        fit = fit.select(order)
-        if cfg.max_fit_samples and fit.n > cfg.max_fit_samples:
-            step = int(math.ceil(fit.n / cfg.max_fit_samples))
-            fit = fit.select(slice(None, None, step))
+        fit = fit_samples(usable, cfg.max_fit_samples)
         levels = [b.level for b in usable]
         model = 'kwok' if len(usable) == 1 else 'kwok-current'
         x0 = self._warm_start(model, levels) if cfg.warm_start else None
@@ -726,11 +493,6 @@ class LiveIdentifier:
         """Kwok-current force [N] of a parameter dict on ``data``."""
         return model_force(params, data, self.config.i_ref_a)
 
-    def _covered(self, ref, data):
-        """Mask of the samples at current levels the reference set ``ref`` was fitted on."""
-        tol = 0.5 * self.config.current_bin_a
-        return (data.i >= ref['current_min_a'] - tol) & (data.i <= ref['current_max_a'] + tol)
-
     def _judge(self, model, fitted, robust_nrmse, fit, f_new, scale, span_a):
         """
         Return why a fitted set is not valid, or ''.
@@ -741,34 +503,25 @@ class LiveIdentifier:
         are also too narrow for the quarter car, which refuses any pinned set.
         """
         cfg = self.config
-        check = check_model_parameters(
-            model, fitted, unbounded=cfg.unbounded, i_ref_a=cfg.i_ref_a,
-            pinned_fraction=cfg.pinned_fraction,
-            exempt=('beta1',) if span_a < 0.5 * cfg.i_ref_a else ())
-        if check.reason == 'non_finite':
-            return 'nonfinite_parameters'
-        if check.reason == 'out_of_bounds':
-            return 'out_of_bounds:' + ','.join(check.names)
-        if check.reason == 'pinned_at_bound':
-            return 'pinned:' + ','.join(check.names)
+        reason = parameter_reason(model, fitted, cfg.unbounded, cfg.i_ref_a, cfg.pinned_fraction,
+                                  ('beta1',) if span_a < 0.5 * cfg.i_ref_a else ())
+        if reason:
+            return reason
         if not (robust_nrmse <= cfg.max_nrmse_percent):
             return 'nrmse_above_threshold'
-        ref = self._ref
-        if ref is not None:
-            cov = self._covered(ref, fit)
-            if np.count_nonzero(cov) >= MIN_CHECK_SAMPLES:
-                e_new = float(np.sqrt(np.mean((fit.f[cov] - f_new[cov]) ** 2)))
-                f_prev = self._force(ref['parameters'], fit.select(cov))
-                e_prev = float(np.sqrt(np.mean((fit.f[cov] - f_prev) ** 2)))
-                floor = 0.01 * cfg.error_floor_percent * scale
-                self.last_check['new_vs_last_valid_rmse_n'] = (e_new, e_prev)
-                if e_new > cfg.max_error_ratio * e_prev + floor:
-                    return 'worse_than_last_valid'
+        figures = None if self._ref is None else self._ref.rmse_on(fit, f_new, cfg.i_ref_a,
+                                                                   cfg.current_bin_a)
+        if figures is not None:
+            self.last_check['new_vs_last_valid_rmse_n'] = figures
+            e_new, e_prev = figures
+            if e_new > cfg.max_error_ratio * e_prev + 0.01 * cfg.error_floor_percent * scale:
+                return 'worse_than_last_valid'
         return ''
 
     def _set_reference(self, est, fit, f_new, scale):
-        """Keep a valid set as the consistency reference (:func:`make_reference`)."""
-        self._ref = make_reference(est, fit, f_new, scale, self.config.current_bin_a)
+        """Keep a valid set as the consistency reference (``ConsistencyReference.from_fit``)."""
+        self._ref = ConsistencyReference.from_fit(est, fit, f_new, scale,
+                                                  self.config.current_bin_a)
 
     def _consistency(self, new):
         """
@@ -781,83 +534,19 @@ class LiveIdentifier:
         was not fitted on are not judged; fewer than ``MIN_CHECK_SAMPLES`` judged samples:
         no judgement ('').
         """
-        figures = self._consistency_figures(new)
+        figures = None if self._ref is None else self._ref.figures(new, self.config)
         if figures is None:
             return ''
         self.last_check['new_samples_rmse_n'] = figures
         return 'inconsistent' if figures[0] > figures[1] else ''
 
-    def _consistency_figures(self, new):
-        """Return (RMSE of the last valid set on ``new``, its limit) [N], or None (unjudged)."""
-        return consistency_figures(self._ref, new, self.config)
-
-    def _consistent_blocks(self, new):
-        """
-        Mask of the samples of an inconsistent part before the onset of the inconsistency.
-
-        The part is cut into blocks of ``BLOCK_SAMPLES`` consecutive samples (the last one
-        takes the remainder), each judged on its own (enough samples in known cells); when
-        consistent blocks are followed only by inconsistent ones, a fault (or change) began
-        inside the part and the blocks before it are kept, less an exactly constant run that
-        goes on into the first inconsistent block (a stuck load cell's first samples).  Any
-        other pattern keeps nothing.  Called only when the part before was consistent as a
-        whole (the onset is new).
-        """
-        keep = np.zeros(new.n, dtype=bool)
-        n_blocks = new.n // BLOCK_SAMPLES
-        if n_blocks < 2:
-            return keep
-        good = np.zeros(n_blocks, dtype=bool)
-        for b in range(n_blocks):
-            lo = b * BLOCK_SAMPLES
-            hi = new.n if b == n_blocks - 1 else lo + BLOCK_SAMPLES
-            figures = self._consistency_figures(new.select(slice(lo, hi)))
-            good[b] = figures is not None and figures[0] <= figures[1]
-        # one step, from consistent blocks to inconsistent ones (an onset); any other pattern
-        # (a persistent fault that some blocks happen to match) counts whole
-        if not good[0] or np.count_nonzero(good[1:] != good[:-1]) != 1:
-            return keep
-        keep[:] = np.repeat(good, np.diff(np.r_[np.arange(n_blocks) * BLOCK_SAMPLES, new.n]))
-        # a constant run that goes on into the first inconsistent block is that fault's start
-        # (a stuck load cell stays close to the true force for a while): cut before it
-        j = int(np.argmin(keep))
-        while j > 0 and new.f[j - 1] == new.f[j]:
-            j -= 1
-        keep[j:] = False
-        return keep
-
     def _warm_start(self, model, levels):
-        if model in self._last_solution:
-            return dict(self._last_solution[model])
-        if model == 'kwok' and 'kwok-current' in self._last_solution:
-            return kwok_current_at(self._last_solution['kwok-current'], levels[0],
-                                   self.config.i_ref_a)
-        if model == 'kwok-current' and 'kwok' in self._last_solution:
-            return kwok_to_kwok_current(self._last_solution['kwok'])
-        return None
+        return warm_start(self._last_solution, model, levels, self.config.i_ref_a)
 
     def _exclude(self, t):
         """Note the stamps of samples kept out of the bins (flagged or inconsistent)."""
         if len(t):
             self._excluded_s = max(self._excluded_s, float(np.max(t)))
-
-    def _update_bins(self, new, keep, newest_s):
-        """File ``new`` samples by current; each bin keeps its newest ``keep`` samples."""
-        cfg = self.config
-        if new.n:
-            keys = np.round(new.i / cfg.current_bin_a).astype(int)
-            for key in np.unique(keys):
-                part = new.select(keys == key)
-                old = self._bins.get(int(key))
-                if old is not None:
-                    part = DamperData.concatenate([old.data, part])
-                if part.n > keep:
-                    part = part.select(slice(part.n - keep, None))
-                self._bins[int(key)] = _Bin(float(np.median(part.i)), part)
-        if cfg.bin_max_age_s > 0:
-            for key in [k for k, b in self._bins.items()
-                        if b.newest_s < newest_s - cfg.bin_max_age_s]:
-                del self._bins[key]
 
     def replay(self, data, every=1):
         """
@@ -904,7 +593,8 @@ class LiveIdentifier:
         ``samples_lost`` (left the buffer before a window handed them out),
         ``samples_pending`` (accepted, not yet handed out: after the last due window end),
         ``samples_flagged`` {reason: count}, ``reference_resets``, ``catch_up_fits`` (fits of
-        the samples of superseded windows, see :meth:`_catch_up_parts`), ``fit_errors``,
+        the samples of superseded windows, see
+        :func:`~mr_damper_model.live.window.catch_up_parts`), ``fit_errors``,
         ``last_window_start_s``,
         ``last_window_end_s`` (stamps of the first and last sample of the last fitted window
         [s]), ``processed_up_to_s`` (end of the last window processed, skipped or fitted: every
@@ -920,7 +610,7 @@ class LiveIdentifier:
         """
         with self._lock:
             c = {k: (dict(v) if isinstance(v, dict) else v) for k, v in self.counters.items()}
-            c['samples_pending'] = self._seq - self._handed
+            c['samples_pending'] = self._ring.seq - self._ring.handed
         est = self.estimate
         fitted = c['windows_fitted']
         c.update(
@@ -936,7 +626,7 @@ class LiveIdentifier:
             compute_s_last=self.last_compute_s,
             compute_s_mean=self._compute_sum / fitted if fitted else math.nan,
             compute_s_max=self.compute_s_max,
-            bins_a=sorted(b.level for b in list(self._bins.values())),
+            bins_a=self._bins.levels(),
             last_error=self.last_error, last_held=self.last_held,
             held_age_s=self._accept.age_s(self.processed_up_to_s),
             last_condition_number=self._accept.last_figures.get('condition', math.nan),

@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-#: Width of the running median of the outlier screen [samples] (isolates bursts of <= 2).
-MEDIAN_WIDTH = 5
+from mr_damper_model.identification.acceptance import reversal_indices, velocity_amplitude
+from mr_damper_model.identification.signals import MEDIAN_WIDTH, running_median  # noqa: F401
 
 
 def check_excitation(data, config):
@@ -57,30 +57,6 @@ def robust_range(f):
         return 0.0
     lo, hi = np.percentile(f, [0.5, 99.5])
     return float(hi - lo)
-
-
-def running_median(f, width=MEDIAN_WIDTH):
-    """
-    Return the centred running median of ``f`` (edges padded with the end values).
-
-    Parameters
-    ----------
-    f : array_like with shape (n,)
-        Signal.
-    width : int
-        Odd window length [samples].
-
-    Returns
-    -------
-    numpy.ndarray with shape (n,)
-
-    """
-    f = np.asarray(f, dtype=float)
-    h = width // 2
-    if f.size == 0:
-        return f.copy()
-    padded = np.concatenate([np.full(h, f[0]), f, np.full(h, f[-1])])
-    return np.median(np.lib.stride_tricks.sliding_window_view(padded, width), axis=1)
 
 
 def constant_runs(f, t, min_s):
@@ -222,7 +198,6 @@ def cycle_mean_spread(x, v, f):
     Cycles of another amplitude, stroke or centre (a start from rest, a change of excitation)
     are not compared: there the damper's asymmetry moves the mean too.
     """
-    from mr_damper_model.identification.acceptance import reversal_indices
     rev = reversal_indices(v)
     if rev.size < 4:
         return math.nan
@@ -256,7 +231,6 @@ def mid_stroke_jump(t, v, resid):
     velocity amplitude, on both samples; the force rises fast after a reversal) and in runs
     sampled finely for their motion (:data:`MIN_CYCLE_SAMPLES` per cycle or more).
     """
-    from mr_damper_model.identification.acceptance import reversal_indices, velocity_amplitude
     n = resid.size
     dt = float(np.median(np.diff(t))) if n > 1 else 0.0
     if not dt > 0:

@@ -3,6 +3,8 @@ from dataclasses import dataclass, field
 import math
 
 from mr_damper_common.contract import IdentifiedSet
+import numpy as np
+
 from mr_damper_model.io.data import DamperData
 
 
@@ -109,3 +111,29 @@ class LiveEstimate:
                 'metrics': metrics, 'valid': bool(self.valid),
                 'seed': None if self.result is None else self.result.seed,
                 'source': source or f'identifier window ending at {self.window_end_s:.3f} s'}
+
+
+def catch_up_parts(clean, end_s, window_s):
+    """
+    Split a window's screened new samples into consecutive ``window_s`` spans.
+
+    Returns ``[(span_end_s, samples), ...]`` in time order; the last span is the window's
+    own (after ``end_s - window_s``), the earlier ones end at ``end_s - j * window_s``.
+    Only windows that follow superseded ones carry samples before their own span.  Judging
+    those against the reference one span at a time, with a fit after each, bounds the age
+    of the reference a sample is judged against by ``window_s`` whatever the fitter's
+    delay: the damper's slow memory (e.g. the force shift of a Bouc-Wen damper back at 0 A
+    after a 2 A dwell) is then judged against a set fitted on the levels in between, as a
+    window of its own would have been, not against a set of the first level only.
+    """
+    ws = window_s
+    lower = end_s - ws + 1e-9                  # the window's own samples: t > lower
+    k_own = int(np.searchsorted(clean.t, lower, side='right'))
+    parts = [(end_s, clean.select(slice(k_own, None)))]
+    if k_own:
+        span = np.floor((lower - clean.t[:k_own]) / ws).astype(np.int64) + 1
+        for j in range(int(span[0]), 0, -1):   # oldest first (stamps increase)
+            part = clean.select(np.flatnonzero(span == j))
+            if part.n:
+                parts.insert(-1, (end_s - j * ws, part))
+    return parts

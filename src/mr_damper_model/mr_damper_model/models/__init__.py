@@ -9,8 +9,9 @@ Public API::
 
 Modules: ``base`` (the model interface and the registry behind :func:`get_model`), ``kwok``,
 ``kwok_current``, ``kwok_current_lag``, ``kwok_current_amp``, ``bingham``, ``bouc_wen``,
-``spencer`` (one model family each), ``compiled`` (numba kernels), ``plant`` (a damper with
-state for the simulators), ``inverse`` (the live inverse model). Names load on first use.
+``spencer`` (one model family each), ``compiled`` (numba kernels), ``presets`` (parameter sets
+of the thesis and the rig), ``plant`` (a damper with state for the simulators), ``inverse`` (the
+live inverse model). Names load on first use.
 """
 from mr_damper_model.models.base import (cvkz_regressors, cvkz_separable_parts, get_model,
                                          HysteresisModel, MODEL_NAMES, ModelError,

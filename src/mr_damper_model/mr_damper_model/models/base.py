@@ -186,7 +186,7 @@ def _signal(a, name, n=None):
     return arr
 
 
-def _segment_starts(starts, n):
+def segment_starts(starts, n):
     """
     Coerce segment starts to a sorted int array that begins with 0.
 
@@ -314,7 +314,7 @@ class HysteresisModel:
             i = _signal(i, 'i', n)
         elif i is not None:
             i = _signal(i, 'i', n)
-        starts = _segment_starts(starts, n)
+        starts = segment_starts(starts, n)
         if self.stateful:
             if t is None:
                 raise ModelError(f'model {self.name!r} is stateful and needs the time `t`')

@@ -492,6 +492,7 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
 
     def __init__(self, params, *, i_ref_a=2.0, i_min=0.0, i_max=2.0, n_grid=9, tol_a=None,
                  sign_convention='model'):
+        # lazy: scipy.signal, which the car's controller need not load for the plain inverse
         from mr_damper_model.models.kwok_current_lag import KwokCurrentLag
         model = KwokCurrentLag()
         if isinstance(params, dict):

@@ -18,9 +18,10 @@ because it runs in 1 kHz loops.
 """
 import math
 
+from mr_damper_model.models import ModelError, presets
 from mr_damper_model.models.kwok_current import KwokCurrent, kwok_current_force_scalar
-from mr_damper_model.models import ModelError
-from mr_damper_model.models.spencer import advance_scalar, Spencer, substeps
+from mr_damper_model.models.spencer import (advance_scalar, advance_step_compiled, Spencer,
+                                            substeps)
 
 PLANT_NAMES = ('spencer', 'kwok-current')
 
@@ -179,13 +180,17 @@ class SpencerPlant(DamperPlant):
         Coil current after ``reset`` [A].
     y0_m : float or None
         Internal displacement y at the first step [m]; None: the first x (damper at rest).
+    compiled : bool
+        Step with the numba-compiled sample interval (``spencer.advance_step_compiled``, the
+        same arithmetic; compiled on first use or loaded from numba's cache); False: the
+        interpreted ``spencer.advance_scalar`` (the reference).
 
     """
 
     model_name = 'spencer'
 
     def __init__(self, params, slew_a_per_s=None, max_substep_s=1e-4, initial_current_a=0.0,
-                 y0_m=None):
+                 y0_m=None, compiled=True):
         self._model = Spencer(max_substep_s=max_substep_s, y0_m=y0_m)
         self.params = _as_params(self._model, params)
         self._model._check(self._model.from_dict(self.params)[None, :])
@@ -193,6 +198,12 @@ class SpencerPlant(DamperPlant):
         self.max_substep_s = float(max_substep_s)
         self.y0_m = None if y0_m is None else float(y0_m)
         self._p = tuple(self.params[k] for k in Spencer.param_names)
+        self._advance = None
+        if compiled:
+            self._advance = advance_step_compiled()
+            # compiled (or loaded from numba's cache) here, with the argument types of every
+            # step, not in a control loop's first step
+            self._advance(self._p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-3, 1)
         super().__init__(slew_a_per_s, initial_current_a)
 
     def reset(self):
@@ -211,8 +222,13 @@ class SpencerPlant(DamperPlant):
         if dt == 0.0:
             return self._force_now(x, v)
         drive = self._driver(dt, i_cmd)
-        f = advance_scalar(self._state, self._p, self._x, self._v, x, v, drive, dt,
-                           substeps(dt, self.max_substep_s))
+        m = substeps(dt, self.max_substep_s)
+        if self._advance is None:
+            f = advance_scalar(self._state, self._p, self._x, self._v, x, v, drive, dt, m)
+        else:
+            s = self._state
+            s[0], s[1], s[2], f = self._advance(self._p, s[0], s[1], s[2], self._x, self._v, x,
+                                                v, drive, dt, m)
         self.current = self._state[2]
         self._x, self._v = x, v
         return f
@@ -233,10 +249,11 @@ def make_plant(name='spencer', params=None, **options):
     ----------
     name : {'spencer', 'kwok-current'}
         Plant model.
-    params : dict, str, path or None
-        Parameters, or a parameter file of the plant (``mr_damper_model.io.params_file`` format,
-        read with ``load_params``: the rig's and the car's ``truth_file``); None or ``''``:
-        ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``.
+    params : dict, sequence or None
+        Parameters {name: value} (SI) or a vector in the model's order; None:
+        ``presets.spencer_thesis_like()`` or ``presets.thesis_kwok_current()``. A parameter
+        file (the rig's and the car's ``truth_file``) is read by
+        ``mr_damper_model.io.params_file.load_plant``.
     **options
         Keyword options of ``SpencerPlant`` / ``KwokCurrentPlant``. For 'spencer' ``y0_m``
         defaults to 0.0: x is measured from mid-stroke and the internal displacement starts
@@ -248,10 +265,9 @@ def make_plant(name='spencer', params=None, **options):
     DamperPlant
 
     """
-    from mr_damper_model.identification import presets
     if isinstance(params, str) or hasattr(params, '__fspath__'):
-        from mr_damper_model.io.params_file import load_params
-        params = load_params(params, model=name).parameters if str(params) else None
+        raise ModelError(f'make_plant takes parameters, not the file {str(params)!r}: read a '
+                         'parameter file with mr_damper_model.io.params_file.load_plant')
     if name == 'spencer':
         options.setdefault('y0_m', 0.0)
         return SpencerPlant(presets.spencer_thesis_like() if params is None else params,

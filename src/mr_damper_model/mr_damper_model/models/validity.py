@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mr_damper_model.models.base import get_model
+
 #: Tolerance of the box check, as a fraction of each parameter's bound span.
 BOUND_TOL = 1e-9
 #: Default ``pinned_fraction`` of the identifier and the car's supervisor.
@@ -116,7 +118,6 @@ def check_model_parameters(model, params, *, unbounded=False, i_ref_a=None,
     ``i_ref_a`` is the reference current of ``kwok-current``; ``unbounded`` takes the model's
     wide search box instead of its physical one.
     """
-    from mr_damper_model.models.base import get_model
     options = {'i_ref_a': i_ref_a} if model == 'kwok-current' and i_ref_a else {}
     mdl = get_model(model, **options)
     lo, hi = mdl.default_bounds(unbounded=unbounded)

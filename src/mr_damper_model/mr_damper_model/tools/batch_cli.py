@@ -10,6 +10,13 @@ import os
 from pathlib import Path
 import sys
 
+from mr_damper_model.identification import batch
+from mr_damper_model.identification.batch import (DEFAULT_ABS_TOL_N, DEFAULT_CURRENTS_A,
+                                                  DEFAULT_MAX_NRMSE_PERCENT, DEFAULT_REL_TOL,
+                                                  DEFAULT_STROKE_M, DEFAULT_VELOCITIES_MPS)
+from mr_damper_model.io.data import DataError
+from mr_damper_model.tools.cli import MODEL_CHOICES
+
 #: Options of the single-record tool that mean nothing in a batch.
 _NOT_IN_BATCH = (('--per-current', 'per_current'), ('--compare', 'compare'),
                  ('--validate', 'validate'), ('--plot', 'plot'), ('--out', 'out'))
@@ -17,9 +24,6 @@ _NOT_IN_BATCH = (('--per-current', 'per_current'), ('--compare', 'compare'),
 
 def add_arguments(p):
     """Add the batch options to the ``mr-damper-identify`` parser."""
-    from mr_damper_model.identification.batch import (DEFAULT_ABS_TOL_N, DEFAULT_CURRENTS_A,
-                                                      DEFAULT_MAX_NRMSE_PERCENT, DEFAULT_REL_TOL,
-                                                      DEFAULT_STROKE_M, DEFAULT_VELOCITIES_MPS)
     g = p.add_argument_group('batch: one model per damper of an archive (docs/batch.md)')
     g.add_argument('--batch', metavar='ROOT',
                    help='identify every damper under ROOT: one per sub-directory (its records '
@@ -116,8 +120,6 @@ def run(args, fail):
         ``fail(name, message)`` prints the error line and returns the exit code.
 
     """
-    from mr_damper_model.identification import batch
-    from mr_damper_model.io.data import DataError
     for flag, attr in _NOT_IN_BATCH:
         if getattr(args, attr, None):
             return fail('', f'{flag} cannot be used with --batch (see --help)')
@@ -132,7 +134,6 @@ def run(args, fail):
         return fail('', '--workers and --scheduler exclude each other')
     if args.method not in ('separable', 'full'):
         return fail('', f'unknown method {args.method!r}; expected separable or full')
-    from mr_damper_model.tools.cli import MODEL_CHOICES
     if args.model is not None and args.model not in MODEL_CHOICES:
         return fail('', f'unknown model {args.model!r}; expected one of '
                     f'{", ".join(MODEL_CHOICES)}')

@@ -35,12 +35,24 @@ import os
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 import argparse  # noqa: E402
-import glob  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from mr_damper_common.health import finite_or_none  # noqa: E402
+from mr_damper_model.identification.identify import (compare_models,  # noqa: E402
+                                                     current_group_levels, current_groups,
+                                                     identify, identify_per_current)
+from mr_damper_model.identification.metrics import fit_metrics, METRIC_KEYS  # noqa: E402
+from mr_damper_model.io.bag_io import MEASUREMENT_TOPIC  # noqa: E402
+from mr_damper_model.io.data import DamperData, DataError  # noqa: E402
+from mr_damper_model.io.params_file import load_params, save_params  # noqa: E402
+from mr_damper_model.io.records import expand_inputs, InputError, read_record  # noqa: E402
+from mr_damper_model.models import get_model  # noqa: E402
 
 PROG = 'mr-damper-identify'
 #: Exit code of a run that used only the readable part of a truncated recording (outputs written).
@@ -57,10 +69,6 @@ METRIC_UNITS = (('rmse_n', 'RMSE [N]'), ('nrmse_percent', 'NRMSE [%]'),
 
 class _UsageError(Exception):
     pass
-
-
-class _InputError(Exception):
-    """An input argument names nothing readable: ``(argument, problem)``."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -98,115 +106,15 @@ def build_parser():
                    help='fit nothing: metrics of this saved model on each FILE and on all')
     p.add_argument('--topic', default=None,
                    help='measurement topic of bags (default: %s if present, else the '
-                   "bag's only JointState topic)" % _measurement_topic())
-    from mr_damper_model.tools.batch_cli import add_arguments
+                   "bag's only JointState topic)" % MEASUREMENT_TOPIC)
+    from mr_damper_model.tools.batch_cli import add_arguments   # lazy: it imports this module
     add_arguments(p)
     return p
 
 
-def _measurement_topic():
-    from mr_damper_model.io.bag_io import MEASUREMENT_TOPIC
-    return MEASUREMENT_TOPIC
-
-
-RECORD_SUFFIXES = ('.csv', '.csv.gz', '.mcap', '.db3')
-
-
-def _directory_records(path):
-    from mr_damper_model.io.bag_io import is_bag
-    return sorted(str(c) for c in path.iterdir()
-                  if (c.is_dir() and is_bag(c))
-                  or (c.is_file() and c.name.lower().endswith(RECORD_SUFFIXES)))
-
-
-def expand_inputs(args):
-    """
-    Expand FILE arguments into the list of records to read.
-
-    Parameters
-    ----------
-    args : sequence of str
-        CSV files, bags (rosbag2 directory, ``.mcap``, ``.db3``), directories and globs.
-
-    Returns
-    -------
-    list of str
-        Record paths in argument order; a directory and a glob give their matches sorted by
-        name; a path named twice is kept once.
-
-    Raises
-    ------
-    _InputError
-        A glob matching nothing or a directory holding no record.
-
-    """
-    from mr_damper_model.io.bag_io import is_bag
-    out = []
-    for arg in args:
-        p = Path(arg)
-        if not p.exists() and any(ch in arg for ch in '*?['):
-            matches = sorted(glob.glob(arg))
-            if not matches:
-                raise _InputError(arg, 'no file matches this pattern')
-            found = []
-            for m in matches:
-                mp = Path(m)
-                found.extend(_directory_records(mp) if mp.is_dir() and not is_bag(mp)
-                             else [m])
-            if not found:
-                raise _InputError(arg, 'the matching directories hold no .csv(.gz), .mcap or '
-                                  '.db3 file or rosbag2 directory')
-        elif p.is_dir() and not is_bag(p):
-            found = _directory_records(p)
-            if not found:
-                raise _InputError(arg, 'directory holds no .csv(.gz), .mcap or .db3 file or '
-                                  'rosbag2 directory')
-        else:
-            found = [arg]
-        out.extend(found)
-    seen = set()
-    return [n for n in out if not (Path(n).resolve() in seen or seen.add(Path(n).resolve()))]
-
-
-def read_record(path, *, topic=None, truncated=None):
-    """
-    Read and check one record for identification (CSV or bag, by its form).
-
-    Parameters
-    ----------
-    path : str
-        CSV file, rosbag2 directory, ``.mcap`` or ``.db3`` bag.
-    topic : str, optional
-        Measurement topic of a bag (see ``bag_io.read_bag``).
-    truncated : list, optional
-        A truncated ``.mcap`` file read up to its last complete chunk is appended to it
-        (``file``, ``messages``, ``samples``, first and last log time, ``error``); a warning
-        with the counts goes to stderr either way.
-
-    Returns
-    -------
-    DamperData
-
-    Raises
-    ------
-    DataError
-        Unreadable or malformed record (the message names the file).
-
-    """
-    from mr_damper_model.io.bag_io import is_bag, read_bag
-    from mr_damper_model.io.data import read_csv, validate
-    recovery = {}
-    data = read_bag(path, topic, recovery=recovery) if is_bag(path) else read_csv(path)
-    if recovery:        # a recording whose writer was killed: say what is used of it
-        print(f'{PROG}: warning: {recovery["note"]}; {data.n} samples used (exit code '
-              f'{EXIT_TRUNCATED})', file=sys.stderr)
-        if truncated is not None:
-            truncated.append({'file': str(path), 'messages': recovery.get('messages'),
-                              'samples': int(data.n),
-                              'first_log_time_s': recovery.get('first_log_time_s'),
-                              'last_log_time_s': recovery.get('last_log_time_s'),
-                              'error': recovery.get('error')})
-    return validate(data, name=path)
+def _warn_truncated(text):
+    """Warning of a truncated recording: what is used of it and the exit code it gives."""
+    print(f'{PROG}: warning: {text} (exit code {EXIT_TRUNCATED})', file=sys.stderr)
 
 
 def _fail(name, message, code=2):
@@ -254,14 +162,11 @@ def _param_table(results, labels, units):
 
 def _metrics_json(m):
     """Metrics as JSON values (non-finite -> None, ``columnlog.finite_or_none``)."""
-    from mr_damper_common.health import finite_or_none
     return finite_or_none(m)
 
 
 def _predict(model, model_options, x, data):
     """Force [N] of a model with parameter vector ``x`` on one record (from rest)."""
-    import numpy as np
-    from mr_damper_model.models import get_model
     mdl = get_model(model, **(model_options or {}))
     with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
         return np.asarray(mdl.force(x, data.x, data.v, i=data.i, t=data.t), dtype=float)
@@ -269,8 +174,6 @@ def _predict(model, model_options, x, data):
 
 def _safe_metrics(f, fm):
     """fit_metrics, or NaN for every key when the model force is not finite."""
-    import numpy as np
-    from mr_damper_model.identification.metrics import fit_metrics, METRIC_KEYS
     if not np.all(np.isfinite(fm)):
         return dict.fromkeys(METRIC_KEYS, math.nan)
     return fit_metrics(f, fm)
@@ -278,7 +181,6 @@ def _safe_metrics(f, fm):
 
 def _per_file(model, model_options, x, parts):
     """Per-record forces and metrics, and the metrics over all records."""
-    import numpy as np
     forces = [_predict(model, model_options, x, p) for p in parts]
     rows = [(p.source, p.n, _safe_metrics(p.f, fm)) for p, fm in zip(parts, forces)]
     if len(parts) == 1:             # the one record's (no copy of a large record's forces)
@@ -304,11 +206,11 @@ def _files_json(rows):
 
 def _read_all(names, topic, truncated=None):
     """Read every record; return ``(parts, None)`` or ``(None, exit code)``."""
-    from mr_damper_model.io.data import DataError
     parts = []
     for name in names:
         try:
-            parts.append(read_record(name, topic=topic, truncated=truncated))
+            parts.append(read_record(name, topic=topic, truncated=truncated,
+                                     warn=_warn_truncated))
         except DataError as exc:
             msg = str(exc)
             return None, _fail('', msg if name in msg else f'{name}: {msg}')
@@ -319,7 +221,6 @@ def _read_all(names, topic, truncated=None):
 
 def _views(data, labels):
     """Return the records joined into ``data`` as views of its arrays; ``labels``: (source, n)."""
-    from mr_damper_model.io.data import DamperData
     out, a = [], 0
     for source, n in labels:
         b = a + n
@@ -338,19 +239,12 @@ def _suffix_path(path, level):
 
 def run(argv=None):
     """Run the tool; return the exit code."""
-    from mr_damper_model.io.data import DamperData, DataError
-    from mr_damper_model.identification.identify import (compare_models, current_group_levels,
-                                                         current_groups, identify,
-                                                         identify_per_current)
-    from mr_damper_model.models import get_model
-    from mr_damper_model.io.params_file import save_params
-
     try:
         args = build_parser().parse_args(argv)
     except _UsageError as exc:
         return _fail('', f'{exc} (see --help)')
     if args.batch is not None:
-        from mr_damper_model.tools.batch_cli import run as run_batch
+        from mr_damper_model.tools.batch_cli import run as run_batch   # lazy: imports this
         return run_batch(args, _fail)
     if not args.files:
         return _fail('', 'the following arguments are required: FILE (see --help)')
@@ -358,7 +252,7 @@ def run(argv=None):
         return _run_validate(args)
     try:
         names = expand_inputs(args.files)
-    except _InputError as exc:
+    except InputError as exc:
         return _fail(*exc.args)
     name = names[0] if len(names) == 1 else f'{len(names)} files'
     if args.model is not None and args.model not in MODEL_CHOICES:
@@ -425,9 +319,7 @@ def run(argv=None):
         out['files'] = _files_json(file_rows)
 
     if args.per_current:
-        import numpy as np
-        from mr_damper_model.identification.metrics import fit_metrics
-        from mr_damper_model.tools.plots import model_force
+        from mr_damper_model.tools.plots import model_force  # lazy: matplotlib
         groups = [part for _, part in current_groups(data)]
         f_all = np.concatenate([p.f for p in groups])
         fm_all = np.concatenate([model_force(r, p) for r, p in zip(results, groups)])
@@ -477,11 +369,6 @@ def run(argv=None):
 
 def _run_validate(args):
     """``--validate PARAMS.json FILE...``: metrics of a saved model, no fit."""
-    import numpy as np
-    from mr_damper_model.io.data import DataError
-    from mr_damper_model.models import get_model
-    from mr_damper_model.io.params_file import load_params
-
     for flag, used in (('--out', args.out), ('--compare', args.compare),
                        ('--per-current', args.per_current)):
         if used:
@@ -498,7 +385,7 @@ def _run_validate(args):
         return _fail('', msg if args.validate in msg else f'{args.validate}: {msg}')
     try:
         names = expand_inputs(args.files)
-    except _InputError as exc:
+    except InputError as exc:
         return _fail(*exc.args)
     truncated = []
     parts, code = _read_all(names, args.topic, truncated)
@@ -528,15 +415,15 @@ def _run_validate(args):
 
 def _plot_files(path, parts, forces, *, title):
     """One row per record: measured and model force vs time, displacement, velocity, error."""
-    from mr_damper_model.tools.plots import fit_figure, save_figure
+    from mr_damper_model.tools.plots import fit_figure, save_figure  # lazy: matplotlib
     fig = fit_figure([(Path(p.source).name, p.t, p.x, p.v, p.f, fm)
                       for p, fm in zip(parts, forces)], title=title)
     save_figure(fig, path)
 
 
 def _plot(path, data, results, *, compare, title):
-    from mr_damper_model.identification.identify import current_groups
-    from mr_damper_model.tools.plots import compare_figure, fit_figure, model_force, save_figure
+    from mr_damper_model.tools.plots import (compare_figure, fit_figure,  # lazy: matplotlib
+                                             model_force, save_figure)
     if compare:
         forces = {k: model_force(r, data) for k, r in results.items()}
         fig = compare_figure(data.t, data.f, forces, title=title)

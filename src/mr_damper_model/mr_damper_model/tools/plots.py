@@ -13,6 +13,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from mr_damper_model.io.figures import save_figure  # noqa: E402,F401
 from mr_damper_model.models import get_model  # noqa: E402
 
 __all__ = ['model_force', 'fit_figure', 'compare_figure', 'save_figure']
@@ -125,11 +126,3 @@ def compare_figure(t, f_measured, model_forces, *, title=''):
         a.set_title(title)
     fig.tight_layout()
     return fig
-
-
-def save_figure(fig, path):
-    """Save a figure (format from the file suffix) and close it."""
-    try:
-        fig.savefig(path, dpi=110)
-    finally:
-        plt.close(fig)

@@ -53,8 +53,8 @@ import threading
 import time
 
 import numpy as np
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState, RoadPreview
 from rclpy.node import Node
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -63,16 +63,16 @@ from mr_damper_common.health import ERROR, WARN, worst
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
                                          set_realtime_priority)
-from mr_damper_model.models.plant import make_plant
-from quarter_car_sim.simulate import live_loop
-from quarter_car_sim.runtime.control_thread import ControlThread
-from quarter_car_sim.runtime.command_input import CommandInput
-from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
-from quarter_car_sim.plant.two_track_road import make_two_track_road
-from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS
-from quarter_car_sim.runtime.full_car import BODY_JOINTS, FullCarRuntime
+from mr_damper_model.io.params_file import load_plant
 from quarter_car_sim.nodes.car_process import end_on_control_error, run_car_node
-from semi_active_control.nodes.common import offer_parameters
+from quarter_car_sim.plant.two_track_road import make_two_track_road
+from quarter_car_sim.runtime.command_input import CommandInput
+from quarter_car_sim.runtime.control_thread import ControlThread
+from quarter_car_sim.runtime.full_car import BODY_JOINTS, FullCarRuntime
+from quarter_car_sim.runtime.look_ahead import simulated_look_ahead
+from quarter_car_sim.simulate import live_loop
+from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
+from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS, offer_parameters
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
@@ -117,6 +117,32 @@ PARAMETERS = (
     Param('sensor_noise', True, 'controller can: the sensors\' automotive errors (seeded), '
           'else exact readings'),
     Param('sensor_seed', 1, 'controller can: sensor seed [-]', 0, 2 ** 31 - 1),
+    Param('road_preview', False, 'Publish full_car/road_preview: a look-ahead sensor\'s frames '
+          'of the road ahead with the car\'s speed signal (docs/preview.md)'),
+    Param('preview_near_m', 0.5, 'Look-ahead sensor: nearest distance ahead of the front axle '
+          '[m]', 0.0, 100.0),
+    Param('preview_far_m', 15.0, 'Look-ahead sensor: farthest distance ahead [m]', 0.1, 200.0),
+    Param('preview_point_spacing_m', 0.1, 'Look-ahead sensor: spacing of the profile\'s points '
+          '[m]', 0.01, 10.0),
+    Param('preview_rate_hz', 18.0, 'Look-ahead sensor: frames per second [Hz]', 0.1, 1000.0),
+    Param('preview_latency_s', 0.02, 'Look-ahead sensor: delay from measurement (the stamp) to '
+          'publication [s]', 0.0, 1.0),
+    Param('preview_height_noise_m', 0.003, 'Look-ahead sensor: RMS white noise of each height '
+          '[m]', 0.0, 1.0),
+    Param('preview_height_bias_m', 0.0, 'Look-ahead sensor: constant height offset [m]',
+          -1.0, 1.0),
+    Param('preview_pitch_error_gain', 0.0, 'Look-ahead sensor: fraction of the body pitch it '
+          'does not compensate [-]', -10.0, 10.0),
+    Param('preview_dropout_prob', 0.0, 'Look-ahead sensor: probability that a frame is lost '
+          '[-]', 0.0, 1.0),
+    Param('preview_outage_start_s', 0.0, 'Look-ahead sensor: start of an outage (invalid '
+          'frames) [s, simulated time]', 0.0, 1e6),
+    Param('preview_outage_s', 0.0, 'Look-ahead sensor: length of that outage (0 = none) [s]',
+          0.0, 1e6),
+    Param('preview_seed', 1, 'Look-ahead sensor: seed of its noise and dropouts [-]', 0,
+          2 ** 31 - 1),
+    Param('speed_error', 0.02, 'Scale error of the speed signal sent with the frames [-]',
+          -0.5, 0.5),
     Param('state_rate_hz', 100.0, 'Rate of the corner states, current commands and body state '
           '(0 = none) [Hz]', 0.0, 10000.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
@@ -149,7 +175,7 @@ class FullCarNode(Node):
         road = make_two_track_road(p['road'], PASSENGER_CAR, speed_m_s=p['speed_m_s'],
                                    duration_s=p['road_duration_s'], dt=dt,
                                    rng=int(p['road_seed']))
-        plants = [make_plant(p['plant'], f or p['truth_file']) for f in p['truth_files']]
+        plants = [load_plant(p['plant'], f or p['truth_file']) for f in p['truth_files']]
         self.external = p['controller'].strip().lower() == 'external'
         self.can = p['controller'].strip().lower() == 'can'
         self.lockstep = self.external and p['lockstep']
@@ -202,6 +228,12 @@ class FullCarNode(Node):
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
                                  lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
+        self.look_ahead = self.preview_pub = None
+        if p['road_preview'] and not self.can:
+            self.look_ahead = simulated_look_ahead(p, road)
+            self.preview_pub = self.create_publisher(RoadPreview, 'full_car/road_preview',
+                                                     CONTROL_QOS)
+            self.preview_msg = RoadPreview()
         self.body_msg = JointState()
         self.body_msg.header.frame_id = 'full_car'
         self.body_msg.name = list(BODY_JOINTS)
@@ -289,6 +321,7 @@ class FullCarNode(Node):
             currents = [ci.current(now) for ci in self.cmd_ins]
             _, _, new = self.rt.step(now, currents)
         self.control.command_sent()
+        self._publish_preview(state)
         if self.every and not self.rt.steps % self.every:
             self._publish_body(new)
 
@@ -309,6 +342,7 @@ class FullCarNode(Node):
             _, currents, new = self.rt.step(now)
             modes = [core.mode_reason() for core in self.rt.controller.cores]
         self.control.command_sent()
+        self._publish_preview(new)
         if not self.every or self.rt.steps % self.every:
             return
         for i in range(4):
@@ -319,6 +353,18 @@ class FullCarNode(Node):
             self.cmd_msg.data = float(currents[i])
             self.drops.publish(self.cmd_pubs[i], self.cmd_msg)
         self._publish_body(new)
+
+    def _publish_preview(self, state):
+        """Publish the look-ahead frames delivered by ``state.t`` (with the speed signal)."""
+        if self.look_ahead is None:
+            return
+        with self.lock:                         # status() reads the sensor's counters
+            frames = self.look_ahead.frames(state.t, float(state.q[1]))
+        for seq, frame in frames:
+            self.drops.publish(self.preview_pub, messages.road_preview_msg(
+                frame.stamp, frame.distance_m, frame.heights_m, sequence=seq,
+                speed_m_s=self.look_ahead.speed_m_s, valid=frame.valid,
+                reason='' if frame.valid else 'outage', msg=self.preview_msg))
 
     def _publish_body(self, new):
         messages.seconds_to_stamp(max(new.t, 0.0), self.body_msg.header.stamp)
@@ -346,6 +392,8 @@ class FullCarNode(Node):
                         reason=self._external_reason(i), current_a=float(self.rt.currents[i]))
                 st['corners_normal'] = sum(not ci.timed_out for ci in self.cmd_ins)
                 st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts)
+            if self.look_ahead is not None:
+                st['road_preview'] = self.look_ahead.status()
             if self.can:
                 st['controller'] = 'can'
                 st['can'] = self.link.status()

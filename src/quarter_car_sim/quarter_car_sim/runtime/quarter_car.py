@@ -507,7 +507,7 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
         Unreadable road or truth file.
 
     """
-    from mr_damper_model.models.plant import make_plant
+    from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.plant.quarter_car import QuarterCar
     from semi_active_control.supervision.failsafe import ModelSupervisor
     from quarter_car_sim.runtime.car_health import CarHealth
@@ -529,7 +529,7 @@ def make_car_runtime(p, clock, outputs, *, supervisor, controller_options=''):
         dt, compensation=p['hil_compensation'], delay_s=p['hil_delay_s'], order=p['hil_order'],
         adapt_gain=p['hil_adapt_gain'], stale_after_s=p['hil_stale_s'])
         if plant == 'rig' else None)
-    true_plant = remote or make_plant(plant, p['truth_file'])
+    true_plant = remote or load_plant(plant, p['truth_file'])
     probe = (CurrentProbe(sup.i_min_a, sup.i_max_a, bin_a=p['probe_bin_a'],
                           period_s=p['probe_period_s'], hold_s=p['probe_hold_s'],
                           min_samples=p['probe_min_samples'], max_duty=p['probe_max_duty'])

@@ -113,7 +113,7 @@ def _laws(args):
 
 def run(args):
     """Run the study for parsed ``args``; return the JSON-ready dict."""
-    from mr_damper_model.identification import presets
+    from mr_damper_model.models import presets
     from mr_damper_common.health import finite_or_none
     from mr_damper_model.models.plant import make_plant
     from semi_active_control.laws.registry import make_full_car_law

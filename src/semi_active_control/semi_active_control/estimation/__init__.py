@@ -5,7 +5,7 @@ Public API::
 
     from semi_active_control.estimation import design_estimator, QuarterCarEstimator, Estimate
     from semi_active_control.estimation import design_full_car_estimator, FullCarEstimator
-    from semi_active_control.estimation import StateEstimatorCore
+    from semi_active_control.estimation import StateEstimatorCore, PreviewInput
     from semi_active_control.estimation import VehicleEstimatorCore, EstimatorSettings
     from semi_active_control.estimation import SensorSpec, default_specs, accelerometer_spec
 
@@ -14,12 +14,14 @@ or four body accelerometers and four position sensors), ``state_estimator_core``
 current and identified model in, one estimate per tick out: what ``state_estimator_node``
 calls), ``vehicle_estimator`` (the vehicle computer's full-car estimator on the chassis bus's
 sensors: what ``vehicle_estimator_node`` calls), ``road_preview`` (the road ahead from a
-look-ahead sensor and the speed signal), ``sensor_specs`` (the sensors' datasheet error models
-the filters are designed on), ``sensor_cdr`` (the sensor messages read from their serialised
-bytes).
+look-ahead sensor and the speed signal), ``preview_input`` (the road-preview topic to a law's
+map: held speed, frames at their step, refusals, timeout), ``sensor_specs`` (the sensors'
+datasheet error models the filters are designed on), ``sensor_cdr`` (the sensor messages
+read from their serialised bytes).
 """
 from semi_active_control.estimation.full_car import (design_full_car_estimator,  # noqa: F401
                                                      FullCarEstimator)
+from semi_active_control.estimation.preview_input import PreviewInput  # noqa: F401
 from semi_active_control.estimation.quarter_car import (design_estimator, Estimate,  # noqa: F401
                                                         EstimatorError, QuarterCarEstimator)
 from semi_active_control.estimation.sensor_specs import (accelerometer_spec,  # noqa: F401

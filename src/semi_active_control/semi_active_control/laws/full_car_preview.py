@@ -27,7 +27,9 @@ that corner's inverse and supervisor as every full-car law does. Two sources of 
 - ``'look-ahead'``: the map is filled by a look-ahead sensor's frames
   (:meth:`RoadPreview.offer_frame`, from a node or, offline, :class:`FedFullCarLaw`).
 
-Without a valid window (no speed yet, a dropout longer than the map ahead) the law is
+Without a valid window (no speed yet, a dropout longer than the map ahead, or
+``preview_enabled`` False: the live input's timeout,
+:mod:`~semi_active_control.runtime.preview_controller_core`) the law is
 ``full-car-clipped-optimal-wk`` for that step, counted in ``stats``.
 """
 import math
@@ -175,6 +177,8 @@ class FullCarPreviewLaw(ForceLaw):
             self.front.reset()
         self.stats.reset()
         self.feedforward = np.zeros(4)
+        self.preview_enabled = True
+        self.last_previewed = False
 
     def window(self, state):
         """Return the heights (p + 1, 4) under the wheels at the preview times, or None."""
@@ -188,11 +192,15 @@ class FullCarPreviewLaw(ForceLaw):
         """Return the LQR forces plus the feedforward [N] (the LQR's alone without a window)."""
         f = self.base.desired_forces(state)
         if self._trivial:
+            self.last_previewed = True
             self.stats.count(True)
             self.feedforward = np.zeros(4)
             return f
         z = self.window(state)
-        self.stats.count(z is not None)
+        if not self.preview_enabled:            # the live input's timeout (PreviewInput)
+            z = None
+        self.last_previewed = z is not None
+        self.stats.count(self.last_previewed)
         self.feedforward = np.zeros(4) if z is None else np.einsum('jmw,jw->m', self._taps, z)
         return f + self.feedforward
 
@@ -240,8 +248,9 @@ def make_full_car_preview_law(params, *, source='look-ahead',
 
 class FedFullCarLaw:
     """
-    A full-car preview law fed by a :class:`~quarter_car_sim.plant.preview_sensor.PreviewFeed`
-    (offline).
+    A full-car preview law fed by a look-ahead sensor's feed (offline).
+
+    The feed is a :class:`~quarter_car_sim.plant.preview_sensor.PreviewFeed`.
 
     Before each step the feed delivers the speed sample and the frames due (measured with the
     body pitch of the state), as a node would from its topics; then the law runs.

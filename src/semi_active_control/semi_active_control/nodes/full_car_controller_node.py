@@ -23,12 +23,21 @@ Topics (relative; ``<c>`` is each of ``fl``, ``fr``, ``rl``, ``rr``, the corner 
   transient local, depth 1): that corner's identified model;
 - pub ``<c>/mr_damper/current_command`` (std_msgs/Float64 [A], one per complete set; reliable,
   depth 10);
+- sub ``full_car/road_preview`` (mr_damper_interfaces/RoadPreview; reliable, depth 10), only
+  with ``controller:=preview-look-ahead``: the look-ahead sensor's frames and the speed signal
+  for the LQ preview law (docs/preview.md); without a usable preview (no frame yet, none for
+  ``preview_timeout_s``, stale or invalid frames, the map not reaching a wheel) the law runs
+  without preview for that step, counted in ``preview.*``;
 - pub ``/diagnostics`` (status name ``full_car_controller``): OK with four corners normal, WARN
   naming the corners in fail-safe; values: controller, sets, corners_normal,
   dropped_states.replaced / dropped_states.incomplete (states of sets that never
   completed),
   corners.<c>.* (mode, reason, failsafe_s, params_accepted, params_rejected.<reason>,
-  param_age_s, states, normal_commands, current_a, ...), dropped.<reason> (messages).
+  param_age_s, states, normal_commands, current_a, ...), dropped.<reason> (messages); with
+  preview: preview.law.* (steps, previewed_steps, fallback_steps, dropouts),
+  preview.road_preview.* (frames taken and refused by the map), preview.input.* (messages
+  received / lost by sequence number, refused.<reason>, fallback.<reason>, usable), and the
+  stamps first_previewed_t, last_previewed_t, last_fallback_t.
 
 Parameter ages and timeouts are on the node's clock (ROS time: ``/clock`` under
 ``use_sim_time``).
@@ -38,24 +47,33 @@ import sys
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState
+from mr_damper_interfaces.msg import KwokParameters, QuarterCarState, RoadPreview
 from mr_damper_common import messages
 from mr_damper_common.health import WARN, worst
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, LATCHED_QOS, node_time_s, Param, run_node,
                                          set_realtime_priority, spin_node)
-from semi_active_control.runtime.full_car_controller_core import FullCarControllerCore
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS, offer_parameters
+from semi_active_control.runtime.full_car_controller_core import FullCarControllerCore
+from semi_active_control.runtime.preview_controller_core import (LIVE_PREVIEW_LAWS,
+                                                                 PreviewControllerCore)
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
 PARAMETERS = (
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook) or '
-          'passive@<I>A'),
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
+          'passive@<I>A or preview-look-ahead (full-car-clipped-optimal-wk with LQ preview on '
+          'full_car/road_preview)'),
     Param('rate_hz', 1000.0, 'Rate of the corner states [Hz]: the sample time of a filter '
           'inside the law', 10.0, 10000.0),
 ) + CORNER_SUPERVISOR_PARAMETERS + (
+    Param('preview_horizon_s', 0.3, 'Preview law: horizon of the feedforward on the road ahead '
+          '[s]', 0.0, 2.0),
+    Param('preview_timeout_s', 0.25, 'Preview law: without a frame taken for this long the law '
+          'runs without preview [s, state stamps]', 0.001, 60.0),
+    Param('preview_max_age_s', 0.1, 'Preview law: a frame older than this when its step comes '
+          'is stale (refused) [s]', 0.001, 60.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads (1..99; 0 = '
           'normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
@@ -73,12 +91,23 @@ class FullCarControllerNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__('full_car_controller', **node_kwargs)
         p = self.p = declare_parameters(self, PARAMETERS)
-        self.core = FullCarControllerCore(
-            PASSENGER_CAR, p['controller'], dt=1.0 / p['rate_hz'],
-            timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
-            i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
-            min_current_span_a=p['min_current_span_a'], hold_on_reject=p['hold_on_reject'])
+        supervision = dict(timeout_s=p['param_timeout_s'], safe_current_a=p['safe_current_a'],
+                           i_min_a=p['i_min_a'], i_max_a=p['i_max_a'],
+                           min_current_span_a=p['min_current_span_a'],
+                           hold_on_reject=p['hold_on_reject'])
+        self.preview = p['controller'].strip().lower() in LIVE_PREVIEW_LAWS
+        if self.preview:
+            self.core = PreviewControllerCore(
+                PASSENGER_CAR, p['controller'], dt=1.0 / p['rate_hz'],
+                horizon_s=p['preview_horizon_s'], preview_timeout_s=p['preview_timeout_s'],
+                preview_max_age_s=p['preview_max_age_s'], **supervision)
+        else:
+            self.core = FullCarControllerCore(PASSENGER_CAR, p['controller'],
+                                              dt=1.0 / p['rate_hz'], **supervision)
         self.drops = DropCounter(self.get_logger())
+        if self.preview:
+            self.drops.subscribe(self, RoadPreview, 'full_car/road_preview', self.on_preview,
+                                 CONTROL_QOS)
         self.cmd = Float64()
         self.cmd_pubs = []
         for i, c in enumerate(CORNERS):
@@ -111,6 +140,14 @@ class FullCarControllerNode(Node):
     def on_params(self, i, msg):
         """Offer a parameter message to corner ``i``'s supervisor (at the node clock's now)."""
         offer_parameters(self.core.supervisor(i), msg, node_time_s(self), self.get_logger())
+
+    def on_preview(self, msg):
+        """Hand a road-preview frame to the core (a message that does not decode is counted)."""
+        try:
+            self.core.offer_preview(messages.road_preview_fields(msg))
+        except messages.MessageError as exc:
+            self.core.preview.refuse(exc.reason)
+            self.get_logger().warning(f'road preview refused: {exc}', throttle_duration_sec=1.0)
 
     def status(self):
         """Return the status dict (the core's and the message drop counts)."""

@@ -194,7 +194,9 @@ class FullCarControllerCore:
             return None
         corners, self._pending = self._pending, [None] * 4
         state = full_car_state_of_corners(self.params, corners)
+        self.before_command(state)
         currents = self.controller.command(state, t_clock)
+        self.after_command(state)
         for j, mode in enumerate(self.controller.modes):
             if mode == 'normal':
                 self.normal_commands[j] += 1
@@ -203,6 +205,12 @@ class FullCarControllerCore:
         self.sets += 1
         self.currents = currents
         return currents
+
+    def before_command(self, state):
+        """Run before the law on a complete set's state (a subclass's hook; nothing here)."""
+
+    def after_command(self, state):
+        """Run after the four currents of a set (a subclass's hook; nothing here)."""
 
     def status(self, t_clock=None):
         """

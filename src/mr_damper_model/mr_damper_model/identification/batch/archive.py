@@ -6,6 +6,7 @@ from pathlib import Path
 import re
 
 from mr_damper_model.identification.batch.settings import RECORD_SUFFIXES
+from mr_damper_model.io.bag_io import is_bag
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,6 @@ def discover(root, *, per_file=False, pattern=None, seed=1, exclude=()):
         ``root`` is not a directory, or the pattern is not a regular expression.
 
     """
-    from mr_damper_model.io.bag_io import is_bag
     root = Path(root)
     if not root.is_dir():
         raise ValueError(f'{root}: not a directory')

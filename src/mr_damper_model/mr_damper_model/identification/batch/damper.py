@@ -5,6 +5,9 @@ from mr_damper_model.identification.batch.envelope import (envelope_columns, env
                                                            force_envelope)
 from mr_damper_model.identification.batch.settings import (_one_line, METRIC_COLUMNS,
                                                            MULTI_CURRENT_MODEL)
+from mr_damper_model.identification.identify import current_groups, identify
+from mr_damper_model.io.data import DamperData, DataError
+from mr_damper_model.io.records import expand_inputs, InputError, read_record
 
 
 def _fmt(value):
@@ -49,7 +52,6 @@ def process_damper(task, settings):
     try:
         row.update(_identify_damper(task, settings))
     except Exception as exc:     # one bad damper must not stop the batch: say what failed
-        from mr_damper_model.io.data import DataError
         msg = str(exc) if isinstance(exc, (DataError, OSError, ValueError)) \
             else f'{type(exc).__name__}: {exc}'
         row.update(status='error', error=_one_line(msg) or type(exc).__name__)
@@ -58,15 +60,12 @@ def process_damper(task, settings):
 
 def _identify_damper(task, settings):
     import numpy as np
-    from mr_damper_model.tools.cli import _InputError, expand_inputs, read_record
-    from mr_damper_model.io.data import DamperData
-    from mr_damper_model.identification.identify import current_groups, identify
 
     if task.time_error:
         raise ValueError(task.time_error)
     try:
         names = expand_inputs(list(task.paths))
-    except _InputError as exc:
+    except InputError as exc:
         raise ValueError(': '.join(exc.args)) from None
     parts = [read_record(n, topic=settings.topic) for n in names]
     data = parts[0] if len(parts) == 1 else DamperData.concatenate(parts, restamp=True)

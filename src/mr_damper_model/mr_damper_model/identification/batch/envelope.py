@@ -3,6 +3,8 @@ import math
 
 from mr_damper_model.identification.batch.settings import (DEFAULT_CURRENTS_A, ENVELOPE_CYCLES,
                                                            ENVELOPE_SAMPLES_PER_CYCLE)
+from mr_damper_model.io.params_file import load_params
+from mr_damper_model.models import get_model
 
 
 def load_master(path):
@@ -15,7 +17,6 @@ def load_master(path):
         Unreadable or invalid parameter file (the message names the file).
 
     """
-    from mr_damper_model.io.params_file import load_params
     pf = load_params(path)
     return {'model': pf.model, 'parameters': dict(pf.parameters),
             'model_options': dict(pf.model_options or {}), 'source': str(path),
@@ -63,7 +64,6 @@ def force_envelope(model, model_options, params, currents_a, velocities_mps, str
 
     """
     import numpy as np
-    from mr_damper_model.models import get_model
     mdl = get_model(model, **(model_options or {}))
     x0 = mdl.from_dict(params) if isinstance(params, dict) else np.asarray(params, float)
     n = ENVELOPE_CYCLES * ENVELOPE_SAMPLES_PER_CYCLE

@@ -6,6 +6,8 @@ from pathlib import Path
 import tempfile
 
 from mr_damper_model.identification.batch.settings import METRIC_COLUMNS, TABLE_COLUMNS
+from mr_damper_model.io.params_file import save_params
+from mr_damper_model.models import get_model
 
 
 def read_table(path):
@@ -112,8 +114,6 @@ def row_params(row, master=None):
         A row without a model (status ``error``).
 
     """
-    from mr_damper_model.models import get_model
-    from mr_damper_model.identification.batch.settings import METRIC_COLUMNS
     status = row.get('status')
     if status not in PARAMS_VALID:
         raise ValueError(f'{row.get("record")}: status {status!r} has no model')
@@ -150,7 +150,6 @@ def write_params_files(rows, folder, master=None):
         ``{serial: path}`` of the files written.
 
     """
-    from mr_damper_model.io.params_file import save_params
     newest = {}
     for row in sorted(rows, key=lambda r: (r.get('test_time') or '', r['record'])):
         if row.get('status') in PARAMS_VALID:

@@ -7,6 +7,8 @@ from pathlib import Path
 import tempfile
 
 from mr_damper_model.identification.batch.damper import _fmt
+from mr_damper_model.io.figures import save_figure
+from mr_damper_model.models import get_model
 
 
 def _num(text):
@@ -95,7 +97,6 @@ def write_trend(rows, csv_path, png_path=None, *, max_serials=6):
                 worst[r['serial']] = max(worst.get(r['serial'], 0.0), abs(r['change_percent']))
         serials = sorted(worst, key=lambda s: (-worst[s], s))[:max_serials] or \
             sorted({r['serial'] for r in tr})[:max_serials]
-        from mr_damper_model.tools.plots import save_figure
         save_figure(trend_figure(rows, serials), png_path)
     return tr
 
@@ -126,7 +127,6 @@ def trend_figure(rows, serials):
     units = {}
     for s in serials:
         if recs[s] and recs[s][0].get('model'):
-            from mr_damper_model.models import get_model
             try:
                 units.update(get_model(recs[s][0]['model']).param_units)
             except (KeyError, ValueError):

@@ -1,0 +1,198 @@
+"""
+Running a node: its clock, the executor, the spin loop, a fast lane for a hot input, ``main``.
+
+:func:`run_node` is every node's ``main`` (SIGINT / SIGTERM only set the stop flag of
+:mod:`mr_damper_common.stop_flag`, then the node finishes and exits 0); :func:`spin_node` and
+:func:`spin` the loop it runs; :class:`FastLane` a second minimal node in its own thread.
+Imports rclpy.
+"""
+import os
+import sys
+import threading
+
+import rclpy
+from rclpy.exceptions import InvalidHandle, ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+from mr_damper_common.stop_flag import _STOP, install_stop_handlers
+
+
+def node_time_s(node):
+    """Return the node clock's now [s]: ROS time (``/clock`` under ``use_sim_time``)."""
+    return node.get_clock().now().nanoseconds * 1e-9
+
+
+def spin(executor, done=lambda: False, timeout_sec=0.1):
+    """
+    Spin ``executor`` until shutdown, a stop request (SIGINT / SIGTERM) or ``done()``.
+
+    A ``spin_once`` loop: the kilted EventsExecutor's ``spin()`` stalls timers (checked here:
+    one tick of a 5 ms timer per second), its ``spin_once`` runs them on time. An error from
+    ``spin_once`` once shutdown has begun (e.g. ``RuntimeError: Unable to convert call
+    argument`` of a message taken while the context went down) ends the loop quietly; before
+    that it is raised.
+    """
+    while rclpy.ok() and not _STOP.is_set() and not done():
+        try:
+            executor.spin_once(timeout_sec=timeout_sec)
+        except ExternalShutdownException:
+            return
+        except RuntimeError:
+            if _STOP.is_set() or not rclpy.ok():
+                return
+            raise
+
+
+def set_realtime_priority(priority, logger):
+    """
+    Put every thread of this process that exists now under SCHED_FIFO ``priority`` (0: no-op).
+
+    Called after the node is created, so the executor (main) thread and the middleware's
+    receive threads (created with the node) get it; threads started later (the fitting worker)
+    reset themselves to SCHED_OTHER (see ``IdentifierNode._work``).
+    Needs CAP_SYS_NICE (root); otherwise a warning and nothing changes.
+    """
+    if priority <= 0:
+        return False
+    try:
+        param = os.sched_param(int(priority))
+        for tid in os.listdir('/proc/self/task'):
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, param)
+        return True
+    except (OSError, AttributeError) as exc:
+        logger.warning(f'realtime_priority {priority} not applied: {exc}')
+        return False
+
+
+def make_executor(events=True, context=None):
+    """Return the executor of the suite's nodes: EventsExecutor when available and ``events``."""
+    if events:
+        try:
+            from rclpy.experimental import EventsExecutor
+            return EventsExecutor(context=context)
+        except ImportError:  # pragma: no cover - older rclpy
+            pass
+    return SingleThreadedExecutor(context=context)
+
+
+class FastLane:
+    """
+    A minimal node of its own, spun in its own thread, for one hot input of a node.
+
+    rclpy's SingleThreadedExecutor rebuilds its wait set from every entity of its nodes on each
+    wake-up (subscriptions, timers, the six parameter services, QoS event handlers) in Python:
+    for a node taking a 1 kHz stream that is most of its CPU (the HIL car: 80 % of its samples
+    in ``wait_for_ready_callbacks``). A lane has only what is subscribed on it (no parameter
+    services, no rosout), in the parent's namespace and context; the process's remappings
+    apply to it as to the parent. Its callbacks run in the lane's thread (the parent's code
+    must be thread-safe for them, as for any second thread).
+
+    Parameters
+    ----------
+    parent : rclpy.node.Node
+        The node the lane serves (its name, namespace and context).
+    suffix : str
+        The lane node is ``<parent name>_<suffix>``. Its thread exists once :meth:`start`
+        returned, so :func:`set_realtime_priority` called after that covers it.
+
+    Attributes
+    ----------
+    node : rclpy.node.Node
+        Create the lane's subscriptions on it (e.g. ``DropCounter.subscribe(lane.node, ...)``).
+
+    """
+
+    def __init__(self, parent, suffix):
+        self.node = rclpy.create_node(
+            f'{parent.get_name()}_{suffix}', namespace=parent.get_namespace(),
+            context=parent.context, start_parameter_services=False, enable_rosout=False)
+        self._executor = make_executor(events=True, context=parent.context)
+        self._executor.add_node(self.node)
+        self._thread = None
+
+    def start(self):
+        """Start spinning the lane (daemon thread, :func:`spin` loop); return self."""
+        self._thread = threading.Thread(target=self._run, name=self.node.get_name(),
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def _run(self):
+        # not the stop flag: the lane serves the parent until it is closed (the control
+        # thread's last step after SIGINT still gets its answer)
+        context = self.node.context
+        while self._thread is not None and context.ok():
+            try:
+                self._executor.spin_once(timeout_sec=0.05)
+            except (ExternalShutdownException, InvalidHandle, RuntimeError):
+                return      # the context went down under a take
+
+    def close(self, timeout_s=1.0):
+        """Stop the lane's thread (waits up to ``timeout_s`` [s]) and destroy its node."""
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout_s)
+        self._executor.remove_node(self.node)
+        self.node.destroy_node()
+
+
+def spin_node(node, done=lambda: False, *, events=True):
+    """Spin ``node`` on :func:`make_executor` with the :func:`spin` loop."""
+    executor = make_executor(events)
+    executor.add_node(node)
+    spin(executor, done)
+
+
+def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=None, args=None):
+    """
+    Run a node until SIGINT, SIGTERM or shutdown and return the process exit status.
+
+    SIGINT and SIGTERM only set a flag (:func:`install_stop_handlers`): ``run`` returns, then
+    ``finish`` and ``destroy_node`` run undisturbed, and the status is 0 however busy the node
+    was. rclpy's own signal handlers are not installed.
+
+    Parameters
+    ----------
+    make_node : callable
+        Builds the node (after ``rclpy.init``).
+    name : str
+        Node name for the error line on stderr.
+    errors : tuple of type
+        Exceptions that mean bad parameters or input files: one error line, exit status 2
+        (rclpy's ``ParameterException``, e.g. a value outside its declared range or of the
+        wrong type, always counts as one).
+    run : callable
+        ``run(node)`` spins the node until :func:`stop_requested`; default :func:`spin_node`.
+    finish : callable or None
+        ``finish(node)`` before ``destroy_node``; a non-None return value replaces the status.
+    args : list of str or None
+        Passed to ``rclpy.init``.
+
+    Returns
+    -------
+    int
+        0, 2 on one of ``errors``, or what ``finish`` returned.
+
+    """
+    install_stop_handlers()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    code = 0
+    try:
+        node = make_node()
+        if not _STOP.is_set():
+            run(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except tuple(errors) + (ParameterException,) as exc:
+        print(f'{name}: error: {exc}', file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            if finish is not None:
+                status = finish(node)
+                code = code if status is None else status
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code

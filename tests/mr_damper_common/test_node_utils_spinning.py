@@ -1,0 +1,147 @@
+"""
+Tests of node_utils.spinning: the spin loop, SIGINT / SIGTERM in run_node, the fast lane.
+
+The spin loop's stop and error handling, and run_node's signal handling in a real process
+(exit 0 after finish and destroy, in that order).
+"""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from mr_damper_common import node_utils
+import node_utils_helpers
+from process_helpers import popen, stop_group
+from ros_context import ros_context
+
+ros = node_utils_helpers.ros      # this module's rclpy context (fixture)
+
+
+class _Executor:
+    """spin_once counts calls, raises ``error`` at call ``fail_at``, stops at ``stop_at``."""
+
+    def __init__(self, stop_at=None, fail_at=None, error=RuntimeError('Unable to convert')):
+        self.calls = 0
+        self.stop_at, self.fail_at, self.error = stop_at, fail_at, error
+
+    def spin_once(self, timeout_sec):
+        self.calls += 1
+        if self.calls == self.stop_at:
+            node_utils.request_stop()
+        if self.calls == self.fail_at:
+            raise self.error
+
+
+@pytest.fixture
+def stop_flag():
+    """Clear the stop flag; rclpy's default context up (the spin loop asks ``rclpy.ok()``)."""
+    node_utils._STOP.clear()
+    try:
+        with ros_context(default=True):
+            yield
+    finally:
+        node_utils._STOP.clear()
+
+
+def test_spin_returns_on_stop_request_and_on_done(stop_flag):
+    ex = _Executor(stop_at=3)
+    node_utils.spin(ex)
+    assert ex.calls == 3 and node_utils.stop_requested()
+    node_utils._STOP.clear()
+    ex = _Executor()
+    node_utils.spin(ex, done=lambda: ex.calls >= 5)
+    assert ex.calls == 5
+
+
+def test_spin_error_after_stop_ends_quietly_before_stop_raises(stop_flag):
+    ex = _Executor(stop_at=2, fail_at=2)
+    node_utils.spin(ex)                                  # the shutdown race: no error
+    assert ex.calls == 2
+    node_utils._STOP.clear()
+    with pytest.raises(RuntimeError, match='Unable to convert'):
+        node_utils.spin(_Executor(fail_at=2))
+
+
+_NODE_SCRIPT = textwrap.dedent('''
+    import sys, time
+    from rclpy.node import Node
+    from mr_damper_common.node_utils import run_node
+
+    class Busy(Node):
+        def __init__(self):
+            super().__init__('node_utils_signal_test')
+            self.ticks = 0
+            self.create_timer(0.001, self.tick)
+
+        def tick(self):
+            self.ticks += 1
+            t = time.perf_counter()
+            while time.perf_counter() - t < 0.0008:   # keep the main thread busy
+                pass
+            if self.ticks == 50:
+                print('ready', flush=True)
+
+    def finish(node):
+        print(f'finish after {node.ticks} ticks', flush=True)
+
+    sys.exit(run_node(Busy, 'busy', finish=finish))
+''')
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_run_node_exits_0_on_signal_after_finish(sig):
+    proc = popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,
+                 stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    try:
+        assert proc.stdout.readline().strip() == 'ready'
+        proc.send_signal(sig)
+        out, _ = proc.communicate(timeout=30)          # hang guard only
+    finally:
+        if proc.poll() is None:
+            stop_group(proc, signal.SIGKILL)
+    assert proc.returncode == 0, out
+    assert out.startswith('finish after') and 'Traceback' not in out, out
+
+
+def test_fast_lane_takes_its_topic_in_its_own_thread_with_the_parents_namespace(ros):
+    import threading
+    import time
+    parent = rclpy.create_node('lane_parent', namespace='/corner_fl', context=ros)
+    lane = node_utils.FastLane(parent, 'link')
+    assert (lane.node.get_name(), lane.node.get_namespace()) == ('lane_parent_link',
+                                                                 '/corner_fl')
+    # no parameter services on the lane: only the parent answers `ros2 param`
+    services = [name for name, _ in lane.node.get_service_names_and_types_by_node(
+        'lane_parent_link', '/corner_fl')]
+    assert not any(name.endswith('/get_parameters') for name in services), services
+    parent_services = parent.get_service_names_and_types_by_node('lane_parent', '/corner_fl')
+    assert '/corner_fl/lane_parent/get_parameters' in [name for name, _ in parent_services]
+    got, threads = [], set()
+
+    def on_msg(msg):
+        got.append(msg.data)
+        threads.add(threading.current_thread().name)
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    lane.node.create_subscription(String, 'link_topic', on_msg, qos)   # relative: namespaced
+    lane.start()
+    pub = parent.create_publisher(String, '/corner_fl/link_topic', qos)
+    for _ in range(3000):   # discovery: a hang guard, not a time bound
+        if pub.get_subscription_count() == 1:
+            break
+        time.sleep(0.01)
+    for k in range(50):
+        pub.publish(String(data=str(k)))
+    for _ in range(3000):   # the parent is never spun: the lane's thread takes them
+        if len(got) == 50:
+            break
+        time.sleep(0.01)
+    assert got == [str(k) for k in range(50)] and threads == {'lane_parent_link'}
+    lane.close()
+    assert lane._thread is None
+    parent.destroy_node()
