@@ -154,7 +154,7 @@ class CornerModels:
         if params is not self._inverse_of[i]:
             from mr_damper_model.models.inverse import KwokCurrentInverse
             sup = self.supervisors[i]
-            self._inverse[i] = KwokCurrentInverse(params, i_ref_a=params['i_ref_a'],
+            self._inverse[i] = KwokCurrentInverse(params.parameters, i_ref_a=params.i_ref_a,
                                                   i_min=sup.i_min_a, i_max=sup.i_max_a)
             self._inverse_of[i] = params
         return self._inverse[i]
