@@ -60,7 +60,7 @@ def body_coordinates(geometry, values):
 
 def full_car_state_of_corners(params, corners):
     """
-    Assemble a :class:`~quarter_car_sim.plant.full_car.FullCarState` from four corners.
+    Assemble a :class:`~semi_active_control.car.full_car_linear.FullCarState` from four corners.
 
     Parameters
     ----------

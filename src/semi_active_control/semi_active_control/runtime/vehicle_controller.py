@@ -32,7 +32,7 @@ import numpy as np
 from mr_damper_common.sequence import SequenceTracker
 from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.runtime.full_car_controller_core import FullCarController
-from quarter_car_sim.plant.full_car import FullCarState
+from semi_active_control.car.full_car_linear import FullCarState
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.supervision.deadline import DeadlineMonitor
 
@@ -74,7 +74,7 @@ class VehicleCommand:
 def full_car_state(geometry, t, body, body_rates, body_acc, travel, travel_velocity,
                    tyre_deflection, wheel_velocity, damper_force):
     """
-    Build the laws' :class:`~quarter_car_sim.plant.full_car.FullCarState` from an estimate.
+    Build the laws' :class:`~semi_active_control.car.full_car_linear.FullCarState` from an estimate.
 
     ``geometry`` is the car's corner map ``T`` (``FullCarParams.geometry``, shape (4, 3)).
     Road heights are 0 (the wheel height is the tyre deflection, as the estimator gives it);
