@@ -38,7 +38,7 @@ def install(tmp_path_factory):
                           '--install-base', str(ws / 'install'),
                           '--cmake-args', f'-DPython3_EXECUTABLE={sys.executable}',
                           '-DBUILD_TESTING=OFF'],
-                         cwd=ws, env=env, capture_output=True, text=True, timeout=600)
+                         cwd=ws, env=env, capture_output=True, text=True, timeout=1000)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     return ws / 'install'
 
@@ -121,7 +121,8 @@ def test_can_dbc_comes_from_the_install(install):
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     path, n = out.stdout.split()
-    assert Path(path).is_relative_to(install / pkg) and int(n) == 11, out.stdout
+    frames = sum(line.startswith('BO_ ') for line in dbc.read_text().splitlines())
+    assert Path(path).is_relative_to(install / pkg) and int(n) == frames > 0, out.stdout
 
 
 def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):

@@ -243,7 +243,14 @@ def run_faults(lis, stream, params):
     # nothing lost: every accepted sample judged once (binned, flagged or in a skipped window)
     assert final['samples_lost'] == 0
     assert final['samples_received'] == stream.sent
-    assert final['samples_accepted'] == stream.sent - 5
+    # a batch the set in use cannot explain is refused whole as it arrives (inconsistent_batch,
+    # issue 32): which fault batches meet a set that refuses them depends on when the fits end,
+    # so count them; they are fault batches only (at most the 7,200 faulty samples), nothing
+    # else is refused, and the 5 out-of-range samples are never accepted
+    refused = final['rejected']
+    assert refused['inconsistent_batch'] <= 7200, refused
+    assert sum(refused.values()) == refused['inconsistent_batch'], refused
+    assert final['samples_accepted'] == stream.sent - 5 - refused['inconsistent_batch']
     assert final['fit_errors'] == 0
     # and said so in its diagnostics (WARN while the faults' counts rose) and its log
     assert WARN in stream.diag.levels(DIAG_NAME)[n_levels:]

@@ -85,9 +85,11 @@ def test_can_rejects_corners(tmp_path, capsys):
 def test_suite_over_can_loses_no_command(tmp_path):
     """mr-damper-suite --config can end to end: the law on a model, the measured current back."""
     out = tmp_path / 'suite'
-    # stopped once the controller drove the car 2 s of car time on its model (no wall clock)
+    # stopped once the controller drove the car 5 s of car time on its model (no wall clock;
+    # several of the controller's 1 Hz statuses say so in the recording)
     summary, stdout = run_suite_until_controlled(
-        out, '--config', 'can', controlled=lambda line: '| controller normal' in line)
+        out, '--config', 'can', controlled=lambda line: '| controller normal' in line,
+        car_s=5.0)
     for node in (CAN_DRIVER, CAN_BRIDGE, RIG, IDENT, CTRL, QC):
         assert (out / 'logs' / f'{node}.log').read_text().startswith('--- start'), node
     assert 'CAN (fl): bridge sent' in stdout

@@ -20,7 +20,10 @@ def test_replayed_rig_tests_bring_the_external_controller_to_control(tmp_path):
     out = tmp_path / 'replay_ext'
     summary, stdout = run_suite_until_controlled(
         out, '--config', 'replay', '--external-controller',
-        controlled=lambda line: '| controller normal' in line)
+        controlled=lambda line: '| controller normal' in line,
+        # 5 s of car time on the model: several of the controller's 1 Hz statuses say so in the
+        # recording, also when a loaded recorder takes them late
+        car_s=5.0)
     assert summary['config'] == 'replay'
     codes = summary['exit_codes']
     assert {'mr_damper_rig', 'mr_damper_identifier', 'semi_active_controller',
