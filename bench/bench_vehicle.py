@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """
-The vehicle computer in real time (issue 34) against today's full-car external-controller path.
+The vehicle computer in real time (issue 34) against the full car's external controller.
 
 Runs, one after the other on the same machine (the figures depend on the load: the bench prints
 ``os.getloadavg`` before and after each run):
@@ -11,12 +11,12 @@ Runs, one after the other on the same machine (the figures depend on the load: t
    the fraction answered within the cycle (bus to bus), the controller's deadline misses,
    the drivers' command timeouts after the vehicle computer took control, sensor frame to
    command frame p50 / p99, frames lost, a_v against passive and lock-step;
-2. ``mr-damper-suite --config full-car --external-controller --duration D``: today's path,
-   which the vehicle configuration replaces: the car publishes four corner states per 1 ms
-   step (true states) and ``full_car_controller_node`` answers with four current streams (the
-   four rig / identifier stacks run too: that configuration's models are live); from its
-   summary: the car's steps, the sets the controller answered, states dropped, the car's
-   command timeouts, the body's a_v.
+2. ``mr-damper-suite --config full-car --external-controller --duration D``: the same
+   controller node on the car's true state, without sensors, estimator and bus: the car
+   publishes one ``vehicle/state`` per 2 ms cycle and ``vehicle_controller_node`` answers with
+   one ``vehicle/command`` (the four rig / identifier stacks run too: that configuration's
+   models are live); from its summary: the car's cycles, the states the controller answered,
+   states lost, deadline misses, the car's command timeouts, the body's a_v.
 
 Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 100 %).
 
@@ -108,10 +108,12 @@ def report_external(run):
     ext = fc.get('external_controller') or {}
     print(f'full-car external controller: exit {run["exit"]}, load {run["load_start"]:.1f} -> '
           f'{run["load_end"]:.1f}, wall {run["wall_s"]:.0f} s')
-    print(f'  car steps {fc.get("steps")}, sets answered {ext.get("sets")} '
-          f'({_fmt((ext.get("sets") or 0) / fc["steps"] if fc.get("steps") else None, 100, " %")}'
-          f'), states dropped {ext.get("dropped_states")}, car command timeouts '
-          f'{ext.get("car_command_timeouts")}')
+    states = ext.get('car_states')
+    answered = ext.get('states_answered') or 0
+    print(f'  car states {states}, answered {answered} '
+          f'({_fmt(answered / states if states else None, 100, " %")}), states '
+          f'{ext.get("states")}, deadline misses {ext.get("deadline_misses")}, all safe '
+          f'{ext.get("all_safe")}, car command timeouts {ext.get("car_command_timeouts")}')
     live, passive = fc.get('live') or {}, fc.get('passive') or {}
     print(f'  a_v live {_fmt(live.get("a_v"))}, passive {_fmt(passive.get("a_v"))}')
     for row in _cpu_rows(run['cpu']):

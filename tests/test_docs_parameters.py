@@ -26,7 +26,6 @@ NODE_MODULES = (
     'mr_damper_can.can_driver_sim_node',
     'semi_active_control.nodes.state_estimator_node',
     'quarter_car_sim.nodes.full_car_node',
-    'semi_active_control.nodes.full_car_controller_node',
     'mr_damper_can.vehicle_bridge_node',
     'semi_active_control.nodes.vehicle_estimator_node',
     'semi_active_control.nodes.vehicle_controller_node',

@@ -23,7 +23,7 @@ FITTING_STACK = ('mr_damper_model.identification', 'mr_damper_model.live', 'numb
 NODES = ('mr_damper_rig.rig_node', 'quarter_car_sim.nodes.quarter_car_node',
          'semi_active_control.nodes.semi_active_controller_node',
          'semi_active_control.nodes.state_estimator_node', 'quarter_car_sim.nodes.full_car_node',
-         'semi_active_control.nodes.full_car_controller_node', 'mr_damper_can.can_bridge_node',
+         'mr_damper_can.can_bridge_node',
          'mr_damper_can.can_driver_sim_node', 'mr_damper_can.vehicle_bridge_node',
          'semi_active_control.nodes.vehicle_estimator_node',
          'semi_active_control.nodes.vehicle_controller_node',

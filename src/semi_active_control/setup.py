@@ -31,8 +31,6 @@ setup(
             'semi_active_controller_node = '
             'semi_active_control.nodes.entry_points:semi_active_controller_node',
             'state_estimator_node = semi_active_control.nodes.entry_points:state_estimator_node',
-            'full_car_controller_node = '
-            'semi_active_control.nodes.entry_points:full_car_controller_node',
             'vehicle_estimator_node = '
             'semi_active_control.nodes.entry_points:vehicle_estimator_node',
             'vehicle_controller_node = '

@@ -133,8 +133,7 @@ def test_rig_node_from_install_runs_and_reports_bad_file(install, tmp_path):
     assert f'{missing}: cannot read file' in out.stderr
 
 
-@pytest.mark.parametrize('exe', ['semi_active_controller_node', 'state_estimator_node',
-                                 'full_car_controller_node'])
+@pytest.mark.parametrize('exe', ['semi_active_controller_node', 'state_estimator_node'])
 def test_moved_nodes_old_names_still_run_with_a_warning(install, exe):
     # the vehicle's nodes moved to semi_active_control (issue 33): `ros2 run quarter_car_sim
     # <exe>` still starts them for one release, saying so on stderr (run with this venv's
@@ -147,6 +146,18 @@ def test_moved_nodes_old_names_still_run_with_a_warning(install, exe):
     assert 'deprecated' in out.stderr and f'ros2 run semi_active_control {exe}' in out.stderr
     assert out.returncode == 2, out.stdout + out.stderr      # the node ran: bad parameter
     assert 'Traceback' not in out.stderr, out.stderr
+
+
+def test_the_removed_full_car_controller_says_what_replaces_it(install):
+    # full_car_controller_node (four corner streams) gave way to vehicle_controller_node (one
+    # FullCarState in, one FullCarCommand out, issue 35): its old name exits 2 saying so
+    old = install / 'quarter_car_sim' / 'lib' / 'quarter_car_sim' / 'full_car_controller_node'
+    out = subprocess.run(in_install(install, f'{VENV_BIN / "python"} {old}'),
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert 'semi_active_control vehicle_controller_node' in out.stderr, out.stderr
+    assert not (install / 'semi_active_control' / 'lib' / 'semi_active_control'
+                / 'full_car_controller_node').exists()
 
 
 @pytest.mark.parametrize('pkg, exe, ready', [

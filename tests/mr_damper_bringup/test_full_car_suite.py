@@ -38,7 +38,8 @@ def test_rate_factor_sets_the_cars_speed_too(tmp_path):
 
 
 def test_external_controller_takes_the_law_and_the_car_becomes_the_plant(tmp_path):
-    from mr_damper_bringup.full_car_suite import external_full_car, FULL_CAR_CTRL
+    from mr_damper_bringup.full_car_suite import (external_full_car, FULL_CAR_CTRL,
+                                                  FULL_CAR_MANAGER)
     args = _args(30.0)
     args.set = ['full_car_node.controller=per-corner-skyhook']
     cfg = resolve_config(args, tmp_path)
@@ -51,6 +52,10 @@ def test_external_controller_takes_the_law_and_the_car_becomes_the_plant(tmp_pat
     assert law['controller'] == 'per-corner-skyhook' and plant['controller'] == 'external'
     for name in ('safe_current_a', 'param_timeout_s', 'min_current_span_a'):
         assert law[name] == plant[name]                    # the same supervisor settings
+    # the vehicle controller on every corner's live identifier, at the car's cycle, brought
+    # up by the lifecycle manager
+    assert law['model_files'] == [''] * 4 and law['cycle_s'] == 0.002
+    assert car[FULL_CAR_MANAGER]['ros__parameters']['node_names'] == [FULL_CAR_CTRL]
     # a configuration already external keeps its controller section's law
     _, again = full_car_configs(cfg | car, tmp_path, 30.0)
     assert again[FULL_CAR_CTRL]['ros__parameters']['controller'] == 'per-corner-skyhook'

@@ -9,10 +9,13 @@ status (``/diagnostics``) and its body log (``full_car_body.npz``), and compares
 ISO 2631-1 figures with the same car on the same road at the safe current, simulated offline
 here with :func:`quarter_car_sim.simulate.full_car.simulate_full_car`.
 
-With ``--external-controller`` the law runs in ``full_car_controller_node`` (root namespace,
-subscribing the four corners' states and parameter sets) and ``full_car_node`` is the plant
-only (``controller: external``); the summary then takes the corners' parameter counts and
-modes from the controller.
+With ``--external-controller`` the law runs in the vehicle computer's controller,
+``vehicle_controller_node`` (root namespace; its four models from the corners' live
+identifiers), brought up by ``lifecycle_manager``, and ``full_car_node`` is the plant only
+(``controller: external``): one ``vehicle/state`` per control cycle (its true state) out, one
+``vehicle/command`` (four currents) back, as on a vehicle (docs/vehicle.md) without the
+sensors and the bus. The summary then takes the corners' parameter counts from the controller
+and their modes from the car (the commands it applied).
 
 With ``--preview`` (issue 36, docs/preview.md) the run is external and the controller runs
 ``preview-look-ahead`` (LQ road preview) on the frames ``full_car_node`` publishes on
@@ -32,12 +35,14 @@ from .config import IDENT, node_params, QC, RIG, set_param
 #: The full-car node's section name, console script and status key.
 FULL_CAR = 'full_car_node'
 FULL_CAR_NODE = {FULL_CAR: 'full_car_node'}
-#: The full-car controller node's section name, console script and status key.
-FULL_CAR_CTRL = 'full_car_controller'
-FULL_CAR_CTRL_NODE = {FULL_CAR_CTRL: 'full_car_controller_node'}
+#: The external controller's section names (= node names, status keys): the vehicle
+#: controller and the lifecycle manager that brings it up; with their console scripts.
+FULL_CAR_CTRL, FULL_CAR_MANAGER = 'vehicle_controller', 'lifecycle_manager'
+FULL_CAR_CTRL_NODES = {FULL_CAR_CTRL: 'vehicle_controller_node',
+                       FULL_CAR_MANAGER: 'lifecycle_manager'}
 #: Car parameters the controller node takes over with ``--external-controller``.
-FULL_CAR_CTRL_PARAMS = ('controller', 'rate_hz', 'safe_current_a', 'param_timeout_s',
-                        'i_min_a', 'i_max_a', 'min_current_span_a', 'hold_on_reject',
+FULL_CAR_CTRL_PARAMS = ('controller', 'safe_current_a', 'param_timeout_s', 'i_min_a',
+                        'i_max_a', 'min_current_span_a', 'hold_on_reject',
                         'diagnostics_period_s')
 #: The live preview law of ``--preview``.
 PREVIEW_LAW = 'preview-look-ahead'
@@ -62,8 +67,9 @@ def full_car_configs(cfg, out, duration_s, external=False, preview=False):
         Run time [s, wall clock] (0 = until stopped: a 600 s road, then held flat): the car's
         road and body log are made long enough.
     external : bool
-        Run the law in ``full_car_controller_node`` (its own section, the car's law and
-        supervisor settings unless set there); the car becomes the plant
+        Run the law in ``vehicle_controller_node`` (its own section, the car's law and
+        supervisor settings unless set there; every corner's model live, the control cycle the
+        car's ``cycle_s``) brought up by ``lifecycle_manager``; the car becomes the plant
         (``controller: external``).
     preview : bool
         Run the LQ preview law live (implies ``external``): the car publishes its look-ahead
@@ -75,13 +81,15 @@ def full_car_configs(cfg, out, duration_s, external=False, preview=False):
         corner -> parameter dict of its rig and identifier (namespaced sections).
     car : dict
         The car node's parameter dict (``/**`` and ``full_car_node``; with ``external`` also
-        ``full_car_controller``).
+        ``vehicle_controller`` and ``lifecycle_manager``).
 
     """
     from .config import corner_configs
     stacks = {k: v for k, v in cfg.items() if k in ('/**', RIG, IDENT)}
     corners = corner_configs(stacks, FULL_CAR_CORNERS, out)
-    car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR, FULL_CAR_CTRL)}
+    car = {k: v for k, v in cfg.items() if k in ('/**', FULL_CAR)}
+    if external or preview or external_full_car(car):
+        car.update({k: v for k, v in cfg.items() if k in FULL_CAR_CTRL_NODES})
     if preview:
         set_param(car, FULL_CAR_CTRL, 'controller', PREVIEW_LAW)
         set_param(car, FULL_CAR, 'road_preview', True)
@@ -92,6 +100,10 @@ def full_car_configs(cfg, out, duration_s, external=False, preview=False):
             if name in law and not (name == 'controller' and external_full_car(car)):
                 own.setdefault(name, law[name])
         set_param(car, FULL_CAR, 'controller', 'external')
+        own['model_files'] = [''] * len(FULL_CAR_CORNERS)      # the live identifiers
+        own.setdefault('cycle_s', float(node_params(car, FULL_CAR).get('cycle_s', 0.002)))
+        manager = car.setdefault(FULL_CAR_MANAGER, {}).setdefault('ros__parameters', {})
+        manager['node_names'] = [FULL_CAR_CTRL]
     set_param(car, FULL_CAR, 'log_file', str(Path(out) / BODY_LOG))
     qc_speed = node_params(cfg, QC).get('real_time_factor')   # set by --rate-factor
     if qc_speed is not None:
@@ -128,8 +140,7 @@ def full_car_progress_line(monitor, elapsed):
     """Return a progress line: per corner samples, valid sets, mode; corners on models; car t."""
     status = monitor.snapshot()[0]
     st = status.get(FULL_CAR) or {}
-    car = (status.get(FULL_CAR_CTRL) or st if st.get('controller') == 'external'
-           else st).get('corners') or {}
+    car = st.get('corners') or {}           # external: the modes of the commands applied
     parts = []
     for c in FULL_CAR_CORNERS:
         ident = status.get(f'{c}/identifier') or {}
@@ -238,28 +249,35 @@ def full_car_summary(monitor, corners_summary, car_cfg, out, *, plots=True):
     st = statuses.get(FULL_CAR) or {}
     car_corners = st.get('corners') or {}
     ctrl = statuses.get(FULL_CAR_CTRL) if external_full_car(car_cfg) else None
-    if ctrl is not None:            # the law, supervisors and parameters are the controller's
-        car_corners = ctrl.get('corners') or {}
+    # the models (parameter counts) are the controller's when external; the modes, the
+    # first normal step and the time in fail-safe the car's (the commands it applied)
+    models = (ctrl.get('corners') or {}) if ctrl is not None else car_corners
     section = {'controller': st.get('controller'), 'steps': st.get('steps'),
                'corners_normal': st.get('corners_normal'), 'iso2631': st.get('iso2631'),
                'dropped': st.get('dropped'), 'corners': {}}
     if ctrl is not None:
         section['controller'] = ctrl.get('controller')
         section['external_controller'] = {
-            'sets': ctrl.get('sets'), 'dropped_states': ctrl.get('dropped_states'),
-            'dropped': ctrl.get('dropped'),
-            'car_command_timeouts': {c: (st.get('corners') or {}).get(c, {}).get(
-                'command_timeouts') for c in FULL_CAR_CORNERS}}
+            'states_answered': ctrl.get('states_answered'), 'commands': ctrl.get('commands'),
+            'states': ctrl.get('states'), 'all_safe': ctrl.get('all_safe'),
+            'deadline_misses': (ctrl.get('deadline') or {}).get('deadline_misses'),
+            'dropped': ctrl.get('dropped'), 'car_states': st.get('vehicle_states'),
+            'car_commands': st.get('commands'),
+            'car_lockstep_timeouts': st.get('lockstep_timeouts'),
+            'car_command_timeouts': {c: (car_corners.get(c) or {}).get('command_timeouts')
+                                     for c in FULL_CAR_CORNERS}}
         if ctrl.get('preview') is not None:
             section['preview'] = dict(ctrl['preview'], sensor=st.get('road_preview'))
     for c in FULL_CAR_CORNERS:
         d = car_corners.get(c) or {}
+        m = models.get(c) or {}
         ident = corners_summary.get(c) or {}
         section['corners'][c] = {
             'windows_valid': ident.get('windows_valid'),
             'samples_lost': ident.get('samples_lost'),
-            'params_accepted': d.get('params_accepted'),
-            'params_rejected': d.get('params_rejected'), 'failsafe_s': d.get('failsafe_s'),
+            'params_accepted': m.get('params_accepted'),
+            'params_rejected': m.get('params_rejected'),
+            'failsafe_s': d.get('failsafe_s'),
             'first_normal_t_sim': d.get('first_normal_t_sim'), 'mode': d.get('mode')}
     path = out / BODY_LOG
     if not path.is_file():

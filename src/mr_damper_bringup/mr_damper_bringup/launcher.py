@@ -61,9 +61,11 @@ corner's figures from its nodes' diagnostics (no plots).
 ``--config full-car`` runs four rig + identifier pairs in ``fl``, ``fr``, ``rl``, ``rr`` and one
 ``full_car_node`` (the 7-DOF car on the four identified models, :mod:`mr_damper_bringup.
 full_car_suite`); the summary adds a ``full_car`` section and ``body_modes.png``. With
-``--external-controller`` the full car's law runs in ``full_car_controller_node`` and the car
-is the plant only; ``--preview`` runs the LQ road-preview law there on the look-ahead frames the
-car publishes (docs/preview.md).
+``--external-controller`` the full car's law runs in the vehicle computer's
+``vehicle_controller_node`` (brought up by ``lifecycle_manager``; one ``vehicle/state`` per
+control cycle in, one ``vehicle/command`` out) and the car is the plant only; ``--preview``
+runs the LQ road-preview law there on the look-ahead frames the car publishes
+(docs/preview.md).
 
 Exit status: 0 clean run (restarted nodes included), 1 a node died too often (or failed to shut
 down, or no summary could be made), 2 bad command line / config.
@@ -85,7 +87,7 @@ from mr_damper_common.health import finite_or_none
 from .config import (corner_configs, CTRL, DOMAIN_IDS, IDENT, node_arguments, node_params, QC,
                      RECORDER, RECORDER_NODE, recorder_arguments, REPO, resolve_config, RIG,
                      suite_nodes, SuiteError)
-from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL, FULL_CAR_CTRL_NODE, FULL_CAR_NODE,
+from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL_NODES, FULL_CAR_NODE,
                              external_full_car, full_car_configs,
                              full_car_progress_line, full_car_summary, start_full_car)
 from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
@@ -289,7 +291,7 @@ def hang_timeouts(names, timeout_s, cfg, corners=None, car_cfg=None):
     for name in names:
         corner, _, base = name.rpartition('.')
         src = ((corners or {}).get(corner) if corner
-               else car_cfg if car_cfg is not None and base in (FULL_CAR, FULL_CAR_CTRL)
+               else car_cfg if car_cfg is not None and base in (FULL_CAR, *FULL_CAR_CTRL_NODES)
                else cfg)
         params = node_params(src or {}, base)
         if corner:          # a corner's file keys its sections by the fully qualified name
@@ -382,11 +384,11 @@ def parse_args(argv):
     p.add_argument('--progress-s', type=float, default=5.0, help='progress line period [s]')
     p.add_argument('--external-controller', action='store_true',
                    help='run the car\'s law in semi_active_controller_node (full-car: '
-                        'full_car_controller_node); the car is the plant only '
-                        '(controller:=external)')
+                        'vehicle_controller_node on the car\'s vehicle/state); the car is the '
+                        'plant only (controller:=external)')
     p.add_argument('--preview', action='store_true',
                    help='full-car: the LQ road-preview law live (preview-look-ahead in '
-                        'full_car_controller_node, implies --external-controller) on the '
+                        'vehicle_controller_node, implies --external-controller) on the '
                         'look-ahead frames full_car_node publishes (docs/preview.md)')
     p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
                    help='vehicle: the law runs on the state estimated from the car\'s modelled '
@@ -477,7 +479,7 @@ def main(argv=None):
         # the full car starts before the corners: on its safe currents until their models come
         # (with --external-controller the full car's controller before the car)
         ext_car = full_car and external_full_car(car_cfg)
-        nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODE if ext_car else {}),
+        nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODES if ext_car else {}),
                  **(FULL_CAR_NODE if full_car else {}), **(VEHICLE_NODES if vehicle else {})}
         node_args = {}
         for corner, corner_cfg in corners.items():
@@ -494,7 +496,7 @@ def main(argv=None):
         if full_car:
             node_args[FULL_CAR] = start_full_car(car_cfg, out)
             if ext_car:
-                node_args[FULL_CAR_CTRL] = node_args[FULL_CAR]
+                node_args.update(dict.fromkeys(FULL_CAR_CTRL_NODES, node_args[FULL_CAR]))
         if vehicle:
             node_args.update(dict.fromkeys(VEHICLE_NODES, start_vehicle(car_cfg, out)))
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args,
@@ -568,7 +570,7 @@ def main(argv=None):
         elapsed = time.monotonic() - t_start
     finally:
         if corners or vehicle:
-            order = [*VEHICLE_STOP_ORDER, FULL_CAR, FULL_CAR_CTRL] + [
+            order = [*VEHICLE_STOP_ORDER] + [
                 f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
             codes = suite.stop(order=order,
                                drained=lambda: corners_drained(monitor, list(corners)))

@@ -122,24 +122,17 @@ class ControlWatch:
             elif short == 'controller':
                 self._normal(ns, t_rx, math.nan,
                              (d.get('commands') or 0, d.get('commands_normal') or 0))
-            elif short in ('full_car_node', 'full_car_controller'):
-                self._full_car(short, d, t_rx)
+            elif short == 'full_car_node':
+                self._full_car(d, t_rx)
 
-    def _full_car(self, short, d, t_rx):
+    def _full_car(self, d, t_rx):
+        # each corner a law unit on the car's clock; with an external controller the car's
+        # corners carry the modes of the commands it applied (normal_steps, first normal step)
         corners = d.get('corners') or {}
-        if short == 'full_car_node':
-            for c in corners:
-                self._clock(c, t_rx, d.get('t_sim'))
-            if d.get('controller') == 'external':
-                for c, cd in corners.items():
-                    self._car_side[c] = (d.get('t_sim'), cd.get('command_timeout_s_total'))
-                return
         for c, cd in corners.items():
-            if short == 'full_car_node':
-                counts = (d.get('steps') or 0, cd.get('normal_steps') or 0)
-            else:
-                counts = (cd.get('commands') or 0, cd.get('commands_normal') or 0)
-            self._normal(c, t_rx, cd.get('first_normal_t_sim'), counts)
+            self._clock(c, t_rx, d.get('t_sim'))
+            self._normal(c, t_rx, cd.get('first_normal_t_sim'),
+                         (d.get('steps') or 0, cd.get('normal_steps') or 0))
 
     # ------------------------------------------------------------------ figures
     def real_time_factor(self, unit=None):

@@ -3,7 +3,8 @@ Console scripts of the quarter_car_sim nodes: stop handlers first, then the node
 
 See :func:`mr_damper_common.stop_flag.early_main` for why the order matters. The vehicle's
 nodes moved to ``semi_active_control`` (``ros2 run semi_active_control <node>``); their old
-names here keep working for one release, with a deprecation warning on stderr.
+names here keep working for one release, with a deprecation warning on stderr;
+``full_car_controller_node`` was replaced by ``vehicle_controller_node`` and says so.
 """
 import sys
 
@@ -38,5 +39,10 @@ def state_estimator_node():
 
 
 def full_car_controller_node():
-    """Run ``ros2 run quarter_car_sim full_car_controller_node``: deprecated, it moved."""
-    return _moved('full_car_controller_node')
+    """Run ``ros2 run quarter_car_sim full_car_controller_node``: removed, say what replaces it."""
+    print('[ERROR] quarter_car_sim full_car_controller_node (four corner-state streams in, four '
+          'current streams out) was removed: its law, inverses and supervisors run in ros2 run '
+          'semi_active_control vehicle_controller_node (one mr_damper_interfaces/FullCarState '
+          'in on vehicle/state, one FullCarCommand out on vehicle/command; docs/vehicle.md); '
+          'full_car_node controller:=external speaks to it', file=sys.stderr, flush=True)
+    return 2

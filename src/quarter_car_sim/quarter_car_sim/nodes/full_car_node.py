@@ -35,14 +35,19 @@ rig / identifier pairs of ``mr-damper-suite --config full-car``)
   a_w_roll, a_v, VDVs, crest factors of the body centre since t = 0), loop.*,
   late_reanchors, dropped.<reason>.
 
-External controller (``controller:=external``): the node is the plant only. Every step it
-publishes the four corner states (reliable, depth 10) and applies each corner's latest command
-from ``<c>/mr_damper/current_command`` (one ``CommandInput`` per corner: a corner without a
-command for ``command_timeout_s`` gets ``safe_current_a``, counted); it neither subscribes the
-parameters nor publishes the commands. With ``lockstep:=true`` step 0 waits for the four topics
-to be matched both ways and each step waits for four commands after publishing its state (at
-most ``lockstep_timeout_s``, each expiry counted in ``lockstep_timeouts``), e.g. for
-``full_car_controller_node``.
+External controller (``controller:=external``): the node is the plant only, as the car is to
+a vehicle computer (docs/vehicle.md), without the sensors and the bus: every ``cycle_s`` it
+publishes its true state as one ``vehicle/state`` (mr_damper_interfaces/FullCarState, valid,
+numbered from 1, stamped on the node's clock: the clock the controller's deadlines are on) and
+applies the four currents of the latest ``vehicle/command`` (mr_damper_interfaces/FullCarCommand;
+:class:`quarter_car_sim.runtime.command_input.VehicleCommandInput`: a corner without a fresh
+command for ``command_timeout_s`` gets ``safe_current_a``, counted; a corner is normal while the
+controller has it on the law), e.g. for ``vehicle_controller_node``. It does not subscribe the
+parameters (the controller does); the corner states and current commands it publishes at
+``state_rate_hz`` are for the record. The look-ahead frames (``road_preview``) are stamped on the
+same clock. With ``lockstep:=true`` step 0 waits for the two topics to be matched both ways and
+each cycle waits for the command answering its state (at most ``lockstep_timeout_s``, each
+expiry counted in ``lockstep_timeouts``).
 
 At the end the node publishes a final status and, with ``log_file``, writes the body's
 recorded time and accelerations (``t``, ``acc`` with columns heave, pitch, roll) as a NumPy
@@ -53,7 +58,8 @@ import threading
 import time
 
 import numpy as np
-from mr_damper_interfaces.msg import KwokParameters, QuarterCarState, RoadPreview
+from mr_damper_interfaces.msg import (FullCarCommand, FullCarState, KwokParameters,
+                                      QuarterCarState, RoadPreview)
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -62,16 +68,17 @@ from mr_damper_common import messages
 from mr_damper_common.health import ERROR, WARN, worst
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
-                                         set_realtime_priority)
+                                         set_realtime_priority, VEHICLE_QOS)
 from mr_damper_model.io.params_file import load_plant
 from quarter_car_sim.nodes.car_process import end_on_control_error, run_car_node
 from quarter_car_sim.plant.two_track_road import make_two_track_road
-from quarter_car_sim.runtime.command_input import CommandInput
+from quarter_car_sim.runtime.command_input import VehicleCommandInput
 from quarter_car_sim.runtime.control_thread import ControlThread
 from quarter_car_sim.runtime.full_car import BODY_JOINTS, FullCarRuntime
 from quarter_car_sim.runtime.look_ahead import simulated_look_ahead
 from quarter_car_sim.simulate import live_loop
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
+from semi_active_control.estimation.vehicle_estimator import VehicleEstimate
 from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS, offer_parameters
 
 #: The node's parameters (the one place they are declared; docs/nodes.md shows this table).
@@ -81,14 +88,17 @@ PARAMETERS = (
           'possible) [-]', 0.0, 1000.0),
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
           'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
-          'passive@<I>A, external (plant only: currents on <c>/mr_damper/current_command, '
-          'e.g. full_car_controller_node) or can (plant only: its sensor cluster and four '
-          'damper drivers on a CAN bus, for a vehicle computer: docs/vehicle.md)'),
+          'passive@<I>A, external (plant only: vehicle/state out every cycle_s, '
+          'vehicle/command in, e.g. vehicle_controller_node) or can (plant only: its sensor '
+          'cluster and four damper drivers on a CAN bus, for a vehicle computer: '
+          'docs/vehicle.md)'),
+    Param('cycle_s', 0.002, 'External controller: the control cycle, one vehicle/state per '
+          'cycle [s, car time; a multiple of the step]', 1e-4, 1.0),
     Param('command_timeout_s', 0.05, 'External controller: a corner\'s safe current when no '
           'command came for it for this long [s, node clock]', 0.001, 3600.0),
-    Param('lockstep', False, 'External controller: each step waits for the four commands '
-          'answering the previous state'),
-    Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for the four commands [s, wall '
+    Param('lockstep', False, 'External controller: each cycle waits for the command '
+          'answering its state'),
+    Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for the command [s, wall '
           'clock]', 0.001, 3600.0),
 ) + CORNER_SUPERVISOR_PARAMETERS + (
     Param('road', 'iso8608-C', 'Two-track road: iso8608-<class> (A..H) or an event of '
@@ -200,16 +210,20 @@ class FullCarNode(Node):
                                    driver_timeout_s=p['driver_command_timeout_s'],
                                    driver_safe_current_a=p['driver_safe_current_a'],
                                    sensor_noise=p['sensor_noise'], seed=p['sensor_seed'])
-        self.state_pubs, self.cmd_pubs, self.state_msgs, self.cmd_subs = [], [], [], []
-        # the external controller's four 1 kHz command streams on a lane of their own: the
-        # node's executor would rebuild its whole wait set for each command (docs/hil.md,
-        # Timing; the same for the quarter car's external commands)
+        self.state_pubs, self.cmd_pubs, self.state_msgs = [], [], []
+        # the external controller's commands on a lane of their own: the node's executor
+        # would rebuild its whole wait set for each command (docs/hil.md, Timing)
         self.lane = FastLane(self, 'commands') if self.external else None
+        self.answered = threading.Condition(self.lock)     # lock-step: the answer came
         if self.external:
-            self.cmd_ins = [CommandInput(p['command_timeout_s'], p['safe_current_a'],
-                                         p['i_min_a'], p['i_max_a']) for _ in CORNERS]
-            self.answered = threading.Event()     # lock-step: the four commands came
-            self.n_answers = 0
+            self.cmd_in = VehicleCommandInput(p['command_timeout_s'], p['safe_current_a'],
+                                              p['i_min_a'], p['i_max_a'], CORNERS)
+            self.cycle_steps = max(1, int(round(p['cycle_s'] * self.rate_hz)))
+            self.vehicle_states = 0
+            self.vstate_pub = self.create_publisher(FullCarState, 'vehicle/state', VEHICLE_QOS)
+            self.vstate_msg = FullCarState()
+            self.cmd_sub = self.drops.subscribe(self.lane.node, FullCarCommand,
+                                                'vehicle/command', self.on_command, VEHICLE_QOS)
         for i, c in enumerate(CORNERS):
             self.state_pubs.append(self.create_publisher(
                 QuarterCarState, f'{c}/quarter_car/car_state', CONTROL_QOS))
@@ -218,13 +232,10 @@ class FullCarNode(Node):
             self.state_msgs.append(msg)
             if self.can:
                 continue
-            if self.external:
-                self.cmd_subs.append(self.drops.subscribe(
-                    self.lane.node, Float64, f'{c}/mr_damper/current_command',
-                    lambda m, i=i: self.on_command(i, m), CONTROL_QOS))
-                continue
             self.cmd_pubs.append(self.create_publisher(Float64, f'{c}/mr_damper/current_command',
                                                        10))
+            if self.external:
+                continue
             self.drops.subscribe(self, KwokParameters, f'{c}/mr_damper/kwok_parameters',
                                  lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
@@ -277,53 +288,51 @@ class FullCarNode(Node):
     def _wait_for_controller(self):
         """Lock-step: hold step 0 until the controller's topics are matched both ways."""
         self.get_logger().info('lock-step: waiting for the controller to connect')
-        while self.control.running and not all(
-                pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0
-                for pub, sub in zip(self.state_pubs, self.cmd_subs)):
+        while self.control.running and not (self.vstate_pub.get_subscription_count() > 0
+                                            and self.cmd_sub.get_publisher_count() > 0):
             time.sleep(0.005)
 
-    def on_command(self, i, msg):
-        """Take one current command of the external controller for corner ``i``."""
+    def on_command(self, msg):
+        """Take one command of the vehicle controller (the lane's thread)."""
         now = node_time_s(self)
-        with self.lock:
-            outcome = self.cmd_ins[i].offer(msg.data, now)
-            self.n_answers += 1
-            if self.n_answers >= 4:
-                self.answered.set()
-        if outcome != 'accepted':
-            self.get_logger().warning(f'{CORNERS[i]}: current command {msg.data!r} {outcome}',
+        with self.answered:
+            outcomes = self.cmd_in.offer(msg.sequence, msg.state_sequence, msg.current_a,
+                                         msg.mode, msg.reason, now)
+            self.answered.notify_all()
+        bad = [f'{c} {o}' for c, o in zip(CORNERS, outcomes or ()) if o != 'accepted']
+        if bad:
+            self.get_logger().warning(f'command {msg.sequence}: ' + ', '.join(bad),
                                       throttle_duration_sec=1.0)
 
-    def _external_reason(self, i):
-        cmd_in = self.cmd_ins[i]
-        if not cmd_in.timed_out:
-            return 'ok'
-        return 'no_command_yet' if cmd_in.received_at is None else 'command_timeout'
-
     def _step_external(self, wall):
-        """Plant step: publish the four corners, (lock-step: wait for answers), apply, advance."""
+        """Plant step: each cycle publish the state (lock-step: wait for its answer); apply."""
         state = self.rt.state
-        with self.lock:
-            flags = [(not ci.timed_out, self._external_reason(i), self.rt.currents[i])
-                     for i, ci in enumerate(self.cmd_ins)]
-            self.answered.clear()
-            self.n_answers = 0
-        for i, (normal, reason, current) in enumerate(flags):
-            self.drops.publish_next(self.state_pubs[i], messages.corner_state_to_msg(
-                state.corner(i), current, normal, reason, self.state_msgs[i]))
-        if self.lockstep and not self.answered.wait(self.lockstep_timeout_s):
-            self.lockstep_timeouts += 1
-            self.get_logger().warning(
-                f'no four commands within {self.lockstep_timeout_s:g} s of state t = '
-                f'{state.t:.3f} s ({self.lockstep_timeouts} in all)', throttle_duration_sec=1.0)
         now = node_time_s(self)
+        self._publish_preview(state, now - state.t)
+        if self.rt.steps % self.cycle_steps == 0:
+            self.vehicle_states += 1
+            seq = self.vehicle_states
+            est = VehicleEstimate.exact(state, seq, t=now)
+            self.drops.publish(self.vstate_pub, messages.full_car_state_msg(
+                est, self.vstate_msg))
+            if self.lockstep:
+                with self.answered:
+                    answered = self.answered.wait_for(
+                        lambda: self.cmd_in.answered_sequence >= seq, self.lockstep_timeout_s)
+                if not answered:
+                    self.lockstep_timeouts += 1
+                    self.get_logger().warning(
+                        f'no command within {self.lockstep_timeout_s:g} s of state {seq} '
+                        f'(t = {state.t:.3f} s; {self.lockstep_timeouts} in all)',
+                        throttle_duration_sec=1.0)
+                now = node_time_s(self)
         with self.lock:
-            currents = [ci.current(now) for ci in self.cmd_ins]
+            currents = self.cmd_in.currents(now, state.t)
             _, _, new = self.rt.step(now, currents)
+            modes = [self.cmd_in.mode_reason(i) for i in range(4)]
         self.control.command_sent()
-        self._publish_preview(state)
         if self.every and not self.rt.steps % self.every:
-            self._publish_body(new)
+            self._publish_corners(new, currents, modes)
 
     def _step_can(self, wall):
         """Plant step: the sensors and drivers on the bus, the drivers' currents, advance."""
@@ -343,8 +352,11 @@ class FullCarNode(Node):
             modes = [core.mode_reason() for core in self.rt.controller.cores]
         self.control.command_sent()
         self._publish_preview(new)
-        if not self.every or self.rt.steps % self.every:
-            return
+        if self.every and not self.rt.steps % self.every:
+            self._publish_corners(new, currents, modes)
+
+    def _publish_corners(self, new, currents, modes):
+        """Publish each corner's state and current command, and the body (the record)."""
         for i in range(4):
             mode, reason = modes[i]
             self.drops.publish_next(self.state_pubs[i], messages.corner_state_to_msg(
@@ -354,15 +366,19 @@ class FullCarNode(Node):
             self.drops.publish(self.cmd_pubs[i], self.cmd_msg)
         self._publish_body(new)
 
-    def _publish_preview(self, state):
-        """Publish the look-ahead frames delivered by ``state.t`` (with the speed signal)."""
+    def _publish_preview(self, state, clock_offset_s=0.0):
+        """
+        Publish the look-ahead frames delivered by ``state.t`` (with the speed signal).
+
+        Stamps are the car's time plus ``clock_offset_s`` [s] (external: the node clock's).
+        """
         if self.look_ahead is None:
             return
         with self.lock:                         # status() reads the sensor's counters
             frames = self.look_ahead.frames(state.t, float(state.q[1]))
         for seq, frame in frames:
             self.drops.publish(self.preview_pub, messages.road_preview_msg(
-                frame.stamp, frame.distance_m, frame.heights_m, sequence=seq,
+                frame.stamp + clock_offset_s, frame.distance_m, frame.heights_m, sequence=seq,
                 speed_m_s=self.look_ahead.speed_m_s, valid=frame.valid,
                 reason='' if frame.valid else 'outage', msg=self.preview_msg))
 
@@ -385,13 +401,16 @@ class FullCarNode(Node):
             t, acc = self.rt.body_log()
             if self.external:
                 st['controller'] = 'external'
+                ext = self.cmd_in.status()
                 for i, c in enumerate(CORNERS):
-                    ci = self.cmd_ins[i]
-                    st['corners'][c] = dict(
-                        ci.status(), mode='failsafe' if ci.timed_out else 'normal',
-                        reason=self._external_reason(i), current_a=float(self.rt.currents[i]))
-                st['corners_normal'] = sum(not ci.timed_out for ci in self.cmd_ins)
-                st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts)
+                    st['corners'][c] = dict(ext['corners'][c],
+                                            current_a=float(self.rt.currents[i]))
+                st['corners_normal'] = sum(d['mode'] == 'normal'
+                                           for d in ext['corners'].values())
+                st.update(lockstep=self.lockstep, lockstep_timeouts=self.lockstep_timeouts,
+                          vehicle_states=self.vehicle_states, commands=ext['commands'],
+                          command_sequence=ext['command_sequence'],
+                          answered_sequence=ext['answered_sequence'])
             if self.look_ahead is not None:
                 st['road_preview'] = self.look_ahead.status()
             if self.can:

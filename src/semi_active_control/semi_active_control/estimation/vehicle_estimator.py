@@ -139,6 +139,30 @@ class VehicleEstimate:
     tyre_deflection_std_m: float
     wheel_velocity_std_m_s: float
 
+    @classmethod
+    def exact(cls, state, sequence, t=None):
+        """
+        Return the exact estimate of a true state (a simulated car's, a test's): valid, std 0.
+
+        Parameters
+        ----------
+        state : FullCarState
+            The car's true state (:class:`semi_active_control.car.full_car_linear.FullCarState`).
+        sequence : int
+            The cycle's number.
+        t : float, optional
+            The stamp [s] (default ``state.t``), e.g. the clock a controller's deadlines are on.
+
+        """
+        return cls(sequence=int(sequence), t=float(state.t if t is None else t),
+                   body=state.q[:3].copy(), body_rates=state.v[:3].copy(),
+                   body_acc=state.acc[:3].copy(), travel=state.travel.copy(),
+                   travel_velocity=state.v_rel.copy(),
+                   tyre_deflection=state.q[3:] - state.z_r, wheel_velocity=state.v[3:].copy(),
+                   damper_force=state.damper_force.copy(), valid=True, reason='', faults=[],
+                   travel_std_m=0.0, heave_velocity_std_m_s=0.0, tyre_deflection_std_m=0.0,
+                   wheel_velocity_std_m_s=0.0)
+
 
 class VehicleEstimatorCore:
     """

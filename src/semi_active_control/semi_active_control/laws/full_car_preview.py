@@ -29,7 +29,7 @@ that corner's inverse and supervisor as every full-car law does. Two sources of 
 
 Without a valid window (no speed yet, a dropout longer than the map ahead, or
 ``preview_enabled`` False: the live input's timeout,
-:mod:`~semi_active_control.runtime.preview_controller_core`) the law is
+:mod:`~semi_active_control.runtime.live_preview`) the law is
 ``full-car-clipped-optimal-wk`` for that step, counted in ``stats``.
 """
 import math

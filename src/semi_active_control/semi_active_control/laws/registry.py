@@ -221,7 +221,8 @@ def make_controller(name, *, c_sky=DEFAULT_C_SKY, c_p=DEFAULT_C_P, lqr_gain=None
     key, current_a = _key(name)
     law = LAWS.get(key)
     if law is None or law.car != 'quarter':
-        hint = (f'; {key!r} is a full-car law (full_car_controller_node, full-car-sim)'
+        hint = (f'; {key!r} is a full-car law (vehicle_controller_node, full_car_node, '
+                'full-car-sim)'
                 if law is not None else '')
         raise ValueError(f'unknown controller {name!r} (use {", ".join(law_names())}){hint}')
     if damper_only and law.kind not in ('current', 'semi-active'):

@@ -5,12 +5,11 @@ The vehicle's nodes: thin ROS adapters over the ROS-free cores.
   (:class:`semi_active_control.runtime.ControllerCore`);
 - ``state_estimator_node``: the corner's sensors in, its estimated state out
   (:class:`semi_active_control.estimation.StateEstimatorCore`);
-- ``full_car_controller_node``: four corner states in, four supervised currents out
-  (:class:`semi_active_control.runtime.FullCarControllerCore`);
 - the vehicle computer's managed nodes: ``vehicle_estimator_node`` (the chassis bus's sensors
   in, the full car's estimate out, :class:`semi_active_control.estimation.VehicleEstimatorCore`),
-  ``vehicle_controller_node`` (the estimate in, four supervised currents out,
-  :class:`semi_active_control.runtime.VehicleControllerCore`) and ``lifecycle_manager_node``
+  ``vehicle_controller_node`` (the estimate, or a simulated car's true state, in, four
+  supervised currents out, :class:`semi_active_control.runtime.VehicleControllerCore`; with
+  the LQ road-preview law on the road-preview topic) and ``lifecycle_manager_node``
   (the chain's order of transitions, :mod:`semi_active_control.supervision.lifecycle_chain`).
 
 ``common`` holds what these nodes and the simulator's car nodes share (parameter tables,

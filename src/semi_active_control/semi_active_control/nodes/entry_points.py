@@ -16,11 +16,6 @@ def state_estimator_node():
     return early_main('semi_active_control.nodes.state_estimator_node')
 
 
-def full_car_controller_node():
-    """``ros2 run semi_active_control full_car_controller_node``."""
-    return early_main('semi_active_control.nodes.full_car_controller_node')
-
-
 def vehicle_estimator_node():
     """``ros2 run semi_active_control vehicle_estimator_node``."""
     return early_main('semi_active_control.nodes.vehicle_estimator_node')

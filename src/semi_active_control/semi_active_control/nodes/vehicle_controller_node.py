@@ -24,6 +24,12 @@ Topics (relative; remap with ``--ros-args -r``)
 - pub ``vehicle/command`` (mr_damper_interfaces/FullCarCommand; reliable, KEEP_LAST 2): one per
   state, one per ``check_period_s`` while no state came for ``sensor_timeout_s``
   (``sensor_timeout``), one at deactivation;
+- sub ``full_car/road_preview`` (mr_damper_interfaces/RoadPreview; reliable, depth 10), only
+  with ``controller:=preview-look-ahead``, on the state lane: the look-ahead sensor's frames
+  and the speed signal for the LQ preview law (docs/preview.md), stamped on the states'
+  clock; without a usable preview (no frame yet, none for ``preview_timeout_s``, stale or
+  invalid frames, the map not reaching a wheel) the law runs without preview for that cycle,
+  counted in the status's ``preview.*``;
 - pub ``~/heartbeat`` (std_msgs/Header, the lifecycle state in ``frame_id``);
 - pub ``/diagnostics`` (status ``vehicle_controller``): the core's status (per corner mode,
   reason, model source and supervisor figures; ``deadline`` with misses and their lateness).
@@ -37,18 +43,20 @@ from mr_damper_common import messages
 from mr_damper_common.health import ERROR, OK, WARN, worst
 from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
                                               run_managed, state_label, SUCCESS)
-from mr_damper_common.node_utils import (declare_parameters, FastLane, LATCHED_QOS, node_time_s,
-                                         Param, set_realtime_priority, VEHICLE_QOS)
-from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters
+from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, FastLane, LATCHED_QOS,
+                                         node_time_s, Param, set_realtime_priority, VEHICLE_QOS)
+from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters, RoadPreview
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
-from semi_active_control.runtime import full_car_state, VehicleControllerCore
+from semi_active_control.runtime import (full_car_state, LIVE_PREVIEW_LAWS, LivePreview,
+                                         VehicleControllerCore)
 from semi_active_control.supervision import CornerModels
 
 #: The node's parameters (the one place they are declared).
 PARAMETERS = (
     Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook) or '
-          'passive@<I>A'),
+          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
+          'passive@<I>A or preview-look-ahead (full-car-clipped-optimal-wk with LQ preview on '
+          'full_car/road_preview)'),
     Param('cycle_s', 0.002, 'Control cycle: the sensor cycle, each answer\'s deadline [s]',
           1e-4, 1.0),
     Param('model_files', ['', '', '', ''], 'Per corner (fl, fr, rl, rr) the damper\'s '
@@ -63,6 +71,8 @@ PARAMETERS = (
           '[A]', 0.0, 10.0),
     Param('hold_on_reject', False, 'Keep a live corner\'s model when a later set is refused '
           '(until stale)'),
+    Param('deadline_s', 0.0, 'Each answer\'s deadline after its state\'s stamp [s] (0: one '
+          'cycle)', 0.0, 10.0),
     Param('max_consecutive_misses', 5, 'Cycles in a row answered after their deadline that put '
           'every corner on the safe current (deadline_misses)', 1, 100000),
     Param('recover_cycles', 50, 'Cycles in a row on time that end deadline_misses', 1, 100000),
@@ -70,6 +80,12 @@ PARAMETERS = (
           '(sensor_timeout) [s]', 1e-3, 60.0),
     Param('check_period_s', 0.01, 'Period of the sensor timeout check and of the safe '
           'commands while it lasts [s] (inside the drivers\' command timeout)', 1e-3, 1.0),
+    Param('preview_horizon_s', 0.3, 'Preview law: horizon of the feedforward on the road ahead '
+          '[s]', 0.0, 2.0),
+    Param('preview_timeout_s', 0.25, 'Preview law: without a frame taken for this long the law '
+          'runs without preview [s, state stamps]', 0.001, 60.0),
+    Param('preview_max_age_s', 0.1, 'Preview law: a frame older than this when its cycle comes '
+          'is stale (refused) [s]', 0.001, 60.0),
 ) + MANAGED_PARAMETERS
 
 
@@ -100,10 +116,17 @@ class VehicleControllerNode(LifecycleNode):
                                   i_max_a=p['i_max_a'],
                                   min_current_span_a=p['min_current_span_a'],
                                   hold_on_reject=p['hold_on_reject'])
+            preview = None
+            if p['controller'].strip().lower() in LIVE_PREVIEW_LAWS:
+                preview = LivePreview(PASSENGER_CAR, p['controller'], dt=p['cycle_s'],
+                                      horizon_s=p['preview_horizon_s'],
+                                      preview_timeout_s=p['preview_timeout_s'],
+                                      preview_max_age_s=p['preview_max_age_s'])
             core = VehicleControllerCore(
                 PASSENGER_CAR, p['controller'], models, cycle_s=p['cycle_s'],
                 max_consecutive_misses=p['max_consecutive_misses'],
-                recover_cycles=p['recover_cycles'], input_timeout_s=p['sensor_timeout_s'])
+                recover_cycles=p['recover_cycles'], input_timeout_s=p['sensor_timeout_s'],
+                deadline_s=p['deadline_s'] or None, preview=preview)
         except ValueError as exc:
             self.get_logger().error(f'configure refused: {exc}')
             return FAILURE
@@ -122,6 +145,11 @@ class VehicleControllerNode(LifecycleNode):
         self.lane = FastLane(self, 'states')
         self.state_sub = self.lane.node.create_subscription(FullCarState, 'vehicle/state',
                                                             self.on_state, VEHICLE_QOS)
+        self.preview_sub = None
+        if core.preview is not None:
+            self.preview_sub = self.drops.subscribe(self.lane.node, RoadPreview,
+                                                    'full_car/road_preview', self.on_preview,
+                                                    CONTROL_QOS)
         self.params_subs = [
             self.create_subscription(KwokParameters, f'{c}/mr_damper/kwok_parameters',
                                      lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
@@ -219,6 +247,17 @@ class VehicleControllerNode(LifecycleNode):
         if verdict is not None and not verdict.accepted:
             self.get_logger().warning(f'{CORNERS[i]}: parameters refused ({verdict.reason}): '
                                       f'{verdict.detail}', throttle_duration_sec=1.0)
+
+    def on_preview(self, msg):
+        """Hand a road-preview frame to the core (a message that does not decode is counted)."""
+        try:
+            fields = messages.road_preview_fields(msg)
+        except messages.MessageError as exc:
+            fields = exc
+            self.get_logger().warning(f'road preview refused: {exc}', throttle_duration_sec=1.0)
+        with self.lock:
+            if self.core is not None:
+                self.core.offer_preview(fields)
 
     def _publish(self, cmd, now):
         if self.cmd_pub is None:

@@ -5,17 +5,15 @@ Public API::
 
     from semi_active_control.runtime import ControllerCore, LAW_FIELDS, STATE_REJECTIONS
     from semi_active_control.runtime import make_node_law, reconfigure, SUPERVISOR_PARAMETERS
-    from semi_active_control.runtime import FullCarControllerCore, FullCarController
-    from semi_active_control.runtime import PreviewControllerCore, LIVE_PREVIEW_LAWS
+    from semi_active_control.runtime import FullCarController, LivePreview, LIVE_PREVIEW_LAWS
     from semi_active_control.runtime import VehicleControllerCore, VehicleCommand
 
 Modules: ``controller_core`` (a corner: law + the inverse of the identified model + the
 fail-safe supervisor, the state checks; the node's law and parameter changes),
-``full_car_controller_core`` (the whole car: four corner states in, four supervised currents
-out, each corner under its own supervisor), ``preview_controller_core`` (the whole car with
-the LQ road-preview law fed from the road-preview topic), ``vehicle_controller`` (the vehicle
-computer's full-car controller on one estimated state per cycle, with deadlines and an
-inactive state).
+``full_car_controller_core`` (the whole car's step: the law, then each corner's inverse under
+its own supervisor), ``live_preview`` (the LQ road-preview law fed from the road-preview
+topic), ``vehicle_controller`` (the vehicle computer's full-car controller on one state per
+cycle, with deadlines and an inactive state).
 """
 from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa: F401
                                                          LAW_FIELDS, make_node_law,
@@ -23,10 +21,8 @@ from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa
                                                          reconfigure, STATE_REJECTIONS,
                                                          SUPERVISOR_PARAMETERS)
 from semi_active_control.runtime.full_car_controller_core import (  # noqa: F401
-    body_coordinates, corner_supervisors, full_car_state_of_corners, FullCarController,
-    FullCarControllerCore)
-from semi_active_control.runtime.preview_controller_core import (  # noqa: F401
-    LIVE_PREVIEW_LAWS, PreviewControllerCore)
+    corner_supervisors, FullCarController)
+from semi_active_control.runtime.live_preview import LIVE_PREVIEW_LAWS, LivePreview  # noqa: F401
 from semi_active_control.runtime.vehicle_controller import (full_car_state,  # noqa: F401
                                                             MODE_FAIL_SAFE, MODE_INACTIVE,
                                                             MODE_NORMAL,

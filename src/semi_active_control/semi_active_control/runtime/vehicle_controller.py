@@ -74,7 +74,7 @@ class VehicleCommand:
 def full_car_state(geometry, t, body, body_rates, body_acc, travel, travel_velocity,
                    tyre_deflection, wheel_velocity, damper_force):
     """
-    Build the laws' :class:`~semi_active_control.car.full_car_linear.FullCarState` from an estimate.
+    Build the laws' ``FullCarState`` (``semi_active_control.car.full_car_linear``) of an estimate.
 
     ``geometry`` is the car's corner map ``T`` (``FullCarParams.geometry``, shape (4, 3)).
     Road heights are 0 (the wheel height is the tyre deflection, as the estimator gives it);
@@ -112,6 +112,10 @@ class VehicleControllerCore:
         Control cycle [s] (the sensor cycle; the period of a filter inside the law).
     max_consecutive_misses, recover_cycles, input_timeout_s, deadline_s
         Deadline supervision (:class:`DeadlineMonitor`).
+    preview : LivePreview, optional
+        The road-preview law and its topic input
+        (:class:`~semi_active_control.runtime.live_preview.LivePreview`): its law replaces
+        ``law``, and every cycle feeds it the frames due before the law runs.
 
     Attributes
     ----------
@@ -124,7 +128,10 @@ class VehicleControllerCore:
     """
 
     def __init__(self, params, law, models, *, cycle_s=0.002, max_consecutive_misses=5,
-                 recover_cycles=50, input_timeout_s=0.02, deadline_s=None):
+                 recover_cycles=50, input_timeout_s=0.02, deadline_s=None, preview=None):
+        self.preview = preview
+        if preview is not None:
+            law = preview.law
         if isinstance(law, str):
             law = make_full_car_law(law, params, dt=cycle_s)
         self.params = params
@@ -193,7 +200,11 @@ class VehicleControllerCore:
         sup_reason = None
         if not valid:
             sup_reason = f'estimate_{reason or "invalid"}'
+        if self.preview is not None:
+            self.preview.before(state)
         currents = self.controller.command(state, t_now)
+        if self.preview is not None:
+            self.preview.after(state)
         cmd = self._from_controller(currents, sequence, state.t)
         watchdog = self.monitor.reason
         if sup_reason is None and watchdog is not None:
@@ -227,6 +238,21 @@ class VehicleControllerCore:
     def offer_parameters(self, corner, values, t_clock):
         """Offer a live identifier's decoded set to a live corner's supervisor."""
         return self.models.offer_live(corner, values, t_clock)
+
+    def offer_preview(self, fields):
+        """
+        Take one decoded road-preview message (the preview law's input; counted there).
+
+        ``fields`` is :func:`mr_damper_common.messages.road_preview_fields` of a message, or a
+        :class:`~mr_damper_common.messages.MessageError` of one that did not decode (refused
+        by its reason). Returns whether the frame was taken (False without a preview law).
+        """
+        if self.preview is None:
+            return False
+        if isinstance(fields, Exception):
+            self.preview.refuse(getattr(fields, 'reason', 'decode'))
+            return False
+        return bool(self.preview.offer(fields))
 
     # --- commands -----------------------------------------------------------------------------
     def _next(self):
@@ -272,7 +298,8 @@ class VehicleControllerCore:
             ``states_while_inactive``, ``all_safe`` (commands with every corner safe, by
             reason), ``deadline`` (:meth:`DeadlineMonitor.status`), ``corners`` (per corner:
             the core's status, the model source, ``normal_commands``,
-            ``first_normal_t``, ``current_a``, ``mode``, ``reason`` of the last command).
+            ``first_normal_t``, ``current_a``, ``mode``, ``reason`` of the last command);
+            with a preview, ``preview`` (:meth:`LivePreview.status`).
 
         """
         corners = self.controller.status()
@@ -295,4 +322,5 @@ class VehicleControllerCore:
                 'states_while_inactive': self.states_while_inactive,
                 'all_safe': dict(self.safe_answers),
                 'corners_normal': sum(corners[c].get('mode') == 'normal' for c in CORNERS),
-                'deadline': self.monitor.status(t_now), 'corners': corners}
+                'deadline': self.monitor.status(t_now), 'corners': corners,
+                **({'preview': self.preview.status()} if self.preview is not None else {})}

@@ -2,19 +2,19 @@
 Road preview on the nodes, without ROS: the car's look-ahead frames and the controller's input.
 
 The frames go through the message conversion both ways (``RoadPreview``), as between
-``full_car_node`` and ``full_car_controller_node``; the corner states as the corner messages
-carry them.
+``full_car_node`` and ``vehicle_controller_node``; the car's state as the vehicle's
+``FullCarState`` message carries it.
 """
 import math
 
 import numpy as np
 import pytest
 
-from full_car_cases import corners_of
 from mr_damper_common import messages
 from mr_damper_common.contract import IdentifiedSet
 from mr_damper_model.models import presets
 from mr_damper_model.models.plant import KwokCurrentPlant
+from semi_active_control.estimation.vehicle_estimator import VehicleEstimate
 from quarter_car_sim.plant.preview_sensor import IDEAL_LOOK_AHEAD, LookAheadSpec, PreviewFeed
 from quarter_car_sim.plant.two_track_road import make_two_track_road
 from quarter_car_sim.runtime.full_car import FullCarRuntime
@@ -22,15 +22,16 @@ from quarter_car_sim.runtime.look_ahead import simulated_look_ahead, SimulatedLo
 from semi_active_control.car.full_car import PASSENGER_CAR
 from semi_active_control.estimation.preview_input import FUTURE_S, PreviewInput
 from semi_active_control.laws.full_car_preview import FedFullCarLaw, make_full_car_preview_law
-from semi_active_control.runtime.full_car_controller_core import (full_car_state_of_corners,
-                                                                  FullCarControllerCore)
-from semi_active_control.runtime.preview_controller_core import PreviewControllerCore
+from semi_active_control.runtime.live_preview import LivePreview
+from semi_active_control.runtime.vehicle_controller import full_car_state, VehicleControllerCore
+from semi_active_control.supervision.corner_models import CornerModels
 
 P = PASSENGER_CAR
 KW = presets.thesis_kwok_current()[1]
 IDENTIFIED = IdentifiedSet(KW, current_min_a=0.0, current_max_a=2.0, valid=True)
 DT = 1e-3
-SUPERVISION = dict(timeout_s=1e9, safe_current_a=0.5)
+SUPERVISION = dict(timeout_s=1e9, safe_current_a=0.5, i_min_a=0.0, i_max_a=2.0,
+                   min_current_span_a=1.0)
 
 
 def wire(seq, frame, speed):
@@ -41,10 +42,25 @@ def wire(seq, frame, speed):
     return messages.road_preview_fields(msg)
 
 
-def with_models(core):
+def controller(law='preview-look-ahead', **preview):
+    """Return a vehicle controller core at the test's period, active, each corner on a model."""
+    live = LivePreview(P, law, dt=DT, **preview) if law == 'preview-look-ahead' else None
+    core = VehicleControllerCore(P, law, CornerModels([''] * 4, **SUPERVISION), cycle_s=DT,
+                                 deadline_s=1e9, preview=live)
+    core.configure(0.0)
+    core.activate(0.0)
     for i in range(4):
-        core.offer_parameters(i, IDENTIFIED, 0.0)
+        assert core.offer_parameters(i, IDENTIFIED, 0.0).accepted
     return core
+
+
+def over_the_wire(state, sequence):
+    """Return the car's state as the controller reads it (the FullCarState message, back)."""
+    f = messages.full_car_state_fields(messages.full_car_state_msg(
+        VehicleEstimate.exact(state, sequence)))
+    return full_car_state(P.geometry, f['t'], f['body'], f['body_rates'], f['body_acc'],
+                          f['travel'], f['travel_velocity'], f['tyre_deflection'],
+                          f['wheel_velocity'], f['damper_force'])
 
 
 def drive(cores, road, sensor, duration_s, spy=None):
@@ -60,15 +76,11 @@ def drive(cores, road, sensor, duration_s, spy=None):
         for seq, frame in sensor.frames(state.t, float(state.q[1])):
             fields = wire(seq, frame, sensor.speed_m_s)
             for core in cores:
-                if isinstance(core, PreviewControllerCore):
-                    core.offer_preview(fields)
-        out = []
-        for core in cores:
-            for i, c in enumerate(corners_of(state)):
-                currents = core.offer_state(i, c, k * DT)
-            out.append(currents)
+                core.offer_preview(fields)
+        wired = over_the_wire(state, k + 1)
+        out = [core.command(wired, k + 1, True, '', k * DT).currents_a for core in cores]
         if spy is not None:
-            spy(state, out)
+            spy(wired, out)
         rt.step(k * DT, out[0])
     return rt
 
@@ -82,15 +94,15 @@ def test_live_preview_on_an_ideal_sensor_is_the_offline_preview_law(road):
     # the same law fed offline (PreviewFeed) and live (numbered frames over the message, the
     # speed signal held, frames handed to the map at their step) previews the same steps and
     # asks the same forces
-    live = with_models(PreviewControllerCore(P, dt=DT, **SUPERVISION))
+    live = controller()
     offline = make_full_car_preview_law(P, source='look-ahead', dt=DT)
     fed = FedFullCarLaw(offline, PreviewFeed(offline.road, road, IDEAL_LOOK_AHEAD))
     sensor = SimulatedLookAhead(IDEAL_LOOK_AHEAD, road)
     diffs, scale = [], []
 
     def spy(state, _):
-        fed.prepare(full_car_state_of_corners(P, corners_of(state)))
-        diffs.append(np.abs(np.subtract(live.law.forces, offline.forces)).max())
+        fed.prepare(state)
+        diffs.append(np.abs(np.subtract(live.preview.law.forces, offline.forces)).max())
         scale.append(np.abs(offline.feedforward).max())
 
     drive([live], road, sensor, 1.0, spy)
@@ -109,17 +121,17 @@ def test_outage_falls_back_to_the_law_without_preview_counted_then_previews_agai
     # supervisor), each step counted; after the outage the preview comes back
     spec = LookAheadSpec(latency_s=0.02, height_noise_m=0.003, outages=((0.3, 0.6),))
     sensor = SimulatedLookAhead(spec, road, speed_error=0.02)
-    live = with_models(PreviewControllerCore(P, dt=DT, preview_timeout_s=0.1, **SUPERVISION))
-    plain = with_models(FullCarControllerCore(P, 'full-car-clipped-optimal-wk', dt=DT,
-                                              **SUPERVISION))
+    live = controller(preview_timeout_s=0.1)
+    plain = controller('full-car-clipped-optimal-wk')
+    law = live.preview.law
     fallback, previewed = [], []
 
     def spy(state, currents):
-        (fallback if not live.law.last_previewed else previewed).append(state.t)
-        if not live.law.last_previewed:
-            assert currents[0] == currents[1]
-            assert live.law.forces == plain.controller.law.forces
-            assert not live.law.feedforward.any()
+        (fallback if not law.last_previewed else previewed).append(state.t)
+        if not law.last_previewed:
+            np.testing.assert_array_equal(currents[0], currents[1])
+            assert law.forces == plain.controller.law.forces
+            assert not law.feedforward.any()
 
     drive([live, plain], road, sensor, 1.5, spy)
     st = live.status()['preview']
@@ -135,7 +147,7 @@ def test_outage_falls_back_to_the_law_without_preview_counted_then_previews_agai
     assert min(out_fallback) == pytest.approx(last_before + 0.1, abs=2 * DT + 0.02)
     assert st['first_previewed_t'] < 0.3 < st['last_fallback_t'] < st['last_previewed_t']
     assert st['last_fallback_t'] >= 0.6
-    assert live.sets == plain.sets == 1500
+    assert live.answered == plain.answered == 1500
 
 
 def input_for_tests(**kwargs):
@@ -199,7 +211,15 @@ def test_input_refuses_bad_settings(kwargs):
 
 def test_unknown_live_preview_law_is_an_error():
     with pytest.raises(ValueError, match='preview-look-ahead'):
-        PreviewControllerCore(P, 'preview-mpc-look-ahead')
+        LivePreview(P, 'preview-mpc-look-ahead')
+
+
+def test_a_preview_message_that_did_not_decode_is_counted_by_its_reason():
+    core = controller()
+    assert not core.offer_preview(messages.MessageError('layout', 'heights do not match'))
+    assert core.status()['preview']['input']['refused']['layout'] == 1
+    plain = controller('modal-skyhook')
+    assert not plain.offer_preview(frame_fields(1, 0.0)) and 'preview' not in plain.status()
 
 
 def test_sensor_numbers_its_frames_so_the_controller_counts_the_lost_ones(road):
