@@ -1,5 +1,5 @@
 """
-The simulated full car as the plant of the vehicle controller over ROS 2 (``controller:=external``).
+The simulated full car as the plant of the vehicle controller over ROS 2 (controller:=external).
 
 Real node processes (console scripts), test publishers of identified parameter sets (latched),
 LOCALHOST discovery and the private domain of tests/conftest.py. Assertions are on the order of
@@ -106,9 +106,9 @@ def test_lock_step_wait_is_bounded_and_counted_without_answers():
                     'failsafe', 'no_command_yet', SAFE_A), (c, d)
             # an answer comes: every corner leaves fail-safe on its command
             n = len(states)
-            cmd = FullCarCommand(sequence=1, state_sequence=max((m.sequence for _, m in states), default=1),
-                                 current_a=[1.25] * 4, mode=[FullCarCommand.MODE_NORMAL] * 4,
-                                 reason=['ok'] * 4)
+            newest = max((m.sequence for _, m in states), default=1)
+            cmd = FullCarCommand(sequence=1, state_sequence=newest, current_a=[1.25] * 4,
+                                 mode=[FullCarCommand.MODE_NORMAL] * 4, reason=['ok'] * 4)
             cmd_pub.publish(cmd)
             assert lis.wait_for(lambda: diag.values(name).get('corners_normal') == 4
                                 and all(diag.values(name)['corners'][c]['current_a'] == 1.25
