@@ -82,3 +82,27 @@ def test_the_child_ends_when_its_node_is_killed():
         assert _ended(child)
     finally:
         stop_group(node, signal.SIGKILL)
+
+
+def test_a_request_cut_off_by_the_shutdown_ends_the_child_quietly():
+    # the node's shutdown may close the child's stdin while a request is half written: the
+    # child ends with status 0 and no traceback ("pickle data was truncated" at the stop)
+    import pickle
+    import subprocess
+    import sys
+    child = subprocess.Popen([sys.executable, '-m', 'mr_damper_model.live'],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        request = pickle.dumps(('x' * 100_000, 'kwok', None, None),
+                               protocol=pickle.HIGHEST_PROTOCOL)
+        child.stdin.write(request[:len(request) // 2])
+        child.stdin.close()
+        err = child.stderr.read()            # to its end: the child has exited
+        child.wait(timeout=120)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0, err
+    assert b'Traceback' not in err, err

@@ -176,7 +176,9 @@ def _serve():
     while True:
         try:
             request = pickle.load(src)
-        except EOFError:
+        except (EOFError, pickle.UnpicklingError, ValueError, OSError):
+            # stdin closed, also in the middle of a request (the node's shutdown closes it
+            # while a fit is being sent): the end, not an error (no traceback at the stop)
             return
         try:
             reply = ('ok', True if request == 'ping' else fit_data(*request))
