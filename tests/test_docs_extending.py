@@ -14,7 +14,7 @@ from mr_damper_common.contract import CornerState
 from quarter_car_sim.plant.quarter_car import LinearDamperPlant
 from quarter_car_sim.simulate.quarter_car import simulate
 from semi_active_control.car.quarter_car import QuarterCarParams
-from semi_active_control.laws import law_names, LAWS, make_controller
+from semi_active_control.laws import law_names, LawOptions, LAWS, make_controller
 from semi_active_control.runtime.controller_core import make_node_law
 
 DOC = pathlib.Path(__file__).resolve().parents[1] / 'docs' / 'extending.md'
@@ -29,6 +29,12 @@ def _blocks(section):
     blocks = re.findall(r'^```python\n(.*?)^```$', body[0], flags=re.M | re.S)
     assert blocks, f'no python block under {section!r}'
     return blocks
+
+
+def _text_blocks(section):
+    """Return the ```text blocks of a section (the lines the doc tells to add)."""
+    text = DOC.read_text().split('\n## ' + section + '\n', 1)[1].split('\n## ', 1)[0]
+    return re.findall(r'^```text\n(.*?)^```$', text, flags=re.M | re.S)
 
 
 def _run(section):
@@ -66,6 +72,16 @@ def test_law_is_registered_built_and_its_values_are_the_on_off_groundhook(law_do
     assert law.demand(_state(0.5, 0.2)) == pytest.approx(-300.0 * 0.3)
     with pytest.raises(ValueError):
         cls(100.0, 200.0)
+
+
+def test_law_registry_line_of_the_doc_builds_the_law(law_doc):
+    # the line the doc tells to add to LAWS in registry.py is the entry the example registers
+    line = next(b for b in _text_blocks('Add a control law') if 'Law(' in b)
+    entry = eval('{' + line + '}', dict(law_doc))
+    assert list(entry) == ['groundhook-onoff']
+    law = entry['groundhook-onoff']
+    assert (law.car, law.kind) == (LAWS['groundhook-onoff'].car, LAWS['groundhook-onoff'].kind)
+    assert isinstance(law.make(LawOptions()), law_doc['GroundhookOnOff'])
 
 
 def test_law_runs_on_the_quarter_car_against_passive(law_doc):
@@ -134,6 +150,19 @@ def test_damper_example_force_has_the_bingham_truths(damper_doc):
     assert 0.99 * 1000.0 < force <= 1000.0
     with pytest.raises(ValueError):
         plant_cls(c0=-1.0)
+
+
+def test_damper_make_plant_branch_of_the_doc_builds_the_plant(damper_doc):
+    # the return line the doc tells to add to make_plant builds the plant, defaults or given
+    block = next(b for b in _text_blocks('Add a damper model')
+                 if 'return BinghamCurrentPlant(' in b)
+    expr = block.split('return ', 1)[1].strip()
+    ns = dict(damper_doc)
+    plant = eval(expr, {**ns, 'params': None, 'options': {}})
+    assert isinstance(plant, ns['BinghamCurrentPlant'])
+    assert plant.params == {'f_y0': 50.0, 'f_y1': 250.0, 'c0': 800.0}
+    plant = eval(expr, {**ns, 'params': {'c0': 1200.0}, 'options': {'slew_a_per_s': 400.0}})
+    assert plant.params['c0'] == 1200.0 and plant.slew_a_per_s == 400.0
 
 
 def test_damper_example_in_the_quarter_car(damper_doc):
