@@ -51,3 +51,36 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path):
     assert isinstance(v['frames_lost']['total'], int)
     assert v['a_v'] > 0 and v['a_v_passive'] > 0 and v['a_v_lockstep'] > 0, v
     assert (out / 'full_car_body.npz').is_file()
+
+
+def test_vehicle_suite_runs_the_preview_law_on_the_cars_look_ahead_frames(tmp_path):
+    """
+    ``--config vehicle --preview``: the LQ preview law in the vehicle controller (issue 36).
+
+    The car publishes its look-ahead sensor's frames stamped on the vehicle's clock (the bus's:
+    the sensor cycles' stamps); the controller's preview input takes them at their cycle and the
+    law previews, its cycles counted previewed or fallback.
+    """
+    out = tmp_path / 'vehicle_preview'
+    env = dict(os.environ)
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'vehicle', '--preview',
+           '--duration', '0', '--out', str(out), '--progress-s', '1', '--domain-id',
+           env['ROS_DOMAIN_ID'], '--no-plots', '--set',
+           'lifecycle_manager.heartbeat_timeout_s=10.0']
+
+    def ready(line):
+        m = re.search(r'chain bridge active,estimator active,controller active \| cycles \d+ '
+                      r'answered (\d+)', line)
+        return m is not None and int(m.group(1)) >= 1000
+
+    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, guard_s=600.0)
+    assert ok, ''.join(seen[-20:])
+    assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
+    summary = json.loads((out / 'summary.json').read_text())
+    assert all(code == 0 for code in summary['exit_codes'].values()), summary['exit_codes']
+    pv = summary['vehicle']['preview']
+    law, inp, sensor = pv['law'], pv['input'], pv['sensor']
+    assert sensor['delivered'] > 0 and inp['messages']['received'] > 0, pv
+    assert law['previewed_steps'] > 0, pv
+    assert law['steps'] == law['previewed_steps'] + law['fallback_steps'], pv
+    assert pv['first_previewed_t'] <= pv['last_previewed_t'], pv

@@ -387,9 +387,10 @@ def parse_args(argv):
                         'vehicle_controller_node on the car\'s vehicle/state); the car is the '
                         'plant only (controller:=external)')
     p.add_argument('--preview', action='store_true',
-                   help='full-car: the LQ road-preview law live (preview-look-ahead in '
-                        'vehicle_controller_node, implies --external-controller) on the '
-                        'look-ahead frames full_car_node publishes (docs/preview.md)')
+                   help='full-car / vehicle: the LQ road-preview law live '
+                        '(preview-look-ahead in vehicle_controller_node; full-car: implies '
+                        '--external-controller) on the look-ahead frames full_car_node '
+                        'publishes (docs/preview.md)')
     p.add_argument('--sensing', choices=('ideal', 'vehicle'), default='ideal',
                    help='vehicle: the law runs on the state estimated from the car\'s modelled '
                         'sensors (state_estimator_node + semi_active_controller_node, '
@@ -425,8 +426,8 @@ def parse_args(argv):
         p.error('--duration must be >= 0')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         p.error('--domain-id must be in 0..232')
-    if args.preview and args.config != 'full-car':
-        p.error('--preview needs --config full-car')
+    if args.preview and args.config not in ('full-car', 'vehicle'):
+        p.error('--preview needs --config full-car or --config vehicle')
     if args.rate_factor is not None and not args.rate_factor > 0:
         p.error('--rate-factor must be > 0')
     if not args.hang_timeout_s >= 0:
@@ -459,7 +460,8 @@ def main(argv=None):
         vehicle = args.config == 'vehicle'
         if vehicle:
             corners, car_cfg = vehicle_configs(cfg, out, args.duration, args.domain_id,
-                                               args.live_identification)
+                                               args.live_identification,
+                                               preview=args.preview)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2

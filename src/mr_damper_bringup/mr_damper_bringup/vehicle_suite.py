@@ -45,7 +45,7 @@ def model_files(folder=MODELS_DIR):
     return [str(Path(folder) / f'{c}.json') for c in FULL_CAR_CORNERS]
 
 
-def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False):
+def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False, preview=False):
     """
     Split a vehicle run's parameters: the corners' stacks (live only) and the rest.
 
@@ -61,6 +61,9 @@ def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False):
         The run's domain (the bus port is ``CAN_PORT_BASE`` + it).
     live_identification : bool
         Four rig / identifier stacks give the models instead of the files.
+    preview : bool
+        The controller runs the LQ road-preview law (``preview-look-ahead``) on the look-ahead
+        frames the car publishes (``road_preview: true``), stamped on the vehicle's clock.
 
     Returns
     -------
@@ -84,6 +87,10 @@ def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False):
     need = float(duration_s) * rtf + 30.0 if duration_s else 600.0
     set_param(vehicle, FULL_CAR, 'road_duration_s', min(max(need, 60.0), 3600.0))
     set_param(vehicle, FULL_CAR, 'log_max_s', min(need, 3600.0))
+    if preview:
+        from .full_car_suite import PREVIEW_LAW
+        set_param(vehicle, FULL_CAR, 'road_preview', True)
+        set_param(vehicle, CONTROLLER, 'controller', PREVIEW_LAW)
     ctrl = node_params(vehicle, CONTROLLER)
     if not live_identification and not any(ctrl.get('model_files') or ()):
         set_param(vehicle, CONTROLLER, 'model_files', list(files))
@@ -125,7 +132,34 @@ def vehicle_progress_line(monitor, elapsed):
     return f'[{elapsed:6.1f} s] ' + ' | '.join(parts)
 
 
-def _simulate_body(car_params, law, damper_files, t_end, dt):
+def _offline_law(law, car_params, ctrl_params, road, dt):
+    """
+    Return the controller's ``law`` for an offline run on ``road``.
+
+    The live preview law (``preview-look-ahead``) is fed offline by the car's look-ahead sensor
+    model with the car node's settings (its parameter defaults where the run set none); any
+    other law is its name.
+    """
+    from semi_active_control.runtime.live_preview import LIVE_PREVIEW_LAWS
+    if str(law).strip().lower() not in LIVE_PREVIEW_LAWS:
+        return law
+    from quarter_car_sim.nodes.full_car_node import PARAMETERS
+    from quarter_car_sim.plant.preview_sensor import PreviewFeed, SpeedSignal
+    from quarter_car_sim.runtime.look_ahead import simulated_look_ahead
+    from semi_active_control.car.full_car import PASSENGER_CAR
+    from semi_active_control.laws.full_car_preview import (FedFullCarLaw,
+                                                           make_full_car_preview_law)
+    settings = {spec.name: spec.default for spec in PARAMETERS} | dict(car_params)
+    sensor = simulated_look_ahead(settings, road)
+    live = make_full_car_preview_law(
+        PASSENGER_CAR, source='look-ahead',
+        horizon_s=float((ctrl_params or {}).get('preview_horizon_s', 0.3)), dt=dt, name=law)
+    return FedFullCarLaw(live, PreviewFeed(live.road, road, sensor.sensor.spec,
+                                           SpeedSignal(float(settings['speed_error'])),
+                                           rng=int(settings['preview_seed'])))
+
+
+def _simulate_body(car_params, law, damper_files, t_end, dt, ctrl_params=None):
     """Simulate the body accelerations offline: ``law`` on the true states, the node's road."""
     from mr_damper_model.io.params_file import load_plant
     from quarter_car_sim.plant.two_track_road import make_two_track_road
@@ -138,6 +172,7 @@ def _simulate_body(car_params, law, damper_files, t_end, dt):
                                rng=int(g('road_seed', 1)))
     truths = g('truth_files') or [''] * 4
     plants = [load_plant(g('plant', 'spencer'), f or g('truth_file', '')) for f in truths]
+    law = _offline_law(law, car_params, ctrl_params, road, dt)
     res = simulate_full_car(PASSENGER_CAR, road, law, plants, damper_files, dt=dt,
                             settle_s=float(g('settle_s', 0.5)), duration_s=t_end)
     return res.t, res.acc[:, :3]
@@ -177,7 +212,8 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         the drivers), ``messages_lost`` (estimator and controller inputs, from sequence
         numbers), ``all_safe`` (controller commands with every corner safe, by reason),
         ``chain`` (the lifecycle manager's counts), ``window_s``, ``a_v``, ``a_v_passive``,
-        ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1).
+        ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1); with ``--preview``, ``preview``
+        (the controller's preview counters and the car's look-ahead sensor's).
 
     """
     st = monitor.snapshot()[0]
@@ -214,6 +250,8 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
                                               'sensor_fault_entries', 'restarts')},
         'chain': (st.get(MANAGER) or {}).get('counts'),
         't_normal': can.get('t_normal')}
+    if ctrl.get('preview') is not None:        # --preview: the law's, map's, input's counters
+        section['preview'] = dict(ctrl['preview'], sensor=car.get('road_preview'))
     section['frames_lost']['total'] = sum(v for v in section['frames_lost'].values()
                                           if isinstance(v, int))
     path = Path(out) / BODY_LOG
@@ -245,7 +283,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         files = [f or m for f, m in zip(files, model_files())]
         for key, law in (('a_v_passive', f'passive@{safe:g}A'),
                          ('a_v_lockstep', ctrl_p.get('controller', 'modal-skyhook'))):
-            t_o, acc_o = _simulate_body(params, law, files, float(t[-1]), dt)
+            t_o, acc_o = _simulate_body(params, law, files, float(t[-1]), dt, ctrl_p)
             wo = t_o >= t0
             section[key] = _a_v(t_o[wo], acc_o[wo])
         if section.get('a_v') and section.get('a_v_lockstep'):

@@ -240,7 +240,7 @@ class FullCarNode(Node):
                                  lambda m, i=i: self.on_params(i, m), LATCHED_QOS)
         self.body_pub = self.create_publisher(JointState, 'full_car/body_state', 10)
         self.look_ahead = self.preview_pub = None
-        if p['road_preview'] and not self.can:
+        if p['road_preview']:
             self.look_ahead = simulated_look_ahead(p, road)
             self.preview_pub = self.create_publisher(RoadPreview, 'full_car/road_preview',
                                                      CONTROL_QOS)
@@ -337,6 +337,8 @@ class FullCarNode(Node):
     def _step_can(self, wall):
         """Plant step: the sensors and drivers on the bus, the drivers' currents, advance."""
         now = node_time_s(self)
+        state = self.rt.state
+        self._publish_preview(state, now - state.t)     # on the vehicle's (the bus's) clock
         with self.lock:
             currents = self.link.step(self.rt.state)
             _, _, new = self.rt.step(now, currents)
