@@ -193,7 +193,7 @@ def external_run(procs, ctrl_params, prefix, log, args, status, local, lockstep)
     _stop(car)
     if not ok:
         raise RuntimeError(f'the car did not run {args.duration} s: {status.get("car")}')
-    from mr_damper_model.io.columnlog import ColumnReader
+    from mr_damper_common.recording.columnlog import ColumnReader
     z = ColumnReader(car_log).read()
     meta = ColumnReader(car_log).meta['status']
     title = '2. lock-step' if lockstep else '3. asynchronous (newest command each step)'

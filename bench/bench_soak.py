@@ -40,7 +40,7 @@ import time
 import numpy as np
 import psutil
 
-from mr_damper_model.io.columnlog import ColumnReader
+from mr_damper_common.recording.columnlog import ColumnReader
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -141,7 +141,7 @@ def recorder_lag(out):
     """
     from mr_damper_bringup.recorder import recording_parts
     from mr_damper_model.io.bag_types import suite_typestore
-    from mr_damper_model.io.mcap_scan import McapScan
+    from mr_damper_common.recording.mcap_scan import McapScan
     ts = suite_typestore()
     lags = []
     for _, part in recording_parts(Path(out) / 'suite.mcap'):

@@ -148,7 +148,7 @@ def _ride_figures(columns):
 
 
 def test_lockstep_ride_equals_the_built_in_controller(listener, tmp_path):
-    from mr_damper_model.io.columnlog import ColumnReader
+    from mr_damper_common.recording.columnlog import ColumnReader
     listener.diag = listener.diagnostics()       # this test's statuses only
     wait = listener.wait_for
     log = tmp_path / 'car_log'

@@ -32,7 +32,7 @@ from integration.ros_helpers import (assert_reached_control, end_suite_nodes, fa
 from kwok_messages import thesis_parameter_values
 from mr_damper_bringup.config import IDENT, QC, RIG
 from mr_damper_bringup.processes import CLEAN_EXIT
-from mr_damper_model.io.columnlog import ColumnReader
+from mr_damper_common.recording.columnlog import ColumnReader
 from process_helpers import run
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]

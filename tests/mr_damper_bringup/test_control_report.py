@@ -4,7 +4,7 @@ import pytest
 
 from mr_damper_bringup.report.control import (control_summary, ControlWatch, format_control,
                                               quarter_car_log_figures)
-from mr_damper_model.io.columnlog import ArrayLog
+from mr_damper_common.recording.columnlog import ArrayLog
 
 NAN = float('nan')
 

@@ -276,7 +276,7 @@ def test_recording_parts_in_order_finished_or_left_by_a_killed_recorder(tmp_path
 @pytest.mark.parametrize('chunk_s', [1.0, 0.25])
 def test_a_killed_recorder_loses_at_most_its_last_chunk_s(tmp_path, chunk_s):
     """Chunks are closed every ``chunk_s`` of log time: a cut file holds all but the last one."""
-    from mr_damper_model.io.mcap_scan import McapScan
+    from mr_damper_common.recording.mcap_scan import McapScan
     raw = TS.serialize_cdr(_samples(1), topics.DAMPER_SAMPLES)
     rec = SuiteRecorder(tmp_path / 'k.mcap', topics.topic_table(['measurement']), typestore=TS,
                         chunk_s=chunk_s).open()

@@ -10,7 +10,7 @@ import yaml
 
 from mr_damper_bringup import report
 from mr_damper_bringup.recorder import SuiteRecorder
-from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
+from mr_damper_common.recording.columnlog import ColumnReader, ColumnWriter
 from mr_damper_model.models.kwok_current import kwok_current_force
 from quarter_car_sim.simulate import live_loop
 from quarter_car_sim.plant.quarter_car import QuarterCar

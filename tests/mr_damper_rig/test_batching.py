@@ -7,8 +7,8 @@ record, a refused publish sent again, flow control and hardware-in-the-loop sing
 import numpy as np
 import pytest
 
+from mr_damper_common.recording.batch_index import BatchIndex
 from mr_damper_model.io.data import DamperData
-from mr_damper_model.live.sample_stream import BatchIndex
 from mr_damper_rig.batching import BatchStream
 from mr_damper_rig.pacing import LockstepPacer, Pacer
 from mr_damper_rig.replay import ArraySource

@@ -460,7 +460,7 @@ class ProcessStats:
 
     def __init__(self, suite, out):
         import psutil
-        from mr_damper_model.io.columnlog import ColumnWriter
+        from mr_damper_common.recording.columnlog import ColumnWriter
         self.psutil = psutil
         self.suite = suite
         self.handles = {}

@@ -13,13 +13,13 @@ and keeps only a chunk index (tens of bytes per chunk). While recording, the fil
 moves the finished file to the target path and removes the folder.
 
 A recorder killed before :meth:`close` leaves that folder with an MCAP file without its footer;
-every chunk written before the kill is complete in it and ``mr_damper_model.io.mcap_scan`` reads
-them. rosbags writes a chunk whole once it exceeds 1 MiB (a size it does not let you set: many
-seconds of a batched measurement stream); the recorder also closes and flushes the open chunk
-once it spans ``chunk_s`` of log time (1 s), so a kill loses about the last second. A
-recorder restarted by the launcher writes a new part, ``<stem>.1.mcap``, ``<stem>.2.mcap``, ...
-(:func:`part_path`), never over an earlier one; :func:`recording_parts` lists the parts of a
-run in order, finished or left by a killed writer.
+every chunk written before the kill is complete in it and
+``mr_damper_common.recording.mcap_scan`` reads them. rosbags writes a chunk whole once it
+exceeds 1 MiB (a size it does not let you set: many seconds of a batched measurement stream);
+the recorder also closes and flushes the open chunk once it spans ``chunk_s`` of log time
+(1 s), so a kill loses about the last second. A recorder restarted by the launcher writes a new
+part, ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (:func:`part_path`), never over an earlier one;
+:func:`recording_parts` lists the parts of a run in order, finished or left by a killed writer.
 """
 from pathlib import Path
 import re

@@ -62,7 +62,7 @@ def read_estimates(parts, dropout_window=None):
 
     """
     from mr_damper_model.io.bag_types import suite_typestore
-    from mr_damper_model.io.mcap_scan import McapScan
+    from mr_damper_common.recording.mcap_scan import McapScan
     est_topic = SUITE_TOPICS['car_state'].name
     true_topic = SENSING_TOPICS['true_state'].name
     imu_topic = SENSING_TOPICS['body_imu'].name

@@ -10,7 +10,10 @@ mr_damper_common: what every node of the suite shares, and nothing that fits a m
 - :mod:`~mr_damper_common.commands`: coil-current and displacement command limits;
 - :mod:`~mr_damper_common.stamps`: stamp sanity (future stamps, clock jumps);
 - :mod:`~mr_damper_common.stop_flag`: the stop request set by SIGINT / SIGTERM;
-- :mod:`~mr_damper_common.tracking`: a rig's tracking error.
+- :mod:`~mr_damper_common.tracking`: a rig's tracking error;
+- :mod:`~mr_damper_common.recording`: column logs, MCAP files read to their last complete
+  chunk, lost samples of a batched stream (``mcap`` and ``rosbags`` load only when an MCAP file
+  is read).
 
 A rig or controller node imports this package and the models it evaluates, never the fitting
 stack (numba, rosbags, matplotlib, Dask).

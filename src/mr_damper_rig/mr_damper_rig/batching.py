@@ -20,7 +20,7 @@ batch of ``samples_per_message`` is due, and hands each batch (arrays ``t, x, v,
   batches in HIL too.
 
 ``sequence`` counts messages and ``first_index`` samples, both from 0 at the start: a reader
-counts lost samples exactly (:class:`mr_damper_model.live.sample_stream.BatchIndex`). The batches'
+counts lost samples exactly (:class:`mr_damper_common.recording.BatchIndex`). The batches'
 counters are the stream's own; the lockstep link has its own pair (:attr:`link_sequence`, and
 the pacer's ``published`` count as its index).
 """

@@ -68,7 +68,7 @@ def test_callbacks_drive_the_supervisor_and_health(node_factory, tmp_path):
     assert st['steps'] > 200 and st['t_sim'] > -0.5 + 0.2
     assert st['loop']['steps'] == st['steps'] or st['loop']['steps'] >= st['steps'] - 1
     node.stop()
-    from mr_damper_model.io.columnlog import ColumnReader
+    from mr_damper_common.recording.columnlog import ColumnReader
     log = ColumnReader(tmp_path / 'log')
     z = log.read()
     assert z['t'].size >= st['steps'] and log.meta['dt'] == pytest.approx(1e-3)

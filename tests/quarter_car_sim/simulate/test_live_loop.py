@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from mr_damper_model.io.columnlog import ColumnReader
+from mr_damper_common.recording.columnlog import ColumnReader
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.simulate import live_loop
 from semi_active_control.laws import make_controller, Passive, Skyhook

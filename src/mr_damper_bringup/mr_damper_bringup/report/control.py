@@ -356,7 +356,7 @@ def control_from_recording(out, summary, corners=()):
 
     from mr_damper_bringup.recorder import recording_parts
     from mr_damper_bringup.report.recording import read_recording, RECORDING
-    from mr_damper_model.io.columnlog import ColumnReader, exists
+    from mr_damper_common.recording.columnlog import ColumnReader, exists
     out = Path(out)
     parts = [f for _, f in recording_parts(out / RECORDING)]
     with tempfile.TemporaryDirectory(prefix='.control_', dir=out) as work:

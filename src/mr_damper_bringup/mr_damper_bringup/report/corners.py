@@ -17,7 +17,7 @@ import tempfile
 from mr_damper_bringup.report.losses import attribute_losses, messages_summary, restart_figures
 from mr_damper_bringup.report.recording import (MEAS_COLUMNS, read_recording, RECORDING,
                                                 recording_state)
-from mr_damper_model.io.columnlog import ArrayLog, ColumnReader
+from mr_damper_common.recording.columnlog import ArrayLog, ColumnReader
 
 #: The per-corner figures of a restart that are summed (measurements) or kept at their largest
 #: (times) over the corners.

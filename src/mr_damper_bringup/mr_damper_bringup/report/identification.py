@@ -6,7 +6,7 @@ import numpy as np
 
 from mr_damper_bringup.report import recording
 from mr_damper_common.contract import KWOK_CURRENT_NAMES
-from mr_damper_model.io.columnlog import open_log
+from mr_damper_common.recording.columnlog import open_log
 from mr_damper_model.models.kwok_current import kwok_current_force
 
 
@@ -105,7 +105,7 @@ def identification_summary(meas, params_log, truth=None, *, max_history=80,
     ----------
     meas : column log, reader or dict
         Columns ``t, x, v, f, i`` of the recorded measurements
-        (``mr_damper_model.io.columnlog.open_log``); read in streamed passes.
+        (``mr_damper_common.recording.columnlog.open_log``); read in streamed passes.
     params_log : iterable of (float, dict)
         Wall receipt time [s] and decoded ``/mr_damper/kwok_parameters`` message; iterated a
         few times (a list, or :class:`ParamsLog` that reads its file on each pass).

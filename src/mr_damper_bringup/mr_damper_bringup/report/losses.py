@@ -3,7 +3,7 @@ import numpy as np
 
 from mr_damper_bringup.report import recording
 from mr_damper_bringup.report.recording import _first, _received_between
-from mr_damper_model.io.columnlog import open_log
+from mr_damper_common.recording.columnlog import open_log
 
 
 def messages_summary(rec, qc_status):

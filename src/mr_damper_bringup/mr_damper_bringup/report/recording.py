@@ -9,8 +9,8 @@ from mr_damper_bringup.topics import (CAN_TOPICS, CONFIG_TOPIC, decode_parameter
                                       namespaced_table, NODE_PARAMETERS_TOPIC, SENSING_TOPICS,
                                       STATUS_KEYS, SUITE_TOPICS)
 from mr_damper_common.contract import KWOK_CURRENT_NAMES
-from mr_damper_model.io.columnlog import ColumnWriter, JsonLines
-from mr_damper_model.live.sample_stream import BatchIndex
+from mr_damper_common.recording.batch_index import BatchIndex
+from mr_damper_common.recording.columnlog import ColumnWriter, JsonLines
 
 
 #: file name of the run's recording in the output folder
@@ -24,8 +24,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
-    Each file is read front to back (``mr_damper_model.io.mcap_scan.McapScan``, messages in the
-    order the recorder wrote them), a file whose recorder was killed up to its last complete
+    Each file is read front to back (``mr_damper_common.recording.McapScan``, messages in
+    the order the recorder wrote them), a file whose recorder was killed up to its last complete
     chunk.
 
     Parameters
@@ -76,7 +76,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     import yaml
 
     from mr_damper_model.io.bag_types import suite_typestore
-    from mr_damper_model.io.mcap_scan import McapScan
+    from mr_damper_common.recording.mcap_scan import McapScan
     from mr_damper_bringup.topics import decode_measurement
     work = Path(work)
     tables = {**SUITE_TOPICS, **CAN_TOPICS, **SENSING_TOPICS}
@@ -262,7 +262,7 @@ def _take_measurement(rec, gaps, cols, first_index, meas, t_rx, period_s=0.0):
     and left out, and so are samples not after the newest kept stamp
     (``measurement_out_of_order``, ``out_of_order_samples``). Missing samples
     (``measurement_gaps``) are counted exactly from the batches' stream index (``first_index``,
-    judged against the stamps: :class:`~mr_damper_model.live.sample_stream.BatchIndex`); for
+    judged against the stamps: :class:`~mr_damper_common.recording.batch_index.BatchIndex`); for
     single-sample JointState recordings, from stamp steps longer than 1.5 sample periods (the
     period: the shortest step of the first 20 samples).
     """
@@ -310,7 +310,7 @@ class ParamsLog:
         self.bad_lines = []
 
     def __iter__(self):
-        from mr_damper_model.io.columnlog import read_json_lines
+        from mr_damper_common.recording.columnlog import read_json_lines
         if not self.path.exists():
             return
         bad = []

@@ -6,7 +6,7 @@ import numpy as np
 
 from mr_damper_bringup.config import node_params, QC, RIG
 from mr_damper_bringup.report import recording
-from mr_damper_model.io.columnlog import open_log
+from mr_damper_common.recording.columnlog import open_log
 
 
 def _static_load(qc_params):

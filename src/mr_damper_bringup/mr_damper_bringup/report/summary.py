@@ -20,7 +20,7 @@ from mr_damper_bringup.report.ride import (FROM_LOG, hil_report_config, loop_fig
 from mr_damper_bringup.topics import CONFIG_TOPIC
 from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_common.health import finite_or_none
-from mr_damper_model.io.columnlog import ArrayLog, ColumnReader, exists
+from mr_damper_common.recording.columnlog import ArrayLog, ColumnReader, exists
 
 
 def make_report(out, *, duration_s=None, config=None, plots=True, fallback=None):

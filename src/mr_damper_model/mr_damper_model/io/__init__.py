@@ -1,16 +1,15 @@
 """
-Reading and writing records: DAQ CSV files, rosbag2 bags, MCAP files, column logs, parameter files.
+Reading and writing records: DAQ CSV files, rosbag2 bags, parameter files.
 
 Public API::
 
     from mr_damper_model.io import DamperData, DataError, read_csv, write_csv, validate
     from mr_damper_model.io import read_bag, is_bag, load_params, save_params, load_plant
-    from mr_damper_model.io import ColumnWriter, ColumnReader
-
 Modules: ``data`` (the record type and CSV files), ``bag_io`` and ``bag_types`` (bags through
-rosbags), ``mcap_scan`` (MCAP files read up to their last complete chunk), ``columnlog``
-(append-only binary column logs of long runs), ``params_file`` (fitted parameter sets as JSON).
-Names load on first use (a bag reader pulls in rosbags).
+rosbags), ``params_file`` (fitted parameter sets as JSON). Names load on first use (a bag
+reader pulls in rosbags). Column logs and MCAP scans moved to :mod:`mr_damper_common.recording`
+(issue 33); ``columnlog``, ``mcap_scan``, ``ColumnWriter`` and ``ColumnReader`` still load from
+here for one release, with a ``DeprecationWarning``.
 """
 _LAZY = {'DamperData': 'data', 'DataError': 'data', 'read_csv': 'data', 'write_csv': 'data',
          'validate': 'data', 'read_bag': 'bag_io', 'is_bag': 'bag_io',

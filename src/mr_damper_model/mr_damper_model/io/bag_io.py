@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from mr_damper_common.contract import COIL_JOINT, PISTON_JOINT
+from mr_damper_common.recording.mcap_scan import Channel, McapScan
 from mr_damper_model.io.data import DamperData, DataError
-from mr_damper_model.io.mcap_scan import Channel, McapScan
 
 #: Topic of the rig's measurements (the rig node publishes and the recorder records it).
 MEASUREMENT_TOPIC = '/mr_damper/measurement'
@@ -140,7 +140,7 @@ def read_bag(path, topic=None, *, recovery=None):
     Read the measurement samples of a rosbag2.
 
     A single ``.mcap`` file that rosbags cannot open (no footer: its writer was killed) is read
-    up to its last complete chunk (:class:`~mr_damper_model.io.mcap_scan.McapScan`).
+    up to its last complete chunk (:class:`~mr_damper_common.recording.mcap_scan.McapScan`).
 
     Parameters
     ----------

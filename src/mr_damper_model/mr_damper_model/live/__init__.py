@@ -76,13 +76,14 @@ Modules: ``config`` (:class:`LiveConfig`, counter names), ``window`` (:class:`Wi
 Kwok to kwok-current), ``fitting`` (step 6: the fit options, seeds and :class:`FitProcess`, the
 child process a fit runs in), ``identifier`` (:class:`LiveIdentifier`: the state machine of
 steps 1-8), ``worker`` (:class:`IdentifierRuntime`: what the node runs around it: health,
-throttled saves, stamp ages), ``sample_stream`` (:class:`BatchIndex`: lost samples of a
-batched stream).
+throttled saves, stamp ages). :class:`BatchIndex` (lost samples of a batched stream) moved to
+:mod:`mr_damper_common.recording` (issue 33); ``sample_stream`` and ``BatchIndex`` still load
+from here for one release, with a ``DeprecationWarning``.
 
 Public API::
 
     from mr_damper_model.live import LiveConfig, LiveIdentifier, LiveEstimate, FitProcess
-    from mr_damper_model.live import IdentifierRuntime, BatchIndex
+    from mr_damper_model.live import IdentifierRuntime
 """
 from mr_damper_model.live.config import (DYNAMIC_FIELDS, FLAG_REASONS, LiveConfig,  # noqa: F401
                                          RANGE_CHANNELS, REJECT_REASONS, SKIP_REASONS)

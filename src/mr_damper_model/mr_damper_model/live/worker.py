@@ -21,8 +21,8 @@ import threading
 
 import numpy as np
 
-from mr_damper_model.live.sample_stream import BatchIndex
 from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
+from mr_damper_common.recording.batch_index import BatchIndex
 
 #: Window skips that point at the data or the sensors (WARN while they rise); the other skip
 #: reasons (few samples, no motion, no force, one direction) mean the rig is idle.

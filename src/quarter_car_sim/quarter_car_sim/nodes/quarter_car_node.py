@@ -135,7 +135,7 @@ PARAMETERS = (
     Param('lockstep_timeout_s', 1.0, 'Lock-step: longest wait for a command [s, wall clock]',
           0.001, 3600.0),
     Param('log_file', '', 'Stream every control step to this column log (LOG.f64 rows + '
-          'LOG.json header, mr_damper_model.io.columnlog; "" = no log)'),
+          'LOG.json header, mr_damper_common.recording.columnlog; "" = no log)'),
     Param('m_s', 300.0, 'Sprung mass [kg]', 1.0, 1e5),
     Param('m_u', 60.0, 'Unsprung mass [kg]', 0.1, 1e4),
     Param('k_s', 16000.0, 'Suspension spring [N/m]', 1.0, 1e8),

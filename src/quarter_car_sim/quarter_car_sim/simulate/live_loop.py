@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from mr_damper_model.io.columnlog import ColumnReader, ColumnWriter
+from mr_damper_common.recording.columnlog import ColumnReader, ColumnWriter
 from quarter_car_sim.metrics.quarter_car import RunningRideMetrics
 from semi_active_control.runtime.controller_core import ControllerCore
 
@@ -314,9 +314,10 @@ class TraceLog:
     """
     Per-step log of the loop, streamed to a column log on disk as it runs (flat memory).
 
-    Columns are :data:`TRACE_COLUMNS` (``mr_damper_model.io.columnlog`` format: ``PATH.f64`` rows
-    and ``PATH.json`` header); rows are written in chunks of ``chunk_rows`` steps, so memory
-    does not grow with the run. :meth:`close` writes the final header (``dt`` and ``extra``).
+    Columns are :data:`TRACE_COLUMNS` (``mr_damper_common.recording.columnlog`` format:
+    ``PATH.f64`` rows and ``PATH.json`` header); rows are written in chunks of ``chunk_rows``
+    steps, so memory does not grow with the run. :meth:`close` writes the final header (``dt``
+    and ``extra``).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """BatchIndex: exact lost-sample counts from the batches' stream index."""
 import numpy as np
 
-from mr_damper_model.live.sample_stream import BatchIndex, MAX_JUMP_SAMPLES
+from mr_damper_common.recording.batch_index import BatchIndex, MAX_JUMP_SAMPLES
 
 
 def test_contiguous_batches_lose_nothing():

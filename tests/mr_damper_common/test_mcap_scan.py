@@ -1,12 +1,12 @@
-"""Tests of mr_damper_model.io.mcap_scan: a recording cut by a killed writer, read to its end."""
+"""Tests of mr_damper_common.recording.mcap_scan: a recording cut by its killed writer, read."""
 import shutil
 
 import numpy as np
 import pytest
 
+from mr_damper_common.recording.mcap_scan import McapScan
 from mr_damper_model.io.bag_io import MEASUREMENT_TOPIC, read_bag, write_bag
 from mr_damper_model.io.data import DamperData, DataError
-from mr_damper_model.io.mcap_scan import McapScan
 
 N = 20000          # several 1 MiB chunks of the rosbags writer
 

@@ -1,13 +1,13 @@
-"""Tests of mr_damper_model.io.columnlog: logs streamed to disk, read back in bounded chunks."""
+"""Tests of mr_damper_common.recording.columnlog: logs streamed to disk, read in bounded chunks."""
 import json
 import tracemalloc
 
 import numpy as np
 import pytest
 
-from mr_damper_model.io.columnlog import (ArrayLog, ColumnReader, ColumnWriter, exists,
-                                          finite_or_none, JsonLines, log_paths, open_log,
-                                          read_json_lines)
+from mr_damper_common.recording.columnlog import (ArrayLog, ColumnReader, ColumnWriter,
+                                                  exists, finite_or_none, JsonLines, log_paths,
+                                                  open_log, read_json_lines)
 
 
 def _rows(n, width=3):
@@ -55,7 +55,7 @@ def test_chunks_overlap_and_strided(tmp_path):
     with ColumnWriter(tmp_path / 'log', ('a', 'b', 'c')) as w:
         w.append_block(rows)
     for src in (ColumnReader(tmp_path / 'log'), ArrayLog({k: rows[:, j] for j, k in
-                                                          enumerate('abc')})):
+                                                         enumerate('abc')})):
         chunks = list(src.chunks(100, ('a',), overlap=1))
         assert len(chunks) == 11 and chunks[0]['a'].size == 100 and chunks[1]['a'].size == 101
         # differences across boundaries are all there, each once
