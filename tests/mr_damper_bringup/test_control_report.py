@@ -114,3 +114,22 @@ def test_a_run_that_never_left_fail_safe():
     assert c['first_valid_set_s'] is None and c['first_normal_s'] is None
     assert c['failsafe_fraction'] is None
     assert 'never' in format_control(c)
+
+
+def test_a_corner_with_one_recorded_car_status_is_placed_at_the_runs_rate():
+    # two corners (their own cars); the recorder, behind on a loaded machine, holds a single
+    # status of fr's car: fr's first normal step (car time 2.4 s, from its status) is placed
+    # on the clock at the run's real-time factor (fl's car: 1.0) instead of being lost
+    w = ControlWatch()
+    for k in range(6):
+        st = {'fl/identifier': {'windows_valid': 1}, 'fr/identifier': {'windows_valid': 1},
+              'fl/quarter_car': _car(float(k), first_normal=1.5 if k >= 2 else NAN)}
+        if k == 1:
+            st['fr/quarter_car'] = _car(1.0, first_normal=2.4)
+        w.update(st, 100.0 + k)
+    c = control_summary(w, 100.0, {'corners': {'fl': {'samples_lost': 0},
+                                               'fr': {'samples_lost': 0}}})
+    assert c['units']['fl']['first_normal_s'] == pytest.approx(1.5)
+    assert c['units']['fr']['first_normal_t_sim'] == 2.4
+    assert c['units']['fr']['first_normal_s'] == pytest.approx(1.0 + (2.4 - 1.0) / 1.0)
+    assert c['first_normal_s'] == pytest.approx(2.4)

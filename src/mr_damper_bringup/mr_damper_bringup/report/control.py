@@ -166,7 +166,8 @@ class ControlWatch:
 
         Interpolated between the car's statuses (car time and stamp); past the last one,
         extrapolated at the real-time factor (a recorder that fell behind may lack the last
-        statuses of a run).
+        statuses of a run): the car's own, or, when its statuses are too few for one (a single
+        status recorded on a loaded machine), the run's (every car of a run runs at one rate).
         """
         points = self.car_clock.get(unit)
         if not points or not _finite(t_sim):
@@ -175,7 +176,7 @@ class ControlWatch:
         ts = np.array([p[1] for p in points])
         if t_sim <= ts[-1]:
             return float(np.interp(t_sim, ts, rx))
-        rtf = self.real_time_factor(unit)
+        rtf = self.real_time_factor(unit) or self.real_time_factor()
         return None if not rtf else float(rx[-1] + (t_sim - ts[-1]) / rtf)
 
     def unit_failsafe_fraction(self, unit):
