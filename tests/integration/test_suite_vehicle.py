@@ -22,22 +22,31 @@ KEYS = ('control_cycles', 'answered_fraction', 'deadline_misses', 'driver_comman
         'sensor_to_command_s', 'frames_lost', 'a_v', 'a_v_passive', 'a_v_lockstep')
 
 
-def test_vehicle_suite_chain_comes_up_and_reports(tmp_path):
-    out = tmp_path / 'vehicle'
+def run_vehicle(out, answered, *flags):
+    """
+    Run ``--config vehicle`` until its chain is up and the bridge answered ``answered`` cycles.
+
+    Then stopped with SIGINT (Ctrl-C); asserts it exited 0 and returns its summary.
+    """
     env = dict(os.environ)
-    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'vehicle', '--duration', '0',
+    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'vehicle', *flags, '--duration', '0',
            '--out', str(out), '--progress-s', '1', '--domain-id', env['ROS_DOMAIN_ID'],
            '--no-plots', '--set', 'lifecycle_manager.heartbeat_timeout_s=10.0']
 
     def ready(line):
         m = re.search(r'chain bridge active,estimator active,controller active \| cycles \d+ '
                       r'answered (\d+)', line)
-        return m is not None and int(m.group(1)) >= 500
+        return m is not None and int(m.group(1)) >= answered
 
     ok, returncode, seen, rest = run_until_ready(cmd, env, ready, guard_s=600.0)
     assert ok, ''.join(seen[-20:])
     assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
-    summary = json.loads((out / 'summary.json').read_text())
+    return json.loads((out / 'summary.json').read_text())
+
+
+def test_vehicle_suite_chain_comes_up_and_reports(tmp_path):
+    out = tmp_path / 'vehicle'
+    summary = run_vehicle(out, 500)
     codes = summary['exit_codes']
     assert set(codes) == {'mr_damper_record', 'full_car_node', 'vehicle_bridge',
                           'vehicle_estimator', 'vehicle_controller', 'lifecycle_manager'}
@@ -61,22 +70,7 @@ def test_vehicle_suite_runs_the_preview_law_on_the_cars_look_ahead_frames(tmp_pa
     the sensor cycles' stamps); the controller's preview input takes them at their cycle and the
     law previews, its cycles counted previewed or fallback.
     """
-    out = tmp_path / 'vehicle_preview'
-    env = dict(os.environ)
-    cmd = [str(VENV_BIN / 'mr-damper-suite'), '--config', 'vehicle', '--preview',
-           '--duration', '0', '--out', str(out), '--progress-s', '1', '--domain-id',
-           env['ROS_DOMAIN_ID'], '--no-plots', '--set',
-           'lifecycle_manager.heartbeat_timeout_s=10.0']
-
-    def ready(line):
-        m = re.search(r'chain bridge active,estimator active,controller active \| cycles \d+ '
-                      r'answered (\d+)', line)
-        return m is not None and int(m.group(1)) >= 1000
-
-    ok, returncode, seen, rest = run_until_ready(cmd, env, ready, guard_s=600.0)
-    assert ok, ''.join(seen[-20:])
-    assert returncode == 0, ''.join(seen[-10:]) + rest[-3000:]
-    summary = json.loads((out / 'summary.json').read_text())
+    summary = run_vehicle(tmp_path / 'vehicle_preview', 1000, '--preview')
     assert all(code == 0 for code in summary['exit_codes'].values()), summary['exit_codes']
     pv = summary['vehicle']['preview']
     law, inp, sensor = pv['law'], pv['input'], pv['sensor']

@@ -47,6 +47,7 @@ from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, FastLa
                                          node_time_s, Param, set_realtime_priority, VEHICLE_QOS)
 from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters, RoadPreview
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
+from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS
 from semi_active_control.runtime import (full_car_state, LIVE_PREVIEW_LAWS, LivePreview,
                                          VehicleControllerCore)
 from semi_active_control.supervision import CornerModels
@@ -62,15 +63,7 @@ PARAMETERS = (
     Param('model_files', ['', '', '', ''], 'Per corner (fl, fr, rl, rr) the damper\'s '
           'parameter file (end-of-line record: mr-damper-identify --batch --params-dir), or '
           '"" for the live identifier on <c>/mr_damper/kwok_parameters'),
-    Param('safe_current_a', 0.5, 'Coil current of a corner in fail-safe [A]', 0.0, 10.0),
-    Param('param_timeout_s', 1.0, 'A live corner\'s identified parameters older than this are '
-          'stale [s, node clock]', 0.01, 3600.0),
-    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
-    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
-    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
-          '[A]', 0.0, 10.0),
-    Param('hold_on_reject', False, 'Keep a live corner\'s model when a later set is refused '
-          '(until stale)'),
+) + CORNER_SUPERVISOR_PARAMETERS + (
     Param('deadline_s', 0.0, 'Each answer\'s deadline after its state\'s stamp [s] (0: one '
           'cycle)', 0.0, 10.0),
     Param('max_consecutive_misses', 5, 'Cycles in a row answered after their deadline that put '
