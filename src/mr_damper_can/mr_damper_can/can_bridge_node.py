@@ -176,9 +176,18 @@ class CanBridgeNode(Node):
         return self.health_rules(self.status(), self.drops.counts())
 
     def finish(self):
-        """At shutdown: stop the bus reader and the log, then publish the final status."""
+        """
+        At shutdown: stop the bus reader and the log, publish the final status, log its counts.
+
+        The log line (``final counts: fl frames_sent=... commands=... resent=...``) holds the
+        counts the frame log closed with, also when a loaded reader missed the final status.
+        """
         self.core.stop()
         self.diagnostics.publish_final()
+        corners = self.core.status()['corners']
+        self.get_logger().info('final counts: ' + '; '.join(
+            f'{corner} frames_sent={cs["frames_sent"]} commands={cs["commands"]} '
+            f'resent={cs["resent"]}' for corner, cs in corners.items()))
 
     def destroy_node(self):
         """Stop the bus reader, close the log and the bus, then destroy the node."""
