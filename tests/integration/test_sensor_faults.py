@@ -231,7 +231,11 @@ def run_faults(lis, stream, params):
                                                   'displacement': 0, 'current': 0}
     assert 10 <= diff(spikes, base, 'samples_flagged')['outlier'] <= 12
     flagged = diff(stuck, spikes, 'samples_flagged')
-    assert 400 <= flagged['stuck'] <= 600 and 400 <= flagged['dropout'] <= 600
+    seen = {key: (diff(stuck, spikes, key) if isinstance(stuck[key], dict)
+                  else stuck[key] - spikes[key])
+            for key in ('samples_flagged', 'rejected', 'windows_skipped', 'samples_unbinned',
+                        'windows_superseded')}
+    assert 400 <= flagged['stuck'] <= 600 and 400 <= flagged['dropout'] <= 600, seen
     for before, after in ((stuck, offset), (offset, flip), (flip, current)):
         assert diff(after, before, 'windows_skipped')['inconsistent'] >= 1
         assert diff(after, before, 'samples_flagged')['inconsistent'] >= 1000

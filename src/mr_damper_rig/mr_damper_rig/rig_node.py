@@ -121,6 +121,10 @@ PARAMETERS = (
     Param('publish_clock', False, 'csv / bag: publish /clock (one per tick) from the stamps '
           'of the published samples, for nodes with use_sim_time'),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
+    Param('stop_flush_s', 5.0, 'At shutdown: wait at most this long [s, wall time] for the '
+          'measurement readers to acknowledge the samples still in the writer (a reader behind '
+          'on a loaded machine gets the rest; a dead one delays the exit this long at most)',
+          0.0, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the publishing threads '
           '(0: normal scheduling; needs root)', 0, 99),
     Param('plant', 'spencer', 'sim: true damper model, spencer or kwok-current'),
@@ -167,6 +171,7 @@ class RigNode(Node):
         p = declare_parameters(self, PARAMETERS, self._on_set)
         self.mode = p['mode']
         self.exit_on_end = bool(p['exit_on_end'])
+        self.stop_flush_s = float(p['stop_flush_s'])
         self.rig = None
         self.follower = None
         if self.mode in ('csv', 'bag'):
@@ -437,13 +442,16 @@ class RigNode(Node):
         """Return the rig's :class:`~mr_damper_common.health.Health` (for ``/diagnostics``)."""
         return self._health(self.status_values())
 
-    def flush(self, timeout_s=1.5):
+    def flush(self, timeout_s=None):
         """
-        At shutdown: let the readers take the samples still in the writer, at most ``timeout_s``.
+        At shutdown: let the readers take the samples still in the writer.
 
-        A reader that is behind (it takes the stream in bursts) gets the rest of it before the
-        writer goes; a dead or stopped one cannot delay the exit by more than ``timeout_s``.
+        At most ``timeout_s`` (default: the ``stop_flush_s`` parameter). A reader that is
+        behind (it takes the stream in bursts; with a fixed 1.5 s a loaded suite's recording
+        ended 1,340 samples short of the identifier's count) gets the rest of it before the writer goes;
+        a dead or stopped one cannot delay the exit by more than ``timeout_s``.
         """
+        timeout_s = self.stop_flush_s if timeout_s is None else timeout_s
         self._wait_acked(self._meas.publisher, timeout_s, on_stop=True)
 
     @staticmethod
