@@ -448,8 +448,8 @@ class RigNode(Node):
 
         At most ``timeout_s`` (default: the ``stop_flush_s`` parameter). A reader that is
         behind (it takes the stream in bursts; with a fixed 1.5 s a loaded suite's recording
-        ended 1,340 samples short of the identifier's count) gets the rest of it before the writer goes;
-        a dead or stopped one cannot delay the exit by more than ``timeout_s``.
+        ended 1,340 samples short of the identifier's count) gets the rest of it before the
+        writer goes; a dead or stopped one cannot delay the exit by more than ``timeout_s``.
         """
         timeout_s = self.stop_flush_s if timeout_s is None else timeout_s
         self._wait_acked(self._meas.publisher, timeout_s, on_stop=True)
