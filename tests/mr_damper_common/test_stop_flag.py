@@ -84,6 +84,32 @@ def test_handlers_set_and_restored_in_this_process():
         stop_flag._STOP.clear()
 
 
+#: ``traced(func, k, signum, armed)``: call ``func`` with every line and bytecode traced (its
+#: own and those of everything it calls); at the k-th event, if ``armed()``, send ``signum`` to
+#: this process (handled inside the traced frame). Returns ``(events, sent)``.
+TRACED = """
+def traced(func, k, signum, armed):
+    seen = [0, False]
+    def local(frame, event, arg):
+        frame.f_trace_opcodes = True
+        if event in ('line', 'opcode'):
+            seen[0] += 1
+            if seen[0] == k and armed():
+                seen[1] = True
+                os.kill(os.getpid(), signum)
+        return local
+    def start(frame, event, arg):
+        frame.f_trace_opcodes = True
+        return local
+    sys.settrace(start)
+    try:
+        func()
+    finally:
+        sys.settrace(None)
+    return seen
+"""
+
+
 #: Child interpreter: call ``target`` again and again; in run k a SIGTERM arrives at the k-th
 #: traced event (each line and each bytecode of ``target`` and of everything it calls) once
 #: the SIGTERM handler is in. Prints ``events signalled stops_kept``.
@@ -91,27 +117,7 @@ AT_EVERY_BYTECODE = """
     import os, signal, sys
     from mr_damper_common import stop_flag
 
-    def traced(func, k):
-        seen = [0, False]
-        def local(frame, event, arg):
-            frame.f_trace_opcodes = True
-            if event in ('line', 'opcode'):
-                seen[0] += 1
-                if (seen[0] == k
-                        and signal.getsignal(signal.SIGTERM) is stop_flag.request_stop):
-                    seen[1] = True
-                    os.kill(os.getpid(), signal.SIGTERM)   # handled inside the traced frame
-            return local
-        def start(frame, event, arg):
-            frame.f_trace_opcodes = True
-            return local
-        sys.settrace(start)
-        try:
-            func()
-        finally:
-            sys.settrace(None)
-        return seen
-
+    {traced}
     def fresh():
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         stop_flag._INSTALLED[0] = False
@@ -126,7 +132,9 @@ AT_EVERY_BYTECODE = """
         fresh()
         if {installed}:
             stop_flag.install_stop_handlers()
-        seen, sent = traced(target, k)
+        seen, sent = traced(target, k, signal.SIGTERM,
+                            lambda: signal.getsignal(signal.SIGTERM)
+                            is stop_flag.request_stop)
         if seen < k:
             events = seen
             break
@@ -154,7 +162,8 @@ def test_a_signal_at_any_bytecode_sets_the_flag_and_never_blocks(target, install
     for that lock forever (the rig_node start-up hang of a CI run under load). The subprocess
     timeout is only a hang guard.
     """
-    code = textwrap.dedent(AT_EVERY_BYTECODE).format(target=target, installed=installed)
+    code = textwrap.dedent(AT_EVERY_BYTECODE).format(target=target, installed=installed,
+                                                     traced=TRACED)
     proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 0, proc.stderr
@@ -163,3 +172,62 @@ def test_a_signal_at_any_bytecode_sets_the_flag_and_never_blocks(target, install
     # the last case clears the flag itself: a signal before its clear() is legitimately undone
     if 'clear' not in target:
         assert kept == signalled, proc.stdout
+
+
+#: a supervising main loop (the launcher's): its handler installed, the loop waits and polls;
+#: a SIGINT is sent at the k-th traced event of one loop turn, for every k; prints how many
+#: were sent, how many were seen by the flag and how many second signals ran ``on_repeat``
+LOOP_AT_EVERY_BYTECODE = """
+    import os, signal, sys, threading
+    from mr_damper_common import stop_flag
+
+    def event_flag():
+        # the launcher's old pattern: a threading.Event set by the handler, waited on
+        event = threading.Event()
+        def handler(signum, frame):
+            event.set()
+        handler.is_set, handler.wait = event.is_set, event.wait
+        return handler
+
+    {traced}
+    sent = kept = 0
+    for k in range(1, 100000):
+        flag = {make}
+        signal.signal(signal.SIGINT, flag)
+        seen, hit = traced(lambda: [flag.wait(0.0), flag.is_set()], k, signal.SIGINT,
+                           lambda: True)
+        if seen < k:
+            break
+        sent += hit
+        kept += hit and flag.is_set()
+    print(sent, kept)
+"""
+
+
+@pytest.mark.parametrize('make', ['stop_flag.Interrupts()'])
+def test_a_signal_at_any_bytecode_of_a_supervising_loop_is_kept_and_never_blocks(make):
+    """
+    The launcher's Ctrl-C handler and its loop's wait never share a lock.
+
+    With ``threading.Event`` (the launcher's old flag; ``event_flag()`` in the script) a SIGINT
+    landing while ``Event.wait`` holds the event's lock runs a handler whose ``Event.set()``
+    waits for that lock forever: this script hangs (checked by hand with ``make`` =
+    ``event_flag()``; a CI run's launcher hung so after its Ctrl-C). The subprocess timeout is
+    a hang guard only.
+    """
+    code = textwrap.dedent(LOOP_AT_EVERY_BYTECODE).format(make=make, traced=TRACED)
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    sent, kept = map(int, proc.stdout.split())
+    assert sent > 0 and kept == sent, proc.stdout
+
+
+def test_interrupts_second_signal_calls_on_repeat_and_wait_returns_early():
+    calls = []
+    interrupts = stop_flag.Interrupts(on_repeat=lambda: calls.append(1))
+    assert not interrupts.wait(0.0) and not interrupts.is_set()
+    interrupts(signal.SIGINT, None)
+    assert interrupts.is_set() and calls == [] and interrupts.wait(60.0)   # no sleep once set
+    interrupts(signal.SIGTERM, None)
+    assert calls == [1] and interrupts.signals == 2

@@ -77,12 +77,12 @@ from pathlib import Path
 import random
 import signal
 import sys
-import threading
 import time
 
 import yaml
 
 from mr_damper_common.health import finite_or_none
+from mr_damper_common.stop_flag import Interrupts
 
 from .config import (corner_configs, CTRL, DOMAIN_IDS, IDENT, node_arguments, node_params, QC,
                      RECORDER, RECORDER_NODE, recorder_arguments, REPO, resolve_config, RIG,
@@ -514,17 +514,15 @@ def main(argv=None):
           f'duration {args.duration:g} s, output {out}; DDS discovery '
           f'{dds[RANGE_VAR]}, profile {dds[PROFILE_VAR]}', flush=True)
 
-    interrupted = threading.Event()
+    def kill_all():                    # second Ctrl-C: no more patience
+        for name in suite.nodes:
+            if suite.alive(name):
+                suite.procs[name].kill()
 
-    def on_sigint(signum, frame):
-        if interrupted.is_set():       # second Ctrl-C: no more patience
-            for name in suite.nodes:
-                if suite.alive(name):
-                    suite.procs[name].kill()
-        interrupted.set()
-
-    old_int = signal.signal(signal.SIGINT, on_sigint)
-    old_term = signal.signal(signal.SIGTERM, on_sigint)
+    # no lock anywhere in the handler's path (stop_flag.Interrupts: an Event deadlocked here)
+    interrupted = Interrupts(on_repeat=kill_all)
+    old_int = signal.signal(signal.SIGINT, interrupted)
+    old_term = signal.signal(signal.SIGTERM, interrupted)
     from .monitor_node import Monitor, start_monitor
     monitor = Monitor()
     stop_monitor = start_monitor(monitor)

@@ -11,9 +11,10 @@ SIGINT 1-2 s after start under load: the process had to be killed).
 import importlib
 import signal
 import threading
+import time
 
 
-class _Flag:
+class StopFlag:
     """
     A stop flag that a signal handler can set at any moment: no lock anywhere.
 
@@ -44,8 +45,44 @@ class _Flag:
         self._value = False
 
 
-_STOP = _Flag()
+_STOP = StopFlag()
 _INSTALLED = [False]
+
+
+class Interrupts:
+    """
+    SIGINT / SIGTERM handler of a process that supervises others (the suite's launcher).
+
+    The first signal sets :attr:`flag` (a :class:`StopFlag`: no lock), a second one also calls
+    ``on_repeat`` (e.g. kill the children: no more patience). The launcher used a
+    ``threading.Event`` here, set from the handler and waited on by its main loop: a Ctrl-C that
+    landed while the loop held the event's lock inside ``Event.wait`` waited for that lock
+    forever, and the launcher never stopped its nodes (a CI run under load: the test's hang
+    guard found the launcher blocked 300 s after its Ctrl-C, every node still running).
+    :meth:`wait` sleeps instead.
+    """
+
+    def __init__(self, on_repeat=None):
+        self.flag = StopFlag()
+        self.signals = 0
+        self._on_repeat = on_repeat
+
+    def __call__(self, signum=None, frame=None):
+        """Handle SIGINT / SIGTERM: set the flag; a repeated signal also calls ``on_repeat``."""
+        self.signals += 1
+        if self.flag.is_set() and self._on_repeat is not None:
+            self._on_repeat()
+        self.flag.set()
+
+    def is_set(self):
+        """Return True once a signal arrived."""
+        return self.flag.is_set()
+
+    def wait(self, timeout_s):
+        """Sleep ``timeout_s`` [s] unless a signal arrived (a signal ends the sleep early)."""
+        if not self.flag.is_set():
+            time.sleep(timeout_s)
+        return self.flag.is_set()
 
 
 def stop_requested():
