@@ -6,7 +6,7 @@ Style rule: thin nodes on a pure core.
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor, and
 every module of a ``nodes`` sub-package: what the nodes share and their console scripts),
-``messages.py`` (message conversions), ``node_utils`` and ``lifecycle_utils.py`` are the only
+``messages`` (message conversions), ``node_utils`` and ``lifecycle_utils.py`` are the only
 modules allowed to.
 """
 import subprocess

@@ -9,6 +9,7 @@ from mr_damper_interfaces.msg import DamperModel, KwokParameters
 from sensor_msgs.msg import JointState
 
 from mr_damper_common import messages as m
+from mr_damper_common.contract import KWOK_CURRENT_NAMES
 from mr_damper_common.health import Health, WARN
 
 
@@ -53,7 +54,7 @@ def test_negative_stamp_is_refused():
 
 
 def test_kwok_parameters_typed_round_trip():
-    params = dict(zip(m.KWOK_CURRENT_NAMES, np.arange(1.0, 11.0)))
+    params = dict(zip(KWOK_CURRENT_NAMES, np.arange(1.0, 11.0)))
     msg = m.kwok_parameters_msg(dict(params, window_start_s=10.5, window_end_s=12.5,
                                      current_min_a=0.0, current_max_a=2.0, rmse_n=3.0,
                                      nrmse_percent=1.5, valid=True), stamp_s=20.25)
@@ -68,14 +69,14 @@ def test_kwok_parameters_typed_round_trip():
     assert (back.window_start_s, back.window_end_s, back.stamp_s) == (10.5, 12.5, 20.25)
     assert (back.current_min_a, back.current_max_a, back.rmse_n) == (0.0, 2.0, 3.0)
     flat = back.to_flat()
-    assert {k: flat[k] for k in m.KWOK_CURRENT_NAMES} == params
+    assert {k: flat[k] for k in KWOK_CURRENT_NAMES} == params
     assert flat['valid'] is True and flat['current_max_a'] == 2.0
     # the typed set encodes as its flat mapping does
     assert m.kwok_parameters_msg(back, stamp_s=20.25) == msg
 
 
 def test_kwok_parameters_unknown_times_invalid_flag_and_missing_names():
-    params = dict(zip(m.KWOK_CURRENT_NAMES, np.ones(10)))
+    params = dict(zip(KWOK_CURRENT_NAMES, np.ones(10)))
     msg = m.kwok_parameters_msg(dict(params, reason='nrmse_above_threshold'))
     back = m.identified_set_from_msg(msg)
     assert back.valid is False and back.reason == 'nrmse_above_threshold'

@@ -38,6 +38,10 @@ already names a profile file or ``--dds-profile`` names another (or ``none``); t
 Usage::
 
     .venv/bin/mr-damper-suite [--duration 30] [--out suite_out]
+
+Slightly over the project's ~600 lines: the command line (every option with its help) and the
+run's one sequence (start, watch, stop in order, report) read best in one place; supervision,
+processes, network and report live in their own modules.
         [--config sim|replay|hil|can|full-car] [--file PATH ...]
         [--real-time | --faster | --rate-factor F]
         [--domain-id N] [--set NODE.PARAM=VALUE ...] [--no-plots] [--quiet]

@@ -349,7 +349,9 @@ class BagWriter:
 
     def write_batch(self, t, x, v, f, i, *, sequence, first_index, log_time_ns=None):
         """
-        Write one ``DamperSamples`` batch (arrays of shape (n,), SI units; see messages.py).
+        Write one ``DamperSamples`` batch (arrays of shape (n,), SI units).
+
+        The layout is :func:`mr_damper_common.messages.samples_to_msg`'s.
 
         ``log_time_ns`` defaults to the newest sample's stamp (when a rig would publish it).
         """

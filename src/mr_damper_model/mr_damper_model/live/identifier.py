@@ -8,8 +8,8 @@ sample buffer and the windows it hands out (``sample_ring.SampleRing``), the sam
 (``reference.ConsistencyReference``), the acceptance review
 (``identification.acceptance.Acceptance``); what needs no state lives in ``config``,
 ``screening``, ``fitting``, ``conversions`` and ``window``.  What stays (about 630 lines, half
-of them docstrings) is the state machine itself: the steps that read and write the shared
-counters and the gate's state under the one lock.
+of them docstrings; over the project's ~600 lines on purpose) is the state machine itself:
+the steps that read and write the shared counters and the gate's state under the one lock.
 """
 from dataclasses import replace
 import math

@@ -28,6 +28,9 @@ matches a 100x finer integration to about 0.1 % of the peak force (tested). u is
 (exponential) with the current held over each sample interval. y (time constant
 (c0 + c1)/k0, seconds) uses the Heun step.
 
+Slightly over the project's ~600 lines: the exact sub-step of z (its four cases) and its
+derivation stay next to the model they integrate.
+
 Requirements (default bounds enforce them): A > 0, beta + gamma > 0, gamma >= 0.
 Initial state of ``force``: y = x[0] (or the option ``y0_m``), z = 0, u = i[0] (coil settled at
 the first sample). Note the slow internal mode: y relaxes towards the mean piston position with
