@@ -126,11 +126,12 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
     from rclpy.serialization import serialize_message
 
     from mr_damper_common import messages as mm
+    from mr_damper_common.contract import KWOK_CURRENT_NAMES
     from mr_damper_common.health import Health, WARN
     status = {'samples_received': 12, 'mode': 'normal', 'windows_skipped': {'gap': 2}}
     diag = mm.diagnostic_array_msg([mm.diagnostic_status_msg(
         'fl/mr_damper_identifier', Health(WARN, 'gap', status))], stamp_s=2.0)
-    params = dict({n: float(k) for k, n in enumerate(mm.KWOK_CURRENT_NAMES)}, valid=True,
+    params = dict({n: float(k) for k, n in enumerate(KWOK_CURRENT_NAMES)}, valid=True,
                   window_end_s=3.5)
     truth = mm.damper_model_msg('spencer', {'c0a': 784.0, 'gamma': 136320.0})
     path = tmp_path / 'r.mcap'
@@ -152,7 +153,7 @@ def test_rclpy_payloads_read_back_with_the_suite_decoders(tmp_path):
     expected = {'fl/identifier': dict(status, level=WARN, message='gap')}
     assert topics.decode_status('diagnostics', msgs['/diagnostics']) == expected
     d = topics.decode_parameters(msgs['/mr_damper/kwok_parameters'])
-    assert d['valid'] == 1.0 and all(d[n] == params[n] for n in mm.KWOK_CURRENT_NAMES)
+    assert d['valid'] == 1.0 and all(d[n] == params[n] for n in KWOK_CURRENT_NAMES)
     assert d['window_end_s'] == 3.5
     assert topics.decode_parameters(msgs['/mr_damper/true_spencer_parameters']) == {
         'c0a': 784.0, 'gamma': 136320.0}
