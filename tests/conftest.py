@@ -18,6 +18,11 @@ from mr_damper_bringup.network import apply, dds_environment  # no ROS import
 
 apply(dds_environment(environ={}))
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.Random(os.getpid()).randint(20, 220)))
+# pytest-xdist (`run_tests.sh --fast`): each worker process its own domain, next to the run's
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')   # 'gw0', 'gw1', ...
+if _WORKER.startswith('gw'):
+    os.environ['ROS_DOMAIN_ID'] = str(
+        20 + (int(os.environ['ROS_DOMAIN_ID']) - 20 + 1 + int(_WORKER[2:])) % 201)
 os.environ.setdefault('ROS_LOG_DIR', tempfile.mkdtemp(prefix='ros_log_'))
 
 REPO = Path(__file__).resolve().parents[1]

@@ -3,7 +3,8 @@
 # Usage: bash tests/run_tests.sh [--fast] [PATH...] [pytest options]: with test paths (relative
 # to the repository root; FILE::TEST works too) only those run, else all of tests/. --fast: the
 # unit tests only, for the edit-test loop (not tests/integration, nothing marked `integration`
-# or `slow`); CI (.ci/run) runs everything.
+# or `slow`), spread over one pytest-xdist worker per core (`-n auto`; a later `-n N` wins);
+# CI (.ci/run) runs everything, serially.
 # ROS 2 nodes in the tests talk over loopback only: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a
 # private ROS_DOMAIN_ID are set in tests/conftest.py; where the machine allows it (root with
 # unshare), the whole run also happens in a private network namespace with only `lo` up.
@@ -17,7 +18,7 @@ cd "$root"
 args=()
 for arg in "$@"; do
   if [ "$arg" = --fast ]; then
-    args+=(--ignore=tests/integration -m 'not integration and not slow')
+    args+=(--ignore=tests/integration -m 'not integration and not slow' -n auto)
   else
     args+=("$arg")
   fi

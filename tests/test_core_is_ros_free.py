@@ -44,6 +44,7 @@ def _ros_modules_loaded_by(modules):
     return [m for m in proc.stdout.strip().split(',') if m]
 
 
+@pytest.mark.slow
 def test_core_modules_do_not_import_ros():
     # all core modules in one interpreter (one start instead of one per module): importing
     # a module runs its imports whatever else is loaded, so one module pulling in ROS shows

@@ -59,6 +59,7 @@ def _state(v_s, v_u):
     return CornerState(0.0, 0.0, v_s, 0.0, 0.0, v_u, 0.0, 0.0, 0.0, v_s - v_u, 3500.0, 0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_law_is_registered_built_and_its_values_are_the_on_off_groundhook(law_doc):
     cls = law_doc['GroundhookOnOff']
     assert 'groundhook-onoff' in law_names() and 'groundhook-onoff' in law_names(damper_only=True)

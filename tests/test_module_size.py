@@ -43,8 +43,8 @@ def test_the_check_flags_a_long_module_without_a_reason(tmp_path):
     silent = tmp_path / 'silent.py'
     silent.write_text('"""A long module."""\n' + body)
     explained = tmp_path / 'explained.py'
-    explained.write_text('"""\nA long module.\n\nOver the project\'s ~600\nlines: one derivation.\n"""\n'
-                         + body)
+    explained.write_text('"""\nA long module.\n\nOver the project\'s ~600\nlines: one '
+                         'derivation.\n"""\n' + body)
     short = tmp_path / 'short.py'
     short.write_text('"""A short module."""\n' + 'x = 1\n' * 10)
     assert oversized_without_reason([silent, explained, short]) == [(str(silent),

@@ -82,6 +82,7 @@ def loaded(modules, watch):
     return [m for m in proc.stdout.strip().split(',') if m]
 
 
+@pytest.mark.slow
 def test_nodes_do_not_load_the_fitting_stack():
     # every node module in one interpreter (one start instead of one per node): a node that
     # loads the stack at import does so whatever else is loaded; only then each alone, to name it
@@ -97,6 +98,7 @@ def test_the_check_sees_a_module_that_loads_it():
     assert {'mr_damper_model.identification', 'mr_damper_model.live'} <= set(found)
 
 
+@pytest.mark.slow
 def test_light_vehicle_nodes_start_without_the_design_libraries():
     culprits = {m: found for m in LIGHT_NODES if (found := loaded([m], DESIGN_LIBRARIES))}
     assert not culprits, f'vehicle nodes loading design libraries at start: {culprits}'

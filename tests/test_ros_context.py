@@ -11,6 +11,8 @@ context can be initialised and shut down as a first user would.
 """
 import textwrap
 
+import pytest
+
 from conftest import REPO
 
 pytest_plugins = ['pytester']
@@ -69,6 +71,7 @@ _MODULE = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.slow
 def test_a_failing_fixture_leaves_the_context_clean_for_the_next_test(pytester, monkeypatch):
     monkeypatch.setenv('PYTHONPATH', str(REPO / 'tests'))
     pytester.makepyfile(test_inner=_MODULE)

@@ -26,6 +26,7 @@ def _env(env_id, action):
                           episode_end='none', duration_s=DURATION_S, settle_s=0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', list(QUARTER_BASELINES))
 def test_quarter_car_laws_equal_quarter_car_sim(name):
     env = _env(mr_damper_gym.QUARTER_CAR_ID, QUARTER_BASELINES[name])
@@ -40,6 +41,7 @@ def test_quarter_car_laws_equal_quarter_car_sim(name):
     assert info['n_action_clipped'] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', list(FULL_BASELINES))
 def test_full_car_laws_equal_full_car_sim(name):
     env = _env(mr_damper_gym.FULL_CAR_ID, FULL_BASELINES[name])

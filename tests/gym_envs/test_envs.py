@@ -40,6 +40,7 @@ def _rollout(env, seed, n, options=None, actions_seed=0):
     return np.array(out), np.array(rewards)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('env_id', IDS)
 @pytest.mark.parametrize('observation', ['sensors', 'state'])
 def test_check_env_passes(env_id, observation):
@@ -92,6 +93,7 @@ def test_spaces_contain_every_observation(env_id, observation):
     assert env.observation_space.shape == (len(env.unwrapped.obs_names),)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('env_id', IDS)
 def test_passive_at_the_softest_current_scores_minus_one(env_id):
     env = _make(env_id, duration_s=REFERENCE_S, observation='state')
@@ -125,6 +127,7 @@ def test_passive_at_the_softest_current_scores_minus_one(env_id):
         assert hard < scores[0]
 
 
+@pytest.mark.slow
 def test_the_tyre_weight_keeps_the_normalisation():
     env = _make(IDS[0], duration_s=REFERENCE_S, tyre_weight=2.0)
     env.reset(seed=0, options={'road_seed': REFERENCE_SEED})
@@ -215,6 +218,7 @@ def test_render_draws_the_car(env_id):
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 10
 
 
+@pytest.mark.slow
 def test_the_episode_end_carries_passive_and_the_bound():
     # passive at i_min, driven as an agent: it closes none of the gap to the bound (a road of
     # a few seconds: the bound plans from rest at t = 0, its replay starts settled)
@@ -231,6 +235,7 @@ def test_the_episode_end_carries_passive_and_the_bound():
     assert refs['bound']['rms_body_accel_wk'] < refs['passive']['rms_body_accel_wk']
 
 
+@pytest.mark.slow
 def test_the_ids_are_registered_by_the_import():
     code = ('import gymnasium; '
             "e = gymnasium.make('mr_damper_gym:mr_damper/SemiActiveQuarterCar-v0', "

@@ -101,6 +101,7 @@ def test_full_car_step_is_the_simulators():
     assert np.min([s.tyre_force.min() for s in ref]) < 0.5 * core.params.static_tyre_loads.min()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('car', ['quarter', 'full'])
 def test_running_iso_figures_are_the_offline_metrics(car):
     """The kernel's ISO filters and sums give the offline tools' metrics of the same run."""

@@ -9,6 +9,7 @@ from mr_damper_gym import ActionError, SemiActiveVectorEnv
 KW = dict(plant='kwok-current', duration_s=0.04)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('env_id', [mr_damper_gym.QUARTER_CAR_ID, mr_damper_gym.FULL_CAR_ID])
 @pytest.mark.parametrize('threads', [1, 2], ids=['one_thread', 'two_threads'])
 def test_the_vector_env_equals_single_envs_with_the_same_seeds(env_id, threads):

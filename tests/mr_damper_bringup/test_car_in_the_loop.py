@@ -61,6 +61,7 @@ def test_hil_force_feedback_is_one_sample_late():
         plant.step(2 * DT, 0.0, 0.0, 0.0)
 
 
+@pytest.mark.slow
 def test_compensated_hil_rides_closer_to_model_in_the_loop_than_uncompensated():
     seconds = 3.0
     _, ref = _run(make_plant('kwok-current'), seconds)
@@ -97,6 +98,7 @@ def test_run_loop_records_what_the_monitor_saw():
 
 
 # ------------------------------------------------------------ remote rig (over ROS 2 topics)
+@pytest.mark.slow
 def test_remote_plant_over_a_zero_latency_link_reproduces_the_in_process_hil_plant():
     # same rig seed, same actuator and compensator: the remote plant's force is the previous
     # rig sample's, exactly HilPlant's one-sample-late feedback

@@ -59,6 +59,7 @@ def test_replay_needs_existing_files(tmp_path):
         config.resolve_config(args, tmp_path)
 
 
+@pytest.mark.slow
 def test_replay_default_input_is_the_data_shipped_in_the_repository(tmp_path):
     import numpy as np
     from mr_damper_model.io.data import read_csv

@@ -75,6 +75,7 @@ def _stubborn():
     return proc
 
 
+@pytest.mark.slow
 def test_the_reaper_ends_the_nodes_of_a_launcher_that_is_gone(tmp_path):
     reaper = Reaper(tmp_path / 'reaper.log', grace_s=1.0)
     nodes = [subprocess.Popen(['sleep', '600'], start_new_session=True), _stubborn()]

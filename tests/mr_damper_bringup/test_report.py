@@ -116,6 +116,7 @@ def test_passive_reference_reproduces_a_passive_live_run(tmp_path):
     assert ride['passive_0a']['rms_body_accel_wk'] != ride['passive']['rms_body_accel_wk']
 
 
+@pytest.mark.slow
 def test_live_skyhook_window_starts_at_first_normal_step(tmp_path):
     log = _live_log(tmp_path / 'log', controller_offers=True)
     ride = report.ride_summary(log, QC)
@@ -230,6 +231,7 @@ def test_make_report_end_to_end(tmp_path):
     assert 'parameter errors' in text and 'messages lost: 10' in text
 
 
+@pytest.mark.slow
 def test_settings_come_from_what_the_nodes_report(tmp_path):
     """The car's reported parameters (its defaults included) win over the YAML section."""
     params, msg = _truth_msg()
@@ -255,6 +257,7 @@ def test_make_report_without_a_recording_says_so(tmp_path):
         report.make_report(tmp_path)
 
 
+@pytest.mark.slow
 def test_module_does_not_import_rclpy():
     code = ('import sys, mr_damper_bringup.report, mr_damper_bringup.plots; '
             'print("rclpy" in sys.modules)')
@@ -282,6 +285,7 @@ def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     assert report.record_error(meas, msg) == pytest.approx(whole, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_streamed_ride_metrics_equal_whole_run_metrics(tmp_path, monkeypatch):
     """Chunked passes (Wk filter state carried over) = the metrics of the whole arrays."""
     from quarter_car_sim.metrics.quarter_car import ride_metrics
@@ -329,6 +333,7 @@ def test_streamed_delays_and_timing_equal_whole_array_figures(tmp_path, monkeypa
     assert fig['real_time_factor_median'] == pytest.approx(1.0, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_report_passes_keep_memory_bounded(tmp_path):
     """1 M recorded samples (48 MB on disk): the identification figures take a few MB."""
     import tracemalloc
@@ -466,6 +471,7 @@ def _batch(t, x, v, f, i, *, first_index, sequence=0):
                              sample_period_s=1e-3)
 
 
+@pytest.mark.slow
 def test_no_recorded_message_breaks_the_report(tmp_path):
     """
     Bad recorded messages are counted by reason and skipped; the summary is written.

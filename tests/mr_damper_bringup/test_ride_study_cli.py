@@ -109,6 +109,7 @@ def test_console_script_negative_speed_and_missing_params(tmp_path):
         assert len(lines) == 1 and match in lines[0], r.stderr
 
 
+@pytest.mark.slow
 def test_sensing_vehicle_json_reports_estimation_errors(params_file, capsys):
     args = ['--controller', 'clipped-optimal-wk', '--json', '--duration', '3', '--plant',
             'kwok', '--damper-params', str(params_file)]

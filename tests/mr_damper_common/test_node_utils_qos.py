@@ -1,4 +1,5 @@
 """Tests of node_utils.qos: the QoS of each stream, the writer that survives a stalled reader."""
+import pytest
 import rclpy
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -17,6 +18,7 @@ def test_measurement_stream_is_reliable_keep_all_and_other_topics_keep_last():
         assert q.history == HistoryPolicy.KEEP_LAST and q.depth <= 10
 
 
+@pytest.mark.slow
 def test_resettable_publisher_replaces_a_writer_a_reader_stopped_acknowledging(ros):
     # a KEEP_ALL reader whose callbacks never run (never spun) stops taking samples once its
     # history is full; the reliable writer then keeps everything unacknowledged until its own

@@ -94,6 +94,7 @@ _NODE_SCRIPT = textwrap.dedent('''
 ''')
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_run_node_exits_0_on_signal_after_finish(sig):
     proc = popen([sys.executable, '-c', _NODE_SCRIPT], stdout=subprocess.PIPE,

@@ -162,6 +162,7 @@ def test_generated_classes_come_from_the_venv_install():
     assert (QuarterCarState.MODE_NORMAL, QuarterCarState.MODE_FAIL_SAFE) == (0, 1)
 
 
+@pytest.mark.slow
 def test_venv_python_needs_no_environment_variable():
     """A node started by hand (README) gets no LD_LIBRARY_PATH, PYTHONPATH, AMENT_PREFIX_PATH."""
     code = ('import sys; from mr_damper_interfaces.msg import QuarterCarState as Q; '

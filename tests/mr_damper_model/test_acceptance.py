@@ -45,6 +45,7 @@ def clean_run(record):
     return li, published, steady_errors(published, data, steady)
 
 
+@pytest.mark.slow
 def test_rig_stop_keeps_the_steady_set(record, clean_run):
     """The record ends with the rig stopping: the final valid set is a steady one."""
     data, steady = record
@@ -65,6 +66,7 @@ def test_rig_stop_keeps_the_steady_set(record, clean_run):
     assert errors_before[-1][1] > 2.0 * min(e for _, e in errors_before)
 
 
+@pytest.mark.slow
 def test_four_faults_stay_within_the_clean_runs_sets(record, clean_run):
     """1e30 N spike, 0.3 s stuck, 0.2 s dropout, 1 s +400 N offset step."""
     data, steady = record
@@ -85,6 +87,7 @@ def test_four_faults_stay_within_the_clean_runs_sets(record, clean_run):
                if held_at(clean_before, end) is not None) > FAULT_FACTOR
 
 
+@pytest.mark.slow
 def test_a_start_of_stream_offset_stays_within_the_clean_runs_sets(record, clean_run):
     """
     Issue 32's case on a shared record: 1 s of +400 N from 1.5 s, a 1e30 N spike at 4 s.
@@ -110,6 +113,7 @@ def test_a_start_of_stream_offset_stays_within_the_clean_runs_sets(record, clean
     assert worst(replay(faulty, force_step_percent=0.0)[1]) > 3.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('stem', ['quiroz_sine_10mm1Hz_0p75A_preproc',
                                   'quiroz_sine_5mm3Hz_0p75A', 'quiroz_sine_5mm3Hz_1p0A'])
 def test_start_set_is_replaced_despite_the_faults(stem):
@@ -180,6 +184,7 @@ def test_slow_f0_drift_is_a_reported_trend_not_a_fault():
     assert published[-1][1].valid
 
 
+@pytest.mark.slow
 def test_set_worse_on_recent_data_is_refused_and_counted():
     data, model, truth = cam_record(currents=(1.0, 1.0, 1.0), hold_s=2.0)
     cfg = LiveConfig(**dict(NODE, hop_s=0.5, budget_s=0.0, maxiter=30))
@@ -237,6 +242,7 @@ def test_excitation_figures_on_known_motion():
                                 cfg).startswith('condition:')
 
 
+@pytest.mark.slow
 def test_slow_excitation_is_compared_over_both_stroke_ends():
     """
     At 0.1 Hz a 2 s window holds a fifth of a cycle: each set describes one stroke reversal.

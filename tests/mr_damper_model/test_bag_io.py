@@ -80,6 +80,7 @@ def test_batched_bags_as_the_rig_publishes_read_back_the_same_samples(tmp_path, 
         np.testing.assert_array_equal(getattr(back, c), getattr(d, c))
 
 
+@pytest.mark.slow
 def test_topic_choice(tmp_path):
     d = read_csv(QFILE).select(slice(0, 100))
     one = rosbags_write(tmp_path / 'one', d, storage='mcap', topic='/daq/joints')

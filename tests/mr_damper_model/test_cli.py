@@ -239,6 +239,7 @@ def test_validate_stateful_model_starts_from_rest_in_each_file(tmp_path, capsys)
                               fit_metrics(d.f, mdl.force(x, d.x, d.v, i=d.i, t=d.t)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
 def test_bag_input_fits_and_validates_like_the_csv(joint_fit, tmp_path, capsys, storage):
     from mr_damper_model.io.bag_io import write_bag
@@ -333,6 +334,7 @@ def test_error_paths_exit_2_with_one_line(joint_fit, tmp_path, capsys):
     assert not (tmp_path / 'x.json').exists()
 
 
+@pytest.mark.slow
 def test_a_closed_output_pipe_ends_quietly():
     """``mr-damper-identify ... | head -1``: no internal-error line when the reader is gone."""
     import os

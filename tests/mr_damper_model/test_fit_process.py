@@ -18,6 +18,7 @@ def proc():
     p.close()
 
 
+@pytest.mark.slow
 def test_the_child_is_in_its_own_session(proc):
     # Ctrl-C in a terminal reaches the node's process group, not the child: the node ends it
     proc.warm_up()
@@ -49,6 +50,7 @@ def _ended(pid):
         return True
 
 
+@pytest.mark.slow
 def test_close_ends_the_child(proc):
     proc.warm_up()
     pid = proc._proc.pid
@@ -84,6 +86,7 @@ def test_the_child_ends_when_its_node_is_killed():
         stop_group(node, signal.SIGKILL)
 
 
+@pytest.mark.slow
 def test_a_request_cut_off_by_the_shutdown_ends_the_child_quietly():
     # the node's shutdown may close the child's stdin while a request is half written: the
     # child ends with status 0 and no traceback ("pickle data was truncated" at the stop)

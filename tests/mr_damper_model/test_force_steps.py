@@ -82,6 +82,7 @@ def test_force_step_reason_names_the_level_and_can_be_switched_off():
     assert [r.size for r in level_runs(two, 0.1, 0.05)] == [t.size, t.size]
 
 
+@pytest.mark.slow
 def test_an_offset_in_the_first_windows_never_becomes_the_set_in_use():
     """
     A 200 N offset from 1.5 s to 2.5 s of a stream: no valid set before a set exists.

@@ -23,6 +23,7 @@ def feed(li, data, every=1):
 DET = dict(budget_s=0.0, hop_s=1.0, maxiter=40)
 
 
+@pytest.mark.slow
 def test_recovers_kwok_current_truth_across_current_steps():
     data, model, truth = cam_record()
     li = LiveIdentifier(LiveConfig(**DET))

@@ -95,6 +95,7 @@ def after_fault(ests):
     return [e for e in ests if e.window_end_s > T_FAULT]
 
 
+@pytest.mark.slow
 def test_clean_stream_is_valid_and_right_throughout():
     li, ests = run(stream())
     valid = assert_no_wrong_valid(ests)
@@ -149,6 +150,7 @@ def test_in_range_spikes_are_outliers_left_out_of_fit_and_bins():
     assert {e.reason for e in after_fault(blind) if not e.valid} == {'nrmse_above_threshold'}
 
 
+@pytest.mark.slow
 def test_1e30_spike_without_range_check_is_still_an_outlier():
     arrays = stream()
     arrays[3][K_FAULT + 10] = 1e30
@@ -158,6 +160,7 @@ def test_1e30_spike_without_range_check_is_still_an_outlier():
     assert len(after_fault(assert_no_wrong_valid(ests))) >= 8
 
 
+@pytest.mark.slow
 def test_issue_failure_1e30_in_the_fit_is_refused_by_validity():
     """Range check, screens, gate and review off: the spike is fitted; validity refuses it."""
     arrays = stream()
@@ -177,6 +180,7 @@ def test_issue_failure_1e30_in_the_fit_is_refused_by_validity():
     assert_no_wrong_valid(ests)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('value, reason', [(None, 'stuck'), (0.0, 'dropout')])
 def test_stuck_load_cell_and_dropout_are_flagged(value, reason):
     arrays = stream()
@@ -197,6 +201,7 @@ def test_stuck_load_cell_and_dropout_are_flagged(value, reason):
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_whole_window_stuck_is_skipped_no_force():
     arrays = stream()
     arrays[3][K_FAULT:] = 12.5
@@ -230,6 +235,7 @@ def test_force_offset_step_is_inconsistent_until_it_goes_away():
     assert li.counters['samples_flagged']['offset'] >= 2000
 
 
+@pytest.mark.slow
 def test_load_cell_sign_flip_is_inconsistent():
     arrays = stream()
     arrays[3][K_FAULT:] *= -1.0
@@ -263,6 +269,7 @@ def test_current_sensor_stuck_is_inconsistent():
     assert [e for e in after_fault(blind) if e.valid and force_error(e) >= TOL]
 
 
+@pytest.mark.slow
 def test_time_gap_skips_the_windows_that_span_it():
     arrays = stream()
     keep = np.ones(arrays[0].size, dtype=bool)
@@ -389,6 +396,7 @@ def test_screen_helpers_on_known_signals():
     assert not continued_runs(short, t, 0.16, 1.0).any()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('start_s', [7.33, 7.37])
 def test_stuck_run_within_one_hop_never_reaches_the_bins(start_s):
     """
@@ -409,6 +417,7 @@ def test_stuck_run_within_one_hop_never_reaches_the_bins(start_s):
     assert_accounted(li)
 
 
+@pytest.mark.slow
 def test_offset_onset_inside_a_part_keeps_the_samples_before_it():
     """
     A +150 N offset from 7.3 s: the part (7.0, 7.5] s is inconsistent as a whole.
@@ -448,6 +457,7 @@ def test_stamp_checks_come_before_range_checks():
     assert li.counters['out_of_range']['force'] == 1
 
 
+@pytest.mark.slow
 def test_persistent_inconsistency_resets_only_when_asked():
     arrays = stream()
     arrays[3][K_FAULT:] += 150.0                    # offset that never goes away
@@ -502,6 +512,7 @@ def test_healthy_spencer_damper_raises_no_fault():
     assert ests[-1].bins_a[0] == 0.0 and ests[-1].bins_a[-1] == pytest.approx(2.0, abs=0.01)
 
 
+@pytest.mark.slow
 def test_measured_record_raises_no_fault():
     """A real damper record (Quiroz, 0.5 Hz): the model error depends on the stroke, no fault."""
     from conftest import QUIROZ_DIR

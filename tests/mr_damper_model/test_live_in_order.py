@@ -19,6 +19,7 @@ def record():
     return cam_record(currents=(0.0, 1.0, 2.0), hold_s=2.0)[0]
 
 
+@pytest.mark.slow
 def test_same_samples_fast_or_slow_give_the_same_estimate_sequence(record):
     slow = LiveIdentifier(LiveConfig(**FAST)).replay(record, every=1)
     fast_li = LiveIdentifier(LiveConfig(**FAST))
@@ -33,6 +34,7 @@ def test_same_samples_fast_or_slow_give_the_same_estimate_sequence(record):
     assert sequence(other) == sequence(slow)
 
 
+@pytest.mark.slow
 def test_newest_window_mode_depends_on_the_pace(record):
     """The contrast: in real-time mode a fast feed supersedes windows (a different sequence)."""
     real_time = dict(FAST, backlog_windows=0, budget_s=0.0)

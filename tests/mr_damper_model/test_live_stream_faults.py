@@ -57,6 +57,7 @@ def _future_batch(after_s, model, truth):
 CONFIG = dict(window_s=1.0, hop_s=0.5, maxiter=5, swarm_size=10, budget_s=0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('rate_factor,bunch', [(1.0, 1), (4.0, 5), (0.0, 3)])
 def test_a_batch_stamped_100_s_ahead_is_refused_at_every_rate_factor(rate_factor, bunch):
     """
@@ -154,6 +155,7 @@ def _two_level_identifier():
     return li, data, model, truth, ests, now
 
 
+@pytest.mark.slow
 def test_a_batch_the_set_in_use_cannot_explain_is_refused_before_it_displaces_the_stream():
     """
     One batch of 1 s at 1 A with 3x the force, stamped where the stream goes on: refused whole.
@@ -182,6 +184,7 @@ def test_a_batch_the_set_in_use_cannot_explain_is_refused_before_it_displaces_th
             assert est.parameters[name] == pytest.approx(ests[-1].parameters[name], rel=0.1)
 
 
+@pytest.mark.slow
 def test_a_lasting_change_goes_on_to_the_window_gate_after_max_gap_s():
     """A persistent +400 N offset: batches refused for max_gap_s only, then judged by windows."""
     li, data, _, _, _, now = _two_level_identifier()
@@ -196,6 +199,7 @@ def test_a_lasting_change_goes_on_to_the_window_gate_after_max_gap_s():
     assert c['windows_skipped']['gap'] == 0
 
 
+@pytest.mark.slow
 def test_a_batch_with_a_spike_is_taken_for_the_outlier_screen():
     """One in-range spike in a batch: the batch is consistent; the spike is flagged alone."""
     li, data, _, _, _, now = _two_level_identifier()

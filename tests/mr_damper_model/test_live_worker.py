@@ -137,6 +137,7 @@ def wait(predicate, timeout=120.0):
     return predicate()
 
 
+@pytest.mark.slow
 def test_worker_thread_fed_fast_gives_the_sequence_of_a_slow_feed():
     data = cam_record(currents=(0.0, 1.0, 2.0), hold_s=2.0)[0]
     slow = LiveIdentifier(LiveConfig(**FAST)).replay(data, every=1)

@@ -132,6 +132,7 @@ def test_bound_is_no_worse_than_every_passive_setting_and_live_law(kwok_case):
     assert res.cost == min(res.cost_history)
 
 
+@pytest.mark.slow
 def test_bound_respects_every_corners_limits_at_every_step(kwok_case):
     _, _, _, res = kwok_case
     assert np.all(res.force >= res.force_lo - 1e-6) and np.all(res.force <= res.force_hi + 1e-6)
@@ -149,6 +150,7 @@ def test_bound_respects_every_corners_limits_at_every_step(kwok_case):
     np.testing.assert_allclose(res.force_hi[k0:, 2], hi, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_replayed_currents_make_the_planned_ride(kwok_case):
     res = kwok_case[3]
     rep = res.replay

@@ -67,6 +67,7 @@ def test_plans_come_every_update_and_the_forces_are_dissipative(kwok):
     assert len(law.solve_s) == st['plans']
 
 
+@pytest.mark.slow
 def test_mpc_beats_the_lq_preview_on_the_car(kwok):
     truth, plants = kwok
     road = make_two_track_road('iso8608-C', P, speed_m_s=20.0, duration_s=2.0, rng=1)
@@ -79,6 +80,7 @@ def test_mpc_beats_the_lq_preview_on_the_car(kwok):
     assert a_v[mpc.name] < 0.95 * a_v[lq.name]
 
 
+@pytest.mark.slow
 def test_an_mpc_dropout_falls_back_to_todays_law_and_is_counted(kwok):
     # no frame at all after 0.2 s: once the map is driven through (15 m = 0.75 s) the law is
     # full-car-clipped-optimal-wk, exactly, step for step

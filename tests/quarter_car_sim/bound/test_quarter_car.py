@@ -102,6 +102,7 @@ def test_bound_is_no_worse_than_every_passive_setting_and_live_law(kwok_case):
     assert res.cost < res.cost_start
 
 
+@pytest.mark.slow
 def test_bound_respects_the_force_limits_at_every_step(kwok_case):
     _, inverse, _, _, res = kwok_case
     p = res.predicted

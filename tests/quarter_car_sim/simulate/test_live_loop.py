@@ -147,6 +147,7 @@ def test_loop_timing_counts_jitter():
     assert st['period']['max_ms'] == pytest.approx(3.5)
 
 
+@pytest.mark.slow
 def test_module_does_not_import_rclpy():
     code = 'import sys, quarter_car_sim.simulate.live_loop; print("rclpy" in sys.modules)'
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)

@@ -18,6 +18,7 @@ ROAD = iso8608('C', 20.0, 8.0, 1e-3, rng=4)
 _, TRUTH = presets.thesis_kwok_current()
 
 
+@pytest.mark.slow
 def test_simulate_passive_linear_records_everything():
     r = simulate(P, ROAD, ctl.Passive(0.0), LinearDamperPlant(1200.0))
     assert r.t.size == ROAD.n and r.t[0] == pytest.approx(0.0, abs=1e-9)
@@ -76,6 +77,7 @@ def test_compare_same_road_and_active_references():
     assert np.all(res['skyhook-ideal'].demand * res['skyhook-ideal'].v_rel <= 0.0)
 
 
+@pytest.mark.slow
 def test_seed_repeatable():
     plant = make_plant('kwok-current')
     a = simulate(P, ROAD, ctl.Skyhook(), plant, damper_params=TRUTH)

@@ -56,6 +56,7 @@ def test_default_sensors_errors_within_the_filter_covariance():
     assert r.metrics()['est_rel_error_travel'] < 0.02
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('sensor, kind, reason', [
     ('body_accel', 'dropout', 'dropout_body_accel'),
     ('travel', 'stuck', 'stuck_travel')])

@@ -70,6 +70,7 @@ def test_bad_input_exits_2_with_one_line(args, msg, capsys):
     assert msg in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_bound_is_listed_with_the_laws_and_beats_them(capsys):
     # the offline bound (full preview) in the same table: its replay on the plants is no worse
     # than the best live law and the softest passive setting on the same road

@@ -45,6 +45,7 @@ def design():
     return fe.design_full_car_estimator(PASSENGER_CAR, DT)
 
 
+@pytest.mark.slow
 def test_noise_free_converges_from_wrong_initial_state():
     acc, pos = ideal_spec(offset=G0), ideal_spec()
     d = fe.design_full_car_estimator(PASSENGER_CAR, DT, accel=acc, travel=pos)
@@ -66,6 +67,7 @@ def test_noise_free_converges_from_wrong_initial_state():
     assert np.abs(err[-1, 4:8]).max() < 1e-5
 
 
+@pytest.mark.slow
 def test_noisy_sensors_error_far_below_state_rms(design):
     est, err, true = _run(design, FullCarSensors(DT, seed=2), 2000)
     e, tr = err[300:], true[300:]
@@ -76,6 +78,7 @@ def test_noisy_sensors_error_far_below_state_rms(design):
     assert est.valid
 
 
+@pytest.mark.slow
 def test_one_step_delay_takes_the_sensor_latency(design):
     """Default sensors deliver 1 ms (one period) late: ``delay_steps=1`` removes that lag."""
     rms = {}
@@ -189,6 +192,7 @@ def test_four_accelerometers_any_three_fix_the_rigid_body(design4):
         fe.design_full_car_estimator(PASSENGER_CAR, DT2, accel_corners=('fl', 'fr'))
 
 
+@pytest.mark.slow
 def test_one_accelerometer_and_one_position_sensor_out_the_estimate_goes_on(design4):
     # a frozen accelerometer disagrees with the converged filter at once (the repeat gate);
     # a position sensor drops out: both named and left out, the estimate stays valid

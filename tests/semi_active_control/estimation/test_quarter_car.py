@@ -83,6 +83,7 @@ def test_covariance_converges_to_the_dare_solution():
     assert np.max(np.abs(est.P - d.P_post) / scale) < 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('tol, most_steps', [(1e-6, None), (1e-3, 100)])
 def test_steady_gain_resumes_after_a_lost_reading_per_steady_tol(tol, most_steps):
     """One lost reading leaves the steady gain; ``steady_tol`` says how soon it comes back."""
@@ -162,6 +163,7 @@ def _at_rest(seed):
     return good
 
 
+@pytest.mark.slow
 def test_stuck_dropout_and_innovation_faults_are_named_and_counted():
     p = QuarterCarParams()
     est = QuarterCarEstimator(design_estimator(p, DT, _specs()), _lin_force, dropout_s=0.02)

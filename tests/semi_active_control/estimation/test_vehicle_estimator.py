@@ -58,6 +58,7 @@ def _ratio(est, true, get_e, get_t, start=250):
     return np.sqrt((e ** 2).mean(0)) / np.sqrt((t ** 2).mean(0))
 
 
+@pytest.mark.slow
 def test_the_estimate_follows_the_car(ran):
     core, est, true = ran
     assert all(e.valid for e in est[5:])

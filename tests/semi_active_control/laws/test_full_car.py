@@ -58,6 +58,7 @@ def test_modal_gains_from_damping_ratios():
         make_full_car_law('sideways', PASSENGER_CAR)
 
 
+@pytest.mark.slow
 def test_per_corner_skyhook_on_heave_only_car_is_the_quarter_car_loop():
     # the same law, inverse and plant per corner: the full car's supervised loop reproduces
     # the quarter car's offline loop when the body only heaves

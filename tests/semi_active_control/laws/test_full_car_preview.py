@@ -125,6 +125,7 @@ def kwok():
     return truth, [KwokCurrentPlant(truth, coil_tau_s=0.0) for _ in range(4)]
 
 
+@pytest.mark.slow
 def test_zero_length_preview_is_todays_full_car_law(kwok):
     truth, plants = kwok
     road = make_two_track_road('iso8608-C', P, speed_m_s=20.0, duration_s=0.5, rng=3)
@@ -138,6 +139,7 @@ def test_zero_length_preview_is_todays_full_car_law(kwok):
         np.testing.assert_array_equal(res.current_cmd, today.current_cmd)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('speed_error', [0.0, 0.02])
 def test_the_front_road_delayed_by_the_wheelbase_is_the_rear_road(kwok, speed_error):
     # wheelbase preview on a straight two-track road: the road the law estimated under each
@@ -186,6 +188,7 @@ def test_the_front_road_delayed_by_the_wheelbase_is_the_rear_road(kwok, speed_er
             assert shifts[int(np.argmin(res))] == round(lag / dt)
 
 
+@pytest.mark.slow
 def test_preview_lowers_a_v_and_tyre_loads_on_the_car(kwok):
     truth, plants = kwok
     road = make_two_track_road('iso8608-C', P, speed_m_s=20.0, duration_s=2.0, rng=6)
@@ -212,6 +215,7 @@ def test_preview_law_refuses_bad_settings(design):
             'iso8608-C', P, duration_s=0.2, rng=1)))
 
 
+@pytest.mark.slow
 def test_full_car_sim_prints_the_preview_rows_with_their_settings(capsys):
     from quarter_car_sim.tools.full_car_sim import main
     rows = 'preview-wheelbase,preview-look-ahead-ideal,preview-look-ahead'

@@ -136,6 +136,7 @@ def test_zero_length_preview_is_todays_law(kwok):
     np.testing.assert_array_equal(res.demand, today.demand)
 
 
+@pytest.mark.slow
 def test_preview_lowers_wk_on_the_car_and_feeds_forward(kwok):
     # the ideal look-ahead law against today's law on the same road, damper model = plant
     _, plant, inverse = kwok
@@ -152,6 +153,7 @@ def test_preview_lowers_wk_on_the_car_and_feeds_forward(kwok):
     assert st['previewed_steps'] == st['steps'] - st['fallback_steps']
 
 
+@pytest.mark.slow
 def test_a_preview_dropout_falls_back_to_todays_law_and_is_counted(kwok):
     # the sensor is blind 1.0-2.52 s: the law previews on the map it has until the wheel
     # passes the last frame's far end (15 m = 0.75 s later), then it is today's law until

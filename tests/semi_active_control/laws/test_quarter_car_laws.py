@@ -32,7 +32,13 @@ def _random_states(n, seed=0):
     return out
 
 
-@pytest.mark.parametrize('law', SEMI_ACTIVE, ids=lambda c: c.name + repr(vars(c)))
+def _law_id(law):
+    # the same in every process (pytest-xdist workers compare their ids): no object's address
+    return law.name + repr({k: (type(v).__name__ if callable(v) else v)
+                            for k, v in vars(law).items()})
+
+
+@pytest.mark.parametrize('law', SEMI_ACTIVE, ids=_law_id)
 def test_semi_active_laws_never_demand_wrong_sign(law):
     states = _random_states(5000)
     d = np.array([law.demand(s) for s in states])
@@ -350,6 +356,7 @@ def test_clipped_optimal_wk_feeds_back_the_analog_filter_state():
     assert np.max(np.abs(err[2000:])) < 1e-3 * np.max(np.abs(f_exact))
 
 
+@pytest.mark.slow
 def test_clipped_optimal_wk_on_the_car_is_dissipative_and_within_the_damper_range():
     from mr_damper_model.models.plant import KwokCurrentPlant
     from semi_active_control.car.quarter_car import QuarterCarParams

@@ -90,6 +90,7 @@ def road():
     return make_two_track_road('iso8608-C', P, speed_m_s=20.0, duration_s=1.5, rng=5)
 
 
+@pytest.mark.slow
 def test_live_preview_on_an_ideal_sensor_is_the_offline_preview_law(road):
     # the same law fed offline (PreviewFeed) and live (numbered frames over the message, the
     # speed signal held, frames handed to the map at their step) previews the same steps and
@@ -115,6 +116,7 @@ def test_live_preview_on_an_ideal_sensor_is_the_offline_preview_law(road):
     assert st['road_preview']['frames_taken'] == sensor.status()['delivered']
 
 
+@pytest.mark.slow
 def test_outage_falls_back_to_the_law_without_preview_counted_then_previews_again(road):
     # a realistic sensor blind from 0.3 to 0.6 s: after the preview timeout the law is
     # full-car-clipped-optimal-wk, current for current (each through its corner's inverse and
