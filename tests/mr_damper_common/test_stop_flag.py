@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 
 import pytest
 
@@ -231,3 +232,61 @@ def test_interrupts_second_signal_calls_on_repeat_and_wait_returns_early():
     assert interrupts.is_set() and calls == [] and interrupts.wait(60.0)   # no sleep once set
     interrupts(signal.SIGTERM, None)
     assert calls == [1] and interrupts.signals == 2
+
+
+STUCK_STOP = """
+    import sys, time
+    from mr_damper_common.stop_flag import install_stop_handlers, stop_requested
+    install_stop_handlers()
+    print('ready', flush=True)
+    while not stop_requested():
+        time.sleep(0.01)
+    def a_shutdown_that_never_ends():
+        print('stopping', flush=True)    # from inside: a dump after this line shows the call
+        while {stuck}:
+            time.sleep(0.01)
+    a_shutdown_that_never_ends()
+"""
+
+
+def _stop_with(signals, stuck, guard_s=120.0):
+    """Start the script, wait for each of its lines, send ``signals``; return its stderr."""
+    proc = subprocess.Popen([sys.executable, '-c', textwrap.dedent(STUCK_STOP.format(
+        stuck=stuck))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True)
+    guard = threading.Timer(guard_s, proc.kill)     # a hang guard: the reads below then end
+    guard.start()
+    try:
+        assert proc.stdout.readline() == 'ready\n'
+        proc.send_signal(signals[0])
+        assert proc.stdout.readline() == 'stopping\n'
+        for sig in signals[1:]:
+            proc.send_signal(sig)
+        if stuck:
+            # the dump ends with the main thread's frames; read until the stuck function shows
+            lines = []
+            for line in proc.stderr:
+                lines.append(line)
+                if 'a_shutdown_that_never_ends' in line:
+                    break
+            return ''.join(lines)
+        proc.wait(guard_s)
+        return proc.stderr.read()
+    finally:
+        guard.cancel()
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+@pytest.mark.parametrize('first', [signal.SIGINT, signal.SIGTERM])
+def test_a_sigterm_during_a_stuck_stop_prints_every_threads_stack(first):
+    err = _stop_with([first, signal.SIGTERM], stuck=True)
+    assert 'most recent call first' in err and 'a_shutdown_that_never_ends' in err, err
+
+
+@pytest.mark.parametrize('first', [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_that_ends_prints_nothing(first):
+    assert _stop_with([first], stuck=False) == ''

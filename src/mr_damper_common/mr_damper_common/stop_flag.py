@@ -7,9 +7,17 @@ scipy and python-control takes 1-4 s, 10-20 s on an over-subscribed machine; a S
 window used to hit Python's default handler, whose ``KeyboardInterrupt`` was swallowed somewhere
 inside an import, so the node came up and ran on as if nothing had been asked (found by sending
 SIGINT 1-2 s after start under load: the process had to be killed).
+
+A stop that does not end: once a stop signal arrived, a later SIGTERM (the launcher's next step,
+10 s after its SIGINT, before its SIGKILL) first prints every thread's Python stack to stderr
+(:mod:`faulthandler`, from the C signal handler: it prints also while the main thread is stuck
+in a C call), so the node's log names where its shutdown stuck (a full-car identifier that
+wrote its final parameters and then never exited, at load 6-10, left no trace but exit -9).
 """
+import faulthandler
 import importlib
 import signal
+import sys
 import threading
 import time
 
@@ -47,6 +55,7 @@ class StopFlag:
 
 _STOP = StopFlag()
 _INSTALLED = [False]
+_STACKS_ARMED = [False]
 
 
 class Interrupts:
@@ -91,8 +100,16 @@ def stop_requested():
 
 
 def request_stop(signum=None, frame=None):
-    """Set the stop flag (the SIGINT / SIGTERM handler)."""
+    """Set the stop flag (the SIGINT / SIGTERM handler); the first signal arms the stack dump."""
     _STOP.set()
+    if signum is not None and not _STACKS_ARMED[0]:
+        _STACKS_ARMED[0] = True
+        try:
+            # a later SIGTERM prints every thread's stack, then runs this handler again
+            faulthandler.register(signal.SIGTERM, file=sys.stderr, all_threads=True,
+                                  chain=True)
+        except (AttributeError, OSError, RuntimeError, ValueError):
+            pass    # no usable stderr (closed, replaced by an object without a descriptor)
 
 
 def install_stop_handlers():
