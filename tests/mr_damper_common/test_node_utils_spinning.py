@@ -94,6 +94,51 @@ _NODE_SCRIPT = textwrap.dedent('''
 ''')
 
 
+_STUCK_TEARDOWN = textwrap.dedent('''
+    import ctypes, sys, time
+    from rclpy.node import Node
+    from mr_damper_common.node_utils import spinning
+
+    class StuckInTheMiddleware(Node):
+        def __init__(self):
+            super().__init__('node_utils_teardown_test')
+
+        def destroy_node(self):
+            print('destroying', flush=True)
+            if {hold_gil}:
+                ctypes.PyDLL(None).sleep(3600)     # a C call that keeps the GIL
+            while True:
+                time.sleep(0.01)                  # one that releases it, never returning
+
+    def finish(node):
+        print('finished', flush=True)
+        return 0
+
+    spinning.TEARDOWN_GUARD_S = 0.5
+    sys.exit(spinning.run_node(StuckInTheMiddleware, 'stuck', run=lambda node: None,
+                               finish=finish))
+''')
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('hold_gil, code', [(False, 0), (True, 1)])
+def test_a_teardown_stuck_in_the_middleware_ends_the_process_with_its_stacks(hold_gil, code):
+    # the finished node's exit status when the stuck call lets the guard thread run; the
+    # faulthandler watchdog's status 1 when it holds the GIL; the stacks in both cases
+    proc = popen([sys.executable, '-c', _STUCK_TEARDOWN.format(hold_gil=hold_gil)],
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                 env=dict(os.environ))
+    try:
+        out, err = proc.communicate(timeout=120)          # hang guard only
+    finally:
+        if proc.poll() is None:
+            stop_group(proc, signal.SIGKILL)
+    assert proc.returncode == code, (out, err)
+    assert out == 'finished\ndestroying\n', (out, err)
+    assert 'destroy_node' in err and 'most recent call first' in err, err
+    assert ('did not tear the node down' in err) == (not hold_gil), err
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_run_node_exits_0_on_signal_after_finish(sig):

@@ -6,6 +6,7 @@ Running a node: its clock, the executor, the spin loop, a fast lane for a hot in
 :func:`spin` the loop it runs; :class:`FastLane` a second minimal node in its own thread.
 Imports rclpy.
 """
+import faulthandler
 import os
 import sys
 import threading
@@ -16,6 +17,13 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from mr_damper_common.stop_flag import _STOP, install_stop_handlers
+
+#: Seconds the middleware gets to tear a finished node down (``destroy_node``, then
+#: ``rclpy.try_shutdown``) before the process exits without it: by then the node's outputs are
+#: written (``finish`` ran). A full-car identifier under load once stayed for good in
+#: ``destroy_node`` -> ``Publisher.destroy`` (Fast DDS deleting its writer) after it had
+#: written its final parameters, until the launcher's SIGKILL (exit -9, a failed run).
+TEARDOWN_GUARD_S = 5.0
 
 
 def node_time_s(node):
@@ -189,10 +197,42 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
         print(f'{name}: error: {exc}', file=sys.stderr)
         code = 2
     finally:
-        if node is not None:
-            if finish is not None:
-                status = finish(node)
-                code = code if status is None else status
-            node.destroy_node()
-        rclpy.try_shutdown()
+        if node is not None and finish is not None:
+            status = finish(node)
+            code = code if status is None else status
+        tear_down(node, name, code)
     return code
+
+
+def tear_down(node, name, code, guard_s=None):
+    """
+    Destroy ``node`` (if any) and shut rclpy down, or exit with ``code`` if that gets stuck.
+
+    The teardown runs in a daemon thread; if it has not ended after ``guard_s`` [s] (default
+    :data:`TEARDOWN_GUARD_S`), one line and every thread's stack go to stderr (the node's log)
+    and the process exits at once with ``code``: its outputs are written, only the
+    middleware's goodbye is skipped (readers see the writer go at its lease's end, as after a
+    kill). If the stuck call holds the GIL, so that this thread cannot wake, faulthandler's
+    own watchdog thread prints the stacks and exits (status 1) after twice the guard.
+    """
+    guard_s = TEARDOWN_GUARD_S if guard_s is None else guard_s
+    ended = threading.Event()   # set by the teardown thread; no signal handler touches it
+
+    def work():
+        try:
+            if node is not None:
+                node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
+            ended.set()
+
+    faulthandler.dump_traceback_later(2.0 * guard_s, exit=True)
+    threading.Thread(target=work, name='teardown', daemon=True).start()
+    if not ended.wait(guard_s):
+        print(f'{name}: the middleware did not tear the node down within {guard_s:g} s after '
+              'it finished (its outputs are written); exiting without it. Every thread:',
+              file=sys.stderr, flush=True)
+        faulthandler.dump_traceback(all_threads=True)
+        sys.stdout.flush()
+        os._exit(code)
+    faulthandler.cancel_dump_traceback_later()
