@@ -115,6 +115,8 @@ _STUCK_TEARDOWN = textwrap.dedent('''
         return 0
 
     spinning.TEARDOWN_GUARD_S = 0.5
+    # no race between the two: the watchdog only where the guard thread cannot run at all
+    spinning.TEARDOWN_WATCHDOG_S = 1.0 if {hold_gil} else 3600.0
     sys.exit(spinning.run_node(StuckInTheMiddleware, 'stuck', run=lambda node: None,
                                finish=finish))
 ''')

@@ -24,6 +24,8 @@ from mr_damper_common.stop_flag import _STOP, install_stop_handlers
 #: ``destroy_node`` -> ``Publisher.destroy`` (Fast DDS deleting its writer) after it had
 #: written its final parameters, until the launcher's SIGKILL (exit -9, a failed run).
 TEARDOWN_GUARD_S = 5.0
+#: Seconds after which faulthandler's watchdog ends a teardown stuck while holding the GIL.
+TEARDOWN_WATCHDOG_S = 10.0
 
 
 def node_time_s(node):
@@ -213,7 +215,7 @@ def tear_down(node, name, code, guard_s=None):
     and the process exits at once with ``code``: its outputs are written, only the
     middleware's goodbye is skipped (readers see the writer go at its lease's end, as after a
     kill). If the stuck call holds the GIL, so that this thread cannot wake, faulthandler's
-    own watchdog thread prints the stacks and exits (status 1) after twice the guard.
+    own watchdog thread prints the stacks and exits (status 1) after :data:`TEARDOWN_WATCHDOG_S`.
     """
     guard_s = TEARDOWN_GUARD_S if guard_s is None else guard_s
     ended = threading.Event()   # set by the teardown thread; no signal handler touches it
@@ -226,7 +228,7 @@ def tear_down(node, name, code, guard_s=None):
             rclpy.try_shutdown()
             ended.set()
 
-    faulthandler.dump_traceback_later(2.0 * guard_s, exit=True)
+    faulthandler.dump_traceback_later(max(TEARDOWN_WATCHDOG_S, guard_s), exit=True)
     threading.Thread(target=work, name='teardown', daemon=True).start()
     if not ended.wait(guard_s):
         print(f'{name}: the middleware did not tear the node down within {guard_s:g} s after '
