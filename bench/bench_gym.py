@@ -11,7 +11,12 @@ The Gymnasium environments (issue 37): steps per second, and the baselines again
      ``FullCar.step`` with the same plants, no sensors, no metrics);
    - the vector environment (``gymnasium.make_vec``), N cars in one thread and on
      ``--threads`` threads (default the cores; the compiled step releases the GIL); the
-     alternative: gymnasium's ``SyncVectorEnv`` of single environments.
+     alternative: gymnasium's ``SyncVectorEnv`` of single environments. Steps are timed on
+     cars already reset (``--car-steps`` car-steps a run), as training steps a whole episode
+     after one reset; the reset (a road per car, 0.5 s of settling) is timed apart (ms per
+     car), and ``per episode`` is the rate over a default episode (10,000 steps) with its
+     reset. The full car's last vector row has kwok-current plants: the Spencer plants' share
+     of the step (ten Bouc-Wen sub-steps per damper and period).
 
    Goals: one full-car env >= 20,000 steps/s (20x real time at 1 kHz); the vector env >=
    200,000 car-steps/s on two cores.
@@ -28,7 +33,8 @@ The Gymnasium environments (issue 37): steps per second, and the baselines again
 Usage::
 
     .venv/bin/python bench/bench_gym.py [--part speed|baselines|all] [--repeats 3]
-                                        [--steps 5000] [--cars 64 256] [--threads 2]
+                                        [--steps 5000] [--cars 64 256 1024]
+                                        [--car-steps 400000] [--threads 2]
                                         [--seeds 1 2 3] [--duration 20] [--no-bound]
                                         [--json OUT.json]
 """
@@ -52,6 +58,8 @@ from quarter_car_sim.plant.quarter_car import QuarterCar
 from quarter_car_sim.tools import full_car_sim as full_car_cli
 from quarter_car_sim.plant.full_car import FullCar
 
+#: Steps of an episode at the defaults (10 s at 1 ms): the amortised rates' episode.
+EPISODE_STEPS = 10_000
 IDS = {'quarter': mr_damper_gym.QUARTER_CAR_ID, 'full': mr_damper_gym.FULL_CAR_ID}
 
 
@@ -101,19 +109,33 @@ def _simulator_rate(car, steps, repeats):
 
 
 def _vector_rate(car, n, steps, repeats, **kw):
-    """Time N cars of a vector env (``threads``), or gymnasium's SyncVectorEnv of N envs."""
+    """
+    Time N cars of a vector env (``threads``), or gymnasium's SyncVectorEnv of N envs.
+
+    The steps are timed on episodes already reset (as in training, where one reset serves a
+    whole episode: 10,000 steps at the defaults); the reset of the N cars (a road each, then
+    0.5 s of settling) is timed apart. Returns the steps' wall and CPU rates and the reset's
+    wall time [s].
+    """
     venv = gymnasium.make_vec(IDS[car], num_envs=n, episode_end='none',
-                              duration_s=steps * 1e-3 + 1.0, **kw)
+                              duration_s=(repeats + 1) * steps * 1e-3 + 1.0, **kw)
     a = np.tile(venv.single_action_space.low, (n, 1))
+    t = time.perf_counter()
+    venv.reset(seed=1)
+    reset_s = time.perf_counter() - t
 
     def run():
-        venv.reset(seed=1)
         for _ in range(steps):
             venv.step(a)
-    run()
-    rate = _rate(run, steps * n, repeats)
+    run()                           # compiled kernel loaded, caches warm
+    wall, cpu = _rate(run, steps * n, repeats)
     venv.close()
-    return rate
+    return wall, cpu, reset_s
+
+
+def _amortised(rate, reset_s, n, episode_steps=EPISODE_STEPS):
+    """Car-steps/s over whole episodes: ``episode_steps`` steps of N cars plus their reset."""
+    return n * episode_steps / (n * episode_steps / rate + reset_s)
 
 
 def speed(args):
@@ -133,21 +155,38 @@ def speed(args):
                          'steps_s_cpu': cpu})
             print(f'{car:8s} {label:40s} {wall:12,.0f} {cpu:12,.0f}', flush=True)
         for n in args.cars:
-            steps = max(20, args.steps * 8 // n)
+            steps = max(200, args.car_steps // n)
             for threads in (1, args.threads):
                 label = f'vector env, {threads} thread' + ('s' if threads > 1 else '')
-                wall, cpu = _vector_rate(car, n, steps, args.repeats, threads=threads)
+                wall, cpu, reset_s = _vector_rate(car, n, steps, args.repeats,
+                                                  threads=threads)
+                amort = _amortised(wall, reset_s, n)
                 rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
-                             'steps_s_cpu': cpu})
-                print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f}',
-                      flush=True)
+                             'steps_s_cpu': cpu, 'reset_s': reset_s,
+                             'steps_s_episode': amort})
+                print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
+                      f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
+        if car == 'full':
+            # the plant's share: the same cars with kwok-current dampers (no Bouc-Wen sub-steps)
+            n = max(args.cars)
+            label = 'vector env, kwok-current plants'
+            wall, cpu, reset_s = _vector_rate(car, n, max(200, args.car_steps // n),
+                                              args.repeats, threads=args.threads,
+                                              plant='kwok-current')
+            amort = _amortised(wall, reset_s, n)
+            rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
+                         'steps_s_cpu': cpu, 'reset_s': reset_s, 'steps_s_episode': amort})
+            print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
+                  f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
         n = 8
-        wall, cpu = _vector_rate(car, n, max(20, args.steps // n), args.repeats,
-                                 vectorization_mode='sync')
+        wall, cpu, reset_s = _vector_rate(car, n, max(200, args.steps // n), args.repeats,
+                                          vectorization_mode='sync')
+        amort = _amortised(wall, reset_s, n)
         label = 'SyncVectorEnv of single envs (alternative)'
         rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
-                     'steps_s_cpu': cpu})
-        print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f}', flush=True)
+                     'steps_s_cpu': cpu, 'reset_s': reset_s, 'steps_s_episode': amort})
+        print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
+              f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
     return rows
 
 
@@ -241,7 +280,9 @@ def main():
     ap.add_argument('--part', choices=('speed', 'baselines', 'all'), default='all')
     ap.add_argument('--repeats', type=int, default=3)
     ap.add_argument('--steps', type=int, default=5000)
-    ap.add_argument('--cars', type=int, nargs='+', default=[64, 256])
+    ap.add_argument('--cars', type=int, nargs='+', default=[64, 256, 1024])
+    ap.add_argument('--car-steps', type=int, default=400_000,
+                    help='car-steps timed per vector run (steps = this / N, at least 200)')
     ap.add_argument('--threads', type=int, default=os.cpu_count() or 1)
     ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
     ap.add_argument('--duration', type=float, default=20.0)
@@ -251,7 +292,8 @@ def main():
     print(f'load average at start: {os.getloadavg()}', flush=True)
     out = {'load_start': os.getloadavg()}
     if args.part in ('speed', 'all'):
-        print(f'{"car":8s} {"what":40s} {"steps/s wall":>12s} {"steps/s CPU":>12s}')
+        print(f'{"car":8s} {"what":40s} {"steps/s wall":>12s} {"steps/s CPU":>12s} '
+              f'{"reset ms/car":>9s} {"per episode":>12s}')
         out['speed'] = speed(args)
     if args.part in ('baselines', 'all'):
         out['baselines'] = baselines(args)

@@ -63,3 +63,40 @@ def test_partial_reset_and_bad_actions():
     _, _, _, _, info = venv.step(np.full((2, 4), 5.0))
     assert info['action_clipped'].tolist() == [True, True]
     assert np.all(info['current_a'] == 2.0)
+
+
+@pytest.mark.slow
+def test_cars_out_of_step_equal_single_envs_through_their_autoresets():
+    # car 1 restarts 10 steps after car 0: steps where one car resets while the other steps
+    n = 2
+    venv = gymnasium.make_vec(mr_damper_gym.QUARTER_CAR_ID, num_envs=n, threads=1, **KW)
+    envs = [gymnasium.make(mr_damper_gym.QUARTER_CAR_ID, episode_end='passive', **KW)
+            for _ in range(n)]
+    venv.reset(seed=3)
+    for i, e in enumerate(envs):
+        e.reset(seed=3 + i)
+    a = np.full((n, 1), 0.7)
+    for _ in range(10):
+        venv.step(a)
+        for e in envs:
+            e.step(a[0])
+    venv.reset(options={'reset_mask': np.array([False, True])})
+    envs[1].reset()
+    ended, mixed = [False] * n, 0
+    for _ in range(90):
+        vo, vr, _, vtrunc, vinfo = venv.step(a)
+        mixed += sum(ended) == 1
+        for i, e in enumerate(envs):
+            if ended[i]:
+                o, _ = e.reset()
+                r, trunc, stepped = 0.0, False, False
+                ended[i] = False
+            else:
+                o, r, _, trunc, info = e.step(a[i])
+                ended[i], stepped = trunc, True
+                assert vinfo['t_s'][i] == info['t_s']
+                assert vinfo['rms_body_accel_wk'][i] == info['rms_body_accel_wk']
+            assert np.array_equal(o, vo[i]) and r == vr[i] and trunc == vtrunc[i]
+            assert vinfo['_rms_body_accel_wk'][i] == stepped
+    assert mixed >= 4                       # two restarts of each car, never together
+    venv.close()

@@ -134,22 +134,32 @@ class SemiActiveVectorEnv(VectorEnv):
         cur, clipped, sat = self.core.currents(a, b.obs)
         for i in np.flatnonzero(restart):
             self._reset_car(i, None, None)
-        b.step(cur, active=stepping)
-        self._steps[stepping] += 1
-        clipped &= stepping
+        all_step = not restart.any()
+        # every car stepping (the common case): the batch's own all-cars mask, which lets it
+        # skip the per-step check of the sensors' random-number blocks
+        b.step(cur, active=None if all_step else stepping)
+        if all_step:
+            self._steps += 1
+            reward = b.reward.copy()
+        else:
+            self._steps[stepping] += 1
+            clipped &= stepping
+            reward = np.where(stepping, b.reward, 0.0)
         self._n_clipped += clipped
-        reward = np.where(stepping, b.reward, 0.0)
         truncated = stepping & (self._steps >= self._n_steps)
         terminated = np.zeros(n, dtype=bool)
         sums = b.sums
         info = self.core.running(sums.T)
-        info.update({'_' + k: stepping.copy() for k in list(info)})
+        # the masks: one array per step for the keys every car has (read them, do not write)
+        every = np.ones(n, dtype=bool)
+        stepped = every if all_step else stepping
+        info.update({'_' + k: stepped for k in list(info)})
         info.update(t_s=self._steps * self.core.dt, current_a=cur, action_clipped=clipped,
                     n_action_clipped=self._n_clipped.copy(), saturated=sat,
                     obs_clipped=sums[:, self.core.model.sum_slots['clipped']].astype(np.int64))
         for key in ('t_s', 'current_a', 'action_clipped', 'n_action_clipped', 'saturated',
                     'obs_clipped'):
-            info['_' + key] = np.ones(n, dtype=bool)
+            info['_' + key] = every
         for i in np.flatnonzero(truncated):
             fig = b.figures(i)
             refs = self.core.references(self.roads[i])
