@@ -107,10 +107,19 @@ def test_full_car_suite_with_the_external_controller(tmp_path):
     corner streams of the old full_car_controller_node left rl and rr without a set on two
     cores). The controller takes each corner's model from its live identifier.
     """
+    road_times = set()
+
     def ready(line):
-        # stop once the controller has commanded every corner on its own model (a corner's
-        # supervisor taking a set comes before its first command on it: wait for the command)
-        return re.search(r'on models 4/4', line) is not None
+        # every corner commanded on its own model (a corner's supervisor taking a set comes
+        # before its first command on it: wait for the command), then the car's statuses on
+        # the road at two different car times after that (events, not a duration): the
+        # summary's real-time factor is the car time between two of them
+        t_car = re.search(r'car t (-?[\d.]+) s', line)
+        if re.search(r'on models 4/4', line) is None or t_car is None:
+            return False
+        if float(t_car.group(1)) > 0.0:
+            road_times.add(float(t_car.group(1)))
+        return len(road_times) >= 2
 
     summary = run_external(tmp_path / 'full_car_ext', ready, '--external-controller')
     car = summary['full_car']
