@@ -138,6 +138,16 @@ def _amortised(rate, reset_s, n, episode_steps=EPISODE_STEPS):
     return n * episode_steps / (n * episode_steps / rate + reset_s)
 
 
+def _vector_row(car, label, n, steps, repeats, **kw):
+    """Time one vector configuration (:func:`_vector_rate`), print its line, return its row."""
+    wall, cpu, reset_s = _vector_rate(car, n, steps, repeats, **kw)
+    amort = _amortised(wall, reset_s, n)
+    print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
+          f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
+    return {'car': car, 'what': label, 'n': n, 'steps_s_wall': wall, 'steps_s_cpu': cpu,
+            'reset_s': reset_s, 'steps_s_episode': amort}
+
+
 def speed(args):
     """Measure the steps per second of the envs and the alternatives; return the rows."""
     rows = []
@@ -158,35 +168,17 @@ def speed(args):
             steps = max(200, args.car_steps // n)
             for threads in (1, args.threads):
                 label = f'vector env, {threads} thread' + ('s' if threads > 1 else '')
-                wall, cpu, reset_s = _vector_rate(car, n, steps, args.repeats,
-                                                  threads=threads)
-                amort = _amortised(wall, reset_s, n)
-                rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
-                             'steps_s_cpu': cpu, 'reset_s': reset_s,
-                             'steps_s_episode': amort})
-                print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
-                      f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
+                rows.append(_vector_row(car, label, n, steps, args.repeats, threads=threads))
         if car == 'full':
             # the plant's share: the same cars with kwok-current dampers (no Bouc-Wen sub-steps)
             n = max(args.cars)
-            label = 'vector env, kwok-current plants'
-            wall, cpu, reset_s = _vector_rate(car, n, max(200, args.car_steps // n),
-                                              args.repeats, threads=args.threads,
-                                              plant='kwok-current')
-            amort = _amortised(wall, reset_s, n)
-            rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
-                         'steps_s_cpu': cpu, 'reset_s': reset_s, 'steps_s_episode': amort})
-            print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
-                  f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
+            rows.append(_vector_row(car, 'vector env, kwok-current plants', n,
+                                    max(200, args.car_steps // n), args.repeats,
+                                    threads=args.threads, plant='kwok-current'))
         n = 8
-        wall, cpu, reset_s = _vector_rate(car, n, max(200, args.steps // n), args.repeats,
-                                          vectorization_mode='sync')
-        amort = _amortised(wall, reset_s, n)
-        label = 'SyncVectorEnv of single envs (alternative)'
-        rows.append({'car': car, 'what': label, 'n': n, 'steps_s_wall': wall,
-                     'steps_s_cpu': cpu, 'reset_s': reset_s, 'steps_s_episode': amort})
-        print(f'{car:8s} {label + f" N={n}":40s} {wall:12,.0f} {cpu:12,.0f} '
-              f'{reset_s * 1e3 / n:9.1f} {amort:12,.0f}', flush=True)
+        rows.append(_vector_row(car, 'SyncVectorEnv of single envs (alternative)', n,
+                                max(200, args.steps // n), args.repeats,
+                                vectorization_mode='sync'))
     return rows
 
 
