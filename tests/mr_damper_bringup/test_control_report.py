@@ -133,3 +133,29 @@ def test_a_corner_with_one_recorded_car_status_is_placed_at_the_runs_rate():
     assert c['units']['fr']['first_normal_t_sim'] == 2.4
     assert c['units']['fr']['first_normal_s'] == pytest.approx(1.0 + (2.4 - 1.0) / 1.0)
     assert c['first_normal_s'] == pytest.approx(2.4)
+
+
+def test_the_cars_states_are_its_clock_where_the_recording_lacks_its_statuses():
+    # an external controller; the recorder matched the car's /diagnostics writer too late (a
+    # loaded machine): not one status of the car, but its states (stamp: car time), 1024 Hz
+    # (binary fractions: exact sums) from wall 20 s at half real time; only those a second
+    # apart are decoded as clock points
+    w = ControlWatch()
+    taken = []
+    for k in range(8 * 1024 + 1):
+        t_rx = 20.0 + k / 1024
+        if w.wants_car_state('', t_rx):
+            taken.append(k)
+            w.car_state('', t_rx, 0.5 * k / 1024)
+        if k % 1024 == 0:
+            w.update({'controller': {'commands': k, 'commands_normal': k // 2}}, t_rx)
+    # the first (car time 0 is not on the road yet, so the next one too), then one a second
+    assert taken == [0, 1] + [1 + 1024 * n for n in range(1, 8)]
+    c = control_summary(w, 20.0, {'messages_lost': 0, 'ride': {}})
+    assert c['real_time_factor'] == pytest.approx(0.5)
+    # the controller's first normal status (wall 21 s) in car time, on the states' clock
+    assert c['first_normal_t_sim'] == pytest.approx(0.5)
+    # where the car's statuses are there (two on the road), they are its clock, not the states
+    w.update({'quarter_car': _car(1.0, controller='external')}, 30.0)
+    w.update({'quarter_car': _car(3.0, controller='external')}, 31.0)
+    assert w.real_time_factor() == pytest.approx(2.0)

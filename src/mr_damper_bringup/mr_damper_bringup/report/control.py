@@ -35,6 +35,9 @@ CONTROL_KEYS = ('first_valid_set_s', 'first_normal_s', 'first_normal_t_sim', 'fa
 
 #: car time / stamp pairs kept per car (one a second; thinned out beyond)
 MAX_CLOCK_POINTS = 4096
+#: receive-time spacing [s] of the car states taken as clock points (a 1 kHz topic: only one a
+#: second is decoded for the clock)
+STATE_CLOCK_PERIOD_S = 1.0
 
 
 def _finite(x):
@@ -66,6 +69,7 @@ class ControlWatch:
         self.identifiers = set()
         self.laws = {}             # law unit -> _Law
         self.car_clock = {}        # law unit -> [(t, t_sim), ...] of its car on the road
+        self.state_clock = {}      # the same from its car states (stamp: car time) at receive
         self._car_side = {}        # law unit -> (t_sim, command-timeout time [s]) of the plant
         self.built_in = set()      # law units that are a quarter car with its own law
 
@@ -83,14 +87,36 @@ class ControlWatch:
         if law.first_rx is not None:
             law.counts_last = counts
 
-    def _clock(self, unit, t_rx, t_sim):
+    def _clock(self, unit, t_rx, t_sim, clock=None):
         if _finite(t_sim) and t_sim > 0:
-            points = self.car_clock.setdefault(unit, [])
+            points = (self.car_clock if clock is None else clock).setdefault(unit, [])
             # a restarted car's road starts at 0 again: the clock goes on past the old one only
             if not points or t_sim > points[-1][1]:
                 points.append((t_rx, float(t_sim)))
                 if len(points) > MAX_CLOCK_POINTS:      # one a second: thin out a long run
                     del points[1:-1:2]
+
+    def wants_car_state(self, unit, t_rx):
+        """Whether a car state of ``unit`` received at ``t_rx`` [s] is due as a clock point."""
+        points = self.state_clock.get(unit)
+        return not points or t_rx - points[-1][0] >= STATE_CLOCK_PERIOD_S
+
+    def car_state(self, unit, t_rx, t_sim):
+        """
+        Take one car state of ``unit``: its stamp ``t_sim`` (car time [s]) received at ``t_rx``.
+
+        The car's clock from its states is used where the recording holds fewer than two of the
+        car's statuses on the road (the recorder matched the car's ``/diagnostics`` writer late,
+        as seen on a loaded machine: its states came from the start, its statuses never).
+        """
+        self._clock(unit, t_rx, t_sim, self.state_clock)
+
+    def _points(self, unit):
+        """The car's clock points: from its statuses, else (fewer than two) from its states."""
+        points = self.car_clock.get(unit) or []
+        if len(points) >= 2 and points[-1][0] > points[0][0]:
+            return points
+        return self.state_clock.get(unit) or points
 
     def update(self, statuses, t_rx):
         """
@@ -137,7 +163,8 @@ class ControlWatch:
     # ------------------------------------------------------------------ figures
     def real_time_factor(self, unit=None):
         """Car time over wall time between the car's first and last status on the road."""
-        for key, points in sorted(self.car_clock.items()):
+        for key in sorted(set(self.car_clock) | set(self.state_clock)):
+            points = self._points(key)
             (rx0, t0), (rx1, t1) = points[0], points[-1]
             if (unit is None or key == unit) and rx1 > rx0:
                 return (t1 - t0) / (rx1 - rx0)
@@ -155,7 +182,7 @@ class ControlWatch:
             return None
         if _finite(law.first_t_sim):
             return law.first_t_sim
-        points = self.car_clock.get(unit)
+        points = self._points(unit)
         if not points:
             return None
         return float(np.interp(law.first_rx, [p[0] for p in points], [p[1] for p in points]))
@@ -169,7 +196,7 @@ class ControlWatch:
         statuses of a run): the car's own, or, when its statuses are too few for one (a single
         status recorded on a loaded machine), the run's (every car of a run runs at one rate).
         """
-        points = self.car_clock.get(unit)
+        points = self._points(unit)
         if not points or not _finite(t_sim):
             return None
         rx = np.array([p[0] for p in points])

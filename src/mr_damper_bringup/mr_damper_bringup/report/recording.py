@@ -70,7 +70,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
         ``gap_events`` (``(receive time, samples missing)`` of each stamp gap) and
         ``car_modes`` (runs ``[first_s, last_s, fail_safe_mode]`` of the car state, split at a
         mode change or a silence longer than :data:`CAR_STATE_GAP_S`; receive times [s]) and
-        ``control`` (:class:`~mr_damper_bringup.report.control.ControlWatch` of the statuses).
+        ``control`` (:class:`~mr_damper_bringup.report.control.ControlWatch` of the statuses,
+        and of one car state a second as the car's clock).
 
     """
     import yaml
@@ -96,6 +97,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     params = JsonLines(work / 'parameters.jsonl')
     gaps = _Gaps()
     typestore = suite_typestore()
+    unit = namespace or ''     # the law unit of this namespace's car (ControlWatch)
     try:
         for part in (path if isinstance(path, (list, tuple)) else [path]):
             reader = McapScan(part)
@@ -109,7 +111,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
                                'config', 'node_parameters', 'samples_received', 'car_state',
                                *STATUS_KEYS) or (key == 'car_state' and (
-                                   car_modes_from is None or t_rx < car_modes_from)):
+                                   car_modes_from is None or t_rx < car_modes_from)
+                                   and not rec['control'].wants_car_state(unit, t_rx)):
                     continue
                 try:
                     msg = reader.deserialize(raw, msgtype, typestore)
@@ -124,7 +127,12 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                                      identifier_starts)
                         continue
                     elif key == 'car_state':
-                        _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
+                        if rec['control'].wants_car_state(unit, t_rx):
+                            stamp = msg.header.stamp
+                            rec['control'].car_state(unit, t_rx,
+                                                     stamp.sec + stamp.nanosec * 1e-9)
+                        if car_modes_from is not None and t_rx >= car_modes_from:
+                            _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
                         continue
                     elif key == 'config':
                         rec['config'] = yaml.safe_load(msg.data)
