@@ -65,3 +65,43 @@ def test_signal_during_start_up_exits_0(tmp_path, script, sig):
     text = log.read_text()
     assert 'Traceback' not in text, text
     assert rc == 0, text
+
+
+_STUCK_RECORDER = '''
+import sys, time
+import rclpy.node
+from mr_damper_common.node_utils import spinning
+
+def destroy_node(self):
+    print('destroying', file=sys.stderr, flush=True)
+    while True:
+        time.sleep(0.01)            # the middleware's teardown, never returning
+
+rclpy.node.Node.destroy_node = destroy_node
+spinning.TEARDOWN_GUARD_S = 0.5
+spinning.TEARDOWN_WATCHDOG_S = 3600.0
+from mr_damper_bringup import record_node
+sys.exit(record_node.main(['mr-damper-record', '--out', sys.argv[1], '--duration', '0.5',
+                           '--parameters-period-s', '0']))
+'''
+
+
+def test_a_recorder_stuck_in_its_teardown_exits_0_with_a_complete_file(tmp_path):
+    # a recorder SIGKILLed in rclpy's teardown failed a CI run: the file and the count line
+    # come first, then the middleware gets its guard time and the process leaves without it
+    from mr_damper_common.recording.mcap_scan import McapScan
+    out = tmp_path / 'stuck.mcap'
+    proc = popen([str(VENV_BIN / 'python'), '-c', _STUCK_RECORDER, str(out)],
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = proc.communicate(timeout=GUARD_S)          # hang guard only
+    finally:
+        stop_group(proc, signal.SIGKILL)
+    assert proc.returncode == 0, err
+    # in this order: the count line, the teardown, the guard's line with every thread's stack
+    written = err.index(f'written to {out}')
+    assert written < err.index('destroying') < err.index('did not tear the node down'), err
+    assert 'in destroy_node' in err, err
+    scan = McapScan(out)
+    n = sum(1 for _ in scan.messages())
+    assert scan.complete is True and n > 0, scan.summary()

@@ -122,6 +122,25 @@ _STUCK_TEARDOWN = textwrap.dedent('''
 ''')
 
 
+def test_run_guarded_says_whether_the_work_ended_and_never_waits_past_its_guard():
+    import threading
+    done = []
+    assert node_utils.run_guarded(lambda: done.append(1), 60.0) is True and done == [1]
+    # a work that cannot end before the event is set (as a teardown stuck in the middleware):
+    # the caller goes on after the guard, the work still running in its daemon thread
+    release, ended = threading.Event(), threading.Event()
+
+    def stuck():
+        release.wait()
+        ended.set()
+
+    assert node_utils.run_guarded(stuck, 0.05, 'stuck_work') is False
+    assert not ended.is_set()
+    assert any(t.name == 'stuck_work' and t.daemon for t in threading.enumerate())
+    release.set()
+    assert ended.wait(60.0)      # hang guard only
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('hold_gil, code', [(False, 0), (True, 1)])
 def test_a_teardown_stuck_in_the_middleware_ends_the_process_with_its_stacks(hold_gil, code):

@@ -17,10 +17,10 @@ import time
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
-from mr_damper_common.node_utils import LATCHED_QOS, STATUS_QOS
+from mr_damper_common.node_utils import LATCHED_QOS, run_guarded, STATUS_QOS
+from mr_damper_common.node_utils.spinning import TEARDOWN_GUARD_S
 
-from .record_node import message_class
-from .topics import decode_parameters, decode_status, STATUS_KEYS, SUITE_TOPICS
+from .topics import decode_parameters, decode_status, message_class, STATUS_KEYS, SUITE_TOPICS
 
 
 class Monitor:
@@ -107,7 +107,9 @@ def start_monitor(monitor):
     Returns
     -------
     callable
-        Stops the monitor (destroys the node, shuts its context down, joins the thread).
+        Stops the monitor (joins the thread, destroys the node, shuts its context down) and
+        returns True, or False when that teardown did not end within ``TEARDOWN_GUARD_S`` [s]
+        (it is left in a daemon thread).
 
     """
     ctx = rclpy.context.Context()
@@ -141,8 +143,18 @@ def start_monitor(monitor):
     def stop():
         running.clear()
         thread.join(5.0)
-        executor.remove_node(node)
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+
+        def teardown():
+            executor.remove_node(node)
+            node.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+
+        # the middleware's teardown has been seen to block for good: the launcher goes on to
+        # write the run's summary without it
+        if run_guarded(teardown, TEARDOWN_GUARD_S, 'suite_monitor_teardown'):
+            return True
+        print(f'mr-damper-suite: the monitor node\'s teardown did not end within '
+              f'{TEARDOWN_GUARD_S:g} s; going on without it', file=sys.stderr, flush=True)
+        return False
 
     return stop

@@ -21,7 +21,7 @@ Example::
 """
 import argparse
 import array
-import importlib
+import faulthandler
 from pathlib import Path
 import sys
 import time
@@ -38,23 +38,17 @@ import yaml
 from mr_damper_common.health import Health, OK, WARN
 from mr_damper_common.node_utils import (DiagnosticsPublisher, DropCounter, install_stop_handlers,
                                          make_executor, MEASUREMENT_QOS, PARAMETERS_QOS,
-                                         stop_requested)
+                                         stop_requested, tear_down)
 
 from .processes import wait_while_progressing
 from .recorder import SuiteRecorder
-from .topics import (CAN_TOPICS, namespaced_table, NODE_PARAMETERS_TOPIC, PARAMETER_NODES,
-                     SENSING_TOPICS, SUITE_TOPICS, topic_table)
+from .topics import (CAN_TOPICS, message_class, namespaced_table, NODE_PARAMETERS_TOPIC,
+                     PARAMETER_NODES, SENSING_TOPICS, SUITE_TOPICS, topic_table)
 
 #: QoS of each kind of the topic table (reliable readers match every writer of the suite)
 QOS = {'measurement': MEASUREMENT_QOS, 'latched': PARAMETERS_QOS,
        'default': QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE)}
-
-
-def message_class(type_name):
-    """Return the rclpy message class of ``'pkg/msg/Name'``."""
-    pkg, kind, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
 
 
 class ParameterPoller:
@@ -160,6 +154,7 @@ def main(argv=None):
         print(f'mr-damper-record: error: {exc}', file=sys.stderr)
         return 2
     install_stop_handlers()   # SIGINT / SIGTERM: drain, close the file, exit 0
+    faulthandler.enable()     # a crash in the middleware: every thread's Python stack to the log
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('mr_damper_record')
     drops = DropCounter(node.get_logger())
@@ -228,13 +223,16 @@ def main(argv=None):
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
-            executor.remove_node(node)
-            node.destroy_node()
-            rclpy.try_shutdown()
+            executor.remove_node(node)     # nothing is taken (or written) after this
+    # the file is complete (its footer written when `with` closed it) and the counts printed
+    # before the middleware's teardown, which has been seen to block for good: it gets
+    # TEARDOWN_GUARD_S, then the process exits 0 without it (spinning.tear_down)
     lost = sum(drops.counts().values())
     print(f'mr-damper-record: {sum(recorder.counts.values())} messages '
           f'({recorder.measurements()} measurement samples) written to {out}'
-          f'{f", {lost} lost before they were taken" if lost else ""}', file=sys.stderr)
+          f'{f", {lost} lost before they were taken" if lost else ""}', file=sys.stderr,
+          flush=True)
+    tear_down(node, 'mr-damper-record', 0)
     return 0
 
 

@@ -15,10 +15,18 @@ They import ``mr_damper_common.messages`` (message packages, no rclpy) when firs
 importing this module stays ROS-free.
 """
 from collections import namedtuple
+import importlib
 
 #: One recorded topic: absolute name, ROS 2 type name, QoS kind
 #: (``'measurement'`` reliable KEEP_ALL, ``'latched'`` transient local, ``'default'`` depth 10).
 Topic = namedtuple('Topic', 'name type qos')
+
+
+def message_class(type_name):
+    """Return the message class of ``'pkg/msg/Name'`` (imports that message package)."""
+    pkg, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
 
 STRING = 'std_msgs/msg/String'
 FLOAT64 = 'std_msgs/msg/Float64'

@@ -139,12 +139,25 @@ class FastLane:
                 return      # the context went down under a take
 
     def close(self, timeout_s=1.0):
-        """Stop the lane's thread (waits up to ``timeout_s`` [s]) and destroy its node."""
+        """
+        Stop the lane's thread (waits up to ``timeout_s`` [s]) and destroy its node.
+
+        The node's destruction gets :data:`TEARDOWN_GUARD_S`; if the middleware blocks it, one
+        line on stderr and the caller goes on (to write its outputs; the process's own
+        :func:`tear_down` comes after).
+        """
         thread, self._thread = self._thread, None
         if thread is not None:
             thread.join(timeout_s)
-        self._executor.remove_node(self.node)
-        self.node.destroy_node()
+
+        def destroy():
+            self._executor.remove_node(self.node)
+            self.node.destroy_node()
+
+        if not run_guarded(destroy, TEARDOWN_GUARD_S, 'fast_lane_teardown'):
+            print(f'{self.node.get_name()}: the middleware did not destroy the fast lane\'s '
+                  f'node within {TEARDOWN_GUARD_S:g} s; going on without it', file=sys.stderr,
+                  flush=True)
 
 
 def spin_node(node, done=lambda: False, *, events=True):
@@ -186,6 +199,7 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
 
     """
     install_stop_handlers()
+    faulthandler.enable()   # a crash in the middleware: every thread's Python stack to the log
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     code = 0
@@ -206,19 +220,40 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
     return code
 
 
+def run_guarded(work, guard_s, name='teardown'):
+    """
+    Run ``work()`` in a daemon thread and wait up to ``guard_s`` [s] for it to end.
+
+    For calls into the middleware that have been seen to block for good (``destroy_node``,
+    ``rclpy.try_shutdown``): the caller goes on either way. Returns True when ``work`` ended
+    (raised or not: the exception is the thread's, printed by :mod:`threading`), False when it
+    is still running (a daemon thread: it does not keep the process alive).
+    """
+    ended = threading.Event()   # set by the worker thread; no signal handler touches it
+
+    def run():
+        try:
+            work()
+        finally:
+            ended.set()
+
+    threading.Thread(target=run, name=name, daemon=True).start()
+    return ended.wait(guard_s)
+
+
 def tear_down(node, name, code, guard_s=None):
     """
     Destroy ``node`` (if any) and shut rclpy down, or exit with ``code`` if that gets stuck.
 
-    The teardown runs in a daemon thread; if it has not ended after ``guard_s`` [s] (default
-    :data:`TEARDOWN_GUARD_S`), one line and every thread's stack go to stderr (the node's log)
-    and the process exits at once with ``code``: its outputs are written, only the
-    middleware's goodbye is skipped (readers see the writer go at its lease's end, as after a
-    kill). If the stuck call holds the GIL, so that this thread cannot wake, faulthandler's
-    own watchdog thread prints the stacks and exits (status 1) after :data:`TEARDOWN_WATCHDOG_S`.
+    The teardown runs in a daemon thread (:func:`run_guarded`); if it has not ended after
+    ``guard_s`` [s] (default :data:`TEARDOWN_GUARD_S`), one line and every thread's stack go to
+    stderr (the node's log) and the process exits at once with ``code``: its outputs are
+    written, only the middleware's goodbye is skipped (readers see the writer go at its lease's
+    end, as after a kill). If the stuck call holds the GIL, so that this thread cannot wake,
+    faulthandler's own watchdog thread prints the stacks and exits (status 1) after
+    :data:`TEARDOWN_WATCHDOG_S`.
     """
     guard_s = TEARDOWN_GUARD_S if guard_s is None else guard_s
-    ended = threading.Event()   # set by the teardown thread; no signal handler touches it
 
     def work():
         try:
@@ -226,11 +261,9 @@ def tear_down(node, name, code, guard_s=None):
                 node.destroy_node()
         finally:
             rclpy.try_shutdown()
-            ended.set()
 
     faulthandler.dump_traceback_later(max(TEARDOWN_WATCHDOG_S, guard_s), exit=True)
-    threading.Thread(target=work, name='teardown', daemon=True).start()
-    if not ended.wait(guard_s):
+    if not run_guarded(work, guard_s):
         print(f'{name}: the middleware did not tear the node down within {guard_s:g} s after '
               'it finished (its outputs are written); exiting without it. Every thread:',
               file=sys.stderr, flush=True)
