@@ -106,8 +106,8 @@ class ControlWatch:
         Take one car state of ``unit``: its stamp ``t_sim`` (car time [s]) received at ``t_rx``.
 
         The car's clock from its states is used where the recording holds fewer than two of the
-        car's statuses on the road (the recorder matched the car's ``/diagnostics`` writer late,
-        as seen on a loaded machine: its states came from the start, its statuses never).
+        car's statuses on the road (seen on a loaded machine: a 6 s run's recording had every
+        state of the car and none of its statuses, which the launcher's monitor got).
         """
         self._clock(unit, t_rx, t_sim, self.state_clock)
 
