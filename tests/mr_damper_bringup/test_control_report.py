@@ -159,3 +159,33 @@ def test_the_cars_states_are_its_clock_where_the_recording_lacks_its_statuses():
     w.update({'quarter_car': _car(1.0, controller='external')}, 30.0)
     w.update({'quarter_car': _car(3.0, controller='external')}, 31.0)
     assert w.real_time_factor() == pytest.approx(2.0)
+
+
+def test_corner_car_states_give_the_clock_of_a_recording_without_the_cars_statuses(tmp_path):
+    # a full-car run whose recording holds the corners' car states (stamp: car time, 20 Hz,
+    # half real time from 2 s) and none of the car's statuses
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_bringup.recorder import SuiteRecorder
+    from mr_damper_bringup.report.control import control_from_recording
+    from mr_damper_bringup.report.recording import RECORDING
+    from mr_damper_bringup.topics import namespaced_table, topic_table
+    from mr_damper_interfaces.msg import QuarterCarState
+    t0 = 1000.0
+    table = namespaced_table(topic_table(), ['fl', 'fr'])
+    with SuiteRecorder(tmp_path / RECORDING, table, start_ns=int(t0 * 1e9)) as rec:
+        for k in range(2, 201):
+            t = 0.05 * k
+            for c in ('fl', 'fr'):
+                state = QuarterCarState()
+                t_sim = 0.5 * (t - 0.1)
+                state.header.stamp.sec = int(t_sim)
+                state.header.stamp.nanosec = int(round((t_sim - int(t_sim)) * 1e9))
+                rec.write(f'{c}/car_state', serialize_message(state),
+                          int(round((t0 + t) * 1e9)))
+    summary = {'corners': {'fl': {'samples_lost': 0}, 'fr': {'samples_lost': 0}}}
+    c = control_from_recording(tmp_path, summary, ['fl', 'fr'])
+    assert c['real_time_factor'] == pytest.approx(0.5, rel=1e-6)
+    assert c['samples_lost'] == 0
+    # without the corners named, no clock at all (as before: the factor was None)
+    assert control_from_recording(tmp_path, summary, [])['real_time_factor'] is None

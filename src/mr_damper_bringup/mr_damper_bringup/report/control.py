@@ -388,7 +388,7 @@ def control_from_recording(out, summary, corners=()):
     out = Path(out)
     parts = [f for _, f in recording_parts(out / RECORDING)]
     with tempfile.TemporaryDirectory(prefix='.control_', dir=out) as work:
-        rec = read_recording(parts, work)
+        rec = read_recording(parts, work, clock_corners=corners)
     logs = {c: ColumnReader(out / f'quarter_car_log_{c}') for c in corners
             if exists(out / f'quarter_car_log_{c}')}
     return control_summary(rec['control'], rec.get('start_epoch_s'), summary, logs=logs)

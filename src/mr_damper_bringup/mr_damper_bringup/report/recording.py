@@ -20,7 +20,8 @@ RECORDING = 'suite.mcap'
 MEAS_COLUMNS = ('t', 'x', 'v', 'f', 'i', 'recv_epoch_s')
 
 
-def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, namespace=None):
+def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, namespace=None,
+                   clock_corners=()):
     """
     Read a suite recording back in one streamed pass (bounded memory).
 
@@ -48,6 +49,10 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
         ``--config full-car``: ``/fl/mr_damper/measurement``, ...) under the keys of the root
         namespace's; ``status`` then holds the statuses of that namespace's nodes under their
         short names (``rig``, ``identifier``), the other statuses under their own keys.
+    clock_corners : sequence of str, optional
+        Corners (``'fl'`` ...) whose car states (``/<c>/quarter_car/car_state``, the full car's
+        or a corner's quarter car) give ``control`` its clock for them where the recording
+        holds too few of their car's statuses (one state a second is decoded).
 
     Returns
     -------
@@ -87,6 +92,8 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     keys = {row.name: key for key, row in tables.items()}
     keys[CONFIG_TOPIC.name] = 'config'
     keys[NODE_PARAMETERS_TOPIC.name] = 'node_parameters'
+    corner_states = {f'/{c}{SUITE_TOPICS["car_state"].name}': c for c in clock_corners}
+    keys.update({name: f'{c}/car_state' for name, c in corner_states.items()})
     rec = {'config': None, 'node_parameters': {}, 'truth': None, 'truth_spencer': None,
            'status': {}, 'status_messages': {}, 'ride_metrics': None, 'topic_messages': {},
            'parameter_messages': 0, 'measurements_received': 0, 'measurement_gaps': 0,
@@ -108,6 +115,16 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                     rec['start_epoch_s'] = t_rx
                 rec['end_epoch_s'] = t_rx
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
+                corner = corner_states.get(topic)
+                if corner is not None:       # a corner's car state: its clock, nothing else
+                    if rec['control'].wants_car_state(corner, t_rx):
+                        try:
+                            msg = reader.deserialize(raw, msgtype, typestore)
+                        except Exception:  # noqa: B902 - rosbags' SerdeError: counted
+                            _count_bad(rec, key, 'undecodable')
+                            continue
+                        rec['control'].car_state(corner, t_rx, _stamp_s(msg))
+                    continue
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
                                'config', 'node_parameters', 'samples_received', 'car_state',
                                *STATUS_KEYS) or (key == 'car_state' and (
@@ -128,9 +145,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                         continue
                     elif key == 'car_state':
                         if rec['control'].wants_car_state(unit, t_rx):
-                            stamp = msg.header.stamp
-                            rec['control'].car_state(unit, t_rx,
-                                                     stamp.sec + stamp.nanosec * 1e-9)
+                            rec['control'].car_state(unit, t_rx, _stamp_s(msg))
                         if car_modes_from is not None and t_rx >= car_modes_from:
                             _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
                         continue
@@ -200,6 +215,11 @@ def _sent_at(msg, t_rx):
 
 #: a status stamp further than this from its receive time [s] is not wall time (sim time)
 STAMP_TRUST_S = 60.0
+
+
+def _stamp_s(msg):
+    """A message's header stamp [s] (a car state's: car time)."""
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
 #: a silence of the car state longer than this [s] ends a run of its mode (the car was down)
