@@ -112,7 +112,7 @@ class ControlWatch:
         self._clock(unit, t_rx, t_sim, self.state_clock)
 
     def _points(self, unit):
-        """The car's clock points: from its statuses, else (fewer than two) from its states."""
+        """Return the car's clock points: from its statuses, else (fewer than two) its states."""
         points = self.car_clock.get(unit) or []
         if len(points) >= 2 and points[-1][0] > points[0][0]:
             return points

@@ -218,7 +218,7 @@ STAMP_TRUST_S = 60.0
 
 
 def _stamp_s(msg):
-    """A message's header stamp [s] (a car state's: car time)."""
+    """Return a message's header stamp [s] (a car state's: car time)."""
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
