@@ -15,3 +15,55 @@ def listener(request):
     lis = Listener(request.module.__name__.rpartition('.')[2] + '_listener')
     yield lis
     lis.close()
+
+
+#: hang guard [s] for the test's suites to let go of the test's ROS domain
+DOMAIN_FREE_GUARD_S = 60.0
+
+
+@pytest.fixture(autouse=True)
+def domain_free_after_each_test():
+    """
+    After each test, wait until every process of the suites it ran has gone (event, not time).
+
+    A launcher holds a lock of its ROS domain that its nodes and its reaper inherit
+    (``processes.DomainLock``): the next suite on the domain is refused while any of them
+    runs. A fresh-clone CI run had the eight suite tests after ``test_suite.py`` refused (the
+    domain in use by an earlier test's launcher, after its nodes had gone): the lock, not the
+    node list, says when a suite is over. Past the hang guard the holder's process group is
+    killed and the test fails.
+    """
+    yield
+    import os
+    import signal
+    import time
+
+    from mr_damper_bringup.processes import DomainLock
+    lock = DomainLock(int(os.environ['ROS_DOMAIN_ID']))
+    end = time.monotonic() + DOMAIN_FREE_GUARD_S
+    while not lock.acquire():
+        if time.monotonic() > end:
+            holders = _holding(lock.path)
+            for pid in holders:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except (ProcessLookupError, PermissionError):
+                    pass
+            pytest.fail(f'the test domain stayed locked {DOMAIN_FREE_GUARD_S:g} s after the '
+                        f'test by processes {holders} (launcher pid {lock.holder()})')
+        time.sleep(0.05)
+    lock.release()
+
+
+def _holding(path):
+    """Return the process ids that have ``path`` open (``/proc/PID/fd``)."""
+    import os
+    pids = []
+    for pid in (int(d) for d in os.listdir('/proc') if d.isdigit()):
+        try:
+            fds = os.listdir(f'/proc/{pid}/fd')
+            if any(os.readlink(f'/proc/{pid}/fd/{fd}') == str(path) for fd in fds):
+                pids.append(pid)
+        except OSError:
+            continue
+    return pids
