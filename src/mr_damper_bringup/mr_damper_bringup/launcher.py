@@ -445,13 +445,31 @@ def parse_args(argv):
 
 
 def main(argv=None):
-    """Run the suite; return the exit status."""
+    """
+    Run the suite; return the exit status.
+
+    The domain's lock is let go of on every way out (the suite's processes keep their copies):
+    a caller in the same process, as a test, may start another suite on that domain after an
+    error (a test that ran ``main`` to a configuration error kept its drawn domain locked, and
+    a CI run's later suites, drawn onto the same one, were refused).
+    """
+    held = []
+    try:
+        return _run(argv, held)
+    finally:
+        for lock in held:
+            lock.release()
+
+
+def _run(argv, held):
+    """Run the suite (:func:`main`); append the domain's lock to ``held`` once taken."""
     args = parse_args(argv)
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     try:
         # first: a second launcher on a domain in use must not touch the running suite's files
         domain_id, lock = take_domain(args.domain_id)
+        held.append(lock)
         args.domain_id = domain_id          # the CAN bus port of --config can follows it
         dds = dds_environment(args.dds_profile)
         cfg = resolve_config(args, out)
