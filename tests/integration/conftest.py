@@ -28,10 +28,10 @@ def domain_free_after_each_test():
 
     A launcher holds a lock of its ROS domain that its nodes and its reaper inherit
     (``processes.DomainLock``): the next suite on the domain is refused while any of them
-    runs. A fresh-clone CI run had the eight suite tests after ``test_suite.py`` refused (the
-    domain in use by an earlier test's launcher, after its nodes had gone): the lock, not the
-    node list, says when a suite is over. Past the hang guard the holder's process group is
-    killed and the test fails.
+    runs. The lock, not the node list, says when a suite is over (its reaper outlives its
+    nodes). Past the hang guard the holders are killed and the test that left them fails, not
+    the suites after it: a fresh-clone CI run had eight suite tests refused one after the other
+    (an earlier test's in-process launcher had kept the domain locked, fixed in ``main``).
     """
     yield
     import os
