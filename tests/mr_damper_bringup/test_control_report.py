@@ -170,6 +170,7 @@ def test_corner_car_states_give_the_clock_of_a_recording_without_the_cars_status
     from mr_damper_bringup.report.control import control_from_recording
     from mr_damper_bringup.report.recording import RECORDING
     from mr_damper_bringup.topics import namespaced_table, topic_table
+    from mr_damper_common.messages import seconds_to_stamp
     from mr_damper_interfaces.msg import QuarterCarState
     t0 = 1000.0
     table = namespaced_table(topic_table(), ['fl', 'fr'])
@@ -178,9 +179,7 @@ def test_corner_car_states_give_the_clock_of_a_recording_without_the_cars_status
             t = 0.05 * k
             for c in ('fl', 'fr'):
                 state = QuarterCarState()
-                t_sim = 0.5 * (t - 0.1)
-                state.header.stamp.sec = int(t_sim)
-                state.header.stamp.nanosec = int(round((t_sim - int(t_sim)) * 1e9))
+                seconds_to_stamp(0.5 * (t - 0.1), state.header.stamp)
                 rec.write(f'{c}/car_state', serialize_message(state),
                           int(round((t0 + t) * 1e9)))
     summary = {'corners': {'fl': {'samples_lost': 0}, 'fr': {'samples_lost': 0}}}

@@ -122,10 +122,11 @@ _STUCK_TEARDOWN = textwrap.dedent('''
 ''')
 
 
-def test_run_guarded_says_whether_the_work_ended_and_never_waits_past_its_guard():
+def test_run_guarded_says_whether_the_work_ended_and_never_waits_past_its_guard(capsys):
     import threading
     done = []
-    assert node_utils.run_guarded(lambda: done.append(1), 60.0) is True and done == [1]
+    assert node_utils.run_guarded(lambda: done.append(1), 60.0, what='quick') is True
+    assert done == [1] and capsys.readouterr().err == ''
     # a work that cannot end before the event is set (as a teardown stuck in the middleware):
     # the caller goes on after the guard, the work still running in its daemon thread
     release, ended = threading.Event(), threading.Event()
@@ -134,8 +135,10 @@ def test_run_guarded_says_whether_the_work_ended_and_never_waits_past_its_guard(
         release.wait()
         ended.set()
 
-    assert node_utils.run_guarded(stuck, 0.05, 'stuck_work') is False
+    assert node_utils.run_guarded(stuck, 0.05, 'stuck_work', what='x: the stuck work') is False
     assert not ended.is_set()
+    assert capsys.readouterr().err == ('x: the stuck work did not end within 0.05 s; going on '
+                                       'without it\n')
     assert any(t.name == 'stuck_work' and t.daemon for t in threading.enumerate())
     release.set()
     assert ended.wait(60.0)      # hang guard only

@@ -18,7 +18,6 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 
 from mr_damper_common.node_utils import LATCHED_QOS, run_guarded, STATUS_QOS
-from mr_damper_common.node_utils.spinning import TEARDOWN_GUARD_S
 
 from .topics import decode_parameters, decode_status, message_class, STATUS_KEYS, SUITE_TOPICS
 
@@ -108,7 +107,7 @@ def start_monitor(monitor):
     -------
     callable
         Stops the monitor (joins the thread, destroys the node, shuts its context down) and
-        returns True, or False when that teardown did not end within ``TEARDOWN_GUARD_S`` [s]
+        returns True, or False when that teardown did not end within ``run_guarded``'s guard
         (it is left in a daemon thread).
 
     """
@@ -151,10 +150,7 @@ def start_monitor(monitor):
 
         # the middleware's teardown has been seen to block for good: the launcher goes on to
         # write the run's summary without it
-        if run_guarded(teardown, TEARDOWN_GUARD_S, 'suite_monitor_teardown'):
-            return True
-        print(f'mr-damper-suite: the monitor node\'s teardown did not end within '
-              f'{TEARDOWN_GUARD_S:g} s; going on without it', file=sys.stderr, flush=True)
-        return False
+        return run_guarded(teardown, name='suite_monitor_teardown',
+                           what='mr-damper-suite: the monitor node\'s teardown')
 
     return stop

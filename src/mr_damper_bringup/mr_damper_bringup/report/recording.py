@@ -82,6 +82,7 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     import yaml
 
     from mr_damper_model.io.bag_types import suite_typestore
+    from mr_damper_common.messages import stamp_to_seconds
     from mr_damper_common.recording.mcap_scan import McapScan
     from mr_damper_bringup.topics import decode_measurement
     work = Path(work)
@@ -123,13 +124,16 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                         except Exception:  # noqa: B902 - rosbags' SerdeError: counted
                             _count_bad(rec, key, 'undecodable')
                             continue
-                        rec['control'].car_state(corner, t_rx, _stamp_s(msg))
+                        rec['control'].car_state(corner, t_rx,
+                                                 stamp_to_seconds(msg.header.stamp))
                     continue
+                # a root car state: the car's clock (one a second) and its mode runs
+                clock = key == 'car_state' and rec['control'].wants_car_state(unit, t_rx)
+                modes = (key == 'car_state' and car_modes_from is not None
+                         and t_rx >= car_modes_from)
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
                                'config', 'node_parameters', 'samples_received', 'car_state',
-                               *STATUS_KEYS) or (key == 'car_state' and (
-                                   car_modes_from is None or t_rx < car_modes_from)
-                                   and not rec['control'].wants_car_state(unit, t_rx)):
+                               *STATUS_KEYS) or (key == 'car_state' and not (clock or modes)):
                     continue
                 try:
                     msg = reader.deserialize(raw, msgtype, typestore)
@@ -144,9 +148,10 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                                      identifier_starts)
                         continue
                     elif key == 'car_state':
-                        if rec['control'].wants_car_state(unit, t_rx):
-                            rec['control'].car_state(unit, t_rx, _stamp_s(msg))
-                        if car_modes_from is not None and t_rx >= car_modes_from:
+                        if clock:
+                            rec['control'].car_state(unit, t_rx,
+                                                     stamp_to_seconds(msg.header.stamp))
+                        if modes:
                             _mode_runs(rec['car_modes'], t_rx, int(msg.fail_safe_mode))
                         continue
                     elif key == 'config':
@@ -215,11 +220,6 @@ def _sent_at(msg, t_rx):
 
 #: a status stamp further than this from its receive time [s] is not wall time (sim time)
 STAMP_TRUST_S = 60.0
-
-
-def _stamp_s(msg):
-    """Return a message's header stamp [s] (a car state's: car time)."""
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
 #: a silence of the car state longer than this [s] ends a run of its mode (the car was down)

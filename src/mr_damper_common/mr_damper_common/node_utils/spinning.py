@@ -154,10 +154,9 @@ class FastLane:
             self._executor.remove_node(self.node)
             self.node.destroy_node()
 
-        if not run_guarded(destroy, TEARDOWN_GUARD_S, 'fast_lane_teardown'):
-            print(f'{self.node.get_name()}: the middleware did not destroy the fast lane\'s '
-                  f'node within {TEARDOWN_GUARD_S:g} s; going on without it', file=sys.stderr,
-                  flush=True)
+        run_guarded(destroy, name='fast_lane_teardown',
+                    what=f'{self.node.get_name()}: the middleware\'s destruction of the fast '
+                    'lane\'s node')
 
 
 def spin_node(node, done=lambda: False, *, events=True):
@@ -220,7 +219,7 @@ def run_node(make_node, name, errors=(ValueError,), *, run=spin_node, finish=Non
     return code
 
 
-def run_guarded(work, guard_s, name='teardown'):
+def run_guarded(work, guard_s=None, name='teardown', what=None):
     """
     Run ``work()`` in a daemon thread and wait up to ``guard_s`` [s] for it to end.
 
@@ -228,7 +227,12 @@ def run_guarded(work, guard_s, name='teardown'):
     ``rclpy.try_shutdown``): the caller goes on either way. Returns True when ``work`` ended
     (raised or not: the exception is the thread's, printed by :mod:`threading`), False when it
     is still running (a daemon thread: it does not keep the process alive).
+
+    ``guard_s`` defaults to :data:`TEARDOWN_GUARD_S`. With ``what`` (e.g. ``"x: the
+    middleware's teardown of y"``), a work still running is also said in one line on stderr:
+    ``<what> did not end within <guard> s; going on without it``.
     """
+    guard_s = TEARDOWN_GUARD_S if guard_s is None else guard_s
     ended = threading.Event()   # set by the worker thread; no signal handler touches it
 
     def run():
@@ -238,7 +242,12 @@ def run_guarded(work, guard_s, name='teardown'):
             ended.set()
 
     threading.Thread(target=run, name=name, daemon=True).start()
-    return ended.wait(guard_s)
+    if ended.wait(guard_s):
+        return True
+    if what is not None:
+        print(f'{what} did not end within {guard_s:g} s; going on without it',
+              file=sys.stderr, flush=True)
+    return False
 
 
 def tear_down(node, name, code, guard_s=None):
