@@ -6,8 +6,9 @@ Style rule: thin nodes on a pure core.
 Each core module is imported in a fresh interpreter, which must not load rclpy or any message
 package. Node modules (``*_node.py``, among them the recorder and the launcher's monitor, and
 every module of a ``nodes`` sub-package: what the nodes share and their console scripts),
-``messages`` (message conversions), ``node_utils`` and ``lifecycle_utils.py`` are the only
-modules allowed to.
+``messages`` (message conversions), ``node_utils``, ``lifecycle_utils.py`` and
+``node_parameters.py`` (parameters the nodes of a package share) are the only modules allowed
+to.
 """
 import subprocess
 import sys
@@ -16,7 +17,7 @@ import pytest
 
 from conftest import REPO
 
-ROS_MODULES = {'messages', 'node_utils', 'lifecycle_utils'}
+ROS_MODULES = {'messages', 'node_utils', 'lifecycle_utils', 'node_parameters'}
 PACKAGES = ('mr_damper_common', 'mr_damper_model', 'mr_damper_rig', 'quarter_car_sim',
             'mr_damper_bringup', 'mr_damper_can', 'semi_active_control', 'mr_damper_gym')
 

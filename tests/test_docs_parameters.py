@@ -6,7 +6,7 @@ Each node module declares its parameters once, in ``PARAMETERS`` (a tuple of
 ``<!-- parameters: <module> -->``, the table this file prints for that module. Print a table
 to paste with::
 
-    .venv/bin/python tests/test_docs_parameters.py mr_damper_model.nodes.identifier_node
+    .venv/bin/python -P tests/test_docs_parameters.py mr_damper_model.nodes.identifier_node
 """
 import importlib
 import math
@@ -27,6 +27,7 @@ NODE_MODULES = (
     'semi_active_control.nodes.state_estimator_node',
     'quarter_car_sim.nodes.full_car_node',
     'mr_damper_can.vehicle_bridge_node',
+    'mr_damper_can.vehicle_computer_node',
     'semi_active_control.nodes.vehicle_estimator_node',
     'semi_active_control.nodes.vehicle_controller_node',
     'semi_active_control.nodes.lifecycle_manager_node',

@@ -25,6 +25,7 @@ NODES = ('mr_damper_rig.rig_node', 'quarter_car_sim.nodes.quarter_car_node',
          'semi_active_control.nodes.state_estimator_node', 'quarter_car_sim.nodes.full_car_node',
          'mr_damper_can.can_bridge_node',
          'mr_damper_can.can_driver_sim_node', 'mr_damper_can.vehicle_bridge_node',
+         'mr_damper_can.vehicle_computer_node',
          'semi_active_control.nodes.vehicle_estimator_node',
          'semi_active_control.nodes.vehicle_controller_node',
          'semi_active_control.nodes.lifecycle_manager_node')

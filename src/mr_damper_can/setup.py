@@ -31,6 +31,7 @@ setup(
             'can_bridge_node = mr_damper_can.entry_points:can_bridge_node',
             'can_driver_sim = mr_damper_can.entry_points:can_driver_sim',
             'vehicle_bridge_node = mr_damper_can.entry_points:vehicle_bridge_node',
+            'vehicle_computer_node = mr_damper_can.entry_points:vehicle_computer_node',
         ],
     },
 )

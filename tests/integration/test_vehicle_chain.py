@@ -22,94 +22,21 @@ counts of events (the waits are hang guards only, never a time budget).
    the drivers' own command timeout (counted by each driver), and when it goes on the drivers
    take its commands again.
 """
-import json
-import os
 import signal
-import threading
 
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
+from integration.vehicle_helpers import (bus_channel, Car, change_state, command_frames,
+                                         CORNERS, drivers_time_out_while_stopped, GUARD_S,
+                                         model_files, SAFE_A)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-GUARD_S = 300.0
-SAFE_A = 0.5
-CORNERS = ('fl', 'fr', 'rl', 'rr')
 NODES = ('vehicle_bridge', 'vehicle_estimator', 'vehicle_controller')
 
 
-def _models(tmp_path, invalid=()):
-    from conftest import REPO
-    files = []
-    for c in CORNERS:
-        src = REPO / 'src' / 'semi_active_control' / 'config' / 'models' / f'{c}.json'
-        if c in invalid:
-            dst = tmp_path / f'{c}_failed.json'
-            dst.write_text(json.dumps(dict(json.loads(src.read_text()), valid=False)))
-            files.append(str(dst))
-        else:
-            files.append(str(src))
-    return files
-
-
-class Car:
-    """The car's side of the bus in this process: sensor cluster and drivers, frames recorded."""
-
-    def __init__(self, channel, driver_safe_a=SAFE_A):
-        from mr_damper_can.bus import make_bus
-        from mr_damper_can.driver_sim import SimulatedEcu
-        self.lock = threading.Lock()
-        self.commands = []                 # (index, corner, current, failsafe bit)
-        self.bus = make_bus('udp_loopback', channel)
-        self.ecu = SimulatedEcu(self.bus, CORNERS, safe_current_a=driver_safe_a,
-                                command_timeout_s=0.05, status_period_s=0.01,
-                                sensor_period_s=0.002, on_command=self._on_command)
-        self.ecu.start()
-
-    def _on_command(self, corner, current, counter, failsafe, t):
-        with self.lock:
-            self.commands.append((len(self.commands), corner, current, failsafe))
-
-    def taken(self):
-        """Return the commands taken so far."""
-        with self.lock:
-            return list(self.commands)
-
-    def close(self):
-        self.ecu.stop()
-        self.bus.shutdown()
-
-
-def _frames(commands):
-    """Group per-corner commands into frames: lists of four (corner, current, bit)."""
-    frames, cur = [], {}
-    for _, corner, current, bit in commands:
-        cur[corner] = (current, bit)
-        if corner == CORNERS[-1]:
-            frames.append(dict(cur))
-            cur = {}
-    return frames
-
-
-def _change_state(lis, node, transition):
-    """Call ``<node>/change_state``; return its ``success``."""
-    from lifecycle_msgs.msg import Transition
-    from lifecycle_msgs.srv import ChangeState
-    ids = {'configure': Transition.TRANSITION_CONFIGURE,
-           'activate': Transition.TRANSITION_ACTIVATE,
-           'deactivate': Transition.TRANSITION_DEACTIVATE}
-    client = lis.node.create_client(ChangeState, f'{node}/change_state')
-    assert client.wait_for_service(timeout_sec=GUARD_S), f'{node}: no change_state service'
-    req = ChangeState.Request()
-    req.transition.id = ids[transition]
-    future = client.call_async(req)
-    assert lis.wait_for(future.done, GUARD_S), f'{node}: {transition} not answered'
-    lis.node.destroy_client(client)
-    return future.result().success
-
-
-def _chain(tmp_path, channel, model_files, sensor_timeout_s):
+def _chain(tmp_path, channel, files, sensor_timeout_s):
     """Start the three nodes; no timing watchdog (a loaded machine must pass the same tests)."""
     bus = {'channel': channel}
     common = {'diagnostics_period_s': 0.2, 'heartbeat_period_s': 0.1}
@@ -117,20 +44,16 @@ def _chain(tmp_path, channel, model_files, sensor_timeout_s):
                         params=dict(bus, **common, safe_current_a=SAFE_A)),
             NodeProcess('vehicle_estimator_node', params=dict(common, dropout_s=10.0)),
             NodeProcess('vehicle_controller_node', params=dict(
-                common, model_files=model_files, safe_current_a=SAFE_A,
+                common, model_files=files, safe_current_a=SAFE_A,
                 sensor_timeout_s=sensor_timeout_s, max_consecutive_misses=100000))]
-
-
-def _channel(offset):
-    return f'239.74.163.2:{44000 + offset + int(os.environ["ROS_DOMAIN_ID"])}'
 
 
 def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
     from lifecycle_msgs.msg import TransitionEvent
     from mr_damper_interfaces.msg import FullCarCommand
-    channel = _channel(0)
+    channel = bus_channel(0)
     car = Car(channel)
-    procs = _chain(tmp_path, channel, _models(tmp_path, invalid=('rr',)), 30.0)
+    procs = _chain(tmp_path, channel, model_files(tmp_path, invalid=('rr',)), 30.0)
     try:
         with Listener('vehicle_chain_test') as lis:
             diag = lis.diagnostics()
@@ -140,7 +63,7 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
             commands = lis.subscribe('vehicle/command', FullCarCommand, QoSProfile(
                 depth=10, reliability=ReliabilityPolicy.RELIABLE))
             # a transition out of order is refused: the controller is unconfigured
-            assert _change_state(lis, 'vehicle_controller', 'activate') is False
+            assert change_state(lis, 'vehicle_controller', 'activate') is False
             manager = NodeProcess('lifecycle_manager', params={'diagnostics_period_s': 0.2,
                                                                'heartbeat_timeout_s': 5.0})
             procs.append(manager)
@@ -150,7 +73,7 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
 
             def up():
                 return (diag.values('lifecycle_manager').get('up') is True
-                        and sum(map(normal, _frames(car.taken()))) >= 40)
+                        and sum(map(normal, command_frames(car.taken()))) >= 40)
             assert lis.wait_for(up, GUARD_S, procs=procs), manager.output()
             # in order: configure each, then activate each, in the chain's order
             done = sorted((t, n, e.goal_state.label) for n in NODES for t, e in events[n]
@@ -162,10 +85,10 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
             # the other three follow the law: normal, and their currents move (waited for as
             # an event: the law may ask 0 A for a stretch of road, as a CI run saw for 54
             # frames, when every demand is below the damper's force at 0 A)
-            assert lis.wait_for(lambda: len({f['fl'][0] for f in _frames(car.taken())
+            assert lis.wait_for(lambda: len({f['fl'][0] for f in command_frames(car.taken())
                                              if normal(f)}) > 1, GUARD_S, procs=procs)
             # the invalid record's corner is safe, flagged, in every frame
-            frames = _frames(car.taken())
+            frames = command_frames(car.taken())
             assert all(f['rr'] == (SAFE_A, 1) for f in frames)
             assert len([f for f in frames if normal(f)]) >= 40
             assert lis.wait_for(lambda: diag.values('vehicle_controller').get(
@@ -173,12 +96,12 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
             manager.stop()
             # deactivate the controller: the drivers are on the safe current at once
             n_before = len(car.taken())
-            assert _change_state(lis, 'vehicle_controller', 'deactivate') is True
+            assert change_state(lis, 'vehicle_controller', 'deactivate') is True
             # (one command: the controller is then silent, the bridge forwards nothing more)
             assert lis.wait_for(lambda: any(
                 all(f[c] == (SAFE_A, 1) for c in CORNERS)
-                for f in _frames(car.taken()[n_before:])), GUARD_S, procs=procs[:3])
-            after = _frames(car.taken()[n_before:])
+                for f in command_frames(car.taken()[n_before:])), GUARD_S, procs=procs[:3])
+            after = command_frames(car.taken()[n_before:])
             safe = [all(f[c] == (SAFE_A, 1) for c in CORNERS) for f in after]
             first_safe = safe.index(True)
             # frames in flight before the deactivation took effect, then only safe ones
@@ -200,19 +123,19 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
 
 
 def test_killed_estimator_then_silent_controller(tmp_path):
-    channel = _channel(50)
+    channel = bus_channel(50)
     car = Car(channel, driver_safe_a=0.3)      # the drivers' own safe current
-    procs = _chain(tmp_path, channel, _models(tmp_path), 0.05)
+    procs = _chain(tmp_path, channel, model_files(tmp_path), 0.05)
     bridge, estimator, controller = procs
     try:
         with Listener('vehicle_faults_test') as lis:
             diag = lis.diagnostics()
             for node in NODES:
-                assert _change_state(lis, node, 'configure') is True, node
+                assert change_state(lis, node, 'configure') is True, node
             for node in NODES:
-                assert _change_state(lis, node, 'activate') is True, node
+                assert change_state(lis, node, 'activate') is True, node
             assert lis.wait_for(lambda: any(all(f[c][1] == 0 for c in CORNERS)
-                                            for f in _frames(car.taken())[-5:]),
+                                            for f in command_frames(car.taken())[-5:]),
                                 GUARD_S, procs=procs)
             # the estimator is killed: the controller's sensor timeout, every corner safe
             entries0 = diag.values('vehicle_controller').get('deadline', {}).get(
@@ -226,22 +149,13 @@ def test_killed_estimator_then_silent_controller(tmp_path):
                 return d.get('entries', {}).get('sensor_timeout', 0) > entries0 and \
                     len(car.taken()) > n_kill + 4 * 20
             assert lis.wait_for(timed_out, GUARD_S, procs=(bridge, controller))
-            after = _frames(car.taken()[n_kill:])
+            after = command_frames(car.taken()[n_kill:])
             safe = [all(f[c] == (SAFE_A, 1) for c in CORNERS) for f in after]
             k = safe.index(True)
             assert all(safe[k:])
             assert diag.values('vehicle_controller')['all_safe']['sensor_timeout'] >= 1
             # the controller falls silent: nothing is sent in its name, the drivers time out
-            timeouts0 = dict(car.ecu.status()['corners'])
-            controller.proc.send_signal(signal.SIGSTOP)
-            try:
-                assert lis.wait_for(lambda: all(
-                    car.ecu.status()['corners'][c]['command_timeouts']
-                    > timeouts0[c]['command_timeouts'] for c in CORNERS), GUARD_S)
-                assert car.ecu.drive_targets() == [0.3] * 4      # the drivers' own
-                n_stop = len(car.taken())
-            finally:
-                controller.proc.send_signal(signal.SIGCONT)
+            n_stop = drivers_time_out_while_stopped(lis, car, controller.proc, 0.3)
             # it goes on: its (safe, sensor-timeout) commands reach the drivers again
             assert lis.wait_for(lambda: len(car.taken()) > n_stop + 4 * 5, GUARD_S,
                                 procs=(bridge, controller))

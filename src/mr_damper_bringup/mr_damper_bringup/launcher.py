@@ -96,8 +96,9 @@ from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL_NODES, FULL_CAR_NODE,
                              full_car_progress_line, full_car_summary, start_full_car)
 from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
 from .processes import CLEAN_EXIT, DomainLock, ProcessStats, Suite
-from .vehicle_suite import (start_vehicle, STOP_ORDER as VEHICLE_STOP_ORDER, VEHICLE_NODES,
-                            vehicle_configs, vehicle_progress_line, vehicle_summary)
+from .vehicle_suite import (LAYOUTS as VEHICLE_LAYOUTS, start_vehicle,
+                            STOP_ORDER as VEHICLE_STOP_ORDER, vehicle_configs, vehicle_nodes,
+                            vehicle_progress_line, vehicle_summary)
 from .recorder import part_path, remove_recording
 from .report import RECORDING
 from .supervisor import HANG_TIMEOUT_S, hang_timeout, HangWatch, RestartPolicy, Supervisor
@@ -367,6 +368,11 @@ def parse_args(argv):
     p.add_argument('--live-identification', action='store_true',
                    help='vehicle: the models from four rig / identifier stacks instead of the '
                         'shipped end-of-line records')
+    p.add_argument('--vehicle-layout', choices=VEHICLE_LAYOUTS, default='loop',
+                   help='vehicle: the vehicle computer as one control loop in one process '
+                        '(vehicle_computer_node, default) or as three nodes with a topic '
+                        'between each (vehicle_bridge_node, vehicle_estimator_node, '
+                        'vehicle_controller_node; docs/vehicle.md)')
     p.add_argument('--file', action='append',
                    help='replay input: a CSV (t,x,v,f,i) or rosbag2 folder; repeat for several '
                         'CSVs, concatenated (default: the Quiroz 10 mm 1 Hz set, 0..1 A)')
@@ -483,7 +489,8 @@ def _run(argv, held):
         if vehicle:
             corners, car_cfg = vehicle_configs(cfg, out, args.duration, args.domain_id,
                                                args.live_identification,
-                                               preview=args.preview)
+                                               preview=args.preview,
+                                               layout=args.vehicle_layout)
     except (SuiteError, ValueError) as exc:     # ValueError: DataError of a bad replay CSV
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
@@ -504,7 +511,8 @@ def _run(argv, held):
         # (with --external-controller the full car's controller before the car)
         ext_car = full_car and external_full_car(car_cfg)
         nodes = {**RECORDER_NODE, **(FULL_CAR_CTRL_NODES if ext_car else {}),
-                 **(FULL_CAR_NODE if full_car else {}), **(VEHICLE_NODES if vehicle else {})}
+                 **(FULL_CAR_NODE if full_car else {}),
+                 **(vehicle_nodes(args.vehicle_layout) if vehicle else {})}
         node_args = {}
         for corner, corner_cfg in corners.items():
             corner_file = out / f'suite_params_{corner}.yaml'
@@ -522,7 +530,8 @@ def _run(argv, held):
             if ext_car:
                 node_args.update(dict.fromkeys(FULL_CAR_CTRL_NODES, node_args[FULL_CAR]))
         if vehicle:
-            node_args.update(dict.fromkeys(VEHICLE_NODES, start_vehicle(car_cfg, out)))
+            node_args.update(dict.fromkeys(vehicle_nodes(args.vehicle_layout),
+                                           start_vehicle(car_cfg, out)))
         suite = Suite(params_file, out, domain_id, args.bin_dir, nodes, args=node_args,
                       keep_fds=(lock.fd,), dds=dds)
     else:

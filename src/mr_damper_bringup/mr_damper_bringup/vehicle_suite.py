@@ -18,6 +18,7 @@ messages lost, and the body's ISO 2631-1 a_v against the same car at the safe cu
 (``a_v_passive``) and the same law on the true states in lock-step (``a_v_lockstep``), both
 simulated offline on the same road and dampers over the same window.
 """
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -27,15 +28,30 @@ from mr_damper_common.health import finite_or_none
 from .config import CAN_GROUP, CAN_PORT_BASE, IDENT, node_params, REPO, RIG, set_param
 from .full_car_suite import BODY_LOG, FULL_CAR, FULL_CAR_CORNERS
 
-#: The vehicle computer's nodes (YAML section = node name -> console script), in start order.
+#: The vehicle computer's nodes (YAML section = node name).
 BRIDGE, ESTIMATOR, CONTROLLER, MANAGER = ('vehicle_bridge', 'vehicle_estimator',
                                           'vehicle_controller', 'lifecycle_manager')
-VEHICLE_NODES = {FULL_CAR: 'full_car_node', BRIDGE: 'vehicle_bridge_node',
-                 ESTIMATOR: 'vehicle_estimator_node', CONTROLLER: 'vehicle_controller_node',
-                 MANAGER: 'lifecycle_manager'}
+#: The vehicle computer in one control loop (``vehicle_computer_node``).
+COMPUTER = 'vehicle_computer'
+#: The vehicle computer's layouts: ``loop`` (one process: the bus, the estimator and the
+#: controller in one control path) and ``nodes`` (three processes, a topic between each).
+LAYOUTS = ('loop', 'nodes')
+#: Per layout, the chain's nodes in the manager's order.
+CHAINS = {'loop': (COMPUTER,), 'nodes': (BRIDGE, ESTIMATOR, CONTROLLER)}
 #: Stop order: the manager (it would bring nodes back), the controller (its end: the safe
-#: command), the estimator, the bridge (its end: the safe frame, then the bus closes), the car.
-STOP_ORDER = (MANAGER, CONTROLLER, ESTIMATOR, BRIDGE, FULL_CAR)
+#: command), the estimator, the bridge (its end: the safe frame, then the bus closes), the car;
+#: the loop node where the three are (the names of the other layout are not running).
+STOP_ORDER = (MANAGER, COMPUTER, CONTROLLER, ESTIMATOR, BRIDGE, FULL_CAR)
+
+
+def vehicle_nodes(layout='loop'):
+    """Return the run's nodes of ``layout`` (YAML section = node name -> console script)."""
+    if layout not in LAYOUTS:
+        raise ValueError(f'the vehicle layout must be one of {LAYOUTS}, got {layout!r}')
+    return {FULL_CAR: 'full_car_node', **{n: f'{n}_node' for n in CHAINS[layout]},
+            MANAGER: 'lifecycle_manager'}
+
+
 #: The shipped end-of-line records of the four dampers.
 MODELS_DIR = REPO / 'src' / 'semi_active_control' / 'config' / 'models'
 
@@ -45,7 +61,8 @@ def model_files(folder=MODELS_DIR):
     return [str(Path(folder) / f'{c}.json') for c in FULL_CAR_CORNERS]
 
 
-def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False, preview=False):
+def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False, preview=False,
+                    layout='loop'):
     """
     Split a vehicle run's parameters: the corners' stacks (live only) and the rest.
 
@@ -64,6 +81,10 @@ def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False, 
     preview : bool
         The controller runs the LQ road-preview law (``preview-look-ahead``) on the look-ahead
         frames the car publishes (``road_preview: true``), stamped on the vehicle's clock.
+    layout : str
+        ``loop``: ``vehicle_computer`` gets the bridge's, the estimator's and the controller's
+        sections merged (its own section, if any, on top); ``nodes``: the three nodes. The
+        lifecycle manager gets the layout's chain.
 
     Returns
     -------
@@ -102,6 +123,14 @@ def vehicle_configs(cfg, out, duration_s, domain_id, live_identification=False, 
         truths = list(node_params(vehicle, FULL_CAR)['truth_files'])
         for corner, truth in zip(FULL_CAR_CORNERS, truths):
             set_param(corners[corner], f'/{corner}/{RIG}', 'truth_file', truth)
+    vehicle_nodes(layout)                       # a known layout
+    if layout == 'loop':
+        merged = {}
+        for name in (CONTROLLER, ESTIMATOR, BRIDGE, COMPUTER):      # the bus's cycle wins
+            merged.update(node_params(vehicle, name))
+        for key, value in merged.items():       # copies: the YAML for rcl has no aliases
+            set_param(vehicle, COMPUTER, key, copy.deepcopy(value))
+    set_param(vehicle, MANAGER, 'node_names', list(CHAINS[layout]))
     return corners, vehicle
 
 
@@ -113,16 +142,28 @@ def start_vehicle(vehicle_cfg, out):
     return ['--ros-args', '--params-file', str(path)]
 
 
+def chain_statuses(st):
+    """
+    Return the bridge's, the estimator's and the controller's last status dicts (``{}``: none).
+
+    ``st`` maps node -> status (the monitor's snapshot); the loop node's status holds the
+    three as ``bridge``, ``estimator`` and ``controller``.
+    """
+    computer = st.get(COMPUTER)
+    if computer:
+        return tuple(computer.get(part) or {} for part in ('bridge', 'estimator', 'controller'))
+    return st.get(BRIDGE) or {}, st.get(ESTIMATOR) or {}, st.get(CONTROLLER) or {}
+
+
 def vehicle_progress_line(monitor, elapsed):
     """Return a progress line: the chain's states, cycles answered, car time."""
     st = monitor.snapshot()[0]
     chain = (st.get(MANAGER) or {}).get('state') or {}
-    bridge = st.get(BRIDGE) or {}
-    ctrl = st.get(CONTROLLER) or {}
+    bridge, _, ctrl = chain_statuses(st)
     car = st.get(FULL_CAR) or {}
     cycles = bridge.get('cycles') or {}
-    parts = ['chain ' + ','.join(f'{n.split("_")[1]} {chain.get(n, "?")}'
-                                 for n in (BRIDGE, ESTIMATOR, CONTROLLER)),
+    nodes = [n for n in (COMPUTER, BRIDGE, ESTIMATOR, CONTROLLER) if n in chain] or [BRIDGE]
+    parts = ['chain ' + ','.join(f'{n.split("_")[1]} {chain.get(n, "?")}' for n in nodes),
              f'cycles {cycles.get("cycles_active", 0)} answered {cycles.get("answered", 0)} '
              f'on time {cycles.get("answered_in_time", 0)}',
              f'misses {(ctrl.get("deadline") or {}).get("deadline_misses", 0)}',
@@ -217,9 +258,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
 
     """
     st = monitor.snapshot()[0]
-    bridge = st.get(BRIDGE) or {}
-    ctrl = st.get(CONTROLLER) or {}
-    est = st.get(ESTIMATOR) or {}
+    bridge, est, ctrl = chain_statuses(st)
     car = st.get(FULL_CAR) or {}
     can = car.get('can') or {}
     cycles = bridge.get('cycles') or {}

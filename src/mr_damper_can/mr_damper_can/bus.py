@@ -109,6 +109,12 @@ def parse_channel(channel):
     return group, port
 
 
+def close_bus(bus):
+    """Shut ``bus`` down if there is one; return None (``self.bus = close_bus(self.bus)``)."""
+    if bus is not None:
+        bus.shutdown()
+
+
 def make_bus(interface='virtual', channel='mr_damper', bitrate=1000000):
     """
     Open a python-can bus.

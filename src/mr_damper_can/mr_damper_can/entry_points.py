@@ -19,3 +19,8 @@ def can_driver_sim():
 def vehicle_bridge_node():
     """``ros2 run mr_damper_can vehicle_bridge_node``."""
     return early_main('mr_damper_can.vehicle_bridge_node')
+
+
+def vehicle_computer_node():
+    """``ros2 run mr_damper_can vehicle_computer_node``."""
+    return early_main('mr_damper_can.vehicle_computer_node')

@@ -32,39 +32,22 @@ import threading
 from rclpy.lifecycle import LifecycleNode
 
 from mr_damper_can.bridge import BridgeHealth
-from mr_damper_can.bus import make_bus, UDP_LOOPBACK
-from mr_damper_can.vehicle_bridge import VehicleBridge
+from mr_damper_can.bus import close_bus
+from mr_damper_can.node_parameters import open_vehicle_bridge, VEHICLE_BRIDGE_PARAMETERS
 from mr_damper_common import messages
 from mr_damper_common.health import WARN, worst
 from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
-                                              run_managed, state_label, SUCCESS)
-from mr_damper_common.node_utils import (declare_parameters, FastLane, Param,
-                                         set_realtime_priority, VEHICLE_QOS)
+                                              run_managed, SafeTransitions, state_label,
+                                              SUCCESS)
+from mr_damper_common.node_utils import (declare_parameters, FastLane, set_realtime_priority,
+                                         VEHICLE_QOS)
 from mr_damper_interfaces.msg import ChassisSensors, FullCarCommand
 
-#: The node's parameters (the one place they are declared).
-PARAMETERS = (
-    Param('interface', UDP_LOOPBACK, 'python-can interface: udp_loopback (the processes of this '
-          'host, loopback only), socketcan, pcan, kvaser, vector, ...'),
-    Param('channel', '239.74.163.2:43113', 'Bus channel (udp_loopback: group:port; socketcan: '
-          'can0)'),
-    Param('bitrate', 1000000, 'CAN bit rate of hardware interfaces [bit/s]', 10000, 1000000),
-    Param('cycle_s', 0.002, 'Sensor and command cycle [s]: an answer\'s deadline', 1e-4, 1.0),
-    Param('safe_period_s', 0.01, 'Period of the safe frames while inactive [s] (inside the '
-          'drivers\' command timeout)', 1e-3, 1.0),
-    Param('safe_current_a', 0.5, 'Current sent for every corner while inactive, and for a '
-          'corner the bridge holds in fail-safe (driver fault, bus off, driver silent) [A]',
-          0.0, 2.55),
-    Param('rx_timeout_s', 0.05, 'A cyclic frame (driver status, sensors) missing this long is a '
-          'timeout; a silent driver\'s corner goes to fail-safe [s]', 0.001, 3600.0),
-    Param('command_timeout_s', 0.02, 'No command for this long is reported (command_timeout); '
-          'nothing is sent in the controller\'s name [s]', 0.001, 3600.0),
-    Param('log_file', '', 'Log every frame on the bus (python-can writer by extension: .blf, '
-          '.asc, .log = candump; "" = none)'),
-) + MANAGED_PARAMETERS
+#: The node's parameters.
+PARAMETERS = VEHICLE_BRIDGE_PARAMETERS + MANAGED_PARAMETERS
 
 
-class VehicleBridgeNode(LifecycleNode):
+class VehicleBridgeNode(SafeTransitions, LifecycleNode):
     """Thin lifecycle node over :class:`VehicleBridge` (see the module docstring)."""
 
     def __init__(self, **node_kwargs):
@@ -87,15 +70,9 @@ class VehicleBridgeNode(LifecycleNode):
         import can
         p = self.p
         try:
-            self.bus = make_bus(p['interface'], p['channel'], p['bitrate'])
-            core = VehicleBridge(self.bus, cycle_s=p['cycle_s'], safe_period_s=p['safe_period_s'],
-                                 safe_current_a=p['safe_current_a'],
-                                 rx_timeout_s=p['rx_timeout_s'],
-                                 command_timeout_s=p['command_timeout_s'],
-                                 on_cycle=self.on_cycle)
+            self.bus, core = open_vehicle_bridge(p, self.on_cycle)
         except (ValueError, OSError, can.CanError) as exc:
             self.get_logger().error(f'cannot open the bus: {exc}')
-            self._close_bus()
             return FAILURE
         self.pub = self.create_publisher(ChassisSensors, 'vehicle/chassis_sensors', VEHICLE_QOS)
         with self.lock:
@@ -121,24 +98,8 @@ class VehicleBridgeNode(LifecycleNode):
         self.core.deactivate()
         return SUCCESS
 
-    def on_cleanup(self, state):
-        """Stop reading and close the bus."""
-        self._teardown()
-        return SUCCESS
-
-    def on_shutdown(self, state):
-        """Deactivate if active (the safe current at once), then close the bus."""
-        if self.core is not None and self.core.active:
-            self.core.deactivate()
-        self._teardown()
-        return SUCCESS
-
-    def on_error(self, state):
-        """Send the safe current if the bus is there, close it: back to unconfigured."""
-        if self.core is not None:
-            self.core.deactivate()
-        self._teardown()
-        return SUCCESS
+    def _in_safe_reach(self, shutdown):
+        return self.core is not None and (self.core.active or not shutdown)
 
     def _teardown(self):
         if self.timer is not None:
@@ -152,12 +113,7 @@ class VehicleBridgeNode(LifecycleNode):
         if self.pub is not None:
             self.destroy_publisher(self.pub)
             self.pub = None
-        self._close_bus()
-
-    def _close_bus(self):
-        if self.bus is not None:
-            self.bus.shutdown()
-            self.bus = None
+        self.bus = close_bus(self.bus)
 
     # --- callbacks ------------------------------------------------------------------------------
     def on_cycle(self, cycle):

@@ -45,6 +45,37 @@ FAILURE = TransitionCallbackReturn.FAILURE
 ERROR = TransitionCallbackReturn.ERROR
 
 
+class SafeTransitions:
+    """
+    The cleanup, shutdown and error transitions of a managed node with a safe state (a mixin).
+
+    Put it before ``LifecycleNode`` in the bases. The node defines ``on_deactivate`` (its safe
+    state), ``_teardown`` (drop what configure made) and ``_in_safe_reach(shutdown)``: True
+    when deactivating first would reach its safe state (at shutdown: while it commands; on
+    error: while it still can). Then **cleanup** tears down; **shutdown** and **error**
+    deactivate first when in reach, then tear down (error: back to unconfigured).
+    """
+
+    def on_cleanup(self, state):
+        """Drop what configure made."""
+        self._teardown()
+        return SUCCESS
+
+    def on_shutdown(self, state):
+        """Deactivate first if commanding (the safe state), then tear down."""
+        if self._in_safe_reach(True):
+            self.on_deactivate(state)
+        self._teardown()
+        return SUCCESS
+
+    def on_error(self, state):
+        """Go to the safe state if still possible, tear down: back to unconfigured."""
+        if self._in_safe_reach(False):
+            self.on_deactivate(state)
+        self._teardown()
+        return SUCCESS
+
+
 def state_label(node):
     """
     Return a lifecycle node's current state label (``unconfigured``, ``inactive``, ...).
@@ -127,10 +158,27 @@ def run_managed(make_node, name, errors=(ValueError,), args=None):
     sys.setswitchinterval(0.0005)
 
     def run(node):
+        freeze_heap()
         if node.p['autostart']:
             autostart(node)
         spin_node(node, events=True)
     return run_node(make_node, name, errors, run=run, finish=end_managed, args=args)
+
+
+def freeze_heap():
+    """
+    Collect once, then leave every object there is out of the garbage collector's later passes.
+
+    A node's heap after its start (rclpy, numpy, scipy, python-control, the filter's design:
+    hundreds of thousands of objects) never becomes garbage; without this every full
+    collection walks all of it, and the thread that triggers one holds the GIL meanwhile
+    (py-spy on ``vehicle_computer_node``: most of its executor thread's samples were in
+    ``gc_collect_main``, and the bus reader waited). :func:`gc.freeze` is CPython's tool for
+    this; objects made later are collected as before.
+    """
+    import gc
+    gc.collect()
+    gc.freeze()
 
 
 def autostart(node):

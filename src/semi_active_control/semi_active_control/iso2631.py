@@ -23,6 +23,7 @@ Q4 = 0.63 and no upward step.
 ``scipy.signal`` and ``control`` (seconds to import) are imported by the functions that use
 them, so a node whose law needs no weighting starts without them.
 """
+import functools
 import math
 
 import numpy as np
@@ -149,21 +150,31 @@ def wk_gain(f_hz):
     return np.abs(h)
 
 
+@functools.lru_cache(maxsize=16)
+def _designed_sos(weighting, fs):
+    """Design :func:`wk_sos` / :func:`we_sos` once per rate (read-only; callers copy)."""
+    sos = weighting_sos(WK_CONSTANTS if weighting == 'wk' else WE_CONSTANTS, fs)
+    sos.flags.writeable = False
+    return sos
+
+
 def wk_sos(fs):
     """
     Digital Wk filter at sample rate ``fs`` [Hz] (bilinear transform) as second-order sections.
+
+    Designed once per rate (a live node's status asks for it every period), a copy returned.
 
     Returns
     -------
     ndarray with shape (n_sections, 6)
 
     """
-    return weighting_sos(WK_CONSTANTS, fs)
+    return _designed_sos('wk', float(fs)).copy()
 
 
 def we_sos(fs):
     """Digital We (rotational) weighting at sample rate ``fs`` [Hz] as second-order sections."""
-    return weighting_sos(WE_CONSTANTS, fs)
+    return _designed_sos('we', float(fs)).copy()
 
 
 def wk_filter(a, fs):

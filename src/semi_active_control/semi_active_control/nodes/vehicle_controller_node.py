@@ -40,49 +40,26 @@ import threading
 from rclpy.lifecycle import LifecycleNode
 
 from mr_damper_common import messages
-from mr_damper_common.health import ERROR, OK, WARN, worst
+from mr_damper_common.health import OK, worst
 from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
-                                              run_managed, state_label, SUCCESS)
+                                              run_managed, SafeTransitions, state_label,
+                                              SUCCESS)
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, FastLane, LATCHED_QOS,
-                                         node_time_s, Param, set_realtime_priority, VEHICLE_QOS)
+                                         node_time_s, set_realtime_priority, VEHICLE_QOS)
 from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters, RoadPreview
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
-from semi_active_control.nodes.common import CORNER_SUPERVISOR_PARAMETERS
-from semi_active_control.runtime import (full_car_state, LIVE_PREVIEW_LAWS, LivePreview,
-                                         VehicleControllerCore)
-from semi_active_control.supervision import CornerModels
+from semi_active_control.nodes.common import (identified_set_or_error,
+                                              log_model_verdicts, log_refused_parameters,
+                                              make_vehicle_controller, road_preview_or_error,
+                                              vehicle_controller_problems,
+                                              VEHICLE_CONTROLLER_PARAMETERS)
+from semi_active_control.runtime import full_car_state
 
-#: The node's parameters (the one place they are declared).
-PARAMETERS = (
-    Param('controller', 'modal-skyhook', 'Full-car law: modal-skyhook, '
-          'full-car-clipped-optimal(-wk), per-corner-<law> (e.g. per-corner-skyhook), '
-          'passive@<I>A or preview-look-ahead (full-car-clipped-optimal-wk with LQ preview on '
-          'full_car/road_preview)'),
-    Param('cycle_s', 0.002, 'Control cycle: the sensor cycle, each answer\'s deadline [s]',
-          1e-4, 1.0),
-    Param('model_files', ['', '', '', ''], 'Per corner (fl, fr, rl, rr) the damper\'s '
-          'parameter file (end-of-line record: mr-damper-identify --batch --params-dir), or '
-          '"" for the live identifier on <c>/mr_damper/kwok_parameters'),
-) + CORNER_SUPERVISOR_PARAMETERS + (
-    Param('deadline_s', 0.0, 'Each answer\'s deadline after its state\'s stamp [s] (0: one '
-          'cycle)', 0.0, 10.0),
-    Param('max_consecutive_misses', 5, 'Cycles in a row answered after their deadline that put '
-          'every corner on the safe current (deadline_misses)', 1, 100000),
-    Param('recover_cycles', 50, 'Cycles in a row on time that end deadline_misses', 1, 100000),
-    Param('sensor_timeout_s', 0.02, 'No state for this long: every corner on the safe current '
-          '(sensor_timeout) [s]', 1e-3, 60.0),
-    Param('check_period_s', 0.01, 'Period of the sensor timeout check and of the safe '
-          'commands while it lasts [s] (inside the drivers\' command timeout)', 1e-3, 1.0),
-    Param('preview_horizon_s', 0.3, 'Preview law: horizon of the feedforward on the road ahead '
-          '[s]', 0.0, 2.0),
-    Param('preview_timeout_s', 0.25, 'Preview law: without a frame taken for this long the law '
-          'runs without preview [s, state stamps]', 0.001, 60.0),
-    Param('preview_max_age_s', 0.1, 'Preview law: a frame older than this when its cycle comes '
-          'is stale (refused) [s]', 0.001, 60.0),
-) + MANAGED_PARAMETERS
+#: The node's parameters.
+PARAMETERS = VEHICLE_CONTROLLER_PARAMETERS + MANAGED_PARAMETERS
 
 
-class VehicleControllerNode(LifecycleNode):
+class VehicleControllerNode(SafeTransitions, LifecycleNode):
     """Thin lifecycle node over :class:`VehicleControllerCore` (see the module docstring)."""
 
     def __init__(self, **node_kwargs):
@@ -104,34 +81,12 @@ class VehicleControllerNode(LifecycleNode):
         """Build the law and load the models; subscribe and publish."""
         p = self.p
         try:
-            models = CornerModels(p['model_files'], timeout_s=p['param_timeout_s'],
-                                  safe_current_a=p['safe_current_a'], i_min_a=p['i_min_a'],
-                                  i_max_a=p['i_max_a'],
-                                  min_current_span_a=p['min_current_span_a'],
-                                  hold_on_reject=p['hold_on_reject'])
-            preview = None
-            if p['controller'].strip().lower() in LIVE_PREVIEW_LAWS:
-                preview = LivePreview(PASSENGER_CAR, p['controller'], dt=p['cycle_s'],
-                                      horizon_s=p['preview_horizon_s'],
-                                      preview_timeout_s=p['preview_timeout_s'],
-                                      preview_max_age_s=p['preview_max_age_s'])
-            core = VehicleControllerCore(
-                PASSENGER_CAR, p['controller'], models, cycle_s=p['cycle_s'],
-                max_consecutive_misses=p['max_consecutive_misses'],
-                recover_cycles=p['recover_cycles'], input_timeout_s=p['sensor_timeout_s'],
-                deadline_s=p['deadline_s'] or None, preview=preview)
+            core = make_vehicle_controller(p)
         except ValueError as exc:
             self.get_logger().error(f'configure refused: {exc}')
             return FAILURE
-        verdicts = core.configure(node_time_s(self))
-        for corner, verdict in verdicts.items():
-            # (one severity per call site: rclpy refuses a line that logs at two)
-            if verdict.accepted:
-                self.get_logger().info(f'{corner}: model file ok')
-            else:
-                self.get_logger().warning(f'{corner}: model file refused ({verdict.reason}): '
-                                          f'{verdict.detail}; the corner stays on its safe '
-                                          'current')
+        log_model_verdicts(self.get_logger(), core.configure(node_time_s(self)))
+        models = core.models
         with self.lock:
             self.core = core
         self.cmd_pub = self.create_publisher(FullCarCommand, 'vehicle/command', VEHICLE_QOS)
@@ -169,24 +124,10 @@ class VehicleControllerNode(LifecycleNode):
             self._publish(self.core.deactivate(now), now)
         return SUCCESS
 
-    def on_cleanup(self, state):
-        """Drop the topics and the core."""
-        self._teardown()
-        return SUCCESS
-
-    def on_shutdown(self, state):
-        """Deactivate first if active (the safe command), then clean up."""
-        if self.core is not None and self.core.active:
-            self.on_deactivate(state)
-        self._teardown()
-        return SUCCESS
-
-    def on_error(self, state):
-        """Publish the safe command if possible, clean up: back to unconfigured."""
-        if self.core is not None and self.cmd_pub is not None:
-            self.on_deactivate(state)
-        self._teardown()
-        return SUCCESS
+    def _in_safe_reach(self, shutdown):
+        if self.core is None:
+            return False
+        return self.core.active if shutdown else self.cmd_pub is not None
 
     def _teardown(self):
         if self.lane is not None:
@@ -229,25 +170,16 @@ class VehicleControllerNode(LifecycleNode):
 
     def on_params(self, i, msg):
         """Offer a live identifier's set to corner ``i``."""
-        try:
-            values = messages.identified_set_from_msg(msg)
-        except ValueError as exc:
-            values = exc
+        values = identified_set_or_error(msg)
         with self.lock:
             if self.core is None:
                 return
             verdict = self.core.offer_parameters(i, values, node_time_s(self))
-        if verdict is not None and not verdict.accepted:
-            self.get_logger().warning(f'{CORNERS[i]}: parameters refused ({verdict.reason}): '
-                                      f'{verdict.detail}', throttle_duration_sec=1.0)
+        log_refused_parameters(self.get_logger(), CORNERS[i], verdict)
 
     def on_preview(self, msg):
         """Hand a road-preview frame to the core (a message that does not decode is counted)."""
-        try:
-            fields = messages.road_preview_fields(msg)
-        except messages.MessageError as exc:
-            fields = exc
-            self.get_logger().warning(f'road preview refused: {exc}', throttle_duration_sec=1.0)
+        fields = road_preview_or_error(msg, self.get_logger())
         with self.lock:
             if self.core is not None:
                 self.core.offer_preview(fields)
@@ -268,19 +200,7 @@ class VehicleControllerNode(LifecycleNode):
     def health(self):
         """Return the node's :class:`~mr_damper_common.health.Health` (``/diagnostics``)."""
         st = self.status()
-        problems = []
-        if 'corners' not in st:
-            problems.append((WARN, f'{st["lifecycle"]}: not configured'))
-        elif not st['active']:
-            problems.append((WARN, f'{st["lifecycle"]}: every corner on the safe current'))
-        else:
-            reason = st['deadline']['reason']
-            if reason:
-                problems.append((ERROR, f'every corner on the safe current: {reason}'))
-            safe = [c for c, d in st['corners'].items() if d.get('mode') != 'normal']
-            if safe and not reason:
-                problems.append((WARN, 'fail-safe at ' + ', '.join(
-                    f'{c} ({st["corners"][c].get("reason")})' for c in safe)))
+        problems = vehicle_controller_problems(st)
         return worst(problems or [(OK, 'ok')], st)
 
 

@@ -38,35 +38,25 @@ from sensor_msgs.msg import Imu, JointState
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
 from mr_damper_common.lifecycle_utils import (MANAGED_PARAMETERS, managed_services,
-                                              run_managed, state_label, SUCCESS)
+                                              run_managed, SafeTransitions, state_label,
+                                              SUCCESS)
 from mr_damper_common.node_utils import (declare_parameters, FastLane, Param, SENSOR_QOS,
                                          set_realtime_priority, VEHICLE_QOS)
 from mr_damper_interfaces.msg import ChassisSensors, FullCarState
-from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
+from semi_active_control.car.full_car import CORNERS
 from semi_active_control.estimation.sensor_specs import G0
-from semi_active_control.estimation import EstimatorSettings, VehicleEstimatorCore
+from semi_active_control.nodes.common import make_vehicle_estimator, VEHICLE_ESTIMATOR_PARAMETERS
 
-#: The node's parameters (the one place they are declared).
+#: The node's parameters: its input, then the filter's (shared with the loop node).
 PARAMETERS = (
     Param('input', 'bus', 'Where the sensors come from: bus (vehicle/chassis_sensors) or '
           'topics (per corner Imu and JointState, as the quarter-car estimator)'),
-    Param('cycle_s', 0.002, 'Sensor cycle, the filter\'s period [s]', 1e-4, 1.0),
     Param('clock_corner', 'fl', 'input topics: the corner whose position reading runs a cycle'),
-    Param('accel_noise_density', 250e-6 * G0, 'Accelerometer noise density [m/s^2/sqrt(Hz)] '
-          '(ADXL313: 250 ug/sqrt(Hz))', 1e-7, 1.0),
-    Param('travel_noise_density', 2.2e-6, 'Ride height sensor noise density [m/sqrt(Hz)]',
-          1e-9, 1e-2),
-    Param('road_class', 'C', 'ISO 8608 class of the design road (process noise)'),
-    Param('speed_m_s', 20.0, 'Design speed [m/s] (process noise)', 0.1, 100.0),
-    Param('dropout_s', 0.02, 'No reading of a sensor for this long: left out [s]', 1e-3, 10.0),
-    Param('stuck_accel_s', 0.05, 'The same accelerometer reading this long: stuck [s]', 1e-3,
-          10.0),
-    Param('stuck_travel_s', 0.25, 'The same position reading this long: stuck [s]', 1e-3, 10.0),
-) + MANAGED_PARAMETERS
+) + VEHICLE_ESTIMATOR_PARAMETERS + MANAGED_PARAMETERS
 INPUTS = ('bus', 'topics')
 
 
-class VehicleEstimatorNode(LifecycleNode):
+class VehicleEstimatorNode(SafeTransitions, LifecycleNode):
     """Thin lifecycle node over :class:`VehicleEstimatorCore` (see the module docstring)."""
 
     def __init__(self, **node_kwargs):
@@ -79,11 +69,7 @@ class VehicleEstimatorNode(LifecycleNode):
                              f'{CORNERS}, got {p["input"]!r}, {p["clock_corner"]!r}')
         # the filter's design (control.dlqe: seconds on a small computer) before the node is
         # up, so a transition never blocks the node's heartbeat for that long
-        self.filter_core = VehicleEstimatorCore(PASSENGER_CAR, EstimatorSettings(
-            cycle_s=p['cycle_s'], accel_noise_density=p['accel_noise_density'],
-            travel_noise_density=p['travel_noise_density'], road_class=p['road_class'],
-            speed_m_s=p['speed_m_s'], dropout_s=p['dropout_s'],
-            stuck_accel_s=p['stuck_accel_s'], stuck_travel_s=p['stuck_travel_s']))
+        self.filter_core = make_vehicle_estimator(p)
         self.core = None
         self.active = False
         self.lane = None
@@ -132,22 +118,8 @@ class VehicleEstimatorNode(LifecycleNode):
         self.active = False
         return SUCCESS
 
-    def on_cleanup(self, state):
-        """Drop the topics."""
-        self._teardown()
-        return SUCCESS
-
-    def on_shutdown(self, state):
-        """Stop and clean up."""
-        self.active = False
-        self._teardown()
-        return SUCCESS
-
-    def on_error(self, state):
-        """Stop publishing and clean up: back to unconfigured."""
-        self.active = False
-        self._teardown()
-        return SUCCESS
+    def _in_safe_reach(self, shutdown):
+        return self.active
 
     def _teardown(self):
         if self.lane is not None:

@@ -6,14 +6,15 @@ Public API::
     from semi_active_control.runtime import ControllerCore, LAW_FIELDS, STATE_REJECTIONS
     from semi_active_control.runtime import make_node_law, reconfigure, SUPERVISOR_PARAMETERS
     from semi_active_control.runtime import FullCarController, LivePreview, LIVE_PREVIEW_LAWS
-    from semi_active_control.runtime import VehicleControllerCore, VehicleCommand
+    from semi_active_control.runtime import VehicleControllerCore, VehicleCommand, VehicleLoop
 
 Modules: ``controller_core`` (a corner: law + the inverse of the identified model + the
 fail-safe supervisor, the state checks; the node's law and parameter changes),
 ``full_car_controller_core`` (the whole car's step: the law, then each corner's inverse under
 its own supervisor), ``live_preview`` (the LQ road-preview law fed from the road-preview
 topic), ``vehicle_controller`` (the vehicle computer's full-car controller on one state per
-cycle, with deadlines and an inactive state).
+cycle, with deadlines and an inactive state), ``vehicle_loop`` (the vehicle computer in one
+control loop: estimator, controller and the bus's write on each sensor cycle).
 """
 from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa: F401
                                                          LAW_FIELDS, make_node_law,
@@ -28,3 +29,4 @@ from semi_active_control.runtime.vehicle_controller import (full_car_state,  # n
                                                             MODE_NORMAL,
                                                             VehicleCommand,
                                                             VehicleControllerCore)
+from semi_active_control.runtime.vehicle_loop import VehicleLoop  # noqa: F401

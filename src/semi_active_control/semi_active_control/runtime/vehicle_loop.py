@@ -1,0 +1,152 @@
+"""
+The vehicle computer in one control loop, without ROS: a sensor cycle in, its command out.
+
+:class:`VehicleLoop` is what ``vehicle_computer_node`` calls. It runs, in one call and one
+thread, what the three-node chain (``vehicle_bridge_node`` -> ``vehicle_estimator_node`` ->
+``vehicle_controller_node``) runs in three processes: the full-car state estimate of the
+cycle's sensors (:class:`~semi_active_control.estimation.VehicleEstimatorCore`), the law with
+its four inverses and supervisors and the deadline supervision
+(:class:`~semi_active_control.runtime.vehicle_controller.VehicleControllerCore`), then the
+command handed to ``send`` (the bus's write: the bridge's ``command_all``). This is the
+read -> update -> write loop of ros2_control's controller manager: the control path crosses no
+middleware, so a cycle's answer costs the cycle's own computation, not three hops between
+processes (docs/vehicle.md, the two layouts and their figures).
+
+The cores are the chain's own, with the same rules: while not active the estimator runs
+(so a later activation starts on a converged filter) and nothing is commanded (the bridge then
+sends its safe frames); :meth:`deactivate` sends one command with every corner on the safe
+current; :meth:`check` (the caller's timer) sends the safe command while no cycle comes for
+the sensor timeout. One lock: :meth:`cycle` comes from the bus reader's thread, the rest from
+the caller's.
+"""
+import threading
+
+from semi_active_control.runtime.vehicle_controller import full_car_state, MODE_NORMAL
+
+
+class VehicleLoop:
+    """
+    Estimator, law and bus write on each sensor cycle in one call (see the module docstring).
+
+    Parameters
+    ----------
+    estimator : VehicleEstimatorCore
+        The full-car filter (its cycle is the sensor cycle).
+    controller : VehicleControllerCore
+        The law, four inverses, four supervisors and the deadline supervision.
+    send : callable
+        ``send(currents_a, failsafe, cycle)``: put one command on the bus (four currents [A],
+        four fail-safe flags: any mode but normal) as the answer to sensor cycle ``cycle``
+        (0: none); the bridge's ``command_all``. Called under the lock, so no command can
+        follow the deactivation's.
+
+    Attributes
+    ----------
+    cycles_inactive : int
+        Cycles estimated while not active (not answered).
+    cycles_unused : int
+        Cycles the estimator did not use (older than or equal to the newest one).
+
+    """
+
+    def __init__(self, estimator, controller, send):
+        self.estimator = estimator
+        self.controller = controller
+        self.send = send
+        self.lock = threading.Lock()
+        self.cycles_inactive = 0
+        self.cycles_unused = 0
+
+    @property
+    def active(self):
+        """True while commanding."""
+        return self.controller.active
+
+    # --- lifecycle ----------------------------------------------------------------------------
+    def configure(self, t_clock):
+        """Start the filter at rest and load the file corners' models; ``{corner: Verdict}``."""
+        with self.lock:
+            self.estimator.reset()
+            return self.controller.configure(t_clock)
+
+    def activate(self, t_now):
+        """Command from the next cycle on."""
+        with self.lock:
+            self.controller.activate(t_now)
+
+    def deactivate(self, t_now):
+        """Send one command with every corner on the safe current; command nothing after it."""
+        with self.lock:
+            cmd = self.controller.deactivate(t_now)
+            self._send(cmd, 0)
+            return cmd
+
+    # --- cycles -------------------------------------------------------------------------------
+    def cycle(self, sequence, t, body_accel, travel, t_now):
+        """
+        Run one sensor cycle: estimate, and while active command and send the answer.
+
+        Parameters
+        ----------
+        sequence : int
+            The cycle's number (+1 per cycle; gaps are cycles lost on the bus).
+        t : float
+            The cycle's time [s] (its bus time: the stamp and the deadline's start).
+        body_accel, travel : array_like (4,)
+            Body accelerations, gravity removed [m/s^2], and suspension travels [m] (NaN: no
+            reading).
+        t_now : float
+            The caller's clock [s], the clock of ``t``.
+
+        Returns
+        -------
+        estimate : VehicleEstimate or None
+            None when the cycle was not used (old or repeated).
+        command : VehicleCommand or None
+            The command sent (None: not active, or not answered).
+
+        """
+        with self.lock:
+            est = self.estimator.step(sequence, t, body_accel, travel)
+            if est is None:
+                self.cycles_unused += 1
+                return None, None
+            if not self.controller.active:
+                self.cycles_inactive += 1
+                return est, None
+            state = full_car_state(self.controller.geometry, est.t, est.body, est.body_rates,
+                                   est.body_acc, est.travel, est.travel_velocity,
+                                   est.tyre_deflection, est.wheel_velocity, est.damper_force)
+            cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now)
+            if cmd is not None:
+                self._send(cmd, est.sequence)
+            return est, cmd
+
+    def check(self, t_now):
+        """Check the sensor timeout (the caller's timer); send and return a safe command."""
+        with self.lock:
+            cmd = self.controller.check(t_now)
+            if cmd is not None:
+                self._send(cmd, 0)
+            return cmd
+
+    def offer_parameters(self, corner, values, t_clock):
+        """Offer a live identifier's set to corner ``corner`` (index); return the Verdict."""
+        with self.lock:
+            return self.controller.offer_parameters(corner, values, t_clock)
+
+    def offer_preview(self, fields):
+        """Hand a road-preview frame to the preview law (see VehicleControllerCore)."""
+        with self.lock:
+            self.controller.offer_preview(fields)
+
+    def _send(self, cmd, cycle):
+        self.send(cmd.currents_a, [m != MODE_NORMAL for m in cmd.modes], cycle)
+
+    def status(self, t_now=None):
+        """Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready)."""
+        with self.lock:
+            return {'estimator': self.estimator.status(),
+                    'controller': self.controller.status(t_now),
+                    'loop': {'cycles_inactive': self.cycles_inactive,
+                             'cycles_unused': self.cycles_unused}}
