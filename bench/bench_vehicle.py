@@ -5,9 +5,11 @@ The vehicle computer in real time (issue 34) against the full car's external con
 Runs, one after the other on the same machine (the figures depend on the load: the bench prints
 ``os.getloadavg`` before and after each run):
 
-1. ``mr-damper-suite --config vehicle --duration D``: the simulated car (the plant, its sensors
-   and drivers on a loopback CAN bus) and the vehicle computer's bridge, estimator and
-   controller, each its own process. From its summary's ``vehicle`` section: control cycles,
+1. ``mr-damper-suite --config vehicle --duration D``, once per layout of the vehicle computer
+   (``--vehicle-layout loop``: one ``vehicle_computer_node``, the control path in one thread;
+   ``nodes``: bridge, estimator and controller, each its own process; in turn, ``--rounds``
+   times): the simulated car (the plant, its sensors and drivers on a loopback CAN bus) and
+   the vehicle computer. From its summary's ``vehicle`` section: control cycles,
    the fraction answered within the cycle (bus to bus), the controller's deadline misses,
    the drivers' command timeouts after the vehicle computer took control, sensor frame to
    command frame p50 / p99, frames lost, a_v against passive and lock-step;
@@ -23,7 +25,8 @@ Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 1
 Usage::
 
     .venv/bin/python bench/bench_vehicle.py [--duration 60] [--out runs/bench_vehicle]
-                                            [--only vehicle|external] [--json OUT.json]
+                                            [--only loop|nodes|external] [--rounds N]
+                                            [--json OUT.json]
 
 Goals of issue 34 (two cores, the suite alone on the machine): the controller answers at
 least 99.9 % of control cycles within their period, 0 driver command timeouts after activation,
@@ -125,13 +128,20 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--duration', type=float, default=60.0, help='each run [s, real time]')
     p.add_argument('--out', default=str(REPO / 'runs' / 'bench_vehicle'))
-    p.add_argument('--only', choices=('vehicle', 'external'))
+    p.add_argument('--only', choices=('loop', 'nodes', 'external'))
+    p.add_argument('--rounds', type=int, default=1,
+                   help='runs of each vehicle layout, in turn (loop, nodes, loop, ...)')
     p.add_argument('--json', help='write every figure to this file')
     args = p.parse_args(argv)
     results = {}
-    if args.only in (None, 'vehicle'):
-        results['vehicle'] = _run('vehicle', ['--config', 'vehicle'], args.out, args.duration)
-        report_vehicle(results['vehicle'])
+    for k in range(args.rounds):
+        for layout in ('loop', 'nodes'):
+            if args.only in (None, layout):
+                name = f'vehicle_{layout}' + (f'_{k + 1}' if args.rounds > 1 else '')
+                results[name] = _run(name, ['--config', 'vehicle', '--vehicle-layout', layout],
+                                     args.out, args.duration)
+                print(f'[{name}]')
+                report_vehicle(results[name])
     if args.only in (None, 'external'):
         results['external'] = _run('external', ['--config', 'full-car', '--external-controller'],
                                    args.out, args.duration)

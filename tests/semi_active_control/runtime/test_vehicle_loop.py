@@ -137,3 +137,43 @@ def test_one_corner_with_an_invalid_record_the_other_three_on_the_law(designed, 
     frames = bus.frames[50:]
     assert all(f[1] == [False, False, False, True] and f[0][3] == SAFE_A for f in frames)
     assert np.ptp(np.array([f[0][:3] for f in frames]), axis=0).min() > 0.01  # the law moves
+
+
+def test_cycles_past_their_deadline_are_skipped_as_misses_and_trip_the_watchdog(designed):
+    bus = Bus()
+    ctl = VehicleControllerCore(PASSENGER_CAR, 'modal-skyhook', CornerModels(FILES, **SUP),
+                                cycle_s=P, max_consecutive_misses=5, recover_cycles=20)
+    loop = VehicleLoop(designed, ctl, bus)
+    loop.configure(0.0)
+    loop.activate(100.0)
+    gen = cycles(200)
+    for _ in range(30):                       # on time: answered
+        seq, t, acc, travel = next(gen)
+        loop.cycle(seq, t, acc, travel, t + 0.0005)
+    assert len(bus.frames) == 30
+    # the loop falls behind the bus: each cycle comes to it 5 ms after its bus time (its
+    # deadline, one 2 ms cycle, gone): estimated, not answered, a miss each
+    for k in range(4):
+        seq, t, acc, travel = next(gen)
+        est, cmd = loop.cycle(seq, t, acc, travel, t + 0.005)
+        assert est.sequence == seq and cmd is None
+    assert len(bus.frames) == 30
+    seq, t, acc, travel = next(gen)           # the fifth miss in a row trips the watchdog
+    est, cmd = loop.cycle(seq, t, acc, travel, t + 0.005)
+    assert cmd.reasons == ['deadline_misses'] * 4
+    currents, failsafe, cycle = bus.frames[-1]
+    assert list(currents) == [SAFE_A] * 4 and failsafe == [True] * 4 and cycle == 0
+    # still behind: each skipped cycle now sends the safe frame (the drivers keep getting
+    # commands), no law
+    for _ in range(3):
+        seq, t, acc, travel = next(gen)
+        assert loop.cycle(seq, t, acc, travel, t + 0.005)[1].reasons == ['deadline_misses'] * 4
+    assert len(bus.frames) == 34 and all(f[1] == [True] * 4 for f in bus.frames[30:])
+    st = loop.status()['controller']
+    assert st['states_skipped_late'] == 8 and st['deadline']['deadline_misses'] == 8
+    # on time again: answered on the safe current until 20 in a row are on time, then the law
+    reasons = []
+    for _ in range(30):
+        seq, t, acc, travel = next(gen)
+        reasons.append(loop.cycle(seq, t, acc, travel, t + 0.0005)[1].reasons[0])
+    assert reasons[:19] == ['deadline_misses'] * 19 and set(reasons[20:]) == {'ok'}

@@ -147,6 +147,7 @@ class VehicleControllerCore:
         self.active = False
         self.sequence = 0
         self.answered = 0
+        self.skipped_late = 0
         self.safe_answers = {}                 # reason for all four corners -> commands
         self.states_while_inactive = 0
         self.normal_commands = [0] * 4
@@ -216,6 +217,32 @@ class VehicleControllerCore:
         self.monitor.cycle(state.t, t_now)
         self.answered += 1
         return cmd
+
+    def skip_late(self, sequence, t_state, t_now):
+        """
+        Count a state that came after its deadline and is left unanswered; maybe a safe command.
+
+        A caller behind its input (a loop taking cycles from a queue) skips every cycle whose
+        deadline has passed when it comes to it, so that it answers the newest instead of
+        falling further behind. The skipped cycle counts as a deadline miss with its lateness
+        (and as input: the sensors are there). While the misses hold every corner on the safe
+        current (``deadline_misses``), each skipped cycle returns the safe command to be sent
+        (cheap: no law), so the drivers keep getting commands while the caller catches up.
+
+        Returns
+        -------
+        VehicleCommand or None
+
+        """
+        if not self.active or self.states.offer(sequence) < 0:
+            return None
+        self.skipped_late += 1
+        self.monitor.input(t_now)
+        self.monitor.cycle(t_state, t_now)
+        reason = self.monitor.reason
+        if reason is not None:
+            return self._all_safe(reason, MODE_FAIL_SAFE, sequence, t_state)
+        return None
 
     def check(self, t_now):
         """
@@ -294,6 +321,7 @@ class VehicleControllerCore:
         -------
         dict
             ``controller`` (law), ``active``, ``commands`` (sent), ``states_answered``,
+            ``states_skipped_late`` (:meth:`skip_late`),
             ``states`` (sequence counts: ``lost``, ``out_of_order``, ...),
             ``states_while_inactive``, ``all_safe`` (commands with every corner safe, by
             reason), ``deadline`` (:meth:`DeadlineMonitor.status`), ``corners`` (per corner:
@@ -318,6 +346,7 @@ class VehicleControllerCore:
                                   reason=last.reasons[i])
         return {'controller': self.controller.name, 'active': self.active,
                 'commands': self.sequence, 'states_answered': self.answered,
+                'states_skipped_late': self.skipped_late,
                 'states': self.states.status(),
                 'states_while_inactive': self.states_while_inactive,
                 'all_safe': dict(self.safe_answers),

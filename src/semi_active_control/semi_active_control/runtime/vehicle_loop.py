@@ -14,10 +14,13 @@ processes (docs/vehicle.md, the two layouts and their figures).
 
 The cores are the chain's own, with the same rules: while not active the estimator runs
 (so a later activation starts on a converged filter) and nothing is commanded (the bridge then
-sends its safe frames); :meth:`deactivate` sends one command with every corner on the safe
-current; :meth:`check` (the caller's timer) sends the safe command while no cycle comes for
-the sensor timeout. One lock: :meth:`cycle` comes from the bus reader's thread, the rest from
-the caller's.
+sends its safe frames); a cycle whose deadline has passed before the loop comes to it (the
+loop is behind the bus: a stall, a burst) is estimated but not answered, a deadline miss
+(``VehicleControllerCore.skip_late``), so the loop catches up on the newest cycle instead of
+answering a queue of stale ones (what KEEP_LAST does for a topic); :meth:`deactivate` sends
+one command with every corner on the safe current; :meth:`check` (the caller's timer) sends
+the safe command while no cycle comes for the sensor timeout. One lock: :meth:`cycle` comes
+from the bus reader's thread, the rest from the caller's.
 """
 import threading
 
@@ -103,7 +106,8 @@ class VehicleLoop:
         estimate : VehicleEstimate or None
             None when the cycle was not used (old or repeated).
         command : VehicleCommand or None
-            The command sent (None: not active, or not answered).
+            The command sent (None: not active, not answered, or skipped late without the
+            watchdog tripping).
 
         """
         with self.lock:
@@ -114,6 +118,13 @@ class VehicleLoop:
             if not self.controller.active:
                 self.cycles_inactive += 1
                 return est, None
+            if t_now - t > self.controller.monitor.deadline_s:
+                # past its deadline before it is answered (the loop is behind the bus): the
+                # newer cycles behind it come first; a miss, the safe frame if that trips
+                cmd = self.controller.skip_late(est.sequence, est.t, t_now)
+                if cmd is not None:
+                    self._send(cmd, 0)
+                return est, cmd
             state = full_car_state(self.controller.geometry, est.t, est.body, est.body_rates,
                                    est.body_acc, est.travel, est.travel_velocity,
                                    est.tyre_deflection, est.wheel_velocity, est.damper_force)
