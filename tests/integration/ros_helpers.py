@@ -149,9 +149,13 @@ class NodeProcess:
         return self.proc.wait(timeout=timeout)
 
     def stop(self, timeout=10.0):
-        """Stop with SIGINT (then SIGKILL after ``timeout``), its group too; return the status."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
+        """
+        Stop with SIGINT (then SIGKILL after ``timeout``), its group too; return the status.
+
+        One SIGINT, to the group (the node is its leader): a second one sent right after the
+        first could reach a node already finishing, during the interpreter's finalization,
+        when Python has put back the default handler (exit -2 instead of 0, seen under load).
+        """
         return stop_group(self.proc, signal.SIGINT, timeout)
 
     def __enter__(self):
