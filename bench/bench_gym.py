@@ -35,6 +35,7 @@ Usage::
     .venv/bin/python bench/bench_gym.py [--part speed|baselines|all] [--repeats 3]
                                         [--steps 5000] [--cars 64 256 1024]
                                         [--car-steps 400000] [--threads 2]
+                                        [--car quarter full] [--vector-only]
                                         [--seeds 1 2 3] [--duration 20] [--no-bound]
                                         [--json OUT.json]
 """
@@ -151,7 +152,7 @@ def _vector_row(car, label, n, steps, repeats, **kw):
 def speed(args):
     """Measure the steps per second of the envs and the alternatives; return the rows."""
     rows = []
-    for car in ('quarter', 'full'):
+    for car in args.car:
         for label, fn in (
                 ('env (sensors, current action)', lambda c=car: _env_rate(
                     c, args.steps, args.repeats, plant='spencer')),
@@ -160,6 +161,8 @@ def speed(args):
                     action='force')),
                 ('simulator Python step (alternative)', lambda c=car: _simulator_rate(
                     c, args.steps // 5, args.repeats))):
+            if args.vector_only:
+                break
             wall, cpu = fn()
             rows.append({'car': car, 'what': label, 'n': 1, 'steps_s_wall': wall,
                          'steps_s_cpu': cpu})
@@ -175,6 +178,8 @@ def speed(args):
             rows.append(_vector_row(car, 'vector env, kwok-current plants', n,
                                     max(200, args.car_steps // n), args.repeats,
                                     threads=args.threads, plant='kwok-current'))
+        if args.vector_only:
+            continue
         n = 8
         rows.append(_vector_row(car, 'SyncVectorEnv of single envs (alternative)', n,
                                 max(200, args.steps // n), args.repeats,
@@ -276,6 +281,11 @@ def main():
     ap.add_argument('--car-steps', type=int, default=400_000,
                     help='car-steps timed per vector run (steps = this / N, at least 200)')
     ap.add_argument('--threads', type=int, default=os.cpu_count() or 1)
+    ap.add_argument('--car', nargs='+', choices=('quarter', 'full'), default=['quarter', 'full'],
+                    help='speed: the cars to time (default both)')
+    ap.add_argument('--vector-only', action='store_true',
+                    help="speed: only the vector env's rows (N cars on 1 and --threads threads, "
+                         'and the kwok-current row)')
     ap.add_argument('--seeds', type=int, nargs='+', default=[1, 2, 3])
     ap.add_argument('--duration', type=float, default=20.0)
     ap.add_argument('--no-bound', dest='bound', action='store_false')

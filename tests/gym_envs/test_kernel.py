@@ -14,6 +14,9 @@ from mr_damper_gym.batch import CarBatch
 from mr_damper_gym.core import EnvCore
 from mr_damper_gym import roads as R
 from mr_damper_model.models.plant import make_plant
+from mr_damper_model.models.presets import spencer_thesis_like
+from mr_damper_model.models.spencer import (heun_substeps, heun_substeps_lanes, z_roots,
+                                            z_step_rooted)
 from semi_active_control.laws import Passive
 from quarter_car_sim.plant.quarter_car import QuarterCar
 from quarter_car_sim.plant.full_car import FullCar
@@ -99,6 +102,31 @@ def test_full_car_step_is_the_simulators():
     acc = np.array([s.acc[:3] for s in ref])
     np.testing.assert_allclose(rows[:, 42:45], acc, rtol=0, atol=1e-9 * np.max(np.abs(acc)))
     assert np.min([s.tyre_force.min() for s in ref]) < 0.5 * core.params.static_tyre_loads.min()
+
+
+def test_spencer_lanes_are_heun_substeps_bit_for_bit():
+    """The kernel's four plants side by side (``heun_substeps_lanes``) are each one's step."""
+    rng = np.random.default_rng(8)
+    p0 = np.array(list(spencer_thesis_like().values()), dtype=float)
+    for _ in range(40):
+        P = np.tile(p0, (4, 1))
+        # beta == gamma (the linear branch), beta > gamma (tanh), beta < gamma (tan), beta 0
+        P[:, 9:11] = [[3.63e6, 3.63e6], [2e6, 5e6], [4e6, 1e6], [2e6, 0.0]]
+        P[:, 12] = rng.uniform(50.0, 300.0, 4)
+        zc = np.array([z_roots(P[q, 11], P[q, 10], P[q, 9]) for q in range(4)])
+        h = np.full(4, 1e-4)
+        decay = np.exp(-P[:, 12] * h)
+        y, u, xs = rng.normal(0.0, 0.01, 4), rng.uniform(0.0, 2.0, 4), rng.normal(0.0, 0.02, 4)
+        z = rng.uniform(-1.0, 1.0, 4) * zc[:, 2]
+        vs, dx, dv = rng.normal(0.0, 0.3, 4), rng.normal(0.0, 3e-5, 4), rng.normal(0.0, 3e-3, 4)
+        i_drv = rng.uniform(0.0, 2.0, 4)
+        want = [heun_substeps(z_step_rooted, tuple(zc[q]), tuple(P[q]), y[q], z[q], u[q], xs[q],
+                              vs[q], dx[q], dv[q], i_drv[q], h[q], decay[q], 10)
+                for q in range(4)]
+        got = [a.copy() for a in (y, z, u, xs, vs)]
+        heun_substeps_lanes(z_step_rooted, zc, P, h, decay, 10, *got, dx, dv, i_drv,
+                            np.empty((4, 8)))
+        assert np.array_equal(np.array(want), np.array(got[:3]).T)
 
 
 @pytest.mark.slow

@@ -172,11 +172,24 @@ class CarBatch:
         only[k] = 0
 
     # --- stepping --------------------------------------------------------------------------
-    def _refill(self, k):
-        rng = self.rngs[k]
-        m = self.model
-        self.draws[k, :, :, K.DR_RW:K.DR_NOISE + 1] = rng.standard_normal((DRAW_BLOCK, m.ns, 2))
-        self.draws[k, :, :, K.DR_LOSS] = rng.random((DRAW_BLOCK, m.ns))
+    def _refill(self, cars):
+        ns = self.model.ns
+        for k in cars:
+            rng = self.rngs[k]
+            self.draws[k, :, :, K.DR_RW:K.DR_NOISE + 1] = rng.standard_normal((DRAW_BLOCK, ns, 2))
+            self.draws[k, :, :, K.DR_LOSS] = rng.random((DRAW_BLOCK, ns))
+
+    def _refill_all(self, cars):
+        """Draw the next block of each of ``cars`` (on the batch's threads, a share each)."""
+        if self._pool is None or len(cars) < 2 * self.threads:
+            self._refill(cars)
+            return
+        # each car's numbers from its own generator, so the split does not change them; numpy
+        # fills the arrays with the GIL released
+        jobs = [self._pool.submit(self._refill, part)
+                for part in np.array_split(cars, self.threads)]
+        for job in jobs:
+            job.result()
 
     def _call(self, active, nsteps, record_first, record, sense):
         m = self.model
@@ -209,8 +222,7 @@ class CarBatch:
                 # every sensing car gets its block's random numbers for the coming steps
                 sensing = np.flatnonzero(self._sensing)
                 pos = self.clock[sensing, K.CL_SAMPLES].astype(np.int64) % DRAW_BLOCK
-                for k in sensing[pos == 0]:
-                    self._refill(k)
+                self._refill_all(sensing[pos == 0])
                 self._left = DRAW_BLOCK - int(pos.max())
             chunk = min(nsteps - done, self._left)
             self._call(active, chunk, record_first if done == 0 else 0, record, 1)

@@ -3,7 +3,8 @@ The compiled car step: N cars (quarter or full) advanced together, one control p
 
 One function, :func:`advance_cars`, compiled with numba through
 :func:`mr_damper_model.models.compiled.kernel` (disk cache; the damper helpers it inlines are
-the models' own: ``spencer.heun_substeps`` / ``z_step_rooted`` / ``z_roots`` / ``_row`` and
+the models' own: ``spencer.heun_substeps_lanes`` (``heun_substeps`` over the four corners'
+plants side by side, bit for bit) / ``z_step_rooted`` / ``z_roots`` / ``_row`` and
 ``kwok_current.kwok_current_force_scalar``). It mirrors, for arrays of cars, the simulator's
 plain-Python step, and the tests prove the two agree to round-off
 (``tests/gym_envs/test_kernel.py``):
@@ -31,7 +32,7 @@ import numpy as np
 
 from mr_damper_model.models import compiled
 from mr_damper_model.models.kwok_current import _coefficients, kwok_current_force_scalar
-from mr_damper_model.models.spencer import (_row, heun_substeps, substeps, z_roots,
+from mr_damper_model.models.spencer import (_row, heun_substeps_lanes, substeps, z_roots,
                                             z_step_rooted)
 
 # --- mi: the model's integers -------------------------------------------------------------
@@ -68,6 +69,10 @@ N_SENS_F = 8
 #: (kwok), then the model's parameters (13 Spencer, 10 kwok-current)
 PP_KIND, PP_SLEW, PP_SUB_OR_TAU, PP_Y0_OR_IREF, PP_PARAMS = range(5)
 PP_N = PP_PARAMS + 13
+#: constants of a Spencer plant's step (per corner, computed once a call): sub-steps, sub-step
+#: [s], coil decay over a sub-step, then its ``z_roots`` (6)
+SC_M, SC_H, SC_DECAY, SC_ROOTS = range(4)
+SC_N = SC_ROOTS + 6
 
 # --- per-car blocks of S ------------------------------------------------------------------
 #: clock (3): time [s], control steps since reset, sensor samples since reset
@@ -128,49 +133,105 @@ def _road_at(road, road_meta, k, t, track, delayed, rdt, zr, zd):
         zr[i], zd[i] = _road_sample(road, k, track[i], n, rdt, s)
 
 
-def _plant_step(pp, i, plant, k, h, xb, vb, i_cmd):
-    """Step the plant of corner ``i`` of car ``k`` over ``h`` to (xb, vb); model force [N]."""
-    st = plant[k, i * PL_N:(i + 1) * PL_N]
-    slew = pp[i, PP_SLEW]
-    if st[PL_STARTED] == 0.0 and pp[i, PP_KIND] == 0.0:
-        y0 = pp[i, PP_Y0_OR_IREF]
-        st[PL_Y] = xb if y0 != y0 else y0
-        st[PL_Z] = 0.0
-        st[PL_X] = xb
-        st[PL_V] = vb
-    st[PL_STARTED] = 1.0
-    if slew == math.inf:
-        st[PL_DRIVE] = i_cmd
-    else:
-        d = i_cmd - st[PL_DRIVE]
-        lim = slew * h
-        if d > lim:
-            d = lim
-        elif d < -lim:
-            d = -lim
-        st[PL_DRIVE] += d
-    drive = st[PL_DRIVE]
-    if pp[i, PP_KIND] == 0.0:
+def _spencer_constants(pp, h, sc):
+    """
+    Write the constants of each Spencer plant's step over ``h`` in ``sc`` (once a call).
+
+    Return 1 when every corner's plant is a Spencer one with the same sub-steps (one group of
+    lanes for :func:`spencer.heun_substeps_lanes`), else 0.
+    """
+    same = 1
+    for i in range(pp.shape[0]):
+        if pp[i, PP_KIND] != 0.0:
+            same = 0
+            continue
         p = _row(pp[:, PP_PARAMS:], i)
-        c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = p
         m = substeps(h, pp[i, PP_SUB_OR_TAU])
         hs = h / m
-        y, z, u = heun_substeps(z_step_rooted, z_roots(A, beta, gamma), p, st[PL_Y],
-                                st[PL_Z], st[PL_U], st[PL_X], st[PL_V], (xb - st[PL_X]) / m,
-                                (vb - st[PL_V]) / m, drive, hs, math.exp(-eta * hs), m)
-        st[PL_Y], st[PL_Z], st[PL_U] = y, z, u
+        sc[i, SC_M] = m
+        sc[i, SC_H] = hs
+        sc[i, SC_DECAY] = math.exp(-p[12] * hs)
+        zc = z_roots(p[11], p[10], p[9])
+        for j in range(6):
+            sc[i, SC_ROOTS + j] = zc[j]
+        if sc[i, SC_M] != sc[0, SC_M]:
+            same = 0
+    return same
+
+
+def _plants_step(pp, sc, same, plant, k, h, travel, vrel, cmd, f, ps):
+    """
+    Step the plants of car ``k`` over ``h`` to (travel, vrel); their forces on the body in f.
+
+    The Spencer plants' sub-steps run as lanes (:func:`spencer.heun_substeps_lanes`: each
+    lane's arithmetic that of ``heun_substeps``, bit for bit), all corners together when
+    ``same`` (:func:`_spencer_constants`), else corner by corner.
+    """
+    nc = pp.shape[0]
+    for i in range(nc):
+        st = plant[k, i * PL_N:(i + 1) * PL_N]
+        xb = travel[i]
+        vb = vrel[i]
+        slew = pp[i, PP_SLEW]
+        if st[PL_STARTED] == 0.0 and pp[i, PP_KIND] == 0.0:
+            y0 = pp[i, PP_Y0_OR_IREF]
+            st[PL_Y] = xb if y0 != y0 else y0
+            st[PL_Z] = 0.0
+            st[PL_X] = xb
+            st[PL_V] = vb
+        st[PL_STARTED] = 1.0
+        if slew == math.inf:
+            st[PL_DRIVE] = cmd[k, i]
+        else:
+            d = cmd[k, i] - st[PL_DRIVE]
+            lim = slew * h
+            if d > lim:
+                d = lim
+            elif d < -lim:
+                d = -lim
+            st[PL_DRIVE] += d
+        drive = st[PL_DRIVE]
+        if pp[i, PP_KIND] == 0.0:
+            m = sc[i, SC_M]
+            ps[i, 0] = (xb - st[PL_X]) / m
+            ps[i, 1] = (vb - st[PL_V]) / m
+            continue
+        tau = pp[i, PP_SUB_OR_TAU]
+        if tau > 0.0:
+            st[PL_U] = drive + (st[PL_U] - drive) * math.exp(-h / tau)
+        else:
+            st[PL_U] = drive
+        q = pp[i, PP_PARAMS:]
+        f[k, i] = -kwok_current_force_scalar((q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7],
+                                              q[8], q[9]), st[PL_U] * pp[i, PP_Y0_OR_IREF],
+                                             xb, vb)
+    row = plant[k]
+    w = ps[:, 2:]
+    for i in range(nc if same == 0 else 1):
+        if same == 0 and pp[i, PP_KIND] != 0.0:
+            continue
+        a, b = (0, nc) if same else (i, i + 1)
+        # the lanes' state: plant columns of car k (strided views), advanced in place
+        heun_substeps_lanes(z_step_rooted, sc[a:b, SC_ROOTS:SC_ROOTS + 6],
+                            pp[a:b, PP_PARAMS:], sc[a:b, SC_H], sc[a:b, SC_DECAY],
+                            int(sc[a, SC_M]), row[a * PL_N + PL_Y:b * PL_N:PL_N],
+                            row[a * PL_N + PL_Z:b * PL_N:PL_N], row[a * PL_N + PL_U:b * PL_N:PL_N],
+                            row[a * PL_N + PL_X:b * PL_N:PL_N], row[a * PL_N + PL_V:b * PL_N:PL_N],
+                            ps[a:b, 0], ps[a:b, 1], row[a * PL_N + PL_DRIVE:b * PL_N:PL_N],
+                            w[a:b])
+    for i in range(nc):
+        if pp[i, PP_KIND] != 0.0:
+            continue
+        st = plant[k, i * PL_N:(i + 1) * PL_N]
+        xb = travel[i]
+        vb = vrel[i]
         st[PL_X], st[PL_V] = xb, vb
+        c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = _row(pp[:, PP_PARAMS:], i)
+        u = st[PL_U]
         c1 = c1a + c1b * u
-        yd = ((aa + ab * u) * z + (c0a + c0b * u) * vb + k0 * (xb - y)) / (c0a + c0b * u + c1)
-        return c1 * yd + k1 * (xb - x0)
-    tau = pp[i, PP_SUB_OR_TAU]
-    if tau > 0.0:
-        st[PL_U] = drive + (st[PL_U] - drive) * math.exp(-h / tau)
-    else:
-        st[PL_U] = drive
-    q = pp[i, PP_PARAMS:]
-    return kwok_current_force_scalar((q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8],
-                                      q[9]), st[PL_U] * pp[i, PP_Y0_OR_IREF], xb, vb)
+        yd = ((aa + ab * u) * st[PL_Z] + (c0a + c0b * u) * vb + k0 * (xb - st[PL_Y])) / (
+            c0a + c0b * u + c1)
+        f[k, i] = -(c1 * yd + k1 * (xb - x0))
 
 
 def _corner_motion(k, x, T, qb, vb, zu, vu, travel, vrel, body_v):
@@ -220,34 +281,35 @@ def _sense(k, clock, sens, sf, kind, corner, lat, period, draws, body_a, travel)
     ns = kind.shape[0]
     length = sens.shape[1] // ns
     for s in range(ns):
-        st = sens[k, s * length:(s + 1) * length]
+        st = s * length             # car k's row of sensor s starts at sens[k, st]
         nbuf = lat[s] + 1
         if idx % period[s] == 0:
             x = body_a[corner[s]] if kind[s] == 0 else travel[corner[s]]
-            noise_std, rw_scale, drift, scale, offset, quantum, p_loss, hold = sf[s]
-            if st[SE_STARTED] != 0.0 and rw_scale > 0.0:
-                st[SE_RW] += rw_scale * draws[k, col, s, DR_RW]
-            st[SE_STARTED] = 1.0
-            bias = st[SE_BIAS] + drift * t + st[SE_RW]
+            noise_std, rw_scale, drift, scale, offset, quantum, p_loss, hold = (
+                sf[s, 0], sf[s, 1], sf[s, 2], sf[s, 3], sf[s, 4], sf[s, 5], sf[s, 6], sf[s, 7])
+            if sens[k, st + SE_STARTED] != 0.0 and rw_scale > 0.0:
+                sens[k, st + SE_RW] += rw_scale * draws[k, col, s, DR_RW]
+            sens[k, st + SE_STARTED] = 1.0
+            bias = sens[k, st + SE_BIAS] + drift * t + sens[k, st + SE_RW]
             noise = noise_std * draws[k, col, s, DR_NOISE] if noise_std > 0.0 else 0.0
             lost = p_loss > 0.0 and draws[k, col, s, DR_LOSS] < p_loss
             y = (1.0 + scale) * (x + offset) + bias + noise
             if quantum > 0.0:
                 y = quantum * np.round(y / quantum)
             if lost:
-                y = st[SE_LAST] if hold != 0.0 else math.nan
+                y = sens[k, st + SE_LAST] if hold != 0.0 else math.nan
             else:
-                st[SE_LAST] = y
+                sens[k, st + SE_LAST] = y
         else:
             y = math.inf            # nothing sampled at this step
-        st[SE_BUF + idx % nbuf] = y
+        sens[k, st + SE_BUF + idx % nbuf] = y
         # the reading sampled lat[s] calls ago (SensorSampler's queue); inf: none yet
-        got = st[SE_BUF + (idx + 1) % nbuf] if idx >= lat[s] else math.inf
+        got = sens[k, st + SE_BUF + (idx + 1) % nbuf] if idx >= lat[s] else math.inf
         if math.isfinite(got):
-            st[SE_HELD] = got
-            st[SE_FRESH] = 1.0
+            sens[k, st + SE_HELD] = got
+            sens[k, st + SE_FRESH] = 1.0
         else:
-            st[SE_FRESH] = 0.0
+            sens[k, st + SE_FRESH] = 0.0
     clock[k, CL_SAMPLES] = idx + 1
 
 
@@ -262,11 +324,12 @@ def _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho
         for b in range(nb):
             y += Cw[j, b] * acc_b[b]
         for q in range(nsec):
-            b0, b1, b2, _, a1, a2 = sos[j, q]
-            zi = filt[k, 2 * (j * nsec + q):2 * (j * nsec + q) + 2]
-            out = b0 * y + zi[0]
-            zi[0] = b1 * y - a1 * out + zi[1]
-            zi[1] = b2 * y - a2 * out
+            b0, b1, b2 = sos[j, q, 0], sos[j, q, 1], sos[j, q, 2]
+            a1, a2 = sos[j, q, 4], sos[j, q, 5]
+            c = 2 * (j * nsec + q)
+            out = b0 * y + filt[k, c]
+            filt[k, c] = b1 * y - a1 * out + filt[k, c + 1]
+            filt[k, c + 1] = b2 * y - a2 * out
             y = out
         y2 = y * y
         sums[k, 3 * j] += y2
@@ -428,19 +491,24 @@ def _advance_cars(nsteps, record_first, record, sense, active, G, mf, mi, S, roa
     ncol = G.shape[2]
     # each car's scratch: its own row (a call's own array: calls on other cars may run at the
     # same time in other threads, the GIL released)
-    work = np.empty((x.shape[0], ncol + nx + 9 * nc + nb))
+    # the call's scratch (one car at a time; calls on other cars may run at the same time in
+    # other threads, the GIL released): sliced once a call, as a slice costs numba two atomic
+    # reference counts
+    work = np.empty(ncol + nx + 19 * nc + nb)
+    vec, xn, rest = work[:ncol], work[ncol:ncol + nx], work[ncol + nx:]
+    sc = np.zeros((nc, SC_N))
+    same = _spencer_constants(pp, h, sc)
     for k in range(x.shape[0]):
         if not active[k]:
             continue
-        w = work[k]
         # grouped: CPython passes a call of more than 30 arguments as *args, which numba's
         # inliner refuses
         _advance_car(k, nsteps, record_first, record, sense, G,
-                     (h, rdt, a0, t0, rho, kt, ct), (nsub, nobs_state, clip_slot),
-                     (T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp),
+                     (h, rdt, a0, t0, rho, kt, ct), (nsub, nobs_state, clip_slot, same),
+                     (T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp, sc),
                      (qb, vb, zu, vu, track, delayed, kind, corner, lat, period),
                      (x, f, clock, road_meta, cmd, plant, filt, sums, sens, obs, rew), road,
-                     draws, w[:ncol], w[ncol:ncol + nx], w[ncol + nx:])
+                     draws, vec, xn, rest)
     return 0
 
 
@@ -448,8 +516,8 @@ def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, mod
                  car, road, draws, vec, xn, rest):
     """Advance car ``k`` (the body of :func:`_advance_cars`'s loop; scratch in its own row)."""
     h, rdt, a0, t0, rho, kt, ct = scalars
-    nsub, nobs_state, clip_slot = counts
-    T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp = model
+    nsub, nobs_state, clip_slot, same = counts
+    T, Ks, cs, W, minv_b, Cw, kw, sos, sf, lo, hi, pp, sc = model
     qb, vb, zu, vu, track, delayed, kind, corner, lat, period = index
     x, f, clock, road_meta, cmd, plant, filt, sums, sens, obs, rew = car
     nc, nb = T.shape
@@ -460,10 +528,12 @@ def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, mod
     travel, vrel, tyre = rest[4 * nc:5 * nc], rest[5 * nc:6 * nc], rest[6 * nc:7 * nc]
     body_v, body_a = rest[7 * nc:8 * nc], rest[8 * nc:9 * nc]
     acc_b = rest[9 * nc:9 * nc + nb]
+    ps = rest[9 * nc + nb:19 * nc + nb].reshape((nc, 10))
     t = clock[k, CL_T]
     _road_at(road, road_meta, k, t, track, delayed, rdt, zr0, zd0)
-    _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0, travel, vrel,
-             tyre, acc_b, body_v, body_a)
+    if record_first or nsteps == 0:
+        _outputs(k, x, f, T, Ks, cs, W, minv_b, kt, ct, qb, vb, zu, vu, zr0, zd0, travel,
+                 vrel, tyre, acc_b, body_v, body_a)
     if record_first:
         _record(k, sums, filt, sos, Cw, kw, acc_b, tyre, W, travel, cmd, a0, t0, rho, rew)
     for _ in range(nsteps):
@@ -490,8 +560,7 @@ def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, mod
             for j in range(nx):
                 x[k, j] = xn[j]
             _corner_motion(k, x, T, qb, vb, zu, vu, travel, vrel, body_v)
-            for i in range(nc):
-                f[k, i] = -_plant_step(pp, i, plant, k, h, travel[i], vrel[i], cmd[k, i])
+            _plants_step(pp, sc, same, plant, k, h, travel, vrel, cmd, f, ps)
             t = t1
             for i in range(nc):
                 zr0[i] = zr1[i]
@@ -509,9 +578,10 @@ def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, mod
 
 
 #: Functions the compiled step inlines (this module's, then the models' own).
-HELPERS = ('_advance_car', '_road_sample', '_road_at', '_plant_step', '_corner_motion',
-           '_outputs', '_sense', '_record', '_observe', _row, heun_substeps, substeps, z_roots,
-           z_step_rooted, kwok_current_force_scalar, _coefficients)
+HELPERS = ('_advance_car', '_road_sample', '_road_at', '_spencer_constants', '_plants_step',
+           '_corner_motion', '_outputs', '_sense', '_record', '_observe', _row,
+           heun_substeps_lanes, substeps, z_roots, z_step_rooted, kwok_current_force_scalar,
+           _coefficients)
 
 
 def compiled_step():

@@ -271,6 +271,80 @@ def heun_substeps(z_step, zc, p, y, z, u, x_a, v_a, dx, dv, i_drv, h, decay, m):
     return y, z, u
 
 
+def heun_substeps_lanes(z_step, zc, P, h, decay, m, y, z, u, xs, vs, dx, dv, i_drv, w):
+    """
+    Advance n independent plants (lanes) over m Heun sub-steps: :func:`heun_substeps` per lane.
+
+    The arithmetic of :func:`heun_substeps`, term for term, so each lane's (y, z, u) is its
+    result bit for bit; only the order of the work differs: each stage of a sub-step (the
+    predictor's rate, its z step, the corrector's rate, its z step, the end) runs lane after
+    lane, so a compiled loop keeps the lanes' independent chains of divisions and tanh side
+    by side instead of waiting on one lane's. For the compiled loops (plain Python works too).
+
+    Parameters
+    ----------
+    z_step : callable
+        ``z_step(z, dr, zc)``: :func:`z_step_rooted`.
+    zc : ndarray (n, 6)
+        Each lane's :func:`z_roots`.
+    P : ndarray (n, 13)
+        Each lane's parameters in ``SPENCER_PARAM_NAMES`` order.
+    h, decay : ndarray (n,)
+        Each lane's sub-step [s] and coil filter factor over it, ``exp(-eta*h)``.
+    m : int
+        Number of sub-steps (the same for every lane).
+    y, z, u : ndarray (n,)
+        Internal displacement [m], hysteretic displacement [m] and coil current [A]; advanced
+        in place.
+    xs, vs : ndarray (n,)
+        Displacement [m] and velocity [m/s] at the start of the interval; advanced in place to
+        the last sub-step's (summed as :func:`heun_substeps` sums them).
+    dx, dv, i_drv : ndarray (n,)
+        Increments per sub-step and the current driving the coil filter [A], as in
+        :func:`heun_substeps`.
+    w : ndarray (n, 8)
+        Scratch.
+
+    """
+    n = y.shape[0]
+    for _ in range(m):
+        for q in range(n):
+            c0a, c0b, k0, c1a, c1b, k1, x0, aa, ab, gamma, beta, A, eta = _row(P, q)
+            alpha = aa + ab * u[q]
+            c0 = c0a + c0b * u[q]
+            den = c0 + c1a + c1b * u[q]
+            yd_a = (alpha * z[q] + c0 * vs[q] + k0 * (xs[q] - y[q])) / den
+            u_e = i_drv[q] + (u[q] - i_drv[q]) * decay[q]
+            w[q, 0] = yd_a
+            w[q, 1] = vs[q] - yd_a
+            w[q, 2] = u_e
+            w[q, 3] = aa + ab * u_e
+            w[q, 4] = c0a + c0b * u_e
+            w[q, 5] = w[q, 4] + c1a + c1b * u_e
+            w[q, 6] = y[q] + h[q] * yd_a
+        for q in range(n):
+            w[q, 7] = z_step(z[q], w[q, 1] * h[q],
+                             (zc[q, 0], zc[q, 1], zc[q, 2], zc[q, 3], zc[q, 4], zc[q, 5]))
+        for q in range(n):
+            k0 = P[q, 2]
+            xe = xs[q] + dx[q]
+            ve = vs[q] + dv[q]
+            yd_p = (w[q, 3] * w[q, 7] + w[q, 4] * ve + k0 * (xe - w[q, 6])) / w[q, 5]
+            w[q, 7] = ve - yd_p
+        for q in range(n):
+            z[q] = z_step(z[q], 0.5 * (w[q, 1] + w[q, 7]) * h[q],
+                          (zc[q, 0], zc[q, 1], zc[q, 2], zc[q, 3], zc[q, 4], zc[q, 5]))
+        for q in range(n):
+            k0 = P[q, 2]
+            xe = xs[q] + dx[q]
+            ve = vs[q] + dv[q]
+            yd_e = (w[q, 3] * z[q] + w[q, 4] * ve + k0 * (xe - w[q, 6])) / w[q, 5]
+            y[q] = y[q] + 0.5 * h[q] * (w[q, 0] + yd_e)
+            u[q] = w[q, 2]
+            xs[q] = xe
+            vs[q] = ve
+
+
 def advance_scalar(state, p, x_a, v_a, x_b, v_b, i_drv, dt, m):
     """
     Advance the Spencer state over one sample interval with plain floats.
