@@ -110,7 +110,7 @@ def parse_channel(channel):
 
 
 def close_bus(bus):
-    """Shut ``bus`` down if there is one; return None (``self.bus = close_bus(self.bus)``)."""
+    """Shut ``bus`` down if there is one; return None, for ``self.bus = ...`` in one line."""
     if bus is not None:
         bus.shutdown()
 
