@@ -135,6 +135,34 @@ def test_a_corner_with_one_recorded_car_status_is_placed_at_the_runs_rate():
     assert c['first_normal_s'] == pytest.approx(2.4)
 
 
+def test_a_corner_without_one_recorded_status_reached_control_by_its_log_and_states():
+    # two corners with their own laws; the recording holds fr's car statuses but none of fl's
+    # (seen in a CI run: the monitor saw both normal); fl's car states (stamp: car time, at
+    # real time from wall 102 s) are its clock, its step log (normal from car time 3.0 s) says
+    # when it reached control: wall 105 s
+    w = ControlWatch()
+    for k in range(8):
+        w.update({'fl/identifier': {'windows_valid': 1}, 'fr/identifier': {'windows_valid': 1},
+                  'fr/quarter_car': _car(float(k), first_normal=1.5 if k >= 2 else NAN)},
+                 100.0 + k)
+        if k >= 2:
+            w.car_state('fl', 100.0 + k, float(k - 2))
+    t = np.arange(6000) * 1e-3
+    logs = {'fl': ArrayLog({'t': t, 'mode': (t >= 3.0).astype(float)}),
+            'fr': ArrayLog({'t': t, 'mode': (t >= 1.5).astype(float)})}
+    c = control_summary(w, 100.0, {'corners': {'fl': {'samples_lost': 0},
+                                               'fr': {'samples_lost': 0}}}, logs=logs)
+    assert c['units']['fl']['first_normal_t_sim'] == pytest.approx(3.0)
+    assert c['units']['fl']['first_normal_s'] == pytest.approx(5.0)
+    assert c['units']['fl']['failsafe_fraction'] == 0.0
+    assert c['first_normal_s'] == pytest.approx(5.0)
+    # a car never normal in its log: never, not a guess
+    logs['fl'] = ArrayLog({'t': t, 'mode': np.zeros_like(t)})
+    c = control_summary(w, 100.0, {'corners': {'fl': {'samples_lost': 0},
+                                               'fr': {'samples_lost': 0}}}, logs=logs)
+    assert c['units']['fl']['first_normal_s'] is None and c['first_normal_s'] is None
+
+
 def test_the_cars_states_are_its_clock_where_the_recording_lacks_its_statuses():
     # an external controller; the recorder matched the car's /diagnostics writer too late (a
     # loaded machine): not one status of the car, but its states (stamp: car time), 1024 Hz

@@ -295,15 +295,23 @@ def control_summary(watch, start_epoch_s, summary, *, logs=None):
         u.update(first_normal_s=since(law.first_rx),
                  first_normal_t_sim=watch.law_first_t_sim(unit),
                  failsafe_fraction=watch.unit_failsafe_fraction(unit))
+    unheard = []
     for unit, log in (logs or {}).items():
         # the log's mode is the law's only where the car runs it (with an external controller
-        # it says whether commands came)
-        if log is not None and log.rows > 1 and unit in watch.built_in:
+        # it says whether commands came). A car of which the recording holds no status at all
+        # (its /diagnostics writer matched late or never on a loaded machine, while the
+        # launcher's monitor got its statuses): its log is all there is of its control
+        if log is not None and log.rows > 1 and (unit in watch.built_in
+                                                 or unit not in watch.laws):
             first, fraction = quarter_car_log_figures(log)
-            units[unit or 'car'].update(first_normal_t_sim=first, failsafe_fraction=fraction)
-    for unit, law in watch.laws.items():
-        # the car time of the first normal step, where known, on the car's clock: exact, and
-        # also when the recording lacks the statuses after it
+            units.setdefault(unit or 'car', {}).update(
+                first_normal_t_sim=first, failsafe_fraction=fraction)
+            if unit not in watch.laws:
+                unheard.append(unit)
+                units[unit or 'car'].setdefault('first_normal_s', None)
+    for unit in [*watch.laws, *unheard]:
+        # the car time of the first normal step, where known, on the car's clock (its statuses,
+        # or its states): exact, and also when the recording lacks the statuses after it
         u = units[unit or 'car']
         at = watch.wall_at(unit, u.get('first_normal_t_sim'))
         if at is not None:
