@@ -27,9 +27,9 @@ import signal
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
-from integration.vehicle_helpers import (bus_channel, Car, change_state, command_frames,
+from integration.vehicle_helpers import (bus_channel, Car, chain_up, change_state, command_frames,
                                          CORNERS, drivers_time_out_while_stopped, GUARD_S,
-                                         model_files, SAFE_A)
+                                         model_files, normal_but_rr, SAFE_A)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -68,13 +68,7 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
                                                                'heartbeat_timeout_s': 5.0})
             procs.append(manager)
 
-            def normal(f):
-                return all(f[c][1] == 0 for c in ('fl', 'fr', 'rl'))
-
-            def up():
-                return (diag.values('lifecycle_manager').get('up') is True
-                        and sum(map(normal, command_frames(car.taken()))) >= 40)
-            assert lis.wait_for(up, GUARD_S, procs=procs), manager.output()
+            assert lis.wait_for(chain_up(diag, car), GUARD_S, procs=procs), manager.output()
             # in order: configure each, then activate each, in the chain's order
             done = sorted((t, n, e.goal_state.label) for n in NODES for t, e in events[n]
                           if e.goal_state.label in ('inactive', 'active'))
@@ -86,11 +80,11 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
             # an event: the law may ask 0 A for a stretch of road, as a CI run saw for 54
             # frames, when every demand is below the damper's force at 0 A)
             assert lis.wait_for(lambda: len({f['fl'][0] for f in command_frames(car.taken())
-                                             if normal(f)}) > 1, GUARD_S, procs=procs)
+                                             if normal_but_rr(f)}) > 1, GUARD_S, procs=procs)
             # the invalid record's corner is safe, flagged, in every frame
             frames = command_frames(car.taken())
             assert all(f['rr'] == (SAFE_A, 1) for f in frames)
-            assert len([f for f in frames if normal(f)]) >= 40
+            assert len([f for f in frames if normal_but_rr(f)]) >= 40
             assert lis.wait_for(lambda: diag.values('vehicle_controller').get(
                 'corners', {}).get('rr', {}).get('reason') == 'invalid_flag', GUARD_S)
             manager.stop()

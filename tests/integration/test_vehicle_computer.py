@@ -18,9 +18,9 @@ the order and the counts of events (the waits are hang guards only, never a time
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
-from integration.vehicle_helpers import (bus_channel, Car, change_state, command_frames,
+from integration.vehicle_helpers import (bus_channel, Car, chain_up, change_state, command_frames,
                                          CORNERS, drivers_time_out_while_stopped, GUARD_S,
-                                         model_files, SAFE_A)
+                                         model_files, normal_but_rr, SAFE_A)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -47,17 +47,11 @@ def test_loop_lifecycle_one_invalid_corner_deactivation_and_a_silent_computer(tm
                 'node_names': [NODE], 'diagnostics_period_s': 0.2, 'heartbeat_timeout_s': 5.0})
             procs.append(manager)
 
-            def normal(f):
-                return all(f[c][1] == 0 for c in ('fl', 'fr', 'rl'))
-
-            def up():
-                return (diag.values('lifecycle_manager').get('up') is True
-                        and sum(map(normal, command_frames(car.taken()))) >= 40)
-            assert lis.wait_for(up, GUARD_S, procs=procs), computer.output()
+            assert lis.wait_for(chain_up(diag, car), GUARD_S, procs=procs), computer.output()
             # the three good corners follow the law: their currents move (an event: the law
             # may ask 0 A for a stretch of road)
             assert lis.wait_for(lambda: len({f['fl'][0] for f in command_frames(car.taken())
-                                             if normal(f)}) > 1, GUARD_S, procs=procs)
+                                             if normal_but_rr(f)}) > 1, GUARD_S, procs=procs)
             frames = command_frames(car.taken())
             assert all(f['rr'] == (SAFE_A, 1) for f in frames)
             st = diag.values(NODE)
@@ -83,7 +77,7 @@ def test_loop_lifecycle_one_invalid_corner_deactivation_and_a_silent_computer(tm
             # active again, then silent: nothing in its name, the drivers' own timeout
             assert change_state(lis, NODE, 'activate') is True
             n_act = len(car.taken())
-            assert lis.wait_for(lambda: any(normal(f) for f in command_frames(
+            assert lis.wait_for(lambda: any(normal_but_rr(f) for f in command_frames(
                 car.taken()[n_act:])), GUARD_S, procs=procs[:1])
             n_stop = drivers_time_out_while_stopped(lis, car, computer.proc, 0.3)
             assert lis.wait_for(lambda: len(car.taken()) > n_stop + 4 * 5, GUARD_S,

@@ -70,6 +70,19 @@ def command_frames(commands):
     return frames
 
 
+def normal_but_rr(frame):
+    """Return whether ``frame``'s corners but rr (the invalid record's) are on the law."""
+    return all(frame[c][1] == 0 for c in CORNERS[:3])
+
+
+def chain_up(diag, car, frames=40):
+    """Return a check: the manager says the chain is up and ``frames`` normal frames were taken."""
+    def up():
+        return (diag.values('lifecycle_manager').get('up') is True
+                and sum(map(normal_but_rr, command_frames(car.taken()))) >= frames)
+    return up
+
+
 def change_state(lis, node, transition):
     """Call ``<node>/change_state``; return its ``success``."""
     from lifecycle_msgs.msg import Transition

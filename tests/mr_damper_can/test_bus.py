@@ -10,7 +10,7 @@ from mr_damper_can import bus as can_bus
 
 
 def _port():
-    return 44000 + time.monotonic_ns() % 1000
+    return 46000 + time.monotonic_ns() % 1000
 
 
 def test_frames_cross_between_two_buses_on_the_same_group_and_port():

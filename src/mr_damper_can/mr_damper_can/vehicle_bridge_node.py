@@ -42,6 +42,7 @@ from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, manag
 from mr_damper_common.node_utils import (declare_parameters, FastLane, set_realtime_priority,
                                          VEHICLE_QOS)
 from mr_damper_interfaces.msg import ChassisSensors, FullCarCommand
+from semi_active_control.runtime import failsafe_flags
 
 #: The node's parameters.
 PARAMETERS = VEHICLE_BRIDGE_PARAMETERS + MANAGED_PARAMETERS
@@ -125,10 +126,10 @@ class VehicleBridgeNode(SafeTransitions, LifecycleNode):
 
     def on_command(self, msg):
         """Send one command as one frame (the lane's thread)."""
-        _, cycle, currents, failsafe = messages.full_car_command_fields(msg)
+        _, cycle, currents, modes = messages.full_car_command_fields(msg)
         core = self.core
         if core is not None:
-            core.command_all(currents, failsafe, cycle)
+            core.command_all(currents, failsafe_flags(modes), cycle)
 
     # --- status ---------------------------------------------------------------------------------
     def status(self):

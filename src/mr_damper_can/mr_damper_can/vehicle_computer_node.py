@@ -44,7 +44,8 @@ from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, manag
                                               run_managed, SafeTransitions, state_label,
                                               SUCCESS)
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, LATCHED_QOS,
-                                         node_time_s, Param, set_realtime_priority,
+                                         merge_parameters, node_time_s, Param,
+                                         set_realtime_priority,
                                          VEHICLE_QOS)
 from mr_damper_interfaces.msg import (ChassisSensors, FullCarCommand, FullCarState,
                                       KwokParameters, RoadPreview)
@@ -59,22 +60,16 @@ from semi_active_control.nodes.common import (identified_set_or_error,
 from semi_active_control.runtime import VehicleLoop
 
 
-def _first_of_each(*groups):
-    """Return the parameters of ``groups`` in order, each name once (the first one's)."""
-    seen = set()
-    return tuple(p for g in groups for p in g if not (p.name in seen or seen.add(p.name)))
-
-
 #: The node's parameters: the bus's, the filter's, the controller's (``cycle_s`` and
 #: ``safe_current_a`` once: the bus's), its topics', then the managed node's.
-PARAMETERS = _first_of_each(VEHICLE_BRIDGE_PARAMETERS, VEHICLE_ESTIMATOR_PARAMETERS,
-                            VEHICLE_CONTROLLER_PARAMETERS, (
-                                Param('publish_every', 1, 'Publish the sensors, the state and '
-                                      'the law\'s command of every n-th cycle (as '
-                                      'ros2_control\'s state_publish_rate; the deactivation\'s '
-                                      'and the sensor timeout\'s commands always) [cycles]',
-                                      1, 100000),),
-                            MANAGED_PARAMETERS)
+PARAMETERS = merge_parameters(VEHICLE_BRIDGE_PARAMETERS, VEHICLE_ESTIMATOR_PARAMETERS,
+                              VEHICLE_CONTROLLER_PARAMETERS, (
+                                  Param('publish_every', 1, 'Publish the sensors, the state and '
+                                        'the law\'s command of every n-th cycle (as '
+                                        'ros2_control\'s state_publish_rate; the deactivation\'s '
+                                        'and the sensor timeout\'s commands always) [cycles]',
+                                        1, 100000),),
+                              MANAGED_PARAMETERS)
 
 
 class VehicleComputerNode(SafeTransitions, LifecycleNode):

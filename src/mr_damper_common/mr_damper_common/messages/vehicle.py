@@ -196,14 +196,12 @@ def full_car_command_msg(cmd, stamp_s, msg=None, frame_id='base_link'):
 
 def full_car_command_fields(msg):
     """
-    Return a ``FullCarCommand``'s values: ``(sequence, state_sequence, currents, failsafe)``.
+    Return a ``FullCarCommand``'s values: ``(sequence, state_sequence, currents, modes)``.
 
-    ``currents`` [A] as an array of four; ``failsafe`` a list of four bools (any mode but
-    NORMAL).
+    ``currents`` [A] as an array of four; ``modes`` a list of four ints (``MODE_*``).
     """
     return (int(msg.sequence), int(msg.state_sequence),
-            np.asarray(msg.current_a, dtype=float),
-            [int(m) != FullCarCommand.MODE_NORMAL for m in msg.mode])
+            np.asarray(msg.current_a, dtype=float), [int(m) for m in msg.mode])
 
 
 def road_preview_msg(stamp_s, distance_m, heights_m, *, sequence, speed_m_s, valid=True,

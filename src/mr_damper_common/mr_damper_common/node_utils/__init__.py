@@ -6,7 +6,7 @@ Public API (what the nodes import)::
     from mr_damper_common.node_utils import MEASUREMENT_QOS, LATCHED_QOS, PARAMETERS_QOS
     from mr_damper_common.node_utils import STATUS_QOS, SENSOR_QOS, VEHICLE_QOS, DIAGNOSTICS_QOS
     from mr_damper_common.node_utils import PUBLISH_ERRORS, ResettablePublisher
-    from mr_damper_common.node_utils import Param, declare_parameters
+    from mr_damper_common.node_utils import Param, declare_parameters, merge_parameters
     from mr_damper_common.node_utils import DropCounter, LogThrottle, DiagnosticsPublisher
     from mr_damper_common.node_utils import node_time_s, spin, spin_node, run_node
     from mr_damper_common.node_utils import run_guarded, tear_down
@@ -21,7 +21,8 @@ the numerical core never imports this package.
 """
 from mr_damper_common.node_utils.diagnostics import (DiagnosticsPublisher,  # noqa: F401
                                                      DropCounter, LogThrottle)
-from mr_damper_common.node_utils.parameters import declare_parameters, Param  # noqa: F401
+from mr_damper_common.node_utils.parameters import (declare_parameters,  # noqa: F401
+                                                    merge_parameters, Param)
 from mr_damper_common.node_utils.qos import (CONTROL_QOS, DIAGNOSTICS_QOS,  # noqa: F401
                                              LATCHED_QOS, MEASUREMENT_QOS, PARAMETERS_QOS,
                                              PUBLISH_ERRORS,

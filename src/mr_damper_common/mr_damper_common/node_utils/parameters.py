@@ -62,6 +62,12 @@ class Param:
         return desc
 
 
+def merge_parameters(*groups):
+    """Return the ``Param`` specs of ``groups`` in order, each name once (its first spec)."""
+    seen = set()
+    return tuple(p for g in groups for p in g if not (p.name in seen or seen.add(p.name)))
+
+
 def declare_parameters(node, specs, on_set=None):
     """
     Declare ``specs`` on ``node`` and install the on-set callback of the dynamic ones.

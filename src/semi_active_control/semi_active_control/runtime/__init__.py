@@ -24,9 +24,7 @@ from semi_active_control.runtime.controller_core import (ControllerCore,  # noqa
 from semi_active_control.runtime.full_car_controller_core import (  # noqa: F401
     corner_supervisors, FullCarController)
 from semi_active_control.runtime.live_preview import LIVE_PREVIEW_LAWS, LivePreview  # noqa: F401
-from semi_active_control.runtime.vehicle_controller import (full_car_state,  # noqa: F401
-                                                            MODE_FAIL_SAFE, MODE_INACTIVE,
-                                                            MODE_NORMAL,
-                                                            VehicleCommand,
-                                                            VehicleControllerCore)
+from semi_active_control.runtime.vehicle_controller import (  # noqa: F401
+    failsafe_flags, full_car_state, MODE_FAIL_SAFE, MODE_INACTIVE, MODE_NORMAL, VehicleCommand,
+    VehicleControllerCore)
 from semi_active_control.runtime.vehicle_loop import VehicleLoop  # noqa: F401

@@ -40,6 +40,11 @@ from semi_active_control.supervision.deadline import DeadlineMonitor
 MODE_NORMAL, MODE_FAIL_SAFE, MODE_INACTIVE = 0, 1, 2
 
 
+def failsafe_flags(modes):
+    """Return each corner's fail-safe flag (its ``CMD_FAILSAFE`` bit): any mode but normal."""
+    return [int(m) != MODE_NORMAL for m in modes]
+
+
 @dataclass
 class VehicleCommand:
     """

@@ -24,7 +24,7 @@ from the bus reader's thread, the rest from the caller's.
 """
 import threading
 
-from semi_active_control.runtime.vehicle_controller import full_car_state, MODE_NORMAL
+from semi_active_control.runtime.vehicle_controller import failsafe_flags, full_car_state
 
 
 class VehicleLoop:
@@ -152,7 +152,7 @@ class VehicleLoop:
             self.controller.offer_preview(fields)
 
     def _send(self, cmd, cycle):
-        self.send(cmd.currents_a, [m != MODE_NORMAL for m in cmd.modes], cycle)
+        self.send(cmd.currents_a, failsafe_flags(cmd.modes), cycle)
 
     def status(self, t_now=None):
         """Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready)."""
