@@ -53,6 +53,17 @@ def csv_text(path):
     return path.read_text()
 
 
+_INTEGRATION_DIR = Path(__file__).resolve().parent / 'integration'
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark every test of ``tests/integration`` ``integration`` (``-m`` selects by folder too)."""
+    import pytest
+    for item in items:
+        if _INTEGRATION_DIR in Path(item.path).resolve().parents:
+            item.add_marker(pytest.mark.integration)
+
+
 def pytest_sessionstart(session):
     """
     Compile (or load from numba's cache) the Spencer plant's step before the first test.

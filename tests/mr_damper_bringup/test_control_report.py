@@ -216,3 +216,31 @@ def test_corner_car_states_give_the_clock_of_a_recording_without_the_cars_status
     assert c['samples_lost'] == 0
     # without the corners named, no clock at all (as before: the factor was None)
     assert control_from_recording(tmp_path, summary, [])['real_time_factor'] is None
+
+
+def test_a_car_that_catches_up_within_one_clock_period_still_has_a_clock(tmp_path):
+    # the car fell 4 s behind on a loaded machine and caught up: 4 s of road (car time 0 to
+    # 4 s) recorded within 0.4 s of wall time, under one clock period (STATE_CLOCK_PERIOD_S),
+    # and the run stopped then (a CI run's full car: real_time_factor None). The newest state
+    # is the clock's last point: ten times real time
+    from rclpy.serialization import serialize_message
+
+    from mr_damper_bringup.recorder import SuiteRecorder
+    from mr_damper_bringup.report.control import control_from_recording, STATE_CLOCK_PERIOD_S
+    from mr_damper_bringup.report.recording import RECORDING
+    from mr_damper_bringup.topics import namespaced_table, topic_table
+    from mr_damper_common.messages import seconds_to_stamp
+    from mr_damper_interfaces.msg import QuarterCarState
+    t0 = 1000.0
+    assert 0.4 < STATE_CLOCK_PERIOD_S
+    table = namespaced_table(topic_table(), ['fl'])
+    with SuiteRecorder(tmp_path / RECORDING, table, start_ns=int(t0 * 1e9)) as rec:
+        for k in range(201):
+            state = QuarterCarState()
+            seconds_to_stamp(0.02 * k, state.header.stamp)
+            rec.write('fl/car_state', serialize_message(state),
+                      int(round((t0 + 40.0 + 0.002 * k) * 1e9)))
+    summary = {'corners': {'fl': {'samples_lost': 0}}}
+    c = control_from_recording(tmp_path, summary, ['fl'])
+    # first point: the first state on the road (k = 1, car time 0.02 s); last: k = 200
+    assert c['real_time_factor'] == pytest.approx((4.0 - 0.02) / (0.002 * 199), rel=1e-6)

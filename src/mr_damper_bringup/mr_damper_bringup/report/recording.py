@@ -106,6 +106,9 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
     gaps = _Gaps()
     typestore = suite_typestore()
     unit = namespace or ''     # the law unit of this namespace's car (ControlWatch)
+    # each unit's newest car state not taken as a clock point: its clock's last point at the
+    # end (a car that caught up on a backlog drove seconds of road within one clock period)
+    newest_state = {}
     try:
         for part in (path if isinstance(path, (list, tuple)) else [path]):
             reader = McapScan(part)
@@ -118,7 +121,9 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                 rec['topic_messages'][key] = rec['topic_messages'].get(key, 0) + 1
                 corner = corner_states.get(topic)
                 if corner is not None:       # a corner's car state: its clock, nothing else
+                    newest_state[corner] = (t_rx, raw, msgtype, reader, key)
                     if rec['control'].wants_car_state(corner, t_rx):
+                        del newest_state[corner]
                         try:
                             msg = reader.deserialize(raw, msgtype, typestore)
                         except Exception:  # noqa: B902 - rosbags' SerdeError: counted
@@ -129,6 +134,10 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                     continue
                 # a root car state: the car's clock (one a second) and its mode runs
                 clock = key == 'car_state' and rec['control'].wants_car_state(unit, t_rx)
+                if key == 'car_state':
+                    newest_state[unit] = (t_rx, raw, msgtype, reader, key)
+                    if clock:
+                        del newest_state[unit]
                 modes = (key == 'car_state' and car_modes_from is not None
                          and t_rx >= car_modes_from)
                 if key not in ('measurement', 'parameters', 'truth', 'truth_spencer',
@@ -192,6 +201,13 @@ def read_recording(path, work, *, identifier_starts=(), car_modes_from=None, nam
                     if rec['measurement_gaps'] > missing:
                         rec['gap_events'].append((t_rx, rec['measurement_gaps'] - missing))
             rec['parts'].append(reader.summary())
+        for car, (t_rx, raw, msgtype, reader, key) in newest_state.items():
+            try:
+                msg = reader.deserialize(raw, msgtype, typestore)
+            except Exception:  # noqa: B902 - rosbags' SerdeError: counted
+                _count_bad(rec, key, 'undecodable')
+                continue
+            rec['control'].car_state(car, t_rx, stamp_to_seconds(msg.header.stamp))
     finally:
         meas.close()
         params.close()
