@@ -4,6 +4,7 @@ Tests of node_utils.spinning: the spin loop, SIGINT / SIGTERM in run_node, the f
 The spin loop's stop and error handling, and run_node's signal handling in a real process
 (exit 0 after finish and destroy, in that order).
 """
+import json
 import os
 import signal
 import subprocess
@@ -215,3 +216,61 @@ def test_fast_lane_takes_its_topic_in_its_own_thread_with_the_parents_namespace(
     lane.close()
     assert lane._thread is None
     parent.destroy_node()
+
+
+@pytest.mark.parametrize('spec, cpus', [('', set()), ('1', {1}), ('0,2-3', {0, 2, 3}),
+                                        (' 1 , 3 ', {1, 3}), ('2-2', {2})])
+def test_cpu_lists_read_as_taskset_takes_them(spec, cpus):
+    assert node_utils.parse_cpu_list(spec) == cpus
+
+
+@pytest.mark.parametrize('spec', ['a', '3-1', '-1', '1-', '1,x', '0.5'])
+def test_a_bad_cpu_list_is_refused(spec):
+    with pytest.raises(ValueError, match='CPU list'):
+        node_utils.parse_cpu_list(spec)
+
+
+def test_cpu_affinity_pins_every_thread_and_threads_started_later(tmp_path):
+    # in a process of its own (pinning this one would pin the test run): a thread before and
+    # one after the call, each thread's mask read back from the kernel; a CPU the process may
+    # not use is left out with a warning, and a list of none of its CPUs changes nothing
+    script = textwrap.dedent('''
+        import json, os, threading
+        from mr_damper_common.node_utils import set_cpu_affinity
+
+        class Log:
+            warnings = []
+            def warning(self, text):
+                self.warnings.append(text)
+
+        def masks():
+            return sorted({tuple(sorted(os.sched_getaffinity(int(t))))
+                           for t in os.listdir('/proc/self/task')})
+
+        allowed = sorted(os.sched_getaffinity(0))
+        one = allowed[-1]
+        stop = threading.Event()
+        before = threading.Thread(target=stop.wait)
+        before.start()
+        log = Log()
+        applied = set_cpu_affinity(f'{one},{one + 4096}', log)
+        after = threading.Thread(target=stop.wait)
+        after.start()
+        pinned = masks()
+        none = set_cpu_affinity(str(one + 4096), log)
+        unchanged = masks()
+        bad = set_cpu_affinity('x', log)
+        stop.set()
+        print(json.dumps(dict(one=one, applied=sorted(applied), pinned=pinned, none=sorted(none),
+                              unchanged=unchanged, bad=sorted(bad), warnings=log.warnings)))
+    ''')
+    got = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                         timeout=120, check=True)
+    r = json.loads(got.stdout)
+    assert r['applied'] == [r['one']]
+    assert r['pinned'] == [[r['one']]]             # the main thread and both others
+    assert r['none'] == [] and r['unchanged'] == [[r['one']]]
+    assert r['bad'] == []
+    assert len(r['warnings']) == 3
+    assert 'not available' in r['warnings'][0] and 'nothing pinned' in r['warnings'][1]
+    assert 'CPU list' in r['warnings'][2]

@@ -36,11 +36,10 @@ from mr_damper_can.bus import close_bus
 from mr_damper_can.node_parameters import open_vehicle_bridge, VEHICLE_BRIDGE_PARAMETERS
 from mr_damper_common import messages
 from mr_damper_common.health import WARN, worst
-from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
-                                              run_managed, SafeTransitions, state_label,
-                                              SUCCESS)
-from mr_damper_common.node_utils import (declare_parameters, FastLane, set_realtime_priority,
-                                         VEHICLE_QOS)
+from mr_damper_common.lifecycle_utils import (apply_scheduling, FAILURE, MANAGED_PARAMETERS,
+                                              managed_services, run_managed, SafeTransitions,
+                                              state_label, SUCCESS)
+from mr_damper_common.node_utils import declare_parameters, FastLane, VEHICLE_QOS
 from mr_damper_interfaces.msg import ChassisSensors, FullCarCommand
 from semi_active_control.runtime import failsafe_flags
 
@@ -84,7 +83,7 @@ class VehicleBridgeNode(SafeTransitions, LifecycleNode):
         self.timer = self.create_timer(p['safe_period_s'] / 2.0, lambda: core.tick())
         core.start(log_file=p['log_file'] or None)
         self.lane.start()
-        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        apply_scheduling(self, p)
         self.get_logger().info(f'vehicle bridge on {p["interface"]} {p["channel"]}: cycle '
                                f'{p["cycle_s"] * 1e3:g} ms, safe {p["safe_current_a"]:g} A')
         return SUCCESS

@@ -40,13 +40,11 @@ from mr_damper_can.bus import close_bus
 from mr_damper_can.node_parameters import open_vehicle_bridge, VEHICLE_BRIDGE_PARAMETERS
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
-from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
-                                              run_managed, SafeTransitions, state_label,
-                                              SUCCESS)
+from mr_damper_common.lifecycle_utils import (apply_scheduling, FAILURE, MANAGED_PARAMETERS,
+                                              managed_services, run_managed, SafeTransitions,
+                                              state_label, SUCCESS)
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, LATCHED_QOS,
-                                         merge_parameters, node_time_s, Param,
-                                         set_realtime_priority,
-                                         VEHICLE_QOS)
+                                         merge_parameters, node_time_s, Param, VEHICLE_QOS)
 from mr_damper_interfaces.msg import (ChassisSensors, FullCarCommand, FullCarState,
                                       KwokParameters, RoadPreview)
 from semi_active_control.car.full_car import CORNERS
@@ -122,7 +120,7 @@ class VehicleComputerNode(SafeTransitions, LifecycleNode):
         self.cycle_timers = [self.create_timer(p['safe_period_s'] / 2.0, lambda: bridge.tick()),
                              self.create_timer(p['check_period_s'], self.on_check)]
         bridge.start(log_file=p['log_file'] or None)
-        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        apply_scheduling(self, p)
         self.get_logger().info(
             f'vehicle computer on {p["interface"]} {p["channel"]}: {controller.controller.name}'
             f' every {p["cycle_s"] * 1e3:g} ms, safe {p["safe_current_a"]:g} A; models: '

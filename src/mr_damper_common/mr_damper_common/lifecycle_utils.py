@@ -24,7 +24,8 @@ from std_msgs.msg import Header
 
 from mr_damper_common import messages
 from mr_damper_common.node_utils import (DiagnosticsPublisher, DropCounter, node_time_s, Param,
-                                         PUBLISH_ERRORS, run_node, spin_node)
+                                         PUBLISH_ERRORS, run_node, set_cpu_affinity,
+                                         set_realtime_priority, spin_node)
 
 #: The heartbeat topic of a managed node (private: ``/<namespace>/<node>/heartbeat``).
 HEARTBEAT_TOPIC = '~/heartbeat'
@@ -38,6 +39,8 @@ MANAGED_PARAMETERS = (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads, set when it is '
           'configured (1..99; 0 = normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
+    Param('cpu_affinity', '', 'CPUs the node\'s threads are pinned to when it is configured, '
+          'a Linux CPU list as taskset -c takes it ("1", "2-3"; "" = any)'),
 )
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
@@ -74,6 +77,12 @@ class SafeTransitions:
             self.on_deactivate(state)
         self._teardown()
         return SUCCESS
+
+
+def apply_scheduling(node, params):
+    """Give every thread of ``node``'s process its ``realtime_priority`` and ``cpu_affinity``."""
+    set_realtime_priority(int(params['realtime_priority']), node.get_logger())
+    set_cpu_affinity(params['cpu_affinity'], node.get_logger())
 
 
 def state_label(node):

@@ -11,6 +11,7 @@ Public API (what the nodes import)::
     from mr_damper_common.node_utils import node_time_s, spin, spin_node, run_node
     from mr_damper_common.node_utils import run_guarded, tear_down
     from mr_damper_common.node_utils import make_executor, FastLane, set_realtime_priority
+    from mr_damper_common.node_utils import set_cpu_affinity, parse_cpu_list
     from mr_damper_common.node_utils import install_stop_handlers, request_stop, stop_requested
 
 Modules: ``qos`` (the QoS profiles and the publishers that go with them), ``parameters``
@@ -29,7 +30,8 @@ from mr_damper_common.node_utils.qos import (CONTROL_QOS, DIAGNOSTICS_QOS,  # no
                                              ResettablePublisher, SENSOR_QOS, STATUS_QOS,
                                              VEHICLE_QOS)
 from mr_damper_common.node_utils.spinning import (FastLane, make_executor,  # noqa: F401
-                                                  node_time_s, run_guarded, run_node,
+                                                  node_time_s, parse_cpu_list, run_guarded,
+                                                  run_node, set_cpu_affinity,
                                                   set_realtime_priority, spin, spin_node,
                                                   tear_down)
 from mr_damper_common.stop_flag import (_STOP, install_stop_handlers,  # noqa: F401

@@ -75,6 +75,59 @@ def set_realtime_priority(priority, logger):
         return False
 
 
+def parse_cpu_list(spec):
+    """
+    Return the CPU numbers of a Linux CPU list (``taskset -c`` syntax: ``'1'``, ``'0,2-3'``).
+
+    ``''`` gives an empty set. Raises ValueError for anything else (a word, a reversed range,
+    a negative number).
+    """
+    cpus = set()
+    for part in filter(None, (x.strip() for x in str(spec).split(','))):
+        lo, sep, hi = part.partition('-')
+        if not lo.isdigit() or (sep and not hi.isdigit()):
+            raise ValueError(f'not a CPU list: {spec!r}')
+        first, last = int(lo), int(hi) if sep else int(lo)
+        if last < first:
+            raise ValueError(f'not a CPU list (reversed range {part!r}): {spec!r}')
+        cpus.update(range(first, last + 1))
+    return cpus
+
+
+def set_cpu_affinity(spec, logger):
+    """
+    Pin every thread of this process that exists now to the CPUs of ``spec`` (``''``: no-op).
+
+    ``spec`` is a CPU list (:func:`parse_cpu_list`); threads started later inherit the mask of
+    the thread that starts them. As a real-time deployment keeps its control process on a
+    core of its own (the suite's vehicle configuration: the simulated car on one core, the
+    vehicle computer on the other). CPUs this process may not use are left out with a
+    warning; with none left, nothing changes. Returns the set applied (empty: none).
+    """
+    try:
+        wanted = parse_cpu_list(spec)
+    except ValueError as exc:
+        logger.warning(f'cpu_affinity not applied: {exc}')
+        return set()
+    if not wanted:
+        return set()
+    allowed = os.sched_getaffinity(0)
+    cpus = wanted & allowed
+    if cpus != wanted:
+        logger.warning(f'cpu_affinity {spec!r}: CPUs {sorted(wanted - allowed)} not available '
+                       f'(this process may use {sorted(allowed)})'
+                       + ('' if cpus else '; nothing pinned'))
+    if not cpus:
+        return set()
+    try:
+        for tid in os.listdir('/proc/self/task'):
+            os.sched_setaffinity(int(tid), cpus)
+    except OSError as exc:
+        logger.warning(f'cpu_affinity {spec!r} not applied: {exc}')
+        return set()
+    return cpus
+
+
 def make_executor(events=True, context=None):
     """Return the executor of the suite's nodes: EventsExecutor when available and ``events``."""
     if events:

@@ -68,7 +68,7 @@ from mr_damper_common import messages
 from mr_damper_common.health import ERROR, WARN, worst
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, DiagnosticsPublisher,
                                          DropCounter, FastLane, LATCHED_QOS, node_time_s, Param,
-                                         set_realtime_priority, VEHICLE_QOS)
+                                         set_cpu_affinity, set_realtime_priority, VEHICLE_QOS)
 from mr_damper_model.io.params_file import load_plant
 from quarter_car_sim.nodes.car_process import end_on_control_error, run_car_node
 from quarter_car_sim.plant.two_track_road import make_two_track_road
@@ -159,6 +159,8 @@ PARAMETERS = (
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (with controller '
           'external: of every thread) (1..99; 0 = normal scheduling); only with '
           'real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
+    Param('cpu_affinity', '', 'CPUs every thread of the node is pinned to once it runs, a Linux '
+          'CPU list as taskset -c takes it ("0", "2-3"; "" = any)'),
     Param('log_max_s', 600.0, 'Longest body history kept for the ISO 2631-1 figures [s]',
           0.0, 3600.0),
     Param('log_file', '', 'At the end write the body accelerations (t, acc) to this .npz file '
@@ -271,6 +273,7 @@ class FullCarNode(Node):
             # shares the GIL: a normal-priority thread preempted while it holds the GIL would
             # stall the control thread (as the quarter car's external and HIL modes)
             set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        set_cpu_affinity(p['cpu_affinity'], self.get_logger())
         name = ('external controller' if self.external else 'vehicle computer on CAN '
                 f'{p["can_interface"]} {p["can_channel"]}' if self.can
                 else self.rt.controller.name)

@@ -41,11 +41,11 @@ from rclpy.lifecycle import LifecycleNode
 
 from mr_damper_common import messages
 from mr_damper_common.health import OK, worst
-from mr_damper_common.lifecycle_utils import (FAILURE, MANAGED_PARAMETERS, managed_services,
-                                              run_managed, SafeTransitions, state_label,
-                                              SUCCESS)
+from mr_damper_common.lifecycle_utils import (apply_scheduling, FAILURE, MANAGED_PARAMETERS,
+                                              managed_services, run_managed, SafeTransitions,
+                                              state_label, SUCCESS)
 from mr_damper_common.node_utils import (CONTROL_QOS, declare_parameters, FastLane, LATCHED_QOS,
-                                         node_time_s, set_realtime_priority, VEHICLE_QOS)
+                                         node_time_s, VEHICLE_QOS)
 from mr_damper_interfaces.msg import FullCarCommand, FullCarState, KwokParameters, RoadPreview
 from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
 from semi_active_control.nodes.common import (identified_set_or_error,
@@ -104,7 +104,7 @@ class VehicleControllerNode(SafeTransitions, LifecycleNode):
             for i, c in enumerate(CORNERS) if models.source(i) == 'live']
         self.timer = self.create_timer(p['check_period_s'], self.on_check)
         self.lane.start()
-        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        apply_scheduling(self, p)
         self.get_logger().info(
             f'{core.controller.name}: vehicle/state -> vehicle/command every '
             f'{p["cycle_s"] * 1e3:g} ms; models: '

@@ -37,11 +37,11 @@ from sensor_msgs.msg import Imu, JointState
 
 from mr_damper_common import messages
 from mr_damper_common.health import OK, WARN, worst
-from mr_damper_common.lifecycle_utils import (MANAGED_PARAMETERS, managed_services,
-                                              run_managed, SafeTransitions, state_label,
-                                              SUCCESS)
+from mr_damper_common.lifecycle_utils import (apply_scheduling, MANAGED_PARAMETERS,
+                                              managed_services, run_managed, SafeTransitions,
+                                              state_label, SUCCESS)
 from mr_damper_common.node_utils import (declare_parameters, FastLane, Param, SENSOR_QOS,
-                                         set_realtime_priority, VEHICLE_QOS)
+                                         VEHICLE_QOS)
 from mr_damper_interfaces.msg import ChassisSensors, FullCarState
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.estimation.sensor_specs import G0
@@ -103,7 +103,7 @@ class VehicleEstimatorNode(SafeTransitions, LifecycleNode):
                     JointState, f'{c}/quarter_car/suspension_position',
                     lambda m, c=c: self.on_position(c, m), SENSOR_QOS))
         self.lane.start()
-        set_realtime_priority(int(p['realtime_priority']), self.get_logger())
+        apply_scheduling(self, p)
         self.get_logger().info(f'full-car estimator on {p["input"]} every '
                                f'{p["cycle_s"] * 1e3:g} ms -> vehicle/state')
         return SUCCESS
