@@ -135,3 +135,49 @@ def test_take_domain_refuses_a_requested_domain_in_use_and_draws_a_free_one(tmp_
     domain, lock = take_domain(None, tmp_path)
     assert domain != 100 and lock.fd is not None
     assert not DomainLock(domain, tmp_path).acquire()
+
+
+class _SlowRig:
+    """A node process that exits only when waited for after its SIGINT (a loaded rig)."""
+
+    def __init__(self, name, events):
+        self.name, self.events, self.returncode = name, events, None
+
+    def poll(self):
+        return self.returncode
+
+    def send_signal(self, sig):
+        self.events.append(('signal', self.name, sig))
+
+    def wait(self, timeout=None):
+        self.returncode = 0
+        self.events.append(('exited', self.name))
+        return 0
+
+
+def test_the_drain_starts_once_every_rig_has_exited_and_identifiers_stop_after_it(tmp_path):
+    # corners fl and fr: the rigs get SIGINT in order, and the drain (whose first look records
+    # which rigs had exited) comes only after both exited; the identifiers after the drain
+    from mr_damper_bringup.processes import Suite
+    events = []
+    order = ['fl.mr_damper_rig', 'fr.mr_damper_rig', 'fl.mr_damper_identifier',
+             'fr.mr_damper_identifier']
+    suite = Suite(tmp_path / 'p.yaml', tmp_path, 0, nodes={n: 'x' for n in order}, dds={})
+    for n in order:
+        suite.procs[n] = _SlowRig(n, events)
+        suite.logs[n] = open(tmp_path / f'{n}.log', 'w')
+
+    def drained():
+        events.append(('drain',))
+        return True, None
+    codes = suite.stop(order=order, last=(), then=(), drain_s=0.001, drained=drained)
+    assert codes == {n: 0 for n in order}
+    names = [e[:2] for e in events]
+    assert names[:5] == [('signal', 'fl.mr_damper_rig'), ('signal', 'fr.mr_damper_rig'),
+                         ('exited', 'fl.mr_damper_rig'), ('exited', 'fr.mr_damper_rig'),
+                         ('drain',)]
+    assert names[5:] == [('signal', 'fl.mr_damper_identifier'),
+                         ('signal', 'fr.mr_damper_identifier'),
+                         ('exited', 'fl.mr_damper_identifier'),
+                         ('exited', 'fr.mr_damper_identifier')]
+    assert all(e[2] == signal.SIGINT for e in events if e[0] == 'signal')

@@ -276,6 +276,24 @@ def test_messages_lost_counts_the_identifier_not_the_recorder():
     assert lost == 3 and 'note' in br
 
 
+def test_the_launchers_last_count_stands_where_the_recording_missed_the_identifiers_last():
+    # the recorder, starved at the stop, has the identifier at 19,660 of 22,040 samples; the
+    # launcher's monitor took its last status at 22,040 (the stream drained): nothing lost. A
+    # lower count of the launcher's does not hide the recording's higher one, and a restarted
+    # identifier's earlier lives still add up
+    rec = {'status': {'identifier': {'samples_received': 19660}}, 'measurement_gaps': 0,
+           'measurements_received': 22040}
+    assert report.messages_summary(rec, None)[0] == 2380
+    assert report.messages_summary(rec, None, 22040)[0] == 0
+    assert report.messages_summary(rec, None, 100)[0] == 2380
+    assert report.messages_summary(rec, None, None)[0] == 2380
+    rec['identifier_lives'] = [{'last_count': 10000}, {'last_count': 9000}]
+    # lives 10,000 + max(9,000 recorded, 19,660 status, 12,040 launcher) = 29,660 > span: 0
+    assert report.messages_summary(rec, None, 12040)[0] == 0
+    rec['status']['identifier']['samples_received'] = 9000
+    assert report.messages_summary(rec, None, 11000)[0] == 22040 - 21000
+
+
 def test_streamed_record_error_equals_the_whole_array_error(monkeypatch):
     params, msg = _truth_msg()
     meas = _measurements(params)

@@ -363,7 +363,9 @@ class Suite:
         stopped after ``order`` and before ``last``, so the driver hears every frame the bridge
         sent and reports it before the recorder stops (the reverse of the start order). With
         car corners (node names ``<corner>.<node>``), ``order`` lists
-        every corner's nodes and the drain comes after the last rig.
+        every corner's nodes and the drain comes after the last rig. The drain starts once every
+        rig has exited: a rig on a loaded machine goes on publishing for seconds after its
+        SIGINT, and an identifier stopped meanwhile would miss the end of the stream.
 
         Returns
         -------
@@ -384,11 +386,16 @@ class Suite:
                     if (name == RIG or name.endswith('.' + RIG)) and drain_s > 0 \
                             and not any(n == RIG or n.endswith('.' + RIG)
                                         for n in group[group.index(name) + 1:]):
+                        # the stream ends when its rigs have exited (a loaded rig publishes
+                        # for seconds after its SIGINT: the drain must not start before)
+                        for rig in group[:group.index(name) + 1]:
+                            if (rig == RIG or rig.endswith('.' + RIG)) and rig in self.procs:
+                                codes[rig] = self._wait(rig, timeout_s)
                         time.sleep(drain_s)
                         if drained is not None:
                             wait_while_progressing(drained, stall_s, guard_s)
             for name in group:
-                if name in self.procs:
+                if name in self.procs and name not in codes:
                     codes[name] = self._wait(name, timeout_s)
         self.close()
         return codes

@@ -25,7 +25,7 @@ SUMMED = ('measurements_lost',)
 LONGEST = ('failsafe_s', 'no_car_state_s')
 
 
-def corner_losses(parts, corners, supervision, work=None):
+def corner_losses(parts, corners, supervision, work=None, last_counts=None):
     """
     Return each corner's lost measurements and every restart's cost per corner.
 
@@ -40,6 +40,9 @@ def corner_losses(parts, corners, supervision, work=None):
         names of a corner are ``<corner>.<node>``.
     work : path, optional
         Folder for the streamed extracts (default: a temporary one).
+    last_counts : dict, optional
+        Corner -> its identifier's ``samples_received`` in the launcher's last status of it
+        (:func:`losses.messages_summary`'s ``last_count``).
 
     Returns
     -------
@@ -74,7 +77,7 @@ def corner_losses(parts, corners, supervision, work=None):
                                  car_modes_from=min(deaths) - 1.0 if deaths else None)
             meas = (ColumnReader(folder / 'measurement') if rec['measurements_received']
                     else ArrayLog({k: [] for k in MEAS_COLUMNS}))
-            lost, br = messages_summary(rec, None)
+            lost, br = messages_summary(rec, None, (last_counts or {}).get(c))
             mine = restart_figures(supervision, rec, meas)
             attribute_losses(br, mine)
             out[c] = {'samples_lost': lost if 'note' not in br else None,
@@ -109,8 +112,9 @@ def add_corner_losses(summary, out, supervision):
     parts = [f for _, f in recording_parts(Path(out) / RECORDING)]
     restarts = [dict(r) for r in supervision.get('restarts') or ()]
     if parts:
+        seen = {c: d.get('samples_received') for c, d in summary['corners'].items()}
         losses, restarts, state = corner_losses(parts, list(summary['corners']), supervision,
-                                                work=out)
+                                                work=out, last_counts=seen)
         for c, d in losses.items():
             summary['corners'].setdefault(c, {}).update(d)
     else:

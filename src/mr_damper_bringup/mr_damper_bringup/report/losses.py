@@ -6,7 +6,7 @@ from mr_damper_bringup.report.recording import _first, _received_between
 from mr_damper_common.recording.columnlog import open_log
 
 
-def messages_summary(rec, qc_status):
+def messages_summary(rec, qc_status, last_count=None):
     """
     Measurements lost on their way to the identifier.
 
@@ -15,6 +15,11 @@ def messages_summary(rec, qc_status):
     subscribers before its first sample and stops before the identifier), so the identifier
     lost ``span - samples_received``. Gaps at the recorder itself are listed but are not losses
     of the suite (the recorder is a monitor, not part of the loop).
+
+    ``last_count`` is the identifier's count in the last status the launcher's monitor took (its
+    last life), where there is one: the recording may lack the last of the identifier's counts
+    (a recorder starved at the stop missed them while the launcher saw the stream drained); the
+    higher of the two is the identifier's.
 
     Returns
     -------
@@ -29,6 +34,8 @@ def messages_summary(rec, qc_status):
           'measurements_received_by_recorder': int(rec.get('measurements_received', 0))}
     published = _first(rig, ('samples_published', 'published'))
     received = _first(ident, ('samples_received', 'received'))
+    if isinstance(last_count, (int, float)) and not isinstance(last_count, bool):
+        received = max(received or 0, int(last_count))
     lives = rec.get('identifier_lives') or []
     if lives:
         # a restarted identifier counts from 0: add up its lives; the last life's count is the
