@@ -108,3 +108,23 @@ def test_without_a_recording_no_loss_is_claimed(tmp_path):
     add_corner_losses(summary, tmp_path, {'restarts': [], 'gave_up': None})
     assert summary['corners']['fl']['samples_lost'] is None
     assert summary['recording']['complete'] is False and summary['restarts'] == []
+
+
+def test_a_run_without_corners_reports_its_recording_complete_or_cut(tmp_path):
+    # a vehicle run on shipped models has no corner stacks: no corner reads the recording,
+    # yet its state is the recording's, not "no recording"
+    from mr_damper_bringup.recorder import work_file
+    _write(tmp_path / 'suite.mcap', 0.0, 2.0)
+    summary = {'corners': {}}
+    add_corner_losses(summary, tmp_path, {'restarts': [], 'gave_up': None})
+    state = summary['recording']
+    assert state['complete'] is True and 'note' not in state
+    assert state['parts'][0]['messages'] == 2 * (2.0 * RATE / BATCH + 2.0 * 10 + 2.0 * 20)
+    # the same file cut short (a killed recorder's work file): read, but not complete
+    _write(tmp_path / 'suite.1.mcap', 3.0, 4.0)
+    cut = work_file(tmp_path / 'suite.mcap')
+    cut.parent.mkdir()
+    (tmp_path / 'suite.mcap').rename(cut)
+    add_corner_losses(summary, tmp_path, {'restarts': [], 'gave_up': None})
+    assert summary['recording']['complete'] is False
+    assert len(summary['recording']['parts']) == 2

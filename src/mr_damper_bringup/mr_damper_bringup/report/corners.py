@@ -92,11 +92,23 @@ def corner_losses(parts, corners, supervision, work=None, last_counts=None):
                 r.setdefault('window_s', m.get('window_s'))
                 for key in SUMMED + LONGEST:
                     r.setdefault(f'{key}_by_corner', {})[c] = m.get(key)
+    if not corners:
+        # no corner read the parts (a vehicle run on shipped models): scan them for their state
+        rec = {'parts': [_scanned(part) for part in parts]}
     for r in restarts:
         for key in SUMMED + LONGEST:
             got = [v for v in (r.get(f'{key}_by_corner') or {}).values() if v is not None]
             r[key] = (sum(got) if key in SUMMED else max(got)) if got else None
     return out, restarts, recording_state(rec)
+
+
+def _scanned(part):
+    """Return ``McapScan.summary`` of one part read to its end (no message decoded)."""
+    from mr_damper_common.recording.mcap_scan import McapScan
+    reader = McapScan(part)
+    for _ in reader.messages(()):
+        pass
+    return reader.summary()
 
 
 def add_corner_losses(summary, out, supervision):
