@@ -11,9 +11,9 @@ import textwrap
 
 import pytest
 
-from mr_damper_bringup.config import SuiteError
+from mr_damper_bringup.config import RIG, SuiteError
 from mr_damper_bringup.launcher import take_domain
-from mr_damper_bringup.processes import die_with_parent, DomainLock, Reaper
+from mr_damper_bringup.processes import die_with_parent, DomainLock, is_rig, Reaper
 from mr_damper_bringup.reaper import proc_stat, running
 from process_helpers import alive, popen, stop_group, wait_gone
 
@@ -181,3 +181,9 @@ def test_the_drain_starts_once_every_rig_has_exited_and_identifiers_stop_after_i
                          ('exited', 'fl.mr_damper_identifier'),
                          ('exited', 'fr.mr_damper_identifier')]
     assert all(e[2] == signal.SIGINT for e in events if e[0] == 'signal')
+
+
+def test_is_rig_takes_the_rig_and_a_corner_s_rig_not_a_name_that_contains_it():
+    assert is_rig(RIG) and is_rig(f'fl.{RIG}')
+    not_rigs = (f'{RIG}_monitor', f'fl.{RIG}_x', f'fl.x{RIG}', f'{RIG}.identifier')
+    assert not any(is_rig(n) for n in not_rigs)

@@ -34,6 +34,11 @@ PR_SET_PDEATHSIG = 1
 REAPER_GRACE_S = 10.0
 
 
+def is_rig(name):
+    """Return True if process ``name`` is a rig: :data:`RIG` or a corner's ``<corner>.RIG``."""
+    return name == RIG or name.endswith('.' + RIG)
+
+
 def die_with_parent(sig=signal.SIGTERM):
     """
     Return a ``preexec_fn`` that makes a child process get ``sig`` when this process dies.
@@ -383,13 +388,12 @@ class Suite:
                 proc = self.procs[name]
                 if proc.poll() is None:
                     proc.send_signal(signal.SIGINT)
-                    if (name == RIG or name.endswith('.' + RIG)) and drain_s > 0 \
-                            and not any(n == RIG or n.endswith('.' + RIG)
-                                        for n in group[group.index(name) + 1:]):
+                    if is_rig(name) and drain_s > 0 \
+                            and not any(is_rig(n) for n in group[group.index(name) + 1:]):
                         # the stream ends when its rigs have exited (a loaded rig publishes
                         # for seconds after its SIGINT: the drain must not start before)
                         for rig in group[:group.index(name) + 1]:
-                            if (rig == RIG or rig.endswith('.' + RIG)) and rig in self.procs:
+                            if is_rig(rig) and rig in self.procs:
                                 codes[rig] = self._wait(rig, timeout_s)
                         time.sleep(drain_s)
                         if drained is not None:
