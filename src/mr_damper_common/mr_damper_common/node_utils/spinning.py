@@ -54,6 +54,12 @@ def spin(executor, done=lambda: False, timeout_sec=0.1):
             raise
 
 
+def _each_thread(fn):
+    """Call ``fn(tid)`` for the id of every thread of this process now; an error propagates."""
+    for tid in os.listdir('/proc/self/task'):
+        fn(int(tid))
+
+
 def set_realtime_priority(priority, logger):
     """
     Put every thread of this process that exists now under SCHED_FIFO ``priority`` (0: no-op).
@@ -67,8 +73,7 @@ def set_realtime_priority(priority, logger):
         return False
     try:
         param = os.sched_param(int(priority))
-        for tid in os.listdir('/proc/self/task'):
-            os.sched_setscheduler(int(tid), os.SCHED_FIFO, param)
+        _each_thread(lambda tid: os.sched_setscheduler(tid, os.SCHED_FIFO, param))
         return True
     except (OSError, AttributeError) as exc:
         logger.warning(f'realtime_priority {priority} not applied: {exc}')
@@ -120,8 +125,7 @@ def set_cpu_affinity(spec, logger):
     if not cpus:
         return set()
     try:
-        for tid in os.listdir('/proc/self/task'):
-            os.sched_setaffinity(int(tid), cpus)
+        _each_thread(lambda tid: os.sched_setaffinity(tid, cpus))
     except OSError as exc:
         logger.warning(f'cpu_affinity {spec!r} not applied: {exc}')
         return set()
