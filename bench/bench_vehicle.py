@@ -22,11 +22,18 @@ Runs, one after the other on the same machine (the figures depend on the load: t
 
 Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 100 %).
 
+``--pinning``: the vehicle runs as the suite's YAML has them (``pinned``: ``cpu_affinity`` of
+``full_car_node`` core 0, of ``vehicle_computer`` core 1), without that pinning (``unpinned``:
+both set to ``''``), or each round's layout pinned then unpinned (``both``: the A/B pair side by
+side in one table as well). ``--set NODE.PARAM=VALUE`` goes to every suite run (after the
+pinning's own ``--set``: yours win).
+
 Usage::
 
     .venv/bin/python bench/bench_vehicle.py [--duration 60] [--out runs/bench_vehicle]
                                             [--only loop|nodes|external] [--rounds N]
-                                            [--json OUT.json]
+                                            [--pinning both|pinned|unpinned]
+                                            [--set NODE.PARAM=VALUE ...] [--json OUT.json]
 
 Goals of issue 34 (two cores, the suite alone on the machine): the controller answers at
 least 99.9 % of control cycles within their period, 0 driver command timeouts after activation,
@@ -42,6 +49,26 @@ import time
 
 REPO = Path(__file__).resolve().parents[1]
 SUITE = Path(sys.executable).with_name('mr-damper-suite')
+#: The ``--set`` of each pinning of the vehicle runs (the YAML pins; ``''``, YAML's empty
+#: string, is no pinning: the launcher parses a ``--set`` value as YAML)
+PINNING_SETS = {'pinned': (),
+                'unpinned': ("full_car_node.cpu_affinity=''", "vehicle_computer.cpu_affinity=''")}
+
+
+def pinnings(choice):
+    """Return the pinnings to run of ``--pinning`` (``both``: pinned, then unpinned)."""
+    return ('pinned', 'unpinned') if choice == 'both' else (choice,)
+
+
+def suite_args(base, sets=(), pinning=None):
+    """
+    Return the arguments of one suite run after ``--duration`` and ``--out``.
+
+    ``base`` (configuration, layout), then the ``--set`` of ``pinning`` (None: none, the
+    external controller's run), then those of ``sets`` (the bench's ``--set``, last: they win).
+    """
+    items = [*PINNING_SETS[pinning], *sets] if pinning else list(sets)
+    return [*base, *(a for item in items for a in ('--set', item))]
 
 
 def _run(name, args, out, duration):
@@ -105,6 +132,52 @@ def report_vehicle(run):
         print(row)
 
 
+def _vehicle_figures(run):
+    """Return ``[(figure, value, goal)]`` of a vehicle run, the rows of :func:`compare`."""
+    v = run['summary'].get('vehicle') or {}
+    lat = v.get('sensor_to_command_s') or {}
+    ms = [_fmt(lat.get(k), 1e3) for k in ('p50', 'p99', 'max')]
+    frames = v.get('frames_lost')
+    frames = frames.get('total') if isinstance(frames, dict) else frames
+    rows = [
+        ('exit, load start -> end', f'{run["exit"]}, {run["load_start"]:.1f} -> '
+         f'{run["load_end"]:.1f}', ''),
+        ('control cycles', f'{v.get("control_cycles")}', ''),
+        ('answered within the cycle', _fmt(v.get('answered_fraction'), 100, ' %', 4),
+         '>= 99.9 %'),
+        ('unanswered', f'{v.get("unanswered")}', 'counted'),
+        ('sensor frame -> command frame p50 / p99 / max', ' / '.join(ms) + ' ms',
+         'p99 <= 2 ms'),
+        ('controller deadline misses', f'{v.get("deadline_misses")}', 'counted'),
+        ('driver command timeouts after activation', f'{v.get("driver_command_timeouts")}',
+         '0'),
+        ('frames lost on the bus', f'{frames}', 'counted'),
+        ('a_v / passive / lock-step [m/s^2]',
+         f'{_fmt(v.get("a_v"))} / {_fmt(v.get("a_v_passive"))} / '
+         f'{_fmt(v.get("a_v_lockstep"))} ({_fmt(v.get("a_v_vs_lockstep"), 100, " %")})',
+         'within 3 %')]
+    for name, d in run['cpu'].items():
+        if isinstance(d, dict) and 'cpu_mean_percent' in d:
+            rows.append((f'CPU mean {name}, one core = 100 %',
+                         f'{d["cpu_mean_percent"]:.1f} %', ''))
+    if 'nodes_total_cpu_cores' in run['cpu']:
+        rows.append(('nodes in all [cores]', f'{run["cpu"]["nodes_total_cpu_cores"]:.2f}', ''))
+    return rows
+
+
+def compare(runs):
+    """Print the figures of vehicle runs (``{label: run}``) side by side, a markdown table."""
+    tables = {label: {f: (value, goal) for f, value, goal in _vehicle_figures(run)}
+              for label, run in runs.items()}
+    figures = list(dict.fromkeys(f for t in tables.values() for f in t))
+    print('| figure | ' + ' | '.join(runs) + ' | goal |')
+    print('|---|' + '---|' * len(runs) + '---|')
+    for f in figures:
+        cells = [tables[label].get(f, ('n/a', ''))[0] for label in runs]
+        goal = next((t[f][1] for t in tables.values() if f in t), '')
+        print(f'| {f} | ' + ' | '.join(cells) + f' | {goal} |')
+
+
 def report_external(run):
     """Print the external-controller run's figures."""
     fc = run['summary'].get('full_car') or {}
@@ -123,28 +196,50 @@ def report_external(run):
         print(row)
 
 
-def main(argv=None):
-    """Run the bench; return the exit status."""
+def parse_args(argv=None):
+    """Return the bench's options."""
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--duration', type=float, default=60.0, help='each run [s, real time]')
     p.add_argument('--out', default=str(REPO / 'runs' / 'bench_vehicle'))
     p.add_argument('--only', choices=('loop', 'nodes', 'external'))
     p.add_argument('--rounds', type=int, default=1,
                    help='runs of each vehicle layout, in turn (loop, nodes, loop, ...)')
+    p.add_argument('--pinning', choices=('both', 'pinned', 'unpinned'), default='pinned',
+                   help='vehicle runs with the YAML\'s cpu_affinity (pinned), without it '
+                        '(unpinned), or each pinned then unpinned, side by side (both); '
+                        'default %(default)s')
+    p.add_argument('--set', action='append', default=[], metavar='NODE.PARAM=VALUE',
+                   help='passed to every mr-damper-suite run (repeatable)')
     p.add_argument('--json', help='write every figure to this file')
-    args = p.parse_args(argv)
+    return p.parse_args(argv)
+
+
+def main(argv=None):
+    """Run the bench; return the exit status."""
+    args = parse_args(argv)
     results = {}
     for k in range(args.rounds):
+        tag = f'_{k + 1}' if args.rounds > 1 else ''
         for layout in ('loop', 'nodes'):
-            if args.only in (None, layout):
-                name = f'vehicle_{layout}' + (f'_{k + 1}' if args.rounds > 1 else '')
-                results[name] = _run(name, ['--config', 'vehicle', '--vehicle-layout', layout],
-                                     args.out, args.duration)
+            if args.only not in (None, layout):
+                continue
+            pair = {}
+            for pinning in pinnings(args.pinning):
+                name = (f'vehicle_{layout}' + ('' if args.pinning == 'pinned' else f'_{pinning}')
+                        + tag)
+                base = ['--config', 'vehicle', '--vehicle-layout', layout]
+                results[name] = _run(name, suite_args(base, args.set, pinning), args.out,
+                                     args.duration)
                 print(f'[{name}]')
                 report_vehicle(results[name])
+                pair[pinning] = results[name]
+            if len(pair) > 1:
+                print(f'[vehicle_{layout}{tag}: pinned against unpinned]')
+                compare(pair)
     if args.only in (None, 'external'):
-        results['external'] = _run('external', ['--config', 'full-car', '--external-controller'],
-                                   args.out, args.duration)
+        results['external'] = _run(
+            'external', suite_args(['--config', 'full-car', '--external-controller'], args.set),
+            args.out, args.duration)
         report_external(results['external'])
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2))

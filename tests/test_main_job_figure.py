@@ -5,22 +5,16 @@ Three PNGs of known sizes and colours are joined without a suite run (``--durati
 result is as tall as asked, each panel keeps its aspect ratio, and each colour sits
 in its panel's column, left to right. A folder without the plots exits 2 and writes nothing.
 """
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.slow       # matplotlib's import: seconds on the 2 shared cores
+from script_helpers import load_script
 
-SCRIPT = Path(__file__).resolve().parents[1] / 'launch_scripts' / 'make_main_job_figure.py'
+pytestmark = pytest.mark.slow       # matplotlib's import: seconds on the 2 shared cores
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location('make_main_job_figure', SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script('launch_scripts/make_main_job_figure.py')
 
 
 def test_joins_the_three_plots_side_by_side(tmp_path):

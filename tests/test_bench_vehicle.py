@@ -1,0 +1,84 @@
+"""
+``bench/bench_vehicle.py`` without a suite run: its options, each run's suite arguments, the table.
+
+The unpinned runs' ``--set`` go through the launcher's own parsing (``resolve_config``) and give
+the empty CPU list, no pinning; the pinned runs keep the YAML's cores.
+"""
+import pytest
+
+from mr_damper_bringup.config import node_params, resolve_config
+from mr_damper_bringup.launcher import parse_args as suite_parse_args
+from script_helpers import load_script
+
+
+def _bench():
+    return load_script('bench/bench_vehicle.py')
+
+
+def test_options_default_to_pinned_and_collect_every_set():
+    bench = _bench()
+    args = bench.parse_args([])
+    assert args.pinning == 'pinned' and args.set == []
+    args = bench.parse_args(['--pinning', 'both', '--set', 'a.b=1', '--set', 'c.d=x'])
+    assert args.pinning == 'both' and args.set == ['a.b=1', 'c.d=x']
+    assert bench.pinnings('both') == ('pinned', 'unpinned')
+    assert bench.pinnings('unpinned') == ('unpinned',)
+    with pytest.raises(SystemExit):
+        bench.parse_args(['--pinning', 'sometimes'])
+
+
+def test_suite_arguments_put_the_bench_s_sets_after_the_pinning_s():
+    bench = _bench()
+    base = ['--config', 'vehicle']
+    assert bench.suite_args(base, ['a.b=1'], 'pinned') == base + ['--set', 'a.b=1']
+    assert bench.suite_args(base, ['a.b=1'], 'unpinned') == base + [
+        '--set', "full_car_node.cpu_affinity=''", '--set', "vehicle_computer.cpu_affinity=''",
+        '--set', 'a.b=1']
+    assert bench.suite_args(base, ['a.b=1']) == base + ['--set', 'a.b=1']   # external run
+
+
+@pytest.mark.parametrize('pinning, car, computer',
+                         [('pinned', '0', '1'), ('unpinned', '', '')])
+def test_the_launcher_reads_unpinned_as_empty_cpu_lists(tmp_path, pinning, car, computer):
+    bench = _bench()
+    argv = bench.suite_args(['--config', 'vehicle', '--out', str(tmp_path)], (), pinning)
+    cfg = resolve_config(suite_parse_args(argv), tmp_path)
+    assert node_params(cfg, 'full_car_node')['cpu_affinity'] == car
+    assert node_params(cfg, 'vehicle_computer')['cpu_affinity'] == computer
+
+
+def test_compare_prints_the_runs_side_by_side(capsys):
+    bench = _bench()
+
+    def run(answered, p99):
+        return {'exit': 0, 'load_start': 1.0, 'load_end': 1.5,
+                'summary': {'vehicle': {'answered_fraction': answered, 'frames_lost': {'total': 0},
+                                        'sensor_to_command_s': {'p50': 0.001, 'p99': p99,
+                                                                'max': 0.005}}},
+                'cpu': {'full_car_node': {'cpu_mean_percent': 70.0}}}
+    bench.compare({'pinned': run(0.951, 0.0026), 'unpinned': run(0.94, 0.003)})
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[:2] == ['| figure | pinned | unpinned | goal |', '|---|---|---|---|']
+    assert '| answered within the cycle | 95.1 % | 94 % | >= 99.9 % |' in lines
+    assert ('| sensor frame -> command frame p50 / p99 / max | 1 / 2.6 / 5 ms | 1 / 3 / 5 ms '
+            '| p99 <= 2 ms |') in lines
+    assert '| frames lost on the bus | 0 | 0 | counted |' in lines
+    assert '| CPU mean full_car_node, one core = 100 % | 70.0 % | 70.0 % |  |' in lines
+
+
+def test_both_runs_each_layout_pinned_then_unpinned_and_every_run_gets_the_sets(monkeypatch):
+    bench = _bench()
+    calls = []
+
+    def fake_run(name, args, out, duration):
+        calls.append((name, args))
+        return {'exit': 0, 'wall_s': 1.0, 'load_start': 0.0, 'load_end': 0.0, 'summary': {},
+                'cpu': {}}
+    monkeypatch.setattr(bench, '_run', fake_run)
+    assert bench.main(['--pinning', 'both', '--set', 'x.y=1']) == 0
+    assert [name for name, _ in calls] == ['vehicle_loop_pinned', 'vehicle_loop_unpinned',
+                                           'vehicle_nodes_pinned', 'vehicle_nodes_unpinned',
+                                           'external']
+    assert all(args[-2:] == ['--set', 'x.y=1'] for _, args in calls)
+    assert [sum(a.endswith("cpu_affinity=''") for a in args) for _, args in calls] == \
+        [0, 2, 0, 2, 0]
