@@ -602,9 +602,9 @@ def _run(argv, held):
         elapsed = time.monotonic() - t_start
     finally:
         if corners or vehicle:
-            order = [*VEHICLE_STOP_ORDER] + [
+            order = [*VEHICLE_STOP_ORDER[0]] + [
                 f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]
-            codes = suite.stop(order=order,
+            codes = suite.stop(order=order, then=VEHICLE_STOP_ORDER[1],
                                drained=lambda: corners_drained(monitor, list(corners)))
             summary = {'corners': corner_summary(monitor, list(corners))}
         else:

@@ -38,10 +38,14 @@ COMPUTER = 'vehicle_computer'
 LAYOUTS = ('loop', 'nodes')
 #: Per layout, the chain's nodes in the manager's order.
 CHAINS = {'loop': (COMPUTER,), 'nodes': (BRIDGE, ESTIMATOR, CONTROLLER)}
-#: Stop order: the manager (it would bring nodes back), the controller (its end: the safe
-#: command), the estimator, the bridge (its end: the safe frame, then the bus closes), the car;
-#: the loop node where the three are (the names of the other layout are not running).
-STOP_ORDER = (MANAGER, COMPUTER, CONTROLLER, ESTIMATOR, BRIDGE, FULL_CAR)
+#: Stop order, in two groups (every node of the first has exited before the second is
+#: signalled): the manager (it would bring nodes back) and the car (the plant: the run's
+#: measurement ends with it); then the vehicle computer: the controller (its end: the safe
+#: command), the estimator, the bridge (its end: the safe frame, then the bus closes), or the
+#: loop node where the three are (the names of the other layout are not running). With the
+#: computer stopped first, the car's four drivers each counted one command timeout at every
+#: stop (the computer's end) as a failure after the activation.
+STOP_ORDER = ((MANAGER, FULL_CAR), (COMPUTER, CONTROLLER, ESTIMATOR, BRIDGE))
 
 
 def vehicle_nodes(layout='loop'):
