@@ -22,6 +22,13 @@ Runs, one after the other on the same machine (the figures depend on the load: t
 
 Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 100 %).
 
+First, the platform: with rt-tests' ``cyclictest`` on the PATH (``apt-get install rt-tests``),
+``--platform-s`` seconds of one SCHED_FIFO thread per CPU woken every 1 ms, the machine alone
+(the standard test of a real-time Linux box), before any suite runs: how late the kernel (and
+a virtual machine's hypervisor) wakes a real-time thread, with nothing of the suite in the
+way. Every wake-up later than a cycle's slack (2 ms less the loop's own response) is a cycle
+no code on this machine answers in time: its count per minute bounds the answered fraction.
+
 ``--pinning``: the vehicle runs as the suite's YAML has them (``pinned``: ``cpu_affinity`` of
 ``full_car_node`` core 0, of ``vehicle_computer`` core 1), without that pinning (``unpinned``:
 both set to ``''``), or each round's layout pinned then unpinned (``both``: the A/B pair side by
@@ -34,6 +41,7 @@ Usage::
                                             [--only loop|nodes|external] [--rounds N]
                                             [--pinning both|pinned|unpinned]
                                             [--set NODE.PARAM=VALUE ...] [--json OUT.json]
+                                            [--platform-s 30]
 
 Goals of issue 34 (two cores, the suite alone on the machine): the controller answers at
 least 99.9 % of control cycles within their period, 0 driver command timeouts after activation,
@@ -53,6 +61,89 @@ SUITE = Path(sys.executable).with_name('mr-damper-suite')
 #: string, is no pinning: the launcher parses a ``--set`` value as YAML)
 PINNING_SETS = {'pinned': (),
                 'unpinned': ("full_car_node.cpu_affinity=''", "vehicle_computer.cpu_affinity=''")}
+
+
+#: Wake-up lateness thresholds of the platform's figures [us].
+LATE_US = (500, 1000, 2000)
+
+
+def platform_latency(duration_s, priority=30, interval_us=1000):
+    """
+    Run ``cyclictest`` (rt-tests) on every CPU for ``duration_s``; return its figures.
+
+    None when cyclictest is not installed. Else a dict: per CPU ``min_us``, ``avg_us``,
+    ``max_us``, ``wakeups`` and ``late`` (wake-ups later than each of :data:`LATE_US`), and
+    ``per_minute`` (the late wake-ups of all CPUs per minute and per CPU).
+    """
+    import shutil
+    exe = shutil.which('cyclictest')
+    if exe is None:
+        return None
+    cmd = [exe, '-m', '-q', '-S', '-p', str(priority), '-i', str(interval_us),
+           '-D', f'{max(int(duration_s), 1)}s', '-h', '20000']
+    print(f'$ {" ".join(cmd)}', flush=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        print(proc.stderr[-2000:], file=sys.stderr)
+        return {'error': proc.stderr.strip()[-500:] or f'exit {proc.returncode}'}
+    out = parse_cyclictest(proc.stdout)
+    out['duration_s'] = float(duration_s)
+    out['per_minute'] = {str(us): sum(c['late'][str(us)] for c in out['cpus']) * 60.0
+                         / duration_s / max(len(out['cpus']), 1) for us in LATE_US}
+    return out
+
+
+def parse_cyclictest(text):
+    """
+    Return per-thread figures of ``cyclictest -h`` output (its histogram and summary lines).
+
+    ``{'cpus': [{'min_us', 'avg_us', 'max_us', 'wakeups', 'overflows', 'late': {'500': n,
+    ...}}, ...]}``; wake-ups in the histogram's overflow (beyond its range) count as late
+    beyond every threshold.
+    """
+    rows, summary = [], {}
+    for line in text.splitlines():
+        parts = line.split()
+        if not parts:
+            continue
+        if line.startswith('#'):
+            key, _, values = line[1:].partition(':')
+            summary[key.strip()] = [int(v) for v in values.split() if v.isdigit()]
+        elif all(p.isdigit() for p in parts) and len(parts) >= 2:
+            rows.append([int(p) for p in parts])
+    n = max((len(r) - 1 for r in rows), default=0)
+    cpus = []
+    for k in range(n):
+        over = (summary.get('Histogram Overflows') or [0] * n)[k]
+        cpus.append({
+            'min_us': (summary.get('Min Latencies') or [None] * n)[k],
+            'avg_us': (summary.get('Avg Latencies') or [None] * n)[k],
+            'max_us': (summary.get('Max Latencies') or [None] * n)[k],
+            'wakeups': sum(r[k + 1] for r in rows) + over, 'overflows': over,
+            'late': {str(us): sum(r[k + 1] for r in rows if r[0] > us) + over
+                     for us in LATE_US}})
+    return {'cpus': cpus}
+
+
+def report_platform(fig):
+    """Print the platform's wake-up lateness (``platform_latency``)."""
+    if fig is None:
+        print('platform: cyclictest not installed (apt-get install rt-tests): not measured')
+        return
+    if 'error' in fig:
+        print(f'platform: cyclictest failed: {fig["error"]}')
+        return
+    print(f'platform (cyclictest, {fig["duration_s"]:g} s, SCHED_FIFO, 1 ms, one thread per '
+          f'CPU, nothing else of the bench running):')
+    for k, c in enumerate(fig['cpus']):
+        late = ', '.join(f'> {us / 1000:g} ms {c["late"][str(us)]}' for us in LATE_US)
+        print(f'  CPU {k}: wake-up latency min {c["min_us"]} us, avg {c["avg_us"]} us, max '
+              f'{c["max_us"]} us; of {c["wakeups"]} wake-ups late {late}')
+    pm = fig['per_minute']
+    print('  late wake-ups per CPU and minute: '
+          + ', '.join(f'> {us / 1000:g} ms {pm[str(us)]:.1f}' for us in LATE_US)
+          + ' (each one a cycle of 2 ms that a loop needing more than the rest of its cycle '
+            'cannot answer in time: 30 per minute are 0.1 % of the cycles)')
 
 
 def pinnings(choice):
@@ -211,6 +302,8 @@ def parse_args(argv=None):
     p.add_argument('--set', action='append', default=[], metavar='NODE.PARAM=VALUE',
                    help='passed to every mr-damper-suite run (repeatable)')
     p.add_argument('--json', help='write every figure to this file')
+    p.add_argument('--platform-s', type=float, default=30.0,
+                   help='cyclictest on every CPU first, for this long (0: not) [s]')
     return p.parse_args(argv)
 
 
@@ -218,6 +311,9 @@ def main(argv=None):
     """Run the bench; return the exit status."""
     args = parse_args(argv)
     results = {}
+    if args.platform_s > 0:
+        results['platform'] = platform_latency(args.platform_s)
+        report_platform(results['platform'])
     for k in range(args.rounds):
         tag = f'_{k + 1}' if args.rounds > 1 else ''
         for layout in ('loop', 'nodes'):
@@ -243,7 +339,7 @@ def main(argv=None):
         report_external(results['external'])
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2))
-    return 0 if all(r['exit'] == 0 for r in results.values()) else 1
+    return 0 if all(r['exit'] == 0 for n, r in results.items() if n != 'platform') else 1
 
 
 if __name__ == '__main__':

@@ -82,3 +82,31 @@ def test_both_runs_each_layout_pinned_then_unpinned_and_every_run_gets_the_sets(
     assert all(args[-2:] == ['--set', 'x.y=1'] for _, args in calls)
     assert [sum(a.endswith("cpu_affinity=''") for a in args) for _, args in calls] == \
         [0, 2, 0, 2, 0]
+
+
+def test_cyclictest_output_gives_each_cpus_late_wakeups():
+    # two threads' histograms (latency [us], count per thread) and the summary lines
+    text = '\n'.join([
+        '# /dev/cpu_dma_latency set to 0us', '# Histogram',
+        '000010 000900 000950', '000600 000050 000040', '001500 000030 000009',
+        '002500 000020 000001', '# Total: 000001000 001000',
+        '# Min Latencies: 00007 00010', '# Avg Latencies: 00031 00029',
+        '# Max Latencies: 03373 02600', '# Histogram Overflows: 00002 00000',
+        '# Histogram Overflow at cycle number:', '# Thread 0: 00123 00456', '# Thread 1:'])
+    cpus = _bench().parse_cyclictest(text)['cpus']
+    assert len(cpus) == 2
+    a, b = cpus
+    assert (a['min_us'], a['avg_us'], a['max_us'], a['overflows']) == (7, 31, 3373, 2)
+    # overflows (beyond the histogram) are late beyond every threshold
+    assert a['wakeups'] == 900 + 50 + 30 + 20 + 2
+    assert a['late'] == {'500': 50 + 30 + 20 + 2, '1000': 30 + 20 + 2, '2000': 20 + 2}
+    assert b['wakeups'] == 1000 and b['late'] == {'500': 50, '1000': 10, '2000': 1}
+
+
+def test_without_cyclictest_the_platform_is_not_measured(monkeypatch, capsys):
+    import shutil
+    bench = _bench()
+    monkeypatch.setattr(shutil, 'which', lambda name: None)
+    assert bench.platform_latency(1.0) is None
+    bench.report_platform(None)
+    assert 'rt-tests' in capsys.readouterr().out
