@@ -370,12 +370,21 @@ class FullCarEstimator:
         self._s_steady = np.einsum('ij,jk,ik->i', H, design.P, H) + np.diag(design.R)
         self._P_post = design.P - design.M @ H @ design.P
         self._P_post = (self._P_post + self._P_post.T) / 2.0
+        # the standard deviations while the steady gain runs (the steady posterior): once
+        self._std_post = np.sqrt(np.maximum(np.diag(self._P_post), 0.0))
+        self._std_post.setflags(write=False)
         dp = np.sqrt(np.abs(np.diag(self._P_post)))
         self._p_scale = np.maximum(np.outer(dp, dp), 1e-300)
         self._r = np.diag(design.R).copy()
         self._T_pinv = np.linalg.pinv(design.params.geometry)
         self._S = np.hstack([design.params.geometry, -np.eye(4)])
         self._observable = {}
+        # the repeat counts and stuck flags of a cycle where no reading repeated (read-only:
+        # shared by every such cycle)
+        self._no_runs = np.zeros(len(self.sensors), dtype=int)
+        self._none_stuck = np.zeros(len(self.sensors), dtype=bool)
+        for a in (self._no_runs, self._none_stuck):
+            a.setflags(write=False)
         self.fault_entries = {}
         self.fault_steps = {}
         self.reset()
@@ -478,7 +487,7 @@ class FullCarEstimator:
             self._predict()
         self._f = f_now.copy()
         self.n_steps += 1
-        self._judge(t, use, got)
+        self._judge(t, use, got, every)
         if not np.all(np.isfinite(self.x)):
             self.reason = 'diverged'
             self.x = np.zeros(len(self.x))
@@ -495,12 +504,18 @@ class FullCarEstimator:
         if self._stuck_n is not None:
             # a reading equal to the last one extends the run; another (or none) ends it
             same = y == self._last_val
-            self._same = (self._same + 1) * same
+            repeats = bool(same.any())
             np.copyto(self._last_val, y, where=got)
-            stuck = self._same + 1 >= self._stuck_n
-            # found out only after stuck_s of repeats: its readings were taken until now
-            self._late = stuck & (self._same + 1 == self._stuck_n)
-            if self._gate2 is not None and self._steady and same.any():
+            if not repeats:
+                # every run ended (the stuck counts are at least 2: none is stuck now)
+                self._same = self._no_runs
+                stuck = self._late = self._none_stuck
+            else:
+                self._same = (self._same + 1) * same
+                stuck = self._same + 1 >= self._stuck_n
+                # found out only after stuck_s of repeats: its readings were taken until now
+                self._late = stuck & (self._same + 1 == self._stuck_n)
+            if self._gate2 is not None and self._steady and repeats:
                 # the gate needs the converged filter (steady: every sensor read)
                 frozen = same & (e * e > self._gate2 * self._s_steady)
                 # frozen and disagreeing: stuck now, and for as long as it repeats
@@ -520,10 +535,15 @@ class FullCarEstimator:
                 np.full(len(y), 'stuck')
         return bad
 
-    def _judge(self, t, use, got):
+    def _judge(self, t, use, got, every=False):
         """Name the faulty sensors and decide whether the estimate may be used."""
         if self._late is not None and self._late.any():
             self._widen()
+        if every and self._all_seen and not self.faults and self.dropout_s >= 0.0:
+            # every sensor read and was used, as on the cycle before: none is dropped out
+            # (each was seen now), none is out, nothing to name (what follows, shortened)
+            self.reason = ''
+            return
         if not self._all_seen:
             self._ever |= got
             self._all_seen = bool(self._ever.all())
@@ -595,9 +615,10 @@ class FullCarEstimator:
             self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
 
     def std(self):
-        """Return the standard deviations of the states."""
-        P = self._P_post if self._steady else self.P
-        return np.sqrt(np.maximum(np.diag(P), 0.0))
+        """Return the standard deviations of the states (read-only while the gain is steady)."""
+        if self._steady:
+            return self._std_post
+        return np.sqrt(np.maximum(np.diag(self.P), 0.0))
 
     def body_accelerations(self):
         """Return the seven accelerations ``[zdd, thetadd, phidd, wheels x4]`` of the estimate."""

@@ -206,6 +206,8 @@ class VehicleEstimatorCore:
         self._S_rate = self.design.A[0:4].copy()
         self._force = self.design.force_slice
         self._T_pinv = np.linalg.pinv(car_params.geometry)
+        self._std_of = None         # the standard deviations the four figures below are of
+        self._std_figures = None
         self.cycles = SequenceTracker()
         self.restarts = 0
         self.steps = 0
@@ -250,8 +252,9 @@ class VehicleEstimatorCore:
         elif gap > 0 and flt.n_steps:
             for k in range(gap):
                 flt.step(t - (gap - k) * dt, self._none, self._zero)
-        y = np.concatenate([np.asarray(body_accel, dtype=float).reshape(4),
-                            np.asarray(travel, dtype=float).reshape(4)])
+        y = np.empty(8)
+        y[:4] = body_accel
+        y[4:] = travel
         flt.step(t, y, self._zero)
         return self._estimate(int(sequence), t)
 
@@ -261,15 +264,20 @@ class VehicleEstimatorCore:
         travel, tyre, v = x[0:4], x[4:8], x[8:15]
         acc = flt.body_accelerations()
         std = flt.std()
+        if std is not self._std_of:
+            # the steady gain's are one array for as long as it runs: its figures once
+            self._std_of = std
+            self._std_figures = (float(std[0:4].max()), float(std[8]),
+                                 float(std[4:8].max()), float(std[11:N_CAR].max()))
+        s_travel, s_heave_v, s_tyre, s_wheel_v = self._std_figures
         est = VehicleEstimate(
             sequence=sequence, t=float(t), body=self._T_pinv @ (travel + tyre),
             body_rates=v[:3].copy(), body_acc=acc[:3].copy(), travel=travel.copy(),
             travel_velocity=self._S_rate @ x, tyre_deflection=tyre.copy(),
             wheel_velocity=v[3:].copy(), damper_force=x[self._force].copy(),
             valid=flt.valid, reason=flt.reason, faults=list(flt.faults),
-            travel_std_m=float(std[0:4].max()), heave_velocity_std_m_s=float(std[8]),
-            tyre_deflection_std_m=float(std[4:8].max()),
-            wheel_velocity_std_m_s=float(std[11:N_CAR].max()))
+            travel_std_m=s_travel, heave_velocity_std_m_s=s_heave_v,
+            tyre_deflection_std_m=s_tyre, wheel_velocity_std_m_s=s_wheel_v)
         self.steps += 1
         if not est.valid:
             self.invalid_steps += 1
