@@ -29,6 +29,9 @@ from mr_damper_can.codec import (command_name, CORNERS, DRV_FAULT, FAULT_SIGNALS
 from mr_damper_common.commands import CurrentCommandLimiter
 from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
 
+#: The driver faults that put a corner on its safe current (a set: one test per call).
+_HARDWARE_FAULTS = frozenset(HARDWARE_FAULTS)
+
 #: Fault counters of the bridge (``faults.<name>`` in its status).
 FAULTS = ('unknown_id', 'bad_length', 'bad_checksum', 'bad_counter', 'frames_missed',
           'repeated_frame', 'timeout', 'bus_off', 'error_frame', 'remote_frame', 'send_failed')
@@ -266,7 +269,7 @@ class CanBridge:
         st = self.state[corner]
         if self.bus_off:
             return 'bus_off'
-        if st.driver is not None and (set(st.driver.faults) & set(HARDWARE_FAULTS)
+        if st.driver is not None and (not _HARDWARE_FAULTS.isdisjoint(st.driver.faults)
                                       or st.driver.state == DRV_FAULT):
             return 'driver_fault'
         last_status = self.started_t if st.last_status_t is None else st.last_status_t

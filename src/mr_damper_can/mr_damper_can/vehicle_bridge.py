@@ -44,6 +44,12 @@ from mr_damper_common.latency import LatencyHistogram
 MISSING_BODY_ACCEL, MISSING_WHEEL_ACCEL, MISSING_SUSP_POS = 1, 2, 4
 #: Sensor cycles whose bus time is kept for the latency of their answer.
 RING = 1024
+#: Per sensor frame's signal prefix, its four corners' signal names (``BODY_ACCEL_FL``, ...).
+_SENSOR_SIGNALS = {prefix: tuple(f'{prefix}_{c.upper()}' for c in CORNERS)
+                   for _, prefix in SENSOR_FRAMES.values()}
+#: Per corner, the names of its current and fail-safe bit in ``DAMPER_CMD_ALL``.
+_COMMAND_SIGNALS = tuple((f'CMD_CURRENT_{c.upper()}', f'CMD_FAILSAFE_{c.upper()}')
+                         for c in CORNERS)
 
 
 @dataclass
@@ -160,7 +166,8 @@ class VehicleBridge(CanBridge):
     def _sensor_frame(self, dec, msg, now):
         quantity, prefix = SENSOR_FRAMES[dec.name]
         counter = int(dec.values['COUNTER'])
-        values = np.array([float(dec.values[f'{prefix}_{c.upper()}']) for c in CORNERS])
+        names = _SENSOR_SIGNALS[prefix]
+        values = np.array([float(dec.values[n]) for n in names])
         for k, c in enumerate(CORNERS):
             self._sensors[c][quantity] = values[k]
         self._frames[quantity] = (counter, values)
@@ -261,9 +268,9 @@ class VehicleBridge(CanBridge):
 
     def _send_all(self, values, flags, cycle, now):
         signals = {'SENSOR_CYCLE': cycle & 0xFF}
-        for c, v, f in zip(CORNERS, values, flags):
-            signals[f'CMD_CURRENT_{c.upper()}'] = v
-            signals[f'CMD_FAILSAFE_{c.upper()}'] = f
+        for (current, failsafe), v, f in zip(_COMMAND_SIGNALS, values, flags):
+            signals[current] = v
+            signals[failsafe] = f
         # every value is inside its range: the limiter clamped the currents, the bits are 0 / 1
         frame_id, data = self.codec.encode(VEHICLE_COMMAND, signals, strict=False)
         self._last_all_t = now
