@@ -143,9 +143,28 @@ class FullCarState:
         ``body_v`` / ``body_a``; the rest is the corner's column (NaN where the state has none,
         e.g. the tyre force of an estimate).
         """
-        z_u = self.q.item(3 + i)
-        travel = self.travel.item(i)
-        return CornerState(self.t, travel + z_u, self.body_v.item(i), self.body_a.item(i), z_u,
-                           self.v.item(3 + i), self.acc.item(3 + i), self.z_r.item(i), travel,
-                           self.v_rel.item(i), self.tyre_force.item(i),
-                           self.damper_force.item(i), self.coil_current.item(i))
+        return _corner_state(self.t, i, self.q.item, self.v.item, self.acc.item, self.z_r.item,
+                             self.travel.item, self.v_rel.item, self.tyre_force.item,
+                             self.damper_force.item, self.coil_current.item, self.body_v.item,
+                             self.body_a.item)
+
+    def corners(self):
+        """
+        The four corners ``fl, fr, rl, rr``: ``[corner(i) for i in range(4)]``, built at once.
+
+        The same :class:`~mr_damper_common.contract.CornerState` values as :meth:`corner` (each
+        array read once as Python floats), for a controller that takes all four every cycle.
+        """
+        cols = tuple(a.tolist().__getitem__ for a in (
+            self.q, self.v, self.acc, self.z_r, self.travel, self.v_rel, self.tyre_force,
+            self.damper_force, self.coil_current, self.body_v, self.body_a))
+        return [_corner_state(self.t, i, *cols) for i in range(4)]
+
+
+def _corner_state(t, i, q, v, acc, z_r, travel, v_rel, tyre_force, damper_force, coil_current,
+                  body_v, body_a):
+    """Corner ``i`` of a :class:`FullCarState` whose columns are read by index (``q(3 + i)``)."""
+    z_u = q(3 + i)
+    x = travel(i)
+    return CornerState(t, x + z_u, body_v(i), body_a(i), z_u, v(3 + i), acc(3 + i), z_r(i), x,
+                       v_rel(i), tyre_force(i), damper_force(i), coil_current(i))

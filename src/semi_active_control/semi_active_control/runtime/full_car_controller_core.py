@@ -101,7 +101,7 @@ class FullCarController:
 
         """
         self.law.prepare(state)
-        return [core.command(state.corner(i), t_clock) for i, core in enumerate(self.cores)]
+        return [core.command(corner, t_clock) for core, corner in zip(self.cores, state.corners())]
 
     @property
     def modes(self):
