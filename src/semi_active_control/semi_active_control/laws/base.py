@@ -62,8 +62,18 @@ def clip_to_damper(force, state, force_range=None):
     if force_range is not None:
         lo, hi = force_range(state.travel, vr)
         f = min(max(f, lo), hi)
-    if vr > 0.0:
-        return min(f, 0.0)
-    if vr < 0.0:
-        return max(f, 0.0)
+    return clip_dissipative(f, vr)
+
+
+def clip_dissipative(force, v_rel):
+    """
+    Clip a body force [N] to the dissipative half-line at suspension velocity ``v_rel`` [m/s].
+
+    ``force v_rel <= 0``: at most 0 in extension (``v_rel > 0``), at least 0 in compression,
+    0 at rest (what :func:`clip_to_damper` does after the force range).
+    """
+    if v_rel > 0.0:
+        return min(force, 0.0)
+    if v_rel < 0.0:
+        return max(force, 0.0)
     return 0.0

@@ -13,14 +13,14 @@ Two kinds of full-car law:
   moments ``-[c_heave zdot, c_pitch thetadot, c_roll phidot]`` are distributed to the four
   corners by the minimum-norm solution of ``T' F = Q`` (``F = T (T'T)^-1 Q``), a passive part
   ``-c_p v_rel`` is added per corner, and each corner's force is clipped to what its damper can
-  do (:func:`semi_active_control.laws.clip_to_damper`: dissipative, 0 otherwise).
+  do (:func:`semi_active_control.laws.base.clip_dissipative`: dissipative, 0 otherwise).
 """
 import math
 
 import numpy as np
 
 from semi_active_control.car.full_car import CORNERS
-from semi_active_control.laws.base import clip_to_damper, Controller
+from semi_active_control.laws.base import clip_dissipative, Controller
 
 DEFAULT_MODAL_ZETA = {'heave': 0.7, 'pitch': 1.5, 'roll': 1.5}
 """Default sky damping ratios of :meth:`ModalSkyhook.from_car` per body mode [-].
@@ -125,9 +125,9 @@ class ForceLaw:
 
         """
         self.desired = np.asarray(self.desired_forces(state), dtype=float)
-        v_rel = state.v_rel
-        self.forces = [clip_to_damper(float(self.desired[i]), _Rel(float(v_rel[i])))
-                       for i in range(4)]
+        desired = self.desired.tolist()
+        v_rel = np.asarray(state.v_rel, dtype=float).tolist()
+        self.forces = [clip_dissipative(desired[i], v_rel[i]) for i in range(4)]
         return self.forces
 
     def reset(self):
@@ -207,15 +207,6 @@ class ModalSkyhook(ForceLaw):
         """Return the modal sky forces distributed to the corners plus the passive part [N]."""
         q = -self.c_modal * self.modal_velocities(state)
         return self._dist @ q - self.c_p * np.asarray(state.v_rel, dtype=float)
-
-
-class _Rel:
-    """The one field :func:`clip_to_damper` reads without a force range."""
-
-    __slots__ = ('v_rel',)
-
-    def __init__(self, v_rel):
-        self.v_rel = v_rel
 
 
 def body_mode_stiffness(params):
