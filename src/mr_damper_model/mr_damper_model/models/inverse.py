@@ -313,6 +313,7 @@ class KwokCurrentInverse:
         self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
         self._terms_lo = kwok_current_terms_scalar(self._p, self._s_lo)
         self._terms_hi = kwok_current_terms_scalar(self._p, self._s_hi)
+        self._terms_mid = kwok_current_terms_scalar(self._p, 0.5 * (self._s_lo + self._s_hi))
         self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
         self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
                       for j in range(n_grid)]
@@ -381,6 +382,10 @@ class KwokCurrentInverse:
         return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
                 + kwok_current_force_slope_at(self._terms_hi, p, x, v))
 
+    def _f_mid(self, x, v):
+        """Force [N] at the middle of the current range (its terms cached: the same float)."""
+        return kwok_current_force_slope_at(self._terms_mid, self._p, x, v)[0]
+
     def _current(self, f_des, x, v):
         """:meth:`current` for a model force ``f_des`` [N]."""
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
@@ -408,7 +413,7 @@ class KwokCurrentInverse:
         if g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
             # F(i) runs the same way at both ends as from end to end: monotone unless it has
             # two interior extrema, which a mid-range force outside the end forces shows
-            d_mid = self._f(0.5 * (s_lo + s_hi), x, v) - f_des
+            d_mid = self._f_mid(x, v) - f_des
             if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
                 return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
         return self._grid_scan(f_des, x, v)
@@ -536,6 +541,10 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         u = self._lagged(s, v)
         c = self._p[0] + self._p[1] * s
         return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
+
+    def _f_mid(self, x, v):
+        """Force [N] at the middle of the current range (lagged: not cached)."""
+        return self._f(0.5 * (self._s_lo + self._s_hi), x, v)
 
     def _current(self, f_des, x, v):
         """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
