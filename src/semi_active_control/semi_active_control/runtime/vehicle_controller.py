@@ -39,6 +39,8 @@ from semi_active_control.supervision.deadline import DeadlineMonitor
 #: Corner modes of a command (the values of ``FullCarCommand.MODE_*``).
 MODE_NORMAL, MODE_FAIL_SAFE, MODE_INACTIVE = 0, 1, 2
 
+_NAN4 = np.full(4, math.nan)
+
 
 def failsafe_flags(modes):
     """Return each corner's fail-safe flag (its ``CMD_FAILSAFE`` bit): any mode but normal."""
@@ -90,7 +92,7 @@ def full_car_state(geometry, t, body, body_rates, body_acc, travel, travel_veloc
     rates = np.asarray(body_rates, dtype=float)
     acc3 = np.asarray(body_acc, dtype=float)
     tyre = np.asarray(tyre_deflection, dtype=float)
-    nan4 = np.full(4, math.nan)
+    nan4 = _NAN4.copy()                      # (a copy: cheaper than np.full each cycle)
     return FullCarState(
         t=float(t), q=np.concatenate([np.asarray(body, dtype=float), tyre]),
         v=np.concatenate([rates, np.asarray(wheel_velocity, dtype=float)]),
