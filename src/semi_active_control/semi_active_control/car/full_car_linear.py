@@ -150,7 +150,7 @@ class FullCarState:
 
     def corners(self):
         """
-        The four corners ``fl, fr, rl, rr``: ``[corner(i) for i in range(4)]``, built at once.
+        Return the four corners ``fl, fr, rl, rr`` (``[corner(i) for i in range(4)]``) at once.
 
         The same :class:`~mr_damper_common.contract.CornerState` values as :meth:`corner` (each
         array read once as Python floats), for a controller that takes all four every cycle.
