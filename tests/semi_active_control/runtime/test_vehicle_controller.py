@@ -126,3 +126,41 @@ def test_lifecycle_inactive_safe_and_old_states_not_answered():
     assert list(cmd.currents_a) == [0.5] * 4 and math.isnan(cmd.state_t)
     assert core.command(next(it), 6, True, '', 11.0) is None
     assert core.status()['states_while_inactive'] == 2
+
+
+@pytest.mark.parametrize('law', ['full-car-clipped-optimal', 'modal-skyhook'])
+def test_a_non_finite_corner_never_reaches_an_inverse_and_the_law_comes_back(law):
+    # a full-car law couples the corners: one corner's NaN wheel velocity can make every
+    # corner's demand NaN; the inverse raises on that, so each such corner gets the safe
+    # current, counted, and the next finite state is answered by the law again
+    core = VehicleControllerCore(PASSENGER_CAR, law, CornerModels(FILES, **SUP), cycle_s=P)
+    core.configure(0.0)
+    core.activate(10.0)
+    rng = np.random.default_rng(3)
+
+    def state(k, nan_corner=None):
+        wheel_v = rng.normal(size=4) * 0.2
+        if nan_corner is not None:
+            wheel_v[nan_corner] = math.nan       # e.g. a wheel accelerometer's estimate
+        return full_car_state(PASSENGER_CAR.geometry, 10.0 + k * P, rng.normal(size=3) * 0.01,
+                              rng.normal(size=3) * 0.1, rng.normal(size=3),
+                              rng.normal(size=4) * 0.01, rng.normal(size=4) * 0.1,
+                              rng.normal(size=4) * 0.002, wheel_v, rng.normal(size=4) * 300)
+
+    s = state(0)
+    assert core.command(s, 1, True, '', s.t + 0.0005).modes == [MODE_NORMAL] * 4
+    s = state(1, nan_corner=2)
+    cmd = core.command(s, 2, True, '', s.t + 0.0005)
+    assert cmd.reasons[2] == 'state_non_finite' and cmd.currents_a[2] == 0.5
+    for k in (0, 1, 3):
+        assert cmd.reasons[k] in ('ok', 'non_finite_demand'), cmd.reasons
+        assert (cmd.modes[k] == MODE_FAIL_SAFE) == (cmd.reasons[k] == 'non_finite_demand')
+        assert math.isfinite(cmd.currents_a[k])
+    refused = sum(r == 'non_finite_demand' for r in cmd.reasons)
+    corners = core.status()['corners']
+    assert sum(corners[c]['non_finite_demands'] for c in ('fl', 'fr', 'rl', 'rr')) == refused
+    if law == 'full-car-clipped-optimal':
+        assert refused == 3          # the optimal law's four forces from one state vector
+    s = state(2)
+    cmd = core.command(s, 3, True, '', s.t + 0.0005)
+    assert cmd.modes == [MODE_NORMAL] * 4 and cmd.reasons == ['ok'] * 4

@@ -91,6 +91,10 @@ class ControllerCore:
         ``{reason: count}`` of :data:`STATE_REJECTIONS`.
     last_refusal : str or None
         Why the last state was answered with the safe current (None: it was taken).
+    non_finite_demands : int
+        States taken whose law demand was not finite (a law coupling the corners, a full-car
+        law, fed a non-finite input of another corner, or failing itself): answered with the
+        safe current, never handed to the inverse.
     stamps : mr_damper_common.stamps.StampGuard
         The stamp checks (re-bases in ``stamps.rebases``).
 
@@ -109,6 +113,8 @@ class ControllerCore:
         self.n_normal = 0
         self.state_rejected = dict.fromkeys(STATE_REJECTIONS, 0)
         self.last_refusal = None
+        self.non_finite_demands = 0
+        self._demand_refused = False
         # equal stamps are in order: a car publishes its settling states all stamped 0 s
         self.stamps = StampGuard(max_future_s=max_future_s, rebase_after=rebase_after,
                                  accept_equal=True)
@@ -170,6 +176,7 @@ class ControllerCore:
         self.n_commands += 1
         refusal = self._state_refusal(state, t_clock)
         self.last_refusal = refusal
+        self._demand_refused = False
         if refusal is not None:
             self.state_rejected[refusal] += 1
             return self._safe()
@@ -182,6 +189,11 @@ class ControllerCore:
         # own (the Wk filter of clipped-optimal-wk) then follows the car through a fail-safe
         # episode instead of resuming from where it stopped
         f_body = float(self.controller.demand(state))
+        self._demand_refused = not math.isfinite(f_body)
+        if self._demand_refused:
+            # never to the inverse (it raises on a non-finite demand): the safe current
+            self.non_finite_demands += 1
+            return self._safe()
         params = sup.active
         if params is None:
             return self._safe()
@@ -228,12 +240,15 @@ class ControllerCore:
         -------
         tuple of str
             ``('failsafe', 'state_<reason>')`` when the last state was answered with the safe
-            current because it was refused (:data:`STATE_REJECTIONS`), else the supervisor's
+            current because it was refused (:data:`STATE_REJECTIONS`), ``('failsafe',
+            'non_finite_demand')`` when the law's demand was not finite, else the supervisor's
             ``(mode, reason)``.
 
         """
         if self.last_refusal is not None:
             return 'failsafe', f'state_{self.last_refusal}'
+        if self._demand_refused:
+            return 'failsafe', 'non_finite_demand'
         return self.sup.mode, self.sup.reason
 
     def offer_parameters(self, values, t_clock):
@@ -250,6 +265,7 @@ class ControllerCore:
             The supervisor's status (``failsafe_s``, ``params_rejected``, ...) with ``mode``
             and ``reason`` of :meth:`mode_reason`, plus ``controller``, ``current_a``,
             ``commands``, ``commands_normal``, ``saturated_steps``, ``state_rejected``,
+            ``non_finite_demands``,
             ``last_state_t``, ``stamp_rebases`` and ``last_stamp_rebase`` (``{direction,
             from_s, to_s}`` or None).
 
@@ -260,6 +276,7 @@ class ControllerCore:
                    'current_a': self.i_cmd, 'commands': self.n_commands,
                    'commands_normal': self.n_normal, 'saturated_steps': self.saturated,
                    'state_rejected': dict(self.state_rejected),
+                   'non_finite_demands': self.non_finite_demands,
                    'last_state_t': self.last_state_t, 'stamp_rebases': self.stamps.rebases,
                    'last_stamp_rebase': self.stamps.last_rebase})
         return st
