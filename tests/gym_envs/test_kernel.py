@@ -72,9 +72,16 @@ def test_quarter_car_step_is_the_simulators(plant):
     a_s = np.array([s.a_s for s in ref])
     tyre = np.array([s.z_u - s.z_r for s in ref])
     # same operations in the same order: equal to the last bit, but for the body
-    # acceleration, formed in another order (round-off)
+    # acceleration, formed in another order (round-off), and the Spencer plant's force: the
+    # kernel's plant takes its own tanh (``spencer.tanh_lanes``, within a few ulp of the C
+    # library's), so its force is the simulator's to round-off (1.2e-16 of the peak when
+    # written; held to 1e-12), and the travel over this run still to the bit
     assert np.array_equal(rows[:, 0], travel)
-    assert np.array_equal(rows[:, 6], force)
+    if plant == 'spencer':
+        np.testing.assert_allclose(rows[:, 6], force, rtol=1e-12,
+                                   atol=1e-12 * np.max(np.abs(force)))
+    else:
+        assert np.array_equal(rows[:, 6], force)
     np.testing.assert_allclose(rows[:, 1], tyre, rtol=0, atol=1e-15)
     np.testing.assert_allclose(rows[:, 4], a_s, rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(rows[:, 7], [s.coil_current for s in ref])
@@ -104,10 +111,18 @@ def test_full_car_step_is_the_simulators():
     assert np.min([s.tyre_force.min() for s in ref]) < 0.5 * core.params.static_tyre_loads.min()
 
 
-def test_spencer_lanes_are_heun_substeps_bit_for_bit():
-    """The kernel's four plants side by side (``heun_substeps_lanes``) are each one's step."""
+def test_spencer_lanes_are_heun_substeps_to_round_off():
+    """
+    The kernel's four plants side by side (``heun_substeps_lanes``) are each one's step.
+
+    Not bit for bit: the lanes take their own tanh (``tanh_lanes``, within a few ulp of the C
+    library's, which ``heun_substeps`` with ``z_step_rooted`` calls); over 40 draws of ten
+    sub-steps the states differ by at most 3.4e-16 relative (z: of its saturation value
+    ``zs``); held to 1e-12.
+    """
     rng = np.random.default_rng(8)
     p0 = np.array(list(spencer_thesis_like().values()), dtype=float)
+    worst = 0.0
     for _ in range(40):
         P = np.tile(p0, (4, 1))
         # beta == gamma (the linear branch), beta > gamma (tanh), beta < gamma (tan), beta 0
@@ -120,13 +135,19 @@ def test_spencer_lanes_are_heun_substeps_bit_for_bit():
         z = rng.uniform(-1.0, 1.0, 4) * zc[:, 2]
         vs, dx, dv = rng.normal(0.0, 0.3, 4), rng.normal(0.0, 3e-5, 4), rng.normal(0.0, 3e-3, 4)
         i_drv = rng.uniform(0.0, 2.0, 4)
-        want = [heun_substeps(z_step_rooted, tuple(zc[q]), tuple(P[q]), y[q], z[q], u[q], xs[q],
-                              vs[q], dx[q], dv[q], i_drv[q], h[q], decay[q], 10)
-                for q in range(4)]
+        want = np.array([heun_substeps(z_step_rooted, tuple(zc[q]), tuple(P[q]), y[q], z[q],
+                                       u[q], xs[q], vs[q], dx[q], dv[q], i_drv[q], h[q],
+                                       decay[q], 10)
+                         for q in range(4)])
         got = [a.copy() for a in (y, z, u, xs, vs)]
         heun_substeps_lanes(z_step_rooted, zc, P, h, decay, 10, *got, dx, dv, i_drv,
                             np.empty((4, 8)))
-        assert np.array_equal(np.array(want), np.array(got[:3]).T)
+        got = np.array(got[:3]).T
+        scale = np.abs(want)
+        scale[:, 1] = np.maximum(scale[:, 1], zc[:, 2])
+        worst = max(worst, np.max(np.abs(got - want) / scale))
+        assert np.all(np.abs(got - want) <= 1e-12 * scale)
+    assert worst > 0.0      # the own tanh is in use (3.4e-16 when written)
 
 
 @pytest.mark.slow

@@ -4,10 +4,10 @@ The compiled car step: N cars (quarter or full) advanced together, one control p
 One function, :func:`advance_cars`, compiled with numba through
 :func:`mr_damper_model.models.compiled.kernel` (disk cache; the damper helpers it inlines are
 the models' own: ``spencer.heun_substeps_lanes`` (``heun_substeps`` over the four corners'
-plants side by side, bit for bit) / ``z_step_rooted`` / ``z_roots`` / ``_row`` and
-``kwok_current.kwok_current_force_scalar``). It mirrors, for arrays of cars, the simulator's
-plain-Python step, and the tests prove the two agree to round-off
-(``tests/gym_envs/test_kernel.py``):
+plants side by side, with the tanh of ``spencer.tanh_lanes``) / ``z_step_rooted`` /
+``z_roots`` / ``_row`` and ``kwok_current.kwok_current_force_scalar``). It mirrors, for
+arrays of cars, the simulator's plain-Python step, and the tests prove the two agree to
+round-off (``tests/gym_envs/test_kernel.py``):
 
 - the car (:class:`quarter_car_sim.plant.quarter_car.QuarterCar` / :class:`quarter_car_sim.plant.
   dynamics.FullCar` ``_advance`` and ``_make_state``): the exact discretisation of the linear
@@ -32,8 +32,8 @@ import numpy as np
 
 from mr_damper_model.models import compiled
 from mr_damper_model.models.kwok_current import _coefficients, kwok_current_force_scalar
-from mr_damper_model.models.spencer import (_row, heun_substeps_lanes, substeps, z_roots,
-                                            z_step_rooted)
+from mr_damper_model.models.spencer import (_row, heun_substeps_lanes, substeps, tanh_lanes,
+                                            z_roots, z_step_rooted)
 
 # --- mi: the model's integers -------------------------------------------------------------
 (MI_NC, MI_NB, MI_NX, MI_NW, MI_NSEC, MI_NS, MI_SUB, MI_NOBS_STATE, MI_NOBS, MI_SENS_LEN,
@@ -164,8 +164,9 @@ def _plants_step(pp, sc, same, plant, k, h, travel, vrel, cmd, f, ps):
     Step the plants of car ``k`` over ``h`` to (travel, vrel); their forces on the body in f.
 
     The Spencer plants' sub-steps run as lanes (:func:`spencer.heun_substeps_lanes`: each
-    lane's arithmetic that of ``heun_substeps``, bit for bit), all corners together when
-    ``same`` (:func:`_spencer_constants`), else corner by corner.
+    lane's arithmetic that of ``heun_substeps`` but for its own tanh, within about an ulp of
+    the C library's), all corners together when ``same`` (:func:`_spencer_constants`), else
+    corner by corner.
     """
     nc = pp.shape[0]
     for i in range(nc):
@@ -580,8 +581,8 @@ def _advance_car(k, nsteps, record_first, record, sense, G, scalars, counts, mod
 #: Functions the compiled step inlines (this module's, then the models' own).
 HELPERS = ('_advance_car', '_road_sample', '_road_at', '_spencer_constants', '_plants_step',
            '_corner_motion', '_outputs', '_sense', '_record', '_observe', _row,
-           heun_substeps_lanes, substeps, z_roots, z_step_rooted, kwok_current_force_scalar,
-           _coefficients)
+           heun_substeps_lanes, substeps, tanh_lanes, z_roots, z_step_rooted,
+           kwok_current_force_scalar, _coefficients)
 
 
 def compiled_step():
