@@ -82,14 +82,46 @@ def platform_latency(duration_s, priority=30, interval_us=1000):
     cmd = [exe, '-m', '-q', '-S', '-p', str(priority), '-i', str(interval_us),
            '-D', f'{max(int(duration_s), 1)}s', '-h', '20000']
     print(f'$ {" ".join(cmd)}', flush=True)
+    irq0 = device_interrupts()
     proc = subprocess.run(cmd, capture_output=True, text=True)
+    irq1 = device_interrupts()
     if proc.returncode != 0:
         print(proc.stderr[-2000:], file=sys.stderr)
         return {'error': proc.stderr.strip()[-500:] or f'exit {proc.returncode}'}
     out = parse_cyclictest(proc.stdout)
+    out['device_interrupts'] = {name: [b - a for a, b in zip(irq0.get(name, [0] * len(n)), n)]
+                                for name, n in irq1.items()
+                                if sum(n) > sum(irq0.get(name, [0] * len(n)))}
     out['duration_s'] = float(duration_s)
     out['per_minute'] = {str(us): sum(c['late'][str(us)] for c in out['cpus']) * 60.0
                          / duration_s / max(len(out['cpus']), 1) for us in LATE_US}
+    return out
+
+
+def device_interrupts(text=None):
+    """
+    Return ``{device: [count per CPU]}`` of the numbered (device) lines of /proc/interrupts.
+
+    A device's interrupts run on the CPU they are routed to before any thread there, real-time
+    or not (``/proc/irq/<n>/smp_affinity``); ``{}`` where the file cannot be read.
+    """
+    if text is None:
+        try:
+            text = Path('/proc/interrupts').read_text()
+        except OSError:
+            return {}
+    lines = text.splitlines()
+    if not lines:
+        return {}
+    n_cpu = len(lines[0].split())
+    out = {}
+    for line in lines[1:]:
+        parts = line.split()
+        if not parts or not parts[0].rstrip(':').isdigit() or len(parts) < n_cpu + 1:
+            continue
+        counts = [int(x) for x in parts[1:n_cpu + 1] if x.isdigit()]
+        if len(counts) == n_cpu:
+            out[' '.join(parts[n_cpu + 1:]) or parts[0]] = counts
     return out
 
 
@@ -139,6 +171,10 @@ def report_platform(fig):
         late = ', '.join(f'> {us / 1000:g} ms {c["late"][str(us)]}' for us in LATE_US)
         print(f'  CPU {k}: wake-up latency min {c["min_us"]} us, avg {c["avg_us"]} us, max '
               f'{c["max_us"]} us; of {c["wakeups"]} wake-ups late {late}')
+    for name, counts in sorted((fig.get('device_interrupts') or {}).items(),
+                               key=lambda kv: -sum(kv[1])):
+        print(f'  device interrupts meanwhile, {name}: '
+              + ', '.join(f'CPU {k} {n}' for k, n in enumerate(counts)))
     pm = fig['per_minute']
     print('  late wake-ups per CPU and minute: '
           + ', '.join(f'> {us / 1000:g} ms {pm[str(us)]:.1f}' for us in LATE_US)

@@ -110,3 +110,16 @@ def test_without_cyclictest_the_platform_is_not_measured(monkeypatch, capsys):
     assert bench.platform_latency(1.0) is None
     bench.report_platform(None)
     assert 'rt-tests' in capsys.readouterr().out
+
+
+def test_device_interrupts_are_read_per_cpu_from_proc_interrupts():
+    text = '\n'.join([
+        '           CPU0       CPU1       ',
+        ' 36:          0     246296 PCI-MSIX-0000:00:02.0   1-edge      virtio1-req.0',
+        ' 39:      22239          3 PCI-MSIX-0000:00:03.0   2-edge      virtio2-output.0',
+        'LOC:    5638852    5532684   Local timer interrupts',
+        'ERR:          0'])
+    irq = _bench().device_interrupts(text)
+    assert irq == {'PCI-MSIX-0000:00:02.0 1-edge virtio1-req.0': [0, 246296],
+                   'PCI-MSIX-0000:00:03.0 2-edge virtio2-output.0': [22239, 3]}
+    assert _bench().device_interrupts('') == {}
