@@ -290,7 +290,7 @@ def tanh_lanes(x):
     from 1e-300 to 40): 1.6e-16 below 0.5, 3.2e-16 above (``math.tanh`` 3.0e-16 on the same
     points); against ``math.tanh``, 4.4e-16 on 4.8 million points
     (``tests/mr_damper_model/test_tanh_lanes.py`` holds it within 6e-16). Compiled by numba on
-    the project's 2-vCPU VM: 4-6 ns a call below 0.5 and about 14 ns above, libm's tanh 17-29
+    the project's 2-vCPU VM: 3.5-4.3 ns a call below 0.5 and 9-14 ns above, libm's tanh 17-29
     ns (independent calls in a loop; docs/gym.md "Speed").
     """
     ax = abs(x)
