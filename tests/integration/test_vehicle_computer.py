@@ -54,9 +54,16 @@ def test_loop_lifecycle_one_invalid_corner_deactivation_and_a_silent_computer(tm
                                              if normal_but_rr(f)}) > 1, GUARD_S, procs=procs)
             frames = command_frames(car.taken())
             assert all(f['rr'] == (SAFE_A, 1) for f in frames)
+
+            def counted():
+                # a status published after the answered cycles (the one at hand may be older)
+                st = diag.values(NODE) or {}
+                return ((st.get('bridge') or {}).get('cycles', {}).get('answered', 0) > 0
+                        and (st.get('estimator') or {}).get('steps', 0) > 0)
+
+            assert lis.wait_for(counted, GUARD_S, procs=procs)
             st = diag.values(NODE)
             assert st['controller']['corners']['rr']['reason'] == 'invalid_flag'
-            assert st['bridge']['cycles']['answered'] > 0 and st['estimator']['steps'] > 0
             manager.stop()
             # deactivation: the safe current at once, then only safe frames
             n_before = len(car.taken())
