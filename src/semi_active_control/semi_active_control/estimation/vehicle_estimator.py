@@ -38,10 +38,24 @@ from semi_active_control.estimation.full_car import (design_full_car_estimator, 
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, ride_height_spec
 
-#: Driving intensity of the estimated damper forces [N^2/s] (their correlation time 0.05 s;
-#: on the closed loop above modal skyhook lost 1.1 % of its a_v with 1e7, 0.8 % with 1e8,
-#: -0.3 % with 1e9: within the scatter of one 20 s road).
-Q_FORCE = 1.0e8
+#: Driving intensity of the estimated damper forces [N^2/s] (their correlation time 0.05 s).
+#: Offline on the vehicle chain (``bench/bench_vehicle_chain.py``: 2 ms cycle, the command 1 ms
+#: after its sensor cycle, the turn-on biases learnt from :data:`ACCEL_BIAS_STD`, 60 s of the
+#: suite's road), a_v against the law on true states in 1 ms lock-step: modal skyhook +3.0 %
+#: with 1e8, +1.7 % with 1e9, +0.8 % with 3e9; full-car clipped optimal +2.7 / +2.9 / +3.1 %;
+#: per-corner skyhook +1.6 / +2.2 / +3.1 %. 1e9: the suite's law gains most, the others lose
+#: a few tenths.
+Q_FORCE = 1.0e9
+
+#: Turn-on bias standard deviation of the accelerometers the filter starts with [m/s^2]: the
+#: default part's (ADXL313, 15 mg; :func:`accelerometer_spec`).
+ACCEL_BIAS_STD = accelerometer_spec().bias_std
+
+#: Relative distance of the covariance from the steady one at which the filter goes over to the
+#: steady-state gain. The time-varying filter costs about four times the steady gain's CPU per
+#: cycle (240 against 60 us here); from the start's wide bias variances 0.2 is reached after
+#: about 12 s of road, 1e-3 after about 40 s (the biases are learnt within seconds either way).
+STEADY_TOL = 0.2
 
 #: Sensor names of the chassis bus, in the order of the readings array.
 BUS_SENSORS = tuple(f'accel_{c}' for c in CORNERS) + tuple(f'travel_{c}' for c in CORNERS)
@@ -78,6 +92,14 @@ class EstimatorSettings:
         Driving intensity of the damper force states [N^2/s].
     max_gap_cycles : int
         A gap of more cycles than this restarts the filter.
+    accel_bias_std : float
+        Standard deviation of an accelerometer's turn-on bias [m/s^2] the filter starts (and
+        restarts) with (``FullCarEstimator``'s ``bias_std0``; ADXL313: 15 mg, the default of
+        :func:`~semi_active_control.estimation.sensor_specs.accelerometer_spec`; 0: a bias
+        calibrated away).
+    steady_tol : float
+        The filter goes over to the steady-state gain once its covariance is within this
+        relative distance of the steady one (``FullCarEstimator``'s ``steady_tol``).
 
     """
 
@@ -96,6 +118,8 @@ class EstimatorSettings:
     repeat_gate: float = 5.0
     q_force: float = Q_FORCE
     max_gap_cycles: int = 250
+    accel_bias_std: float = ACCEL_BIAS_STD
+    steady_tol: float = STEADY_TOL
 
     def __post_init__(self):
         for name in ('cycle_s', 'accel_noise_density', 'travel_noise_density', 'dropout_s',
@@ -103,7 +127,7 @@ class EstimatorSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f'`{name}` must be > 0, got {value}')
-        for name in ('accel_quantum', 'travel_quantum'):
+        for name in ('accel_quantum', 'travel_quantum', 'accel_bias_std', 'steady_tol'):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f'`{name}` must be >= 0, got {value}')
@@ -200,7 +224,7 @@ class VehicleEstimatorCore:
             self.design, dropout_s=s.dropout_s, gravity=0.0, degrade=True,
             stuck_s={'accel': s.stuck_accel_s, 'travel': s.stuck_travel_s},
             ranges={'accel': s.accel_range, 'travel': s.travel_range},
-            repeat_gate=s.repeat_gate, steady_tol=1e-3)
+            repeat_gate=s.repeat_gate, steady_tol=s.steady_tol, bias_std0=s.accel_bias_std)
         self._zero = np.zeros(4)
         self._none = np.full(8, math.nan)
         self._S_rate = self.design.A[0:4].copy()

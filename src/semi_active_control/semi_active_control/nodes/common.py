@@ -9,7 +9,7 @@ parameters; this module declares them once (:data:`SUPERVISED_LAW_PARAMETERS`,
 """
 from mr_damper_common import messages
 from mr_damper_common.node_utils import Param
-from semi_active_control.estimation.sensor_specs import G0
+from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0
 
 #: Parameters of the supervised law, shared with the quarter car's built-in controller.
 SUPERVISED_LAW_PARAMETERS = (
@@ -71,6 +71,9 @@ VEHICLE_ESTIMATOR_PARAMETERS = (
     Param('stuck_accel_s', 0.05, 'The same accelerometer reading this long: stuck [s]', 1e-3,
           10.0),
     Param('stuck_travel_s', 0.25, 'The same position reading this long: stuck [s]', 1e-3, 10.0),
+    Param('accel_bias_std', accelerometer_spec().bias_std, 'Accelerometer turn-on bias the '
+          'filter starts with, one standard deviation [m/s^2] (ADXL313: 15 mg; 0: calibrated '
+          'away)', 0.0, 10.0),
 )
 
 #: The vehicle controller's law, models, supervisors and deadlines (``vehicle_controller_node``
@@ -118,7 +121,8 @@ def make_vehicle_estimator(p):
         cycle_s=p['cycle_s'], accel_noise_density=p['accel_noise_density'],
         travel_noise_density=p['travel_noise_density'], road_class=p['road_class'],
         speed_m_s=p['speed_m_s'], dropout_s=p['dropout_s'],
-        stuck_accel_s=p['stuck_accel_s'], stuck_travel_s=p['stuck_travel_s']))
+        stuck_accel_s=p['stuck_accel_s'], stuck_travel_s=p['stuck_travel_s'],
+        accel_bias_std=p['accel_bias_std']))
 
 
 def make_vehicle_controller(p):
