@@ -10,6 +10,7 @@ parameters; this module declares them once (:data:`SUPERVISED_LAW_PARAMETERS`,
 from mr_damper_common import messages
 from mr_damper_common.node_utils import Param
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0
+from semi_active_control.supervision.deadline import RECOVER_CYCLES
 
 #: Parameters of the supervised law, shared with the quarter car's built-in controller.
 SUPERVISED_LAW_PARAMETERS = (
@@ -93,7 +94,8 @@ VEHICLE_CONTROLLER_PARAMETERS = (
           'cycle)', 0.0, 10.0),
     Param('max_consecutive_misses', 5, 'Cycles in a row answered after their deadline that put '
           'every corner on the safe current (deadline_misses)', 1, 100000),
-    Param('recover_cycles', 50, 'Cycles in a row on time that end deadline_misses', 1, 100000),
+    Param('recover_cycles', RECOVER_CYCLES, 'Cycles in a row on time that end deadline_misses',
+          1, 100000),
     Param('sensor_timeout_s', 0.02, 'No state for this long: every corner on the safe current '
           '(sensor_timeout) [s]', 1e-3, 60.0),
     Param('check_period_s', 0.01, 'Period of the sensor timeout check and of the safe '

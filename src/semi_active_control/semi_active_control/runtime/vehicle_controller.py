@@ -34,7 +34,7 @@ from semi_active_control.laws.registry import make_full_car_law
 from semi_active_control.runtime.full_car_controller_core import FullCarController
 from semi_active_control.car.full_car_linear import FullCarState
 from semi_active_control.car.full_car import CORNERS
-from semi_active_control.supervision.deadline import DeadlineMonitor
+from semi_active_control.supervision.deadline import DeadlineMonitor, RECOVER_CYCLES
 
 #: Corner modes of a command (the values of ``FullCarCommand.MODE_*``).
 MODE_NORMAL, MODE_FAIL_SAFE, MODE_INACTIVE = 0, 1, 2
@@ -135,7 +135,8 @@ class VehicleControllerCore:
     """
 
     def __init__(self, params, law, models, *, cycle_s=0.002, max_consecutive_misses=5,
-                 recover_cycles=50, input_timeout_s=0.02, deadline_s=None, preview=None):
+                 recover_cycles=RECOVER_CYCLES, input_timeout_s=0.02, deadline_s=None,
+                 preview=None):
         self.preview = preview
         if preview is not None:
             law = preview.law
