@@ -84,6 +84,32 @@ class FullCarResult:
         return full_car_metrics(self, params, seat=seat)
 
 
+class RunLog:
+    """A full-car run's series, preallocated for ``n`` steps (:class:`FullCarResult`'s)."""
+
+    def __init__(self, n):
+        self.t = np.empty(n)
+        self.series = {f: np.empty((n, 7 if f in ('q', 'v', 'acc') else 4)) for f in _SERIES}
+        self.current_cmd = np.empty((n, 4))
+        self.demand = np.empty((n, 4))
+        self.normal = np.empty((n, 4), dtype=bool)
+
+    def record(self, k, state, currents, demands, normal):
+        """Record step ``k``: the car's state, the currents applied, the demands, the modes."""
+        self.t[k] = state.t
+        for f, a in self.series.items():
+            a[k] = getattr(state, f)
+        self.current_cmd[k] = currents
+        self.demand[k] = demands
+        self.normal[k] = normal
+
+    def result(self, law, status, wall_time_s):
+        """Return the run as a :class:`FullCarResult`."""
+        return FullCarResult(t=self.t, current_cmd=self.current_cmd, demand=self.demand,
+                             normal=self.normal, law=law, status=status,
+                             wall_time_s=wall_time_s, **self.series)
+
+
 def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3, settle_s=0.5,
                       substeps=1, controller=None, duration_s=None, sensing='ideal',
                       sensor_seed=1):
@@ -158,27 +184,17 @@ def simulate_full_car(params, road, law, plants, damper_params=None, *, dt=1e-3,
         sensed.start_recording()
     duration = road.duration if duration_s is None else float(duration_s)
     n = int(round(duration / dt)) + 1
-    logs = {f: np.empty((n, 7 if f in ('q', 'v', 'acc') else 4)) for f in _SERIES}
-    t_log = np.empty(n)
-    cmd = np.empty((n, 4))
-    dem = np.empty((n, 4))
-    normal = np.empty((n, 4), dtype=bool)
+    log = RunLog(n)
     start = time.perf_counter()
     for k in range(n):
         cur = controller.command(seen(s), s.t)
-        t_log[k] = s.t
-        for f in _SERIES:
-            logs[f][k] = getattr(s, f)
-        cmd[k] = cur
-        dem[k] = controller.demands
-        normal[k] = [m == 'normal' for m in controller.modes]
+        log.record(k, s, cur, controller.demands, [m == 'normal' for m in controller.modes])
         s = car.step(dt, cur)
     wall = time.perf_counter() - start
     status = controller.status()
     if sensed is not None:
         status['estimation'] = sensed.summary()
-    return FullCarResult(t=t_log, current_cmd=cmd, demand=dem, normal=normal, law=controller.name,
-                         status=status, wall_time_s=wall, **logs)
+    return log.result(controller.name, status, wall)
 
 
 def compare_laws(params, road, laws, plants, damper_params, *, dt=1e-3, settle_s=0.5,

@@ -31,7 +31,7 @@ import numpy as np
 
 from quarter_car_sim.plant.full_car import FullCar
 from quarter_car_sim.plant.sensors import FullCarSensors
-from quarter_car_sim.simulate.full_car import _SERIES, FullCarResult
+from quarter_car_sim.simulate.full_car import RunLog
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
 from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings, VehicleEstimate,
@@ -146,11 +146,7 @@ def simulate_vehicle_chain(params, road, law, plants, model_files, *, dt=1e-3, c
     ctl.activate(s.t)
     duration = road.duration if duration_s is None else float(duration_s)
     n = int(round(duration / dt)) + 1
-    logs = {f: np.empty((n, 7 if f in ('q', 'v', 'acc') else 4)) for f in _SERIES}
-    t_log = np.empty(n)
-    cmd_log = np.empty((n, 4))
-    dem = np.full((n, 4), math.nan)
-    normal = np.zeros((n, 4), dtype=bool)
+    log = RunLog(n)
     pending = []                  # (car step it reaches the drivers, command)
     applied = [sup['safe_current_a']] * 4
     last = None
@@ -174,16 +170,10 @@ def simulate_vehicle_chain(params, road, law, plants, model_files, *, dt=1e-3, c
         while pending and pending[0][0] <= j:
             applied = list(pending.pop(0)[1].currents_a)
         if k >= 0:
-            t_log[k] = s.t
-            for f in _SERIES:
-                logs[f][k] = getattr(s, f)
-            cmd_log[k] = applied
-            dem[k] = ctl.controller.demands
-            normal[k] = [m == MODE_NORMAL for m in last.modes]
+            log.record(k, s, applied, ctl.controller.demands,
+                       [m == MODE_NORMAL for m in last.modes])
         s = car.step(dt, applied)
     status = {'controller': ctl.status(s.t), 'cycles': sequence, 'refused_models': refused}
     if estimator is not None and bus is not None:
         status['estimator'] = estimator.status()
-    return FullCarResult(t=t_log, current_cmd=cmd_log, demand=dem, normal=normal,
-                         law=ctl.controller.name, status=status,
-                         wall_time_s=time.perf_counter() - start, **logs)
+    return log.result(ctl.controller.name, status, time.perf_counter() - start)
