@@ -73,6 +73,11 @@ STATE_SCALES = {'travel': 0.01, 'tyre_def': 0.002, 'rate': 0.1, 'wheel_v': 0.3, 
                 'force': 300.0}
 
 
+def _diag_std(P):
+    """Return the standard deviations of a covariance's states (round-off negatives as 0)."""
+    return np.sqrt(np.maximum(np.diag(P), 0.0))
+
+
 def _accel_rows(params, accel_corners=ACCEL_CORNERS):
     return [CORNERS.index(c) for c in accel_corners]
 
@@ -381,7 +386,7 @@ class FullCarEstimator:
         self._P_post = design.P - design.M @ H @ design.P
         self._P_post = (self._P_post + self._P_post.T) / 2.0
         # the standard deviations while the steady gain runs (the steady posterior): once
-        self._std_post = np.sqrt(np.maximum(np.diag(self._P_post), 0.0))
+        self._std_post = _diag_std(self._P_post)
         self._std_post.setflags(write=False)
         dp = np.sqrt(np.abs(np.diag(self._P_post)))
         self._p_scale = np.maximum(np.outer(dp, dp), 1e-300)
@@ -635,7 +640,7 @@ class FullCarEstimator:
         """Return the standard deviations of the states (read-only while the gain is steady)."""
         if self._steady:
             return self._std_post
-        return np.sqrt(np.maximum(np.diag(self.P), 0.0))
+        return _diag_std(self.P)
 
     def body_accelerations(self):
         """Return the seven accelerations ``[zdd, thetadd, phidd, wheels x4]`` of the estimate."""
