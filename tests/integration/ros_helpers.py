@@ -470,6 +470,19 @@ def run_suite(out, *options, timeout_s=240):
 #: car time in a progress line of ``mr-damper-suite``: ``t_sim 12.3 s`` (a quarter car) or
 #: ``car t 12.34 s`` (the full car)
 CAR_TIME = re.compile(r'(?:t_sim|car t) (-?[\d.]+) s')
+COMMANDING = re.compile(r'\| controller normal, (\d+) commands on a model')
+
+
+def controller_commanding(line):
+    """
+    Whether a progress line says the external controller commands on a model.
+
+    Its mode ``normal`` (a model accepted) and a positive count of commands on a model: a
+    controller starved of car states (seen with two CI runs and a CPU burner on two cores) had
+    accepted a model and commanded nothing, and its last status went on saying normal.
+    """
+    m = COMMANDING.search(line)
+    return m is not None and int(m.group(1)) > 0
 
 
 def run_suite_until_controlled(out, *options, controlled, car_s=2.0, guard_s=300.0,

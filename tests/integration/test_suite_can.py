@@ -17,7 +17,8 @@ import pytest
 import yaml
 
 from conftest import REPO
-from integration.ros_helpers import assert_reached_control, run_suite_until_controlled
+from integration.ros_helpers import (assert_reached_control, controller_commanding,
+                                     run_suite_until_controlled)
 from mr_damper_bringup.config import (CAN_BRIDGE, CAN_DRIVER, CAN_PORT_BASE, CTRL,
                                       external_controller, IDENT, node_arguments, node_params,
                                       QC, recorder_arguments, resolve_config, RIG, suite_nodes)
@@ -98,8 +99,7 @@ def test_suite_over_can_loses_no_command(tmp_path):
     # stopped once the controller drove the car 5 s of car time on its model (no wall clock;
     # several of the controller's 1 Hz statuses say so in the recording)
     summary, stdout = run_suite_until_controlled(
-        out, '--config', 'can', controlled=lambda line: '| controller normal' in line,
-        car_s=5.0)
+        out, '--config', 'can', controlled=controller_commanding, car_s=5.0)
     for node in (CAN_DRIVER, CAN_BRIDGE, RIG, IDENT, CTRL, QC):
         assert (out / 'logs' / f'{node}.log').read_text().startswith('--- start'), node
     assert 'CAN (fl): bridge sent' in stdout

@@ -11,7 +11,8 @@ and the car took those commands.
 """
 import pytest
 
-from integration.ros_helpers import assert_reached_control, run_suite_until_controlled
+from integration.ros_helpers import (assert_reached_control, controller_commanding,
+                                     run_suite_until_controlled)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -20,7 +21,7 @@ def test_replayed_rig_tests_bring_the_external_controller_to_control(tmp_path):
     out = tmp_path / 'replay_ext'
     summary, stdout = run_suite_until_controlled(
         out, '--config', 'replay', '--external-controller',
-        controlled=lambda line: '| controller normal' in line,
+        controlled=controller_commanding,
         # 5 s of car time on the model: several of the controller's 1 Hz statuses say so in the
         # recording, also when a loaded recorder takes them late
         car_s=5.0)

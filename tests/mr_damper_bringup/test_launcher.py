@@ -54,9 +54,13 @@ def test_progress_line_from_the_statuses():
     assert 'controller' not in line
     # an external controller: its mode (has it a model?) next to the car's (do commands come?)
     mon.add('controller', {'mode': 'failsafe', 'reason': 'no_parameters_yet'})
-    assert progress_line(mon, 11.0).endswith('| controller failsafe (no_parameters_yet)')
-    mon.add('controller', {'mode': 'normal', 'reason': 'ok'})
-    assert progress_line(mon, 12.0).endswith('| controller normal')
+    assert progress_line(mon, 11.0).endswith(
+        '| controller failsafe (no_parameters_yet), 0 commands on a model')
+    mon.add('controller', {'mode': 'normal', 'reason': 'ok', 'commands_normal': 0})
+    # a model and no car state yet: nothing commanded on it
+    assert progress_line(mon, 12.0).endswith('| controller normal, 0 commands on a model')
+    mon.add('controller', {'mode': 'normal', 'reason': 'ok', 'commands_normal': 250})
+    assert progress_line(mon, 13.0).endswith('| controller normal, 250 commands on a model')
 
 
 @pytest.mark.parametrize('bad', [['--duration', '-1'], ['--domain-id', '233'],

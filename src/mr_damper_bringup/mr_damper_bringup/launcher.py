@@ -127,9 +127,11 @@ def progress_line(monitor, elapsed):
     ctrl = status.get('controller') or {}
     if ctrl:
         # the law runs in the controller node: its mode says whether it has a model (the car's
-        # says only whether commands come)
+        # says only whether commands come), its count whether it commanded on one (a model
+        # accepted before any car state arrived, as on a starved machine, commands nothing)
         car += (f' | controller {ctrl.get("mode", "?")}'
-                + (f' ({ctrl.get("reason")})' if ctrl.get('mode') == 'failsafe' else ''))
+                + (f' ({ctrl.get("reason")})' if ctrl.get('mode') == 'failsafe' else '')
+                + f', {int(ctrl.get("commands_normal") or 0)} commands on a model')
     return f'[{elapsed:6.1f} s] recorded {n_meas} samples | {ident} | {car}'
 
 
