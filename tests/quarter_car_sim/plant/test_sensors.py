@@ -178,3 +178,29 @@ def test_vehicle_sensors_of_the_car_with_an_injected_dropout():
     assert VehicleSensors(dt, dropout=(1.0, 0.0)).status()['dropout_window_s'] == []
     with pytest.raises(SensorError, match='dropout_sensors'):
         VehicleSensors(dt, dropout=(1.0, 1.0), dropout_sensors=('wheel_accel',))
+
+
+def test_bus_sensor_cluster_reads_all_eight_sensors_once_a_cycle():
+    """The chassis bus's cluster: 4 accelerometers + 4 ride heights, every cycle, no delay."""
+    from types import SimpleNamespace
+
+    from quarter_car_sim.plant.sensors import bus_sensor_cluster
+    dt, cycle = 1e-3, 2e-3
+    cl = bus_sensor_cluster(dt, cycle, seed=5)
+    travel = np.array([0.01, -0.02, 0.03, 0.0])
+    state = SimpleNamespace(body_a=np.zeros(4), travel=travel)
+    out = [cl.step(k * dt, state) for k in range(200)]
+    names = {f'{s}_{c}' for s in ('accel', 'travel') for c in ('fl', 'fr', 'rl', 'rr')}
+    # a reading of every sensor on the cycle's steps (no latency), none between them
+    assert all(set(r) == names for r in out[0::2]) and all(r == {} for r in out[1::2])
+    st = cl.status()
+    assert {s: st[s]['samples'] for s in names} == dict.fromkeys(names, 100)
+    assert all(st[s]['lost'] == 0 for s in names)
+    # the parts' error models: +g at rest within the turn-on bias, travel within its accuracy
+    acc = np.array([[r[f'accel_{c}'] for c in ('fl', 'fr', 'rl', 'rr')] for r in out[0::2]])
+    assert np.all(np.abs(acc.mean(0) - G0) < 5 * accelerometer_spec().bias_std + 0.05)
+    tr = np.array([[r[f'travel_{c}'] for c in ('fl', 'fr', 'rl', 'rr')] for r in out[0::2]])
+    assert np.all(np.abs(tr - travel) < 2e-3)
+    # seeded
+    again = bus_sensor_cluster(dt, cycle, seed=5)
+    assert [again.step(k * dt, state) for k in range(10)] == out[:10]

@@ -15,7 +15,7 @@ sampled with the error models of :mod:`semi_active_control.estimation.sensor_spe
 from quarter_car_sim.plant.full_car import FullCar, mechanical_energy  # noqa: F401
 from quarter_car_sim.plant.quarter_car import LinearDamperPlant, QuarterCar  # noqa: F401
 from quarter_car_sim.plant.road import make_road, RoadError, RoadProfile  # noqa: F401
-from quarter_car_sim.plant.sensors import (FullCarSensors, SensorSampler,  # noqa: F401
-                                           VehicleSensors)
+from quarter_car_sim.plant.sensors import (bus_sensor_cluster, FullCarSensors,  # noqa: F401
+                                           SensorSampler, VehicleSensors)
 from quarter_car_sim.plant.two_track_road import (make_two_track_road,  # noqa: F401
                                                   TwoTrackRoad)

@@ -309,3 +309,19 @@ class FullCarSensors:
     def status(self):
         """Return ``{sensor: {samples, lost}}``."""
         return sampler_counts(self.samplers)
+
+
+def bus_sensor_cluster(dt, cycle_s, seed=1):
+    """
+    Return the car's chassis sensors as its bus carries them (:class:`FullCarSensors`).
+
+    The four body accelerometers and four ride height sensors of the chassis frames, each
+    sampled once every bus cycle ``cycle_s`` [s] on a car stepped every ``dt`` [s], with the
+    parts' error models but no latency or dropout of their own (the frames deliver the
+    readings; a lost frame is the bus's). The one sensor cluster of the car's bus
+    (``CanCarLink``) and of the vehicle chain offline (``simulate_vehicle_chain``).
+    """
+    rate = 1.0 / float(cycle_s)
+    return FullCarSensors(dt, seed, accel_corners=CORNERS,
+                          accel=accelerometer_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0),
+                          travel=ride_height_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0))

@@ -3,14 +3,14 @@ The simulated car's chassis bus: its sensor cluster and four damper drivers on C
 
 :class:`CanCarLink` is the car's side of a vehicle computer: each car step it reads the
 production sensors on the true state (four body accelerometers and four ride height sensors
-with the automotive error models of :mod:`semi_active_control.estimation.sensor_specs`, sampled
-every bus cycle;
-:class:`~quarter_car_sim.plant.sensors.FullCarSensors`) and hands them, gravity removed, to
-a :class:`mr_damper_can.driver_sim.SimulatedEcu` on the bus, which sends the three sensor
-frames every ``cycle_s`` and its drivers' status every ``status_period_s``, takes the command
-frames (``DAMPER_CMD_ALL``, or one per corner) and falls back on its own safe current when no
-valid command came for ``driver_timeout_s``. The link returns the four drivers' set points,
-which the car's damper plants take as their coil commands (each plant has its coil lag).
+with the automotive error models of :mod:`semi_active_control.estimation.sensor_specs`,
+sampled every bus cycle: :func:`~quarter_car_sim.plant.sensors.bus_sensor_cluster`) and hands
+them, gravity removed, to a :class:`mr_damper_can.driver_sim.SimulatedEcu` on the bus, which
+sends the three sensor frames every ``cycle_s`` and its drivers' status every
+``status_period_s``, takes the command frames (``DAMPER_CMD_ALL``, or one per corner) and falls
+back on its own safe current when no valid command came for ``driver_timeout_s``. The link
+returns the four drivers' set points, which the car's damper plants take as their coil
+commands (each plant has its coil lag).
 
 The ECU runs on the car's time (the link's clock is the state's ``t``), so a car slower than
 real time gives a slower bus, not stale sensor frames; its command timeout is in car time too.
@@ -20,9 +20,9 @@ then on are the ones of a running chain.
 """
 import math
 
-from quarter_car_sim.plant.sensors import FullCarSensors
+from quarter_car_sim.plant.sensors import bus_sensor_cluster
 from semi_active_control.car.full_car import CORNERS
-from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
+from semi_active_control.estimation.sensor_specs import G0
 
 
 class CanCarLink:
@@ -61,11 +61,7 @@ class CanCarLink:
                                 clock=self.now)
         self.sensors = None
         if sensor_noise:
-            rate = 1.0 / float(cycle_s)
-            self.sensors = FullCarSensors(
-                dt, seed, accel_corners=CORNERS,
-                accel=accelerometer_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0),
-                travel=ride_height_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0))
+            self.sensors = bus_sensor_cluster(dt, cycle_s, seed)
         self._acc_names = [f'accel_{c}' for c in CORNERS]
         self._pos_names = [f'travel_{c}' for c in CORNERS]
         self.t_normal = math.nan

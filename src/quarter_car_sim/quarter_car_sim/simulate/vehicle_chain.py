@@ -7,9 +7,9 @@ clock, to see where the chain's a_v goes against the same law on the true states
 are the vehicle computer's own (``VehicleLoop`` runs the same two). One car step ``dt`` of
 :func:`simulate_vehicle_chain`:
 
-1. the car's sensor cluster (:class:`~quarter_car_sim.plant.sensors.FullCarSensors` with the
-   bus's four body accelerometers and four ride heights at the sensor cycle, as
-   :class:`~quarter_car_sim.runtime.can_link.CanCarLink` samples them) reads the true state;
+1. the car's sensor cluster (:func:`~quarter_car_sim.plant.sensors.bus_sensor_cluster`: the
+   bus's four body accelerometers and four ride heights at the sensor cycle, the one
+   :class:`~quarter_car_sim.runtime.can_link.CanCarLink` samples) reads the true state;
    each sensor's newest reading is held for the next frame, gravity removed, on the bus
    signal's resolution (``EstimatorSettings.accel_quantum`` / ``travel_quantum``);
 2. every ``cycle_steps`` steps, a sensor cycle: ``sensing='estimate'`` hands the held readings
@@ -30,10 +30,10 @@ import time
 import numpy as np
 
 from quarter_car_sim.plant.full_car import FullCar
-from quarter_car_sim.plant.sensors import FullCarSensors
+from quarter_car_sim.plant.sensors import bus_sensor_cluster
 from quarter_car_sim.simulate.full_car import RunLog
 from semi_active_control.car.full_car import CORNERS
-from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
+from semi_active_control.estimation.sensor_specs import G0
 from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings, VehicleEstimate,
                                                               VehicleEstimatorCore)
 from semi_active_control.runtime.vehicle_controller import (full_car_state, MODE_NORMAL,
@@ -55,11 +55,7 @@ class _BusSensors:
     """The car's sensor cluster at the bus cycle: each sensor's newest reading, on the bus."""
 
     def __init__(self, dt, settings, seed):
-        rate = 1.0 / settings.cycle_s
-        self.sensors = FullCarSensors(
-            dt, seed, accel_corners=CORNERS,
-            accel=accelerometer_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0),
-            travel=ride_height_spec(rate_hz=rate, latency_s=0.0, dropout_prob=0.0))
+        self.sensors = bus_sensor_cluster(dt, settings.cycle_s, seed)
         self._q = (settings.accel_quantum, settings.travel_quantum)
         self.accel = np.full(4, math.nan)
         self.travel = np.full(4, math.nan)
