@@ -95,7 +95,24 @@ def platform_latency(duration_s, priority=30, interval_us=1000):
     out['duration_s'] = float(duration_s)
     out['per_minute'] = {str(us): sum(c['late'][str(us)] for c in out['cpus']) * 60.0
                          / duration_s / max(len(out['cpus']), 1) for us in LATE_US}
+    for c in out['cpus']:
+        c['ceiling'] = answer_ceiling(c)
     return out
+
+
+def answer_ceiling(cpu):
+    """
+    Return ``{response_us: fraction}``: the most cycles a loop on this CPU could answer in time.
+
+    A thread woken every 1 ms samples the platform's stalls: the share of its wake-ups later
+    than ``L`` is the share of the time a real-time thread there starts more than ``L`` late.
+    A loop whose response takes ``r`` misses the cycle whenever it starts later than its
+    2 ms cycle less ``r``, so it answers at most ``1 - late(2 ms - r) / wake-ups``, whatever
+    its code: ``r = 0`` (:data:`LATE_US` 2000, an instant answer) and ``r = 1 ms`` (1000).
+    """
+    n = cpu['wakeups']
+    return {str(2000 - us): (1.0 - cpu['late'][str(us)] / n if n else None)
+            for us in (2000, 1000)}
 
 
 def device_interrupts(text=None):
@@ -180,6 +197,12 @@ def report_platform(fig):
           + ', '.join(f'> {us / 1000:g} ms {pm[str(us)]:.1f}' for us in LATE_US)
           + ' (each one a cycle of 2 ms that a loop needing more than the rest of its cycle '
             'cannot answer in time: 30 per minute are 0.1 % of the cycles)')
+    for k, c in enumerate(fig['cpus']):
+        ceil = c.get('ceiling') or {}
+        if ceil.get('0') is not None:
+            print(f'  CPU {k}: the most cycles of 2 ms a loop there could answer in time: '
+                  f'{ceil["0"] * 100:.3f} % answering at once, {ceil["1000"] * 100:.3f} % '
+                  f'answering 1 ms after its frame (goal 99.9 %)')
 
 
 def pinnings(choice):
@@ -250,6 +273,15 @@ def report_vehicle(run):
     print(f'  sensor frame -> command frame p50 {_fmt(lat.get("p50"), 1e3, " ms")}, p99 '
           f'{_fmt(lat.get("p99"), 1e3, " ms")} (goal <= 2 ms), max '
           f'{_fmt(lat.get("max"), 1e3, " ms")}')
+    ex = v.get('execution_s')
+    if ex:
+        p50 = [(ex.get(stage) or {}).get('p50_s') for stage in ex]
+        total = (sum(p50) if all(isinstance(x, float) for x in p50) else None)
+        print('  loop execution p50 / p99: ' + ', '.join(
+            f'{stage} {_fmt(h.get("p50_s"), 1e3)} / {_fmt(h.get("p99_s"), 1e3, " ms")}'
+            for stage, h in ex.items())
+            + f'; the stages\' p50s add up to {_fmt(total, 1e3, " ms")} of the response\'s '
+              f'p50 {_fmt(lat.get("p50"), 1e3, " ms")} (the rest: the frames\' reception)')
     print(f'  frames lost {v.get("frames_lost")}, messages lost {v.get("messages_lost")}')
     print(f'  a_v {_fmt(v.get("a_v"))}, passive {_fmt(v.get("a_v_passive"))}, lock-step '
           f'{_fmt(v.get("a_v_lockstep"))}, vs lock-step '
@@ -275,6 +307,9 @@ def _vehicle_figures(run):
         ('unanswered', f'{v.get("unanswered")}', 'counted'),
         ('sensor frame -> command frame p50 / p99 / max', ' / '.join(ms) + ' ms',
          'p99 <= 2 ms'),
+        ('loop execution p50 / p99 [ms]: ' + ', '.join(v.get('execution_s') or {}),
+         ', '.join(f'{_fmt(h.get("p50_s"), 1e3)} / {_fmt(h.get("p99_s"), 1e3)}'
+                   for h in (v.get('execution_s') or {}).values()) or 'n/a', ''),
         ('controller deadline misses', f'{v.get("deadline_misses")}', 'counted'),
         ('driver command timeouts after activation', f'{v.get("driver_command_timeouts")}',
          '0'),

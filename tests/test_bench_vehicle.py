@@ -101,6 +101,10 @@ def test_cyclictest_output_gives_each_cpus_late_wakeups():
     assert a['wakeups'] == 900 + 50 + 30 + 20 + 2
     assert a['late'] == {'500': 50 + 30 + 20 + 2, '1000': 30 + 20 + 2, '2000': 20 + 2}
     assert b['wakeups'] == 1000 and b['late'] == {'500': 50, '1000': 10, '2000': 1}
+    # the most a loop could answer: the share of wake-ups not later than its slack
+    bench = _bench()
+    assert bench.answer_ceiling(b) == {'0': 1.0 - 1 / 1000, '1000': 1.0 - 10 / 1000}
+    assert bench.answer_ceiling(a) == {'0': 1.0 - 22 / 1002, '1000': 1.0 - 52 / 1002}
 
 
 def test_without_cyclictest_the_platform_is_not_measured(monkeypatch, capsys):
@@ -123,3 +127,23 @@ def test_device_interrupts_are_read_per_cpu_from_proc_interrupts():
     assert irq == {'PCI-MSIX-0000:00:02.0 1-edge virtio1-req.0': [0, 246296],
                    'PCI-MSIX-0000:00:03.0 2-edge virtio2-output.0': [22239, 3]}
     assert _bench().device_interrupts('') == {}
+
+
+def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
+    bench = _bench()
+    ex = {'estimate': {'n': 9, 'p50_s': 2e-4, 'p99_s': 4e-4, 'max_s': 5e-4},
+          'control': {'n': 9, 'p50_s': 2.5e-4, 'p99_s': 3e-4, 'max_s': 5e-4},
+          'send': {'n': 9, 'p50_s': 1.5e-4, 'p99_s': 2e-4, 'max_s': 5e-4}}
+    run = {'exit': 0, 'wall_s': 1.0, 'load_start': 0.0, 'load_end': 0.0, 'cpu': {},
+           'summary': {'vehicle': {'sensor_to_command_s': {'p50': 9e-4}, 'execution_s': ex}}}
+    bench.report_vehicle(run)
+    out = capsys.readouterr().out
+    assert 'estimate 0.2 / 0.4 ms, control 0.25 / 0.3 ms, send 0.15 / 0.2 ms' in out
+    assert 'add up to 0.6 ms of the response\'s p50 0.9 ms' in out
+    rows = {f: v for f, v, _ in bench._vehicle_figures(run)}
+    assert rows['loop execution p50 / p99 [ms]: estimate, control, send'] == \
+        '0.2 / 0.4, 0.25 / 0.3, 0.15 / 0.2'
+    del run['summary']['vehicle']['execution_s']     # the nodes layout: no loop
+    bench.report_vehicle(run)
+    assert 'loop execution' not in capsys.readouterr().out
+    assert 'n/a' in bench._vehicle_figures(run)[5][1]

@@ -63,6 +63,12 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
     assert isinstance(v['frames_lost']['total'], int)
     assert v['a_v'] > 0 and v['a_v_passive'] > 0 and v['a_v_lockstep'] > 0, v
     assert (out / 'full_car_body.npz').is_file()
+    if layout == 'loop':         # the loop's execution times by stage, every cycle counted
+        ex = v['execution_s']
+        assert ex['estimate']['n'] >= ex['control']['n'] >= ex['send']['n'] >= 500, ex
+        assert all(0 < ex[s]['p50_s'] <= ex[s]['max_s'] for s in ex), ex
+    else:
+        assert 'execution_s' not in v
 
 
 def test_vehicle_suite_runs_the_preview_law_on_the_cars_look_ahead_frames(tmp_path):

@@ -258,7 +258,9 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         numbers), ``all_safe`` (controller commands with every corner safe, by reason),
         ``chain`` (the lifecycle manager's counts), ``window_s``, ``a_v``, ``a_v_passive``,
         ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1); with ``--preview``, ``preview``
-        (the controller's preview counters and the car's look-ahead sensor's).
+        (the controller's preview counters and the car's look-ahead sensor's); in the
+        ``loop`` layout ``execution_s`` (the loop's execution times per stage:
+        ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``).
 
     """
     st = monitor.snapshot()[0]
@@ -293,6 +295,10 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
                                               'sensor_fault_entries', 'restarts')},
         'chain': (st.get(MANAGER) or {}).get('counts'),
         't_normal': can.get('t_normal')}
+    execution = ((st.get(COMPUTER) or {}).get('loop') or {}).get('execution_s')
+    if execution:
+        section['execution_s'] = {stage: {k: h.get(k) for k in ('n', 'p50_s', 'p99_s', 'max_s')}
+                                  for stage, h in execution.items()}
     if ctrl.get('preview') is not None:        # --preview: the law's, map's, input's counters
         section['preview'] = dict(ctrl['preview'], sensor=car.get('road_preview'))
     section['frames_lost']['total'] = sum(v for v in section['frames_lost'].values()

@@ -177,3 +177,49 @@ def test_cycles_past_their_deadline_are_skipped_as_misses_and_trip_the_watchdog(
         seq, t, acc, travel = next(gen)
         reasons.append(loop.cycle(seq, t, acc, travel, t + 0.0005)[1].reasons[0])
     assert reasons[:19] == ['deadline_misses'] * 19 and set(reasons[20:]) == {'ok'}
+
+
+class TickClock:
+    """A clock that advances 100 us per reading, and by what the test adds (a slow stage)."""
+
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        self.t += 1e-4
+        return self.t
+
+
+def test_each_stages_execution_time_is_counted_where_it_is_spent(designed):
+    clock = TickClock()
+    sent = []
+
+    def slow_bus(currents_a, failsafe, cycle):     # the bus write takes 500 us
+        clock.t += 5e-4
+        sent.append(cycle)
+
+    ctl = VehicleControllerCore(PASSENGER_CAR, 'modal-skyhook', CornerModels(FILES, **SUP),
+                                cycle_s=P, max_consecutive_misses=100000)
+    loop = VehicleLoop(designed, ctl, slow_bus, clock=clock)
+    loop.configure(0.0)
+    gen = cycles(60)
+    for _ in range(10):                           # inactive: estimated only
+        seq, t, acc, travel = next(gen)
+        loop.cycle(seq, t, acc, travel, t + 0.0005)
+    loop.activate(100.0)
+    for _ in range(40):                           # answered
+        seq, t, acc, travel = next(gen)
+        loop.cycle(seq, t, acc, travel, t + 0.0005)
+    for _ in range(5):                            # past their deadline: not answered
+        seq, t, acc, travel = next(gen)
+        loop.cycle(seq, t, acc, travel, t + 0.005)
+    loop.cycle(seq, t, acc, travel, t + 0.0005)   # a repeat: not used, its step counted
+    ex = loop.status()['loop']['execution_s']
+    assert set(ex) == {'estimate', 'control', 'send'}
+    assert (ex['estimate']['n'], ex['control']['n'], ex['send']['n']) == (56, 40, 40)
+    assert len(sent) == 40
+    # one clock tick a stage, the bus write's 500 us in the send stage only (bins: 2.3 %)
+    for stage, expect in (('estimate', 1e-4), ('control', 1e-4), ('send', 6e-4)):
+        assert ex[stage]['p50_s'] == pytest.approx(expect, rel=0.03), stage
+        assert ex[stage]['max_s'] == pytest.approx(expect, rel=1e-9), stage
+    json.dumps(loop.status())

@@ -21,10 +21,21 @@ answering a queue of stale ones (what KEEP_LAST does for a topic); :meth:`deacti
 one command with every corner on the safe current; :meth:`check` (the caller's timer) sends
 the safe command while no cycle comes for the sensor timeout. One lock: :meth:`cycle` comes
 from the bus reader's thread, the rest from the caller's.
+
+Each cycle's execution time is counted by stage (:attr:`VehicleLoop.execution`, the status's
+``loop.execution_s``), as ros2_control's controller manager reports its controllers' execution
+times: ``estimate`` (the filter's step), ``control`` (the law, the inverses, the supervisors),
+``send`` (the bus write). Together with the bus-to-bus latency the bridge counts, they say
+where a cycle's response goes on the computer at hand (the rest is the frames' reception).
 """
 import threading
+import time
 
+from mr_damper_common.latency import LatencyHistogram
 from semi_active_control.runtime.vehicle_controller import failsafe_flags, full_car_state
+
+#: The stages of a cycle whose execution time :class:`VehicleLoop` counts.
+STAGES = ('estimate', 'control', 'send')
 
 
 class VehicleLoop:
@@ -42,6 +53,8 @@ class VehicleLoop:
         four fail-safe flags: any mode but normal) as the answer to sensor cycle ``cycle``
         (0: none); the bridge's ``command_all``. Called under the lock, so no command can
         follow the deactivation's.
+    clock : callable
+        Monotonic clock [s] of the execution times (default ``time.perf_counter``).
 
     Attributes
     ----------
@@ -49,16 +62,22 @@ class VehicleLoop:
         Cycles estimated while not active (not answered).
     cycles_unused : int
         Cycles the estimator did not use (older than or equal to the newest one).
+    execution : dict
+        Stage (:data:`STAGES`) -> :class:`~mr_damper_common.latency.LatencyHistogram` of its
+        execution times [s]: every estimator step, the law of every cycle answered (not
+        skipped late), the bus write of every command that answers a cycle.
 
     """
 
-    def __init__(self, estimator, controller, send):
+    def __init__(self, estimator, controller, send, clock=time.perf_counter):
         self.estimator = estimator
         self.controller = controller
         self.send = send
+        self.clock = clock
         self.lock = threading.Lock()
         self.cycles_inactive = 0
         self.cycles_unused = 0
+        self.execution = {stage: LatencyHistogram() for stage in STAGES}
 
     @property
     def active(self):
@@ -111,7 +130,11 @@ class VehicleLoop:
 
         """
         with self.lock:
+            clock, execution = self.clock, self.execution
+            t0 = clock()
             est = self.estimator.step(sequence, t, body_accel, travel)
+            t1 = clock()
+            execution['estimate'].add(t1 - t0)
             if est is None:
                 self.cycles_unused += 1
                 return None, None
@@ -129,8 +152,11 @@ class VehicleLoop:
                                    est.body_acc, est.travel, est.travel_velocity,
                                    est.tyre_deflection, est.wheel_velocity, est.damper_force)
             cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now)
+            t2 = clock()
+            execution['control'].add(t2 - t1)
             if cmd is not None:
                 self._send(cmd, est.sequence)
+                execution['send'].add(clock() - t2)
             return est, cmd
 
     def check(self, t_now):
@@ -155,9 +181,16 @@ class VehicleLoop:
         self.send(cmd.currents_a, failsafe_flags(cmd.modes), cycle)
 
     def status(self, t_now=None):
-        """Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready)."""
+        """
+        Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready).
+
+        ``loop``: ``cycles_inactive``, ``cycles_unused`` and ``execution_s`` (per stage the
+        execution times' ``n``, ``mean_s``, ``p50_s``, ``p99_s``, ``p999_s``, ``max_s``).
+        """
         with self.lock:
             return {'estimator': self.estimator.status(),
                     'controller': self.controller.status(t_now),
                     'loop': {'cycles_inactive': self.cycles_inactive,
-                             'cycles_unused': self.cycles_unused}}
+                             'cycles_unused': self.cycles_unused,
+                             'execution_s': {stage: h.summary()
+                                             for stage, h in self.execution.items()}}}
