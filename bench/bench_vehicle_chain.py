@@ -61,7 +61,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     from mr_damper_model.io.params_file import load_plant
-    from quarter_car_sim.metrics.full_car import iso2631_seat
+    from quarter_car_sim.metrics.full_car import body_a_v
     from quarter_car_sim.plant.two_track_road import make_two_track_road
     from quarter_car_sim.simulate.vehicle_chain import simulate_vehicle_chain
     from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
@@ -95,7 +95,7 @@ def main(argv=None):
                 files, dt=dt, cycle_steps=cycle, delay_steps=delay, sensing=sensing,
                 estimator=est, duration_s=args.duration)
             wall = time.perf_counter() - t0
-            a_v = iso2631_seat(res.t, res.acc[:, 0], res.acc[:, 1], res.acc[:, 2])['a_v']
+            a_v = body_a_v(res.t, res.acc)
             ref = a_v if ref is None else ref
             row = {'run': label, 'a_v': a_v, 'vs_lockstep': a_v / ref - 1.0, 'wall_s': wall}
             if est is not None:

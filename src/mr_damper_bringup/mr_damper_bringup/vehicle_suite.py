@@ -224,10 +224,8 @@ def _simulate_body(car_params, law, damper_files, t_end, dt, ctrl_params=None):
 
 
 def _a_v(t, acc):
-    from quarter_car_sim.metrics.full_car import iso2631_seat
-    if len(t) < 10:
-        return None
-    return iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])['a_v']
+    from quarter_car_sim.metrics.full_car import body_a_v
+    return body_a_v(t, acc) if len(t) >= 10 else None
 
 
 def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):

@@ -38,6 +38,10 @@ def test_vibration_total_value_combines_axes_with_the_factors():
     assert m['a_v'] == pytest.approx(expected, rel=1e-12)
     assert AXIS_FACTORS == {'z': 1.0, 'roll': 0.63, 'pitch': 0.40}
     assert m['vdv_required'] is False                # Gaussian: crest factor well below 9
+    # a run's body accelerations by column (heave, pitch, roll, then the wheels): the same a_v
+    from quarter_car_sim.metrics.full_car import body_a_v
+    acc = np.column_stack([az, ap, ar, rng.normal(0, 9.0, (t.size, 4))])
+    assert body_a_v(t, acc) == m['a_v']
 
 
 def test_vdv_of_a_sine_and_crest_factor_of_a_shock():

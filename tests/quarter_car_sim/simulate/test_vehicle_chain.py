@@ -4,7 +4,7 @@ import pytest
 
 from conftest import REPO
 from mr_damper_model.io.params_file import load_plant
-from quarter_car_sim.metrics.full_car import iso2631_seat
+from quarter_car_sim.metrics.full_car import body_a_v
 from quarter_car_sim.plant.two_track_road import make_two_track_road
 from quarter_car_sim.simulate.full_car import simulate_full_car
 from quarter_car_sim.simulate.vehicle_chain import simulate_vehicle_chain
@@ -29,7 +29,7 @@ def plants():
 
 
 def a_v(res):
-    return iso2631_seat(res.t, res.acc[:, 0], res.acc[:, 1], res.acc[:, 2])['a_v']
+    return body_a_v(res.t, res.acc)
 
 
 def chain(road, law='modal-skyhook', **kw):

@@ -10,6 +10,7 @@ Modules: ``quarter_car`` (Wk-weighted body acceleration, travel, tyre load, batc
 running), ``full_car`` (ISO 2631-1 at the seat: a_v, VDV, crest factors; per-wheel tyre load
 and per-corner travel). The weightings are :mod:`semi_active_control.iso2631`'s.
 """
-from quarter_car_sim.metrics.full_car import full_car_metrics, iso2631_seat  # noqa: F401
+from quarter_car_sim.metrics.full_car import (body_a_v, full_car_metrics,  # noqa: F401
+                                              iso2631_seat)
 from quarter_car_sim.metrics.quarter_car import (METRIC_KEYS, ride_metrics,  # noqa: F401
                                                  RunningRideMetrics)

@@ -93,6 +93,19 @@ def iso2631_seat(t, a_z, theta_dd, phi_dd):
             'vdv_required': bool(crest > CREST_LIMIT)}
 
 
+def body_a_v(t, acc):
+    """
+    Return the ISO 2631-1 vibration total value a_v [m/s^2] of the body at its CG.
+
+    ``acc`` holds a run's body accelerations by column (``FullCarResult.acc``: heave
+    [m/s^2], pitch, roll [rad/s^2], then any others), ``t`` its uniform time [s]: the a_v
+    of :func:`iso2631_seat` with the seat at the CG, the figure the vehicle computer's
+    summary and benches compare.
+    """
+    acc = np.asarray(acc, dtype=float)
+    return iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])['a_v']
+
+
 def full_car_metrics(result, params, *, seat=(0.0, 0.0)):
     """
     Ride metrics of a full-car run.
