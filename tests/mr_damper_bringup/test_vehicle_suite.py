@@ -15,3 +15,12 @@ def test_the_car_has_exited_before_the_vehicle_computer_is_stopped_in_either_lay
         assert set(CHAINS[layout]) <= set(then), layout
     # within the three-node chain: the controller ends before the bridge it commands through
     assert then.index('vehicle_controller') < then.index('vehicle_bridge')
+
+
+def test_the_suites_vehicle_controller_has_the_coil_settings_the_offline_chain_assumes():
+    # simulate_vehicle_chain's default supervision (COIL_SETTINGS) is the suite's vehicle
+    # computer's, so bench_vehicle_chain's runs answer as the live loop does
+    from mr_damper_bringup.config import load_config, node_params
+    from semi_active_control.supervision import COIL_SETTINGS
+    p = node_params(load_config('vehicle'), 'vehicle_controller')
+    assert {k: p[k] for k in COIL_SETTINGS} == COIL_SETTINGS

@@ -39,12 +39,10 @@ from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings,
 from semi_active_control.runtime.vehicle_controller import (full_car_state, MODE_NORMAL,
                                                             VehicleControllerCore)
 from semi_active_control.supervision.corner_models import CornerModels
+from semi_active_control.supervision.failsafe import COIL_SETTINGS
 
 #: Sensing modes of :func:`simulate_vehicle_chain`.
 CHAIN_SENSING = ('estimate', 'true')
-
-#: The corner supervisors' settings of the suite's vehicle computer (``suite_vehicle.yaml``).
-SUPERVISION = {'safe_current_a': 0.5, 'i_min_a': 0.0, 'i_max_a': 2.0, 'min_current_span_a': 1.0}
 
 
 def _on_bus(value, quantum):
@@ -107,7 +105,8 @@ def simulate_vehicle_chain(params, road, law, plants, model_files, *, dt=1e-3, c
     sensor_seed : int
         Seed of the sensors' errors.
     supervision : dict, optional
-        The corner supervisors' settings (default :data:`SUPERVISION`).
+        The corner supervisors' settings (default
+        :data:`~semi_active_control.supervision.failsafe.COIL_SETTINGS`, the vehicle computer's).
 
     Returns
     -------
@@ -123,7 +122,7 @@ def simulate_vehicle_chain(params, road, law, plants, model_files, *, dt=1e-3, c
                          f'{cycle_steps}, {delay_steps}')
     cycle_steps, delay_steps = int(cycle_steps), int(delay_steps)
     cycle_s = cycle_steps * dt
-    sup = dict(SUPERVISION if supervision is None else supervision)
+    sup = dict(COIL_SETTINGS if supervision is None else supervision)
     ctl = VehicleControllerCore(params, law, CornerModels(model_files, **sup), cycle_s=cycle_s,
                                 max_consecutive_misses=1 << 30)
     bus = None

@@ -11,32 +11,35 @@ from mr_damper_common import messages
 from mr_damper_common.node_utils import Param
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0
 from semi_active_control.supervision.deadline import RECOVER_CYCLES
+from semi_active_control.supervision.failsafe import COIL_SETTINGS as COIL
 
 #: Parameters of the supervised law, shared with the quarter car's built-in controller.
 SUPERVISED_LAW_PARAMETERS = (
     Param('controller_options', '{}', 'JSON keyword options (gains) of the controller, e.g. '
           '{"c_sky": 3000.0}; a change rebuilds the law (refused: the old one stays)',
           dynamic=True),
-    Param('safe_current_a', 0.5, 'Coil current in fail-safe [A]', 0.0, 10.0, dynamic=True),
+    Param('safe_current_a', COIL['safe_current_a'], 'Coil current in fail-safe [A]', 0.0, 10.0,
+          dynamic=True),
     Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale [s, node '
           'clock]', 0.01, 3600.0, dynamic=True),
-    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
-    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
-    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
-          '[A]', 0.0, 10.0, dynamic=True),
+    Param('i_min_a', COIL['i_min_a'], 'Coil current minimum [A]', 0.0, 10.0),
+    Param('i_max_a', COIL['i_max_a'], 'Coil current maximum [A]', 0.0, 10.0),
+    Param('min_current_span_a', COIL['min_current_span_a'], 'Refuse models identified over a '
+          'narrower current range [A]', 0.0, 10.0, dynamic=True),
     Param('hold_on_reject', False, 'Keep the model in use when a later message is refused '
           '(until stale)', dynamic=True),
 )
 
 #: Settings of each corner's fail-safe supervisor, shared with ``full_car_node``'s built-in law.
 CORNER_SUPERVISOR_PARAMETERS = (
-    Param('safe_current_a', 0.5, 'Coil current of a corner in fail-safe [A]', 0.0, 10.0),
+    Param('safe_current_a', COIL['safe_current_a'], 'Coil current of a corner in fail-safe [A]',
+          0.0, 10.0),
     Param('param_timeout_s', 1.0, 'A corner\'s identified parameters older than this are '
           'stale [s, node clock]', 0.01, 3600.0),
-    Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
-    Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
-    Param('min_current_span_a', 1.0, 'Refuse models identified over a narrower current range '
-          '[A]', 0.0, 10.0),
+    Param('i_min_a', COIL['i_min_a'], 'Coil current minimum [A]', 0.0, 10.0),
+    Param('i_max_a', COIL['i_max_a'], 'Coil current maximum [A]', 0.0, 10.0),
+    Param('min_current_span_a', COIL['min_current_span_a'], 'Refuse models identified over a '
+          'narrower current range [A]', 0.0, 10.0),
     Param('hold_on_reject', False, 'Keep a corner\'s model when a later message is refused '
           '(until stale)'),
 )

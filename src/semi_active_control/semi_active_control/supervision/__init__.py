@@ -5,6 +5,7 @@ Public API::
 
     from semi_active_control.supervision import ModelSupervisor, Verdict, SupervisorError
     from semi_active_control.supervision import as_identified_set, clip_current, REASONS
+    from semi_active_control.supervision import COIL_SETTINGS
     from semi_active_control.supervision import ControllerHealth, failsafe_message
     from semi_active_control.supervision import CornerModels, load_model_file, DeadlineMonitor
 
@@ -19,7 +20,8 @@ from semi_active_control.supervision.corner_models import (CornerModels,  # noqa
 from semi_active_control.supervision.deadline import DeadlineMonitor  # noqa: F401
 from semi_active_control.supervision.deadline import REASONS as DEADLINE_REASONS  # noqa: F401
 from semi_active_control.supervision.failsafe import (as_identified_set,  # noqa: F401
-                                                      clip_current, kwok_current_bounds,
+                                                      clip_current, COIL_SETTINGS,
+                                                      kwok_current_bounds,
                                                       ModelSupervisor, REASONS,
                                                       SupervisorError, Verdict)
 from semi_active_control.supervision.health import (ControllerHealth,  # noqa: F401

@@ -97,6 +97,13 @@ class Verdict:
     detail: str = ''
 
 
+#: The suite's coil current settings of a supervised damper [A]: the fail-safe current, the
+#: driver's range and the narrowest identified current range accepted. The defaults of the
+#: controller nodes' parameters (``semi_active_control.nodes.common``) and of the offline
+#: vehicle chain (``quarter_car_sim.simulate.vehicle_chain``).
+COIL_SETTINGS = {'safe_current_a': 0.5, 'i_min_a': 0.0, 'i_max_a': 2.0, 'min_current_span_a': 1.0}
+
+
 @dataclass
 class ModelSupervisor:
     """
