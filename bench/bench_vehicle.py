@@ -259,6 +259,16 @@ def _fmt(value, scale=1.0, unit='', digits=3):
     return f'{value * scale:.{digits}g}{unit}'
 
 
+def watchdog_trips(v):
+    """Return ``(trips, seconds on the safe current)`` of the deadline watchdog, or (None, 0)."""
+    deadline = v.get('deadline') or {}
+    trips = (deadline.get('entries') or {}).get('deadline_misses')
+    safe_s = (deadline.get('failsafe_s') or {}).get('deadline_misses')
+    if not isinstance(trips, int) or not isinstance(safe_s, (int, float)):
+        return None, 0.0
+    return trips, float(safe_s)
+
+
 def report_vehicle(run):
     """Print the vehicle run's figures against the goals."""
     v = run['summary'].get('vehicle') or {}
@@ -270,6 +280,10 @@ def report_vehicle(run):
           f'{v.get("unanswered")}')
     print(f'  deadline misses {v.get("deadline_misses")}, driver command timeouts after '
           f'activation {v.get("driver_command_timeouts")} (goal 0)')
+    trips, safe_s = watchdog_trips(v)
+    if trips is not None:
+        per = f', {safe_s / trips * 1e3:.0f} ms a trip' if trips else ''
+        print(f'  watchdog trips {trips}, {safe_s:.2f} s on the safe current{per}')
     print(f'  sensor frame -> command frame p50 {_fmt(lat.get("p50"), 1e3, " ms")}, p99 '
           f'{_fmt(lat.get("p99"), 1e3, " ms")} (goal <= 2 ms), max '
           f'{_fmt(lat.get("max"), 1e3, " ms")}')

@@ -134,16 +134,22 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
     ex = {'estimate': {'n': 9, 'p50_s': 2e-4, 'p99_s': 4e-4, 'max_s': 5e-4},
           'control': {'n': 9, 'p50_s': 2.5e-4, 'p99_s': 3e-4, 'max_s': 5e-4},
           'send': {'n': 9, 'p50_s': 1.5e-4, 'p99_s': 2e-4, 'max_s': 5e-4}}
+    deadline = {'entries': {'deadline_misses': 4, 'sensor_timeout': 1},
+                'failsafe_s': {'deadline_misses': 0.1, 'sensor_timeout': 2.5}}
     run = {'exit': 0, 'wall_s': 1.0, 'load_start': 0.0, 'load_end': 0.0, 'cpu': {},
-           'summary': {'vehicle': {'sensor_to_command_s': {'p50': 9e-4}, 'execution_s': ex}}}
+           'summary': {'vehicle': {'sensor_to_command_s': {'p50': 9e-4}, 'execution_s': ex,
+                                   'deadline': deadline}}}
     bench.report_vehicle(run)
     out = capsys.readouterr().out
+    assert 'watchdog trips 4, 0.10 s on the safe current, 25 ms a trip' in out
     assert 'estimate 0.2 / 0.4 ms, control 0.25 / 0.3 ms, send 0.15 / 0.2 ms' in out
     assert 'add up to 0.6 ms of the response\'s p50 0.9 ms' in out
     rows = {f: v for f, v, _ in bench._vehicle_figures(run)}
     assert rows['loop execution p50 / p99 [ms]: estimate, control, send'] == \
         '0.2 / 0.4, 0.25 / 0.3, 0.15 / 0.2'
     del run['summary']['vehicle']['execution_s']     # the nodes layout: no loop
+    deadline['entries']['deadline_misses'] = 0
     bench.report_vehicle(run)
-    assert 'loop execution' not in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert 'loop execution' not in out and 'watchdog trips 0, 0.10 s on the safe current\n' in out
     assert 'n/a' in bench._vehicle_figures(run)[5][1]
