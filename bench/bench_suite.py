@@ -105,16 +105,20 @@ def sweep(args):
     names = sorted({n for *_, s in rows for n, v in s.get('processes', {}).items()
                     if isinstance(v, dict)})
     print('samples/msg  rate  exit  lost  updates  sample->params p50 / p99 s  fail-safe s  '
+          'car x real time: run / p50  '
           + '  '.join(f'{n[:12]:>12s}' for n in names) + '   (CPU % of one core)')
     for spm, rf, rc, s in rows:
         m2p = s.get('measurement_to_parameters_s') or {}
+        loop = s.get('loop_full_run') or {}
+        rtf = (f'{_f(loop.get("real_time_factor_measured"), ".2f"):>9s} / '
+               f'{_f(loop.get("real_time_factor_median"), ".2f"):<5s}')
         procs = s.get('processes', {})
         cpu = '  '.join(f'{procs[n]["cpu_mean_percent"]:12.1f}' if isinstance(
             procs.get(n), dict) else f'{"-":>12s}' for n in names)
         print(f'{spm:11d}  {rf:4g}  {rc:4d}  {_f(s.get("messages_lost"), "d"):>4s}  '
               f'{_f(m2p.get("n"), "d"):>7s}  '
               f'{_f(m2p.get("p50")):>10s} / {_f(m2p.get("p99")):<10s}   '
-              f'{_f(s.get("failsafe_s"), ".2f"):>10s}  {cpu}')
+              f'{_f(s.get("failsafe_s"), ".2f"):>10s}  {rtf:>26s}  {cpu}')
     return 0
 
 
