@@ -246,7 +246,9 @@ class SensedState:
     Sensors plus filter of one simulated run: true state in, estimated state out.
 
     The filter's known input is the damper force each plant holds over the next period
-    (``state.damper_force``): what the corner's identified model gives when it is exact.
+    (``state.damper_force``): what the corner's identified model gives when it is exact. It
+    starts with the accelerometers' turn-on bias unknown to the part's standard deviation
+    (``bias_std0``, as the vehicle's estimator).
 
     Parameters
     ----------
@@ -267,8 +269,11 @@ class SensedState:
         self.sensors = FullCarSensors(dt, seed, dropout=dropout)
         if delay_steps is None:
             delay_steps = min(1, int(round(accelerometer_spec().latency_s / dt)))
+        # started as the vehicle's estimator starts: the accelerometers' turn-on bias unknown
+        # to its standard deviation (the default sensors carry one)
         self.estimator = FullCarEstimator(design_full_car_estimator(
-            params, dt, road_class=road_class, speed_m_s=speed_m_s), delay_steps=delay_steps)
+            params, dt, road_class=road_class, speed_m_s=speed_m_s), delay_steps=delay_steps,
+            bias_std0=accelerometer_spec().bias_std)
         self._recording = False
         self._sq = np.zeros(15)
         self._n = 0
