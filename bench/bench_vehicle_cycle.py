@@ -46,6 +46,7 @@ def sensor_cycles(n, seed=1):
     from quarter_car_sim.plant.two_track_road import make_two_track_road
     from semi_active_control.car.full_car import CORNERS, PASSENGER_CAR
     from semi_active_control.estimation.sensor_specs import G0
+    from semi_active_control.supervision import COIL_SETTINGS
     dt = CYCLE_S / 2
     road = make_two_track_road('iso8608-C', PASSENGER_CAR, speed_m_s=20.0,
                                duration_s=n * CYCLE_S + 1.0, dt=dt, rng=seed)
@@ -61,7 +62,7 @@ def sensor_cycles(n, seed=1):
             acc[k] = [r[f'accel_{c}'] - G0 for c in CORNERS]
             travel[k] = [r[f'travel_{c}'] for c in CORNERS]
             k += 1
-        s = car.step(dt, [0.5] * 4)
+        s = car.step(dt, [COIL_SETTINGS['safe_current_a']] * 4)
     return acc, travel
 
 
@@ -72,15 +73,14 @@ def make_loop():
     from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings,
                                                                   VehicleEstimatorCore)
     from semi_active_control.runtime import VehicleControllerCore
-    from semi_active_control.supervision import CornerModels
+    from semi_active_control.supervision import COIL_SETTINGS, CornerModels
 
     class NullBus:
         def send(self, msg, timeout=None):
             pass
 
     estimator = VehicleEstimatorCore(PASSENGER_CAR, EstimatorSettings(cycle_s=CYCLE_S))
-    models = CornerModels([str(MODELS / f'{c}.json') for c in CORNERS], safe_current_a=0.5,
-                          i_min_a=0.0, i_max_a=2.0, min_current_span_a=1.0)
+    models = CornerModels([str(MODELS / f'{c}.json') for c in CORNERS], **COIL_SETTINGS)
     controller = VehicleControllerCore(PASSENGER_CAR, 'modal-skyhook', models,
                                        cycle_s=CYCLE_S, max_consecutive_misses=10 ** 9)
     bridge = VehicleBridge(NullBus(), cycle_s=CYCLE_S)
