@@ -67,17 +67,17 @@ def _helper_namespaces(func, helpers, namespace):
     return found, sorted(foreign)
 
 
-def _build(func, helpers, nogil):
+def _build(func, helpers, nogil, inline='always'):
     import numba
 
     namespace = dict(func.__globals__)
     found, foreign = _helper_namespaces(func, helpers, namespace)
     built = {}
     for name, (py, ns) in found.items():
-        # inlined in numba's IR: a helper that receives another helper as an argument (as
-        # ``spencer.heun_substeps`` receives its z step) then calls it directly, and the kernel
-        # holds no pointer to a Python object (which numba cannot cache)
-        built[name] = numba.njit(inline='always')(_rebind(py, ns))
+        # inlined in numba's IR by default: a helper that receives another helper as an
+        # argument (as ``spencer.heun_substeps`` receives its z step) then calls it directly,
+        # and the kernel holds no pointer to a Python object (which numba cannot cache)
+        built[name] = numba.njit(inline=inline)(_rebind(py, ns))
     for ns in [namespace] + [ns for _, ns in found.values()]:
         ns.update(built)
     loop = _rebind(func, namespace)
@@ -95,7 +95,7 @@ def _build(func, helpers, nogil):
         return numba.njit(cache=False, nogil=nogil)(loop)
 
 
-def kernel(func, helpers=(), nogil=False):
+def kernel(func, helpers=(), nogil=False, inline='always'):
     """
     Return the compiled (numba, ``cache=True``) version of a plain-Python loop.
 
@@ -111,6 +111,13 @@ def kernel(func, helpers=(), nogil=False):
     nogil : bool
         Release the GIL while the loop runs (threads may then run it side by side on
         disjoint data). A loop is compiled with one setting, the first one asked for.
+    inline : {'always', 'never'}
+        Inline the helpers in numba's IR (``'always'``: needed when a helper receives
+        another as an argument) or compile each as a function of its own that the loop
+        calls (``'never'``; LLVM still inlines the small ones). A branchy algorithm that
+        calls one helper from many places (the scalar inverse:
+        :func:`mr_damper_model.models.inverse.scalar_kernels`) compiles in seconds with
+        ``'never'`` and in most of a minute with ``'always'``.
 
     Returns
     -------
@@ -122,7 +129,7 @@ def kernel(func, helpers=(), nogil=False):
     with _LOCK:
         disp = _KERNELS.get(key)
         if disp is None:
-            disp = _KERNELS[key] = _build(func, tuple(helpers), bool(nogil))
+            disp = _KERNELS[key] = _build(func, tuple(helpers), bool(nogil), inline)
     return disp
 
 

@@ -24,7 +24,8 @@ import math
 
 import numpy as np
 
-from mr_damper_model.models.kwok_current import (KwokCurrent, kwok_current_coefficients,
+from mr_damper_model.models.kwok_current import (_coefficients, KwokCurrent,
+                                                 kwok_current_coefficients,
                                                  kwok_current_force_scalar,
                                                  kwok_current_force_slope_at,
                                                  kwok_current_terms_scalar)
@@ -258,6 +259,164 @@ def _illinois(p, a, b, fa, fb, f, x, v, sx, tol_s):
     return b
 
 
+# --- the scalar inverse: plain functions over floats, compiled with numba (one home) -------
+#: Slots of the scalar inverse's model vector ``q``: the ten kwok-current parameters, then the
+#: lag's time constants [s], its lagged velocity before this sample [m/s] and the sample
+#: interval [s] (0: the first sample), and the kind (0 kwok-current, 1 kwok-current-lag).
+Q_TAU0, Q_TAU1, Q_U_PREV, Q_DT, Q_LAG = range(10, 15)
+Q_N = 15
+#: Slots of the scalar inverse's range vector: normalised ends, i_ref_a, i_min, i_max [A],
+#: the normalised bracket tolerance.
+L_S_LO, L_S_HI, L_I_REF, L_I_MIN, L_I_MAX, L_TOL_S = range(6)
+
+
+def lagged_velocity(q, s, v):
+    """Lagged velocity [m/s] after this sample at normalised current s (lag model)."""
+    if q[Q_DT] <= 0.0:             # first sample
+        return q[Q_U_PREV]
+    tau = q[Q_TAU0] + q[Q_TAU1] * max(s, 0.0)
+    if tau <= 0.0:
+        return v
+    a = math.exp(-q[Q_DT] / tau)
+    return a * q[Q_U_PREV] + (1.0 - a) * v
+
+
+def model_params(q):
+    """The ten kwok-current parameters of a model vector, as a tuple."""
+    return (q[0], q[1], q[2], q[3], q[4], q[5], q[6], q[7], q[8], q[9])
+
+
+def scalar_force(q, s, x, v):
+    """Model force [N] at normalised current s (kwok-current, or with the lag)."""
+    p = model_params(q)
+    if q[Q_LAG] == 0.0:
+        return kwok_current_force_scalar(p, s, x, v)
+    u = lagged_velocity(q, s, v)
+    return kwok_current_force_scalar(p, s, x, u) + (q[0] + q[1] * s) * (v - u)
+
+
+def scalar_force_slope(q, s, x, v):
+    """Force [N] and slope dF/ds [N] (closed form; the lag's a central difference)."""
+    if q[Q_LAG] == 0.0:
+        p = model_params(q)
+        return kwok_current_force_slope_at(kwok_current_terms_scalar(p, s), p, x, v)
+    h = 1e-6
+    return (scalar_force(q, s, x, v),
+            (scalar_force(q, s + h, x, v) - scalar_force(q, s - h, x, v)) / (2.0 * h))
+
+
+def scalar_solve(q, lim, a, b, fa, fb, f_des, x, v):
+    """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
+    if fa == 0.0:
+        b, fb = a, 0.0
+    ftol = 1e-9 * (1.0 + abs(f_des))
+    for _ in range(_MAX_ITER):
+        if abs(fb) <= ftol or abs(b - a) <= lim[L_TOL_S]:
+            break
+        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not min(a, b) < c < max(a, b):
+            c = 0.5 * (a + b)
+        fc = scalar_force(q, c, x, v) - f_des
+        if fc * fb < 0.0:
+            a, fa = b, fb
+        else:
+            fa *= 0.5
+        b, fb = c, fc
+    return min(max(b * lim[L_I_REF], lim[L_I_MIN]), lim[L_I_MAX])
+
+
+def scalar_extremum(q, a, b, ga, gb, f_des, x, v):
+    """
+    Interior extremum of F on [a, b] (slopes ga, gb of opposite sign), by Illinois.
+
+    Returns the normalised current of the extremum and ``F - f_des`` [N] there.
+    """
+    for _ in range(_MAX_ITER):
+        if abs(b - a) <= 1e-12:
+            break
+        c = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
+        if not min(a, b) < c < max(a, b):
+            c = 0.5 * (a + b)
+        gc = scalar_force_slope(q, c, x, v)[1]
+        if gc == 0.0:
+            b = c
+            break
+        if gc * gb < 0.0:
+            a, ga = b, gb
+        else:
+            ga *= 0.5
+        b, gb = c, gc
+    return b, scalar_force(q, b, x, v) - f_des
+
+
+def scalar_grid_scan(q, lim, grid, f_des, x, v, nearest):
+    """
+    The first bracket of ``f_des`` on a grid of normalised currents: ``(current [A], 0)``.
+
+    Without one: with ``nearest`` the grid current of the nearest force and its flag (+1: the
+    demand is above it), else ``(nan, 0)``.
+    """
+    n = len(grid)
+    d_prev = scalar_force(q, grid[0], x, v) - f_des
+    j_near, d_near = 0, d_prev
+    for j in range(n - 1):
+        d = scalar_force(q, grid[j + 1], x, v) - f_des
+        if d_prev * d <= 0.0:
+            return scalar_solve(q, lim, grid[j], grid[j + 1], d_prev, d, f_des, x, v), 0
+        if abs(d) < abs(d_near):
+            j_near, d_near = j + 1, d
+        d_prev = d
+    if not nearest:
+        return math.nan, 0
+    return grid[j_near] * lim[L_I_REF], (1 if d_near < 0.0 else -1)
+
+
+def scalar_current(q, lim, grid, dense, f_des, x, v):
+    """
+    The scalar inverse of one model force ``f_des`` [N]: ``(current [A], flag)``.
+
+    The algorithm of :class:`KwokCurrentInverse` (its docstring); ``dense`` is the lag
+    model's dense check grid (empty: none).
+    """
+    s_lo, s_hi = lim[L_S_LO], lim[L_S_HI]
+    f_lo, g_lo = scalar_force_slope(q, s_lo, x, v)
+    f_hi, g_hi = scalar_force_slope(q, s_hi, x, v)
+    d_lo = f_lo - f_des
+    d_hi = f_hi - f_des
+    if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
+        return scalar_solve(q, lim, s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
+    # the demand is beyond both end forces (on the same side): reachable only at an
+    # interior extremum of F(i); the slopes at the ends say whether there is one
+    above = d_lo < 0.0
+    i_min, i_max = lim[L_I_MIN], lim[L_I_MAX]
+    cur, flag = math.nan, 0
+    if g_lo * g_hi < 0.0:
+        # one interior extremum (a maximum when F rises from i_min)
+        if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
+            cur, flag = (i_min, -1) if abs(d_lo) <= abs(d_hi) else (i_max, 1)
+        else:
+            s_x, d_x = scalar_extremum(q, s_lo, s_hi, g_lo, g_hi, f_des, x, v)
+            if d_x == 0.0 or (d_x < 0.0) != above:
+                return scalar_solve(q, lim, s_lo, s_x, d_lo, d_x, f_des, x, v), 0
+            cur, flag = (min(max(s_x * lim[L_I_REF], i_min), i_max), 1 if d_x < 0.0 else -1)
+    elif g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
+        # F(i) runs the same way at both ends as from end to end: monotone unless it has
+        # two interior extrema, which a mid-range force outside the end forces shows
+        d_mid = scalar_force(q, 0.5 * (s_lo + s_hi), x, v) - f_des
+        if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
+            cur, flag = (i_min, -1) if abs(d_lo) <= abs(d_hi) else (i_max, 1)
+    if math.isnan(cur):
+        cur, flag = scalar_grid_scan(q, lim, grid, f_des, x, v, True)
+        if flag == 0:
+            return cur, 0
+    if len(dense):
+        # the lag's narrow peak that the end test and the coarse grid step over
+        c_dense, _ = scalar_grid_scan(q, lim, dense, f_des, x, v, False)
+        if not math.isnan(c_dense):
+            return c_dense, 0
+    return cur, flag
+
+
 class KwokCurrentInverse:
     """
     Scalar, plain-Python inverse for 1 kHz control loops (same answers as ``inverse_current``).
@@ -311,19 +470,19 @@ class KwokCurrentInverse:
         self.params = dict(zip(KwokCurrent.param_names, self._p))
         self.i_ref_a, self.i_min, self.i_max = float(i_ref_a), float(i_min), float(i_max)
         self._s_lo, self._s_hi = self.i_min / self.i_ref_a, self.i_max / self.i_ref_a
-        self._terms_lo = kwok_current_terms_scalar(self._p, self._s_lo)
-        self._terms_hi = kwok_current_terms_scalar(self._p, self._s_hi)
-        self._terms_mid = kwok_current_terms_scalar(self._p, 0.5 * (self._s_lo + self._s_hi))
-        self._tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
-        self._grid = [(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
-                      for j in range(n_grid)]
+        tol_s = 1e-12 if tol_a is None else max(float(tol_a) / self.i_ref_a, 1e-12)
+        self._q = np.zeros(Q_N)
+        self._q[:10] = self._p
+        self._lim = np.array([self._s_lo, self._s_hi, self.i_ref_a, self.i_min, self.i_max,
+                              tol_s])
+        self._grid = np.array([(i_min + (i_max - i_min) * j / (n_grid - 1)) / i_ref_a
+                               for j in range(n_grid)])
+        self._dense = np.zeros(0)
+        self._kernels = scalar_kernels()
 
     def force(self, i, x, v):
         """Model force [N] at current i [A], displacement x [m], velocity v [m/s]."""
-        return self._f(i / self.i_ref_a, x, v)
-
-    def _f(self, s, x, v):
-        return kwok_current_force_scalar(self._p, s, x, v)
+        return self._kernels[1](self._q, float(i) / self.i_ref_a, float(x), float(v))
 
     def body_force_range(self, travel, v_rel):
         """
@@ -340,8 +499,9 @@ class KwokCurrentInverse:
             Smallest and largest of ``-force`` at ``i_min`` and ``i_max`` [N].
 
         """
-        f_lo, _, f_hi, _ = self._ends(travel, v_rel)   # the end terms cached at construction
-        a, b = -f_lo, -f_hi
+        f = self._kernels[1]
+        x, v = float(travel), float(v_rel)
+        a, b = -f(self._q, self._s_lo, x, v), -f(self._q, self._s_hi, x, v)
         return (a, b) if a <= b else (b, a)
 
     def current(self, f_des, x, v):
@@ -367,108 +527,15 @@ class KwokCurrentInverse:
         tuple of (float, int)
 
         """
-        if self._body:
-            cur, flag = self._current(-f_des, x, v)
-            return cur, -flag
-        return self._current(f_des, x, v)
-
-    def _fg(self, s, x, v):
-        """Force [N] and its slope dF/ds [N] at normalised current s."""
-        return kwok_current_force_slope_at(kwok_current_terms_scalar(self._p, s), self._p, x, v)
-
-    def _ends(self, x, v):
-        """Force [N] and slope dF/ds [N] (None: not computed yet) at ``i_min`` and ``i_max``."""
-        p = self._p
-        return (kwok_current_force_slope_at(self._terms_lo, p, x, v)
-                + kwok_current_force_slope_at(self._terms_hi, p, x, v))
-
-    def _f_mid(self, x, v):
-        """Force [N] at the middle of the current range (its terms cached: the same float)."""
-        return kwok_current_force_slope_at(self._terms_mid, self._p, x, v)[0]
-
-    def _current(self, f_des, x, v):
-        """:meth:`current` for a model force ``f_des`` [N]."""
+        f_des, x, v = float(f_des), float(x), float(v)
         if not (math.isfinite(f_des) and math.isfinite(x) and math.isfinite(v)):
             raise ModelError('`f_des`, `x`, `v` must be finite')
-        s_lo, s_hi = self._s_lo, self._s_hi
-        f_lo, g_lo, f_hi, g_hi = self._ends(x, v)
-        d_lo = f_lo - f_des
-        d_hi = f_hi - f_des
-        if d_lo == 0.0 or (d_lo < 0.0) != (d_hi < 0.0):
-            return self._solve(s_lo, s_hi, d_lo, d_hi, f_des, x, v), 0
-        # the demand is beyond both end forces (on the same side): reachable only at an
-        # interior extremum of F(i); the slopes at the ends say whether there is one
-        above = d_lo < 0.0
-        if g_lo is None:
-            g_lo, g_hi = self._fg(s_lo, x, v)[1], self._fg(s_hi, x, v)[1]
-        if g_lo * g_hi < 0.0:
-            # one interior extremum (a maximum when F rises from i_min)
-            if (g_lo > 0.0) != above:       # it lies away from the demand: nearest end
-                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
-            s_x, d_x = self._extremum(s_lo, s_hi, g_lo, g_hi, f_des, x, v)
-            if d_x == 0.0 or (d_x < 0.0) != above:
-                return self._solve(s_lo, s_x, d_lo, d_x, f_des, x, v), 0
-            return (min(max(s_x * self.i_ref_a, self.i_min), self.i_max),
-                    1 if d_x < 0.0 else -1)
-        if g_lo * g_hi > 0.0 and (g_lo > 0.0) == (d_hi > d_lo):
-            # F(i) runs the same way at both ends as from end to end: monotone unless it has
-            # two interior extrema, which a mid-range force outside the end forces shows
-            d_mid = self._f_mid(x, v) - f_des
-            if min(d_lo, d_hi) <= d_mid <= max(d_lo, d_hi):
-                return (self.i_min, -1) if abs(d_lo) <= abs(d_hi) else (self.i_max, 1)
-        return self._grid_scan(f_des, x, v)
-
-    def _grid_scan(self, f_des, x, v):
-        """Pre-scan the range on the grid: the first bracket, else the nearest grid force."""
-        g = self._grid
-        d = [self._f(s, x, v) - f_des for s in g]
-        for j in range(len(g) - 1):
-            if d[j] * d[j + 1] <= 0.0:
-                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
-        jn = min(range(len(g)), key=lambda q: abs(d[q]))
-        return g[jn] * self.i_ref_a, (1 if d[jn] < 0.0 else -1)
-
-    def _extremum(self, a, b, ga, gb, f_des, x, v):
-        """
-        Interior extremum of F on [a, b] (slopes ga, gb of opposite sign), by Illinois.
-
-        Returns the normalised current of the extremum and ``F - f_des`` [N] there.
-        """
-        for _ in range(_MAX_ITER):
-            if abs(b - a) <= 1e-12:
-                break
-            c = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
-            if not min(a, b) < c < max(a, b):
-                c = 0.5 * (a + b)
-            gc = self._fg(c, x, v)[1]
-            if gc == 0.0:
-                b = c
-                break
-            if gc * gb < 0.0:
-                a, ga = b, gb
-            else:
-                ga *= 0.5
-            b, gb = c, gc
-        return b, self._f(b, x, v) - f_des
-
-    def _solve(self, a, b, fa, fb, f_des, x, v):
-        """Illinois regula falsi on [a, b] (normalised currents) with fa, fb of opposite sign."""
-        if fa == 0.0:
-            b, fb = a, 0.0
-        ftol = 1e-9 * (1.0 + abs(f_des))
-        for _ in range(_MAX_ITER):
-            if abs(fb) <= ftol or abs(b - a) <= self._tol_s:
-                break
-            c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
-            if not min(a, b) < c < max(a, b):
-                c = 0.5 * (a + b)
-            fc = self._f(c, x, v) - f_des
-            if fc * fb < 0.0:
-                a, fa = b, fb
-            else:
-                fa *= 0.5
-            b, fb = c, fc
-        return min(max(b * self.i_ref_a, self.i_min), self.i_max)
+        if self._body:
+            cur, flag = self._kernels[0](self._q, self._lim, self._grid, self._dense, -f_des,
+                                         x, v)
+            return cur, -flag
+        cur, flag = self._kernels[0](self._q, self._lim, self._grid, self._dense, f_des, x, v)
+        return cur, int(flag)
 
 
 class KwokCurrentLagInverse(KwokCurrentInverse):
@@ -511,52 +578,10 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
             raise ModelError('lag time constants `tau0`, `tau1` must be >= 0')
         super().__init__(p[:10], i_ref_a=i_ref_a, i_min=i_min, i_max=i_max, n_grid=n_grid,
                          tol_a=tol_a, sign_convention=sign_convention)
-        self._tau0, self._tau1 = float(p[10]), float(p[11])
-        self._dense = [(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
-                       / self.i_ref_a for j in range(_N_DENSE)]
+        self._q[Q_TAU0], self._q[Q_TAU1], self._q[Q_LAG] = float(p[10]), float(p[11]), 1.0
+        self._dense = np.array([(self.i_min + (self.i_max - self.i_min) * j / (_N_DENSE - 1))
+                                / self.i_ref_a for j in range(_N_DENSE)])
         self.u = None           # lagged velocity after the last step [m/s]
-        self._u_prev = 0.0
-        self._dt = 0.0
-
-    def _lagged(self, s, v):
-        """Lagged velocity [m/s] after this sample at normalised current s."""
-        if self._dt <= 0.0:             # first sample
-            return self._u_prev
-        tau = self._tau0 + self._tau1 * max(s, 0.0)
-        if tau <= 0.0:
-            return v
-        a = math.exp(-self._dt / tau)
-        return a * self._u_prev + (1.0 - a) * v
-
-    def _fg(self, s, x, v):
-        """Force [N] and a central-difference slope dF/ds [N] (the lag has no closed form)."""
-        h = 1e-6
-        return self._f(s, x, v), (self._f(s + h, x, v) - self._f(s - h, x, v)) / (2.0 * h)
-
-    def _ends(self, x, v):
-        """Force [N] at ``i_min`` and at ``i_max`` (slopes None: computed when needed)."""
-        return self._f(self._s_lo, x, v), None, self._f(self._s_hi, x, v), None
-
-    def _f(self, s, x, v):
-        u = self._lagged(s, v)
-        c = self._p[0] + self._p[1] * s
-        return kwok_current_force_scalar(self._p, s, x, u) + c * (v - u)
-
-    def _f_mid(self, x, v):
-        """Force [N] at the middle of the current range (lagged: not cached)."""
-        return self._f(0.5 * (self._s_lo + self._s_hi), x, v)
-
-    def _current(self, f_des, x, v):
-        """As :meth:`KwokCurrentInverse.current`, with the dense check of a saturated demand."""
-        cur, flag = super()._current(f_des, x, v)
-        if flag == 0:
-            return cur, flag
-        g = self._dense
-        d = [self._f(s, x, v) - f_des for s in g]
-        for j in range(len(g) - 1):
-            if d[j] * d[j + 1] <= 0.0:
-                return self._solve(g[j], g[j + 1], d[j], d[j + 1], f_des, x, v), 0
-        return cur, flag
 
     def step(self, f_des, x, v, dt):
         """
@@ -577,10 +602,40 @@ class KwokCurrentLagInverse(KwokCurrentInverse):
         """
         if not (math.isfinite(dt) and dt > 0):
             raise ModelError(f'`dt` must be a positive time step [s], got {dt}')
+        q = self._q
         if self.u is None:
-            self._u_prev, self._dt = v, 0.0      # first sample: u = v
+            q[Q_U_PREV], q[Q_DT] = float(v), 0.0      # first sample: u = v
         else:
-            self._u_prev, self._dt = self.u, dt
+            q[Q_U_PREV], q[Q_DT] = self.u, float(dt)
         cur, flag = self.current(f_des, x, v)
-        self.u = self._lagged(cur / self.i_ref_a, v)
+        self.u = float(lagged_velocity(q, cur / self.i_ref_a, float(v)))
         return cur, flag
+
+
+def scalar_kernels():
+    """
+    Return the compiled scalar inverse and force: ``(scalar_current, scalar_force)``.
+
+    Compiled (numba, disk cache: :func:`mr_damper_model.models.compiled.kernel`) and run once
+    on the first call in a process, so that the first control cycle does not pay for either.
+    """
+    global _SCALAR_KERNELS
+    if _SCALAR_KERNELS is None:
+        from mr_damper_model.models import compiled
+        helpers = ('lagged_velocity', 'model_params', 'scalar_force', 'scalar_force_slope',
+                   'scalar_solve', 'scalar_extremum', 'scalar_grid_scan',
+                   kwok_current_force_scalar, kwok_current_force_slope_at,
+                   kwok_current_terms_scalar, _coefficients)
+        current = compiled.kernel(scalar_current, helpers=helpers, inline='never')
+        force = compiled.kernel(scalar_force, helpers=helpers, inline='never')
+        q = np.zeros(Q_N)
+        q[6] = 1.0
+        lim = np.array([0.0, 1.0, 2.0, 0.0, 2.0, 1e-12])
+        grid = np.linspace(0.0, 1.0, 3)
+        current(q, lim, grid, np.zeros(0), 1.0, 0.01, 0.1)
+        force(q, 0.5, 0.01, 0.1)
+        _SCALAR_KERNELS = (current, force)
+    return _SCALAR_KERNELS
+
+
+_SCALAR_KERNELS = None

@@ -37,7 +37,7 @@ import json
 import math
 
 from mr_damper_common.stamps import StampGuard
-from mr_damper_model.models.inverse import KwokCurrentInverse
+from mr_damper_model.models.inverse import KwokCurrentInverse, scalar_kernels
 from semi_active_control.laws.registry import make_controller
 from semi_active_control.supervision.failsafe import clip_current, SupervisorError
 
@@ -120,6 +120,8 @@ class ControllerCore:
                                  accept_equal=True)
         self._inverse = None
         self._inverse_of = None
+        # the compiled inverse, loaded (or compiled) now: not in the cycle of the first model
+        scalar_kernels()
 
     def _inverse_for(self, identified):
         if identified is not self._inverse_of:
