@@ -116,3 +116,27 @@ def test_body_sign_convention_is_the_negated_model_demand():
     assert body_inv.params == {k: float(p[k]) for k in model.param_names}
     with pytest.raises(ValueError, match='sign_convention'):
         KwokCurrentInverse(p, sign_convention='up')
+
+
+@pytest.mark.parametrize('lag', [False, True])
+def test_compiled_scalar_inverse_is_its_plain_python_source(lag):
+    # the compiled kernel runs scalar_current's own source: interpreted, the same function
+    # gives the same currents and flags, on reachable, saturated and non-monotone demands
+    from mr_damper_model.models.inverse import KwokCurrentLagInverse, scalar_current
+    model, p = thesis_kwok_current()
+    p = dict(p, beta1=-0.3)
+    if lag:
+        inv = KwokCurrentLagInverse(list(model.from_dict(p)) + [0.003, 0.008])
+        inv.step(100.0, 0.01, 0.1, 1e-3)           # a lag state after a first sample
+    else:
+        inv = KwokCurrentInverse(p)
+    x, v, i = _samples(300, 4)
+    f_des = model.force(model.from_dict(p), x, v, i) * np.linspace(-1.5, 1.5, 300)
+    flags = set()
+    for k in range(x.size):
+        args = (inv._q, inv._lim, inv._grid, inv._dense, float(f_des[k]), float(x[k]),
+                float(v[k]))
+        cur, flag = inv._kernels[0](*args)
+        assert (cur, flag) == scalar_current(*args)
+        flags.add(flag)
+    assert flags == {-1, 0, 1}
