@@ -122,7 +122,8 @@ def test_body_sign_convention_is_the_negated_model_demand():
 def test_compiled_scalar_inverse_is_its_plain_python_source(lag):
     # the compiled kernel runs scalar_current's own source: interpreted, the same function
     # gives the same currents and flags, on reachable, saturated and non-monotone demands
-    from mr_damper_model.models.inverse import KwokCurrentLagInverse, scalar_current
+    from mr_damper_model.models.inverse import KwokCurrentLagInverse
+    from mr_damper_model.models.scalar_inverse import scalar_current
     model, p = thesis_kwok_current()
     p = dict(p, beta1=-0.3)
     if lag:

@@ -116,7 +116,7 @@ def kernel(func, helpers=(), nogil=False, inline='always'):
         another as an argument) or compile each as a function of its own that the loop
         calls (``'never'``; LLVM still inlines the small ones). A branchy algorithm that
         calls one helper from many places (the scalar inverse:
-        :func:`mr_damper_model.models.inverse.scalar_kernels`) compiles in seconds with
+        :func:`mr_damper_model.models.scalar_inverse.scalar_kernels`) compiles in seconds with
         ``'never'`` and in most of a minute with ``'always'``.
 
     Returns

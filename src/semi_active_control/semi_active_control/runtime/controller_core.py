@@ -37,7 +37,8 @@ import json
 import math
 
 from mr_damper_common.stamps import StampGuard
-from mr_damper_model.models.inverse import KwokCurrentInverse, scalar_kernels
+from mr_damper_model.models.inverse import KwokCurrentInverse
+from mr_damper_model.models.scalar_inverse import scalar_kernels
 from semi_active_control.laws.registry import make_controller
 from semi_active_control.supervision.failsafe import clip_current, SupervisorError
 
