@@ -10,7 +10,8 @@ Public API::
     from semi_active_control.estimation import SensorSpec, default_specs, accelerometer_spec
 
 Modules: ``quarter_car`` (a corner's filter), ``full_car`` (the 7-DOF car's filter from three
-or four body accelerometers and four position sensors), ``state_estimator_core`` (readings,
+or four body accelerometers and four position sensors), ``steady_step`` (its clean steady
+cycle compiled), ``state_estimator_core`` (readings,
 current and identified model in, one estimate per tick out: what ``state_estimator_node``
 calls), ``vehicle_estimator`` (the vehicle computer's full-car estimator on the chassis bus's
 sensors: what ``vehicle_estimator_node`` calls), ``road_preview`` (the road ahead from a

@@ -355,6 +355,8 @@ class FullCarEstimator:
         Sensors not used at the last step, with their fault (``dropout_accel_fr``, ...).
     n_invalid : dict
         Steps invalid per reason.
+    n_steps, n_compiled : int
+        Steps, and of them the clean steady ones run compiled (:mod:`~.steady_step`).
     fault_entries, fault_steps : dict
         Per sensor fault name: entries (the fault appearing) and steps it lasted.
 
@@ -396,10 +398,11 @@ class FullCarEstimator:
         self._observable = {}
         # the repeat counts and stuck flags of a cycle where no reading repeated (read-only:
         # shared by every such cycle)
-        self._no_runs = np.zeros(len(self.sensors), dtype=int)
+        # (not written: replaced when a sensor repeats; writable only so that the compiled
+        # steady step takes it as it takes any other)
+        self._no_runs = np.zeros(len(self.sensors), dtype=np.int64)
         self._none_stuck = np.zeros(len(self.sensors), dtype=bool)
-        for a in (self._no_runs, self._none_stuck):
-            a.setflags(write=False)
+        self._none_stuck.setflags(write=False)
         self._P_start = design.P.copy()
         if bias_std0 is not None:
             if not (math.isfinite(bias_std0) and bias_std0 >= 0):
@@ -409,7 +412,23 @@ class FullCarEstimator:
         self._P_start.setflags(write=False)
         self.fault_entries = {}
         self.fault_steps = {}
+        self._fast = self._steady_kernel()
         self.reset()
+
+    def _steady_kernel(self):
+        """Return the compiled steady step and its fixed arguments (None: this filter has none)."""
+        if self.delay_steps or self._stuck_n is None:
+            return None
+        from semi_active_control.estimation.steady_step import steady_step_kernel
+        d, m = self.d, len(self.sensors)
+        c = np.ascontiguousarray
+        lo = c(self._lo) if self._lo is not None else np.full(m, -np.inf)
+        hi = c(self._hi) if self._hi is not None else np.full(m, np.inf)
+        fixed = (c(self._gravity, dtype=float), c(d.Ad), c(d.Bd), c(d.H), c(d.Dm), c(d.M))
+        screen = (c(self._stuck_n, dtype=np.int64),
+                  math.nan if self._gate2 is None else self._gate2, c(self._s_steady), lo, hi)
+        return (steady_step_kernel(), fixed, screen, np.zeros(m, dtype=np.int64),
+                np.empty(d.Ad.shape[0] + m))
 
     def reset(self, x0=None, P0=None):
         """
@@ -438,6 +457,7 @@ class FullCarEstimator:
         self.faults = []
         self.n_invalid = {}
         self.n_steps = 0
+        self.n_compiled = 0
 
     @property
     def steady(self):
@@ -474,6 +494,9 @@ class FullCarEstimator:
         """
         d = self.d
         y = self.readings_array(readings)
+        if (self._steady and self._fast is not None and self.n_steps and self._all_seen
+                and not self.faults and self.dropout_s >= 0.0 and self._fast_step(t, y, forces)):
+            return self.x
         if self._t0 is None:
             self._t0 = t
             self._seen[:] = t                  # a sensor never heard of drops out from the start
@@ -519,6 +542,31 @@ class FullCarEstimator:
         if self.reason:
             self.n_invalid[self.reason] = self.n_invalid.get(self.reason, 0) + 1
         return self.x
+
+    def _fast_step(self, t, y, forces):
+        """
+        Run a clean steady cycle compiled (:mod:`~.steady_step`); False: not one, nothing done.
+
+        Clean: every reading there, none stuck or out of range, as on the cycle before (the
+        caller checks that no sensor is faulty and every one has been seen). What the step's
+        general path then does ends with the estimate valid and nothing counted.
+        """
+        kernel, fixed, screen, runs, work = self._fast
+        f_now = np.asarray(forces, dtype=float).reshape(4)
+        x = self.x.copy()           # a new array per step, as the general path's
+        if not kernel(x, self._f, f_now, y, float(t), *fixed, self._seen, self._last_val,
+                      self._same, runs, screen[0], screen[1], screen[2], screen[3], screen[4],
+                      work):
+            return False
+        self.x = x
+        self._same = runs
+        self._late = self._none_stuck
+        self._f = f_now.copy()
+        self.n_steps += 1
+        self.n_compiled += 1
+        self.reason = ''
+        self.valid = True
+        return True
 
     def _screen(self, y, got, e):
         """Return the mask of readings not to use (stuck, out of range); ``_why`` says which."""
