@@ -291,11 +291,15 @@ def report_vehicle(run):
     if ex:
         p50 = [(ex.get(stage) or {}).get('p50_s') for stage in ex]
         total = (sum(p50) if all(isinstance(x, float) for x in p50) else None)
+        rec = v.get('reception_s') or {}
         print('  loop execution p50 / p99: ' + ', '.join(
             f'{stage} {_fmt(h.get("p50_s"), 1e3)} / {_fmt(h.get("p99_s"), 1e3, " ms")}'
             for stage, h in ex.items())
             + f'; the stages\' p50s add up to {_fmt(total, 1e3, " ms")} of the response\'s '
-              f'p50 {_fmt(lat.get("p50"), 1e3, " ms")} (the rest: the frames\' reception)')
+              f'p50 {_fmt(lat.get("p50"), 1e3, " ms")}')
+        print(f'  reception (bus time to the loop\'s start) p50 / p99 '
+              f'{_fmt(rec.get("p50_s"), 1e3)} / {_fmt(rec.get("p99_s"), 1e3, " ms")}; cycles '
+              f'queued behind the one before {v.get("cycles_queued")}')
     print(f'  frames lost {v.get("frames_lost")}, messages lost {v.get("messages_lost")}')
     print(f'  a_v {_fmt(v.get("a_v"))}, passive {_fmt(v.get("a_v_passive"))}, lock-step '
           f'{_fmt(v.get("a_v_lockstep"))}, vs lock-step '

@@ -67,8 +67,11 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
         ex = v['execution_s']
         assert ex['estimate']['n'] >= ex['control']['n'] >= ex['send']['n'] >= 500, ex
         assert all(0 < ex[s]['p50_s'] <= ex[s]['max_s'] for s in ex), ex
+        # every cycle's reception counted (the estimator's steps), the queued ones among them
+        assert v['reception_s']['n'] == ex['estimate']['n'], v['reception_s']
+        assert 0 <= v['cycles_queued'] <= ex['estimate']['n']
     else:
-        assert 'execution_s' not in v
+        assert 'execution_s' not in v and 'reception_s' not in v
 
 
 def test_vehicle_suite_runs_the_preview_law_on_the_cars_look_ahead_frames(tmp_path):

@@ -258,7 +258,9 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1); with ``--preview``, ``preview``
         (the controller's preview counters and the car's look-ahead sensor's); in the
         ``loop`` layout ``execution_s`` (the loop's execution times per stage:
-        ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``).
+        ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``),
+        ``reception_s`` (the same of each cycle's bus time to the loop's start) and
+        ``cycles_queued`` (cycles whose frame came while the loop was on the one before).
 
     """
     st = monitor.snapshot()[0]
@@ -293,10 +295,13 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
                                               'sensor_fault_entries', 'restarts')},
         'chain': (st.get(MANAGER) or {}).get('counts'),
         't_normal': can.get('t_normal')}
-    execution = ((st.get(COMPUTER) or {}).get('loop') or {}).get('execution_s')
-    if execution:
-        section['execution_s'] = {stage: {k: h.get(k) for k in ('n', 'p50_s', 'p99_s', 'max_s')}
-                                  for stage, h in execution.items()}
+    loop = (st.get(COMPUTER) or {}).get('loop') or {}
+    if loop.get('execution_s'):
+        def short(h):
+            return {k: (h or {}).get(k) for k in ('n', 'p50_s', 'p99_s', 'max_s')}
+        section['execution_s'] = {stage: short(h) for stage, h in loop['execution_s'].items()}
+        section['reception_s'] = short(loop.get('reception_s'))
+        section['cycles_queued'] = loop.get('cycles_queued')
     if ctrl.get('preview') is not None:        # --preview: the law's, map's, input's counters
         section['preview'] = dict(ctrl['preview'], sensor=car.get('road_preview'))
     section['frames_lost']['total'] = sum(v for v in section['frames_lost'].values()

@@ -222,4 +222,13 @@ def test_each_stages_execution_time_is_counted_where_it_is_spent(designed):
     for stage, expect in (('estimate', 1e-4), ('control', 1e-4), ('send', 6e-4)):
         assert ex[stage]['p50_s'] == pytest.approx(expect, rel=0.03), stage
         assert ex[stage]['max_s'] == pytest.approx(expect, rel=1e-9), stage
+    # reception: every cycle's bus time to the loop's start (0.5 ms; the late ones 5 ms); a
+    # cycle answered 0.9 ms after its start leaves the next one free, but each late one
+    # ends 5 ms after its bus time: the four late ones after the first and the repeat came
+    # while the loop was still on the cycle before
+    st = loop.status()['loop']
+    assert st['reception_s']['n'] == 56
+    assert st['reception_s']['p50_s'] == pytest.approx(5e-4, rel=0.03)
+    assert st['reception_s']['max_s'] == pytest.approx(5e-3, rel=1e-9)
+    assert st['cycles_queued'] == 5
     json.dumps(loop.status())

@@ -25,9 +25,13 @@ from the bus reader's thread, the rest from the caller's.
 Each cycle's execution time is counted by stage (:attr:`VehicleLoop.execution`, the status's
 ``loop.execution_s``), as ros2_control's controller manager reports its controllers' execution
 times: ``estimate`` (the filter's step), ``control`` (the law, the inverses, the supervisors),
-``send`` (the bus write). Together with the bus-to-bus latency the bridge counts, they say
-where a cycle's response goes on the computer at hand (the rest is the frames' reception).
+``send`` (the bus write). Before them, :attr:`VehicleLoop.reception` counts each cycle's time
+from its bus time to the loop's start on it (``loop.reception_s``: the frames' reception, and
+any wait for the cycle before), and :attr:`VehicleLoop.cycles_queued` the cycles whose frame
+came while the loop was still on the cycle before. Together with the bus-to-bus latency the
+bridge counts, they say where a cycle's response goes on the computer at hand.
 """
+import math
 import threading
 import time
 
@@ -62,6 +66,11 @@ class VehicleLoop:
         Cycles estimated while not active (not answered).
     cycles_unused : int
         Cycles the estimator did not use (older than or equal to the newest one).
+    cycles_queued : int
+        Cycles whose bus time came before the loop had finished the cycle before (on the
+        caller's clock: its start plus the loop's own execution time).
+    reception : LatencyHistogram
+        Per cycle, the caller's clock at the loop's start minus the cycle's bus time [s].
     execution : dict
         Stage (:data:`STAGES`) -> :class:`~mr_damper_common.latency.LatencyHistogram` of its
         execution times [s]: every estimator step, the law of every cycle answered (not
@@ -77,7 +86,10 @@ class VehicleLoop:
         self.lock = threading.Lock()
         self.cycles_inactive = 0
         self.cycles_unused = 0
+        self.cycles_queued = 0
+        self.reception = LatencyHistogram()
         self.execution = {stage: LatencyHistogram() for stage in STAGES}
+        self._done_t = -math.inf          # the cycle before done, on the caller's clock [s]
 
     @property
     def active(self):
@@ -130,34 +142,45 @@ class VehicleLoop:
 
         """
         with self.lock:
-            clock, execution = self.clock, self.execution
+            clock = self.clock
             t0 = clock()
-            est = self.estimator.step(sequence, t, body_accel, travel)
-            t1 = clock()
-            execution['estimate'].add(t1 - t0)
-            if est is None:
-                self.cycles_unused += 1
-                return None, None
-            if not self.controller.active:
-                self.cycles_inactive += 1
-                return est, None
-            if t_now - t > self.controller.monitor.deadline_s:
-                # past its deadline before it is answered (the loop is behind the bus): the
-                # newer cycles behind it come first; a miss, the safe frame if that trips
-                cmd = self.controller.skip_late(est.sequence, est.t, t_now)
-                if cmd is not None:
-                    self._send(cmd, 0)
-                return est, cmd
-            state = full_car_state(self.controller.geometry, est.t, est.body, est.body_rates,
-                                   est.body_acc, est.travel, est.travel_velocity,
-                                   est.tyre_deflection, est.wheel_velocity, est.damper_force)
-            cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now)
-            t2 = clock()
-            execution['control'].add(t2 - t1)
+            self.reception.add(max(t_now - t, 0.0))
+            if t < self._done_t:
+                self.cycles_queued += 1
+            try:
+                return self._cycle(sequence, t, body_accel, travel, t_now, t0)
+            finally:
+                self._done_t = t_now + (clock() - t0)
+
+    def _cycle(self, sequence, t, body_accel, travel, t_now, t0):
+        """Run :meth:`cycle` under the lock, its clock started at ``t0``."""
+        clock, execution = self.clock, self.execution
+        est = self.estimator.step(sequence, t, body_accel, travel)
+        t1 = clock()
+        execution['estimate'].add(t1 - t0)
+        if est is None:
+            self.cycles_unused += 1
+            return None, None
+        if not self.controller.active:
+            self.cycles_inactive += 1
+            return est, None
+        if t_now - t > self.controller.monitor.deadline_s:
+            # past its deadline before it is answered (the loop is behind the bus): the
+            # newer cycles behind it come first; a miss, the safe frame if that trips
+            cmd = self.controller.skip_late(est.sequence, est.t, t_now)
             if cmd is not None:
-                self._send(cmd, est.sequence)
-                execution['send'].add(clock() - t2)
+                self._send(cmd, 0)
             return est, cmd
+        state = full_car_state(self.controller.geometry, est.t, est.body, est.body_rates,
+                               est.body_acc, est.travel, est.travel_velocity,
+                               est.tyre_deflection, est.wheel_velocity, est.damper_force)
+        cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now)
+        t2 = clock()
+        execution['control'].add(t2 - t1)
+        if cmd is not None:
+            self._send(cmd, est.sequence)
+            execution['send'].add(clock() - t2)
+        return est, cmd
 
     def check(self, t_now):
         """Check the sensor timeout (the caller's timer); send and return a safe command."""
@@ -184,13 +207,16 @@ class VehicleLoop:
         """
         Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready).
 
-        ``loop``: ``cycles_inactive``, ``cycles_unused`` and ``execution_s`` (per stage the
-        execution times' ``n``, ``mean_s``, ``p50_s``, ``p99_s``, ``p999_s``, ``max_s``).
+        ``loop``: ``cycles_inactive``, ``cycles_unused``, ``cycles_queued``, ``reception_s``
+        and ``execution_s`` (per stage the execution times; each histogram's ``n``,
+        ``mean_s``, ``p50_s``, ``p99_s``, ``p999_s``, ``max_s``).
         """
         with self.lock:
             return {'estimator': self.estimator.status(),
                     'controller': self.controller.status(t_now),
                     'loop': {'cycles_inactive': self.cycles_inactive,
                              'cycles_unused': self.cycles_unused,
+                             'cycles_queued': self.cycles_queued,
+                             'reception_s': self.reception.summary(),
                              'execution_s': {stage: h.summary()
                                              for stage, h in self.execution.items()}}}
