@@ -189,17 +189,27 @@ def print_own_beta(data, own):
 
 
 def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
-    """Median time per call [us]: kwok-current scalar inverse vs the kwok-current-lag one."""
+    """
+    Median time per call [us]: kwok-current scalar inverse vs the kwok-current-lag one.
+
+    Both compiled, as shipped; and the kwok-current one's algorithm interpreted (the same
+    source, ``scalar_inverse.scalar_current``, run as plain Python on lists): the alternative
+    the compiled one replaced.
+    """
     from mr_damper_model.models.inverse import KwokCurrentInverse, KwokCurrentLagInverse
+    from mr_damper_model.models.scalar_inverse import scalar_current
     rec = data[('5mm3Hz', '0p5')]
     k = min(n_calls, rec.n)
     x, v, f = rec.x[:k].tolist(), rec.v[:k].tolist(), rec.f[:k].tolist()
     dt = 1.0 / rec.sample_rate_hz
     inv_kc = KwokCurrentInverse(params_lag[:10], i_ref_a=i_ref_a, i_max=1.0)
     inv_lag = KwokCurrentLagInverse(params_lag, i_ref_a=i_ref_a, i_max=1.0)
+    plain = [inv_kc._q.tolist(), inv_kc._lim.tolist(), inv_kc._grid.tolist(), []]
     out = {}
     for name, call in (('kwok-current', lambda j: inv_kc.current(f[j], x[j], v[j])),
-                       ('kwok-current-lag', lambda j: inv_lag.step(f[j], x[j], v[j], dt))):
+                       ('kwok-current-lag', lambda j: inv_lag.step(f[j], x[j], v[j], dt)),
+                       ('kwok-current interpreted',
+                        lambda j: scalar_current(*plain, f[j], x[j], v[j]))):
         reps = []
         for _ in range(3):
             t0 = time.perf_counter()
@@ -311,7 +321,9 @@ def main(argv=None):
         times, k = bench_inverse(_DATA, p_lag, i_ref_a)
         print(f'\nscalar inverse, {k} samples of 5mm3Hz 0.5 A, median of 3 [us/call]: '
               + ', '.join(f'{n} {us:.1f}' for n, us in times.items())
-              + f' (ratio {times["kwok-current-lag"] / times["kwok-current"]:.2f})')
+              + f' (lag / kwok-current {times["kwok-current-lag"] / times["kwok-current"]:.2f};'
+              f' interpreted / compiled '
+              f'{times["kwok-current interpreted"] / times["kwok-current"]:.1f})')
     print(f'\nwall {time.perf_counter() - t0:.1f} s; load after: {os.getloadavg()[0]:.2f} '
           f'{os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}')
 
