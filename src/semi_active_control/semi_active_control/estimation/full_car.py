@@ -427,8 +427,13 @@ class FullCarEstimator:
         fixed = (c(self._gravity, dtype=float), c(d.Ad), c(d.Bd), c(d.H), c(d.Dm), c(d.M))
         screen = (c(self._stuck_n, dtype=np.int64),
                   math.nan if self._gate2 is None else self._gate2, c(self._s_steady), lo, hi)
-        return (steady_step_kernel(), fixed, screen, np.zeros(m, dtype=np.int64),
-                np.empty(d.Ad.shape[0] + m))
+        kernel, n = steady_step_kernel(), d.Ad.shape[0]
+        # compiled (or loaded from the cache) now, not in the first steady cycle: a call with
+        # this filter's types that does nothing (no reading)
+        kernel(np.zeros(n), np.zeros(4), np.zeros(4), np.full(m, math.nan), 0.0, *fixed,
+               np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64),
+               np.zeros(m, dtype=np.int64), *screen, np.empty(n + m))
+        return kernel, fixed, screen, np.zeros(m, dtype=np.int64), np.empty(n + m)
 
     def reset(self, x0=None, P0=None):
         """
@@ -552,11 +557,10 @@ class FullCarEstimator:
         general path then does ends with the estimate valid and nothing counted.
         """
         kernel, fixed, screen, runs, work = self._fast
-        f_now = np.asarray(forces, dtype=float).reshape(4)
+        f_now = np.ascontiguousarray(forces, dtype=float).reshape(4)
         x = self.x.copy()           # a new array per step, as the general path's
-        if not kernel(x, self._f, f_now, y, float(t), *fixed, self._seen, self._last_val,
-                      self._same, runs, screen[0], screen[1], screen[2], screen[3], screen[4],
-                      work):
+        if not kernel(x, self._f, f_now, np.ascontiguousarray(y), float(t), *fixed, self._seen,
+                      self._last_val, self._same, runs, *screen, work):
             return False
         self.x = x
         self._same = runs
