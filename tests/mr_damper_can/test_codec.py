@@ -124,3 +124,18 @@ def test_bus_load_of_the_dbc(db):
         codec.bus_load(db, 0)
     with pytest.raises(ValueError, match='layout'):
         codec.bus_layout('truck')
+
+
+def test_the_vehicle_estimators_bus_resolution_and_ranges_are_the_dbcs(db):
+    # the estimator (no bus of its own) and the offline chain's bus rounding keep the chassis
+    # signals' resolution and range as settings: they must be the DBC's
+    from semi_active_control.estimation.vehicle_estimator import EstimatorSettings
+    s = EstimatorSettings()
+    for frame, prefix, quantum, rng in (('CHASSIS_BODY_ACCEL', 'BODY_ACCEL', s.accel_quantum,
+                                         s.accel_range),
+                                        ('CHASSIS_SUSP_POS', 'SUSP_POS', s.travel_quantum,
+                                         s.travel_range)):
+        for c in CORNERS:
+            sig = db.get_message_by_name(frame).get_signal_by_name(f'{prefix}_{c.upper()}')
+            assert sig.scale == pytest.approx(quantum, rel=1e-12), sig.name
+            assert (sig.minimum, sig.maximum) == pytest.approx(rng, rel=1e-12), sig.name

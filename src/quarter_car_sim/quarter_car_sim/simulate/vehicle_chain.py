@@ -46,6 +46,9 @@ CHAIN_SENSING = ('estimate', 'true')
 
 
 def _on_bus(value, quantum):
+    # the bus signal's resolution: the estimator settings' quantum, which a test holds equal
+    # to the DBC's scale (tests/mr_damper_can/test_codec.py); rounding here, not cantools per
+    # reading, keeps the offline chain fast
     return value if quantum <= 0 else round(value / quantum) * quantum
 
 
