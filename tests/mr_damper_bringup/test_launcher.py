@@ -1,7 +1,8 @@
 """Tests of mr_damper_bringup.launcher: the drain condition and the progress line (no graph)."""
 import pytest
 
-from mr_damper_bringup.launcher import identifier_drained, parse_args, progress_line
+from mr_damper_bringup.launcher import (identifier_drained, parse_args, progress_line,
+                                        statuses_recorded)
 
 
 def _monitor():
@@ -38,6 +39,28 @@ def test_after_a_restart_the_drain_waits_for_both_counts_to_settle():
     mon.add('identifier', {'samples_received': 400})
     assert identifier_drained(mon, exact=False) == (True, (400, 1000))
     assert identifier_drained(mon)[0] is False                  # the exact rule never would
+
+
+def test_the_stop_waits_for_a_recorded_status_of_every_running_node_heard():
+    """A late node the monitor heard but the recorder has not: not done until it has."""
+    import types
+    mon = _monitor()
+    running = ['recorder', 'fl.quarter_car_node', 'fl.mr_damper_rig', 'fr.mr_damper_rig']
+
+    def hear(*names):
+        mon.on_status('diagnostics', types.SimpleNamespace(status=[
+            types.SimpleNamespace(name=n, level=0, message='ok', values=[]) for n in names]))
+
+    assert statuses_recorded(mon, running) == (True, ())          # nothing heard yet
+    hear('fl/mr_damper_rig', 'fl/quarter_car_node')
+    mon.add('recorder', {'statuses': {'fl/mr_damper_rig': 3}})
+    assert statuses_recorded(mon, running) == (False, (('fl/mr_damper_rig', 3),))
+    # a node no longer running is not waited for (a dead node's status may never be recorded)
+    assert statuses_recorded(mon, ['fl.mr_damper_rig'])[0] is True
+    mon.add('recorder', {'statuses': {'fl/mr_damper_rig': 4, 'fl/quarter_car_node': 1}})
+    assert statuses_recorded(mon, running)[0] is True
+    hear('fr/mr_damper_rig')                                       # fr's rig heard: wait again
+    assert statuses_recorded(mon, running)[0] is False
 
 
 def test_progress_line_from_the_statuses():

@@ -238,6 +238,29 @@ def test_measurements_are_counted_in_every_namespace(tmp_path):
         assert rec.measurements() == 3 * 20          # samples: batches of 20
 
 
+def test_statuses_are_counted_per_node_name(tmp_path):
+    """Each status entry of /diagnostics counts under its node's name; a bad payload counts."""
+    kv = TS.types['diagnostic_msgs/msg/KeyValue']
+    st = TS.types['diagnostic_msgs/msg/DiagnosticStatus']
+
+    def array(*names):
+        return TS.serialize_cdr(TS.types[topics.DIAGNOSTICS](header=_stamp(1.0), status=[
+            st(level=0, name=n, message='ok', hardware_id='mr_damper',
+               values=[kv(key='k', value='1')]) for n in names]), topics.DIAGNOSTICS)
+
+    table = topics.namespaced_table(topics.topic_table(['measurement', 'diagnostics']),
+                                    ['fl', 'fr'])
+    with SuiteRecorder(tmp_path / 's.mcap', table, typestore=TS) as rec:
+        assert rec.statuses == {}
+        rec.write('diagnostics', array('fl/quarter_car_node'), 1)
+        rec.write('diagnostics', array('fr/mr_damper_rig', 'fl/quarter_car_node: final'), 2)
+        rec.write('diagnostics', b'\x00\x01\x00\x00\xff', 3)        # not a DiagnosticArray
+        rec.write('fl/measurement', TS.serialize_cdr(_samples(0), topics.DAMPER_SAMPLES), 4)
+    assert rec.statuses == {'fl/quarter_car_node': 2, 'fr/mr_damper_rig': 1}
+    assert rec.undecodable == {'diagnostics': 1}
+    assert rec.counts['diagnostics'] == 3                 # every message written as it came
+
+
 def test_measurement_batches_lost_on_the_way_are_counted_from_their_sequence(tmp_path):
     """Batches 3, 4 and 7 of one namespace never came, the other lost none: 3 counted there."""
     table = topics.namespaced_table(topics.topic_table(['measurement', 'car_state']),

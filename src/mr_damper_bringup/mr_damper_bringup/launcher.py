@@ -6,7 +6,8 @@ Starts ``mr-damper-record`` (every topic into ``OUT/suite.mcap``) and the consol
 (``--ros-args --params-file FILE``), on loopback-only discovery
 (:mod:`mr_damper_bringup.network`) and a domain ID of its own; prints progress from
 the nodes' statuses, forwards Ctrl-C (SIGINT) to the children, shuts everything down in order
-(car, rig, then the identifier once it has drained the stream, the recorder last). At the end
+once the recording holds a status of every running node (car, rig, then the identifier once it
+has drained the stream, the recorder last). At the end
 it computes ``summary.json`` and plots into ``--out`` from the recording
 (:mod:`mr_damper_bringup.report`).
 
@@ -95,7 +96,7 @@ from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL_NODES, FULL_CAR_NODE,
                              external_full_car, full_car_configs,
                              full_car_progress_line, full_car_summary, start_full_car)
 from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
-from .processes import CLEAN_EXIT, DomainLock, ProcessStats, Suite
+from .processes import CLEAN_EXIT, DomainLock, ProcessStats, Suite, wait_while_progressing
 from .vehicle_suite import (LAYOUTS as VEHICLE_LAYOUTS, start_vehicle,
                             STOP_ORDER as VEHICLE_STOP_ORDER, vehicle_configs, vehicle_nodes,
                             vehicle_progress_line, vehicle_summary)
@@ -104,6 +105,10 @@ from .report import RECORDING
 from .supervisor import HANG_TIMEOUT_S, hang_timeout, HangWatch, RestartPolicy, Supervisor
 
 PROG = 'mr-damper-suite'
+#: at the stop, the wait for the recording to hold every running node's status: given up when
+#: the recorder's counts stand still this long [s], or after the guard [s] (hang guards)
+STALL_S = 3.0
+RECORDED_GUARD_S = 30.0
 
 
 def progress_line(monitor, elapsed):
@@ -216,6 +221,23 @@ def corner_summary(monitor, corners):
 def status_name(name):
     """Return the ``/diagnostics`` status name of suite node ``name`` (``fl.x`` -> ``fl/x``)."""
     return name.replace('.', '/')
+
+
+def statuses_recorded(monitor, names):
+    """
+    Return ``(done, progress)``: does the recording hold a status of every node that sent one.
+
+    ``names``: the suite nodes still running. ``done`` once each of them whose status reached
+    the monitor also has one in the recording (the recorder's ``statuses``): a node started
+    late on a loaded machine can be heard by the monitor seconds before the recorder has
+    matched its publisher, and a stop then would leave it out of the recording. ``progress``
+    is the recorder's counts, which move while it records.
+    """
+    beats, _ = monitor.heartbeats()
+    status, *_ = monitor.snapshot()
+    recorded = (status.get('recorder') or {}).get('statuses') or {}
+    heard = {status_name(n) for n in names} & set(beats)
+    return heard <= set(recorded), tuple(sorted(recorded.items()))
 
 
 def feed_heartbeats(watch, monitor, names):
@@ -603,6 +625,11 @@ def _run(argv, held):
             print(f'{PROG}: interrupted, stopping the nodes', flush=True)
         elapsed = time.monotonic() - t_start
     finally:
+        # the recording holds a status of every running node before any is stopped (a hang
+        # guard only: a recorder that stopped recording ends the wait after STALL_S)
+        wait_while_progressing(
+            lambda: statuses_recorded(monitor, [n for n in suite.nodes if suite.alive(n)]),
+            STALL_S, RECORDED_GUARD_S)
         if corners or vehicle:
             order = [*VEHICLE_STOP_ORDER[0]] + [
                 f'{c}.{n}' for n in (QC, CTRL, RIG, IDENT) for c in corners]

@@ -184,6 +184,9 @@ def main(argv=None):
                                k.split('/')[0]: n for k, n in recorder.samples.items()
                                if '/' in k},
                            'undecodable': dict(recorder.undecodable),
+                           # status entries recorded per node (the launcher's stop waits for
+                           # every live node's)
+                           'statuses': dict(recorder.statuses),
                            'lost': lost, 'file': str(out)})
 
         diagnostics = DiagnosticsPublisher(node, health, period_s=args.status_period_s,

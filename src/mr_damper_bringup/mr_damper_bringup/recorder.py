@@ -26,7 +26,7 @@ import re
 
 from mr_damper_common.sequence_gaps import SequenceGaps
 
-from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, topic_table
+from .topics import CONFIG_TOPIC, NODE_PARAMETERS_TOPIC, STATUS_KEYS, topic_table
 
 
 def part_path(path, k):
@@ -125,8 +125,12 @@ class SuiteRecorder:
         the batches' ``sequence`` (:class:`~mr_damper_common.sequence_gaps.SequenceGaps`; a
         per-sample ``JointState`` stream has no sequence: its gaps are in its stamps).
     undecodable : dict
-        Measurement messages per key written as received but not readable here (their samples
-        are not counted; the report counts them as bad messages too).
+        Measurement (and status) messages per key written as received but not readable here
+        (their samples are not counted; the report counts them as bad messages too).
+    statuses : dict
+        Status entries written per status name (the node's fully qualified name without the
+        leading slash, ``'fl/quarter_car_node'``), from the status topics
+        (:data:`~mr_damper_bringup.topics.STATUS_KEYS`): which nodes the recording has heard.
 
     """
 
@@ -156,6 +160,7 @@ class SuiteRecorder:
         self.lost = dict.fromkeys(self.samples, 0)
         self._gaps = {key: SequenceGaps() for key in self.samples}
         self.undecodable = {}
+        self.statuses = {}
         self._writer = None
         self._conns = {}
         if not chunk_s >= 0:
@@ -214,6 +219,17 @@ class SuiteRecorder:
             return 1, 0                 # a JointState: one sample, no sequence
         return len(msg.t_offset_s), self._gaps[key].offer(msg.sequence, msg.header.frame_id)
 
+    def _status_in(self, key, raw):
+        """Count the status names of one serialised ``DiagnosticArray``."""
+        try:
+            msg = self.typestore.deserialize_cdr(raw, self.topics[key].type)
+        except Exception:  # noqa: B902 - rosbags' SerdeError: one bad message, counted
+            self.undecodable[key] = self.undecodable.get(key, 0) + 1
+            return
+        for st in msg.status:
+            name = str(st.name).split(':')[0].strip()
+            self.statuses[name] = self.statuses.get(name, 0) + 1
+
     def write(self, key, raw, log_time_ns):
         """
         Write one serialised message.
@@ -237,6 +253,8 @@ class SuiteRecorder:
         self._writer.write(self._conns[key], int(log_time_ns), raw)
         self._end_chunk_after(int(log_time_ns))
         self.counts[key] += 1
+        if key in STATUS_KEYS:
+            self._status_in(key, raw)
         if key not in self.samples:
             return 0
         samples, lost = self._measurement_in(key, raw)
