@@ -204,7 +204,7 @@ def bench_inverse(data, params_lag, i_ref_a, n_calls=20000):
     dt = 1.0 / rec.sample_rate_hz
     inv_kc = KwokCurrentInverse(params_lag[:10], i_ref_a=i_ref_a, i_max=1.0)
     inv_lag = KwokCurrentLagInverse(params_lag, i_ref_a=i_ref_a, i_max=1.0)
-    plain = [inv_kc._q.tolist(), inv_kc._lim.tolist(), inv_kc._grid.tolist(), []]
+    plain = [a.tolist() for a in inv_kc.kernel_arguments()] + [[]]
     out = {}
     for name, call in (('kwok-current', lambda j: inv_kc.current(f[j], x[j], v[j])),
                        ('kwok-current-lag', lambda j: inv_lag.step(f[j], x[j], v[j], dt)),

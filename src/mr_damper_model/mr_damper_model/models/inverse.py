@@ -321,6 +321,16 @@ class KwokCurrentInverse:
         self._dense = np.zeros(0)
         self._kernels = scalar_kernels()
 
+    def kernel_arguments(self):
+        """
+        Return copies of what the scalar kernel takes: ``(q, lim, grid)``.
+
+        The model vector, the range vector and the pre-scan grid of
+        :func:`mr_damper_model.models.scalar_inverse.scalar_current` (its arguments before the
+        dense scratch), e.g. to run that algorithm interpreted beside the compiled one.
+        """
+        return self._q.copy(), self._lim.copy(), self._grid.copy()
+
     def force(self, i, x, v):
         """Model force [N] at current i [A], displacement x [m], velocity v [m/s]."""
         return self._kernels[1](self._q, float(i) / self.i_ref_a, float(x), float(v))

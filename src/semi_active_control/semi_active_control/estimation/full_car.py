@@ -46,6 +46,7 @@ sensors are left and that set observes the car (PBH test,
 Slightly over the project's ~600 lines: the filter's model, its noise design and the
 steady-state gain are one derivation and stay in one module.
 """
+from collections import namedtuple
 import math
 
 import numpy as np
@@ -293,6 +294,12 @@ def observes_the_car(design, sensors):
     return not unobserved_states(names, design.A[np.ix_(keep, keep)], rows, scales)
 
 
+#: The compiled steady step of one filter (:mod:`~.steady_step`): the kernel, its fixed model
+#: arguments (gravity, Ad, Bd, H, Dm, M), its screen's arguments (stuck runs, gate, steady
+#: innovation scale, low and high ranges), and two buffers (repeat runs out, work space).
+SteadyStep = namedtuple('SteadyStep', 'kernel fixed screen runs work')
+
+
 class FullCarEstimator:
     """
     Time-varying Kalman filter of the full car on the readings of ``design.sensors``.
@@ -416,8 +423,13 @@ class FullCarEstimator:
         self.reset()
 
     def _steady_kernel(self):
-        """Return the compiled steady step and its fixed arguments (None: this filter has none)."""
-        if self.delay_steps or self._stuck_n is None:
+        """
+        Return the compiled steady step and its arguments, a :class:`SteadyStep`.
+
+        None: this filter has none (one step of delay, no stuck screen, or a ``dropout_s``
+        that drops out every sensor, which the general path names).
+        """
+        if self.delay_steps or self._stuck_n is None or not self.dropout_s >= 0.0:
             return None
         from semi_active_control.estimation.steady_step import steady_step_kernel
         d, m = self.d, len(self.sensors)
@@ -433,7 +445,7 @@ class FullCarEstimator:
         kernel(np.zeros(n), np.zeros(4), np.zeros(4), np.full(m, math.nan), 0.0, *fixed,
                np.zeros(m), np.zeros(m), np.zeros(m, dtype=np.int64),
                np.zeros(m, dtype=np.int64), *screen, np.empty(n + m))
-        return kernel, fixed, screen, np.zeros(m, dtype=np.int64), np.empty(n + m)
+        return SteadyStep(kernel, fixed, screen, np.zeros(m, dtype=np.int64), np.empty(n + m))
 
     def reset(self, x0=None, P0=None):
         """
@@ -500,7 +512,7 @@ class FullCarEstimator:
         d = self.d
         y = self.readings_array(readings)
         if (self._steady and self._fast is not None and self.n_steps and self._all_seen
-                and not self.faults and self.dropout_s >= 0.0 and self._fast_step(t, y, forces)):
+                and not self.faults and self._fast_step(t, y, forces)):
             return self.x
         if self._t0 is None:
             self._t0 = t
@@ -556,11 +568,13 @@ class FullCarEstimator:
         caller checks that no sensor is faulty and every one has been seen). What the step's
         general path then does ends with the estimate valid and nothing counted.
         """
-        kernel, fixed, screen, runs, work = self._fast
+        fast = self._fast
+        runs = fast.runs
         f_now = np.ascontiguousarray(forces, dtype=float).reshape(4)
         x = self.x.copy()           # a new array per step, as the general path's
-        if not kernel(x, self._f, f_now, np.ascontiguousarray(y), float(t), *fixed, self._seen,
-                      self._last_val, self._same, runs, *screen, work):
+        if not fast.kernel(x, self._f, f_now, np.ascontiguousarray(y), float(t), *fast.fixed,
+                           self._seen, self._last_val, self._same, runs, *fast.screen,
+                           fast.work):
             return False
         self.x = x
         self._same = runs
