@@ -131,6 +131,13 @@ class SimulatedEcu:
         self.all_frames = 0           # valid DAMPER_CMD_ALL frames
         self.last_sensor_cycle = None
         self._sensor_values = {}
+        # per sensor frame: (corner, quantity, signal name, DBC minimum, maximum) of each signal
+        self._sensor_signals = {
+            name: [(corner, quantity, sig.name, sig.minimum, sig.maximum)
+                   for corner in CORNERS
+                   for sig in [self.codec.message(name).get_signal_by_name(
+                       f'{prefix}_{corner.upper()}')]]
+            for name, (quantity, prefix) in SENSOR_FRAMES.items()}
         self.sent = []
         self.frames_sent = 0
         self.send_failed = 0
@@ -306,7 +313,8 @@ class SimulatedEcu:
         if 'bad_counter' in faults:       # skip two counter values
             self.codec.encode(name, values)
             self.codec.encode(name, values)
-        frame_id, data = self.codec.encode(name, values)
+        # every value is built within its DBC range (flags, a state, the clamped current)
+        frame_id, data = self.codec.encode(name, values, strict=False)
         if 'bad_checksum' in faults:
             data = data[:-1] + bytes([data[-1] ^ 0x5A])
         self._send(frame_id, data)
@@ -319,13 +327,14 @@ class SimulatedEcu:
 
     def _send_sensors(self, now):
         t = now - self.t0
-        for name, (quantity, prefix) in SENSOR_FRAMES.items():
-            values = {}
-            for corner in CORNERS:
-                given = self._sensor_values.get(corner) or synthetic_sensors(t, corner)
-                sig = self.codec.message(name).get_signal_by_name(f'{prefix}_{corner.upper()}')
-                values[sig.name] = min(max(float(given[quantity]), sig.minimum), sig.maximum)
-            self._send(*self.codec.encode(name, values))
+        given = {corner: self._sensor_values.get(corner) or synthetic_sensors(t, corner)
+                 for corner in CORNERS}
+        for name, signals in self._sensor_signals.items():
+            # each reading saturates at its signal's DBC range, as a sensor's output does: the
+            # encoding then needs no range check of its own (strict=False, half its time)
+            values = {sig: min(max(float(given[corner][quantity]), lo), hi)
+                      for corner, quantity, sig, lo, hi in signals}
+            self._send(*self.codec.encode(name, values, strict=False))
 
     def step(self, now=None):
         """Advance the coils to ``now`` and send the frames that are due; return frames sent."""
