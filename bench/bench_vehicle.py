@@ -300,6 +300,10 @@ def report_vehicle(run):
         print(f'  reception (bus time to the loop\'s start) p50 / p99 '
               f'{_fmt(rec.get("p50_s"), 1e3)} / {_fmt(rec.get("p99_s"), 1e3, " ms")}; cycles '
               f'queued behind the one before {v.get("cycles_queued")}')
+        misses = v.get('loop_misses') or {}
+        print('  cycles the loop finished after their deadline, by cause: '
+              + (', '.join(f'{k} {n}' for k, n in misses.items()) or 'none counted')
+              + f' (of {sum(misses.values())})')
     print(f'  frames lost {v.get("frames_lost")}, messages lost {v.get("messages_lost")}')
     print(f'  a_v {_fmt(v.get("a_v"))}, passive {_fmt(v.get("a_v_passive"))}, lock-step '
           f'{_fmt(v.get("a_v_lockstep"))}, vs lock-step '

@@ -139,7 +139,9 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
     run = {'exit': 0, 'wall_s': 1.0, 'load_start': 0.0, 'load_end': 0.0, 'cpu': {},
            'summary': {'vehicle': {'sensor_to_command_s': {'p50': 9e-4}, 'execution_s': ex,
                                    'reception_s': {'n': 9, 'p50_s': 2e-4, 'p99_s': 1.5e-3},
-                                   'cycles_queued': 3, 'deadline': deadline}}}
+                                   'cycles_queued': 3, 'deadline': deadline,
+                                   'loop_misses': {'bunched': 1, 'queued': 2,
+                                                   'reached_late': 4, 'slow': 0}}}}
     bench.report_vehicle(run)
     out = capsys.readouterr().out
     assert 'watchdog trips 4, 0.10 s on the safe current, 25 ms a trip' in out
@@ -147,6 +149,8 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
     assert 'add up to 0.6 ms of the response\'s p50 0.9 ms' in out
     assert 'reception (bus time to the loop\'s start) p50 / p99 0.2 / 1.5 ms; cycles queued ' \
         'behind the one before 3' in out
+    assert 'after their deadline, by cause: bunched 1, queued 2, reached_late 4, slow 0 ' \
+        '(of 7)' in out
     rows = {f: v for f, v, _ in bench._vehicle_figures(run)}
     assert rows['loop execution p50 / p99 [ms]: estimate, control, send'] == \
         '0.2 / 0.4, 0.25 / 0.3, 0.15 / 0.2'

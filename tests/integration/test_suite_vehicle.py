@@ -70,6 +70,9 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
         # every cycle's reception counted (the estimator's steps), the queued ones among them
         assert v['reception_s']['n'] == ex['estimate']['n'], v['reception_s']
         assert 0 <= v['cycles_queued'] <= ex['estimate']['n']
+        # the loop's misses named by cause; the queued ones among the cycles queued
+        assert set(v['loop_misses']) == {'bunched', 'queued', 'reached_late', 'slow'}
+        assert v['loop_misses']['bunched'] + v['loop_misses']['queued'] <= v['cycles_queued']
     else:
         assert 'execution_s' not in v and 'reception_s' not in v
 

@@ -259,8 +259,11 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         (the controller's preview counters and the car's look-ahead sensor's); in the
         ``loop`` layout ``execution_s`` (the loop's execution times per stage:
         ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``),
-        ``reception_s`` (the same of each cycle's bus time to the loop's start) and
-        ``cycles_queued`` (cycles whose frame came while the loop was on the one before).
+        ``reception_s`` (the same of each cycle's bus time to the loop's start),
+        ``cycles_queued`` (cycles whose frame came while the loop was on the one before) and
+        ``loop_misses`` (the cycles the loop finished after their deadline, by cause:
+        ``bunched``, ``queued``, ``reached_late``, ``slow``; :class:`~semi_active_control.
+        runtime.VehicleLoop`).
 
     """
     st = monitor.snapshot()[0]
@@ -302,6 +305,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         section['execution_s'] = {stage: short(h) for stage, h in loop['execution_s'].items()}
         section['reception_s'] = short(loop.get('reception_s'))
         section['cycles_queued'] = loop.get('cycles_queued')
+        section['loop_misses'] = loop.get('misses')
     if ctrl.get('preview') is not None:        # --preview: the law's, map's, input's counters
         section['preview'] = dict(ctrl['preview'], sensor=car.get('road_preview'))
     section['frames_lost']['total'] = sum(v for v in section['frames_lost'].values()

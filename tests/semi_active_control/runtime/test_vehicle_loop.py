@@ -10,6 +10,7 @@ from semi_active_control.car.full_car import PASSENGER_CAR
 from semi_active_control.estimation.vehicle_estimator import (EstimatorSettings,
                                                               VehicleEstimatorCore)
 from semi_active_control.runtime import full_car_state, VehicleControllerCore, VehicleLoop
+from semi_active_control.runtime.vehicle_loop import MISS_CAUSES
 from semi_active_control.supervision.corner_models import CornerModels
 
 MODELS = REPO / 'src' / 'semi_active_control' / 'config' / 'models'
@@ -232,3 +233,45 @@ def test_each_stages_execution_time_is_counted_where_it_is_spent(designed):
     assert st['reception_s']['max_s'] == pytest.approx(5e-3, rel=1e-9)
     assert st['cycles_queued'] == 5
     json.dumps(loop.status())
+
+
+def test_each_miss_is_named_by_its_cause(designed):
+    """Slow, reached late, queued behind a late cycle, bunched behind a late frame: counted."""
+    clock = TickClock()
+    slow = []
+
+    def bus(currents_a, failsafe, cycle):
+        clock.t += slow.pop() if slow else 0.0
+
+    ctl = VehicleControllerCore(PASSENGER_CAR, 'modal-skyhook', CornerModels(FILES, **SUP),
+                                cycle_s=P, max_consecutive_misses=100000)
+    loop = VehicleLoop(designed, ctl, bus, clock=clock)
+    loop.configure(0.0)
+    loop.activate(0.0)
+    gen = cycles(40)
+
+    def run(lag_s, shift_s=0.0):
+        seq, t, acc, travel = next(gen)
+        loop.cycle(seq, t + shift_s, acc, travel, t + shift_s + lag_s)
+
+    for _ in range(20):                         # on time: 0.5 ms in, a few ticks' work
+        run(0.0005)
+    assert loop.misses == dict.fromkeys(MISS_CAUSES, 0) and loop.cycles_queued == 0
+    slow.append(0.002)                          # a bus write of 2 ms: the cycle ends late
+    run(0.0005)
+    run(0.0005)                                 # behind it, queued, yet answered in time
+    assert loop.misses['slow'] == 1 and loop.cycles_queued == 1
+    assert sum(loop.misses.values()) == 1
+    run(0.0019)                                 # reached 1.9 ms after its frame: late
+    assert loop.misses['reached_late'] == 1
+    run(0.0019, shift_s=0.0015)                 # its frame 1.5 ms late, reached late too
+    run(0.0018)                                 # 0.5 ms behind that frame: bunched
+    assert loop.misses['reached_late'] == 2 and loop.misses['bunched'] == 1
+    run(0.0005)                                 # in time (queued behind that one)
+    run(0.005)                                  # skipped late: reached late
+    run(0.005)                                  # behind it (a full period after): queued
+    assert loop.misses == {'bunched': 1, 'queued': 1, 'reached_late': 3, 'slow': 1}
+    assert loop.status()['loop']['misses'] == loop.misses
+    # the controller's deadline supervision judges a cycle when the loop starts on it: it
+    # counted the two skipped ones; the loop's count has the four answered late too
+    assert ctl.monitor.misses == 2

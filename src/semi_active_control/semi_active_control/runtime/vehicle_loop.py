@@ -41,6 +41,13 @@ from semi_active_control.runtime.vehicle_controller import failsafe_flags, full_
 #: The stages of a cycle whose execution time :class:`VehicleLoop` counts.
 STAGES = ('estimate', 'control', 'send')
 
+#: The causes of a deadline miss :class:`VehicleLoop` names (module docstring).
+MISS_CAUSES = ('bunched', 'queued', 'reached_late', 'slow')
+
+#: A cycle whose bus time follows the one before by less than this share of the period is
+#: bunched behind it.
+BUNCHED = 0.75
+
 
 class VehicleLoop:
     """
@@ -69,6 +76,10 @@ class VehicleLoop:
     cycles_queued : int
         Cycles whose bus time came before the loop had finished the cycle before (on the
         caller's clock: its start plus the loop's own execution time).
+    misses : dict
+        Cause (:data:`MISS_CAUSES`) -> cycles to answer (active, used by the estimator) that
+        the loop finished after their deadline (the caller's clock at the start plus the
+        loop's own time, minus the bus time).
     reception : LatencyHistogram
         Per cycle, the caller's clock at the loop's start minus the cycle's bus time [s].
     execution : dict
@@ -87,9 +98,12 @@ class VehicleLoop:
         self.cycles_inactive = 0
         self.cycles_unused = 0
         self.cycles_queued = 0
+        self.misses = dict.fromkeys(MISS_CAUSES, 0)
         self.reception = LatencyHistogram()
         self.execution = {stage: LatencyHistogram() for stage in STAGES}
         self._done_t = -math.inf          # the cycle before done, on the caller's clock [s]
+        self._last_t = -math.inf          # the newest cycle's bus time [s]
+        self._to_answer = False           # the cycle under way is one to answer
 
     @property
     def active(self):
@@ -144,13 +158,22 @@ class VehicleLoop:
         with self.lock:
             clock = self.clock
             t0 = clock()
-            self.reception.add(max(t_now - t, 0.0))
-            if t < self._done_t:
+            wait = max(t_now - t, 0.0)
+            self.reception.add(wait)
+            queued = t < self._done_t
+            if queued:
                 self.cycles_queued += 1
+            bunched = queued and t - self._last_t < BUNCHED * self.controller.monitor.period_s
+            self._last_t = max(self._last_t, t)
+            self._to_answer = False
             try:
                 return self._cycle(sequence, t, body_accel, travel, t_now, t0)
             finally:
-                self._done_t = t_now + (clock() - t0)
+                run = clock() - t0
+                self._done_t = t_now + run
+                if self._to_answer and wait + run > self.controller.monitor.deadline_s:
+                    self.misses['bunched' if bunched else 'queued' if queued else
+                                'reached_late' if wait > run else 'slow'] += 1
 
     def _cycle(self, sequence, t, body_accel, travel, t_now, t0):
         """Run :meth:`cycle` under the lock, its clock started at ``t0``."""
@@ -164,6 +187,7 @@ class VehicleLoop:
         if not self.controller.active:
             self.cycles_inactive += 1
             return est, None
+        self._to_answer = True
         if t_now - t > self.controller.monitor.deadline_s:
             # past its deadline before it is answered (the loop is behind the bus): the
             # newer cycles behind it come first; a miss, the safe frame if that trips
@@ -207,9 +231,9 @@ class VehicleLoop:
         """
         Return ``{'estimator': ..., 'controller': ..., 'loop': ...}`` (JSON-ready).
 
-        ``loop``: ``cycles_inactive``, ``cycles_unused``, ``cycles_queued``, ``reception_s``
-        and ``execution_s`` (per stage the execution times; each histogram's ``n``,
-        ``mean_s``, ``p50_s``, ``p99_s``, ``p999_s``, ``max_s``).
+        ``loop``: ``cycles_inactive``, ``cycles_unused``, ``cycles_queued``, ``misses`` (by
+        cause), ``reception_s`` and ``execution_s`` (per stage the execution times; each
+        histogram's ``n``, ``mean_s``, ``p50_s``, ``p99_s``, ``p999_s``, ``max_s``).
         """
         with self.lock:
             return {'estimator': self.estimator.status(),
@@ -217,6 +241,7 @@ class VehicleLoop:
                     'loop': {'cycles_inactive': self.cycles_inactive,
                              'cycles_unused': self.cycles_unused,
                              'cycles_queued': self.cycles_queued,
+                             'misses': dict(self.misses),
                              'reception_s': self.reception.summary(),
                              'execution_s': {stage: h.summary()
                                              for stage, h in self.execution.items()}}}
