@@ -25,6 +25,15 @@ def _statuses(ecu, corner='fl'):
             if m.arbitration_id == frame_id]
 
 
+def _send_commands(bus, currents_a, corner='fl'):
+    """Send one command frame of ``corner`` per current [A] on ``bus``, in order."""
+    enc = FrameCodec(DB)
+    for current in currents_a:
+        frame_id, data = enc.encode(codec.command_name(corner),
+                                    {'CMD_CURRENT': current, 'CMD_FAILSAFE': 0})
+        bus.send(can.Message(arbitration_id=frame_id, data=data, is_extended_id=False))
+
+
 def test_coil_follows_a_step_with_a_first_order_lag():
     clock = FakeClock(50.0)
     tau = 0.02
@@ -106,15 +115,44 @@ def test_stop_with_drain_takes_the_frames_still_queued():
     with can.Bus(interface='virtual', channel=channel) as ecu_bus, \
             can.Bus(interface='virtual', channel=channel) as bridge_bus:
         ecu = SimulatedEcu(ecu_bus, ('fl',), db=DB, clock=FakeClock(50.0), sensors=False)
-        enc = FrameCodec(DB)
-        for k in range(25):
-            frame_id, data = enc.encode(codec.command_name('fl'),
-                                        {'CMD_CURRENT': 0.01 * k, 'CMD_FAILSAFE': 0})
-            bridge_bus.send(can.Message(arbitration_id=frame_id, data=data,
-                                        is_extended_id=False))
+        _send_commands(bridge_bus, [0.01 * k for k in range(25)])
         ecu.stop()                                   # no drain: nothing taken
         assert ecu.status()['corners']['fl']['received'] == 0
         ecu.stop(drain=True)
         st = ecu.status()['corners']['fl']
         assert (st['received'], st['counter_jumps'], st['bad_checksum']) == (25, 0, 0)
         assert st['target_a'] == pytest.approx(0.24)
+
+
+def test_the_reader_thread_runs_at_the_priority_asked_for_and_a_refusal_is_kept():
+    """The reader's policy is set in its own thread on its first frame; every frame taken."""
+    import os
+    import threading
+    channel = 'driver_sim_priority_test'
+    with can.Bus(interface='virtual', channel=channel) as ecu_bus, \
+            can.Bus(interface='virtual', channel=channel) as bridge_bus:
+        ecu = SimulatedEcu(ecu_bus, ('fl',), db=DB, clock=FakeClock(50.0), sensors=False)
+        seen = []
+        done = threading.Event()
+        take = ecu.on_frame
+
+        def on_frame(msg):                  # what the reader thread runs, and under what
+            seen.append((threading.get_native_id(),
+                         (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)))
+            take(msg)
+            if len(seen) == 3:
+                done.set()
+        ecu.on_frame = on_frame
+        ecu.start(cycle=False, reader_priority=7)
+        _send_commands(bridge_bus, [0.1 * k for k in range(3)])
+        assert done.wait(30.0), seen               # a hang guard only
+        ecu.stop()
+    tids = {tid for tid, _ in seen}
+    assert len(tids) == 1 and threading.get_native_id() not in tids
+    assert ecu.status()['corners']['fl']['received'] == 3
+    err = ecu.status()['reader_priority_error']
+    if err is None:                              # allowed (root): FIFO, at the priority
+        assert {policy for _, policy in seen} == {(os.SCHED_FIFO, 7)}
+        assert os.sched_getscheduler(0) != os.SCHED_FIFO     # the test's thread untouched
+    else:                                        # not allowed: said, normal scheduling
+        assert {policy for _, policy in seen} == {(os.SCHED_OTHER, 0)}

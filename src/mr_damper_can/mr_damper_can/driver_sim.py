@@ -19,6 +19,7 @@ state FAULT with its fault bit, until cleared with ``none``) and bus faults of i
 status for ``silence_s`` seconds (``silent``).
 """
 import math
+import os
 import threading
 import time
 
@@ -146,6 +147,7 @@ class SimulatedEcu:
         self._next_sensor = None
         self._thread = None
         self._notifier = None
+        self.reader_priority_error = None
         self._stop = threading.Event()
         self.t0 = self._t = clock()
 
@@ -361,19 +363,45 @@ class SimulatedEcu:
             due = min(self._next_status, self._next_sensor if self.sensors else math.inf)
             self._stop.wait(max(min(due - self.clock(), period), 0.0))
 
-    def start(self, cycle=True):
+    def start(self, cycle=True, reader_priority=0):
         """
         Read the bus (Notifier) and run the ECU cycle in a thread of its own.
 
         With ``cycle`` False only the reader starts: the caller runs the cycle with
-        :meth:`step` (a simulated car steps its ECU with its own time).
+        :meth:`step` (a simulated car steps its ECU with its own time). ``reader_priority`` > 0:
+        the reader thread puts itself under SCHED_FIFO at that priority on its first frame
+        (needs CAP_SYS_NICE; a refusal is kept in :attr:`reader_priority_error`).
         """
         if self.bus is not None and self._notifier is None:
-            self._notifier = can.Notifier(self.bus, [self.on_frame], timeout=0.1)
+            listener = self.on_frame
+            if reader_priority > 0:
+                listener = self._scheduled(int(reader_priority))
+            self._notifier = can.Notifier(self.bus, [listener], timeout=0.1)
         if cycle and self._thread is None:
             self._stop.clear()
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
+
+    def _scheduled(self, priority):
+        """
+        Return :meth:`on_frame` for a reader thread that runs under SCHED_FIFO ``priority``.
+
+        The thread sets its own policy on its first frame (python-can's Notifier makes the
+        thread): a simulated car's bus reader shares the GIL with its real-time control
+        thread, and at normal scheduling, preempted by any other process while it holds the
+        GIL, it would hold that thread back (priority inversion).
+        """
+        pending = [True]
+
+        def on_frame(msg):
+            if pending:
+                pending.clear()
+                try:
+                    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+                except (OSError, AttributeError) as exc:
+                    self.reader_priority_error = str(exc)
+            self.on_frame(msg)
+        return on_frame
 
     def stop(self, drain=False):
         """
@@ -410,7 +438,8 @@ class SimulatedEcu:
             return {'corners': corners, 'frames_sent': self.frames_sent,
                     'all_frames': self.all_frames, 'last_sensor_cycle': self.last_sensor_cycle,
                     'send_failed': self.send_failed, 'other_frames': self.other_frames,
-                    'tau_s': self.tau_s, 'safe_current_a': self.safe_current_a}
+                    'tau_s': self.tau_s, 'safe_current_a': self.safe_current_a,
+                    'reader_priority_error': self.reader_priority_error}
 
 
 class EcuHealth:

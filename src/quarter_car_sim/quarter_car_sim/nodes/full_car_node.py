@@ -157,7 +157,8 @@ PARAMETERS = (
           '(0 = none) [Hz]', 0.0, 10000.0),
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the control thread (with controller '
-          'external: of every thread) (1..99; 0 = normal scheduling); only with '
+          'external: of every thread; can: the bus reader at one below) (1..99; 0 = normal '
+          'scheduling); only with '
           'real_time_factor > 0, needs CAP_SYS_NICE [-]', 0, 99),
     Param('cpu_affinity', '', 'CPUs every thread of the node is pinned to once it runs, a Linux '
           'CPU list as taskset -c takes it ("0", "2-3"; "" = any)'),
@@ -266,7 +267,10 @@ class FullCarNode(Node):
         if self.lane is not None:
             self.lane.start()
         if self.link is not None:
-            self.link.start()
+            # the bus reader just below the control thread (with every thread of the car at
+            # the control thread's priority, the car froze: docs/vehicle.md)
+            self.link.start(reader_priority=max(int(p['realtime_priority']) - 1, 0)
+                            if self.rtf > 0 else 0)
         self.control.start()
         if self.external and p['realtime_priority'] > 0 and self.rtf > 0:
             # the commands arrive in the lane's and the middleware's threads and every thread

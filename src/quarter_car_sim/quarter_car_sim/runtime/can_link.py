@@ -72,9 +72,14 @@ class CanCarLink:
         """Return the link's (and its ECU's) clock: the car's time [s]."""
         return self._t
 
-    def start(self):
-        """Read the bus (the ECU's Notifier thread); its cycle runs in :meth:`step`."""
-        self.ecu.start(cycle=False)
+    def start(self, reader_priority=0):
+        """
+        Read the bus (the ECU's Notifier thread); its cycle runs in :meth:`step`.
+
+        ``reader_priority`` > 0: the reader thread at SCHED_FIFO that priority (below the
+        car's control thread: :meth:`mr_damper_can.driver_sim.SimulatedEcu.start`).
+        """
+        self.ecu.start(cycle=False, reader_priority=reader_priority)
 
     def stop(self, drain=True):
         """Stop reading the bus (taking what is still queued with ``drain``)."""
