@@ -303,3 +303,32 @@ def test_bridge_and_driver_over_a_virtual_bus_lose_nothing():
     assert (st['received'], st['counter_jumps'], st['bad_checksum']) == (500, 0, 0)
     assert bridge.status()['faults']['bad_checksum'] == 0
     assert any(m.corner == 'fr' and abs(m.current_a - 1.7) < 0.002 for m in measured)
+
+
+def test_the_bridges_reader_runs_at_the_priority_asked_for():
+    """The frames are taken in the reader thread, under SCHED_FIFO there (or a refusal said)."""
+    import os
+    import threading
+    channel = f'test_bridge_prio_{time.monotonic_ns()}'
+    with can.Bus(interface='virtual', channel=channel) as bus_a, \
+            can.Bus(interface='virtual', channel=channel) as bus_b:
+        bridge = CanBridge(bus_a, ('fl',), rx_timeout_s=10.0, command_timeout_s=10.0)
+        ecu = SimulatedEcu(bus_b, ('fl',), sensors=False)
+        taken = []
+        done = threading.Event()
+        on_frame = bridge.on_frame
+
+        def take(msg):
+            taken.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
+            on_frame(msg)
+            done.set()
+        bridge.on_frame = take
+        try:
+            bridge.start(reader_priority=9)
+            ecu.step(0.0)                         # the driver's status frame on the bus
+            assert done.wait(30.0)                # a hang guard only
+        finally:
+            bridge.stop()
+        err = bridge.status()['reader_priority_error']
+    assert taken[0] == ((os.SCHED_FIFO, 9) if err is None else (os.SCHED_OTHER, 0))
+    assert bridge.frames_received >= 1

@@ -28,6 +28,7 @@ from mr_damper_can.codec import (command_name, CORNERS, DRV_FAULT, FAULT_SIGNALS
                                  HARDWARE_FAULTS, SENSOR_FRAMES, status_name)
 from mr_damper_common.commands import CurrentCommandLimiter
 from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, worst
+from mr_damper_common.scheduling import fifo_on_first_call
 
 #: The driver faults that put a corner on its safe current (a set: one test per call).
 _HARDWARE_FAULTS = frozenset(HARDWARE_FAULTS)
@@ -147,6 +148,7 @@ class CanBridge:
         self._cyclic_rx = [status_name(c) for c in corners] + list(SENSOR_FRAMES)
         self._notifier = None
         self._log = None
+        self.reader_priority_error = None
         self._sensors = {c: dict.fromkeys(('body_accel', 'wheel_accel', 'susp_pos'), math.nan)
                          for c in corners}
         for corner in corners:
@@ -347,20 +349,29 @@ class CanBridge:
                         measured_a=st.driver.current_a if st.driver else math.nan)
 
     # --- bus reader ----------------------------------------------------------------------------
-    def start(self, log_file=None):
+    def start(self, log_file=None, reader_priority=0):
         """
         Read the bus in a python-can ``Notifier`` thread (frames go to :meth:`on_frame`).
 
         With ``log_file``, every received frame and every frame sent (it loops back on the
         ``udp_loopback`` bus) is also written by ``can.Logger`` (``.blf``, ``.asc``, ``.log``
         = candump format, ``.csv``, ...; the writer is chosen by the extension).
+        ``reader_priority`` > 0: the reader thread goes under SCHED_FIFO at that priority on
+        its first frame (the vehicle computer's loop runs in it: above the process's other
+        threads); a refusal is kept in ``reader_priority_error`` (status).
         """
         if self._notifier is None and self.bus is not None:
             listeners = [self.on_frame]
+            if reader_priority > 0:
+                listeners = [fifo_on_first_call(self.on_frame, reader_priority,
+                                                self._priority_refused)]
             if log_file:
                 self._log = can.Logger(log_file)
                 listeners.append(self._log)
             self._notifier = can.Notifier(self.bus, listeners, timeout=0.1)
+
+    def _priority_refused(self, message):
+        self.reader_priority_error = message
 
     def stop(self):
         """Stop the reader thread and close the log (the bus stays open for its owner)."""
@@ -393,7 +404,8 @@ class CanBridge:
                     'timeouts': dict(self.timeouts), 'commands': dict(self.limiter.counts),
                     'frames_received': self.frames_received, 'own_frames': self.own_frames,
                     'bus_off': self.bus_off, 'safe_current_a': self.safe_current_a,
-                    'command_timeout_s': self.command_timeout_s}
+                    'command_timeout_s': self.command_timeout_s,
+                    'reader_priority_error': self.reader_priority_error}
 
 
 class BridgeHealth:

@@ -19,7 +19,6 @@ state FAULT with its fault bit, until cleared with ``none``) and bus faults of i
 status for ``silence_s`` seconds (``silent``).
 """
 import math
-import os
 import threading
 import time
 
@@ -29,6 +28,7 @@ from mr_damper_can.codec import (CAN_ERR_BUSOFF, command_name, CORNERS, DRV_FAUL
                                  DRV_FAILSAFE, DRV_NORMAL, FAULT_SIGNALS, FrameCodec,
                                  HARDWARE_FAULTS, SENSOR_FRAMES, status_name, VEHICLE_COMMAND)
 from mr_damper_common.health import ERROR, Rising, WARN, worst
+from mr_damper_common.scheduling import fifo_on_first_call
 
 #: Driver faults that :meth:`SimulatedEcu.inject` can set (persistent until ``none``).
 DRIVER_FAULTS = HARDWARE_FAULTS
@@ -375,33 +375,19 @@ class SimulatedEcu:
         if self.bus is not None and self._notifier is None:
             listener = self.on_frame
             if reader_priority > 0:
-                listener = self._scheduled(int(reader_priority))
+                # a simulated car's bus reader shares the GIL with its real-time control
+                # thread: at normal scheduling, preempted by any other process while it holds
+                # the GIL, it would hold that thread back (priority inversion)
+                listener = fifo_on_first_call(lambda msg: self.on_frame(msg), reader_priority,
+                                              self._priority_refused)
             self._notifier = can.Notifier(self.bus, [listener], timeout=0.1)
         if cycle and self._thread is None:
             self._stop.clear()
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
 
-    def _scheduled(self, priority):
-        """
-        Return :meth:`on_frame` for a reader thread that runs under SCHED_FIFO ``priority``.
-
-        The thread sets its own policy on its first frame (python-can's Notifier makes the
-        thread): a simulated car's bus reader shares the GIL with its real-time control
-        thread, and at normal scheduling, preempted by any other process while it holds the
-        GIL, it would hold that thread back (priority inversion).
-        """
-        pending = [True]
-
-        def on_frame(msg):
-            if pending:
-                pending.clear()
-                try:
-                    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-                except (OSError, AttributeError) as exc:
-                    self.reader_priority_error = str(exc)
-            self.on_frame(msg)
-        return on_frame
+    def _priority_refused(self, message):
+        self.reader_priority_error = message
 
     def stop(self, drain=False):
         """

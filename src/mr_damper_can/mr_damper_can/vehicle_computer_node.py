@@ -119,8 +119,12 @@ class VehicleComputerNode(SafeTransitions, LifecycleNode):
         self.bridge, self.loop = bridge, loop
         self.cycle_timers = [self.create_timer(p['safe_period_s'] / 2.0, lambda: bridge.tick()),
                              self.create_timer(p['check_period_s'], self.on_check)]
-        bridge.start(log_file=p['log_file'] or None)
         apply_scheduling(self, p)
+        # the loop runs in the bus reader: one above the process's other threads (timers,
+        # statuses, the middleware), so a frame's arrival preempts them
+        prio = int(p['realtime_priority'])
+        bridge.start(log_file=p['log_file'] or None,
+                     reader_priority=min(prio + 1, 99) if prio > 0 else 0)
         self.get_logger().info(
             f'vehicle computer on {p["interface"]} {p["channel"]}: {controller.controller.name}'
             f' every {p["cycle_s"] * 1e3:g} ms, safe {p["safe_current_a"]:g} A; models: '

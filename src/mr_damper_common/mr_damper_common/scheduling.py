@@ -1,0 +1,48 @@
+"""
+Real-time scheduling of a thread someone else creates, without ROS.
+
+A library that makes its own reader thread (python-can's ``Notifier``) gives no handle to set
+that thread's policy before it runs. :func:`fifo_on_first_call` wraps the callback the thread
+calls, so the thread puts itself under SCHED_FIFO on its first call (``os.sched_setscheduler``
+on the calling thread), before it runs the callback. The nodes' own threads get their policy
+from ``mr_damper_common.node_utils.set_realtime_priority`` (every thread of the process) and
+``quarter_car_sim``'s control thread from its constructor.
+"""
+import os
+
+
+def fifo_on_first_call(fn, priority, on_error=None):
+    """
+    Return ``fn`` wrapped: its first caller's thread goes under SCHED_FIFO ``priority`` first.
+
+    Parameters
+    ----------
+    fn : callable
+        The callback (its arguments are passed through; its return value too).
+    priority : int
+        SCHED_FIFO priority, 1..99.
+    on_error : callable, optional
+        ``on_error(message)`` when the policy is refused (no CAP_SYS_NICE): the thread then
+        runs ``fn`` at its own scheduling, as before.
+
+    Raises
+    ------
+    ValueError
+        If ``priority`` is not in 1..99.
+
+    """
+    if not 1 <= int(priority) <= 99:
+        raise ValueError(f'`priority` must be in 1..99, got {priority}')
+    param = os.sched_param(int(priority))
+    pending = [True]
+
+    def call(*args, **kwargs):
+        if pending:
+            pending.clear()
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, param)
+            except OSError as exc:
+                if on_error is not None:
+                    on_error(str(exc))
+        return fn(*args, **kwargs)
+    return call
