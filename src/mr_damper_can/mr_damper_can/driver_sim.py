@@ -378,7 +378,7 @@ class SimulatedEcu:
                 # a simulated car's bus reader shares the GIL with its real-time control
                 # thread: at normal scheduling, preempted by any other process while it holds
                 # the GIL, it would hold that thread back (priority inversion)
-                listener = fifo_on_first_call(lambda msg: self.on_frame(msg), reader_priority,
+                listener = fifo_on_first_call(self.on_frame, reader_priority,
                                               self._priority_refused)
             self._notifier = can.Notifier(self.bus, [listener], timeout=0.1)
         if cycle and self._thread is None:
