@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from quarter_car_sim.metrics.full_car import iso2631_seat
+from quarter_car_sim.metrics.full_car import iso2631_seat, RunningIso2631
 from quarter_car_sim.metrics.full_car import AXIS_FACTORS
 from semi_active_control.iso2631 import wk_sos
 
@@ -59,3 +59,30 @@ def test_vdv_of_a_sine_and_crest_factor_of_a_shock():
     s = iso2631_seat(t, shock, zero, zero)
     assert s['crest_z'] > 9 and s['vdv_required'] is True
     assert s['vdv_total'] == pytest.approx(s['vdv_z'], rel=1e-9)
+
+
+def test_running_figures_fed_in_chunks_equal_the_figures_of_the_whole_signal():
+    # the filters' state carries from chunk to chunk: any split gives the one-shot figures
+    fs = 1000.0
+    t = np.arange(0, 6.0, 1 / fs)
+    rng = np.random.default_rng(7)
+    a = np.stack([rng.normal(0, s, t.size) for s in (0.5, 0.8, 1.1)], axis=1)
+    a[3000, 0] += 40.0                                 # a shock: the peak is in one chunk
+    whole = iso2631_seat(t, *a.T)
+    running = RunningIso2631(1 / fs)
+    assert math.isnan(running.as_dict()['a_v'])        # no sample yet
+    for lo, hi in [(0, 1), (1, 777), (777, 777), (777, 3001), (3001, t.size)]:
+        running.add(*a[lo:hi].T)
+    assert running.n == t.size
+    got = running.as_dict()
+    assert set(got) == set(whole)
+    for key, value in whole.items():
+        assert got[key] == pytest.approx(value, rel=1e-10), key
+    assert got['vdv_required'] is True and whole['crest_z'] > 9
+
+
+def test_running_figures_refuse_a_bad_period_and_uneven_axes():
+    with pytest.raises(ValueError, match='dt'):
+        RunningIso2631(0.0)
+    with pytest.raises(ValueError, match='same length'):
+        RunningIso2631(1e-3).add(np.zeros(3), np.zeros(3), np.zeros(2))

@@ -9,6 +9,7 @@ from mr_damper_model.identification import presets
 from mr_damper_model.models.plant import make_plant
 from quarter_car_sim.plant.two_track_road import make_two_track_road
 from semi_active_control.car.full_car import PASSENGER_CAR
+from quarter_car_sim.metrics.full_car import iso2631_seat
 from quarter_car_sim.runtime.full_car import FullCarRuntime
 
 KW = presets.thesis_kwok_current()[1]
@@ -61,6 +62,25 @@ def test_body_log_covers_the_recorded_time_only_and_gives_iso_figures():
     m = rt.body_metrics()
     assert m['a_v'] >= m['a_wz'] > 0
     assert m['duration_s'] == pytest.approx(0.301, abs=1e-6)   # 301 steps of 1 ms
+
+
+def test_body_metrics_called_as_the_run_goes_equal_the_figures_of_the_whole_log():
+    rt = _runtime()
+    seen = []
+    for k in range(1500):                                   # 0.1 s settling + 1.4 s
+        rt.step(t_clock=k * rt.dt)
+        if k in (150, 151, 700, 1200):                      # a status now and then
+            seen.append(rt.body_metrics())
+    t, acc = rt.body_log()
+    whole = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
+    last = rt.body_metrics()
+    for key, value in whole.items():
+        assert last[key] == pytest.approx(value, rel=1e-9), key
+    assert last['duration_s'] == pytest.approx(len(t) * rt.dt)
+    # each earlier call had the figures of the log up to then
+    assert [m['duration_s'] for m in seen] == pytest.approx([0.051, 0.052, 0.601, 1.101])
+    assert seen[2]['a_v'] == pytest.approx(iso2631_seat(t[:601], *acc[:601].T)['a_v'],
+                                           rel=1e-9)
 
 
 def test_corner_state_is_the_quarter_car_view_of_the_corner():

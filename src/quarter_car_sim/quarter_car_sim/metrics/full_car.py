@@ -43,11 +43,70 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def _axis(aw, dt):
-    rms = _rms(aw)
-    peak = float(np.max(np.abs(aw)))
-    return {'rms': rms, 'peak': peak, 'crest': peak / rms if rms > 0 else math.nan,
-            'vdv': float(np.sum(aw ** 4) * dt) ** 0.25}
+class RunningIso2631:
+    """
+    ISO 2631-1 figures of :func:`iso2631_seat` over a run fed in chunks (the live car's status).
+
+    Each chunk is weighted with the filters' state carried over from the chunk before
+    (``scipy.signal.sosfilt`` with ``zi``), and only sums (squares, fourth powers, peaks) are
+    kept: the figures cover the whole run in constant memory, and each call costs its new
+    samples, not the run so far. :func:`iso2631_seat` is this fed with one chunk.
+
+    Parameters
+    ----------
+    dt : float
+        Sample period [s] (uniform).
+
+    """
+
+    def __init__(self, dt):
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f'`dt` must be > 0, got {dt}')
+        self.dt = float(dt)
+        fs = 1.0 / self.dt
+        self._sos = (wk_sos(fs), we_sos(fs), we_sos(fs))
+        self._zi = [np.zeros((len(sos), 2)) for sos in self._sos]
+        self.n = 0
+        self._sq = np.zeros(3)
+        self._p4 = np.zeros(3)
+        self._peak = np.zeros(3)
+
+    def add(self, a_z, theta_dd, phi_dd):
+        """Add the next samples: seat vertical [m/s^2], pitch and roll [rad/s^2] (n,)."""
+        axes = [np.asarray(a, dtype=float).ravel() for a in (a_z, theta_dd, phi_dd)]
+        n = axes[0].size
+        if any(a.size != n for a in axes):
+            raise ValueError('`a_z`, `theta_dd` and `phi_dd` must have the same length')
+        if n == 0:
+            return
+        for i, (sos, a) in enumerate(zip(self._sos, axes)):
+            aw, self._zi[i] = signal.sosfilt(sos, a, zi=self._zi[i])
+            self._sq[i] += float(np.dot(aw, aw))
+            self._p4[i] += float(np.sum(np.square(np.square(aw))))
+            self._peak[i] = max(self._peak[i], float(np.max(np.abs(aw))))
+        self.n += n
+
+    def as_dict(self):
+        """Return the keys of :func:`iso2631_seat` over the samples so far (NaN: none)."""
+        axes = []
+        for i in range(3):
+            rms = math.sqrt(self._sq[i] / self.n) if self.n else math.nan
+            peak = float(self._peak[i]) if self.n else math.nan
+            axes.append({'rms': rms, 'peak': peak,
+                         'crest': peak / rms if rms > 0 else math.nan,
+                         'vdv': float(self._p4[i] * self.dt) ** 0.25 if self.n else math.nan})
+        z, p, r = axes
+        k = AXIS_FACTORS
+        a_v = math.sqrt(z['rms'] ** 2 + (k['pitch'] * p['rms']) ** 2
+                        + (k['roll'] * r['rms']) ** 2)
+        vdv_total = (z['vdv'] ** 4 + (k['pitch'] * p['vdv']) ** 4
+                     + (k['roll'] * r['vdv']) ** 4) ** 0.25
+        crest = max(z['crest'], p['crest'], r['crest'])
+        return {'a_wz': z['rms'], 'a_w_pitch': p['rms'], 'a_w_roll': r['rms'], 'a_v': a_v,
+                'crest_z': z['crest'], 'crest_pitch': p['crest'], 'crest_roll': r['crest'],
+                'crest_max': crest, 'vdv_z': z['vdv'], 'vdv_pitch': p['vdv'],
+                'vdv_roll': r['vdv'], 'vdv_total': vdv_total,
+                'vdv_required': bool(crest > CREST_LIMIT)}
 
 
 def iso2631_seat(t, a_z, theta_dd, phi_dd):
@@ -75,22 +134,9 @@ def iso2631_seat(t, a_z, theta_dd, phi_dd):
     t = np.asarray(t, dtype=float)
     if t.size < 2:
         raise ValueError('need at least 2 samples')
-    dt = float(np.median(np.diff(t)))
-    fs = 1.0 / dt
-    z = _axis(signal.sosfilt(wk_sos(fs), np.asarray(a_z, dtype=float)), dt)
-    we = we_sos(fs)
-    p = _axis(signal.sosfilt(we, np.asarray(theta_dd, dtype=float)), dt)
-    r = _axis(signal.sosfilt(we, np.asarray(phi_dd, dtype=float)), dt)
-    k = AXIS_FACTORS
-    a_v = math.sqrt(z['rms'] ** 2 + (k['pitch'] * p['rms']) ** 2 + (k['roll'] * r['rms']) ** 2)
-    vdv_total = (z['vdv'] ** 4 + (k['pitch'] * p['vdv']) ** 4
-                 + (k['roll'] * r['vdv']) ** 4) ** 0.25
-    crest = max(z['crest'], p['crest'], r['crest'])
-    return {'a_wz': z['rms'], 'a_w_pitch': p['rms'], 'a_w_roll': r['rms'], 'a_v': a_v,
-            'crest_z': z['crest'], 'crest_pitch': p['crest'], 'crest_roll': r['crest'],
-            'crest_max': crest, 'vdv_z': z['vdv'], 'vdv_pitch': p['vdv'],
-            'vdv_roll': r['vdv'], 'vdv_total': vdv_total,
-            'vdv_required': bool(crest > CREST_LIMIT)}
+    metrics = RunningIso2631(float(np.median(np.diff(t))))
+    metrics.add(a_z, theta_dd, phi_dd)
+    return metrics.as_dict()
 
 
 def body_a_v(t, acc):

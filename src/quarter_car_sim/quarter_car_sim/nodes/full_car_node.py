@@ -407,7 +407,6 @@ class FullCarNode(Node):
         """Return the status dict (the values of the diagnostics)."""
         with self.lock:
             st = self.rt.status()
-            t, acc = self.rt.body_log()
             if self.external:
                 st['controller'] = 'external'
                 ext = self.cmd_in.status()
@@ -435,10 +434,9 @@ class FullCarNode(Node):
                                             reason=reason)
                 st['corners_normal'] = sum(d['mode'] == 'normal'
                                            for d in st['corners'].values())
-        if t.size >= 2:
-            from quarter_car_sim.metrics.full_car import iso2631_seat
-            st['iso2631'] = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
-            st['iso2631']['duration_s'] = float(t[-1] - t[0] + self.rt.dt)
+        iso = self.rt.body_metrics()      # outside the lock: the samples recorded so far
+        if iso:
+            st['iso2631'] = iso
         loop = self.control.status()
         st.update(rate_hz=self.rate_hz, real_time_factor=self.rtf,
                   late_reanchors=loop.pop('late_reanchors'), loop=loop,

@@ -10,11 +10,14 @@ Each :meth:`FullCarRuntime.step` reads the state at ``t_k``, commands the four c
 (a corner without a valid, fresh model gets its safe current; the others go on controlling)
 and advances the car to ``t_k + dt`` with them held, as the offline
 :func:`~quarter_car_sim.simulate.full_car.simulate_full_car` does. The body's accelerations and
-rates are kept (bounded by ``log_max_s``) for the ISO 2631-1 figures at the end
-(:meth:`FullCarRuntime.body_metrics`).
+rates are kept (bounded by ``log_max_s``) for the ISO 2631-1 figures
+(:meth:`FullCarRuntime.body_metrics`, weighted as the samples come: each call costs the samples
+since the call before, not the run so far).
 
 The full-car node (``full_car_node``) paces the steps and converts messages; the caller holds
-one lock around :meth:`step`, :meth:`offer_parameters` and :meth:`status`.
+one lock around :meth:`step`, :meth:`offer_parameters` and :meth:`status`;
+:meth:`body_metrics` needs none (it reads only samples recorded before its call, which no step
+changes), but one thread at a time.
 """
 import math
 
@@ -25,7 +28,7 @@ from semi_active_control.runtime.full_car_controller_core import (corner_supervi
                                                                   FullCarController)
 from semi_active_control.laws.registry import make_full_car_law
 from quarter_car_sim.plant.full_car import FullCar
-from quarter_car_sim.metrics.full_car import iso2631_seat
+from quarter_car_sim.metrics.full_car import RunningIso2631
 from semi_active_control.car.full_car import CORNERS
 
 #: Body coordinates published and logged, in order (``q[:3]`` of the car).
@@ -93,6 +96,8 @@ class FullCarRuntime:
         self._t = np.empty(n)
         self._acc = np.empty((n, 3))
         self._n = 0
+        self._iso = RunningIso2631(self.dt)
+        self._fed = 0                     # samples of the log the ISO 2631 figures hold
 
     @property
     def state(self):
@@ -164,6 +169,9 @@ class FullCarRuntime:
         """
         ISO 2631-1 figures of the body centre over the recorded time.
 
+        The samples recorded since the call before are added to a
+        :class:`~quarter_car_sim.metrics.full_car.RunningIso2631` (see the module docstring).
+
         Returns
         -------
         dict
@@ -171,11 +179,14 @@ class FullCarRuntime:
             and roll accelerations, plus ``duration_s``; empty before two recorded steps.
 
         """
-        t, acc = self.body_log()
-        if t.size < 2:
+        n = self._n
+        if n < 2:
             return {}
-        out = iso2631_seat(t, acc[:, 0], acc[:, 1], acc[:, 2])
-        out['duration_s'] = float(t[-1] - t[0] + self.dt)
+        acc = self._acc[self._fed:n]
+        self._iso.add(acc[:, 0], acc[:, 1], acc[:, 2])
+        self._fed = n
+        out = self._iso.as_dict()
+        out['duration_s'] = float(self._t[n - 1] - self._t[0] + self.dt)
         return out
 
     def status(self):
