@@ -1,8 +1,8 @@
 """Tests of mr_damper_bringup.launcher: the drain condition and the progress line (no graph)."""
 import pytest
 
-from mr_damper_bringup.launcher import (identifier_drained, parse_args, progress_line,
-                                        statuses_recorded)
+from mr_damper_bringup.launcher import (clear_run_outputs, identifier_drained, parse_args,
+                                        progress_line, RUN_OUTPUTS, statuses_recorded)
 
 
 def _monitor():
@@ -120,3 +120,15 @@ def test_hang_timeouts_cover_each_nodes_own_status_period():
                         cfg, corners)
     assert got == {'quarter_car_node': 30.0, 'mr_damper_record': 15.0, 'fl.mr_damper_rig': 60.0}
     assert set(hang_timeouts(['quarter_car_node'], 0.0, cfg).values()) == {0.0}
+
+
+def test_a_new_run_leaves_no_output_of_an_earlier_run_in_its_folder(tmp_path):
+    # a run that stops before it writes a summary (a node that cannot start) must not leave
+    # the earlier run's summary or body log to be read as its own (a bench once did)
+    stale = [*RUN_OUTPUTS, 'suite.mcap', 'suite.1.mcap', 'suite.2.recording']
+    for name in stale + ['notes.txt']:
+        (tmp_path / name).write_text('earlier run')
+    clear_run_outputs(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['notes.txt']
+    assert {'summary.json', 'full_car_body.npz', 'process_stats.json'} <= set(RUN_OUTPUTS)
+    clear_run_outputs(tmp_path)                     # nothing to remove: no error

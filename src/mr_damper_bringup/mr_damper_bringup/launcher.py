@@ -92,7 +92,7 @@ from mr_damper_common.stop_flag import Interrupts
 from .config import (corner_configs, CTRL, DOMAIN_IDS, IDENT, node_arguments, node_params, QC,
                      RECORDER, RECORDER_NODE, recorder_arguments, REPO, resolve_config, RIG,
                      suite_nodes, SuiteError)
-from .full_car_suite import (FULL_CAR, FULL_CAR_CTRL_NODES, FULL_CAR_NODE,
+from .full_car_suite import (BODY_LOG, FULL_CAR, FULL_CAR_CTRL_NODES, FULL_CAR_NODE,
                              external_full_car, full_car_configs,
                              full_car_progress_line, full_car_summary, start_full_car)
 from .network import apply as apply_dds, dds_environment, PROFILE_VAR, RANGE_VAR
@@ -474,6 +474,23 @@ def parse_args(argv):
     return args
 
 
+#: The files of ``--out`` a run writes, removed when it starts (:func:`clear_run_outputs`).
+RUN_OUTPUTS = ('summary.json', 'process_stats.json', 'restarts.json', 'pids.json', BODY_LOG)
+
+
+def clear_run_outputs(out):
+    """
+    Remove what an earlier run wrote into ``out`` that this one writes too.
+
+    The recording (every part) and :data:`RUN_OUTPUTS`: a run that ends before it writes
+    its own (a node that cannot start, a failed summary) leaves none, so no reader (a bench,
+    the summary's body log) takes an earlier run's for it.
+    """
+    remove_recording(Path(out) / RECORDING)
+    for name in RUN_OUTPUTS:
+        (Path(out) / name).unlink(missing_ok=True)
+
+
 def main(argv=None):
     """
     Run the suite; return the exit status.
@@ -521,10 +538,7 @@ def _run(argv, held):
     params_file = out / 'suite_params.yaml'
     params_file.write_text(yaml.safe_dump(cfg, sort_keys=False))
     recording = out / RECORDING
-    remove_recording(recording)                 # a new run, a new recording (every part)
-    for old in ('restarts.json', 'pids.json'):
-        if (out / old).exists():
-            (out / old).unlink()
+    clear_run_outputs(out)
     # the monitor node of this process must use the same discovery settings as the children
     apply_dds(dds)
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
