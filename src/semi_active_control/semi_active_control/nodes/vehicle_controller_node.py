@@ -156,9 +156,11 @@ class VehicleControllerNode(SafeTransitions, LifecycleNode):
         with self.lock:
             if self.core is None:
                 return
-            cmd = self.core.command(state, f['sequence'], f['valid'], f['reason'], now)
+            cmd = self.core.command(state, f['sequence'], f['valid'], f['reason'], now,
+                                    judge=False)
             if cmd is not None:
                 self._publish(cmd, now)
+                self.core.judge(state.t, node_time_s(self))    # its deadline: published
 
     def on_check(self):
         """Sensor timeout: the safe command while no state comes (timer)."""

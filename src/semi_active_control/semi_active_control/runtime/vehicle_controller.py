@@ -181,9 +181,14 @@ class VehicleControllerCore:
         return self._all_safe('inactive', MODE_INACTIVE, 0, math.nan)
 
     # --- cycles -------------------------------------------------------------------------------
-    def command(self, state, sequence, valid, reason, t_now):
+    def command(self, state, sequence, valid, reason, t_now, judge=True):
         """
         Answer one state; return the :class:`VehicleCommand` (None: not answered).
+
+        With ``judge`` the deadline supervision judges the cycle answered at ``t_now``; a
+        caller that can tell when its answer left (after the command is sent) passes False and
+        calls :meth:`judge` then, so that a cycle whose own execution ran past its deadline is
+        a miss too.
 
         Parameters
         ----------
@@ -198,6 +203,8 @@ class VehicleControllerCore:
             Why it is not valid ('' when valid).
         t_now : float
             The caller's clock [s] (same clock as the stamps): supervisors and deadline.
+        judge : bool
+            Judge the deadline at ``t_now`` (False: the caller calls :meth:`judge`).
 
         """
         if not self.active:
@@ -222,9 +229,15 @@ class VehicleControllerCore:
             cmd = self._all_safe(sup_reason, MODE_FAIL_SAFE, sequence, state.t)
         else:
             self._count_normal(cmd, state.t)
-        self.monitor.cycle(state.t, t_now)
+        if judge:
+            self.monitor.cycle(state.t, t_now)
         self.answered += 1
         return cmd
+
+    def judge(self, t_state, t_done):
+        """Judge the deadline of the cycle stamped ``t_state``, answered at ``t_done`` [s]."""
+        if self.active:
+            self.monitor.cycle(t_state, t_done)
 
     def skip_late(self, sequence, t_state, t_now):
         """

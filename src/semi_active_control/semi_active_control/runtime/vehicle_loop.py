@@ -198,12 +198,17 @@ class VehicleLoop:
         state = full_car_state(self.controller.geometry, est.t, est.body, est.body_rates,
                                est.body_acc, est.travel, est.travel_velocity,
                                est.tyre_deflection, est.wheel_velocity, est.damper_force)
-        cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now)
+        cmd = self.controller.command(state, est.sequence, est.valid, est.reason, t_now,
+                                      judge=False)
         t2 = clock()
         execution['control'].add(t2 - t1)
         if cmd is not None:
             self._send(cmd, est.sequence)
-            execution['send'].add(clock() - t2)
+            t3 = clock()
+            execution['send'].add(t3 - t2)
+            # judged when its command has left: a cycle whose own execution ran past its
+            # deadline is a miss, as one reached or skipped late
+            self.controller.judge(est.t, t_now + (t3 - t0))
         return est, cmd
 
     def check(self, t_now):
