@@ -1,10 +1,16 @@
-"""fifo_on_first_call: the calling thread's policy set once, before the callback; refusals said."""
+"""
+fifo_on_first_call: the calling thread's policy set once, before the callback; refusals said.
+
+freeze_heap: the heap there is leaves the collector's passes; objects made later do not.
+"""
+import gc
 import os
 import threading
+import weakref
 
 import pytest
 
-from mr_damper_common.scheduling import fifo_on_first_call
+from mr_damper_common.scheduling import fifo_on_first_call, freeze_heap
 
 
 def _policy():
@@ -42,3 +48,27 @@ def test_a_refusal_goes_to_on_error_and_the_callback_still_runs(monkeypatch):
 def test_a_priority_outside_1_to_99_is_refused(priority):
     with pytest.raises(ValueError, match='1..99'):
         fifo_on_first_call(print, priority)
+
+
+class _Cycle:
+    """An object that refers to itself: only the cyclic collector frees it."""
+
+    def __init__(self):
+        self.me = self
+
+
+def test_the_heap_there_is_leaves_the_collectors_passes_and_later_garbage_does_not():
+    before = [object() for _ in range(3)] + [[k] for k in range(3)]  # tracked: lists
+    try:
+        freeze_heap()
+        assert gc.get_freeze_count() >= 3
+        tracked = {id(o) for o in gc.get_objects()}
+        assert not any(id(o) in tracked for o in before[3:])          # frozen, not walked
+        later = _Cycle()                                              # a cycle made later
+        assert any(o is later for o in gc.get_objects())              # walked as before
+        gone = weakref.ref(later)
+        del later
+        gc.collect()
+        assert gone() is None                                         # and collected
+    finally:
+        gc.unfreeze()                                                 # the worker's heap back

@@ -26,6 +26,7 @@ from mr_damper_common import messages
 from mr_damper_common.node_utils import (DiagnosticsPublisher, DropCounter, node_time_s, Param,
                                          PUBLISH_ERRORS, run_node, set_cpu_affinity,
                                          set_realtime_priority, spin_node)
+from mr_damper_common.scheduling import freeze_heap
 
 #: The heartbeat topic of a managed node (private: ``/<namespace>/<node>/heartbeat``).
 HEARTBEAT_TOPIC = '~/heartbeat'
@@ -172,22 +173,6 @@ def run_managed(make_node, name, errors=(ValueError,), args=None):
             autostart(node)
         spin_node(node, events=True)
     return run_node(make_node, name, errors, run=run, finish=end_managed, args=args)
-
-
-def freeze_heap():
-    """
-    Collect once, then leave every object there is out of the garbage collector's later passes.
-
-    A node's heap after its start (rclpy, numpy, scipy, python-control, the filter's design:
-    hundreds of thousands of objects) never becomes garbage; without this every full
-    collection walks all of it, and the thread that triggers one holds the GIL meanwhile
-    (py-spy on ``vehicle_computer_node``: most of its executor thread's samples were in
-    ``gc_collect_main``, and the bus reader waited). :func:`gc.freeze` is CPython's tool for
-    this; objects made later are collected as before.
-    """
-    import gc
-    gc.collect()
-    gc.freeze()
 
 
 def autostart(node):

@@ -7,6 +7,9 @@ calls, so the thread puts itself under SCHED_FIFO on its first call (``os.sched_
 on the calling thread), before it runs the callback. The nodes' own threads get their policy
 from ``mr_damper_common.node_utils.set_realtime_priority`` (every thread of the process) and
 ``quarter_car_sim``'s control thread from its constructor.
+
+:func:`freeze_heap` keeps a real-time process's start-up heap out of the cyclic garbage
+collector's passes (the managed nodes and the car nodes call it before they spin).
 """
 import os
 
@@ -46,3 +49,20 @@ def fifo_on_first_call(fn, priority, on_error=None):
                     on_error(str(exc))
         return fn(*args, **kwargs)
     return call
+
+
+def freeze_heap():
+    """
+    Collect once, then leave every object there is out of the garbage collector's later passes.
+
+    A node's heap after its start (rclpy, numpy, scipy, python-control, cantools' database,
+    the filter's design: about a hundred thousand objects) never becomes garbage; without this
+    every full collection walks all of it (tens of milliseconds on this project's 2-vCPU VM),
+    and the thread that triggers one holds the GIL meanwhile (py-spy on
+    ``vehicle_computer_node``: most of its executor thread's samples were in
+    ``gc_collect_main``, and the bus reader waited). :func:`gc.freeze` is CPython's tool for
+    this; objects made later are collected as before.
+    """
+    import gc
+    gc.collect()
+    gc.freeze()

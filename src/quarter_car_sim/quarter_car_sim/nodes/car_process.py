@@ -11,6 +11,7 @@ import sys
 import rclpy
 
 from mr_damper_common.node_utils import run_node, spin_node
+from mr_damper_common.scheduling import freeze_heap
 
 
 def end_on_control_error(node, failed):
@@ -33,14 +34,21 @@ def run_car_node(node_class, name, args=None):
     Run a car node with a control thread (``stop()``, ``failed``); return the exit status.
 
     A short GIL switch interval (the control thread waits at most ~0.5 ms for the executor);
+    the start-up heap frozen out of the garbage collector's passes
+    (``mr_damper_common.scheduling.freeze_heap``: a full collection triggered in the control
+    thread would walk it all while the car's step waits);
     ValueError, OSError: bad parameter, road or truth file (exit status 2). A
     SingleThreadedExecutor: the control thread publishes, the executor only takes parameter
     sets and runs the diagnostics timer (with plant rig also the rig's measurements; with the
     EventsExecutor here the rig received a fifth of the commands the control thread sent).
     """
     sys.setswitchinterval(0.0005)
-    return run_node(node_class, name, (ValueError, OSError),
-                    run=lambda node: spin_node(node, events=False), finish=_finish, args=args)
+
+    def run(node):
+        freeze_heap()
+        spin_node(node, events=False)
+    return run_node(node_class, name, (ValueError, OSError), run=run, finish=_finish,
+                    args=args)
 
 
 def _finish(node):
