@@ -29,8 +29,9 @@ def test_the_first_callers_thread_goes_fifo_before_the_callback_and_only_it():
     policies = {p for _, p in seen}
     if errors:                                  # not allowed here: said, nothing changed
         assert policies == {(os.SCHED_OTHER, 0)} and len(errors) == 1
+        assert wrapped.error == errors[0]
     else:                                       # root: FIFO at 5 from the first call on
-        assert policies == {(os.SCHED_FIFO, 5)}
+        assert policies == {(os.SCHED_FIFO, 5)} and wrapped.error is None
     assert _policy() == (os.SCHED_OTHER, 0)     # the caller of the wrapping untouched
 
 
@@ -40,8 +41,10 @@ def test_a_refusal_goes_to_on_error_and_the_callback_still_runs(monkeypatch):
     monkeypatch.setattr(os, 'sched_setscheduler', refuse)
     errors = []
     wrapped = fifo_on_first_call(lambda: 'ran', 10, errors.append)
+    assert wrapped.error is None                                  # no call yet
     assert [wrapped(), wrapped()] == ['ran', 'ran']
     assert len(errors) == 1 and 'not permitted' in errors[0]      # tried once, said once
+    assert wrapped.error == errors[0]                             # kept for a status
 
 
 @pytest.mark.parametrize('priority', [0, 100, -1])

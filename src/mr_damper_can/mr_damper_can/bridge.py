@@ -148,7 +148,7 @@ class CanBridge:
         self._cyclic_rx = [status_name(c) for c in corners] + list(SENSOR_FRAMES)
         self._notifier = None
         self._log = None
-        self.reader_priority_error = None
+        self._reader = None           # the reader's FifoOnFirstCall (reader_priority > 0)
         self._sensors = {c: dict.fromkeys(('body_accel', 'wheel_accel', 'susp_pos'), math.nan)
                          for c in corners}
         for corner in corners:
@@ -358,20 +358,17 @@ class CanBridge:
         = candump format, ``.csv``, ...; the writer is chosen by the extension).
         ``reader_priority`` > 0: the reader thread goes under SCHED_FIFO at that priority on
         its first frame (the vehicle computer's loop runs in it: above the process's other
-        threads); a refusal is kept in ``reader_priority_error`` (status).
+        threads); a refusal is in the status (``reader_priority_error``).
         """
         if self._notifier is None and self.bus is not None:
             listeners = [self.on_frame]
             if reader_priority > 0:
-                listeners = [fifo_on_first_call(self.on_frame, reader_priority,
-                                                self._priority_refused)]
+                self._reader = fifo_on_first_call(self.on_frame, reader_priority)
+                listeners = [self._reader]
             if log_file:
                 self._log = can.Logger(log_file)
                 listeners.append(self._log)
             self._notifier = can.Notifier(self.bus, listeners, timeout=0.1)
-
-    def _priority_refused(self, message):
-        self.reader_priority_error = message
 
     def stop(self):
         """Stop the reader thread and close the log (the bus stays open for its owner)."""
@@ -405,7 +402,7 @@ class CanBridge:
                     'frames_received': self.frames_received, 'own_frames': self.own_frames,
                     'bus_off': self.bus_off, 'safe_current_a': self.safe_current_a,
                     'command_timeout_s': self.command_timeout_s,
-                    'reader_priority_error': self.reader_priority_error}
+                    'reader_priority_error': getattr(self._reader, 'error', None)}
 
 
 class BridgeHealth:

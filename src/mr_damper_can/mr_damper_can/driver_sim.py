@@ -147,7 +147,7 @@ class SimulatedEcu:
         self._next_sensor = None
         self._thread = None
         self._notifier = None
-        self.reader_priority_error = None
+        self._reader = None           # the reader's FifoOnFirstCall (reader_priority > 0)
         self._stop = threading.Event()
         self.t0 = self._t = clock()
 
@@ -370,7 +370,7 @@ class SimulatedEcu:
         With ``cycle`` False only the reader starts: the caller runs the cycle with
         :meth:`step` (a simulated car steps its ECU with its own time). ``reader_priority`` > 0:
         the reader thread puts itself under SCHED_FIFO at that priority on its first frame
-        (needs CAP_SYS_NICE; a refusal is kept in :attr:`reader_priority_error`).
+        (needs CAP_SYS_NICE; a refusal is in the status: ``reader_priority_error``).
         """
         if self.bus is not None and self._notifier is None:
             listener = self.on_frame
@@ -378,16 +378,12 @@ class SimulatedEcu:
                 # a simulated car's bus reader shares the GIL with its real-time control
                 # thread: at normal scheduling, preempted by any other process while it holds
                 # the GIL, it would hold that thread back (priority inversion)
-                listener = fifo_on_first_call(self.on_frame, reader_priority,
-                                              self._priority_refused)
+                listener = self._reader = fifo_on_first_call(self.on_frame, reader_priority)
             self._notifier = can.Notifier(self.bus, [listener], timeout=0.1)
         if cycle and self._thread is None:
             self._stop.clear()
             self._thread = threading.Thread(target=self.run, name='can_ecu', daemon=True)
             self._thread.start()
-
-    def _priority_refused(self, message):
-        self.reader_priority_error = message
 
     def stop(self, drain=False):
         """
@@ -425,7 +421,7 @@ class SimulatedEcu:
                     'all_frames': self.all_frames, 'last_sensor_cycle': self.last_sensor_cycle,
                     'send_failed': self.send_failed, 'other_frames': self.other_frames,
                     'tau_s': self.tau_s, 'safe_current_a': self.safe_current_a,
-                    'reader_priority_error': self.reader_priority_error}
+                    'reader_priority_error': getattr(self._reader, 'error', None)}
 
 
 class EcuHealth:

@@ -14,9 +14,9 @@ collector's passes (the managed nodes and the car nodes call it before they spin
 import os
 
 
-def fifo_on_first_call(fn, priority, on_error=None):
+class FifoOnFirstCall:
     """
-    Return ``fn`` wrapped: its first caller's thread goes under SCHED_FIFO ``priority`` first.
+    ``fn`` wrapped: its first caller's thread goes under SCHED_FIFO ``priority`` first.
 
     Parameters
     ----------
@@ -28,27 +28,43 @@ def fifo_on_first_call(fn, priority, on_error=None):
         ``on_error(message)`` when the policy is refused (no CAP_SYS_NICE): the thread then
         runs ``fn`` at its own scheduling, as before.
 
+    Attributes
+    ----------
+    error : str or None
+        Why the policy was refused (None: applied, or no call yet); a status shows it.
+
     Raises
     ------
     ValueError
         If ``priority`` is not in 1..99.
 
     """
-    if not 1 <= int(priority) <= 99:
-        raise ValueError(f'`priority` must be in 1..99, got {priority}')
-    param = os.sched_param(int(priority))
-    pending = [True]
 
-    def call(*args, **kwargs):
-        if pending:
-            pending.clear()
+    def __init__(self, fn, priority, on_error=None):
+        if not 1 <= int(priority) <= 99:
+            raise ValueError(f'`priority` must be in 1..99, got {priority}')
+        self.fn = fn
+        self.on_error = on_error
+        self.error = None
+        self._param = os.sched_param(int(priority))
+        self._pending = True
+
+    def __call__(self, *args, **kwargs):
+        """Set the policy on the first call, then call ``fn``."""
+        if self._pending:
+            self._pending = False
             try:
-                os.sched_setscheduler(0, os.SCHED_FIFO, param)
+                os.sched_setscheduler(0, os.SCHED_FIFO, self._param)
             except OSError as exc:
-                if on_error is not None:
-                    on_error(str(exc))
-        return fn(*args, **kwargs)
-    return call
+                self.error = str(exc)
+                if self.on_error is not None:
+                    self.on_error(self.error)
+        return self.fn(*args, **kwargs)
+
+
+def fifo_on_first_call(fn, priority, on_error=None):
+    """Return :class:`FifoOnFirstCall` of ``fn`` (see there)."""
+    return FifoOnFirstCall(fn, priority, on_error)
 
 
 def freeze_heap():
