@@ -65,6 +65,8 @@ PINNING_SETS = {'pinned': (),
 
 #: Wake-up lateness thresholds of the platform's figures [us].
 LATE_US = (500, 1000, 2000)
+#: The vehicle's control cycle (``cycle_s`` of suite_vehicle.yaml) [s].
+CYCLE_S = 0.002
 
 
 def platform_latency(duration_s, priority=30, interval_us=1000):
@@ -287,6 +289,12 @@ def report_vehicle(run):
     print(f'  sensor frame -> command frame p50 {_fmt(lat.get("p50"), 1e3, " ms")}, p99 '
           f'{_fmt(lat.get("p99"), 1e3, " ms")} (goal <= 2 ms), max '
           f'{_fmt(lat.get("max"), 1e3, " ms")}')
+    cpu = v.get('reader_cpu_per_cycle_s') or {}
+    mean = cpu.get('mean')
+    share = mean / CYCLE_S if isinstance(mean, (int, float)) else None
+    print(f'  bus reader thread CPU per cycle mean / p50 / p99 {_fmt(mean, 1e3)} / '
+          f'{_fmt(cpu.get("p50"), 1e3)} / {_fmt(cpu.get("p99"), 1e3, " ms")} (the mean '
+          f'{_fmt(share, 100, " %")} of a core at {CYCLE_S * 1e3:g} ms)')
     ex = v.get('execution_s')
     if ex:
         p50 = [(ex.get(stage) or {}).get('p50_s') for stage in ex]

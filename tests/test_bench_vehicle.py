@@ -140,11 +140,15 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
            'summary': {'vehicle': {'sensor_to_command_s': {'p50': 9e-4}, 'execution_s': ex,
                                    'reception_s': {'n': 9, 'p50_s': 2e-4, 'p99_s': 1.5e-3},
                                    'cycles_queued': 3, 'deadline': deadline,
+                                   'reader_cpu_per_cycle_s': {'mean': 1.1e-3, 'p50': 1e-3,
+                                                              'p99': 1.8e-3},
                                    'loop_misses': {'bunched': 1, 'queued': 2,
                                                    'reached_late': 4, 'slow': 0}}}}
     bench.report_vehicle(run)
     out = capsys.readouterr().out
     assert 'watchdog trips 4, 0.10 s on the safe current, 25 ms a trip' in out
+    assert 'bus reader thread CPU per cycle mean / p50 / p99 1.1 / 1 / 1.8 ms (the mean 55 % ' \
+        'of a core at 2 ms)' in out
     assert 'estimate 0.2 / 0.4 ms, control 0.25 / 0.3 ms, send 0.15 / 0.2 ms' in out
     assert 'add up to 0.6 ms of the response\'s p50 0.9 ms' in out
     assert 'reception (bus time to the loop\'s start) p50 / p99 0.2 / 1.5 ms; cycles queued ' \
@@ -155,9 +159,11 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
     assert rows['loop execution p50 / p99 [ms]: estimate, control, send'] == \
         '0.2 / 0.4, 0.25 / 0.3, 0.15 / 0.2'
     del run['summary']['vehicle']['execution_s']     # the nodes layout: no loop
+    del run['summary']['vehicle']['reader_cpu_per_cycle_s']   # a summary before it
     deadline['entries']['deadline_misses'] = 0
     bench.report_vehicle(run)
     out = capsys.readouterr().out
     assert 'loop execution' not in out and 'reception' not in out
+    assert 'CPU per cycle mean / p50 / p99 n/a / n/a / n/a (the mean n/a of a core' in out
     assert 'watchdog trips 0, 0.10 s on the safe current\n' in out
     assert 'n/a' in bench._vehicle_figures(run)[5][1]

@@ -59,6 +59,8 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
     assert v['control_cycles'] >= 500 and v['chain']['transitions'] >= 2 * len(chain), v
     assert 0.0 <= v['answered_fraction'] <= 1.0
     assert v['sensor_to_command_s']['n'] >= 500
+    cpu = v['reader_cpu_per_cycle_s']      # the bus reader's CPU time, every cycle counted
+    assert 0 < cpu['p50'] <= cpu['max'] and 0 < cpu['mean'] <= cpu['max'], cpu
     assert v['deadline_misses'] <= v['deadline']['cycles']
     assert isinstance(v['frames_lost']['total'], int)
     assert v['a_v'] > 0 and v['a_v_passive'] > 0 and v['a_v_lockstep'] > 0, v

@@ -82,6 +82,34 @@ def test_sensor_cycles_are_numbered_and_lost_frames_counted():
     assert MISSING_WHEEL_ACCEL == 2
 
 
+def test_the_readers_cpu_per_cycle_is_counted_and_a_lost_cycle_shares_it():
+    cpu = FakeClock(0.0)
+    rig = Rig(cpu_clock=cpu)
+
+    def on_cycle(c):                   # the loop the cycle runs: 0.3 ms of the reader's CPU
+        rig.cycles.append(c)
+        cpu.t += 3e-4
+    rig.bridge.on_cycle = on_cycle
+    for _ in range(6):
+        cpu.t += 1e-4                  # the frames' reception and decoding
+        rig.step()
+    st = rig.bridge.status()['reader_cpu_s']
+    # the first cycle starts the count: 5 intervals of 0.4 ms
+    assert st['n'] == 5
+    assert st['mean_s'] == pytest.approx(4e-4)
+    rig.drop = {'CHASSIS_SUSP_POS'}   # cycle 7 lost: its CPU and cycle 8's shared by two
+    cpu.t += 1e-4
+    rig.step()
+    cpu.t += 1e-4
+    rig.step()
+    assert [c.sequence for c in rig.cycles[-2:]] == [6, 8]
+    st = rig.bridge.status()['reader_cpu_s']
+    # after cycle 6's loop (0.3 ms), 0.1 + 0.1 ms of frames: 0.5 ms over two cycles
+    assert st['n'] == 6
+    assert st['max_s'] == pytest.approx(4e-4)
+    assert st['mean_s'] == pytest.approx((5 * 4e-4 + 2.5e-4) / 6)
+
+
 def test_inactive_bridge_forwards_nothing_and_keeps_the_drivers_on_the_safe_current():
     rig = Rig(safe_current_a=0.5)
     for _ in range(10):

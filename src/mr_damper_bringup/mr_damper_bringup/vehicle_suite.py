@@ -250,7 +250,9 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         flight left out), ``answered_fraction`` (answered bus to bus within the cycle),
         ``unanswered``, ``deadline_misses`` (the controller's, with ``lateness``),
         ``driver_command_timeouts`` (after the vehicle computer took control, all drivers),
-        ``sensor_to_command_s`` (``p50``, ``p99``, ``max`` [s]), ``frames_lost`` (bus frames
+        ``sensor_to_command_s`` (``p50``, ``p99``, ``max`` [s]), ``reader_cpu_per_cycle_s``
+        (the bridge's bus reader thread's CPU time per sensor cycle: ``p50``, ``p99``, ``max``,
+        ``mean`` [s]; in the ``loop`` layout the whole control loop), ``frames_lost`` (bus frames
         the counters show missing: sensor and status frames at the bridge, command frames at
         the drivers), ``messages_lost`` (estimator and controller inputs, from sequence
         numbers), ``all_safe`` (controller commands with every corner safe, by reason),
@@ -288,6 +290,8 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         'driver_command_timeouts_by_corner': timeouts,
         'sensor_to_command_s': {'p50': latency.get('p50_s'), 'p99': latency.get('p99_s'),
                                 'max': latency.get('max_s'), 'n': latency.get('n')},
+        'reader_cpu_per_cycle_s': {k: (bridge.get('reader_cpu_s') or {}).get(f'{k}_s')
+                                   for k in ('p50', 'p99', 'max', 'mean')},
         'frames_lost': {'sensor_and_status_frames': bridge.get('frames_lost'),
                         'command_frames': max((d.get('frames_missed') or 0
                                                for d in drivers.values()), default=None)},

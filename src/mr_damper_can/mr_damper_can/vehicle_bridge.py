@@ -20,6 +20,11 @@ on a full car's bus (``codec.bus_layout('vehicle')``):
   ``SENSOR_CYCLE``. From that cycle's bus time to the frame's, every answer's latency is
   counted (:class:`~mr_damper_common.latency.LatencyHistogram`; on time when within
   ``cycle_s``), and cycles never answered are counted too;
+- **the reader's duty**: the CPU time the reader thread spends per sensor cycle (from one
+  cycle's last frame to the next one's: receiving and decoding the frames, and whatever
+  :attr:`on_cycle` runs, the whole control loop in ``vehicle_computer_node``) is counted
+  too, :attr:`VehicleBridge.reader_cpu`: the share of a core the bus's cycle needs on the
+  computer at hand, which sets how much of each period is left for the rest;
 - **managed**: while not :attr:`active` (configured, or deactivated) the bridge forwards no
   command and sends the safe current with every fail-safe bit each ``safe_period_s``
   (:meth:`tick`, well inside the drivers' own command timeout;
@@ -103,13 +108,21 @@ class VehicleBridge(CanBridge):
         ``on_cycle(ChassisCycle)`` per complete sensor cycle (the reader thread).
     wall : callable
         Wall clock [s, epoch] of the latencies (the clock of python-can's timestamps).
+    cpu_clock : callable
+        CPU time of the calling thread [s] (:attr:`reader_cpu`; ``time.thread_time``).
+
+    Attributes
+    ----------
+    reader_cpu : LatencyHistogram
+        Per sensor cycle, the CPU time [s] the thread that receives the frames spent since the
+        cycle before (over several cycles when some were lost on the bus: shared equally).
 
     """
 
     def __init__(self, bus, *, cycle_s=0.002, safe_period_s=0.01, safe_current_a=0.5,
                  rx_timeout_s=0.05,
                  command_timeout_s=0.02, db=None, on_cycle=None, on_driver=None,
-                 clock=time.monotonic, wall=time.time):
+                 clock=time.monotonic, wall=time.time, cpu_clock=time.thread_time):
         if not (math.isfinite(cycle_s) and cycle_s > 0):
             raise ValueError(f'`cycle_s` must be > 0, got {cycle_s}')
         super().__init__(bus, CORNERS, safe_current_a=safe_current_a,
@@ -129,6 +142,9 @@ class VehicleBridge(CanBridge):
         self._bus_t = np.full(RING, math.nan)
         self._bus_seq = np.full(RING, -1, dtype=np.int64)
         self.latency = LatencyHistogram()
+        self.cpu_clock = cpu_clock
+        self.reader_cpu = LatencyHistogram()
+        self._cpu_t = None
         self.counts = {'cycles': 0, 'cycles_active': 0, 'cycles_missing_frames': 0,
                        'answered': 0, 'answered_in_time': 0, 'answers_old': 0,
                        'answers_unknown_cycle': 0, 'commands_inactive': 0, 'command_frames': 0,
@@ -177,6 +193,10 @@ class VehicleBridge(CanBridge):
         self._last_pos = counter
         self.cycle_seq += jump + 1
         seq = self.cycle_seq
+        cpu = self.cpu_clock()
+        if self._cpu_t is not None:
+            self.reader_cpu.add((cpu - self._cpu_t) / (jump + 1))
+        self._cpu_t = cpu
         missing = 0
         out = {}
         for q, bit in (('body_accel', MISSING_BODY_ACCEL), ('wheel_accel', MISSING_WHEEL_ACCEL)):
@@ -315,7 +335,8 @@ class VehicleBridge(CanBridge):
         received while active that no command answered, the newest left out: in flight),
         ``answered_fraction`` (on time / received while active), ``latency`` (bus to bus: the
         sensor cycle's frame to the command frame answering it, :class:`LatencyHistogram`
-        summary) and ``frames_lost`` (frames the counters show missing).
+        summary), ``reader_cpu_s`` (:attr:`reader_cpu`'s summary) and ``frames_lost``
+        (frames the counters show missing).
         """
         st = super().status(now)
         with self.lock:
@@ -326,5 +347,6 @@ class VehicleBridge(CanBridge):
                       unanswered=max(done - counts['answered'], 0),
                       answered_fraction=fraction,
                       latency=self.latency.summary(),
+                      reader_cpu_s=self.reader_cpu.summary(),
                       frames_lost=int(self.faults['frames_missed']))
         return st
