@@ -263,7 +263,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``),
         ``reception_s`` (the same of each cycle's bus time to the loop's start),
         ``cycles_queued`` (cycles whose frame came while the loop was on the one before) and
-        ``loop_misses`` (the cycles the loop finished after their deadline, by cause:
+        ``loop_misses`` (the deadline supervision's misses of the loop's cycles, by cause:
         ``bunched``, ``queued``, ``reached_late``, ``slow``; :class:`~semi_active_control.
         runtime.VehicleLoop`).
 

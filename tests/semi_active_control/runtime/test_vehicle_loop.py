@@ -275,6 +275,6 @@ def test_each_miss_is_named_by_its_cause(designed):
     assert loop.misses == {'bunched': 1, 'queued': 1, 'reached_late': 3, 'slow': 1}
     assert loop.status()['loop']['misses'] == loop.misses
     # the controller's deadline supervision judges an answered cycle when its command has
-    # left, a skipped one when the loop comes to it: every miss the loop named, and no other
+    # left, a skipped one when the loop comes to it; the loop names each miss it counted
     assert ctl.monitor.misses == sum(loop.misses.values()) == 6
     assert ctl.monitor.cycles == 28

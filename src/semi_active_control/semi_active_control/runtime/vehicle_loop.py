@@ -77,9 +77,10 @@ class VehicleLoop:
         Cycles whose bus time came before the loop had finished the cycle before (on the
         caller's clock: its start plus the loop's own execution time).
     misses : dict
-        Cause (:data:`MISS_CAUSES`) -> cycles to answer (active, used by the estimator) that
-        the loop finished after their deadline (the caller's clock at the start plus the
-        loop's own time, minus the bus time).
+        Cause (:data:`MISS_CAUSES`) -> the cycles the deadline supervision judged missed
+        (the controller's monitor: answered after their deadline, or skipped late), each named
+        by where its time went (the caller's clock at the start minus the bus time, the
+        reception; the loop's own time, the execution); they add up to the monitor's count.
     reception : LatencyHistogram
         Per cycle, the caller's clock at the loop's start minus the cycle's bus time [s].
     execution : dict
@@ -103,7 +104,6 @@ class VehicleLoop:
         self.execution = {stage: LatencyHistogram() for stage in STAGES}
         self._done_t = -math.inf          # the cycle before done, on the caller's clock [s]
         self._last_t = -math.inf          # the newest cycle's bus time [s]
-        self._to_answer = False           # the cycle under way is one to answer
 
     @property
     def active(self):
@@ -163,15 +163,16 @@ class VehicleLoop:
             queued = t < self._done_t
             if queued:
                 self.cycles_queued += 1
-            bunched = queued and t - self._last_t < BUNCHED * self.controller.monitor.period_s
+            monitor = self.controller.monitor
+            bunched = queued and t - self._last_t < BUNCHED * monitor.period_s
             self._last_t = max(self._last_t, t)
-            self._to_answer = False
+            judged = monitor.misses
             try:
                 return self._cycle(sequence, t, body_accel, travel, t_now, t0)
             finally:
                 run = clock() - t0
                 self._done_t = t_now + run
-                if self._to_answer and wait + run > self.controller.monitor.deadline_s:
+                if monitor.misses > judged:        # the deadline supervision's verdict
                     self.misses['bunched' if bunched else 'queued' if queued else
                                 'reached_late' if wait > run else 'slow'] += 1
 
@@ -187,7 +188,6 @@ class VehicleLoop:
         if not self.controller.active:
             self.cycles_inactive += 1
             return est, None
-        self._to_answer = True
         if t_now - t > self.controller.monitor.deadline_s:
             # past its deadline before it is answered (the loop is behind the bus): the
             # newer cycles behind it come first; a miss, the safe frame if that trips
