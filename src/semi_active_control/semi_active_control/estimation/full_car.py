@@ -54,6 +54,7 @@ from scipy.linalg import expm
 
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.car.full_car_linear import FullCarState, N_Q, state_matrices
+from semi_active_control.estimation.gain_schedule import GainSchedule
 from semi_active_control.estimation.quarter_car import (EstimatorError, road_velocity_intensity,
                                                         unobserved_states)
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
@@ -341,6 +342,9 @@ class FullCarEstimator:
         Run on the steady-state gain (the DARE's, a few array operations per step) while
         every sensor is read and the covariance is within this relative distance of the
         steady posterior (checked every 100 steps); None: always the time-varying filter.
+        With it, the gains from the start until then are worked out once, at design
+        (:class:`~semi_active_control.estimation.gain_schedule.GainSchedule`), and each clean
+        cycle that follows them runs compiled with its step's gain.
     bias_std0 : float, optional
         Standard deviation of each accelerometer's bias at the start [m/s^2] (a MEMS part's
         turn-on bias, e.g. the ADXL313's 15 mg): added to the start covariance's bias
@@ -363,7 +367,8 @@ class FullCarEstimator:
     n_invalid : dict
         Steps invalid per reason.
     n_steps, n_compiled : int
-        Steps, and of them the clean steady ones run compiled (:mod:`~.steady_step`).
+        Steps, and of them the clean ones run compiled (:mod:`~.steady_step`): on the steady
+        gain, or on the gain schedule from the start.
     fault_entries, fault_steps : dict
         Per sensor fault name: entries (the fault appearing) and steps it lasted.
 
@@ -420,6 +425,13 @@ class FullCarEstimator:
         self.fault_entries = {}
         self.fault_steps = {}
         self._fast = self._steady_kernel()
+        self._schedule = None
+        if self._fast is not None and self.steady_tol is not None:
+            self._schedule = GainSchedule(design.Ad, design.Qd, H, self._r, self._P_start,
+                                          self._P_post, self._p_scale, self.steady_tol)
+            # the schedule's steps run the steady kernel without the repeat gate (the general
+            # path gates repeats only on the steady gain)
+            self._tv_screen = (self._fast.screen[0], math.nan) + self._fast.screen[2:]
         self.reset()
 
     def _steady_kernel(self):
@@ -460,6 +472,8 @@ class FullCarEstimator:
         self.P = (self._P_start if P0 is None else np.asarray(P0, dtype=float)).copy()
         self._steady = False
         self._tv_steps = 0
+        # on the gain schedule: started at P_start, every sensor used on every step since
+        self._on_schedule = self._schedule is not None and P0 is None
         self._f = np.zeros(4)
         self._seen = np.full(m, math.nan)       # time of each sensor's last finite reading
         self._ever = np.zeros(m, dtype=bool)    # sensors that gave a reading since the start
@@ -475,6 +489,19 @@ class FullCarEstimator:
         self.n_invalid = {}
         self.n_steps = 0
         self.n_compiled = 0
+
+    @property
+    def P(self):
+        """The posterior covariance (from the gain schedule while its steps run compiled)."""
+        if self._P_lag:
+            self._P = self._schedule.covariance(self._tv_steps)
+            self._P_lag = False
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = value
+        self._P_lag = False
 
     @property
     def steady(self):
@@ -511,9 +538,12 @@ class FullCarEstimator:
         """
         d = self.d
         y = self.readings_array(readings)
-        if (self._steady and self._fast is not None and self.n_steps and self._all_seen
-                and not self.faults and self._fast_step(t, y, forces)):
-            return self.x
+        if self._fast is not None and self.n_steps and self._all_seen and not self.faults:
+            if self._steady:
+                if self._fast_step(t, y, forces):
+                    return self.x
+            elif self._scheduled() and self._scheduled_step(t, y, forces):
+                return self.x
         if self._t0 is None:
             self._t0 = t
             self._seen[:] = t                  # a sensor never heard of drops out from the start
@@ -530,6 +560,8 @@ class FullCarEstimator:
         if self._steady and not every:
             self._steady = False             # P was the steady posterior: now the prior
             self.P = d.P.copy()
+        if not every:
+            self._on_schedule = False
         if self._steady:
             self.x = self.x + d.M @ e
         elif every or use.any():
@@ -560,21 +592,39 @@ class FullCarEstimator:
             self.n_invalid[self.reason] = self.n_invalid.get(self.reason, 0) + 1
         return self.x
 
-    def _fast_step(self, t, y, forces):
+    def _scheduled(self):
+        """Whether the next step is one of the gain schedule's (on it, and within it)."""
+        return self._on_schedule and self._tv_steps == self.n_steps < self._schedule.n_steps
+
+    def _scheduled_step(self, t, y, forces):
+        """Run a clean cycle compiled on the schedule's gain; False: not one, nothing done."""
+        schedule = self._schedule
+        fixed = self._fast.fixed[:-1] + (schedule.gains[self._tv_steps],)
+        if not self._fast_step(t, y, forces, fixed, self._tv_screen):
+            return False
+        self._tv_steps += 1
+        self._P_lag = True          # P is the schedule's: worked out when it is read
+        if self._tv_steps == schedule.steady_after:
+            self._steady = True
+            self.P = self._P_post.copy()
+        return True
+
+    def _fast_step(self, t, y, forces, fixed=None, screen=None):
         """
-        Run a clean steady cycle compiled (:mod:`~.steady_step`); False: not one, nothing done.
+        Run a clean cycle compiled (:mod:`~.steady_step`); False: not one, nothing done.
 
         Clean: every reading there, none stuck or out of range, as on the cycle before (the
         caller checks that no sensor is faulty and every one has been seen). What the step's
-        general path then does ends with the estimate valid and nothing counted.
+        general path then does ends with the estimate valid and nothing counted. The steady
+        gain's arguments unless ``fixed`` and ``screen`` are given (a scheduled step's).
         """
         fast = self._fast
         runs = fast.runs
         f_now = np.ascontiguousarray(forces, dtype=float).reshape(4)
         x = self.x.copy()           # a new array per step, as the general path's
-        if not fast.kernel(x, self._f, f_now, np.ascontiguousarray(y), float(t), *fast.fixed,
-                           self._seen, self._last_val, self._same, runs, *fast.screen,
-                           fast.work):
+        if not fast.kernel(x, self._f, f_now, np.ascontiguousarray(y), float(t),
+                           *(fixed or fast.fixed), self._seen, self._last_val, self._same,
+                           runs, *(screen or fast.screen), fast.work):
             return False
         self.x = x
         self._same = runs
@@ -672,6 +722,7 @@ class FullCarEstimator:
         the seconds the accelerometer biases need at the steady gain.
         """
         self._steady = False
+        self._on_schedule = False
         self.P = self.P + np.diag([STATE_SCALES[next(k for k in STATE_SCALES
                                                      if nm.startswith(k))] ** 2
                                    for nm in self.d.names])
@@ -706,6 +757,8 @@ class FullCarEstimator:
         """Return the standard deviations of the states (read-only while the gain is steady)."""
         if self._steady:
             return self._std_post
+        if self._P_lag:
+            return self._schedule.std[self._tv_steps - 1]
         return _diag_std(self.P)
 
     def body_accelerations(self):

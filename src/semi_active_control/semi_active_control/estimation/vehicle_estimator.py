@@ -55,6 +55,8 @@ ACCEL_BIAS_STD = accelerometer_spec().bias_std
 #: steady-state gain. The time-varying filter costs about four times the steady gain's CPU per
 #: cycle (240 against 60 us here); from the start's wide bias variances 0.2 is reached after
 #: about 12 s of road, 1e-3 after about 40 s (the biases are learnt within seconds either way).
+#: Until then the clean cycles run on the gain schedule (:mod:`.gain_schedule`), as cheap as
+#: the steady gain's.
 STEADY_TOL = 0.2
 
 #: Sensor names of the chassis bus, in the order of the readings array.
