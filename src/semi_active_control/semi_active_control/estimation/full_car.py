@@ -344,7 +344,8 @@ class FullCarEstimator:
         steady posterior (checked every 100 steps); None: always the time-varying filter.
         With it, the gains from the start until then are worked out once, at design
         (:class:`~semi_active_control.estimation.gain_schedule.GainSchedule`), and each clean
-        cycle that follows them runs compiled with its step's gain.
+        cycle that follows them runs compiled with its step's gain (unless
+        ``gain_schedule`` is False: the general step on every cycle until then).
     bias_std0 : float, optional
         Standard deviation of each accelerometer's bias at the start [m/s^2] (a MEMS part's
         turn-on bias, e.g. the ADXL313's 15 mg): added to the start covariance's bias
@@ -376,7 +377,7 @@ class FullCarEstimator:
 
     def __init__(self, design, *, dropout_s=0.02, delay_steps=0, gravity=G0, stuck_s=None,
                  ranges=None, degrade=False, repeat_gate=None, steady_tol=None,
-                 bias_std0=None):
+                 bias_std0=None, gain_schedule=True):
         if delay_steps not in (0, 1):
             raise EstimatorError(f'`delay_steps` must be 0 or 1, got {delay_steps!r}')
         self.d = design
@@ -426,7 +427,7 @@ class FullCarEstimator:
         self.fault_steps = {}
         self._fast = self._steady_kernel()
         self._schedule = None
-        if self._fast is not None and self.steady_tol is not None:
+        if self._fast is not None and self.steady_tol is not None and gain_schedule:
             self._schedule = GainSchedule(design.Ad, design.Qd, H, self._r, self._P_start,
                                           self._P_post, self._p_scale, self.steady_tol)
             # the schedule's steps run the steady kernel without the repeat gate (the general

@@ -21,6 +21,8 @@ schedule (:meth:`GainSchedule.covariance`: the checkpoint before and at most
 ``CHECKPOINT_STEPS - 1`` steps of the recursion) and runs the general step from there, as
 before. No ROS.
 """
+import time
+
 import numpy as np
 
 __all__ = ['CHECKPOINT_STEPS', 'GainSchedule', 'MAX_STEPS']
@@ -77,11 +79,14 @@ class GainSchedule:
     steady_after : int or None
         The updates after which the filter runs on the steady gain (None: not within
         ``max_steps``).
+    build_s : float
+        Seconds it took to work the schedule out.
 
     """
 
     def __init__(self, Ad, Qd, H, r, P_start, P_post, p_scale, steady_tol,
                  max_steps=MAX_STEPS):
+        t0 = time.perf_counter()
         self.Ad, self.Qd, self.H, self.r = Ad, Qd, H, np.asarray(r, dtype=float)
         gains, std = [], []
         self._after = {}                       # updates done -> posterior covariance
@@ -104,11 +109,18 @@ class GainSchedule:
         self.std = np.ascontiguousarray(np.array(std))
         for a in (self.gains, self.std):
             a.setflags(write=False)
+        self.build_s = time.perf_counter() - t0
 
     @property
     def n_steps(self):
         """Steps the schedule covers."""
         return len(self.gains)
+
+    @property
+    def nbytes(self):
+        """Memory of the schedule's arrays [bytes]."""
+        return (self.gains.nbytes + self.std.nbytes + self._last_post.nbytes
+                + sum(P.nbytes for P in self._after.values()))
 
     def covariance(self, done):
         """

@@ -102,6 +102,10 @@ class EstimatorSettings:
     steady_tol : float
         The filter goes over to the steady-state gain once its covariance is within this
         relative distance of the steady one (``FullCarEstimator``'s ``steady_tol``).
+    gain_schedule : bool
+        Until then, run the clean cycles on the gains worked out at design
+        (``FullCarEstimator``'s ``gain_schedule``); False: the general step on every cycle
+        until the steady gain, as before 30 Nov 2026 (``bench/bench_estimator_start.py``).
 
     """
 
@@ -122,6 +126,7 @@ class EstimatorSettings:
     max_gap_cycles: int = 250
     accel_bias_std: float = ACCEL_BIAS_STD
     steady_tol: float = STEADY_TOL
+    gain_schedule: bool = True
 
     def __post_init__(self):
         for name in ('cycle_s', 'accel_noise_density', 'travel_noise_density', 'dropout_s',
@@ -226,7 +231,8 @@ class VehicleEstimatorCore:
             self.design, dropout_s=s.dropout_s, gravity=0.0, degrade=True,
             stuck_s={'accel': s.stuck_accel_s, 'travel': s.stuck_travel_s},
             ranges={'accel': s.accel_range, 'travel': s.travel_range},
-            repeat_gate=s.repeat_gate, steady_tol=s.steady_tol, bias_std0=s.accel_bias_std)
+            repeat_gate=s.repeat_gate, steady_tol=s.steady_tol, bias_std0=s.accel_bias_std,
+            gain_schedule=s.gain_schedule)
         self._zero = np.zeros(4)
         self._none = np.full(8, math.nan)
         self._S_rate = self.design.A[0:4].copy()
