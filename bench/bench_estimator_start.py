@@ -54,7 +54,7 @@ def main(argv=None):
     print(f'full-car filter from its start: load {os.getloadavg()[0]:.2f}; CPUs '
           f'{sorted(os.sched_getaffinity(0))}; {sys.version.split()[0]}', flush=True)
     filters = {way: make_filter(way) for way in ('schedule', 'general')}
-    schedule = filters['schedule'].filter._schedule
+    schedule = filters['schedule'].filter.schedule
     n = args.cycles or schedule.n_steps
     acc, travel = sensor_cycles(n)
     times = {way: np.empty(n) for way in filters}

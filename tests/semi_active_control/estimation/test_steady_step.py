@@ -108,7 +108,7 @@ def test_compiled_steady_step_agrees_with_the_general_path():
 def test_the_start_runs_compiled_on_the_gain_schedule_as_the_general_path_runs_it():
     # the default start: wide accelerometer-bias variances, about 12 s to the steady gain
     shipped, general = _pair()
-    schedule = shipped.filter._schedule
+    schedule = shipped.filter.schedule
     steady_at = schedule.steady_after
     assert steady_at is not None and steady_at % 100 == 0 and steady_at == schedule.n_steps
     n = steady_at + 200

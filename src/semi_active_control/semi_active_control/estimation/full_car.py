@@ -54,7 +54,9 @@ from scipy.linalg import expm
 
 from semi_active_control.car.full_car import CORNERS
 from semi_active_control.car.full_car_linear import FullCarState, N_Q, state_matrices
-from semi_active_control.estimation.gain_schedule import GainSchedule
+from semi_active_control.estimation.gain_schedule import (GainSchedule, kalman_update,
+                                                          near_steady, predict_covariance,
+                                                          STEADY_CHECK_STEPS)
 from semi_active_control.estimation.quarter_car import (EstimatorError, road_velocity_intensity,
                                                         unobserved_states)
 from semi_active_control.estimation.sensor_specs import accelerometer_spec, G0, ride_height_spec
@@ -360,6 +362,9 @@ class FullCarEstimator:
     ----------
     x : ndarray (n,)
         Posterior state; ``P`` its covariance.
+    schedule : GainSchedule or None
+        The gains from the start to the steady gain, worked out at design (``steady_tol``
+        and the compiled step; None without them or with ``gain_schedule`` False).
     valid : bool
     reason : str
         Why invalid ('' when valid).
@@ -426,12 +431,14 @@ class FullCarEstimator:
         self.fault_entries = {}
         self.fault_steps = {}
         self._fast = self._steady_kernel()
-        self._schedule = None
+        self.schedule = None
         if self._fast is not None and self.steady_tol is not None and gain_schedule:
-            self._schedule = GainSchedule(design.Ad, design.Qd, H, self._r, self._P_start,
-                                          self._P_post, self._p_scale, self.steady_tol)
-            # the schedule's steps run the steady kernel without the repeat gate (the general
-            # path gates repeats only on the steady gain)
+            self.schedule = GainSchedule(design.Ad, design.Qd, H, self._r, self._P_start,
+                                         self._P_post, self._p_scale, self.steady_tol)
+            # the schedule's steps run the steady kernel with their gain in the steady one's
+            # place and without the repeat gate (the general path gates repeats only on the
+            # steady gain)
+            self._tv_fixed = self._fast.fixed[:-1]
             self._tv_screen = (self._fast.screen[0], math.nan) + self._fast.screen[2:]
         self.reset()
 
@@ -474,7 +481,7 @@ class FullCarEstimator:
         self._steady = False
         self._tv_steps = 0
         # on the gain schedule: started at P_start, every sensor used on every step since
-        self._on_schedule = self._schedule is not None and P0 is None
+        self._on_schedule = self.schedule is not None and P0 is None
         self._f = np.zeros(4)
         self._seen = np.full(m, math.nan)       # time of each sensor's last finite reading
         self._ever = np.zeros(m, dtype=bool)    # sensors that gave a reading since the start
@@ -495,7 +502,7 @@ class FullCarEstimator:
     def P(self):
         """The posterior covariance (from the gain schedule while its steps run compiled)."""
         if self._P_lag:
-            self._P = self._schedule.covariance(self._tv_steps)
+            self._P = self.schedule.covariance(self._tv_steps)
             self._P_lag = False
         return self._P
 
@@ -566,16 +573,12 @@ class FullCarEstimator:
         if self._steady:
             self.x = self.x + d.M @ e
         elif every or use.any():
-            H = d.H[use]
-            PH = self.P @ H.T
-            K = np.linalg.solve(H @ PH + np.diag(self._r[use]), PH.T).T
+            K, self.P = kalman_update(self.P, d.H[use], self._r[use])
             self.x = self.x + K @ e[use]
-            self.P = self.P - K @ PH.T
-            self.P = (self.P + self.P.T) * 0.5
             self._tv_steps += 1
-            if (self.steady_tol is not None and every and self._tv_steps % 100 == 0
-                    and float((np.abs(self.P - self._P_post) / self._p_scale).max())
-                    < self.steady_tol):
+            if (self.steady_tol is not None and every
+                    and self._tv_steps % STEADY_CHECK_STEPS == 0
+                    and near_steady(self.P, self._P_post, self._p_scale, self.steady_tol)):
                 self._steady = True
                 self.P = self._P_post.copy()
         if self.delay_steps and self.n_steps:
@@ -588,6 +591,7 @@ class FullCarEstimator:
             self.x = np.zeros(len(self.x))
             self.P = self._P_start.copy()
             self._steady = False
+            self._on_schedule = False        # P restarts, the step count goes on
         self.valid = not self.reason
         if self.reason:
             self.n_invalid[self.reason] = self.n_invalid.get(self.reason, 0) + 1
@@ -595,12 +599,12 @@ class FullCarEstimator:
 
     def _scheduled(self):
         """Whether the next step is one of the gain schedule's (on it, and within it)."""
-        return self._on_schedule and self._tv_steps == self.n_steps < self._schedule.n_steps
+        return self._on_schedule and self._tv_steps < self.schedule.n_steps
 
     def _scheduled_step(self, t, y, forces):
         """Run a clean cycle compiled on the schedule's gain; False: not one, nothing done."""
-        schedule = self._schedule
-        fixed = self._fast.fixed[:-1] + (schedule.gains[self._tv_steps],)
+        schedule = self.schedule
+        fixed = self._tv_fixed + (schedule.gains[self._tv_steps],)
         if not self._fast_step(t, y, forces, fixed, self._tv_screen):
             return False
         self._tv_steps += 1
@@ -752,14 +756,14 @@ class FullCarEstimator:
         d = self.d
         self.x = d.Ad @ self.x + d.Bd @ self._f
         if not self._steady:
-            self.P = d.Ad @ self.P @ d.Ad.T + d.Qd
+            self.P = predict_covariance(self.P, d.Ad, d.Qd)
 
     def std(self):
         """Return the standard deviations of the states (read-only while the gain is steady)."""
         if self._steady:
             return self._std_post
         if self._P_lag:
-            return self._schedule.std[self._tv_steps - 1]
+            return self.schedule.std[self._tv_steps - 1]
         return _diag_std(self.P)
 
     def body_accelerations(self):

@@ -25,8 +25,11 @@ import time
 
 import numpy as np
 
-__all__ = ['CHECKPOINT_STEPS', 'GainSchedule', 'MAX_STEPS']
+__all__ = ['CHECKPOINT_STEPS', 'GainSchedule', 'kalman_update', 'MAX_STEPS', 'near_steady',
+           'predict_covariance', 'STEADY_CHECK_STEPS']
 
+#: Time-varying updates between two comparisons of the covariance with the steady one.
+STEADY_CHECK_STEPS = 100
 #: Steps between two covariances kept (a cycle leaving the schedule recomputes at most this
 #: many less one).
 CHECKPOINT_STEPS = 100
@@ -35,12 +38,29 @@ CHECKPOINT_STEPS = 100
 MAX_STEPS = 20000
 
 
-def _update(P, H, r):
-    """Return the gain and the posterior of prior ``P`` (as the filter's general step)."""
+# The filter's covariance recursion, one home for the general step and the schedule: the same
+# operations in the same order give the same numbers.
+
+def predict_covariance(P, Ad, Qd):
+    """Return the prior one period on from posterior ``P``."""
+    return Ad @ P @ Ad.T + Qd
+
+
+def _posterior(P, K, PH):
+    P = P - K @ PH.T
+    return (P + P.T) * 0.5
+
+
+def kalman_update(P, H, r):
+    """Return the gain and the (symmetric) posterior of prior ``P`` on rows ``H``, noise ``r``."""
     PH = P @ H.T
     K = np.linalg.solve(H @ PH + np.diag(r), PH.T).T
-    P = P - K @ PH.T
-    return K, (P + P.T) * 0.5
+    return K, _posterior(P, K, PH)
+
+
+def near_steady(P, P_post, p_scale, steady_tol):
+    """Whether posterior ``P`` is within ``steady_tol`` of the steady one (element-wise)."""
+    return float((np.abs(P - P_post) / p_scale).max()) < steady_tol
 
 
 class GainSchedule:
@@ -48,8 +68,8 @@ class GainSchedule:
     The gains of a filter that starts at ``P_start`` and reads every sensor on every step.
 
     Step ``k`` (0-based) predicts the covariance (``Ad P Ad' + Qd``; not on the first step),
-    then updates it with all ``m`` readings; after every :data:`CHECKPOINT_STEPS` updates the
-    posterior is compared with the steady one, as the filter's general step does.
+    then updates it with all ``m`` readings; after every :data:`STEADY_CHECK_STEPS` updates
+    the posterior is compared with the steady one, as the filter's general step does.
 
     Parameters
     ----------
@@ -89,19 +109,19 @@ class GainSchedule:
         t0 = time.perf_counter()
         self.Ad, self.Qd, self.H, self.r = Ad, Qd, H, np.asarray(r, dtype=float)
         gains, std = [], []
-        self._after = {}                       # updates done -> posterior covariance
+        self._after = {}                       # step -> its prior covariance (checkpoints)
         self.steady_after = None
         P = np.array(P_start, dtype=float)
         for k in range(int(max_steps)):
             if k:
-                P = Ad @ P @ Ad.T + Qd
+                P = predict_covariance(P, Ad, Qd)
             if k % CHECKPOINT_STEPS == 0:
                 self._after[k] = P            # the prior of step k (k updates done, predicted)
-            K, P = _update(P, H, self.r)
+            K, P = kalman_update(P, H, self.r)
             gains.append(K)
             std.append(np.sqrt(np.maximum(np.diag(P), 0.0)))
-            if ((k + 1) % CHECKPOINT_STEPS == 0
-                    and float((np.abs(P - P_post) / p_scale).max()) < steady_tol):
+            if ((k + 1) % STEADY_CHECK_STEPS == 0
+                    and near_steady(P, P_post, p_scale, steady_tol)):
                 self.steady_after = k + 1
                 break
         self._last_post = P
@@ -138,10 +158,8 @@ class GainSchedule:
         P = self._after[k]
         H = self.H
         while True:
-            PH = P @ H.T
-            P = P - self.gains[k] @ PH.T
-            P = (P + P.T) * 0.5
+            P = _posterior(P, self.gains[k], P @ H.T)
             k += 1
             if k == done:
                 return P
-            P = self.Ad @ P @ self.Ad.T + self.Qd
+            P = predict_covariance(P, self.Ad, self.Qd)
