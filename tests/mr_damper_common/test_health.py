@@ -59,3 +59,24 @@ def test_value_text_writes_arrays_and_nested_non_finite_values_as_json():
     assert json.loads(value_text([[1.0, float('nan')], [np.float64(2.0)]])) == [[1.0, None],
                                                                                 [2.0]]
     assert value_text(np.float64('inf')) == 'inf' and value_text(np.int64(3)) == '3'
+
+
+def test_value_text_of_plain_values_is_their_json():
+    """The plain types' direct path writes what JSON writes, also at the float edges."""
+    import enum
+    import json
+    rng = np.random.default_rng(3)
+    floats = [0.0, -0.0, 1e-300, 5e-324, 1.7976931348623157e308, 0.1, 1 / 3, 1e16, 123456789.0]
+    floats += list(rng.standard_normal(200) * 10.0 ** rng.integers(-20, 20, 200))
+    ints = [0, -1, 2 ** 63, -(2 ** 70)] + [int(i) for i in rng.integers(-10 ** 12, 10 ** 12, 100)]
+
+    class Mode(enum.IntEnum):
+        SAFE = 2
+    for value in floats + ints + [True, False, None, Mode.SAFE]:
+        assert h.value_text(value) == json.dumps(value), value
+        assert h.text_value(h.value_text(value)) == value
+
+
+def test_flatten_orders_keys_by_their_text():
+    assert [k for k, _ in h.flatten({10: 'a', 2: 'b', 'x': 1})] == ['10', '2', 'x']
+    assert [k for k, _ in h.flatten({'b': 1, 'B': 2, 'a': {'z': 0}})] == ['B', 'a.z', 'b']

@@ -133,6 +133,23 @@ def test_diagnostic_status_round_trip_with_nesting_non_finite_and_numpy():
     assert isinstance(array, DiagnosticArray) and array.header.stamp.sec == 3
 
 
+def test_status_reusing_the_last_key_values_writes_what_a_new_one_writes():
+    """A periodic writer's KeyValue messages are reused for the keys that come again."""
+    from mr_damper_common.health import OK
+    reused = {}
+    first = {'a': 1, 'b': {'x': 0.5, 'y': 'text'}, 'gone': True}
+    second = {'a': 2, 'b': {'x': float('nan'), 'y': 'text'}, 'new': [1, 2]}
+    for values in (first, second, second):
+        status = m.diagnostic_status_msg('n', Health(OK, 'ok', values), key_values=reused)
+        fresh = m.diagnostic_status_msg('n', Health(OK, 'ok', values))
+        assert [(v.key, v.value) for v in status.values] == \
+            [(v.key, v.value) for v in fresh.values]
+        assert list(reused) == [v.key for v in status.values]    # this status's keys only
+    kept = reused['a']
+    m.diagnostic_status_msg('n', Health(OK, 'ok', {'a': 3}), key_values=reused)
+    assert reused == {'a': kept} and kept.value == '3'      # the same message, its new text
+
+
 def test_samples_batch_round_trip_keeps_values_and_stamps():
     t = 1795315554.25 + np.arange(20) * 1e-3
     ends = ((0.0, 0.01), (-0.2, 0.2), (-500, 500), (0.0, 2.0))

@@ -9,7 +9,7 @@ from mr_damper_common.health import flatten, Health, unflatten
 from mr_damper_common.messages.header import seconds_to_stamp
 
 
-def diagnostic_status_msg(name, health, hardware_id=''):
+def diagnostic_status_msg(name, health, hardware_id='', key_values=None):
     """
     Build one ``diagnostic_msgs/DiagnosticStatus`` from a :class:`~.health.Health`.
 
@@ -21,6 +21,11 @@ def diagnostic_status_msg(name, health, hardware_id=''):
         Level, message and values (flattened to key-values, see :mod:`.health`).
     hardware_id : str
         The device (e.g. the damper or corner).
+    key_values : dict, optional
+        A periodic writer's ``KeyValue`` messages by key, from its last status: those of the
+        keys again in this one are reused with their new value text instead of built anew
+        (building hundreds of them is most of a status's cost), and the dict then holds this
+        status's. The last status's messages change with it: publish a status before the next.
 
     Returns
     -------
@@ -28,9 +33,23 @@ def diagnostic_status_msg(name, health, hardware_id=''):
         The status.
 
     """
+    pairs = flatten(health.values)
+    if key_values is None:
+        values = [KeyValue(key=k, value=v) for k, v in pairs]
+    else:
+        last = dict(key_values)
+        key_values.clear()          # this status's keys only: the dict does not grow
+        values = []
+        for k, v in pairs:
+            kv = last.get(k)
+            if kv is None:
+                kv = KeyValue(key=k, value=v)
+            else:
+                kv.value = v
+            key_values[k] = kv
+            values.append(kv)
     return DiagnosticStatus(level=bytes([health.level]), name=name, message=health.message,
-                            hardware_id=hardware_id,
-                            values=[KeyValue(key=k, value=v) for k, v in flatten(health.values)])
+                            hardware_id=hardware_id, values=values)
 
 
 def diagnostic_array_msg(statuses, stamp_s=None):

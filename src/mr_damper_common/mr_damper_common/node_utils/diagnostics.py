@@ -190,6 +190,7 @@ class DiagnosticsPublisher:
         self.name = node.get_fully_qualified_name().lstrip('/')
         self.hardware_id = hardware_id
         self.published = 0
+        self._key_values = {}       # the last status's KeyValue messages, reused
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
         # a steady (wall) timer: under use_sim_time the status keeps coming when /clock stops
         # (end of a replay, stalled player); the stamp is still the node's (ROS) time
@@ -225,7 +226,8 @@ class DiagnosticsPublisher:
         stamp = node_time_s(self._node)
         try:        # the values are written into the message too: both inside the guard
             health = self._health()
-            status = diagnostic_status_msg(self.name, health, self.hardware_id)
+            status = diagnostic_status_msg(self.name, health, self.hardware_id,
+                                           self._key_values)
         except Exception as exc:  # noqa: B902 - a status bug must not kill the node
             health = Health(STALE, f'status unavailable: {type(exc).__name__}: {exc}')
             status = diagnostic_status_msg(self.name, health, self.hardware_id)
