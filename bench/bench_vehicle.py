@@ -20,7 +20,12 @@ Runs, one after the other on the same machine (the figures depend on the load: t
    models are live); from its summary: the car's cycles, the states the controller answered,
    states lost, deadline misses, the car's command timeouts, the body's a_v.
 
-Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 100 %).
+Each run's CPU per process (``process_stats.json``: mean and p95 of one core = 100 %), and
+the hypervisor's steal time per CPU during it (``/proc/stat``, sampled by the bench:
+``bench/hypervisor_steal.py``) with the controller's deadline misses split between the
+seconds in which no CPU lost a tick to the hypervisor and the others (from the run's
+recorded ``/diagnostics``): on a virtual machine, a stretch of a few milliseconds stolen from
+a vCPU is a run of missed cycles whatever the code.
 
 First, the platform: with rt-tests' ``cyclictest`` on the PATH (``apt-get install rt-tests``),
 ``--platform-s`` seconds of one SCHED_FIFO thread per CPU woken every 1 ms, the machine alone
@@ -56,6 +61,8 @@ import sys
 import time
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from hypervisor_steal import deadline_counts, quiet_split, StealSampler  # noqa: E402
 SUITE = Path(sys.executable).with_name('mr-damper-suite')
 #: The ``--set`` of each pinning of the vehicle runs (the YAML pins; ``''``, YAML's empty
 #: string, is no pinning: the launcher parses a ``--set`` value as YAML)
@@ -231,7 +238,8 @@ def _run(name, args, out, duration):
     load0 = os.getloadavg()
     t0 = time.monotonic()
     print(f'$ {" ".join(cmd)}', flush=True)
-    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    with StealSampler() as steal:
+        proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     wall = time.monotonic() - t0
     load1 = os.getloadavg()
     if proc.returncode != 0:
@@ -241,7 +249,34 @@ def _run(name, args, out, duration):
     stats = json.loads((out / 'process_stats.json').read_text()) \
         if (out / 'process_stats.json').is_file() else {}
     return {'exit': proc.returncode, 'wall_s': wall, 'load_start': load0[0],
-            'load_end': load1[0], 'summary': summary, 'cpu': stats}
+            'load_end': load1[0], 'summary': summary, 'cpu': stats,
+            'steal': steal_figures(steal, out / 'suite.mcap')}
+
+
+def steal_figures(steal, mcap):
+    """Return the run's steal share per CPU and its status intervals split by steal."""
+    out = {'share': steal.shares()}
+    try:
+        out['split'] = quiet_split(deadline_counts(mcap), steal.samples)
+    except Exception as exc:  # noqa: B902 - no recording, a status not read: no split
+        out['error'] = f'{type(exc).__name__}: {exc}'
+    return out
+
+
+def report_steal(steal):
+    """Print the hypervisor's steal during a run and the cycles on time with and without it."""
+    if not steal:
+        return
+    print('  hypervisor steal (/proc/stat) during the run: ' + ', '.join(
+        f'cpu{cpu} {share * 100:.2f} %' for cpu, share in steal['share'].items()))
+    split = steal.get('split')
+    if split is None:
+        print(f'  deadline counts not read: {steal.get("error")}')
+        return
+    for side, words in (('quiet', 'without steal'), ('stolen', 'with steal')):
+        d = split[side]
+        print(f'  status intervals {words}: {d["intervals"]}, cycles {d["cycles"]}, misses '
+              f'{d["misses"]}, on time {_fmt(d["on_time"], 100, " %", 4)}')
 
 
 def _cpu_rows(stats):
@@ -317,6 +352,7 @@ def report_vehicle(run):
           f'{_fmt(v.get("a_v_lockstep"))}, vs lock-step '
           f'{_fmt(v.get("a_v_vs_lockstep"), 100, " %")} (goal within 3 %)')
     print(f'  all safe {v.get("all_safe")}, chain {v.get("chain")}')
+    report_steal(run.get('steal'))
     for row in _cpu_rows(run['cpu']):
         print(row)
 
@@ -384,6 +420,7 @@ def report_external(run):
           f'{ext.get("all_safe")}, car command timeouts {ext.get("car_command_timeouts")}')
     live, passive = fc.get('live') or {}, fc.get('passive') or {}
     print(f'  a_v live {_fmt(live.get("a_v"))}, passive {_fmt(passive.get("a_v"))}')
+    report_steal(run.get('steal'))
     for row in _cpu_rows(run['cpu']):
         print(row)
 

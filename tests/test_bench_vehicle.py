@@ -167,3 +167,21 @@ def test_a_vehicle_runs_report_has_the_loops_stages_or_none(capsys):
     assert 'CPU per cycle mean / p50 / p99 n/a / n/a / n/a (the mean n/a of a core' in out
     assert 'watchdog trips 0, 0.10 s on the safe current\n' in out
     assert 'n/a' in bench._vehicle_figures(run)[5][1]
+
+
+def test_the_report_splits_the_cycles_by_the_hypervisors_steal(capsys):
+    bench = _bench()
+    bench.report_steal({'share': {0: 0.0123, 1: 0.004},
+                        'split': {'quiet': {'intervals': 50, 'cycles': 25000, 'misses': 5,
+                                            'on_time': 0.9998},
+                                  'stolen': {'intervals': 6, 'cycles': 3000, 'misses': 90,
+                                             'on_time': 0.97},
+                                  'unsampled': 0}})
+    text = capsys.readouterr().out
+    assert 'cpu0 1.23 %, cpu1 0.40 %' in text
+    assert 'without steal: 50, cycles 25000, misses 5, on time 99.98 %' in text
+    assert 'with steal: 6, cycles 3000, misses 90, on time 97 %' in text
+    bench.report_steal({'share': {0: 0.0}, 'error': 'FileNotFoundError: no mcap'})
+    assert 'deadline counts not read: FileNotFoundError' in capsys.readouterr().out
+    bench.report_steal(None)
+    assert capsys.readouterr().out == ''

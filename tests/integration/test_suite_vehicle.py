@@ -16,6 +16,7 @@ import pytest
 
 from conftest import VENV_BIN
 from integration.ros_helpers import run_until_ready
+from script_helpers import load_script
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -65,6 +66,11 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
     assert isinstance(v['frames_lost']['total'], int)
     assert v['a_v'] > 0 and v['a_v_passive'] > 0 and v['a_v_lockstep'] > 0, v
     assert (out / 'full_car_body.npz').is_file()
+    # the bench's reading of the recorded statuses: the controller's counts, never falling
+    counts = load_script('bench/hypervisor_steal.py').deadline_counts(out / 'suite.mcap')
+    assert len(counts) >= 2, counts
+    assert all(a[0] < b[0] and a[1] <= b[1] and a[2] <= b[2] for a, b in zip(counts, counts[1:]))
+    assert 0 < counts[-1][1] <= v['deadline']['cycles'] and counts[-1][2] <= v['deadline_misses']
     if layout == 'loop':         # the loop's execution times by stage, every cycle counted
         ex = v['execution_s']
         assert ex['estimate']['n'] >= ex['control']['n'] >= ex['send']['n'] >= 500, ex
