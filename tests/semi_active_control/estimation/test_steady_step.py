@@ -140,3 +140,29 @@ def test_a_fault_on_the_schedule_leaves_it_with_the_general_paths_covariance():
                                        atol=1e-300)
     compiled = _run_both(shipped, general, t, acc, trv, check)
     assert compiled[1:650].all() and not compiled[650:].any()
+
+
+def test_a_state_gone_non_finite_on_the_schedule_restarts_the_filter_off_it():
+    """A diverged filter restarts its covariance while its step count goes on: off the schedule."""
+    shipped, general = _pair()
+    n = 700
+    t, acc, trv = _readings(seed=9, n=n, faults=False)
+    compiled = []
+    for k in range(n):
+        if k == 300:                      # the state corrupted on both (no reading does this)
+            shipped.filter.x[0] = general.filter.x[0] = np.nan
+        before = shipped.filter.n_compiled
+        a = shipped.step(k + 1, t[k], acc[k], trv[k])
+        b = general.step(k + 1, t[k], acc[k], trv[k])
+        compiled.append(shipped.filter.n_compiled - before)
+        assert (a.valid, a.reason) == (b.valid, b.reason), k
+        np.testing.assert_allclose(shipped.filter.x, general.filter.x, rtol=1e-9, atol=1e-12)
+        if k == 300:
+            assert a.reason == 'diverged' and not a.valid
+            np.testing.assert_array_equal(shipped.filter.P, general.filter.P)
+    compiled = np.array(compiled)
+    # compiled on the schedule up to the corruption, never after: the recursion restarted
+    assert compiled[1:300].all() and not compiled[300:].any()
+    assert shipped.filter.n_invalid == general.filter.n_invalid
+    assert shipped.filter.n_invalid.get('diverged') == 1
+    np.testing.assert_allclose(shipped.filter.P, general.filter.P, rtol=1e-9, atol=1e-300)
