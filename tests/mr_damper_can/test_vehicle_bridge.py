@@ -155,6 +155,31 @@ def test_active_bridge_one_frame_per_command_with_the_cycle_and_its_latency():
     assert st['cycles']['answers_old'] == 1 and st['cycles']['answers_unknown_cycle'] == 1
 
 
+def test_the_answered_fraction_counts_only_cycles_received_while_active_and_stays_within_one():
+    rig = Rig(safe_current_a=0.5)
+    rig.step()
+    before = rig.cycles[-1].sequence             # received while inactive
+    rig.bridge.activate()
+    # the controller answers the cycle it had before the bridge went active: counted apart
+    assert rig.bridge.command_all([0.5] * 4, [False] * 4, before) is True
+    for _ in range(4):
+        rig.step()
+        st = rig.bridge.status()
+        # the newest cycle is in flight until its answer comes
+        assert st['unanswered'] == 0 and st['control_cycles'] == st['cycles']['answered']
+        assert st['cycles']['cycles_active'] == st['control_cycles'] + 1
+        rig.bridge.command_all([0.5] * 4, [False] * 4, rig.cycles[-1].sequence)
+    st = rig.bridge.status()
+    c = st['cycles']
+    assert c['answers_inactive_cycle'] == 1 and c['answered'] == 4 == st['control_cycles']
+    # every active cycle answered, the last one too: exactly 1, never above
+    assert st['answered_fraction'] == 1.0 and st['unanswered'] == 0
+    rig.step()
+    rig.step()                                   # one left unanswered, one in flight
+    st = rig.bridge.status()
+    assert st['unanswered'] == 1 and st['answered_fraction'] == pytest.approx(4 / 5)
+
+
 def test_deactivate_puts_every_corner_on_the_safe_current_at_once():
     rig = Rig(safe_current_a=0.5)
     rig.bridge.activate()

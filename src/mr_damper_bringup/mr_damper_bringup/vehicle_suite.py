@@ -246,8 +246,8 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
     Returns
     -------
     dict
-        ``control_cycles`` (sensor cycles the bridge received while active, the last in
-        flight left out), ``answered_fraction`` (answered bus to bus within the cycle),
+        ``control_cycles`` (sensor cycles the bridge received while active, the newest
+        left out while in flight), ``answered_fraction`` (answered bus to bus within the cycle),
         ``unanswered``, ``deadline_misses`` (the controller's, with ``lateness``),
         ``driver_command_timeouts`` (after the vehicle computer took control, all drivers),
         ``sensor_to_command_s`` (``p50``, ``p99``, ``max`` [s]), ``reader_cpu_per_cycle_s``
@@ -278,7 +278,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
     timeouts = can.get('driver_timeouts_after_normal')
     drivers = can.get('corners') or {}
     section = {
-        'control_cycles': max(int(cycles.get('cycles_active') or 0) - 1, 0),
+        'control_cycles': bridge.get('control_cycles'),
         'answered_fraction': bridge.get('answered_fraction'),
         'answered_in_time': cycles.get('answered_in_time'),
         'unanswered': bridge.get('unanswered'),

@@ -141,16 +141,17 @@ class VehicleBridge(CanBridge):
         self.cycle_seq = 0
         self._bus_t = np.full(RING, math.nan)
         self._bus_seq = np.full(RING, -1, dtype=np.int64)
+        self._bus_active = np.zeros(RING, dtype=bool)
         self.latency = LatencyHistogram()
         self.cpu_clock = cpu_clock
         self.reader_cpu = LatencyHistogram()
         self._cpu_t = None
         self.counts = {'cycles': 0, 'cycles_active': 0, 'cycles_missing_frames': 0,
                        'answered': 0, 'answered_in_time': 0, 'answers_old': 0,
-                       'answers_unknown_cycle': 0, 'commands_inactive': 0, 'command_frames': 0,
-                       'safe_frames': 0}
+                       'answers_unknown_cycle': 0, 'answers_inactive_cycle': 0,
+                       'commands_inactive': 0, 'command_frames': 0, 'safe_frames': 0}
         self._last_answered = 0
-        self._first_active_seq = None
+        self._last_active_seq = 0
         self._last_all_t = None
 
     # --- lifecycle -------------------------------------------------------------------------------
@@ -159,7 +160,6 @@ class VehicleBridge(CanBridge):
         now = self.clock() if now is None else now
         with self.lock:
             self.active = True
-            self._first_active_seq = self.cycle_seq + 1
             for c in self.corners:
                 self._update_mode(c, now)
 
@@ -211,6 +211,9 @@ class VehicleBridge(CanBridge):
         t_bus = stamp if stamp > 0 else self.wall()
         self._bus_t[seq % RING] = t_bus
         self._bus_seq[seq % RING] = seq
+        self._bus_active[seq % RING] = self.active
+        if self.active:
+            self._last_active_seq = seq
         self.counts['cycles'] += 1
         self.counts['cycles_active'] += int(self.active)
         self.counts['cycles_missing_frames'] += int(missing != 0)
@@ -281,6 +284,9 @@ class VehicleBridge(CanBridge):
             self.counts['answers_unknown_cycle'] += 1
             return
         self._last_answered = cycle
+        if not self._bus_active[k]:
+            self.counts['answers_inactive_cycle'] += 1
+            return
         latency = self.wall() - self._bus_t[k]
         self.latency.add(latency)
         self.counts['answered'] += 1
@@ -330,21 +336,23 @@ class VehicleBridge(CanBridge):
         Return the bridge's status with the vehicle's figures (``/diagnostics`` values).
 
         Adds to :meth:`CanBridge.status` ``active``, ``cycle_s``, ``cycles`` (counts: cycles
-        received, while active, with missing frames; answers, on time, old, of unknown cycles;
-        command and safe frames; commands refused while inactive), ``unanswered`` (cycles
-        received while active that no command answered, the newest left out: in flight),
-        ``answered_fraction`` (on time / received while active), ``latency`` (bus to bus: the
-        sensor cycle's frame to the command frame answering it, :class:`LatencyHistogram`
-        summary), ``reader_cpu_s`` (:attr:`reader_cpu`'s summary) and ``frames_lost``
-        (frames the counters show missing).
+        received, while active, with missing frames; answers, on time, old, of unknown cycles,
+        of cycles received while inactive (no latency, not in the fraction); command and safe
+        frames; commands refused while inactive), ``control_cycles`` (cycles received while
+        active, the newest left out while unanswered: in flight), ``unanswered`` (of those
+        no command answered), ``answered_fraction`` (answered on time / ``control_cycles``: at
+        most 1), ``latency`` (bus to bus: the sensor cycle's frame to the command frame
+        answering it, :class:`LatencyHistogram` summary), ``reader_cpu_s``
+        (:attr:`reader_cpu`'s summary) and ``frames_lost`` (frames the counters show missing).
         """
         st = super().status(now)
         with self.lock:
             counts = dict(self.counts)
-            done = max(counts['cycles_active'] - 1, 0)
+            in_flight = int(self._last_active_seq > self._last_answered)
+            done = counts['cycles_active'] - in_flight
             fraction = counts['answered_in_time'] / done if done else math.nan
             st.update(active=self.active, cycle_s=self.cycle_s, cycles=counts,
-                      unanswered=max(done - counts['answered'], 0),
+                      control_cycles=done, unanswered=max(done - counts['answered'], 0),
                       answered_fraction=fraction,
                       latency=self.latency.summary(),
                       reader_cpu_s=self.reader_cpu.summary(),
