@@ -83,10 +83,14 @@ def test_controller_node_answers_states_and_deactivates_safe(context):
     node.trigger_activate()
     for k in range(1, 6):
         state.sequence = k
-        state.header.stamp.nanosec = k * 2_000_000
+        state.header.stamp = node.get_clock().now().to_msg()    # fresh: within its deadline
         node.on_state(state)
     assert [s[3] for s in sent] == [1, 2, 3, 4, 5]
     assert all(s[1] == [FullCarCommand.MODE_NORMAL] * 4 for s in sent)
+    state.sequence = 6
+    state.header.stamp.sec -= 1                  # held up for a second: skipped, a miss
+    node.on_state(state)
+    assert len(sent) == 5 and node.status()['states_skipped_late'] == 1
     node.trigger_deactivate()
     assert sent[-1][0] == [0.5] * 4 and sent[-1][1] == [FullCarCommand.MODE_INACTIVE] * 4
     assert sent[-1][2] == ['inactive'] * 4

@@ -164,3 +164,45 @@ def test_a_non_finite_corner_never_reaches_an_inverse_and_the_law_comes_back(law
     s = state(2)
     cmd = core.command(s, 3, True, '', s.t + 0.0005)
     assert cmd.modes == [MODE_NORMAL] * 4 and cmd.reasons == ['ok'] * 4
+
+
+def test_a_state_arriving_after_its_deadline_gets_no_law_command_after_a_safe_one():
+    """
+    The three-node layout under starvation: a state held up after the sensor timeout.
+
+    The sensor timeout put every corner on the safe current, then a state held up on its way
+    arrives; no law command may follow the safe one.
+    """
+    core = make_core(input_timeout_s=0.02, max_consecutive_misses=3)
+    core.activate(10.0)
+    it = states(10)
+    s1, s2, s3 = next(it), next(it), next(it)
+    cmd = core.answer(s1, 1, True, '', s1.t + 0.0005)
+    assert cmd.reasons == ['ok'] * 4
+    core.sent(s1.t + 0.0008)                              # its deadline judged when sent
+    assert core.monitor.cycles == 1 and core.monitor.misses == 0
+    assert core.check(s1.t + 0.03).reasons == ['sensor_timeout'] * 4
+    # s2 was stamped before the timeout and arrives 30 ms later: skipped, a miss, no command
+    assert core.answer(s2, 2, True, '', s2.t + 0.03) is None
+    core.sent(s2.t + 0.031)                               # nothing left to judge
+    st = core.status(s2.t + 0.03)
+    assert st['states_skipped_late'] == 1 and st['states_answered'] == 1
+    assert st['deadline']['deadline_misses'] == 1 and core.monitor.cycles == 2
+    # a fresh state is answered by the law again
+    cmd = core.answer(s3, 3, True, '', s3.t + 0.0005)
+    assert cmd.reasons == ['ok'] * 4 and cmd.state_sequence == 3
+    # an answer whose sending ran past the deadline is a miss, judged at sent()
+    s4 = next(it)
+    assert core.answer(s4, 4, True, '', s4.t + 0.0005).reasons == ['ok'] * 4
+    core.sent(s4.t + 0.0025)
+    assert core.monitor.misses == 2
+
+
+def test_late_states_in_a_row_trip_the_watchdog_and_get_the_safe_command():
+    core = make_core(max_consecutive_misses=3)
+    core.activate(10.0)
+    got = [core.answer(s, k + 1, True, '', s.t + 0.004) for k, s in enumerate(states(5))]
+    assert got[:2] == [None, None]                        # misses: nothing sent
+    assert all(c.reasons == ['deadline_misses'] * 4 and list(c.currents_a) == [0.5] * 4
+               for c in got[2:])
+    assert core.status(11.0)['states_answered'] == 0

@@ -7,6 +7,10 @@ A lifecycle node over the ROS-free
 :class:`semi_active_control.runtime.VehicleControllerCore`: the full-car law, each corner's
 inverse model under its supervisor, deadline supervision. Each ``FullCarState`` is answered by
 one ``FullCarCommand`` (four currents, the cycle answered, per corner the mode and the reason).
+A state that arrives after its deadline (``deadline_s`` from its stamp, on the node's clock) is
+old: it gets no law command, counts a miss (``states_skipped_late``), and gets the safe command
+while the misses trip (``VehicleControllerCore.answer``), as the loop layout does; so no law
+command built on old sensors follows a sensor timeout's safe one.
 
 Lifecycle (docs/vehicle.md): **configure** builds the law and loads each corner's model
 (``model_files``: an end-of-line parameter file per corner, "" for the corner's live
@@ -22,7 +26,7 @@ Topics (relative; remap with ``--ros-args -r``)
   of its own (an EventsExecutor thread);
 - sub ``<c>/mr_damper/kwok_parameters`` (KwokParameters; latched) for each live corner;
 - pub ``vehicle/command`` (mr_damper_interfaces/FullCarCommand; reliable, KEEP_LAST 2): one per
-  state, one per ``check_period_s`` while no state came for ``sensor_timeout_s``
+  state in time, one per ``check_period_s`` while no state came for ``sensor_timeout_s``
   (``sensor_timeout``), one at deactivation;
 - sub ``full_car/road_preview`` (mr_damper_interfaces/RoadPreview; reliable, depth 10), only
   with ``controller:=preview-look-ahead``, on the state lane: the look-ahead sensor's frames
@@ -156,11 +160,10 @@ class VehicleControllerNode(SafeTransitions, LifecycleNode):
         with self.lock:
             if self.core is None:
                 return
-            cmd = self.core.command(state, f['sequence'], f['valid'], f['reason'], now,
-                                    judge=False)
+            cmd = self.core.answer(state, f['sequence'], f['valid'], f['reason'], now)
             if cmd is not None:
                 self._publish(cmd, now)
-                self.core.judge(state.t, node_time_s(self))    # its deadline: published
+                self.core.sent(node_time_s(self))             # its deadline: published
 
     def on_check(self):
         """Sensor timeout: the safe command while no state comes (timer)."""

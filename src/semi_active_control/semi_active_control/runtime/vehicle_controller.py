@@ -156,6 +156,7 @@ class VehicleControllerCore:
         self.sequence = 0
         self.answered = 0
         self.skipped_late = 0
+        self._unjudged = None                  # stamp of the cycle answer() left to sent()
         self.safe_answers = {}                 # reason for all four corners -> commands
         self.states_while_inactive = 0
         self.normal_commands = [0] * 4
@@ -233,6 +234,42 @@ class VehicleControllerCore:
             self.monitor.cycle(state.t, t_now)
         self.answered += 1
         return cmd
+
+    def answer(self, state, sequence, valid, reason, t_now):
+        """
+        Answer one state as it arrives; a state already past its deadline gets no law command.
+
+        A state that reaches the controller after its deadline (held up on its way, or the
+        controller was) is old: the sensor timeout may already have put every corner on the
+        safe current, and a law command from old sensors must not follow it. It is skipped
+        as :meth:`skip_late` does (a miss; the safe command while the misses trip). Any other
+        state is answered as :meth:`command` does, its deadline judged when the caller calls
+        :meth:`sent` after sending the command (the same rules as the loop layout's
+        :class:`~semi_active_control.runtime.vehicle_loop.VehicleLoop`).
+
+        Returns
+        -------
+        VehicleCommand or None
+            The command to send (None: nothing to send).
+
+        """
+        self._unjudged = None
+        if self.active and self.monitor.past(state.t, t_now):
+            return self.skip_late(sequence, state.t, t_now)
+        cmd = self.command(state, sequence, valid, reason, t_now, judge=False)
+        if cmd is not None:
+            self._unjudged = state.t
+        return cmd
+
+    def sent(self, t_done):
+        """
+        Judge the deadline of the state :meth:`answer` last answered, sent at ``t_done`` [s].
+
+        Nothing after a skipped state (its miss is counted).
+        """
+        if self._unjudged is not None:
+            self.judge(self._unjudged, t_done)
+            self._unjudged = None
 
     def judge(self, t_state, t_done):
         """Judge the deadline of the cycle stamped ``t_state``, answered at ``t_done`` [s]."""

@@ -188,7 +188,7 @@ class VehicleLoop:
         if not self.controller.active:
             self.cycles_inactive += 1
             return est, None
-        if t_now - t > self.controller.monitor.deadline_s:
+        if self.controller.monitor.past(t, t_now):
             # past its deadline before it is answered (the loop is behind the bus): the
             # newer cycles behind it come first; a miss, the safe frame if that trips
             cmd = self.controller.skip_late(est.sequence, est.t, t_now)

@@ -105,6 +105,10 @@ class DeadlineMonitor:
         self._last_input = float(t_now)
         self._set('sensor_timeout', False, t_now)
 
+    def past(self, t_release, t_now):
+        """Whether a cycle released at ``t_release`` is past its deadline at ``t_now`` [s]."""
+        return float(t_now) - float(t_release) > self.deadline_s
+
     def cycle(self, t_release, t_done):
         """
         Count one answered cycle: released at ``t_release``, answered at ``t_done`` [s].
