@@ -27,9 +27,10 @@ import signal
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
-from integration.vehicle_helpers import (bus_channel, Car, chain_up, change_state, command_frames,
-                                         CORNERS, drivers_time_out_while_stopped, GUARD_S,
-                                         model_files, normal_but_rr, SAFE_A)
+from integration.vehicle_helpers import (all_safe, bus_channel, Car, chain_up, change_state,
+                                         command_frames, CORNERS, drivers_time_out_while_stopped,
+                                         GUARD_S, model_files, normal_but_rr, safe_of_no_cycle,
+                                         SAFE_A)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -93,13 +94,14 @@ def test_lifecycle_in_order_one_invalid_corner_and_deactivation(tmp_path):
             assert change_state(lis, 'vehicle_controller', 'deactivate') is True
             # (one command: the controller is then silent, the bridge forwards nothing more)
             assert lis.wait_for(lambda: any(
-                all(f[c] == (SAFE_A, 1) for c in CORNERS)
-                for f in command_frames(car.taken()[n_before:])), GUARD_S, procs=procs[:3])
+                safe_of_no_cycle(f) for f in command_frames(car.taken()[n_before:])),
+                GUARD_S, procs=procs[:3])
             after = command_frames(car.taken()[n_before:])
-            safe = [all(f[c] == (SAFE_A, 1) for c in CORNERS) for f in after]
-            first_safe = safe.index(True)
-            # frames in flight before the deactivation took effect, then only safe ones
-            assert all(safe[first_safe:])
+            # law frames in flight before the deactivation took effect, then its safe frame
+            # (of no cycle: a frame the bridge made safe on its way, a driver's status late
+            # on a starved machine, answers its cycle and may be followed by law frames)
+            first = [safe_of_no_cycle(f) for f in after].index(True)
+            assert all(all_safe(f) for f in after[first:]), after[first - 3:]
             # and the controller's last command was the deactivation's: no law command after
             assert lis.wait_for(lambda: commands and commands[-1][1].mode.tolist() == [
                 FullCarCommand.MODE_INACTIVE] * 4, GUARD_S)
@@ -140,13 +142,16 @@ def test_killed_estimator_then_silent_controller(tmp_path):
 
             def timed_out():
                 d = diag.values('vehicle_controller').get('deadline', {})
+                taken = car.taken()
                 return d.get('entries', {}).get('sensor_timeout', 0) > entries0 and \
-                    len(car.taken()) > n_kill + 4 * 20
+                    len(taken) > n_kill + 4 * 20 and \
+                    any(safe_of_no_cycle(f) for f in command_frames(taken[n_kill:]))
             assert lis.wait_for(timed_out, GUARD_S, procs=(bridge, controller))
             after = command_frames(car.taken()[n_kill:])
-            safe = [all(f[c] == (SAFE_A, 1) for c in CORNERS) for f in after]
-            k = safe.index(True)
-            assert all(safe[k:])
+            # the sensor timeout's first safe frame (of no cycle), then no law frame: a state
+            # that reaches the controller late (sent before the kill) is skipped, not answered
+            k = [safe_of_no_cycle(f) for f in after].index(True)
+            assert all(all_safe(f) for f in after[k:]), after[k - 3:]
             assert diag.values('vehicle_controller')['all_safe']['sensor_timeout'] >= 1
             # the controller falls silent: nothing is sent in its name, the drivers time out
             n_stop = drivers_time_out_while_stopped(lis, car, controller.proc, 0.3)

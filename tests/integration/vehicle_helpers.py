@@ -38,7 +38,7 @@ class Car:
         from mr_damper_can.bus import make_bus
         from mr_damper_can.driver_sim import SimulatedEcu
         self.lock = threading.Lock()
-        self.commands = []                 # (index, corner, current, failsafe bit)
+        self.commands = []                 # (index, corner, current, failsafe bit, cycle)
         self.bus = make_bus('udp_loopback', channel)
         self.ecu = SimulatedEcu(self.bus, CORNERS, safe_current_a=driver_safe_a,
                                 command_timeout_s=0.05, status_period_s=0.01,
@@ -46,8 +46,11 @@ class Car:
         self.ecu.start()
 
     def _on_command(self, corner, current, counter, failsafe, t):
+        # (the ECU's reader thread calls this right after taking the frame: the sensor cycle
+        # the frame answers, 0 for a safe frame of no cycle, is the ECU's last one)
+        cycle = self.ecu.last_sensor_cycle
         with self.lock:
-            self.commands.append((len(self.commands), corner, current, failsafe))
+            self.commands.append((len(self.commands), corner, current, failsafe, cycle))
 
     def taken(self):
         """Return the commands taken so far."""
@@ -60,14 +63,30 @@ class Car:
 
 
 def command_frames(commands):
-    """Group per-corner commands into frames: lists of four (corner, current, bit)."""
+    """Group per-corner commands into frames: corner -> (current, bit), and ``cycle``."""
     frames, cur = [], {}
-    for _, corner, current, bit in commands:
+    for _, corner, current, bit, cycle in commands:
         cur[corner] = (current, bit)
         if corner == CORNERS[-1]:
-            frames.append(dict(cur))
+            frames.append(dict(cur, cycle=cycle))
             cur = {}
     return frames
+
+
+def all_safe(frame):
+    """Return whether every corner of ``frame`` is on the safe current with its bit set."""
+    return all(frame[c] == (SAFE_A, 1) for c in CORNERS)
+
+
+def safe_of_no_cycle(frame):
+    """
+    Return whether ``frame`` is a safe frame answering no sensor cycle (``SENSOR_CYCLE`` 0).
+
+    Deactivation sends one; so does the bridge while inactive. A frame made safe on its way
+    (the bridge lost a driver's status for ``rx_timeout_s``, as on a starved machine) still
+    carries the cycle it answers (0 only once in 256 cycles).
+    """
+    return all_safe(frame) and frame['cycle'] == 0
 
 
 def normal_but_rr(frame):
