@@ -198,7 +198,9 @@ def test_identifier_killed_then_restarted(listener, tmp_path):
         # order of events, not durations: stale after the timeout, the car keeps stepping
         assert listener.wait_for(mode('failsafe'), 60), car()
         st = car()
-        assert st['reason'] == 'stale'
+        # (a set the car's starved executor takes after the timeout is refused as received
+        # stale: no set of the dead identifier brings its model back)
+        assert st['reason'] in ('stale', 'stale_on_arrival'), st
         steps = st['steps']
         assert listener.wait_for(lambda: car()['steps'] > steps + 500, 60)
         st = car()

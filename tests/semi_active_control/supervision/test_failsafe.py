@@ -247,3 +247,40 @@ def test_reconfigure_applies_valid_settings_and_refuses_the_rest_whole():
             sup.reconfigure(**changes)
     assert (sup.timeout_s, sup.safe_current_a, sup.i_max_a) == (1.0, 0.8, 2.0)
     assert sup.rejected['narrow_current_range'] == 1        # counters kept
+
+
+def test_a_set_ages_from_its_stamp_and_one_received_stale_is_refused():
+    """A set that sat in a queue (a starved machine) is as old as its stamp says."""
+    sup = make(timeout_s=1.0)
+    t = 1000.0
+    verdict = sup.offer(with_(stamp_s=t - 0.4), t)        # 0.4 s in transit: used
+    assert verdict.accepted and sup.mode == 'normal'
+    assert sup.age(t) == pytest.approx(0.4)
+    assert sup.update(t + 0.55) == 'normal'
+    assert sup.update(t + 0.65) == 'failsafe' and sup.reason == 'stale'   # 1.05 s after stamp
+    # received 1.5 s after its stamp: refused, counted, never used
+    verdict = sup.offer(with_(stamp_s=t - 0.5), t + 1.0)
+    assert not verdict.accepted and verdict.reason == 'stale_on_arrival'
+    assert sup.mode == 'failsafe' and sup.active is None
+    assert sup.status()['params_rejected']['stale_on_arrival'] == 1
+    assert sup.stamps_not_used == {'unset': 0, 'future': 0, 'other_clock': 0}
+
+
+@pytest.mark.parametrize('stamp, kind', [
+    (0.0, 'unset'), (math.nan, 'unset'),           # a publisher that leaves the stamp at zero
+    (5000.5, 'future'),                            # ahead of this clock
+    (5000.0 - 3600.0, 'other_clock'),              # e.g. a replay's simulated time
+])
+def test_a_stamp_on_another_clock_leaves_the_age_from_receipt(stamp, kind):
+    sup = make(timeout_s=1.0)
+    assert sup.offer(with_(stamp_s=stamp), 5000.0).accepted
+    assert sup.age(5000.0) == 0.0 and sup.update(5000.9) == 'normal'
+    assert sup.update(5001.1) == 'failsafe'
+    assert sup.status()['stamps_not_used'][kind] == 1
+
+
+def test_hold_on_reject_keeps_the_model_when_a_set_arrives_stale():
+    sup = make(timeout_s=1.0, hold_on_reject=True)
+    sup.offer(with_(stamp_s=99.9), 100.0)
+    assert sup.offer(with_(stamp_s=98.0), 100.5).reason == 'stale_on_arrival'
+    assert sup.mode == 'normal' and sup.age(100.5) == pytest.approx(0.6)

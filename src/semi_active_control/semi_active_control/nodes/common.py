@@ -20,8 +20,9 @@ SUPERVISED_LAW_PARAMETERS = (
           dynamic=True),
     Param('safe_current_a', COIL['safe_current_a'], 'Coil current in fail-safe [A]', 0.0, 10.0,
           dynamic=True),
-    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale [s, node '
-          'clock]', 0.01, 3600.0, dynamic=True),
+    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale, aged from '
+          'their stamp (from receipt when it is on another clock) [s, node clock]', 0.01,
+          3600.0, dynamic=True),
     Param('i_min_a', COIL['i_min_a'], 'Coil current minimum [A]', 0.0, 10.0),
     Param('i_max_a', COIL['i_max_a'], 'Coil current maximum [A]', 0.0, 10.0),
     Param('min_current_span_a', COIL['min_current_span_a'], 'Refuse models identified over a '
@@ -35,7 +36,8 @@ CORNER_SUPERVISOR_PARAMETERS = (
     Param('safe_current_a', COIL['safe_current_a'], 'Coil current of a corner in fail-safe [A]',
           0.0, 10.0),
     Param('param_timeout_s', 1.0, 'A corner\'s identified parameters older than this are '
-          'stale [s, node clock]', 0.01, 3600.0),
+          'stale, aged from their stamp (from receipt when it is on another clock) [s, node '
+          'clock]', 0.01, 3600.0),
     Param('i_min_a', COIL['i_min_a'], 'Coil current minimum [A]', 0.0, 10.0),
     Param('i_max_a', COIL['i_max_a'], 'Coil current maximum [A]', 0.0, 10.0),
     Param('min_current_span_a', COIL['min_current_span_a'], 'Refuse models identified over a '

@@ -80,8 +80,9 @@ PARAMETERS = (
           1e6),
     Param('safe_current_a', 0.5, 'Coil current assumed before the first command [A]', 0.0,
           10.0),
-    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale [s, node '
-          'clock]', 0.01, 3600.0),
+    Param('param_timeout_s', 1.0, 'Identified parameters older than this are stale, aged from '
+          'their stamp (from receipt when it is on another clock) [s, node clock]', 0.01,
+          3600.0),
     Param('i_min_a', 0.0, 'Coil current minimum [A]', 0.0, 10.0),
     Param('i_max_a', 2.0, 'Coil current maximum [A]', 0.0, 10.0),
     Param('m_s', 300.0, 'Sprung mass the filter assumes [kg]', 1.0, 1e5),

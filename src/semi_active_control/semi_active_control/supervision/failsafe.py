@@ -19,12 +19,17 @@ by tick, whether such a model may be used. A parameter set is accepted only if
   the edge of the search box is one that data outside the physical range (typically a sensor
   fault) pushed there, whatever the identifier concluded,
 
-and it stays usable only while it is younger than ``timeout_s`` (age measured on the caller's
-clock from its receipt). Otherwise the supervisor is in fail-safe mode and the caller commands
-``safe_current_a``: never a guess from a stale or rejected model. An invalid or out-of-range
-message drops the model in use at once (the identifier has just said the damper no longer
-matches it), unless ``hold_on_reject`` is set, in which case the previous model stays in use
-until it goes stale.
+and it stays usable only while it is younger than ``timeout_s``. Its age counts from its
+header stamp when the stamp is on the caller's clock, from its receipt otherwise: a set that sat
+in a queue (a starved machine) is as old as its stamp says, and one received already older than
+``timeout_s`` is refused (``'stale_on_arrival'``), never used. A stamp that is unset (zero),
+ahead of the caller's clock, or more than ``max_transit_s`` behind it is taken for another
+clock's (a replay's simulated time, an unsynchronised host) and the age counts from receipt
+(counted in ``stamps_not_used``). Otherwise the supervisor is in fail-safe mode and the caller
+commands ``safe_current_a``: never a guess from a stale or rejected model. An invalid or
+out-of-range message drops the model in use at once (the identifier has just said the damper no
+longer matches it), unless ``hold_on_reject`` is set, in which case the previous model stays in
+use until it goes stale.
 
 The module is pure Python/numpy (no ROS): the node feeds it decoded sets
 (:class:`mr_damper_common.contract.IdentifiedSet`) and times.
@@ -53,7 +58,12 @@ REASONS = (
     'narrow_current_range',  # identified over less than min_current_span_a
     'pinned_at_bound',    # a parameter at a non-zero bound of the box (fit pushed off range)
     'undecodable',        # the message could not be decoded (bad layout); see :meth:`refuse`
+    'stale_on_arrival',   # received already older than the timeout (by its header stamp)
 )
+
+#: Default of :attr:`ModelSupervisor.max_transit_s` [s]: a set stamped longer than this before
+#: its receipt was stamped on another clock; its age counts from receipt.
+MAX_TRANSIT_S = 60.0
 
 
 class SupervisorError(ValueError):
@@ -112,7 +122,8 @@ class ModelSupervisor:
     Parameters
     ----------
     timeout_s : float
-        Maximum age [s] of the model in use, counted from its receipt; older means fail-safe.
+        Maximum age [s] of the model in use, counted from its stamp (module docstring) or its
+        receipt; older means fail-safe.
     safe_current_a : float
         Coil current [A] commanded in fail-safe mode (a passive damper setting).
     i_min_a, i_max_a : float
@@ -128,6 +139,9 @@ class ModelSupervisor:
     pinned_fraction : float
         A parameter within this fraction of its bound span from a non-zero bound is pinned
         (refused, ``'pinned_at_bound'``); same rule as the identifier's.
+    max_transit_s : float
+        Longest time [s] from a set's header stamp to its receipt taken as transit on one
+        clock; a stamp further behind is another clock's (age from receipt).
 
     Raises
     ------
@@ -145,6 +159,7 @@ class ModelSupervisor:
     hold_on_reject: bool = False
     min_current_span_a: float = 1.0
     pinned_fraction: float = PINNED_FRACTION
+    max_transit_s: float = MAX_TRANSIT_S
     # state (not constructor arguments in practice)
     params: IdentifiedSet = field(default=None, init=False)
     accepted_at: float = field(default=None, init=False)
@@ -155,18 +170,21 @@ class ModelSupervisor:
     n_accepted: int = field(default=0, init=False)
     n_failsafe_entries: int = field(default=0, init=False)
     rejected: dict = field(default_factory=dict, init=False)
+    stamps_not_used: dict = field(default_factory=dict, init=False)
     last_detail: str = field(default='', init=False)
     _last_t: float = field(default=None, init=False)
 
     def __post_init__(self):
         for name in ('timeout_s', 'safe_current_a', 'i_min_a', 'i_max_a', 'current_tol_a',
-                     'min_current_span_a', 'pinned_fraction'):
+                     'min_current_span_a', 'pinned_fraction', 'max_transit_s'):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise SupervisorError(f'`{name}` must be a finite number, got {value!r}.')
         if not 0 <= self.pinned_fraction < 0.5:
             raise SupervisorError(
                 f'`pinned_fraction` must be in [0, 0.5), got {self.pinned_fraction}.')
+        if self.max_transit_s <= 0:
+            raise SupervisorError(f'`max_transit_s` must be > 0 s, got {self.max_transit_s}.')
         if self.timeout_s <= 0:
             raise SupervisorError(f'`timeout_s` must be > 0 s, got {self.timeout_s}.')
         if not self.i_min_a < self.i_max_a:
@@ -182,6 +200,7 @@ class ModelSupervisor:
         if missing:
             raise SupervisorError(f'`bounds` lacks {", ".join(missing)}.')
         self.rejected = {r: 0 for r in REASONS[3:]}
+        self.stamps_not_used = {'unset': 0, 'future': 0, 'other_clock': 0}
 
     #: Settings :meth:`reconfigure` may change while the supervisor runs.
     RECONFIGURABLE = ('timeout_s', 'safe_current_a', 'hold_on_reject', 'min_current_span_a',
@@ -291,12 +310,35 @@ class ModelSupervisor:
         Returns
         -------
         Verdict
+            An accepted set received already older than ``timeout_s`` by its stamp is
+            refused as ``'stale_on_arrival'``.
 
         """
         identified, refusal = as_identified_set(identified)
         if refusal is not None:
             return self._apply(refusal, None, t_now)
-        return self._apply(self.check(identified), identified, t_now)
+        verdict = self.check(identified)
+        since = float(t_now)
+        if verdict.accepted:
+            since = self._stamp_or_receipt(identified.stamp_s, since)
+            if t_now - since > self.timeout_s:
+                verdict = Verdict(False, 'stale_on_arrival',
+                                  f'stamped {t_now - since:.3f} s before its receipt '
+                                  f'(timeout {self.timeout_s:g} s)')
+        return self._apply(verdict, identified, t_now, since)
+
+    def _stamp_or_receipt(self, stamp_s, t_now):
+        """Return the time a set's age counts from: its stamp on this clock, else ``t_now``."""
+        if not (math.isfinite(stamp_s) and stamp_s > 0):
+            kind = 'unset'
+        elif stamp_s > t_now:
+            kind = 'future'
+        elif t_now - stamp_s > self.max_transit_s:
+            kind = 'other_clock'
+        else:
+            return float(stamp_s)
+        self.stamps_not_used[kind] += 1
+        return t_now
 
     def offer_decoded(self, decode, raw, t_now):
         """
@@ -353,10 +395,10 @@ class ModelSupervisor:
                 f'`reason` must be one of {sorted(self.rejected)}, got {reason!r}.')
         return self._apply(Verdict(False, reason, detail), None, t_now)
 
-    def _apply(self, verdict, identified, t_now):
+    def _apply(self, verdict, identified, t_now, since=None):
         if verdict.accepted:
             self.params = identified
-            self.accepted_at = float(t_now)
+            self.accepted_at = float(t_now if since is None else since)
             self.n_accepted += 1
             if self.first_valid_at is None:
                 self.first_valid_at = float(t_now)
@@ -431,7 +473,9 @@ class ModelSupervisor:
         -------
         dict
             ``mode``, ``reason``, ``failsafe_s`` [s], ``failsafe_entries``, ``params_accepted``,
-            ``params_rejected`` (reason -> count), ``last_reject_detail``, ``safe_current_a``.
+            ``params_rejected`` (reason -> count), ``stamps_not_used`` (``unset``, ``future``,
+            ``other_clock``: sets aged from receipt), ``last_reject_detail``,
+            ``safe_current_a``.
 
         """
         return {
@@ -441,6 +485,7 @@ class ModelSupervisor:
             'failsafe_entries': self.n_failsafe_entries,
             'params_accepted': self.n_accepted,
             'params_rejected': dict(self.rejected),
+            'stamps_not_used': dict(self.stamps_not_used),
             'last_reject_detail': self.last_detail,
             'safe_current_a': self.safe_current_a,
         }

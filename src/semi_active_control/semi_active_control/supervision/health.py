@@ -24,6 +24,8 @@ from mr_damper_common.health import dropped_since, ERROR, OK, Rising, WARN, wors
 FAILSAFE_MESSAGES = {
     'no_parameters_yet': 'no identified parameters yet',
     'stale': 'identified parameters stale (older than param_timeout_s)',
+    'stale_on_arrival': 'identified parameters received already older than param_timeout_s '
+                        '(by their stamp)',
     'no_command_yet': 'no current command yet',
     'command_timeout': 'no current command for command_timeout_s',
     'state_non_finite': 'vehicle state refused (a field the law reads is not finite)',
