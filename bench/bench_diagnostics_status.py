@@ -37,7 +37,7 @@ import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_vehicle_cycle import CYCLE_S, make_loop, sensor_cycles  # noqa: E402  (same cycles)
-from mr_damper_common.health import finite_or_none  # noqa: E402
+from mr_damper_common.health import finite_or_none, non_finite_text  # noqa: E402
 
 WAYS = ('json, new', 'direct, new', 'direct, reused')
 
@@ -49,7 +49,7 @@ def json_text(value):
     if hasattr(value, 'tolist'):
         value = value.tolist()
     if isinstance(value, float) and not math.isfinite(value):
-        return 'nan' if math.isnan(value) else ('inf' if value > 0 else '-inf')
+        return non_finite_text(value)
     return json.dumps(finite_or_none(value))
 
 

@@ -156,9 +156,7 @@ def value_text(value):
     if kind is int:
         return int.__repr__(value)
     if kind is float:
-        if math.isfinite(value):
-            return float.__repr__(value)
-        return 'nan' if math.isnan(value) else ('inf' if value > 0 else '-inf')
+        return float.__repr__(value) if math.isfinite(value) else non_finite_text(value)
     if kind is bool:
         return 'true' if value else 'false'
     if value is None:
@@ -168,8 +166,13 @@ def value_text(value):
     if hasattr(value, 'tolist'):
         value = value.tolist()              # numpy scalars and arrays
     if isinstance(value, float) and not math.isfinite(value):
-        return 'nan' if math.isnan(value) else ('inf' if value > 0 else '-inf')
+        return non_finite_text(value)
     return json.dumps(finite_or_none(value))     # nested non-finite values: null
+
+
+def non_finite_text(value):
+    """Return the text of a non-finite float: ``nan``, ``inf`` or ``-inf``."""
+    return 'nan' if math.isnan(value) else ('inf' if value > 0 else '-inf')
 
 
 def text_value(text):
