@@ -4,6 +4,15 @@ import pytest
 from integration.ros_helpers import Listener
 
 
+@pytest.fixture(scope='session', autouse=True)
+def node_log_dir(tmp_path_factory):
+    """Write the node processes' output into pytest's temporary folder, not ``/tmp`` itself."""
+    from integration import ros_helpers
+    ros_helpers.LOG_DIR = str(tmp_path_factory.mktemp('node_logs'))
+    yield ros_helpers.LOG_DIR
+    ros_helpers.LOG_DIR = None
+
+
 @pytest.fixture(scope='module')
 def listener(request):
     """

@@ -61,6 +61,11 @@ def package_of(executable):
     return owners[0]
 
 
+#: Folder of the node processes' output files (tests/integration/conftest.py sets it to one in
+#: pytest's base temporary folder, which pytest prunes to its last few runs; None: the system's)
+LOG_DIR = None
+
+
 def fault_test_suite(out):
     """
     Return the suite of a fault test (:class:`mr_damper_bringup.processes.Suite`, not started).
@@ -128,7 +133,7 @@ class NodeProcess:
             cmd += ['-p', f'{name}:={ros_param(value)}']
         self.cmd = cmd
         self.log = tempfile.NamedTemporaryFile(prefix=f'{path.name}_', suffix='.log',
-                                               delete=False)
+                                               dir=LOG_DIR, delete=False)
         full_env = dict(os.environ, PYTHONUNBUFFERED='1')
         full_env.update(env or {})
         from mr_damper_bringup.network import on_loopback
