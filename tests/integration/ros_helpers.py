@@ -30,8 +30,6 @@ from conftest import REPO, VENV_BIN
 from process_helpers import end_suite, popen, run, stop_group
 from ros_context import ros_context
 
-DISCOVERY_TIMEOUT_S = 8.0
-
 
 def console_scripts(package):
     """

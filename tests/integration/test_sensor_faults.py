@@ -39,7 +39,9 @@ KEEP_ALL = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
                       reliability=ReliabilityPolicy.RELIABLE)
 #: samples published ahead of the identifier's judged stamp (below Fast DDS's 5000 limit)
 LEAD_S = 2.5
-WAIT_S = 30.0         # hang guard of each count-based wait
+# hang guard of each count-based wait (two CI runs at once on 2 cores: the identifier not
+# subscribed 30 s after its start)
+WAIT_S = 120.0
 
 
 def cam(t):
