@@ -18,8 +18,8 @@ the order and the counts of events (the waits are hang guards only, never a time
 import pytest
 
 from integration.ros_helpers import Listener, NodeProcess
-from integration.vehicle_helpers import (bus_channel, Car, chain_up, change_state, command_frames,
-                                         CORNERS, drivers_time_out_while_stopped, GUARD_S,
+from integration.vehicle_helpers import (all_safe, bus_channel, Car, chain_up, change_state,
+                                         command_frames, drivers_time_out_while_stopped, GUARD_S,
                                          model_files, normal_but_rr, SAFE_A)
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -69,14 +69,14 @@ def test_loop_lifecycle_one_invalid_corner_deactivation_and_a_silent_computer(tm
             n_before = len(car.taken())
             assert change_state(lis, NODE, 'deactivate') is True
             assert lis.wait_for(lambda: any(
-                all(f[c] == (SAFE_A, 1) for c in CORNERS)
-                for f in command_frames(car.taken()[n_before:])), GUARD_S, procs=procs[:1])
+                all_safe(f) for f in command_frames(car.taken()[n_before:])), GUARD_S,
+                procs=procs[:1])
             n_deact = len(car.taken())
             # the bridge's safe frames while inactive (every safe_period_s): wait for 5 more
             assert lis.wait_for(lambda: len(car.taken()) >= n_deact + 4 * 5, GUARD_S,
                                 procs=procs[:1])
             after = command_frames(car.taken()[n_before:])
-            safe = [all(f[c] == (SAFE_A, 1) for c in CORNERS) for f in after]
+            safe = [all_safe(f) for f in after]
             assert all(safe[safe.index(True):])
             assert lis.wait_for(lambda: commands and commands[-1][1].mode.tolist() == [
                 FullCarCommand.MODE_INACTIVE] * 4, GUARD_S)
