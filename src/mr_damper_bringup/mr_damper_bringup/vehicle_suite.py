@@ -322,9 +322,14 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         t, acc = z['t'], z['acc']
     t0 = can.get('t_normal')
     t0 = float(t0) if isinstance(t0, (int, float)) and t0 == t0 else None
+    if t0 is not None and len(t) and t[-1] <= t0 + 1.0:
+        # the law had every corner only in the run's last second: too little ride to weigh
+        section['note'] = 'every driver had a law command at once only in the last second'
+        t0 = None
     if t0 is None:
         # the law never had every corner: the whole recorded ride (t >= 0) is compared
-        section['note'] = 'every driver never had a law command at once: whole run compared'
+        section.setdefault('note', 'every driver never had a law command at once: whole run '
+                                   'compared')
         t0 = 0.0
         if section['driver_command_timeouts'] is None:
             section['driver_command_timeouts'] = sum(d.get('command_timeouts') or 0
