@@ -137,6 +137,8 @@ class CanBridge:
         self.timeouts = {}            # message name -> outages
         self.frames_received = 0
         self.own_frames = 0
+        self.log_errors = 0           # frames the log's writer refused (the last one's error)
+        self.log_error = None
         self.bus_off = False
         self.sent = []                # (frame_id, data) when bus is None
         self.started_t = clock()
@@ -198,12 +200,25 @@ class CanBridge:
             if self.bus is None:
                 self.sent.append((frame_id, data))
             else:
-                self.bus.send(can.Message(arbitration_id=frame_id, data=data,
-                                          is_extended_id=False))
+                msg = can.Message(arbitration_id=frame_id, data=data, is_extended_id=False,
+                                  is_rx=False)
+                self.bus.send(msg)
+                if self._log is not None:     # the bus does not give our frames back
+                    msg.timestamp = time.time()
+                    self._log_frame(msg)
         except can.CanError:
             self.faults['send_failed'] += 1
             return False
         return True
+
+    def _log_frame(self, msg):
+        """Write ``msg`` to the frame log; a writer's error is counted, never raised."""
+        with self.lock:
+            try:
+                self._log.on_message_received(msg)
+            except Exception as exc:          # noqa: BLE001 - a log must not stop the bus
+                self.log_errors += 1
+                self.log_error = f'{type(exc).__name__}: {exc}'
 
     # --- receiving ---------------------------------------------------------------------------
     def on_frame(self, msg, now=None):
@@ -214,6 +229,8 @@ class CanBridge:
             if msg.arbitration_id in self._own_ids and not msg.is_error_frame:
                 self.own_frames += 1          # our own frames, looped back by the bus
                 return None
+            if self._log is not None:
+                self._log_frame(msg)
             dec = self.codec.decode(msg.arbitration_id, msg.data,
                                     is_error_frame=msg.is_error_frame,
                                     is_remote_frame=msg.is_remote_frame)
@@ -353,9 +370,10 @@ class CanBridge:
         """
         Read the bus in a python-can ``Notifier`` thread (frames go to :meth:`on_frame`).
 
-        With ``log_file``, every received frame and every frame sent (it loops back on the
-        ``udp_loopback`` bus) is also written by ``can.Logger`` (``.blf``, ``.asc``, ``.log``
-        = candump format, ``.csv``, ...; the writer is chosen by the extension).
+        With ``log_file``, every frame received (but our own, should the bus give them back)
+        and every frame sent is also written by ``can.Logger`` (``.blf``, ``.asc``, ``.log`` =
+        candump format, ``.csv``, ...; the writer is chosen by the extension), under the lock,
+        from the thread that received or sent it.
         ``reader_priority`` > 0: the reader thread goes under SCHED_FIFO at that priority on
         its first frame (the vehicle computer's loop runs in it: above the process's other
         threads); a refusal is in the status (``reader_priority_error``).
@@ -366,16 +384,19 @@ class CanBridge:
                 self._reader = fifo_on_first_call(self.on_frame, reader_priority)
                 listeners = [self._reader]
             if log_file:
-                self._log = can.Logger(log_file)
-                listeners.append(self._log)
+                with self.lock:
+                    self._log = can.Logger(log_file)
             self._notifier = can.Notifier(self.bus, listeners, timeout=0.1)
 
     def stop(self):
         """Stop the reader thread and close the log (the bus stays open for its owner)."""
         if self._notifier is not None:
-            self._notifier.stop()             # stops its listeners too: the log is closed
+            self._notifier.stop()
             self._notifier = None
-            self._log = None
+        with self.lock:
+            if self._log is not None:
+                self._log.stop()
+                self._log = None
 
     # --- status --------------------------------------------------------------------------------
     def status(self, now=None):
@@ -400,6 +421,7 @@ class CanBridge:
             return {'corners': corners, 'faults': dict(self.faults),
                     'timeouts': dict(self.timeouts), 'commands': dict(self.limiter.counts),
                     'frames_received': self.frames_received, 'own_frames': self.own_frames,
+                    'log_errors': self.log_errors, 'log_error': self.log_error,
                     'bus_off': self.bus_off, 'safe_current_a': self.safe_current_a,
                     'command_timeout_s': self.command_timeout_s,
                     'reader_priority_error': getattr(self._reader, 'error', None)}
