@@ -274,3 +274,59 @@ def test_cpu_affinity_pins_every_thread_and_threads_started_later(tmp_path):
     assert len(r['warnings']) == 3
     assert 'not available' in r['warnings'][0] and 'nothing pinned' in r['warnings'][1]
     assert 'CPU list' in r['warnings'][2]
+
+
+def test_realtime_priority_leaves_native_threads_and_later_threads_alone():
+    # in a process of its own (the policy would stay on this one): a native thread (made with
+    # pthread_create, blocked in pause(): a library's thread, as the middleware's), a Python
+    # thread, and one started afterwards by the now SCHED_FIFO main thread; each thread's
+    # policy read back from the kernel. As root (CI and this machine) the priority applies;
+    # without CAP_SYS_NICE the refusal is checked by its warning
+    script = textwrap.dedent('''
+        import ctypes, json, os, threading, time
+        from mr_damper_common.node_utils import set_realtime_priority
+
+        class Log:
+            warnings = []
+            def warning(self, text):
+                self.warnings.append(text)
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        before = set(os.listdir('/proc/self/task'))
+        handle = ctypes.c_ulong()
+        start = ctypes.cast(libc.pause, ctypes.c_void_p)
+        assert libc.pthread_create(ctypes.byref(handle), None, start, None) == 0
+        while len(set(os.listdir('/proc/self/task')) - before) < 1:
+            time.sleep(0.01)
+        native = int((set(os.listdir('/proc/self/task')) - before).pop())
+        stop = threading.Event()
+        own = threading.Thread(target=stop.wait)
+        own.start()
+        log = Log()
+        applied = set_realtime_priority(7, log, native_threads=False)
+        later = threading.Thread(target=stop.wait)
+        later.start()
+        got = dict(main=os.sched_getscheduler(0), prio=os.sched_getparam(0).sched_priority,
+                   own=os.sched_getscheduler(own.native_id), native=os.sched_getscheduler(native),
+                   later=os.sched_getscheduler(later.native_id))
+        stop.set()
+        own.join()
+        later.join()
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        every = set_realtime_priority(7, log)          # the car nodes' call: every thread
+        got.update(every_native=os.sched_getscheduler(native), every_applied=every)
+        print(json.dumps(dict(applied=applied, warnings=log.warnings, **got)), flush=True)
+        os._exit(0)                                     # the native thread never returns
+    ''')
+    got = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                         timeout=120, check=True)
+    r = json.loads(got.stdout)
+    if not r['applied']:                                # no CAP_SYS_NICE: nothing changed
+        assert 'not applied' in r['warnings'][0]
+        assert r['main'] == r['own'] == r['native'] == os.SCHED_OTHER
+        return
+    fifo_reset = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
+    assert r['main'] == r['own'] == fifo_reset and r['prio'] == 7
+    assert r['native'] == os.SCHED_OTHER                # a library's thread left alone
+    assert r['later'] == os.SCHED_OTHER                 # no thread inherits the priority
+    assert r['every_applied'] and r['every_native'] == os.SCHED_FIFO

@@ -60,20 +60,44 @@ def _each_thread(fn):
         fn(int(tid))
 
 
-def set_realtime_priority(priority, logger):
+def set_realtime_priority(priority, logger, native_threads=True):
     """
-    Put every thread of this process that exists now under SCHED_FIFO ``priority`` (0: no-op).
+    Put the threads of this process that exist now under SCHED_FIFO ``priority`` (0: no-op).
 
     Called after the node is created, so the executor (main) thread and the middleware's
     receive threads (created with the node) get it; threads started later (the fitting worker)
     reset themselves to SCHED_OTHER (see ``IdentifierNode._work``).
+
+    ``native_threads=False`` puts only the interpreter's threads (``threading.enumerate()``:
+    the executor's, a lane's, a bus reader's) under the priority, leaves the libraries' own
+    threads (the middleware's ``dds.*``, numba's and BLAS's workers) at normal scheduling, and
+    sets ``SCHED_RESET_ON_FORK``, so no thread made later inherits the priority unasked (a
+    reader that wants it sets it itself: ``scheduling.fifo_on_first_call``). Those threads
+    hold no GIL (rclpy's EventsExecutor queues its events in C++), so the reason every Python
+    thread gets the priority (a normal thread preempted while holding the GIL stalls the
+    real-time one) does not apply to them; and they are not written for SCHED_FIFO at one
+    priority on one core: in a vehicle computer pinned to one core with every thread at
+    SCHED_FIFO 20, Fast DDS's asynchronous writer thread (``dds.asyn``) once spun at the
+    real-time limit (95 % of the core) while the threads it waited for, runnable at the same
+    priority, never ran again (SCHED_FIFO has no time slices within a priority): the node
+    froze in its configure (docs/faults.md).
+
     Needs CAP_SYS_NICE (root); otherwise a warning and nothing changes.
     """
     if priority <= 0:
         return False
     try:
         param = os.sched_param(int(priority))
-        _each_thread(lambda tid: os.sched_setscheduler(tid, os.SCHED_FIFO, param))
+        policy = os.SCHED_FIFO | (0 if native_threads else os.SCHED_RESET_ON_FORK)
+        python = {t.native_id for t in threading.enumerate()}
+
+        def put(tid):
+            if native_threads or tid in python:
+                try:
+                    os.sched_setscheduler(tid, policy, param)
+                except ProcessLookupError:
+                    pass                      # the thread ended meanwhile
+        _each_thread(put)
         return True
     except (OSError, AttributeError) as exc:
         logger.warning(f'realtime_priority {priority} not applied: {exc}')
