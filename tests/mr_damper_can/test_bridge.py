@@ -356,6 +356,42 @@ def test_a_frame_log_that_fails_is_counted_and_the_bus_goes_on(tmp_path):
     # reaches the bridge (the helper asserts it), each refusal of the log is counted
     st = _logged_exchange(tmp_path / 'frames.blf', [], 3).status()
     assert st['log_errors'] == 3 and 'ushort format' in st['log_error']
+    h = BridgeHealth()(st)
+    assert h.level == WARN and '3 frames the frame log refused' in h.message
+
+
+def test_a_frame_whose_handling_raises_is_counted_and_the_reader_goes_on():
+    # the driver callback raises on the second status frame: the reader takes the third and
+    # fourth (python-can's Notifier would end its thread), the health names the error
+    channel = f'test_bridge_raise_{time.monotonic_ns()}'
+    with can.Bus(interface='virtual', channel=channel) as bus_a, \
+            can.Bus(interface='virtual', channel=channel) as bus_b:
+        got = []
+
+        def on_driver(status):
+            got.append(status)
+            if len(got) == 2:
+                raise ZeroDivisionError('a bug in a callback')
+        bridge = CanBridge(bus_a, ('fl',), rx_timeout_s=10.0, command_timeout_s=10.0,
+                           resend_period_s=10.0, on_driver=on_driver)
+        ecu = SimulatedEcu(bus_b, ('fl',), sensors=False)
+        health = BridgeHealth()
+        try:
+            bridge.start()
+            for k in range(4):
+                ecu.step(0.01 * k)
+            end = time.monotonic() + 30.0       # a hang guard only
+            while len(got) < 4 and time.monotonic() < end:
+                time.sleep(0.01)
+        finally:
+            bridge.stop()
+    st = bridge.status()
+    assert len(got) == 4
+    assert st['frame_errors'] == 1
+    assert st['frame_error'] == 'ZeroDivisionError: a bug in a callback'
+    h = health(st)
+    assert h.level == ERROR and '1 frames whose handling raised' in h.message
+    assert 'frames whose handling raised' not in health(bridge.status()).message    # once
 
 
 def test_the_bridges_reader_runs_at_the_priority_asked_for():

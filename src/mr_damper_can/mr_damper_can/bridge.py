@@ -139,6 +139,8 @@ class CanBridge:
         self.own_frames = 0
         self.log_errors = 0           # frames the log's writer refused (the last one's error)
         self.log_error = None
+        self.frame_errors = 0         # frames whose handling raised (the last one's error)
+        self.frame_error = None
         self.bus_off = False
         self.sent = []                # (frame_id, data) when bus is None
         self.started_t = clock()
@@ -377,16 +379,28 @@ class CanBridge:
         ``reader_priority`` > 0: the reader thread goes under SCHED_FIFO at that priority on
         its first frame (the vehicle computer's loop runs in it: above the process's other
         threads); a refusal is in the status (``reader_priority_error``).
+        A frame whose handling raises (here or in a callback: the vehicle computer's whole
+        loop) is counted, ``frame_errors`` with the last one's ``frame_error``, and the reader
+        goes on with the next frame; before, python-can's ``Notifier`` ended its thread and
+        the bus was read no more. An error of the bus itself still ends it.
         """
         if self._notifier is None and self.bus is not None:
-            listeners = [self.on_frame]
+            take = self.on_frame
             if reader_priority > 0:
                 self._reader = fifo_on_first_call(self.on_frame, reader_priority)
-                listeners = [self._reader]
+                take = self._reader
+
+            def listener(msg):
+                try:
+                    take(msg)
+                except Exception as exc:      # noqa: BLE001 - one frame must not end the reader
+                    with self.lock:
+                        self.frame_errors += 1
+                        self.frame_error = f'{type(exc).__name__}: {exc}'
             if log_file:
                 with self.lock:
                     self._log = can.Logger(log_file)
-            self._notifier = can.Notifier(self.bus, listeners, timeout=0.1)
+            self._notifier = can.Notifier(self.bus, [listener], timeout=0.1)
 
     def stop(self):
         """Stop the reader thread and close the log (the bus stays open for its owner)."""
@@ -422,6 +436,7 @@ class CanBridge:
                     'timeouts': dict(self.timeouts), 'commands': dict(self.limiter.counts),
                     'frames_received': self.frames_received, 'own_frames': self.own_frames,
                     'log_errors': self.log_errors, 'log_error': self.log_error,
+                    'frame_errors': self.frame_errors, 'frame_error': self.frame_error,
                     'bus_off': self.bus_off, 'safe_current_a': self.safe_current_a,
                     'command_timeout_s': self.command_timeout_s,
                     'reader_priority_error': getattr(self._reader, 'error', None)}
@@ -432,8 +447,8 @@ class BridgeHealth:
     Status rules of the bridge (``/diagnostics`` level and message).
 
     OK: every corner normal, no new fault. WARN: a corner in fail-safe (which and why), fault
-    counters or clamped / refused commands that rose since the last status. ERROR: the bus is
-    off, or a driver reports a fault.
+    counters, clamped / refused commands or frames the log refused that rose since the last
+    status. ERROR: the bus is off, a driver reports a fault, or a frame's handling raised.
     """
 
     def __init__(self):
@@ -462,6 +477,14 @@ class BridgeHealth:
         if cmd:
             problems.append((WARN, 'commands outside the DBC range: '
                              + ', '.join(f'{v} {k}' for k, v in sorted(cmd.items()))))
+        raised = self._rising.rise('frame_errors', status.get('frame_errors', 0))
+        if raised:
+            problems.append((ERROR, f'{raised} frames whose handling raised since the last '
+                             f'status (last: {status["frame_error"]})'))
+        refused = self._rising.rise('log_errors', status.get('log_errors', 0))
+        if refused:
+            problems.append((WARN, f'{refused} frames the frame log refused since the last '
+                             f'status (last: {status["log_error"]})'))
         finding = dropped_since(self._rising, dropped)
         if finding:
             problems.append(finding)
