@@ -308,7 +308,9 @@ def test_realtime_priority_leaves_native_threads_and_later_threads_alone():
         later.start()
         got = dict(main=os.sched_getscheduler(0), prio=os.sched_getparam(0).sched_priority,
                    own=os.sched_getscheduler(own.native_id), native=os.sched_getscheduler(native),
-                   later=os.sched_getscheduler(later.native_id))
+                   native_nice=os.getpriority(os.PRIO_PROCESS, native),
+                   later=os.sched_getscheduler(later.native_id),
+                   later_nice=os.getpriority(os.PRIO_PROCESS, later.native_id))
         stop.set()
         own.join()
         later.join()
@@ -327,6 +329,7 @@ def test_realtime_priority_leaves_native_threads_and_later_threads_alone():
         return
     fifo_reset = os.SCHED_FIFO | os.SCHED_RESET_ON_FORK
     assert r['main'] == r['own'] == fifo_reset and r['prio'] == 7
-    assert r['native'] == os.SCHED_OTHER                # a library's thread left alone
-    assert r['later'] == os.SCHED_OTHER                 # no thread inherits the priority
+    assert r['native'] == os.SCHED_OTHER                # a library's thread: time slices,
+    assert r['native_nice'] == -20                      # first among the normal ones
+    assert r['later'] == os.SCHED_OTHER and r['later_nice'] == 0    # nothing inherited
     assert r['every_applied'] and r['every_native'] == os.SCHED_FIFO

@@ -40,7 +40,7 @@ MANAGED_PARAMETERS = (
     Param('diagnostics_period_s', 1.0, 'Period of the /diagnostics status [s]', 0.01, 60.0),
     Param('realtime_priority', 0, 'SCHED_FIFO priority of the node\'s threads, set when it is '
           'configured (1..99; 0 = normal scheduling; the threads of the middleware and other '
-          'libraries keep normal scheduling); needs CAP_SYS_NICE [-]', 0, 99),
+          'libraries get normal scheduling at nice -20); needs CAP_SYS_NICE [-]', 0, 99),
     Param('cpu_affinity', '', 'CPUs the node\'s threads are pinned to when it is configured, '
           'a Linux CPU list as taskset -c takes it ("1", "2-3"; "" = any)'),
 )
@@ -86,7 +86,7 @@ def apply_scheduling(node, params):
     Give ``node``'s process its ``cpu_affinity`` and its threads ``realtime_priority``.
 
     Only the interpreter's threads get the priority; the libraries' own threads (the
-    middleware's) keep normal scheduling and no later thread inherits it
+    middleware's) stay at normal scheduling, at nice -20, and no later thread inherits either
     (``set_realtime_priority(..., native_threads=False)``: with every thread at SCHED_FIFO on
     one core a vehicle computer froze in its configure).
     """

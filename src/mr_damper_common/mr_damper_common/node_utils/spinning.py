@@ -54,6 +54,11 @@ def spin(executor, done=lambda: False, timeout_sec=0.1):
             raise
 
 
+#: Nice value of the libraries' threads under ``set_realtime_priority(..., native_threads=False)``
+#: (the highest priority of normal scheduling).
+NATIVE_NICE = -20
+
+
 def _each_thread(fn):
     """Call ``fn(tid)`` for the id of every thread of this process now; an error propagates."""
     for tid in os.listdir('/proc/self/task'):
@@ -69,18 +74,20 @@ def set_realtime_priority(priority, logger, native_threads=True):
     reset themselves to SCHED_OTHER (see ``IdentifierNode._work``).
 
     ``native_threads=False`` puts only the interpreter's threads (``threading.enumerate()``:
-    the executor's, a lane's, a bus reader's) under the priority, leaves the libraries' own
-    threads (the middleware's ``dds.*``, numba's and BLAS's workers) at normal scheduling, and
-    sets ``SCHED_RESET_ON_FORK``, so no thread made later inherits the priority unasked (a
-    reader that wants it sets it itself: ``scheduling.fifo_on_first_call``). Those threads
-    hold no GIL (rclpy's EventsExecutor queues its events in C++), so the reason every Python
-    thread gets the priority (a normal thread preempted while holding the GIL stalls the
-    real-time one) does not apply to them; and they are not written for SCHED_FIFO at one
-    priority on one core: in a vehicle computer pinned to one core with every thread at
-    SCHED_FIFO 20, Fast DDS's asynchronous writer thread (``dds.asyn``) once spun at the
-    real-time limit (95 % of the core) while the threads it waited for, runnable at the same
-    priority, never ran again (SCHED_FIFO has no time slices within a priority): the node
-    froze in its configure (docs/faults.md).
+    the executor's, a lane's, a bus reader's) under the priority; the libraries' own threads
+    (the middleware's ``dds.*``, numba's and BLAS's workers) stay at normal scheduling with
+    the highest nice value (:data:`NATIVE_NICE`); and ``SCHED_RESET_ON_FORK`` keeps threads
+    made later from inheriting either unasked (a reader that wants the priority sets it
+    itself: ``scheduling.fifo_on_first_call``). The libraries' threads are not written for
+    SCHED_FIFO at one priority on one core: in a vehicle computer pinned to one core with
+    every thread at SCHED_FIFO 20, Fast DDS's asynchronous writer thread (``dds.asyn``) once
+    spun at the real-time limit (95 % of the core) while the threads it waited for, runnable
+    at the same priority, never ran again (SCHED_FIFO has no time slices within a priority):
+    the node froze in its configure (docs/faults.md). At normal scheduling they share the
+    core by time slices; the nice value lets them run before the machine's other normal work
+    when a real-time thread waits on one of them (a lock of the middleware's that a publish
+    takes): at nice 0 that wait cost the vehicle computer 0.4-1 % of its cycles in the
+    intervals without hypervisor steal (docs/vehicle.md).
 
     Needs CAP_SYS_NICE (root); otherwise a warning and nothing changes.
     """
@@ -92,11 +99,13 @@ def set_realtime_priority(priority, logger, native_threads=True):
         python = {t.native_id for t in threading.enumerate()}
 
         def put(tid):
-            if native_threads or tid in python:
-                try:
+            try:
+                if native_threads or tid in python:
                     os.sched_setscheduler(tid, policy, param)
-                except ProcessLookupError:
-                    pass                      # the thread ended meanwhile
+                else:
+                    os.setpriority(os.PRIO_PROCESS, tid, NATIVE_NICE)
+            except ProcessLookupError:
+                pass                          # the thread ended meanwhile
         _each_thread(put)
         return True
     except (OSError, AttributeError) as exc:
