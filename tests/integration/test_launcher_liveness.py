@@ -83,6 +83,7 @@ def test_a_frozen_node_is_killed_and_restarted_as_hung_while_the_others_run(tmp_
         [(QC, 'hung', 'SIGKILL')]
     assert sup['restarts'][0]['silent_s'] > HANG_TIMEOUT_S
     assert sup['restarts'][0]['cpu_share'] < HANG_IDLE_SHARE          # stopped: idle
+    assert sup['restarts'][0]['spin_cpu_share'] < HANG_IDLE_SHARE     # and its spin thread
     assert sup['gave_up'] is None
     assert set(sup['exit_codes']) == {QC, RIG, IDENT, RECORDER}
     assert all(c == 0 for c in sup['exit_codes'].values()), sup['exit_codes']

@@ -132,6 +132,7 @@ class Heart:
 
     Each node beats every ``period_s`` while ``beating[node]``, and uses ``cpu[node]`` of a
     core (sampled every second, as the launcher does); ``cpu[node] = None``: no CPU samples.
+    Of that, its spin thread uses ``spin[node]`` of a core (None: not sampled).
     """
 
     def __init__(self, watch, clock, nodes, period_s=1.0, step_s=0.1):
@@ -139,8 +140,11 @@ class Heart:
         self.beating = dict.fromkeys(nodes, True)
         self.cpu = dict.fromkeys(nodes, 0.3)
         self.used = dict.fromkeys(nodes, 0.0)
+        self.spin = dict.fromkeys(nodes, None)
+        self.used_spin = dict.fromkeys(nodes, 0.0)
         self.next = dict.fromkeys(nodes, clock.now + period_s)
         self.next_cpu = clock.now + 1.0
+        self.verdicts = []      # (t, node, silent_s, cpu_share, spin_cpu_share) of every verdict
 
     def run(self, seconds, listening=True):
         """Advance the clock by ``seconds``; return ``[(t, node)]`` of the hang verdicts."""
@@ -150,6 +154,7 @@ class Heart:
             self.clock.now = round(self.clock.now + self.step_s, 9)
             for node, beating in self.beating.items():
                 self.used[node] += (self.cpu[node] or 0.0) * self.step_s
+                self.used_spin[node] += (self.spin[node] or 0.0) * self.step_s
                 if self.clock.now >= self.next[node]:
                     self.next[node] += self.period_s
                     if beating:
@@ -158,10 +163,12 @@ class Heart:
                 self.next_cpu += 1.0
                 for node, share in self.cpu.items():
                     if share is not None:
-                        self.watch.cpu(node, self.clock.now, self.used[node])
+                        spin = None if self.spin[node] is None else self.used_spin[node]
+                        self.watch.cpu(node, self.clock.now, self.used[node], spin)
             if listening:
                 self.watch.listening(self.clock.now)
-            for node, *_ in self.watch.hung():
+            for node, *shares in self.watch.hung():
+                self.verdicts.append((self.clock.now, node, *shares))
                 out.append((self.clock.now, node))
                 self.watch.forget(node)
         return out
@@ -204,6 +211,45 @@ def test_a_silent_node_that_keeps_working_gets_the_longer_limit():
     heart.run(3.0)
     heart.beating['x'] = False
     assert len(heart.run(7.0)) == 1
+
+
+def test_a_silent_node_whose_spin_thread_starved_is_hung_after_one_timeout():
+    """Its process burns a core, but the thread that publishes its status runs not at all."""
+    clock = FakeClock(0.0)
+    watch = HangWatch({'vehicle': 5.0, 'rec': 5.0}, busy_factor=8.0)
+    for n in ('vehicle', 'rec'):
+        watch.started(n, 0.0)
+    heart = Heart(watch, clock, ('vehicle', 'rec'))
+    heart.cpu.update(vehicle=0.95, rec=0.5)
+    heart.spin.update(vehicle=0.05, rec=0.3)
+    assert heart.run(10.0) == []
+    # the vehicle computer: a real-time thread of its own starves its executor
+    heart.beating['vehicle'] = False
+    heart.spin['vehicle'] = 0.0
+    # the recorder: behind, its status waits behind its backlog, its spin thread at work
+    heart.beating['rec'] = False
+    heart.spin['rec'] = 0.06
+    last = heart.next['vehicle'] - 1.0
+    assert [n for _, n in heart.run(20.0)] == ['vehicle']
+    t, node, silent, share, spin = heart.verdicts[0]
+    assert 5.0 < t - last <= 5.0 + heart.step_s + 1e-9 and silent > 5.0
+    assert share == pytest.approx(0.95) and spin == 0.0
+    verdicts = heart.run(30.0)                             # the recorder keeps the long limit
+    assert [n for _, n in verdicts] == ['rec']
+    assert 40.0 < verdicts[0][0] - last <= 40.0 + heart.step_s + 1e-9
+    assert heart.verdicts[1][3:] == (pytest.approx(0.5), pytest.approx(0.06))
+
+
+def test_a_spin_thread_share_is_only_known_from_two_samples_after_the_beat():
+    watch = HangWatch({'car': 5.0})
+    watch.started('car', 0.0)
+    watch.beat('car', 1.0)
+    watch.cpu('car', 2.0, 10.0, 3.0)
+    assert watch.busy('car') is None and watch.busy('car', spin=True) is None
+    watch.cpu('car', 4.0, 11.0, 3.5)
+    assert watch.busy('car') == 0.5 and watch.busy('car', spin=True) == 0.25
+    watch.cpu('car', 6.0, 12.0, None)           # the thread could not be read this time
+    assert watch.busy('car') == 0.5 and watch.busy('car', spin=True) is None
 
 
 def test_the_watch_is_armed_by_the_first_heartbeat_after_each_start():
@@ -265,10 +311,11 @@ def test_hang_timeout_covers_slow_statuses_and_zero_is_off():
 
 def test_a_hung_node_counts_as_a_death_with_its_reason():
     sup = Supervisor(RestartPolicy(max_restarts=1, restart_window_s=60.0), t0=0.0)
-    assert sup.died('car', -signal.SIGKILL, 20.0, reason='hung', silent_s=15.3, cpu_share=0.0)
+    assert sup.died('car', -signal.SIGKILL, 20.0, reason='hung', silent_s=15.3, cpu_share=0.9,
+                    spin_cpu_share=0.0)
     r = sup.restarts[-1]
-    assert (r['reason'], r['signal'], r['silent_s'], r['cpu_share']) == \
-        ('hung', 'SIGKILL', 15.3, 0.0)
+    assert (r['reason'], r['signal'], r['silent_s'], r['cpu_share'], r['spin_cpu_share']) == \
+        ('hung', 'SIGKILL', 15.3, 0.9, 0.0)
     sup.restarted('car', 21.0)
     assert not sup.died('car', 1, 30.0)          # hung + died: two deaths in the window
     assert sup.gave_up['reason'] == 'died' and sup.gave_up['deaths_in_window'] == 2

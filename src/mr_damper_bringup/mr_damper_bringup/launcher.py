@@ -20,11 +20,12 @@ new part (``suite.1.mcap``, ...) and the report reads them all. ``pids.json`` ho
 id of each node's latest start.
 
 A node whose status (``/diagnostics``, about 1 Hz) stops for ``--hang-timeout-s`` (15 s; at
-least three of its status periods) while its process is idle (frozen, e.g. a deadlock in the
-middleware), or for 40 times that while it keeps using CPU, is hung: it is SIGKILLed and
-restarted like a dead node, with the reason ``hung`` in ``restarts.json``
-(:class:`~mr_damper_bringup.supervisor.HangWatch`). A node is watched from its first status
-after each start, never during its start-up.
+least three of its status periods) while its process, or its spin thread (its main thread,
+whose executor publishes the status), is idle (frozen, e.g. a deadlock in the middleware; an
+executor starved by a thread of its own), or for 40 times that while it keeps using CPU, is
+hung: it is SIGKILLed and restarted like a dead node, with the reason ``hung`` in
+``restarts.json`` (:class:`~mr_damper_bringup.supervisor.HangWatch`). A node is watched from
+its first status after each start, never during its start-up.
 
 The nodes die with the launcher: SIGTERM from the kernel when it dies, SIGKILL after 10 s from a
 small watcher for those that ignore it (:mod:`mr_damper_bringup.processes`, ``reaper``). One
@@ -267,24 +268,26 @@ def supervise(suite, supervisor, recording, watch=None, monitor=None):
         for name in {d[0] for d in deaths} | suite.finished:
             watch.forget(name)
         feed_heartbeats(watch, monitor, suite.nodes)
-        for name, silent, share in watch.hung():
+        for name, silent, share, spin in watch.hung():
             watch.forget(name)
             if not suite.alive(name) or supervisor.pending(name):
                 continue
             cpu = 'CPU unknown' if share is None else f'{100 * share:.1f} % CPU meanwhile'
+            if spin is not None:
+                cpu += f', its spin thread {100 * spin:.1f} %'
             print(f'{PROG}: {name} hung: no status for {silent:.1f} s ({cpu}; timeout '
                   f'{watch.timeouts.get(name, 0.0):g} s); killing it (SIGKILL); last lines of '
                   f'its log:\n{suite.log_tail(name)}', file=sys.stderr)
             rc = suite.kill(name, signal.SIGKILL)
             deaths.append((name, rc if rc is not None else -signal.SIGKILL, 'hung',
-                           (silent, share)))
+                           (silent, share, spin)))
     for name, rc, reason, hang in deaths:
         if reason == 'died':
             print(f'{PROG}: {name} died (exit {rc}); last lines of its log:\n'
                   f'{suite.log_tail(name)}', file=sys.stderr)
-        silent, share = hang or (None, None)
+        silent, share, spin = hang or (None, None, None)
         if not supervisor.died(name, rc, now, epoch_s=time.time(), reason=reason,
-                               silent_s=silent, cpu_share=share):
+                               silent_s=silent, cpu_share=share, spin_cpu_share=spin):
             gave = supervisor.gave_up
             what = 'died' if reason == 'died' else 'died or hung'
             print(f'{PROG}: {name} {what} {gave["deaths_in_window"]} times within '
@@ -444,7 +447,8 @@ def parse_args(argv):
                        help=f'{text} (default %(default)s)')
     p.add_argument('--hang-timeout-s', type=float, default=HANG_TIMEOUT_S,
                    help='a node whose /diagnostics status stops this long [s] (at least three '
-                        'of its status periods) while it is idle, or 40 times as long while it '
+                        'of its status periods) while it is idle (its process or its spin '
+                        'thread under 2 %% of a core), or 40 times as long while it '
                         'uses CPU, is hung: SIGKILLed and restarted, counted with the reason '
                         '"hung"; watched from its first status (0: no hang watch; default '
                         '%(default)s)')
@@ -625,8 +629,8 @@ def _run(argv, held):
                 break
             if elapsed >= next_stats:
                 stats.sample()
-                for name, (t, seconds) in stats.cpu_seconds.items():
-                    watch.cpu(name, t, seconds)
+                for name, (t, seconds, main_thread) in stats.cpu_seconds.items():
+                    watch.cpu(name, t, seconds, main_thread)
                 next_stats += 1.0
             if not args.quiet and elapsed >= next_progress:
                 print(full_car_progress_line(monitor, elapsed) if full_car

@@ -465,8 +465,10 @@ class ProcessStats:
 
     CPU_BIN = 0.5       # [%]
 
-    #: ``{name: (time.monotonic(), CPU seconds)}``: user + system CPU time of each running
-    #: node's process at its latest sample (the launcher's hang watch reads it)
+    #: ``{name: (time.monotonic(), CPU seconds, main thread's CPU seconds)}``: user + system
+    #: CPU time of each running node's process, and of its main thread (the one whose executor
+    #: publishes its status; None if it could not be read), at its latest sample (the
+    #: launcher's hang watch reads it)
     cpu_seconds = None
 
     def __init__(self, suite, out):
@@ -497,11 +499,9 @@ class ProcessStats:
                 if h is None or h.pid != pid:
                     h = self.handles[name] = self.psutil.Process(pid)
                     h.cpu_percent(None)           # first call primes the counter
-                    times = h.cpu_times()
-                    self.cpu_seconds[name] = (t, times.user + times.system)
+                    self.cpu_seconds[name] = self.cpu_times(h, t)
                     continue
-                times = h.cpu_times()
-                self.cpu_seconds[name] = (t, times.user + times.system)
+                self.cpu_seconds[name] = self.cpu_times(h, t)
                 cpu = h.cpu_percent(None)
                 rss = h.memory_info().rss / 2 ** 20
             except self.psutil.Error:
@@ -516,6 +516,19 @@ class ProcessStats:
             st['rss_peak'] = max(st['rss_peak'], rss)
             b = int(cpu // self.CPU_BIN)
             st['hist'][b] = st['hist'].get(b, 0) + 1
+
+    def cpu_times(self, h, t):
+        """Return ``(t, CPU seconds, main thread's CPU seconds or None)`` of process ``h``."""
+        times = h.cpu_times()
+        main = None
+        try:
+            for thread in h.threads():
+                if thread.id == h.pid:
+                    main = thread.user_time + thread.system_time
+                    break
+        except self.psutil.AccessDenied:
+            pass
+        return (t, times.user + times.system, main)
 
     def close(self):
         """Close the sample log."""

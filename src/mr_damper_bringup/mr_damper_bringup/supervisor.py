@@ -143,7 +143,7 @@ class Supervisor:
         return node in self._pending
 
     def died(self, node, code, now, epoch_s=None, *, reason='died', silent_s=None,
-             cpu_share=None):
+             cpu_share=None, spin_cpu_share=None):
         """
         Record a death of ``node`` at ``now``; return True if it will be restarted.
 
@@ -164,6 +164,8 @@ class Supervisor:
             For ``hung``: how long its heartbeat had been silent [s].
         cpu_share : float, optional
             For ``hung``: the CPU share of one core it used while silent.
+        spin_cpu_share : float, optional
+            For ``hung``: the same of its spin thread (the one that publishes its status).
 
         Returns
         -------
@@ -194,6 +196,8 @@ class Supervisor:
             record['silent_s'] = float(silent_s)
         if cpu_share is not None:
             record['cpu_share'] = float(cpu_share)
+        if spin_cpu_share is not None:
+            record['spin_cpu_share'] = float(spin_cpu_share)
         self.restarts.append(record)
         self._pending[node] = (now + backoff, len(self.restarts) - 1)
         return True
@@ -237,15 +241,20 @@ class HangWatch:
     the CPU time of the node processes (:meth:`cpu`) with times of one clock [s]; :meth:`hung`
     returns the nodes to kill. A node is hung when its heartbeat has been silent
 
-    - longer than its timeout while its process used less than ``idle_share`` of one core
-      (frozen: a deadlock in the middleware leaves every thread in a futex wait at 0 % CPU; a
-      stopped process uses none), or
+    - longer than its timeout while its process, or its spin thread (the thread whose
+      executor publishes its status: the main thread of every node of the suite), used less
+      than ``idle_share`` of one core (frozen: a deadlock in the middleware leaves every thread
+      in a futex wait at 0 % CPU; a stopped process uses none; a spin thread starved by one of
+      the process's own threads spinning at a real-time priority, as the vehicle computer's
+      executor once was by Fast DDS's writer thread, runs not at all while the process burns a
+      core), or
     - longer than ``busy_factor`` times its timeout whatever its CPU (a livelock, a callback
       that never returns).
 
     A node that is only behind (a loaded machine: its status timer waits behind thousands of
-    messages while it works through them) uses CPU, and is given the longer limit. A node is
-    watched from its first heartbeat after :meth:`started` (never during its start-up);
+    messages while it works through them) uses CPU in its spin thread, and is given the longer
+    limit. A node is watched from its first heartbeat after :meth:`started` (never during its
+    start-up);
     :meth:`forget` stops watching it (it died, finished or is being stopped). Silence is counted
     only over the time the listener was listening without a break: a listener that stalled (a
     loaded machine, the launcher stopped and continued) starts a new stretch when it comes
@@ -280,8 +289,8 @@ class HangWatch:
         self.busy_factor = float(busy_factor)
         self._started = {}      # node -> time of its (re)start (not armed yet)
         self._last = {}         # node -> time of its last heartbeat (armed)
-        self._cpu = {}          # node -> (time, CPU seconds) of its latest CPU sample
-        self._cpu_mark = {}     # node -> (time, CPU seconds): first sample after its last beat
+        self._cpu = {}          # node -> (time, CPU seconds, spin thread's) latest sample
+        self._cpu_mark = {}     # node -> the same of the first sample after its last beat
         self._since = None      # start of the listener's current stretch
         self._heard = None      # the listener's latest progress
 
@@ -313,11 +322,18 @@ class HangWatch:
         self._last[node] = t
         self._cpu_mark.pop(node, None)      # CPU is counted from the next sample on
 
-    def cpu(self, node, t, seconds):
-        """Record the CPU time ``seconds`` (user + system) of the process of ``node`` at ``t``."""
-        self._cpu[node] = (float(t), float(seconds))
+    def cpu(self, node, t, seconds, spin_seconds=None):
+        """
+        Record the CPU times (user + system) [s] of the process of ``node`` at ``t``.
+
+        ``seconds`` of the whole process, ``spin_seconds`` of its spin thread (None: unknown,
+        then the process's alone decides).
+        """
+        sample = (float(t), float(seconds),
+                  None if spin_seconds is None else float(spin_seconds))
+        self._cpu[node] = sample
         if node in self._last and node not in self._cpu_mark:
-            self._cpu_mark[node] = (float(t), float(seconds))
+            self._cpu_mark[node] = sample
 
     def listening(self, t):
         """Record that the listener of the heartbeats was working at ``t``."""
@@ -336,25 +352,30 @@ class HangWatch:
             return None
         return max(self._heard - max(self._last[node], self._since), 0.0)
 
-    def busy(self, node):
+    def busy(self, node, spin=False):
         """
         Return the CPU share of one core ``node`` used since its last heartbeat (None: unknown).
 
-        Measured between the first CPU sample after the heartbeat and the latest one (known
-        from the second sample on), so work done before the heartbeat is never counted.
+        Its process's, or with ``spin`` its spin thread's. Measured between the first CPU
+        sample after the heartbeat and the latest one (known from the second sample on), so
+        work done before the heartbeat is never counted.
         """
         if node not in self._cpu_mark or node not in self._cpu:
             return None
-        t, seconds = self._cpu[node]
-        t0, seconds0 = self._cpu_mark[node]
-        return (seconds - seconds0) / (t - t0) if t > t0 else None
+        t, *now = self._cpu[node]
+        t0, *then = self._cpu_mark[node]
+        k = 1 if spin else 0
+        if not t > t0 or now[k] is None or then[k] is None:
+            return None
+        return (now[k] - then[k]) / (t - t0)
 
     def hung(self):
         """
-        Return ``[(node, silent_s, cpu_share)]`` of the hung nodes, in the order watched.
+        Return ``[(node, silent_s, cpu_share, spin_cpu_share)]`` of the hung nodes, in order.
 
-        ``cpu_share`` is the node's CPU use during its silence (None: no CPU samples, then the
-        timeout alone decides).
+        ``cpu_share`` and ``spin_cpu_share`` are the CPU use of the node's process and of its
+        spin thread during its silence (None: unknown; without either, the timeout alone
+        decides).
         """
         out = []
         for node in self._last:
@@ -362,7 +383,8 @@ class HangWatch:
             silent = self.silence(node)
             if not timeout > 0 or silent is None or not silent > timeout:
                 continue
-            share = self.busy(node)
-            if share is None or share < self.idle_share or silent > self.busy_factor * timeout:
-                out.append((node, silent, share))
+            share, spin = self.busy(node), self.busy(node, spin=True)
+            idle = [x < self.idle_share for x in (share, spin) if x is not None]
+            if not idle or any(idle) or silent > self.busy_factor * timeout:
+                out.append((node, silent, share, spin))
         return out
