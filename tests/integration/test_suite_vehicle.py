@@ -58,6 +58,10 @@ def test_vehicle_suite_chain_comes_up_and_reports(tmp_path, layout, chain):
     v = summary['vehicle']
     assert set(KEYS) <= set(v), sorted(v)
     assert v['control_cycles'] >= 500 and v['chain']['transitions'] >= 2 * len(chain), v
+    # the chain came up, its start-up timed (the manager's clock: a figure, not asserted);
+    # again only after a node it saw die (a heartbeat gap on a loaded machine)
+    assert 1 <= v['chain']['ups'] <= 1 + v['chain']['deaths'], v['chain']
+    assert v['chain']['first_up_s'] > 0, v['chain']
     assert 0.0 <= v['answered_fraction'] <= 1.0
     assert v['sensor_to_command_s']['n'] >= 500
     cpu = v['reader_cpu_per_cycle_s']      # the bus reader's CPU time, every cycle counted

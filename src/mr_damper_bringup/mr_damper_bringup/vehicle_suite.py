@@ -146,6 +146,14 @@ def start_vehicle(vehicle_cfg, out):
     return ['--ros-args', '--params-file', str(path)]
 
 
+def chain_summary(manager):
+    """Return the lifecycle manager's counts with ``first_up_s`` and ``ups`` (None: no status)."""
+    counts = manager.get('counts')
+    if counts is None:
+        return None
+    return {**counts, 'first_up_s': manager.get('first_up_s'), 'ups': manager.get('ups')}
+
+
 def chain_statuses(st):
     """
     Return the bridge's, the estimator's and the controller's last status dicts (``{}``: none).
@@ -256,9 +264,11 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         the counters show missing: sensor and status frames at the bridge, command frames at
         the drivers), ``messages_lost`` (estimator and controller inputs, from sequence
         numbers), ``all_safe`` (controller commands with every corner safe, by reason),
-        ``chain`` (the lifecycle manager's counts), ``window_s``, ``a_v``, ``a_v_passive``,
-        ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1); with ``--preview``, ``preview``
-        (the controller's preview counters and the car's look-ahead sensor's); in the
+        ``chain`` (the lifecycle manager's counts, with ``first_up_s``: from its start to the
+        first time the whole chain was active, and ``ups``: times it came up), ``window_s``,
+        ``a_v``, ``a_v_passive``, ``a_v_lockstep``, ``a_v_vs_lockstep`` (ratio - 1); with
+        ``--preview``, ``preview`` (the controller's preview counters and the car's look-ahead
+        sensor's); in the
         ``loop`` layout ``execution_s`` (the loop's execution times per stage:
         ``estimate``, ``control``, ``send``, each ``n``, ``p50_s``, ``p99_s``, ``max_s``),
         ``reception_s`` (the same of each cycle's bus time to the loop's start),
@@ -300,7 +310,7 @@ def vehicle_summary(monitor, vehicle_cfg, out, *, offline=True):
         'all_safe': ctrl.get('all_safe'),
         'estimator': {k: est.get(k) for k in ('valid', 'faults', 'invalid_steps',
                                               'sensor_fault_entries', 'restarts')},
-        'chain': (st.get(MANAGER) or {}).get('counts'),
+        'chain': chain_summary(st.get(MANAGER) or {}),
         't_normal': can.get('t_normal')}
     loop = (st.get(COMPUTER) or {}).get('loop') or {}
     if loop.get('execution_s'):

@@ -47,6 +47,30 @@ def test_up_in_order_configure_all_then_activate_all():
     nodes.run()
     assert nodes.log == [(n, 'configure') for n in NODES] + [(n, 'activate') for n in NODES]
     assert chain.up and chain.counts['transitions'] == 6
+    # the start-up: first input at 0.1 s, one transition per 0.1 s step, up at the sixth
+    assert chain.first_up_s == pytest.approx(0.5) and chain.ups == 1
+    st = chain.status(clock.now)
+    assert st['first_up_s'] == chain.first_up_s and st['ups'] == 1
+
+
+def test_the_start_up_is_timed_from_the_first_input_and_each_return_is_counted():
+    clock = FakeClock(10.0)
+    chain = LifecycleChain(NODES, heartbeat_timeout_s=0.5)
+    nodes = Nodes(chain, clock)
+    nodes.alive['controller'] = False         # started later: the chain waits for it
+    nodes.run(10)
+    assert not chain.up and chain.first_up_s is None and chain.ups == 0
+    nodes.alive['controller'] = True
+    nodes.run(10)
+    assert chain.up and chain.ups == 1
+    assert chain.first_up_s == pytest.approx(1.0 + 0.5)     # waited 1 s, then six transitions
+    nodes.alive['bridge'] = False             # a death takes it down, a restart brings it up
+    nodes.run(10)
+    nodes.alive['bridge'] = True
+    nodes.state['bridge'] = 'unconfigured'
+    nodes.run(20)
+    assert chain.up and chain.ups == 2 and chain.first_up_s == pytest.approx(1.5)
+    assert [e[2] for e in chain.events].count('chain up') == 2
 
 
 def test_a_dead_node_deactivates_the_chain_in_reverse_and_it_comes_back_up():

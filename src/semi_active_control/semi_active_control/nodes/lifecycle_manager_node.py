@@ -108,7 +108,13 @@ class LifecycleManagerNode(Node):
             self.get_logger().warning(f'{name}: {transition} refused',
                                       throttle_duration_sec=1.0)
         with self.lock:
+            ups = self.chain.ups
             self.chain.result(name, transition, ok, time.monotonic())
+            now_ups, first = self.chain.ups, self.chain.first_up_s
+        if now_ups > ups:
+            self.get_logger().info(f'chain up: every node active ({first:.2f} s after the '
+                                   'start)' if now_ups == 1 else
+                                   f'chain up again (time {now_ups})')
 
     def status(self):
         """Return the chain's status."""

@@ -52,6 +52,11 @@ class LifecycleChain:
         ``transitions``, ``failed``, ``deaths``, ``chain_deactivations``, ``returns``.
     events : deque
         The last events ``(t, node, what)``.
+    first_up_s : float or None
+        Time [s] from the chain's first input (a heartbeat or a request asked for) to the
+        first time every node was alive and active (None: not yet): the start-up.
+    ups : int
+        Times the chain came up (every node alive and active after one was not).
 
     """
 
@@ -76,12 +81,17 @@ class LifecycleChain:
                        'returns': 0}
         self._deactivating = False
         self.events = deque(maxlen=50)
+        self.t_start = None
+        self.first_up_s = None
+        self.ups = 0
+        self._was_up = False
 
     # --- inputs -------------------------------------------------------------------------------
     def heartbeat(self, node, label, t):
         """Take a node's heartbeat: its lifecycle state ``label`` at time ``t`` [s]."""
         if node not in self.state:
             return
+        self._started(t)
         self.seen[node] = float(t)
         if not self.alive[node]:
             self.alive[node] = True
@@ -90,6 +100,7 @@ class LifecycleChain:
                 self.events.append((t, node, f'back ({label})'))
         if self.pending is None or self.pending[0] != node:
             self.state[node] = str(label)
+        self._track_up(t)
 
     def result(self, node, transition, ok, t):
         """Take the outcome of the pending request (True: the node made the transition)."""
@@ -104,6 +115,7 @@ class LifecycleChain:
             self.counts['failed'] += 1
             self._retry_at[(node, transition)] = float(t) + self.retry_s
             self.events.append((t, node, f'{transition} refused'))
+        self._track_up(t)
 
     def shutdown(self):
         """Take the chain down from now on (deactivate, then clean up, in reverse order)."""
@@ -112,6 +124,20 @@ class LifecycleChain:
     def watch(self):
         """Only watch from now on: no transition is asked for (deaths are still counted)."""
         self.goal = 'watch'
+
+    def _started(self, t):
+        if self.t_start is None:
+            self.t_start = float(t)
+
+    def _track_up(self, t):
+        """Count the chain coming up; the first time, its start-up time."""
+        up = self.up
+        if up and not self._was_up:
+            self.ups += 1
+            if self.first_up_s is None:
+                self.first_up_s = float(t) - self.t_start
+            self.events.append((t, None, 'chain up'))
+        self._was_up = up
 
     # --- decisions ------------------------------------------------------------------------------
     def _check_alive(self, t):
@@ -139,7 +165,9 @@ class LifecycleChain:
         node, or ``service_timeout_s``) nothing else is asked.
         """
         t = float(t)
+        self._started(t)
         self._check_alive(t)
+        self._track_up(t)
         if self.pending is not None:
             node, transition, sent = self.pending
             if t - sent <= self.service_timeout_s:
@@ -193,5 +221,5 @@ class LifecycleChain:
                 'heartbeat_age_s': {n: (t - s if t is not None and s is not None else None)
                                     for n, s in self.seen.items()},
                 'pending': list(self.pending[:2]) if self.pending else None,
-                'counts': dict(self.counts),
+                'counts': dict(self.counts), 'first_up_s': self.first_up_s, 'ups': self.ups,
                 'events': [list(e) for e in self.events][-10:]}
